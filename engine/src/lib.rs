@@ -1,0 +1,9 @@
+//! umbra's engine: the GPU context, the CLI's library functions, and (later) the renderer.
+//!
+//! The `umbra` binary (src/main.rs) only parses arguments and calls into this library, so that
+//! tests exercise the same code the command line runs.
+
+pub mod convert;
+pub mod gpu;
+pub mod info;
+pub mod smoke;

@@ -1,0 +1,414 @@
+//! Shared reading helpers: bounded decompression, sample decoding, text cursors.
+//!
+//! The rule all readers follow: no allocation is sized by a header field before the bytes that
+//! field promises have been seen. Sample buffers are allocated only after the raw bytes are in
+//! memory (their size is then bounded by the file), and decompression grows its output as data
+//! arrives, stopping one byte past what the header promised.
+
+use crate::{Result, ScalarType, VolumeError};
+use std::io::Read;
+use std::path::Path;
+
+/// Hard ceiling on the number of samples of one array (16 GiB as f32): above it a header is
+/// rejected before anything is read.
+pub const MAX_SAMPLES: u64 = 1 << 32;
+
+pub fn read_file(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| VolumeError::io(path, e))
+}
+
+pub fn read_head(path: &Path, n: usize) -> Result<Vec<u8>> {
+    let f = std::fs::File::open(path).map_err(|e| VolumeError::io(path, e))?;
+    let mut buf = Vec::with_capacity(n);
+    f.take(n as u64)
+        .read_to_end(&mut buf)
+        .map_err(|e| VolumeError::io(path, e))?;
+    Ok(buf)
+}
+
+/// Product of dimensions with overflow and size checks. `what` names the header field.
+pub fn checked_count(path: &Path, what: &str, dims: &[i64]) -> Result<usize> {
+    let mut n: u64 = 1;
+    for &d in dims {
+        if d < 1 {
+            return Err(VolumeError::format(
+                path,
+                what,
+                format!("dimension {d} is not positive (dims {dims:?})"),
+            ));
+        }
+        n = n
+            .checked_mul(d as u64)
+            .filter(|&n| n <= MAX_SAMPLES)
+            .ok_or_else(|| {
+                VolumeError::format(
+                    path,
+                    what,
+                    format!("dims {dims:?} give more than {MAX_SAMPLES} samples; refusing to read"),
+                )
+            })?;
+    }
+    Ok(n as usize)
+}
+
+fn decompress_limited(
+    path: &Path,
+    field: &str,
+    mut reader: impl Read,
+    expected: Option<usize>,
+    kind: &str,
+) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    let res = match expected {
+        Some(n) => reader.by_ref().take(n as u64 + 1).read_to_end(&mut out),
+        None => reader.read_to_end(&mut out),
+    };
+    if let Err(e) = res {
+        return Err(VolumeError::format(
+            path,
+            field,
+            format!(
+                "broken {kind} stream after {} decoded bytes: {e}",
+                out.len()
+            ),
+        ));
+    }
+    if let Some(n) = expected {
+        if out.len() != n {
+            return Err(VolumeError::format(
+                path,
+                field,
+                format!(
+                    "{kind} data decodes to {}{} bytes, the header promises {n}",
+                    out.len().min(n + 1),
+                    if out.len() > n { " or more" } else { "" }
+                ),
+            ));
+        }
+    }
+    Ok(out)
+}
+
+/// Decodes a gzip stream (possibly several members). With `expected`, exactly that many bytes
+/// must come out.
+pub fn gunzip(path: &Path, field: &str, data: &[u8], expected: Option<usize>) -> Result<Vec<u8>> {
+    decompress_limited(
+        path,
+        field,
+        flate2::read::MultiGzDecoder::new(data),
+        expected,
+        "gzip",
+    )
+}
+
+/// Decodes a zlib stream of exactly `expected` bytes (or any length with `None`).
+pub fn inflate_zlib(
+    path: &Path,
+    field: &str,
+    data: &[u8],
+    expected: Option<usize>,
+) -> Result<Vec<u8>> {
+    decompress_limited(
+        path,
+        field,
+        flate2::read::ZlibDecoder::new(data),
+        expected,
+        "zlib",
+    )
+}
+
+/// Converts raw samples to `f32`. `bytes.len()` must be `count * ty.size()`.
+pub fn decode_samples(bytes: &[u8], ty: ScalarType, big_endian: bool) -> Vec<f32> {
+    macro_rules! conv {
+        ($t:ty, $n:expr) => {
+            bytes
+                .chunks_exact($n)
+                .map(|c| {
+                    let a: [u8; $n] = c.try_into().unwrap();
+                    (if big_endian {
+                        <$t>::from_be_bytes(a)
+                    } else {
+                        <$t>::from_le_bytes(a)
+                    }) as f32
+                })
+                .collect()
+        };
+    }
+    match ty {
+        ScalarType::U8 => bytes.iter().map(|&b| b as f32).collect(),
+        ScalarType::I8 => bytes.iter().map(|&b| b as i8 as f32).collect(),
+        ScalarType::U16 => conv!(u16, 2),
+        ScalarType::I16 => conv!(i16, 2),
+        ScalarType::U32 => conv!(u32, 4),
+        ScalarType::I32 => conv!(i32, 4),
+        ScalarType::U64 => conv!(u64, 8),
+        ScalarType::I64 => conv!(i64, 8),
+        ScalarType::F32 => conv!(f32, 4),
+        ScalarType::F64 => conv!(f64, 8),
+    }
+}
+
+/// Takes exactly `count` samples of `ty` from `bytes` (which may be longer only when
+/// `allow_trailing`), converting to `f32`.
+pub fn take_samples(
+    path: &Path,
+    field: &str,
+    bytes: &[u8],
+    count: usize,
+    ty: ScalarType,
+    big_endian: bool,
+    allow_trailing: bool,
+) -> Result<Vec<f32>> {
+    let need = count
+        .checked_mul(ty.size())
+        .ok_or_else(|| VolumeError::format(path, field, "data size overflows"))?;
+    if bytes.len() < need || (!allow_trailing && bytes.len() > need) {
+        return Err(VolumeError::format(
+            path,
+            field,
+            format!(
+                "{} data bytes, the header's dims and type ({count} x {}) need {need}",
+                bytes.len(),
+                ty.name()
+            ),
+        ));
+    }
+    Ok(decode_samples(&bytes[..need], ty, big_endian))
+}
+
+/// Encodes `f32` samples as `ty` (values must be representable; floats round to nearest).
+pub fn encode_samples(data: &[f32], ty: ScalarType, big_endian: bool) -> Vec<u8> {
+    let mut out = Vec::with_capacity(data.len() * ty.size());
+    macro_rules! enc {
+        ($t:ty) => {
+            for &v in data {
+                let x = v as $t;
+                out.extend_from_slice(&if big_endian {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                });
+            }
+        };
+    }
+    match ty {
+        ScalarType::U8 => enc!(u8),
+        ScalarType::I8 => enc!(i8),
+        ScalarType::U16 => enc!(u16),
+        ScalarType::I16 => enc!(i16),
+        ScalarType::U32 => enc!(u32),
+        ScalarType::I32 => enc!(i32),
+        ScalarType::U64 => enc!(u64),
+        ScalarType::I64 => enc!(i64),
+        ScalarType::F32 => enc!(f32),
+        ScalarType::F64 => enc!(f64),
+    }
+    out
+}
+
+/// Parses one number of ASCII data (accepts `nan`, `inf`, `-inf` in any case).
+pub fn parse_number(tok: &str) -> Option<f32> {
+    match tok.to_ascii_lowercase().as_str() {
+        "nan" | "-nan" | "+nan" => Some(f32::NAN),
+        "inf" | "+inf" | "infinity" | "+infinity" => Some(f32::INFINITY),
+        "-inf" | "-infinity" => Some(f32::NEG_INFINITY),
+        _ => tok.parse::<f64>().ok().map(|v| v as f32),
+    }
+}
+
+/// Parses `count` whitespace-separated numbers from the front of `text`; returns them and the
+/// number of bytes consumed. Allocation grows with what is parsed, never with `count` alone.
+pub fn parse_ascii(
+    path: &Path,
+    field: &str,
+    text: &[u8],
+    count: usize,
+) -> Result<(Vec<f32>, usize)> {
+    let mut out = Vec::with_capacity(count.min(text.len() / 2 + 1));
+    let mut cur = Cursor::new(text);
+    while out.len() < count {
+        let Some(tok) = cur.token() else {
+            return Err(VolumeError::format(
+                path,
+                field,
+                format!("ASCII data ends after {} of {count} values", out.len()),
+            ));
+        };
+        let s = std::str::from_utf8(tok).unwrap_or("?");
+        let v = parse_number(s).ok_or_else(|| {
+            VolumeError::format(
+                path,
+                field,
+                format!("'{s}' is not a number (value {} of {count})", out.len() + 1),
+            )
+        })?;
+        out.push(v);
+    }
+    Ok((out, cur.pos))
+}
+
+/// A byte cursor over a text-and-binary file (VTK legacy, SLC, NRRD headers).
+pub struct Cursor<'a> {
+    pub data: &'a [u8],
+    pub pos: usize,
+}
+
+impl<'a> Cursor<'a> {
+    pub fn new(data: &'a [u8]) -> Self {
+        Cursor { data, pos: 0 }
+    }
+
+    pub fn at_end(&self) -> bool {
+        self.pos >= self.data.len()
+    }
+
+    /// The next line without its `\n` (and `\r`), or `None` at the end.
+    pub fn line(&mut self) -> Option<&'a [u8]> {
+        if self.at_end() {
+            return None;
+        }
+        let rest = &self.data[self.pos..];
+        let (line, adv) = match rest.iter().position(|&b| b == b'\n') {
+            Some(p) => (&rest[..p], p + 1),
+            None => (rest, rest.len()),
+        };
+        self.pos += adv;
+        Some(line.strip_suffix(b"\r").unwrap_or(line))
+    }
+
+    /// The next non-blank line, trimmed.
+    pub fn nonblank_line(&mut self) -> Option<&'a [u8]> {
+        loop {
+            let l = self.line()?;
+            let t = l.trim_ascii();
+            if !t.is_empty() {
+                return Some(t);
+            }
+        }
+    }
+
+    /// The next whitespace-separated token.
+    pub fn token(&mut self) -> Option<&'a [u8]> {
+        while self.pos < self.data.len() && self.data[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        if self.at_end() {
+            return None;
+        }
+        let start = self.pos;
+        while self.pos < self.data.len() && !self.data[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        Some(&self.data[start..self.pos])
+    }
+
+    /// Skips the rest of the current line including its newline.
+    pub fn skip_line(&mut self) {
+        let _ = self.line();
+    }
+
+    /// Takes `n` raw bytes, or `None` when fewer remain.
+    pub fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+        let end = self.pos.checked_add(n)?;
+        if end > self.data.len() {
+            return None;
+        }
+        let s = &self.data[self.pos..end];
+        self.pos = end;
+        Some(s)
+    }
+
+    pub fn rest(&self) -> &'a [u8] {
+        &self.data[self.pos.min(self.data.len())..]
+    }
+}
+
+/// Parses a whitespace/comma separated list of numbers from a header value.
+pub fn parse_floats(path: &Path, field: &str, s: &str) -> Result<Vec<f64>> {
+    s.split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|t| !t.is_empty())
+        .map(|t| {
+            t.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    VolumeError::format(path, field, format!("'{t}' is not a finite number"))
+                })
+        })
+        .collect()
+}
+
+/// Parses exactly `n` numbers from a header value.
+pub fn parse_n_floats(path: &Path, field: &str, s: &str, n: usize) -> Result<Vec<f64>> {
+    let v = parse_floats(path, field, s)?;
+    if v.len() != n {
+        return Err(VolumeError::format(
+            path,
+            field,
+            format!("expected {n} numbers, found {} in '{}'", v.len(), s.trim()),
+        ));
+    }
+    Ok(v)
+}
+
+/// Parses exactly `n` positive integer sizes from a header value.
+pub fn parse_sizes(path: &Path, field: &str, s: &str, n: usize) -> Result<Vec<i64>> {
+    let v: Vec<i64> = s
+        .split_whitespace()
+        .map(|t| {
+            t.parse::<i64>()
+                .map_err(|_| VolumeError::format(path, field, format!("'{t}' is not an integer")))
+        })
+        .collect::<Result<_>>()?;
+    if v.len() != n {
+        return Err(VolumeError::format(
+            path,
+            field,
+            format!("expected {n} sizes, found {}", v.len()),
+        ));
+    }
+    if let Some(bad) = v.iter().find(|&&d| d < 1) {
+        return Err(VolumeError::format(
+            path,
+            field,
+            format!("size {bad} is not positive"),
+        ));
+    }
+    Ok(v)
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
+/// failure never leaves a half-written output.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .ok_or_else(|| VolumeError::Invalid(format!("{}: not a file path", path.display())))?;
+    let tmp = dir.join(format!(
+        ".{}.{}.tmp",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let res = (|| -> std::io::Result<()> {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = res {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(VolumeError::io(path, e));
+    }
+    Ok(())
+}
+
+pub fn gzip_bytes(bytes: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::new(6));
+    enc.write_all(bytes).expect("writing to memory");
+    enc.finish().expect("writing to memory")
+}

@@ -1,0 +1,455 @@
+//! umbra's volume model: regular grids of scalar or vector samples in a world frame, the readers
+//! and writers of the common scientific volume formats, and the synthetic scenes that tests and
+//! benchmarks of the later stages use.
+//!
+//! Data flows one way: a reader turns a file into a [`Volume`]; nothing in this crate knows about
+//! tubes or rendering.
+//!
+//! # Conventions
+//! * Samples are stored as `f32` whatever the file stores (the stored type is kept in
+//!   [`Field::stored`] and reported by `umbra info`). Integer data up to 2^24 and all 8/16-bit data
+//!   convert exactly; 32/64-bit integers beyond 2^24 and `f64` data are rounded to the nearest
+//!   `f32`. NIfTI `scl_slope`/`scl_inter` are applied at load.
+//! * Index order: x fastest, then y, then z; a vector field interleaves its three components
+//!   per voxel (`data[3 * voxel + c]`).
+//! * [`Volume::affine`] maps voxel indices `(i, j, k, 1)` to world coordinates. The world frame is
+//!   RAS+ millimetres ([`Space::Ras`]) whenever the file declares an anatomical space: NIfTI as
+//!   nibabel reads it, NRRD and MetaImage in LPS with x and y negated. Otherwise it is the
+//!   file's own frame ([`Space::File`]).
+//! * Vector components are world directions (see each reader for the conversion it makes).
+
+pub mod error;
+pub(crate) mod io_util;
+pub mod metaimage;
+pub mod nifti;
+pub mod nrrd;
+pub mod slc;
+pub mod synthetic;
+pub mod vti;
+pub mod vtk_legacy;
+
+pub use error::{Result, VolumeError};
+use glam::{DMat4, DVec3, DVec4};
+pub use io_util::write_atomic;
+use std::path::Path;
+
+/// The sample type a file stores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ScalarType {
+    U8,
+    I8,
+    U16,
+    I16,
+    U32,
+    I32,
+    U64,
+    I64,
+    F32,
+    F64,
+}
+
+impl ScalarType {
+    /// Bytes per sample.
+    pub fn size(self) -> usize {
+        match self {
+            ScalarType::U8 | ScalarType::I8 => 1,
+            ScalarType::U16 | ScalarType::I16 => 2,
+            ScalarType::U32 | ScalarType::I32 | ScalarType::F32 => 4,
+            ScalarType::U64 | ScalarType::I64 | ScalarType::F64 => 8,
+        }
+    }
+
+    /// The name `umbra info` prints (`uint8`, `int16`, `float32`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            ScalarType::U8 => "uint8",
+            ScalarType::I8 => "int8",
+            ScalarType::U16 => "uint16",
+            ScalarType::I16 => "int16",
+            ScalarType::U32 => "uint32",
+            ScalarType::I32 => "int32",
+            ScalarType::U64 => "uint64",
+            ScalarType::I64 => "int64",
+            ScalarType::F32 => "float32",
+            ScalarType::F64 => "float64",
+        }
+    }
+
+    pub fn is_integer(self) -> bool {
+        !matches!(self, ScalarType::F32 | ScalarType::F64)
+    }
+
+    /// The closed range of values the type holds (integers only; floats give +-inf).
+    pub fn value_range(self) -> (f64, f64) {
+        match self {
+            ScalarType::U8 => (0.0, u8::MAX as f64),
+            ScalarType::I8 => (i8::MIN as f64, i8::MAX as f64),
+            ScalarType::U16 => (0.0, u16::MAX as f64),
+            ScalarType::I16 => (i16::MIN as f64, i16::MAX as f64),
+            ScalarType::U32 => (0.0, u32::MAX as f64),
+            ScalarType::I32 => (i32::MIN as f64, i32::MAX as f64),
+            ScalarType::U64 => (0.0, u64::MAX as f64),
+            ScalarType::I64 => (i64::MIN as f64, i64::MAX as f64),
+            ScalarType::F32 | ScalarType::F64 => (f64::NEG_INFINITY, f64::INFINITY),
+        }
+    }
+
+    /// Whether every sample of `data` is stored exactly by this type (used by the writers to
+    /// keep the file's type where the values allow it).
+    pub fn holds_all(self, data: &[f32]) -> bool {
+        if !self.is_integer() {
+            return true;
+        }
+        let (lo, hi) = self.value_range();
+        data.iter().all(|&v| {
+            let v = v as f64;
+            v.is_finite() && v.fract() == 0.0 && v >= lo && v <= hi
+        })
+    }
+}
+
+/// The world frame of a volume.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Space {
+    /// RAS+ millimetres (x to the right, y anterior, z superior).
+    Ras,
+    /// The file's own frame: nothing anatomical is declared.
+    File,
+}
+
+impl Space {
+    pub fn name(self) -> &'static str {
+        match self {
+            Space::Ras => "RAS",
+            Space::File => "file",
+        }
+    }
+}
+
+/// One named array of samples on the grid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Field {
+    pub name: String,
+    /// 1 (scalar) or 3 (vector, interleaved per voxel).
+    pub components: usize,
+    /// The type the file stored before conversion to `f32`.
+    pub stored: ScalarType,
+    pub data: Vec<f32>,
+}
+
+/// Minimum, maximum and count of voxels with a NaN or infinite component.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FieldStats {
+    /// Finite minimum over all components (NaN when no sample is finite).
+    pub min: f64,
+    pub max: f64,
+    /// Voxels with at least one NaN or infinite component.
+    pub nonfinite: usize,
+}
+
+impl Field {
+    /// Number of voxels this field covers.
+    pub fn voxels(&self) -> usize {
+        self.data.len() / self.components.max(1)
+    }
+
+    pub fn stats(&self) -> FieldStats {
+        let mut min = f64::INFINITY;
+        let mut max = f64::NEG_INFINITY;
+        let mut nonfinite = 0;
+        for voxel in self.data.chunks(self.components.max(1)) {
+            let mut bad = false;
+            for &v in voxel {
+                if v.is_finite() {
+                    min = min.min(v as f64);
+                    max = max.max(v as f64);
+                } else {
+                    bad = true;
+                }
+            }
+            nonfinite += bad as usize;
+        }
+        if min > max {
+            min = f64::NAN;
+            max = f64::NAN;
+        }
+        FieldStats {
+            min,
+            max,
+            nonfinite,
+        }
+    }
+}
+
+/// How a caller names a single field: `NAME`, `NAME:magnitude` (a vector's length) or
+/// `NAME:0|1|2` / `NAME:x|y|z` (one component of a vector).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FieldSelector {
+    pub name: String,
+    pub part: FieldPart,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FieldPart {
+    Whole,
+    Magnitude,
+    Component(usize),
+}
+
+impl std::str::FromStr for FieldSelector {
+    type Err = VolumeError;
+
+    fn from_str(s: &str) -> Result<Self> {
+        let (name, part) = match s.rsplit_once(':') {
+            None => (s, FieldPart::Whole),
+            Some((name, suffix)) => {
+                let part = match suffix.to_ascii_lowercase().as_str() {
+                    "magnitude" | "mag" | "norm" => FieldPart::Magnitude,
+                    "0" | "x" => FieldPart::Component(0),
+                    "1" | "y" => FieldPart::Component(1),
+                    "2" | "z" => FieldPart::Component(2),
+                    other => {
+                        return Err(VolumeError::Invalid(format!(
+                            "--field {s}: unknown suffix ':{other}' (use :magnitude, :x, :y or :z)"
+                        )))
+                    }
+                };
+                (name, part)
+            }
+        };
+        if name.is_empty() {
+            return Err(VolumeError::Invalid(format!(
+                "--field {s}: empty field name"
+            )));
+        }
+        Ok(FieldSelector {
+            name: name.to_string(),
+            part,
+        })
+    }
+}
+
+/// A regular grid of samples with an index-to-world affine.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Volume {
+    /// The format the volume was read from (`nifti1`, `nrrd`, `vtk-legacy`, ...).
+    pub format: String,
+    /// Samples along i, j, k.
+    pub dims: [usize; 3],
+    /// Index (i, j, k, 1) to world.
+    pub affine: DMat4,
+    pub space: Space,
+    /// All arrays of the file, by name; never empty.
+    pub fields: Vec<Field>,
+    /// The field used when none is named (the file's active scalars, or the first array).
+    pub default_field: usize,
+    /// What the reader accepted but a user should know (repaired data, ignored parts).
+    pub warnings: Vec<String>,
+}
+
+impl Volume {
+    /// A volume with one field; `data.len()` must equal `dims` product times `components`.
+    pub fn new(
+        dims: [usize; 3],
+        affine: DMat4,
+        space: Space,
+        field: Field,
+    ) -> std::result::Result<Self, VolumeError> {
+        let v = Volume {
+            format: "memory".into(),
+            dims,
+            affine,
+            space,
+            fields: vec![field],
+            default_field: 0,
+            warnings: vec![],
+        };
+        v.validate()?;
+        Ok(v)
+    }
+
+    /// Checks the invariants every reader guarantees.
+    pub fn validate(&self) -> Result<()> {
+        if self.fields.is_empty() {
+            return Err(VolumeError::Invalid("volume has no data arrays".into()));
+        }
+        let n = self.voxel_count();
+        for f in &self.fields {
+            if f.components != 1 && f.components != 3 {
+                return Err(VolumeError::Invalid(format!(
+                    "field '{}' has {} components (1 or 3 supported)",
+                    f.name, f.components
+                )));
+            }
+            if f.data.len() != n * f.components {
+                return Err(VolumeError::Invalid(format!(
+                    "field '{}' has {} values, the grid needs {}",
+                    f.name,
+                    f.data.len(),
+                    n * f.components
+                )));
+            }
+        }
+        if self.default_field >= self.fields.len() {
+            return Err(VolumeError::Invalid("default field out of range".into()));
+        }
+        if !self.affine.to_cols_array().iter().all(|v| v.is_finite()) {
+            return Err(VolumeError::Invalid("affine has non-finite entries".into()));
+        }
+        Ok(())
+    }
+
+    pub fn voxel_count(&self) -> usize {
+        self.dims[0] * self.dims[1] * self.dims[2]
+    }
+
+    /// Linear index of voxel (i, j, k).
+    pub fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.dims[0] * (j + self.dims[1] * k)
+    }
+
+    /// The field used when none is named.
+    pub fn default(&self) -> &Field {
+        &self.fields[self.default_field]
+    }
+
+    pub fn field_names(&self) -> Vec<String> {
+        self.fields.iter().map(|f| f.name.clone()).collect()
+    }
+
+    /// Selects a field (or a derived scalar of a vector field); `None` gives the default field.
+    pub fn select(&self, selector: Option<&FieldSelector>) -> Result<Field> {
+        let Some(sel) = selector else {
+            return Ok(self.default().clone());
+        };
+        let field = self
+            .fields
+            .iter()
+            .find(|f| f.name == sel.name)
+            .ok_or_else(|| {
+                VolumeError::Invalid(format!(
+                    "--field {}: no such field; this file has: {}",
+                    sel.name,
+                    self.field_names().join(", ")
+                ))
+            })?;
+        match sel.part {
+            FieldPart::Whole => Ok(field.clone()),
+            FieldPart::Magnitude | FieldPart::Component(_) if field.components != 3 => {
+                Err(VolumeError::Invalid(format!(
+                    "--field {}: ':magnitude' and components need a 3-component field, '{}' has {}",
+                    sel.name, field.name, field.components
+                )))
+            }
+            FieldPart::Magnitude => Ok(Field {
+                name: format!("{}:magnitude", field.name),
+                components: 1,
+                stored: ScalarType::F32,
+                data: field
+                    .data
+                    .chunks_exact(3)
+                    .map(|v| {
+                        ((v[0] as f64).powi(2) + (v[1] as f64).powi(2) + (v[2] as f64).powi(2))
+                            .sqrt() as f32
+                    })
+                    .collect(),
+            }),
+            FieldPart::Component(c) => Ok(Field {
+                name: format!("{}:{}", field.name, ["x", "y", "z"][c]),
+                components: 1,
+                stored: field.stored,
+                data: field.data.chunks_exact(3).map(|v| v[c]).collect(),
+            }),
+        }
+    }
+
+    /// Lengths of the three axis vectors of the affine (the voxel spacing in world units).
+    pub fn spacing(&self) -> [f64; 3] {
+        [
+            self.affine.x_axis.truncate().length(),
+            self.affine.y_axis.truncate().length(),
+            self.affine.z_axis.truncate().length(),
+        ]
+    }
+
+    /// World position of voxel centre (i, j, k) (fractional indices allowed).
+    pub fn index_to_world(&self, ijk: DVec3) -> DVec3 {
+        (self.affine * DVec4::new(ijk.x, ijk.y, ijk.z, 1.0)).truncate()
+    }
+
+    /// Axis-aligned world bounding box of the voxel centres: `[min, max]`.
+    pub fn bounds(&self) -> [DVec3; 2] {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for c in 0..8 {
+            let ijk = DVec3::new(
+                if c & 1 != 0 {
+                    (self.dims[0] - 1) as f64
+                } else {
+                    0.0
+                },
+                if c & 2 != 0 {
+                    (self.dims[1] - 1) as f64
+                } else {
+                    0.0
+                },
+                if c & 4 != 0 {
+                    (self.dims[2] - 1) as f64
+                } else {
+                    0.0
+                },
+            );
+            let p = self.index_to_world(ijk);
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        [lo, hi]
+    }
+}
+
+/// Reads a volume, choosing the reader by file name (and by content where the name says nothing).
+///
+/// Supported: NIfTI-1/2 (`.nii`, `.nii.gz`, `.hdr`+`.img`), NRRD (`.nrrd`, `.nhdr`), VTK legacy
+/// STRUCTURED_POINTS (`.vtk`), VTK XML ImageData (`.vti`), MetaImage (`.mhd`, `.mha`), SLC (`.slc`).
+pub fn load(path: &Path) -> Result<Volume> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    let ext = stem.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    let vol = match ext {
+        "nii" | "hdr" => nifti::read(path)?,
+        "nrrd" | "nhdr" => nrrd::read(path)?,
+        "vtk" => vtk_legacy::read(path)?,
+        "vti" => vti::read(path)?,
+        "mhd" | "mha" => metaimage::read(path)?,
+        "slc" => slc::read(path)?,
+        _ => sniff(path)?,
+    };
+    vol.validate()
+        .map_err(|e| VolumeError::format(path, "data", e.to_string()))?;
+    Ok(vol)
+}
+
+fn sniff(path: &Path) -> Result<Volume> {
+    let head = io_util::read_head(path, 600)?;
+    let starts = |m: &[u8]| head.starts_with(m);
+    if starts(b"NRRD") {
+        nrrd::read(path)
+    } else if starts(b"# vtk DataFile") {
+        vtk_legacy::read(path)
+    } else if starts(b"<?xml") || starts(b"<VTKFile") {
+        vti::read(path)
+    } else if starts(b"11111") {
+        slc::read(path)
+    } else if starts(&[0x1f, 0x8b]) || head.len() >= 348 {
+        nifti::read(path)
+    } else {
+        Err(VolumeError::format(
+            path,
+            "file name",
+            "unknown volume format (expected .nii, .nii.gz, .nrrd, .nhdr, .vtk, .vti, .mhd, .mha or .slc)",
+        ))
+    }
+}
