@@ -1,1 +1,147 @@
+//! umbra's streamline model: polylines in world coordinates with named attributes.
+//!
+//! Readers (TrackVis, MRtrix, VTK lines), tracing and the B-spline tube mesher build on this
+//! type (see the stream-tube issue); this crate depends on nothing above it.
 
+use glam::{DMat4, DVec3, Vec3};
+
+/// A named attribute with `components` values per point or per streamline.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Attribute {
+    pub name: String,
+    pub components: usize,
+    pub values: Vec<f32>,
+}
+
+/// A set of streamlines: one flat point buffer plus offsets (`offsets[i]..offsets[i + 1]` are
+/// the points of streamline `i`), world coordinates (RAS+ mm for tractography).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Streamlines {
+    pub points: Vec<Vec3>,
+    /// `len() == count + 1`, starts at 0, non-decreasing, ends at `points.len()`.
+    pub offsets: Vec<usize>,
+    pub point_attributes: Vec<Attribute>,
+    pub line_attributes: Vec<Attribute>,
+}
+
+impl Streamlines {
+    pub fn new() -> Self {
+        Streamlines {
+            offsets: vec![0],
+            ..Default::default()
+        }
+    }
+
+    /// Number of streamlines.
+    pub fn len(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Appends a streamline.
+    pub fn push(&mut self, pts: &[Vec3]) {
+        if self.offsets.is_empty() {
+            self.offsets.push(0);
+        }
+        self.points.extend_from_slice(pts);
+        self.offsets.push(self.points.len());
+    }
+
+    /// The points of streamline `i`.
+    pub fn line(&self, i: usize) -> &[Vec3] {
+        &self.points[self.offsets[i]..self.offsets[i + 1]]
+    }
+
+    /// Applies a 4x4 transform to every point (computed in f64).
+    pub fn transform(&mut self, m: &DMat4) {
+        for p in &mut self.points {
+            *p = m.transform_point3(p.as_dvec3()).as_vec3();
+        }
+    }
+
+    /// Axis-aligned bounding box of all points, `None` when there are none.
+    pub fn bounds(&self) -> Option<[Vec3; 2]> {
+        let first = *self.points.first()?;
+        Some(
+            self.points
+                .iter()
+                .fold([first, first], |[lo, hi], &p| [lo.min(p), hi.max(p)]),
+        )
+    }
+
+    /// Checks the offset and attribute invariants; returns what is wrong.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.offsets.first() != Some(&0) {
+            return Err("offsets must start at 0".into());
+        }
+        if self.offsets.windows(2).any(|w| w[1] < w[0]) {
+            return Err("offsets decrease".into());
+        }
+        if self.offsets.last() != Some(&self.points.len()) {
+            return Err("offsets do not end at the point count".into());
+        }
+        for a in &self.point_attributes {
+            if a.values.len() != a.components * self.points.len() {
+                return Err(format!(
+                    "point attribute '{}' has {} values for {} points",
+                    a.name,
+                    a.values.len(),
+                    self.points.len()
+                ));
+            }
+        }
+        for a in &self.line_attributes {
+            if a.values.len() != a.components * self.len() {
+                return Err(format!(
+                    "streamline attribute '{}' has {} values for {} streamlines",
+                    a.name,
+                    a.values.len(),
+                    self.len()
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Total polyline length of streamline `i`.
+    pub fn arc_length(&self, i: usize) -> f64 {
+        self.line(i)
+            .windows(2)
+            .map(|w| (w[1].as_dvec3() - w[0].as_dvec3()).length())
+            .sum()
+    }
+}
+
+/// Converts a world point to f64 for fitting code.
+pub fn to_f64(p: Vec3) -> DVec3 {
+    p.as_dvec3()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn push_line_bounds_and_transform() {
+        let mut s = Streamlines::new();
+        assert!(s.is_empty());
+        assert_eq!(s.bounds(), None);
+        s.push(&[Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0)]);
+        s.push(&[Vec3::new(-2.0, 0.0, 3.0)]);
+        assert_eq!(s.len(), 2);
+        assert_eq!(s.line(1), &[Vec3::new(-2.0, 0.0, 3.0)]);
+        assert_eq!(
+            s.bounds(),
+            Some([Vec3::new(-2.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 3.0)])
+        );
+        assert!((s.arc_length(0) - 2.0).abs() < 1e-12);
+        s.transform(&DMat4::from_translation(DVec3::new(78.0, 76.0, -50.0)));
+        assert_eq!(s.line(0)[0], Vec3::new(78.0, 76.0, -50.0));
+        s.validate().unwrap();
+        s.offsets[1] = 5;
+        assert!(s.validate().is_err());
+    }
+}

@@ -253,6 +253,9 @@ pub fn read(path: &Path) -> Result<Volume> {
     let mut scalars_name: Option<String> = None;
     let mut arrays: Vec<RawArray> = Vec::new();
     let mut current: Option<RawArray> = None;
+    // Depth of elements nested inside the current DataArray (VTK writes <InformationKey>
+    // children with range values there; their text is not array data).
+    let mut nested = 0usize;
     loop {
         let ev = reader.read_event_into(&mut buf);
         let ev = match ev {
@@ -274,6 +277,12 @@ pub fn read(path: &Path) -> Result<Volume> {
         };
         match ev {
             Event::Eof => break,
+            Event::Start(e) if current.is_some() => {
+                if !empty {
+                    nested += 1;
+                }
+                let _ = e;
+            }
             Event::Start(e) => {
                 let name = e.name().as_ref().to_vec();
                 let attrs = attr_map(path, &e)?;
@@ -357,11 +366,12 @@ pub fn read(path: &Path) -> Result<Volume> {
                     _ => {}
                 }
             }
-            Event::Text(t) => {
+            Event::Text(t) if nested == 0 => {
                 if let Some(c) = current.as_mut() {
                     c.text.extend_from_slice(t.as_ref());
                 }
             }
+            Event::End(_) if nested > 0 => nested -= 1,
             Event::End(e) => match e.name().as_ref() {
                 b"DataArray" => {
                     if let Some(c) = current.take() {

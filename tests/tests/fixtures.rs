@@ -1,0 +1,137 @@
+//! Every reader against files written by independent reference libraries (nibabel, pynrrd,
+//! VTK, SimpleITK; see tests/fixtures/make_fixtures.py): format, grid, type, world affine and
+//! frame, value range, non-finite count and voxel probes must agree.
+
+use serde_json::Value;
+use umbra_tests::{close, fixtures};
+use volume::FieldSelector;
+
+fn expected() -> serde_json::Map<String, Value> {
+    let text = std::fs::read_to_string(fixtures().join("expected.json")).unwrap();
+    serde_json::from_str::<Value>(&text)
+        .unwrap()
+        .as_object()
+        .unwrap()
+        .clone()
+}
+
+#[test]
+fn every_fixture_matches_its_reference_reader() {
+    let all = expected();
+    assert!(
+        all.len() >= 28,
+        "expected.json lists {} fixtures",
+        all.len()
+    );
+    let mut failures = Vec::new();
+    for (name, e) in &all {
+        let file = e.get("file").and_then(Value::as_str).unwrap_or(name);
+        let path = fixtures().join(file);
+        let vol = match volume::load(&path) {
+            Ok(v) => v,
+            Err(err) => {
+                failures.push(format!("{name}: {err}"));
+                continue;
+            }
+        };
+        let sel: Option<FieldSelector> = e["field"].as_str().map(|f| f.parse().unwrap());
+        let field = vol.select(sel.as_ref()).unwrap();
+        let mut check = |what: &str, ok: bool, detail: String| {
+            if !ok {
+                failures.push(format!("{name}: {what}: {detail}"));
+            }
+        };
+        check(
+            "format",
+            vol.format == e["format"].as_str().unwrap(),
+            vol.format.clone(),
+        );
+        let dims: Vec<usize> = e["dims"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap() as usize)
+            .collect();
+        check(
+            "dims",
+            vol.dims.to_vec() == dims,
+            format!("{:?} vs {dims:?}", vol.dims),
+        );
+        check(
+            "components",
+            field.components as u64 == e["components"].as_u64().unwrap(),
+            format!("{}", field.components),
+        );
+        check(
+            "type",
+            field.stored.name() == e["type"].as_str().unwrap(),
+            field.stored.name().into(),
+        );
+        check(
+            "space",
+            vol.space.name() == e["space"].as_str().unwrap(),
+            vol.space.name().into(),
+        );
+        for r in 0..4 {
+            for c in 0..4 {
+                let want = e["affine"][r][c].as_f64().unwrap();
+                let got = vol.affine.col(c)[r];
+                check(
+                    "affine",
+                    close(got, want, 1e-6, 1e-5),
+                    format!("[{r}][{c}] = {got}, reference {want}"),
+                );
+            }
+        }
+        let st = field.stats();
+        check(
+            "range",
+            close(st.min, e["range"][0].as_f64().unwrap(), 1e-6, 1e-6)
+                && close(st.max, e["range"][1].as_f64().unwrap(), 1e-6, 1e-6),
+            format!("{} .. {}", st.min, st.max),
+        );
+        check(
+            "nonfinite",
+            st.nonfinite as u64 == e["nonfinite"].as_u64().unwrap(),
+            format!("{}", st.nonfinite),
+        );
+        if let Some(fields) = e["fields"].as_array() {
+            let want: Vec<&str> = fields.iter().map(|v| v.as_str().unwrap()).collect();
+            check(
+                "fields",
+                vol.field_names() == want,
+                format!("{:?}", vol.field_names()),
+            );
+        }
+        for p in e["probes"].as_array().unwrap() {
+            let ijk: Vec<usize> = p["ijk"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_u64().unwrap() as usize)
+                .collect();
+            let idx = vol.index(ijk[0], ijk[1], ijk[2]);
+            for (c, want) in p["value"].as_array().unwrap().iter().enumerate() {
+                let got = field.data[idx * field.components + c] as f64;
+                match want.as_f64() {
+                    Some(w) => check(
+                        "probe",
+                        close(got, w, 1e-5, 1e-5),
+                        format!("{ijk:?}[{c}] = {got}, reference {w}"),
+                    ),
+                    None => check(
+                        "probe",
+                        !got.is_finite(),
+                        format!("{ijk:?}[{c}] = {got}, reference non-finite"),
+                    ),
+                }
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} mismatches:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
