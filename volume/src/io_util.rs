@@ -17,6 +17,26 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| VolumeError::io(path, e))
 }
 
+/// Reads a data file named by a header: errors name both the header and its field.
+pub fn read_companion(
+    header: &Path,
+    field: &str,
+    name: &str,
+) -> Result<(std::path::PathBuf, Vec<u8>)> {
+    if name.trim().is_empty() {
+        return Err(VolumeError::format(header, field, "empty file name"));
+    }
+    let p = if Path::new(name).is_absolute() {
+        std::path::PathBuf::from(name)
+    } else {
+        header.parent().unwrap_or(Path::new(".")).join(name)
+    };
+    let bytes = std::fs::read(&p).map_err(|e| {
+        VolumeError::format(header, field, format!("cannot read {}: {e}", p.display()))
+    })?;
+    Ok((p, bytes))
+}
+
 pub fn read_head(path: &Path, n: usize) -> Result<Vec<u8>> {
     let f = std::fs::File::open(path).map_err(|e| VolumeError::io(path, e))?;
     let mut buf = Vec::with_capacity(n);

@@ -206,9 +206,7 @@ pub fn read(path: &Path) -> Result<Volume> {
                 "lists and patterns of data files are not supported",
             ));
         }
-        let p = path.parent().unwrap_or(Path::new(".")).join(data_file);
-        let b = io_util::read_file(&p)?;
-        (p, b)
+        io_util::read_companion(path, "ElementDataFile", data_file)?
     };
     let header_size: i64 = get("headersize")
         .map(|s| {

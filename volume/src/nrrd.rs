@@ -20,7 +20,7 @@
 use crate::io_util::{self, checked_count, take_samples};
 use crate::{Field, Result, ScalarType, Space, Volume, VolumeError};
 use glam::{DMat3, DMat4, DVec3, DVec4};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 fn scalar_type(path: &Path, s: &str) -> Result<ScalarType> {
     let t = s.trim().to_ascii_lowercase();
@@ -402,12 +402,7 @@ pub fn read(path: &Path) -> Result<Volume> {
                     "lists and format patterns of data files are not supported",
                 ));
             }
-            let p = if Path::new(df).is_absolute() {
-                PathBuf::from(df)
-            } else {
-                path.parent().unwrap_or(Path::new(".")).join(df)
-            };
-            let b = io_util::read_file(&p)?;
+            let (p, b) = io_util::read_companion(path, "data file", df)?;
             (p, b, 0usize)
         }
         None => {

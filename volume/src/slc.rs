@@ -172,6 +172,18 @@ pub fn read(path: &Path) -> Result<Volume> {
             }
         }
     }
+    let trailing = cur
+        .rest()
+        .iter()
+        .filter(|b| !b.is_ascii_whitespace())
+        .count();
+    if trailing > 0 {
+        return Err(VolumeError::format(
+            path,
+            "nz",
+            format!("{} bytes follow the last of {} slices: the header's dimensions do not match the data", cur.rest().len(), d[2]),
+        ));
+    }
     let affine = DMat4::from_cols(
         DVec4::new(sp[0], 0.0, 0.0, 0.0),
         DVec4::new(0.0, sp[1], 0.0, 0.0),

@@ -242,6 +242,13 @@ fn extent(path: &Path, field: &str, s: &str) -> Result<[i64; 6]> {
 /// Reads a `.vti` file.
 pub fn read(path: &Path) -> Result<Volume> {
     let raw = io_util::read_file(path)?;
+    if !raw.trim_ascii_end().ends_with(b"</VTKFile>") {
+        return Err(VolumeError::format(
+            path,
+            "XML",
+            "the file does not end with </VTKFile> (truncated?)",
+        ));
+    }
     let app_pos = raw.windows(13).position(|w| w == b"<AppendedData");
     let xml = &raw[..app_pos.unwrap_or(raw.len())];
     let mut reader = quick_xml::Reader::from_reader(xml);
