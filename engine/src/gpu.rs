@@ -191,7 +191,7 @@ impl Gpu {
             max_texture_3d: l.max_texture_dimension_3d,
             max_texture_2d: l.max_texture_dimension_2d,
             max_buffer_size: l.max_buffer_size,
-            max_storage_buffer_binding_size: l.max_storage_buffer_binding_size as u64,
+            max_storage_buffer_binding_size: l.max_storage_buffer_binding_size,
             max_compute_workgroup_invocations: l.max_compute_invocations_per_workgroup,
             timestamp_queries: self
                 .device

@@ -415,13 +415,13 @@ pub fn read(path: &Path) -> Result<Volume> {
     }
     let nd = ndim as usize;
     let mut d = [1i64; 7];
-    for i in 0..nd {
-        d[i] = h.dim[i + 1];
-        if d[i] < 1 {
+    for (i, di) in d.iter_mut().enumerate().take(nd) {
+        *di = h.dim[i + 1];
+        if *di < 1 {
             return Err(VolumeError::format(
                 path,
                 format!("dim[{}]", i + 1),
-                format!("{} is not positive", d[i]),
+                format!("{di} is not positive"),
             ));
         }
     }
@@ -691,8 +691,8 @@ pub fn write(path: &Path, vol: &Volume, field: &Field) -> Result<()> {
     }
     if let Some((quat, _, _)) = q {
         put_i16(&mut h, 252, code);
-        for i in 0..3 {
-            put_f32(&mut h, 256 + 4 * i, quat[i]);
+        for (i, q) in quat.iter().enumerate() {
+            put_f32(&mut h, 256 + 4 * i, *q);
         }
         let t = a.w_axis;
         put_f32(&mut h, 268, t.x);

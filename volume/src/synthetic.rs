@@ -384,7 +384,8 @@ mod tests {
             let Solid::Union(parts) = &solid else {
                 panic!()
             };
-            let lo = if parts.len() > 3 { 0.0 } else { 0.0 };
+            // The validation scene lives in [0, 100]^3, the three solids in [0, 1]^3.
+            let lo = 0.0;
             let hi = if parts.len() > 3 { 100.0 } else { 1.0 };
             for i in 0..40 {
                 for j in 0..40 {

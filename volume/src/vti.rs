@@ -595,7 +595,7 @@ pub fn read(path: &Path) -> Result<Volume> {
         if parts.iter().any(|(a, _)| a.comps != comps) || have < wcount * comps {
             return Err(VolumeError::format(
                 path,
-                &format!("DataArray {name}"),
+                format!("DataArray {name}"),
                 "pieces do not cover WholeExtent consistently",
             ));
         }

@@ -314,7 +314,7 @@ pub fn read(path: &Path) -> Result<Volume> {
                     if !(1..=64).contains(&comps) || tuples < 0 {
                         return Err(VolumeError::format(
                             path,
-                            &format!("FIELD array {name}"),
+                            format!("FIELD array {name}"),
                             format!("{comps} components, {tuples} tuples"),
                         ));
                     }

@@ -1,0 +1,224 @@
+//! The `umbra` binary as users and scripts call it.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn umbra() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_umbra"))
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
+}
+
+fn fixture(name: &str) -> PathBuf {
+    root().join("tests").join("fixtures").join(name)
+}
+
+#[test]
+fn every_subcommand_has_help() {
+    let out = umbra().arg("--help").output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    let subs: Vec<String> = text
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next().map(str::to_string))
+        .filter(|s| s != "help")
+        .collect();
+    assert!(
+        subs.contains(&"info".to_string()) && subs.contains(&"convert".to_string()),
+        "{subs:?}"
+    );
+    for s in subs {
+        let out = umbra().args([s.as_str(), "--help"]).output().unwrap();
+        assert!(out.status.success(), "umbra {s} --help failed");
+        assert!(
+            String::from_utf8_lossy(&out.stdout).contains("Usage: umbra"),
+            "umbra {s} --help"
+        );
+    }
+}
+
+#[test]
+fn info_json_has_the_documented_keys_and_values() {
+    let out = umbra()
+        .args(["info", "--json"])
+        .arg(fixture("lps_i16_gzip_be.nrrd"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "format",
+        "dims",
+        "components",
+        "type",
+        "spacing",
+        "affine",
+        "space",
+        "bounds",
+        "range",
+        "nonfinite",
+        "fields",
+    ] {
+        assert!(v.get(key).is_some(), "missing key {key}");
+    }
+    assert_eq!(v["dims"], serde_json::json!([5, 4, 3]));
+    assert_eq!(v["space"], "RAS");
+    assert_eq!(v["type"], "int16");
+    // LPS -> RAS: the first axis vector (0.9, 0.1, 0) becomes (-0.9, -0.1, 0): row 0, column 0.
+    assert!((v["affine"][0][0].as_f64().unwrap() + 0.9).abs() < 1e-12);
+    assert!((v["affine"][1][0].as_f64().unwrap() + 0.1).abs() < 1e-12);
+    assert_eq!(v["affine"][3], serde_json::json!([0.0, 0.0, 0.0, 1.0]));
+    let sp = v["spacing"][0].as_f64().unwrap();
+    assert!((sp - (0.81f64 + 0.01).sqrt()).abs() < 1e-12);
+    assert_eq!(v["range"], serde_json::json!([-100.0, 134.0]));
+    assert_eq!(v["nonfinite"], 0);
+}
+
+#[test]
+fn info_field_selection_and_nonfinite_count() {
+    let out = umbra()
+        .args(["info", "--json", "--field", "velocity:magnitude"])
+        .arg(fixture("image_binary.vtk"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["components"], 1);
+    assert_eq!(v["fields"], serde_json::json!(["density", "velocity"]));
+    // |(r, 1, -r)| at r = 0 is 1.
+    assert!((v["range"][0].as_f64().unwrap() - 1.0).abs() < 1e-6);
+    let out = umbra()
+        .args(["info", "--json"])
+        .arg(fixture("n2_f64_nan.nii"))
+        .output()
+        .unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["nonfinite"], 2);
+    assert_eq!(v["format"], "nifti2");
+    let out = umbra()
+        .args(["info", "--field", "nope"])
+        .arg(fixture("image_binary.vtk"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("nope") && err.contains("density"), "{err}");
+}
+
+#[test]
+fn errors_name_the_file_and_exit_non_zero_without_panicking() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("broken.nrrd");
+    std::fs::write(
+        &bad,
+        b"NRRD0004\ntype: short\ndimension: 3\nsizes: 5 4\nencoding: raw\n\n",
+    )
+    .unwrap();
+    let out = umbra().args(["info"]).arg(&bad).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("broken.nrrd") && err.contains("sizes"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    let out = umbra()
+        .args(["info"])
+        .arg(dir.path().join("absent.nii.gz"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("absent.nii.gz"));
+}
+
+#[test]
+fn absurd_dimensions_stay_within_a_small_address_space() {
+    // Run under a 512 MiB address-space limit: a reader that allocated from the header
+    // (2^31 voxels x 4 bytes) would abort; ours answers with an error.
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("huge.nrrd");
+    std::fs::write(&p, b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2048 1024 1024\nendian: little\nencoding: raw\n\n\x00\x00\x80\x3f").unwrap();
+    let gz = dir.path().join("huge.nii.gz");
+    let mut h = vec![0u8; 352];
+    h[0..4].copy_from_slice(&348i32.to_le_bytes());
+    for (k, d) in [3i16, 2048, 1024, 1024, 1, 1, 1, 1].iter().enumerate() {
+        h[40 + 2 * k..42 + 2 * k].copy_from_slice(&d.to_le_bytes());
+    }
+    h[70..72].copy_from_slice(&16i16.to_le_bytes());
+    h[72..74].copy_from_slice(&32i16.to_le_bytes());
+    h[108..112].copy_from_slice(&352f32.to_le_bytes());
+    h[344..348].copy_from_slice(b"n+1\0");
+    h.extend_from_slice(&[0u8; 4096]);
+    let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    std::io::Write::write_all(&mut enc, &h).unwrap();
+    std::fs::write(&gz, enc.finish().unwrap()).unwrap();
+    for f in [&p, &gz] {
+        let out = Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "ulimit -v 524288; exec '{}' info --json '{}'",
+                env!("CARGO_BIN_EXE_umbra"),
+                f.display()
+            ))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{}: {err}", f.display());
+        assert!(
+            err.contains("umbra: error")
+                && err.contains(&*f.file_name().unwrap().to_string_lossy()),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn convert_writes_nrrd_and_nifti_that_read_back() {
+    let dir = tempfile::tempdir().unwrap();
+    for out_name in ["c.nrrd", "c.nii.gz"] {
+        let out = dir.path().join(out_name);
+        let st = umbra()
+            .args(["convert"])
+            .arg(fixture("oblique_i16.mha"))
+            .arg("-o")
+            .arg(&out)
+            .arg("--gzip")
+            .status()
+            .unwrap();
+        assert!(st.success());
+        let a = volume::load(&fixture("oblique_i16.mha")).unwrap();
+        let b = volume::load(&out).unwrap();
+        assert_eq!(a.default().data, b.default().data);
+        assert_eq!(a.dims, b.dims);
+    }
+    // No temporary files are left behind.
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left.len(), 2, "{left:?}");
+    let st = umbra()
+        .args(["convert"])
+        .arg(fixture("oblique_i16.mha"))
+        .arg("-o")
+        .arg(dir.path().join("x.png"))
+        .output()
+        .unwrap();
+    assert!(!st.status.success());
+}
