@@ -21,6 +21,7 @@
 pub mod distance_sweep;
 pub mod error;
 pub(crate) mod io_util;
+pub(crate) mod lanes;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
