@@ -75,8 +75,8 @@ impl OctantFields {
         let n = self.dims[0] * self.dims[1] * self.dims[2];
         let mut out = vec![0u8; 8 * n];
         for (v, chunk) in out.chunks_exact_mut(8).enumerate() {
-            for s in 0..8 {
-                chunk[s] = self.octants[s][v];
+            for (c, o) in chunk.iter_mut().zip(&self.octants) {
+                *c = o[v];
             }
         }
         out
@@ -91,7 +91,7 @@ pub fn transmittance(init: &Initial, alpha: Option<f32>) -> Vec<u8> {
     let mut tau = Vec::with_capacity(nx * ny * nz);
     for k in 0..nz {
         for j in 0..ny {
-            let row = (1 + (nx + 2) * ((j + 1) + (ny + 2) * (k + 1))) as usize;
+            let row = 1 + (nx + 2) * ((j + 1) + (ny + 2) * (k + 1));
             for i in 0..nx {
                 let id = i + nx * (j + ny * k);
                 let p = init.padded[row + i];
