@@ -25,6 +25,7 @@ pub(crate) mod lanes;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
+pub mod occlusion_shading;
 pub mod occlusion_sweep;
 pub mod slc;
 pub mod synthetic;
