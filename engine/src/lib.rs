@@ -6,4 +6,8 @@
 pub mod convert;
 pub mod gpu;
 pub mod info;
+pub mod iso_cmd;
+pub mod iso_reference;
 pub mod smoke;
+pub mod sweep_cmd;
+pub mod synth;

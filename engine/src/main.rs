@@ -28,6 +28,116 @@ enum Command {
         #[arg(long)]
         gpu: bool,
     },
+    /// Signed distance and eight octant occlusion fields of an isosurface (fast sweeping).
+    Sweep {
+        /// Input volume (any format `umbra info` reads).
+        input: PathBuf,
+        /// Iso level.
+        #[arg(long, allow_hyphen_values = true)]
+        iso: f32,
+        /// Output distance field: 3-D float32 NRRD, world units, negative inside.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Output octant fields: 4-D uint8 NRRD, first axis the 8 octants in Table 1 order
+        /// (default: <stem>.octants.nrrd beside the distance file).
+        #[arg(long)]
+        octants_out: Option<PathBuf>,
+        /// Which side is inside (negative distance): values above (>=) or below (<=) the level.
+        #[arg(long, value_enum, default_value = "above")]
+        inside: InsideArg,
+        /// Field to use: NAME or NAME:magnitude.
+        #[arg(long)]
+        field: Option<String>,
+        /// Write only the distance field.
+        #[arg(long)]
+        sdf_only: bool,
+        /// Initial distances next to the surface: gradient (default), plane, or edge (the paper).
+        #[arg(long, default_value = "gradient")]
+        init: String,
+        /// Convergence tolerance of the distance sweeps, in voxels.
+        #[arg(long, default_value_t = 1e-3)]
+        tolerance: f32,
+        /// Subsurface variant: per-voxel opacity alpha in [0, 1] for the octant sweeps.
+        #[arg(long)]
+        subsurface: Option<f32>,
+        /// Print the summary as one JSON object on standard output.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Render an isosurface on the CPU with swept or Monte Carlo ambient occlusion (reference).
+    Iso {
+        /// Input volume.
+        input: PathBuf,
+        /// Iso level.
+        #[arg(long, allow_hyphen_values = true)]
+        iso: f32,
+        /// Distance field from `umbra sweep` (octants beside it); computed when absent.
+        #[arg(long)]
+        fields: Option<PathBuf>,
+        /// Octant fields, when not at <stem>.octants.nrrd beside --fields.
+        #[arg(long)]
+        octants: Option<PathBuf>,
+        /// Output PNG (8-bit sRGB).
+        #[arg(short, long)]
+        output: PathBuf,
+        #[arg(long, default_value_t = 512)]
+        width: usize,
+        #[arg(long, default_value_t = 512)]
+        height: usize,
+        /// Degrees; 0 looks along +y, 90 along +x.
+        #[arg(long, default_value_t = 30.0, allow_hyphen_values = true)]
+        azimuth: f64,
+        /// Degrees; 90 looks down from +z.
+        #[arg(long, default_value_t = 30.0, allow_hyphen_values = true)]
+        elevation: f64,
+        /// Camera distance in multiples of the bounding-sphere radius.
+        #[arg(long, default_value_t = 3.0)]
+        distance: f64,
+        /// Shade with Monte Carlo ambient occlusion from N rays per pixel instead.
+        #[arg(long)]
+        reference_ao: Option<usize>,
+        /// With --reference-ao: uniform-sphere visibility (the reference for --geometry none).
+        #[arg(long)]
+        uniform: bool,
+        /// No occlusion at all (local illumination).
+        #[arg(long)]
+        local: bool,
+        /// Geometry term: cosine (eq. 4-5), none (scalar AO) or abs (subsurface, |N.w|).
+        #[arg(long, default_value = "cosine")]
+        geometry: String,
+        /// Octants that light the scene: uniform, overcast, or octant:1..8.
+        #[arg(long, default_value = "uniform")]
+        sky: String,
+        /// Gamma applied to the ambient term (A^(1/gamma)).
+        #[arg(long, default_value_t = 1.0)]
+        gamma: f64,
+        /// Flat-face correction: look the octants up at P + c h N.
+        #[arg(long, default_value_t = volume::occlusion_shading::DEFAULT_OFFSET)]
+        offset: f64,
+        /// Subsurface opacity for the octant sweeps computed in memory.
+        #[arg(long)]
+        subsurface: Option<f32>,
+        /// Add a Phong head light.
+        #[arg(long)]
+        phong: bool,
+        #[arg(long, value_enum, default_value = "above")]
+        inside: InsideArg,
+        #[arg(long)]
+        field: Option<String>,
+        /// Print statistics as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write a synthetic scene as NRRD: validation (the sweeping paper's solids, [0,100]^3),
+    /// three-solids (sphere, torus, box in [0,1]^3), abc, burgers, rotation (vector fields).
+    Synth {
+        scene: String,
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Samples per axis.
+        #[arg(long, default_value_t = 100)]
+        n: usize,
+    },
     /// Write a volume's field as NRRD (.nrrd) or NIfTI-1 (.nii, .nii.gz).
     Convert {
         /// Input volume.
@@ -42,6 +152,21 @@ enum Command {
         #[arg(long)]
         gzip: bool,
     },
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum InsideArg {
+    Above,
+    Below,
+}
+
+impl From<InsideArg> for volume::distance_sweep::Inside {
+    fn from(a: InsideArg) -> Self {
+        match a {
+            InsideArg::Above => volume::distance_sweep::Inside::Above,
+            InsideArg::Below => volume::distance_sweep::Inside::Below,
+        }
+    }
 }
 
 fn parse_field(s: &Option<String>) -> Result<Option<FieldSelector>, String> {
@@ -96,6 +221,158 @@ fn run(cli: Cli) -> Result<(), String> {
                         .map_err(|e| e.to_string())?
                 );
             }
+            Ok(())
+        }
+        Command::Sweep {
+            input,
+            iso,
+            output,
+            octants_out,
+            inside,
+            field,
+            sdf_only,
+            init,
+            tolerance,
+            subsurface,
+            json,
+        } => {
+            use std::io::IsTerminal;
+            let args = engine::sweep_cmd::SweepArgs {
+                input,
+                iso,
+                output,
+                octants_out,
+                inside: inside.into(),
+                field: parse_field(&field)?,
+                sdf_only,
+                init: init.parse()?,
+                tolerance,
+                subsurface_alpha: subsurface,
+                progress: !json && std::io::stderr().is_terminal(),
+            };
+            let s = engine::sweep_cmd::run(&args)?;
+            for w in &s.warnings {
+                eprintln!("umbra: warning: {}: {w}", args.input.display());
+            }
+            if json {
+                println!("{}", serde_json::to_string(&s).unwrap());
+            } else {
+                println!("grid:        {} x {} x {}", s.dims[0], s.dims[1], s.dims[2]);
+                println!(
+                    "iterations:  {} rounds of 8 sweeps ({})",
+                    s.iterations,
+                    if s.converged {
+                        "converged"
+                    } else {
+                        "not converged"
+                    }
+                );
+                println!(
+                    "band:        {} voxels initialised next to the surface",
+                    s.band_voxels
+                );
+                println!(
+                    "seconds:     read {:.3}, compute {:.3}, write {:.3}, total {:.3}",
+                    s.seconds.read, s.seconds.compute, s.seconds.write, s.seconds.total
+                );
+                if let Some(p) = s.peak_bytes {
+                    println!("peak memory: {:.1} MiB", p as f64 / (1024.0 * 1024.0));
+                }
+                println!("distance:    {}", s.distance.display());
+                if let Some(o) = &s.octants {
+                    println!("octants:     {}", o.display());
+                }
+            }
+            Ok(())
+        }
+        Command::Iso {
+            input,
+            iso,
+            fields,
+            octants,
+            output,
+            width,
+            height,
+            azimuth,
+            elevation,
+            distance,
+            reference_ao,
+            uniform,
+            local,
+            geometry,
+            sky,
+            gamma,
+            offset,
+            subsurface,
+            phong,
+            inside,
+            field,
+            json,
+        } => {
+            use volume::occlusion_shading::{AmbientOptions, GeometryTerm};
+            let geometry = match geometry.as_str() {
+                "cosine" => GeometryTerm::Cosine,
+                "none" => GeometryTerm::Constant,
+                "abs" => GeometryTerm::Absolute,
+                other => return Err(format!("--geometry {other}: use cosine, none or abs")),
+            };
+            if !(gamma.is_finite() && gamma > 0.0) {
+                return Err(format!("--gamma {gamma}: must be a positive number"));
+            }
+            if width == 0 || height == 0 || width * height > 1 << 26 {
+                return Err(format!("--width {width} --height {height}: the image must have between 1 and 2^26 pixels"));
+            }
+            let args = engine::iso_cmd::IsoArgs {
+                input,
+                iso,
+                inside: inside.into(),
+                field: parse_field(&field)?,
+                fields,
+                octants,
+                output: output.clone(),
+                camera: engine::iso_reference::OrbitCamera {
+                    width,
+                    height,
+                    azimuth_deg: azimuth,
+                    elevation_deg: elevation,
+                    distance,
+                },
+                reference_ao,
+                uniform,
+                local,
+                ambient: AmbientOptions {
+                    geometry,
+                    sky: sky.parse()?,
+                    gamma,
+                    offset,
+                },
+                subsurface_alpha: subsurface,
+                phong,
+            };
+            let (_, stats) = engine::iso_cmd::render_cli(&args)?;
+            if json {
+                println!("{}", serde_json::to_string(&stats).unwrap());
+            } else {
+                eprintln!(
+                    "wrote {} ({} surface pixels, mean ambient {:.3}, {:.2} s)",
+                    output.display(),
+                    stats.hit_pixels,
+                    stats.mean_ambient,
+                    stats.seconds
+                );
+            }
+            Ok(())
+        }
+        Command::Synth { scene, output, n } => {
+            let vol = engine::synth::scene(&scene, n)?;
+            volume::nrrd::write(
+                &output,
+                &vol,
+                &vol.fields[0],
+                volume::nrrd::WriteEncoding::Raw,
+            )
+            .map_err(|e| e.to_string())?;
+            eprintln!("wrote {} ({n}^3 {scene})", output.display());
             Ok(())
         }
         Command::Convert {

@@ -564,6 +564,23 @@ pub enum WriteEncoding {
     Gzip,
 }
 
+/// The samples of an array to write.
+pub enum ArrayData<'a> {
+    /// Converted to the array's stored type on writing.
+    F32(&'a [f32]),
+    /// Written as they are (the stored type must be `U8`).
+    U8(&'a [u8]),
+}
+
+impl ArrayData<'_> {
+    fn len(&self) -> usize {
+        match self {
+            ArrayData::F32(d) => d.len(),
+            ArrayData::U8(d) => d.len(),
+        }
+    }
+}
+
 /// An array to write: `components` interleaved values per voxel, stored as `stored`.
 pub struct Array<'a> {
     pub dims: [usize; 3],
@@ -573,7 +590,7 @@ pub struct Array<'a> {
     /// Kind of the component axis (`vector` for 3-vectors, `list` otherwise); unused for scalars.
     pub component_kind: &'a str,
     pub stored: ScalarType,
-    pub data: &'a [f32],
+    pub data: ArrayData<'a>,
     pub content: &'a str,
 }
 
@@ -594,7 +611,7 @@ pub fn write(path: &Path, vol: &Volume, field: &Field, encoding: WriteEncoding) 
             components: field.components,
             component_kind: "vector",
             stored,
-            data: &field.data,
+            data: ArrayData::F32(&field.data),
             content: &field.name,
         },
         encoding,
@@ -661,7 +678,16 @@ pub fn write_array(path: &Path, a: &Array, encoding: WriteEncoding) -> Result<()
         WriteEncoding::Gzip => "encoding: gzip\n",
     };
     h += &format!("space origin: {}\n\n", vec3(a.affine.w_axis.truncate()));
-    let body = io_util::encode_samples(a.data, a.stored, false);
+    let body = match a.data {
+        ArrayData::F32(d) => io_util::encode_samples(d, a.stored, false),
+        ArrayData::U8(d) if a.stored == ScalarType::U8 => d.to_vec(),
+        ArrayData::U8(_) => {
+            return Err(VolumeError::Invalid(format!(
+                "{}: u8 data must be stored as uint8",
+                path.display()
+            )))
+        }
+    };
     let mut bytes = h.into_bytes();
     match encoding {
         WriteEncoding::Raw => bytes.extend_from_slice(&body),

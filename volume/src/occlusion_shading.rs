@@ -84,17 +84,26 @@ pub struct AmbientOptions {
 
 impl Default for AmbientOptions {
     fn default() -> Self {
-        AmbientOptions { geometry: GeometryTerm::Cosine, sky: Sky::Uniform, gamma: 1.0, offset: DEFAULT_OFFSET }
+        AmbientOptions {
+            geometry: GeometryTerm::Cosine,
+            sky: Sky::Uniform,
+            gamma: 1.0,
+            offset: DEFAULT_OFFSET,
+        }
     }
 }
 
 /// Default flat-face correction `c` (chosen from the measurements in docs/accuracy.md).
-pub const DEFAULT_OFFSET: f64 = 1.0;
+pub const DEFAULT_OFFSET: f64 = 1.5;
 
 /// `G_s(N)` for sweep `s` (0-based, Table 1 order) and a unit normal in the index frame.
 pub fn geometry_term(s: usize, n: DVec3) -> f64 {
     let d = SWEEP_DIRECTIONS[s];
-    let verts = [DVec3::X * -(d[0] as f64), DVec3::Y * -(d[1] as f64), DVec3::Z * -(d[2] as f64)];
+    let verts = [
+        DVec3::X * -(d[0] as f64),
+        DVec3::Y * -(d[1] as f64),
+        DVec3::Z * -(d[2] as f64),
+    ];
     projected_solid_angle(&verts, n)
 }
 
@@ -146,26 +155,52 @@ pub struct AmbientModel {
 impl AmbientModel {
     pub fn new(options: AmbientOptions, affine: &DMat4) -> Self {
         let m = DMat3::from_mat4(*affine);
-        let r = DMat3::from_cols(m.x_axis.normalize_or_zero(), m.y_axis.normalize_or_zero(), m.z_axis.normalize_or_zero());
+        let r = DMat3::from_cols(
+            m.x_axis.normalize_or_zero(),
+            m.y_axis.normalize_or_zero(),
+            m.z_axis.normalize_or_zero(),
+        );
         let weights = octant_weights(options.sky, affine);
-        let mut model = AmbientModel { options, weights, norm: 1.0, to_index: r.transpose() };
+        let mut model = AmbientModel {
+            options,
+            weights,
+            norm: 1.0,
+            to_index: r.transpose(),
+        };
         model.norm = match options.geometry {
             GeometryTerm::Constant => weights.iter().sum(),
             _ => {
                 // Largest unnormalised value over unit normals: octant centres, axes and a
                 // Fibonacci sphere, refined around the best.
                 let mut cands: Vec<DVec3> = fibonacci_sphere(2000);
-                for s in 0..8 {
-                    let d = SWEEP_DIRECTIONS[s];
+                for d in SWEEP_DIRECTIONS {
                     cands.push(-DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64).normalize());
                 }
-                cands.extend([DVec3::X, DVec3::Y, DVec3::Z, -DVec3::X, -DVec3::Y, -DVec3::Z]);
+                cands.extend([
+                    DVec3::X,
+                    DVec3::Y,
+                    DVec3::Z,
+                    -DVec3::X,
+                    -DVec3::Y,
+                    -DVec3::Z,
+                ]);
                 let raw = |n: DVec3| model.raw_index(&[1.0; 8], n);
-                let mut best = cands.iter().copied().max_by(|a, b| raw(*a).total_cmp(&raw(*b))).unwrap();
+                let mut best = cands
+                    .iter()
+                    .copied()
+                    .max_by(|a, b| raw(*a).total_cmp(&raw(*b)))
+                    .unwrap();
                 let mut step = 0.05;
                 for _ in 0..60 {
                     let mut improved = false;
-                    for dir in [DVec3::X, DVec3::Y, DVec3::Z, -DVec3::X, -DVec3::Y, -DVec3::Z] {
+                    for dir in [
+                        DVec3::X,
+                        DVec3::Y,
+                        DVec3::Z,
+                        -DVec3::X,
+                        -DVec3::Y,
+                        -DVec3::Z,
+                    ] {
                         let c = (best + dir * step).normalize();
                         if raw(c) > raw(best) {
                             best = c;
@@ -225,7 +260,11 @@ pub fn octant_weights(sky: Sky, affine: &DMat4) -> [f64; 8] {
         }
         Sky::Overcast => {
             let mut order: Vec<usize> = (0..8).collect();
-            order.sort_by(|&a, &b| sky_direction_world(b, affine).z.total_cmp(&sky_direction_world(a, affine).z));
+            order.sort_by(|&a, &b| {
+                sky_direction_world(b, affine)
+                    .z
+                    .total_cmp(&sky_direction_world(a, affine).z)
+            });
             let mut w = [0.0; 8];
             for &s in &order[..4] {
                 w[s] = 1.0;
@@ -254,7 +293,11 @@ pub fn sample_octants(f: &OctantFields, p: DVec3) -> [f64; 8] {
     let c = |v: f64, n: usize| v.clamp(0.0, (n - 1) as f64);
     let (x, y, z) = (c(p.x, nx), c(p.y, ny), c(p.z, nz));
     let (i0, j0, k0) = (x.floor() as usize, y.floor() as usize, z.floor() as usize);
-    let (i1, j1, k1) = ((i0 + 1).min(nx - 1), (j0 + 1).min(ny - 1), (k0 + 1).min(nz - 1));
+    let (i1, j1, k1) = (
+        (i0 + 1).min(nx - 1),
+        (j0 + 1).min(ny - 1),
+        (k0 + 1).min(nz - 1),
+    );
     let (fx, fy, fz) = (x - i0 as f64, y - j0 as f64, z - k0 as f64);
     let idx = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);
     let corners = [
@@ -269,7 +312,11 @@ pub fn sample_octants(f: &OctantFields, p: DVec3) -> [f64; 8] {
     ];
     let mut v = [0.0; 8];
     for (s, vs) in v.iter_mut().enumerate() {
-        *vs = corners.iter().map(|&(id, w)| w * f.octants[s][id] as f64).sum::<f64>() / 255.0;
+        *vs = corners
+            .iter()
+            .map(|&(id, w)| w * f.octants[s][id] as f64)
+            .sum::<f64>()
+            / 255.0;
     }
     v
 }
@@ -299,7 +346,12 @@ mod tests {
 
     #[test]
     fn closed_form_matches_numerical_integration() {
-        let normals = [DVec3::Z, DVec3::new(0.3, -0.5, 0.81).normalize(), DVec3::new(-1.0, 1.0, 0.2).normalize(), DVec3::new(0.0, 1.0, -1.0).normalize()];
+        let normals = [
+            DVec3::Z,
+            DVec3::new(0.3, -0.5, 0.81).normalize(),
+            DVec3::new(-1.0, 1.0, 0.2).normalize(),
+            DVec3::new(0.0, 1.0, -1.0).normalize(),
+        ];
         for n in normals {
             let mut total = 0.0;
             for s in 0..8 {
@@ -318,8 +370,20 @@ mod tests {
     #[test]
     fn unoccluded_points_get_one_and_presets_have_their_octants() {
         let id = DMat4::IDENTITY;
-        for geometry in [GeometryTerm::Cosine, GeometryTerm::Constant, GeometryTerm::Absolute] {
-            let m = AmbientModel::new(AmbientOptions { geometry, sky: Sky::Uniform, gamma: 1.0, offset: 0.0 }, &id);
+        for geometry in [
+            GeometryTerm::Cosine,
+            GeometryTerm::Constant,
+            GeometryTerm::Absolute,
+        ] {
+            let m = AmbientModel::new(
+                AmbientOptions {
+                    geometry,
+                    sky: Sky::Uniform,
+                    gamma: 1.0,
+                    offset: 0.0,
+                },
+                &id,
+            );
             for n in [DVec3::Z, DVec3::new(0.2, 0.5, -0.8).normalize()] {
                 assert!((m.ambient(&[1.0; 8], n) - 1.0).abs() < 1e-9, "{geometry:?}");
             }
@@ -327,14 +391,31 @@ mod tests {
         // Overcast on an identity affine: the skies with +z, i.e. sweeps with sigma_z = -1.
         let w = octant_weights(Sky::Overcast, &id);
         assert_eq!(w, [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]);
-        let m = AmbientModel::new(AmbientOptions { sky: Sky::Overcast, offset: 0.0, ..Default::default() }, &id);
+        let m = AmbientModel::new(
+            AmbientOptions {
+                sky: Sky::Overcast,
+                offset: 0.0,
+                ..Default::default()
+            },
+            &id,
+        );
         assert!((m.ambient(&[1.0; 8], DVec3::Z) - 1.0).abs() < 1e-6);
         assert!(m.ambient(&[1.0; 8], -DVec3::Z) < 1e-9);
         // With a flipped z axis (index +z is world -z) the overcast octants flip.
         let flipped = DMat4::from_scale(DVec3::new(1.0, 1.0, -1.0));
-        assert_eq!(octant_weights(Sky::Overcast, &flipped), [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(
+            octant_weights(Sky::Overcast, &flipped),
+            [1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0]
+        );
         // Gamma brightens.
-        let g = AmbientModel::new(AmbientOptions { gamma: 2.0, offset: 0.0, ..Default::default() }, &id);
+        let g = AmbientModel::new(
+            AmbientOptions {
+                gamma: 2.0,
+                offset: 0.0,
+                ..Default::default()
+            },
+            &id,
+        );
         assert!((g.ambient(&[0.25; 8], DVec3::Z) - 0.5).abs() < 1e-9);
         assert_eq!("octant:3".parse::<Sky>(), Ok(Sky::Octant(3)));
         assert!("octant:9".parse::<Sky>().is_err());

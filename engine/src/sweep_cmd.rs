@@ -1,0 +1,277 @@
+//! `umbra sweep`: signed distance and eight octant occlusion fields of an isosurface, written
+//! as NRRD (see `volume::distance_sweep` and `volume::occlusion_sweep` for the methods).
+
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use volume::distance_sweep::{DistanceField, DistanceOptions, InitMethod, Inside};
+use volume::nrrd::{self, Array, ArrayData, WriteEncoding};
+use volume::occlusion_sweep::{sweep_fields, OcclusionOptions, OctantFields};
+use volume::{FieldSelector, ScalarType, Volume};
+
+/// What `umbra sweep` is asked to do.
+#[derive(Clone, Debug)]
+pub struct SweepArgs {
+    pub input: PathBuf,
+    pub iso: f32,
+    pub output: PathBuf,
+    pub octants_out: Option<PathBuf>,
+    pub inside: Inside,
+    pub field: Option<FieldSelector>,
+    pub sdf_only: bool,
+    pub init: InitMethod,
+    pub tolerance: f32,
+    pub subsurface_alpha: Option<f32>,
+    pub progress: bool,
+}
+
+/// Seconds per stage (`compute` covers initialisation, distance and octant sweeps, no I/O).
+#[derive(Clone, Debug, Serialize)]
+pub struct Seconds {
+    pub read: f64,
+    pub compute: f64,
+    pub write: f64,
+    pub total: f64,
+}
+
+/// The summary `umbra sweep --json` prints.
+#[derive(Clone, Debug, Serialize)]
+pub struct SweepSummary {
+    pub dims: [usize; 3],
+    pub iterations: usize,
+    pub converged: bool,
+    pub seconds: Seconds,
+    pub peak_bytes: Option<u64>,
+    pub band_voxels: usize,
+    pub nan_voxels: usize,
+    pub distance: PathBuf,
+    pub octants: Option<PathBuf>,
+    pub warnings: Vec<String>,
+}
+
+/// `<stem>.octants.nrrd` beside the distance file.
+pub fn default_octants_path(distance: &Path) -> PathBuf {
+    let name = distance
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".nrrd").unwrap_or(&name);
+    distance.with_file_name(format!("{stem}.octants.nrrd"))
+}
+
+/// Peak resident memory of this process (Linux `VmHWM`), in bytes.
+pub fn peak_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Selects the scalar field and checks that the iso level cuts it.
+pub fn scalar_field(
+    vol: &Volume,
+    field: Option<&FieldSelector>,
+    iso: f32,
+    inside: Inside,
+    path: &Path,
+) -> Result<Vec<f32>, String> {
+    let f = vol
+        .select(field)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    if f.components != 1 {
+        return Err(format!(
+            "{}: field '{}' has {} components; an isosurface needs a scalar (use --field {}:magnitude)",
+            path.display(),
+            f.name,
+            f.components,
+            f.name
+        ));
+    }
+    if !iso.is_finite() {
+        return Err(format!(
+            "--iso {iso}: the iso level must be a finite number"
+        ));
+    }
+    let st = f.stats();
+    if st.min.is_nan() {
+        return Err(format!(
+            "{}: field '{}' has no finite samples",
+            path.display(),
+            f.name
+        ));
+    }
+    let iso64 = iso as f64;
+    let no_surface = match inside {
+        Inside::Above => iso64 <= st.min || iso64 > st.max,
+        Inside::Below => iso64 < st.min || iso64 >= st.max,
+    };
+    if no_surface {
+        return Err(format!(
+            "{}: --iso {iso} is outside the range of field '{}' ([{}, {}]): every sample lies on one side, so there is no surface",
+            path.display(),
+            f.name,
+            st.min,
+            st.max
+        ));
+    }
+    Ok(f.data)
+}
+
+/// Writes the distance as a 3-D float32 NRRD in the input's frame.
+pub fn write_distance(path: &Path, vol: &Volume, df: &DistanceField) -> Result<(), String> {
+    nrrd::write_array(
+        path,
+        &Array {
+            dims: vol.dims,
+            affine: vol.affine,
+            space: vol.space,
+            components: 1,
+            component_kind: "list",
+            stored: ScalarType::F32,
+            data: ArrayData::F32(&df.distance),
+            content: "signed distance (world units, negative inside)",
+        },
+        WriteEncoding::Raw,
+    )
+    .map_err(|e| e.to_string())
+}
+
+/// Writes the octants as a 4-D uint8 NRRD whose first axis (kind `list`) holds the eight
+/// octants in Table 1 order.
+pub fn write_octants(path: &Path, vol: &Volume, oct: &OctantFields) -> Result<(), String> {
+    let data = oct.interleaved();
+    nrrd::write_array(
+        path,
+        &Array {
+            dims: vol.dims,
+            affine: vol.affine,
+            space: vol.space,
+            components: 8,
+            component_kind: "list",
+            stored: ScalarType::U8,
+            data: ArrayData::U8(&data),
+            content: "octant visibility x 255 (Table 1 order)",
+        },
+        WriteEncoding::Raw,
+    )
+    .map_err(|e| e.to_string())
+}
+
+/// Reads octant fields written by [`write_octants`].
+pub fn read_octants(path: &Path, dims: [usize; 3]) -> Result<OctantFields, String> {
+    let v = volume::load(path).map_err(|e| e.to_string())?;
+    if v.dims != dims {
+        return Err(format!(
+            "{}: octant grid {:?} does not match the volume's {:?}",
+            path.display(),
+            v.dims,
+            dims
+        ));
+    }
+    if v.fields.len() != 8 || v.fields.iter().any(|f| f.components != 1) {
+        return Err(format!(
+            "{}: expected 8 octant fields (a 4-D NRRD with a list axis of 8), found {}",
+            path.display(),
+            v.fields.len()
+        ));
+    }
+    let octants: [Vec<u8>; 8] = std::array::from_fn(|s| {
+        v.fields[s]
+            .data
+            .iter()
+            .map(|&x| x.clamp(0.0, 255.0) as u8)
+            .collect()
+    });
+    Ok(OctantFields { dims, octants })
+}
+
+/// Runs `umbra sweep`.
+pub fn run(args: &SweepArgs) -> Result<SweepSummary, String> {
+    let t0 = Instant::now();
+    let bar = if args.progress {
+        let b = indicatif::ProgressBar::new_spinner();
+        b.enable_steady_tick(std::time::Duration::from_millis(120));
+        Some(b)
+    } else {
+        None
+    };
+    let stage = |m: &str| {
+        if let Some(b) = &bar {
+            b.set_message(m.to_string());
+        }
+    };
+    stage("reading");
+    let vol = volume::load(&args.input).map_err(|e| e.to_string())?;
+    let values = scalar_field(
+        &vol,
+        args.field.as_ref(),
+        args.iso,
+        args.inside,
+        &args.input,
+    )?;
+    let mut warnings: Vec<String> = vol.warnings.clone();
+    let t_read = t0.elapsed().as_secs_f64();
+    stage("sweeping distance and octants");
+    let sp = vol.spacing();
+    let spacing = [sp[0] as f32, sp[1] as f32, sp[2] as f32];
+    let dopts = DistanceOptions {
+        iso: args.iso,
+        inside: args.inside,
+        init: args.init,
+        tolerance: args.tolerance,
+        ..Default::default()
+    };
+    let oopts = OcclusionOptions {
+        subsurface_alpha: args.subsurface_alpha,
+    };
+    let t1 = Instant::now();
+    let (df, oct) = sweep_fields(&values, vol.dims, spacing, &dopts, &oopts, !args.sdf_only);
+    let t_compute = t1.elapsed().as_secs_f64();
+    if df.nan_count > 0 {
+        warnings.push(format!(
+            "{} NaN samples were treated as outside the surface",
+            df.nan_count
+        ));
+    }
+    if !df.converged {
+        warnings.push(format!(
+            "the distance sweeps did not converge in {} rounds",
+            df.iterations
+        ));
+    }
+    stage("writing");
+    let t2 = Instant::now();
+    write_distance(&args.output, &vol, &df)?;
+    let oct_path = match (&oct, args.sdf_only) {
+        (Some(o), false) => {
+            let p = args
+                .octants_out
+                .clone()
+                .unwrap_or_else(|| default_octants_path(&args.output));
+            write_octants(&p, &vol, o)?;
+            Some(p)
+        }
+        _ => None,
+    };
+    let t_write = t2.elapsed().as_secs_f64();
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    Ok(SweepSummary {
+        dims: vol.dims,
+        iterations: df.iterations,
+        converged: df.converged,
+        seconds: Seconds {
+            read: t_read,
+            compute: t_compute,
+            write: t_write,
+            total: t0.elapsed().as_secs_f64(),
+        },
+        peak_bytes: peak_bytes(),
+        band_voxels: df.band,
+        nan_voxels: df.nan_count,
+        distance: args.output.clone(),
+        octants: oct_path,
+        warnings,
+    })
+}
