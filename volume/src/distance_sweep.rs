@@ -949,7 +949,8 @@ mod tests {
         for (id, (f, d)) in v.iter().zip(&df.distance).enumerate() {
             let p = [(id % 24) as f32, ((id / 24) % 20) as f32, (id / 480) as f32];
             let foot: Vec<f32> = (0..3).map(|a| p[a] - f * n[a]).collect();
-            if (0..3).all(|a| foot[a] >= 0.0 && foot[a] <= (dims[a] - 1) as f32) {
+            // Outside only: the inside touches the border, which closes it with more surface.
+            if *f < 0.0 && (0..3).all(|a| foot[a] >= 0.0 && foot[a] <= (dims[a] - 1) as f32) {
                 let e = (d + f).abs();
                 max_err = max_err.max(e);
                 sum += e;
@@ -962,7 +963,7 @@ mod tests {
                 }
             }
         }
-        assert!(compared > 3000, "{compared}");
+        assert!(compared > 800, "{compared}");
         assert!(max_int < 5e-3, "interior max error {max_int}");
         // Next to the faces a missing upwind neighbour makes the update two-dimensional.
         assert!(
