@@ -84,6 +84,39 @@ fn main() {
         } else {
             GeometryTerm::Cosine
         };
+        if !uniform {
+            let local = render(
+                &surf,
+                vol.bounds(),
+                &cam,
+                &AmbientSource::None,
+                &Shading {
+                    phong: true,
+                    ..Default::default()
+                },
+            );
+            write_png(&out.join("local_phong.png"), &local).unwrap();
+            for (name, sky) in [("overcast", Sky::Overcast), ("octant7", Sky::Octant(7))] {
+                let model = AmbientModel::new(
+                    AmbientOptions {
+                        sky,
+                        ..Default::default()
+                    },
+                    &vol.affine,
+                );
+                let img = render(
+                    &surf,
+                    vol.bounds(),
+                    &cam,
+                    &AmbientSource::Swept {
+                        octants: &oct,
+                        model: &model,
+                    },
+                    &shading,
+                );
+                write_png(&out.join(format!("swept_{name}.png")), &img).unwrap();
+            }
+        }
         for offset in [0.0, 0.5, 1.0, 1.5, 2.0, 3.0] {
             let model = AmbientModel::new(
                 AmbientOptions {

@@ -435,6 +435,10 @@ pub fn render(
             };
             let p = rays.eye + d * t;
             let mut n = surface.normal(p);
+            if n == DVec3::ZERO {
+                // Degenerate gradient (a corner of the closed border): face the viewer.
+                n = -d;
+            }
             if n.dot(d) > 0.0 {
                 n = -n;
             }

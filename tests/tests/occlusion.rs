@@ -119,7 +119,8 @@ fn a_single_octant_darkens_the_side_facing_away_from_its_sky() {
 
 #[test]
 fn swept_ao_stays_within_the_stated_distance_of_the_monte_carlo_reference() {
-    // 64^3 grid, 96x96 image, 256 rays per pixel (mean standard error about 0.003).
+    // 64^3 grid, 96x96 image, 256 rays per pixel (mean standard error about 0.003). Measured:
+    // cosine 0.097 (paper 0.376), scalar 0.063 (paper 0.236); bounds with margin.
     let s = scene(64);
     let surf = IsoSurface::new(
         s.vol.dims,

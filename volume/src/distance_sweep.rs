@@ -147,8 +147,9 @@ pub fn classify_and_initialise(
     } else {
         -1.0
     };
+    use rayon::prelude::*;
     let g: Vec<f32> = values
-        .iter()
+        .par_iter()
         .map(|&v| {
             if v.is_nan() {
                 f32::NAN
@@ -158,12 +159,13 @@ pub fn classify_and_initialise(
         })
         .collect();
     let nan_count = values.iter().filter(|v| v.is_nan()).count();
-    let inside: Vec<bool> = g.iter().map(|&x| x >= 0.0).collect(); // NaN compares false: outside
+    let inside: Vec<bool> = g.par_iter().map(|&x| x >= 0.0).collect(); // NaN compares false: outside
     let (px, py, pz) = (nx + 2, ny + 2, nz + 2);
     let mut padded = vec![f32::INFINITY; px * py * pz];
     let stride = [1isize, nx as isize, (nx * ny) as isize];
-    let mut band = 0;
-    for k in 0..nz {
+    // Planes are independent: each writes its own padded plane.
+    let plane = |k: usize, out: &mut [f32]| -> usize {
+        let mut band = 0;
         for j in 0..ny {
             for i in 0..nx {
                 let id = i + nx * (j + ny * k);
@@ -287,10 +289,19 @@ pub fn classify_and_initialise(
                     }
                 };
                 // Frozen: sign bit set (also for a distance of exactly 0).
-                padded[pidx(dims, i, j, k)] = f32::from_bits(d.max(0.0).to_bits() | 0x8000_0000);
+                out[(i + 1) + px * (j + 1)] = f32::from_bits(d.max(0.0).to_bits() | 0x8000_0000);
             }
         }
-    }
+        band
+    };
+    let band: usize = padded
+        .par_chunks_mut(px * py)
+        .enumerate()
+        .skip(1)
+        .take(nz)
+        .map(|(pk, out)| plane(pk - 1, out))
+        .sum();
+    let _ = pz;
     Initial {
         dims,
         spacing,
@@ -651,6 +662,7 @@ fn rows_lockstep(
     l4.resize(nx, inf);
     h4.clear();
     h4.resize(nx, inf);
+    let mut finite = false;
     for (r, &s) in starts.iter().enumerate() {
         let (c, lane) = (r / 4, r % 4);
         // SAFETY: the neighbour rows and the row itself are not written by anyone else during
@@ -664,8 +676,10 @@ fn rows_lockstep(
                 grid.row(s + pxy, nx),
             )
         };
+        let mut lo_min = f32::INFINITY;
         for (tv, &v) in t.iter_mut().zip(me) {
             tv[c][lane] = v;
+            lo_min = fmin(v.abs(), lo_min);
         }
         for (((((l, h), &a), &b), &cz), &dz) in l4
             .iter_mut()
@@ -677,9 +691,17 @@ fn rows_lockstep(
         {
             let ay = fmin(a.abs(), b.abs());
             let az = fmin(cz.abs(), dz.abs());
-            l[c][lane] = fmin(ay, az);
+            let lo = fmin(ay, az);
+            l[c][lane] = lo;
             h[c][lane] = fmax(ay, az);
+            lo_min = fmin(lo, lo_min);
         }
+        finite |= lo_min < f32::INFINITY;
+    }
+    if !finite {
+        // Every value of these rows and of their y and z neighbours is infinite (upstream of
+        // every surface, early in the first round): nothing can change.
+        return change;
     }
     t_old.clear();
     t_old.extend_from_slice(t);

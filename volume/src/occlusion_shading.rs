@@ -286,37 +286,53 @@ fn fibonacci_sphere(n: usize) -> Vec<DVec3> {
         .collect()
 }
 
-/// Trilinear interpolation of the eight octant visibilities at a fractional index position;
-/// positions outside the grid are clamped to it (its border faces the open sky anyway).
+/// Trilinear interpolation of the eight octant visibilities at a fractional index position.
+///
+/// Beyond the grid the sweeps assume open sky, and an object touching the border is closed half
+/// a voxel beyond it, so a lookup slightly outside such a surface lands outside the grid. There
+/// an octant whose sky points away from the grid across every face the point is beyond sees the
+/// open sky (`V = 1`); the others look back into the grid and take the value at the nearest
+/// grid sample.
 pub fn sample_octants(f: &OctantFields, p: DVec3) -> [f64; 8] {
     let [nx, ny, nz] = f.dims;
-    let c = |v: f64, n: usize| v.clamp(0.0, (n - 1) as f64);
-    let (x, y, z) = (c(p.x, nx), c(p.y, ny), c(p.z, nz));
-    let (i0, j0, k0) = (x.floor() as usize, y.floor() as usize, z.floor() as usize);
-    let (i1, j1, k1) = (
-        (i0 + 1).min(nx - 1),
-        (j0 + 1).min(ny - 1),
-        (k0 + 1).min(nz - 1),
-    );
-    let (fx, fy, fz) = (x - i0 as f64, y - j0 as f64, z - k0 as f64);
-    let idx = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);
-    let corners = [
-        (idx(i0, j0, k0), (1.0 - fx) * (1.0 - fy) * (1.0 - fz)),
-        (idx(i1, j0, k0), fx * (1.0 - fy) * (1.0 - fz)),
-        (idx(i0, j1, k0), (1.0 - fx) * fy * (1.0 - fz)),
-        (idx(i1, j1, k0), fx * fy * (1.0 - fz)),
-        (idx(i0, j0, k1), (1.0 - fx) * (1.0 - fy) * fz),
-        (idx(i1, j0, k1), fx * (1.0 - fy) * fz),
-        (idx(i0, j1, k1), (1.0 - fx) * fy * fz),
-        (idx(i1, j1, k1), fx * fy * fz),
-    ];
+    let n = [nx, ny, nz];
+    let (x0, y0, z0) = (p.x.floor(), p.y.floor(), p.z.floor());
+    let (fx, fy, fz) = (p.x - x0, p.y - y0, p.z - z0);
     let mut v = [0.0; 8];
-    for (s, vs) in v.iter_mut().enumerate() {
-        *vs = corners
-            .iter()
-            .map(|&(id, w)| w * f.octants[s][id] as f64)
-            .sum::<f64>()
-            / 255.0;
+    for (dk, wz) in [(0.0, 1.0 - fz), (1.0, fz)] {
+        for (dj, wy) in [(0.0, 1.0 - fy), (1.0, fy)] {
+            for (di, wx) in [(0.0, 1.0 - fx), (1.0, fx)] {
+                let w = wx * wy * wz;
+                if w == 0.0 {
+                    continue;
+                }
+                let c = [x0 + di, y0 + dj, z0 + dk];
+                // -1 beyond the low face, +1 beyond the high face, 0 inside, per axis.
+                let side: [i32; 3] = std::array::from_fn(|a| {
+                    if c[a] < 0.0 {
+                        -1
+                    } else if c[a] > (n[a] - 1) as f64 {
+                        1
+                    } else {
+                        0
+                    }
+                });
+                let q: [usize; 3] =
+                    std::array::from_fn(|a| c[a].clamp(0.0, (n[a] - 1) as f64) as usize);
+                let id = q[0] + nx * (q[1] + ny * q[2]);
+                for (s, vs) in v.iter_mut().enumerate() {
+                    let sigma = SWEEP_DIRECTIONS[s];
+                    // The sky of sweep s is -sigma: open across a face when it points outwards.
+                    let open = side.iter().any(|&sd| sd != 0)
+                        && (0..3).all(|a| side[a] == 0 || -sigma[a] == side[a]);
+                    *vs += w * if open {
+                        1.0
+                    } else {
+                        f.octants[s][id] as f64 / 255.0
+                    };
+                }
+            }
+        }
     }
     v
 }
