@@ -340,6 +340,39 @@ mod tests {
     }
 
     #[test]
+    fn subsurface_transmittance_follows_the_derived_eq8() {
+        // A solid ball in a 24^3 grid.
+        let dims = [24, 24, 24];
+        let values: Vec<f32> = (0..24 * 24 * 24)
+            .map(|i| {
+                let (x, y, z) = (
+                    (i % 24) as f32 - 11.5,
+                    ((i / 24) % 24) as f32 - 11.5,
+                    (i / 576) as f32 - 11.5,
+                );
+                6.0 - (x * x + y * y + z * z).sqrt()
+            })
+            .collect();
+        let init = classify_and_initialise(&values, dims, [1.0; 3], &DistanceOptions::default());
+        let plain = sweep_octants(&transmittance(&init, None), dims);
+        // alpha = 1 is eq. (7).
+        assert_eq!(sweep_octants(&transmittance(&init, Some(1.0)), dims), plain);
+        // alpha = 0: fully transparent, every octant sees the sky everywhere.
+        let clear = sweep_octants(&transmittance(&init, Some(0.0)), dims);
+        assert!(clear.octants.iter().all(|o| o.iter().all(|&v| v == 255)));
+        // In between, light reaches the far side of the ball: the shadowed side brightens.
+        let half = sweep_octants(&transmittance(&init, Some(0.5)), dims);
+        let behind = 12 + 24 * (12 + 24 * 20); // above the ball, in the shadow of sweeps 1..4
+        assert!(
+            half.octants[0][behind] > plain.octants[0][behind],
+            "{} vs {}",
+            half.octants[0][behind],
+            plain.octants[0][behind]
+        );
+        assert!(half.octants[0][behind] < 255);
+    }
+
+    #[test]
     fn sky_directions_follow_the_affine() {
         let id = DMat4::IDENTITY;
         assert!((sky_direction_world(0, &id) - DVec3::splat(-1.0).normalize()).length() < 1e-12);
