@@ -340,26 +340,6 @@ impl Stencil {
     }
 }
 
-/// `min` as one `minss` (no NaN handling: returns `b` when either is NaN).
-#[inline(always)]
-fn fmin(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
-
-/// `max` as one `maxss` (returns `b` when either is NaN).
-#[inline(always)]
-fn fmax(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
-
 /// Solves the upwind update for neighbour values `a` (per axis) (see the module doc).
 ///
 /// The quadratic is solved for `e = d - a_min` with `b_i = a_i - a_min`: the textbook form in
@@ -570,7 +550,7 @@ fn largest_decrease(old: &[f32], new: &[f32]) -> f32 {
         .fold(0.0f32, |m, (&o, &n)| fmax(o - n, m))
 }
 
-use crate::lanes::F4;
+use crate::lanes::{fmax, fmin, F4};
 
 /// [`solve_sorted`] on four lanes.
 #[inline(always)]

@@ -85,22 +85,7 @@ mod imp {
 
 #[cfg(not(target_arch = "x86_64"))]
 mod imp {
-    #[inline(always)]
-    fn fmin(a: f32, b: f32) -> f32 {
-        if a < b {
-            a
-        } else {
-            b
-        }
-    }
-    #[inline(always)]
-    fn fmax(a: f32, b: f32) -> f32 {
-        if a > b {
-            a
-        } else {
-            b
-        }
-    }
+    use super::{fmax, fmin};
 
     #[derive(Clone, Copy, Default)]
     pub struct F4(pub [f32; 4]);
@@ -161,3 +146,23 @@ mod imp {
 }
 
 pub use imp::F4;
+
+/// `min` as one `minss`: returns `b` when either is NaN (as `minps` does per lane).
+#[inline(always)]
+pub fn fmin(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// `max` as one `maxss`: returns `b` when either is NaN.
+#[inline(always)]
+pub fn fmax(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}

@@ -91,22 +91,24 @@ pub fn cube_affine(n: [usize; 3], lo: f64, hi: f64) -> DMat4 {
     )
 }
 
-/// Samples any scalar function of world position on a grid.
-pub fn sample_scalar(
+/// World positions of the voxel centres, x fastest.
+fn grid_points(dims: [usize; 3], affine: DMat4) -> impl Iterator<Item = DVec3> {
+    (0..dims[2]).flat_map(move |k| {
+        (0..dims[1]).flat_map(move |j| {
+            (0..dims[0])
+                .map(move |i| (affine * DVec4::new(i as f64, j as f64, k as f64, 1.0)).truncate())
+        })
+    })
+}
+
+/// A synthetic volume holding one float field.
+fn synthetic_volume(
     dims: [usize; 3],
     affine: DMat4,
     name: &str,
-    f: impl Fn(DVec3) -> f64 + Sync,
+    components: usize,
+    data: Vec<f32>,
 ) -> Volume {
-    let mut data = Vec::with_capacity(dims[0] * dims[1] * dims[2]);
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                let p = (affine * DVec4::new(i as f64, j as f64, k as f64, 1.0)).truncate();
-                data.push(f(p) as f32);
-            }
-        }
-    }
     Volume {
         format: "synthetic".into(),
         dims,
@@ -114,13 +116,24 @@ pub fn sample_scalar(
         space: Space::File,
         fields: vec![Field {
             name: name.into(),
-            components: 1,
+            components,
             stored: ScalarType::F32,
             data,
         }],
         default_field: 0,
         warnings: vec![],
     }
+}
+
+/// Samples any scalar function of world position on a grid.
+pub fn sample_scalar(
+    dims: [usize; 3],
+    affine: DMat4,
+    name: &str,
+    f: impl Fn(DVec3) -> f64 + Sync,
+) -> Volume {
+    let data = grid_points(dims, affine).map(|p| f(p) as f32).collect();
+    synthetic_volume(dims, affine, name, 1, data)
 }
 
 /// Samples `-distance` of a solid (inside >= 0, iso level 0).
@@ -320,30 +333,13 @@ pub fn sample_vector(
     affine: DMat4,
     name: &str,
 ) -> Volume {
-    let mut data = Vec::with_capacity(3 * dims[0] * dims[1] * dims[2]);
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                let p = (affine * DVec4::new(i as f64, j as f64, k as f64, 1.0)).truncate();
-                let v = field.velocity(p);
-                data.extend_from_slice(&[v.x as f32, v.y as f32, v.z as f32]);
-            }
-        }
-    }
-    Volume {
-        format: "synthetic".into(),
-        dims,
-        affine,
-        space: Space::File,
-        fields: vec![Field {
-            name: name.into(),
-            components: 3,
-            stored: ScalarType::F32,
-            data,
-        }],
-        default_field: 0,
-        warnings: vec![],
-    }
+    let data = grid_points(dims, affine)
+        .flat_map(|p| {
+            let v = field.velocity(p);
+            [v.x as f32, v.y as f32, v.z as f32]
+        })
+        .collect();
+    synthetic_volume(dims, affine, name, 3, data)
 }
 
 #[cfg(test)]
