@@ -94,3 +94,68 @@ pub fn volume_text(
     s += &format!("non-finite: {} voxels\n", j["nonfinite"]);
     Ok(s)
 }
+
+/// The JSON description of a tractogram: `format`, `streamlines`, `points`, `bounds` (world,
+/// `null` when empty), `attributes` (`{"point": {name: components}, "streamline": {...}}`).
+pub fn tractogram_json(s: &tubes::Streamlines) -> Value {
+    let bounds = s
+        .bounds()
+        .map(|[lo, hi]| json!([[lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z]]))
+        .unwrap_or(Value::Null);
+    let attrs = |a: &[tubes::Attribute]| -> Value {
+        a.iter()
+            .map(|a| (a.name.clone(), json!(a.components)))
+            .collect::<serde_json::Map<_, _>>()
+            .into()
+    };
+    json!({
+        "format": s.format,
+        "streamlines": s.len(),
+        "points": s.points.len(),
+        "bounds": bounds,
+        "attributes": {"point": attrs(&s.point_attributes), "streamline": attrs(&s.line_attributes)},
+    })
+}
+
+/// The same as text.
+pub fn tractogram_text(path: &str, s: &tubes::Streamlines) -> String {
+    let mut out = format!(
+        "file:        {path}\nformat:      {}\nstreamlines: {}\npoints:      {}\n",
+        s.format,
+        s.len(),
+        s.points.len()
+    );
+    match s.bounds() {
+        Some([lo, hi]) => {
+            out += &format!(
+                "bounds:      min ({:.3}, {:.3}, {:.3})  max ({:.3}, {:.3}, {:.3})\n",
+                lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+            )
+        }
+        None => out += "bounds:      (empty)\n",
+    }
+    let list = |a: &[tubes::Attribute]| {
+        if a.is_empty() {
+            "none".to_string()
+        } else {
+            a.iter()
+                .map(|a| format!("{} ({})", a.name, a.components))
+                .collect::<Vec<_>>()
+                .join(", ")
+        }
+    };
+    out += &format!(
+        "per point:   {}\nper line:    {}\n",
+        list(&s.point_attributes),
+        list(&s.line_attributes)
+    );
+    if let Some(r) = &s.reference {
+        out += &format!(
+            "reference:   {:?} voxels of {:?} mm, order {}\n",
+            r.dims,
+            r.voxel_sizes,
+            String::from_utf8_lossy(&r.voxel_order)
+        );
+    }
+    out
+}

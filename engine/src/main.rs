@@ -16,7 +16,8 @@ struct Cli {
 enum Command {
     /// Describe a volume file (format, grid, world frame, value range), or the GPU with --gpu.
     Info {
-        /// Volume file: .nii, .nii.gz, .hdr, .nrrd, .nhdr, .vtk, .vti, .mhd, .mha, .slc.
+        /// Volume file (.nii, .nii.gz, .hdr, .nrrd, .nhdr, .vtk, .vti, .mhd, .mha, .slc) or
+        /// tractogram (.trk, .tck, optionally .gz).
         file: Option<PathBuf>,
         /// Print one JSON object instead of text.
         #[arg(long)]
@@ -206,6 +207,24 @@ fn run(cli: Cli) -> Result<(), String> {
                 return Ok(());
             }
             let file = file.ok_or("umbra info: give a file, or --gpu")?;
+            if tubes::is_tractogram(&file) {
+                let s = tubes::load(&file).map_err(|e| e.to_string())?;
+                for w in &s.warnings {
+                    eprintln!("umbra: warning: {}: {w}", file.display());
+                }
+                if json {
+                    println!(
+                        "{}",
+                        serde_json::to_string(&engine::info::tractogram_json(&s)).unwrap()
+                    );
+                } else {
+                    print!(
+                        "{}",
+                        engine::info::tractogram_text(&file.display().to_string(), &s)
+                    );
+                }
+                return Ok(());
+            }
             let sel = parse_field(&field)?;
             let vol = volume::load(&file).map_err(|e| e.to_string())?;
             for w in &vol.warnings {

@@ -222,3 +222,30 @@ fn convert_writes_nrrd_and_nifti_that_read_back() {
         .unwrap();
     assert!(!st.status.success());
 }
+
+#[test]
+fn info_describes_tractograms() {
+    let p = root().join("tests/fixtures/tracts/nibabel/complex.trk");
+    let out = umbra().args(["info", "--json"]).arg(&p).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["format"], "trk");
+    assert_eq!(v["streamlines"], 3);
+    assert_eq!(v["points"], 8);
+    assert_eq!(
+        v["bounds"],
+        serde_json::json!([[0.0, 1.0, 2.0], [12.0, 13.0, 14.0]])
+    );
+    assert_eq!(v["attributes"]["point"]["colors"], 3);
+    assert_eq!(v["attributes"]["streamline"]["mean_torsion"], 1);
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.tck");
+    std::fs::write(&bad, b"mrtrix tracks\ncount: 1\n").unwrap();
+    let out = umbra().args(["info"]).arg(&bad).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("END"));
+}

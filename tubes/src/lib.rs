@@ -1,9 +1,80 @@
-//! umbra's streamline model: polylines in world coordinates with named attributes.
+//! umbra's streamline model: polylines in world coordinates with named attributes, the
+//! tractogram readers and writers, and the B-spline stream-tube mesher.
 //!
-//! Readers (TrackVis, MRtrix, VTK lines), tracing and the B-spline tube mesher build on this
-//! type (see the stream-tube issue); this crate depends on nothing above it.
+//! Data flows one way: a reader fills [`Streamlines`] (world coordinates, RAS+ mm for
+//! tractography); the fitting, framing and meshing modules turn them into a tube mesh. Nothing
+//! here knows about rendering.
 
+pub mod error;
+pub mod tck;
+pub mod trk;
+
+pub use error::{Result, TubesError};
 use glam::{DMat4, DVec3, Vec3};
+use std::path::Path;
+
+/// The voxel grid a tractogram refers to (TrackVis keeps one in its header): kept so that a
+/// file written back uses the same space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReferenceSpace {
+    pub dims: [usize; 3],
+    pub voxel_sizes: [f64; 3],
+    pub vox_to_ras: DMat4,
+    /// Three of R/L, A/P, S/I.
+    pub voxel_order: [u8; 3],
+}
+
+/// Reads a tractogram by file name: `.trk`, `.tck`, optionally gzip-compressed (`.gz`).
+pub fn load(path: &Path) -> Result<Streamlines> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    let s = if stem.ends_with(".trk") {
+        trk::read(path)?
+    } else if stem.ends_with(".tck") {
+        tck::read(path)?
+    } else {
+        return Err(TubesError::format(
+            path,
+            "file name",
+            "unknown tractogram format (expected .trk, .tck, optionally .gz)",
+        ));
+    };
+    s.validate()
+        .map_err(|e| TubesError::format(path, "data", e))?;
+    Ok(s)
+}
+
+/// Writes a tractogram by file name: `.trk` (TrackVis v2) or `.tck`, optionally `.gz`.
+pub fn save(path: &Path, s: &Streamlines) -> Result<()> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    if stem.ends_with(".trk") {
+        trk::write(path, s)
+    } else if stem.ends_with(".tck") {
+        tck::write(path, s)
+    } else {
+        Err(TubesError::Invalid(format!(
+            "{}: unknown tractogram format (use .trk or .tck)",
+            path.display()
+        )))
+    }
+}
+
+/// Whether a file name looks like a tractogram this crate reads.
+pub fn is_tractogram(path: &Path) -> bool {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    stem.ends_with(".trk") || stem.ends_with(".tck")
+}
 
 /// A named attribute with `components` values per point or per streamline.
 #[derive(Clone, Debug, PartialEq)]
@@ -22,6 +93,12 @@ pub struct Streamlines {
     pub offsets: Vec<usize>,
     pub point_attributes: Vec<Attribute>,
     pub line_attributes: Vec<Attribute>,
+    /// The voxel grid of the source file, when it had one (TrackVis).
+    pub reference: Option<ReferenceSpace>,
+    /// The format read (`trk`, `tck`), or empty.
+    pub format: String,
+    /// What the reader accepted but a user should know.
+    pub warnings: Vec<String>,
 }
 
 impl Streamlines {
@@ -73,7 +150,7 @@ impl Streamlines {
     }
 
     /// Checks the offset and attribute invariants; returns what is wrong.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> std::result::Result<(), String> {
         if self.offsets.first() != Some(&0) {
             return Err("offsets must start at 0".into());
         }

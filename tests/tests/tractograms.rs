@@ -1,0 +1,271 @@
+//! Tractogram readers against nibabel (tests/fixtures/tracts/expected.json, written by
+//! make_expected.py with nibabel 5.4), writers' round trips, and malformed input.
+
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+use tubes::Streamlines;
+use umbra_tests::fixtures;
+
+fn dir() -> PathBuf {
+    fixtures().join("tracts")
+}
+
+fn close3(a: Vec3, b: &serde_json::Value) -> bool {
+    (0..3).all(|k| (a[k] as f64 - b[k].as_f64().unwrap()).abs() < 1e-4)
+}
+
+#[test]
+fn readers_agree_with_nibabel() {
+    let text = std::fs::read_to_string(dir().join("expected.json")).unwrap();
+    let all: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let mut n = 0;
+    for (rel, e) in all.as_object().unwrap() {
+        let s = tubes::load(&dir().join(rel)).unwrap_or_else(|err| panic!("{rel}: {err}"));
+        assert_eq!(s.len() as u64, e["streamlines"].as_u64().unwrap(), "{rel}");
+        assert_eq!(
+            s.points.len() as u64,
+            e["points"].as_u64().unwrap(),
+            "{rel}"
+        );
+        if s.is_empty() {
+            continue;
+        }
+        let first = e["first"].as_array().unwrap();
+        for (k, p) in first.iter().enumerate() {
+            assert!(
+                close3(s.line(0)[k], p),
+                "{rel}: first[{k}] {:?} vs {p}",
+                s.line(0)[k]
+            );
+        }
+        assert!(
+            close3(*s.points.last().unwrap(), &e["last"][0]),
+            "{rel}: last"
+        );
+        let lens: Vec<u64> = (0..s.len().min(5))
+            .map(|i| s.line(i).len() as u64)
+            .collect();
+        let want: Vec<u64> = e["lengths"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap())
+            .collect();
+        assert_eq!(lens, want, "{rel}");
+        let [lo, hi] = s.bounds().unwrap();
+        assert!(
+            close3(lo, &e["bounds"][0]) && close3(hi, &e["bounds"][1]),
+            "{rel}: bounds {lo} {hi}"
+        );
+        for (name, comps) in e["point_attributes"].as_object().unwrap() {
+            let a = s
+                .point_attributes
+                .iter()
+                .find(|a| &a.name == name)
+                .unwrap_or_else(|| panic!("{rel}: point attribute {name}"));
+            assert_eq!(a.components as u64, comps.as_u64().unwrap());
+        }
+        for (name, comps) in e["line_attributes"].as_object().unwrap() {
+            let a = s
+                .line_attributes
+                .iter()
+                .find(|a| &a.name == name)
+                .unwrap_or_else(|| panic!("{rel}: streamline attribute {name}"));
+            assert_eq!(a.components as u64, comps.as_u64().unwrap());
+        }
+        if let Some(fa) = e.get("first_point_attribute") {
+            let name = fa[0].as_str().unwrap();
+            let a = s.point_attributes.iter().find(|a| a.name == name).unwrap();
+            for (k, v) in fa[1].as_array().unwrap().iter().enumerate() {
+                assert!(
+                    (a.values[k] as f64 - v.as_f64().unwrap()).abs() < 1e-6,
+                    "{rel}: {name}[{k}]"
+                );
+            }
+        }
+        n += 1;
+    }
+    assert!(n >= 8);
+}
+
+fn sample() -> Streamlines {
+    let mut s = Streamlines::new();
+    s.push(&[
+        Vec3::new(1.5, -2.25, 3.0),
+        Vec3::new(1.0e6, 0.1, -7.3),
+        Vec3::new(0.3333, 1e-8, 2.0),
+    ]);
+    s.push(&[Vec3::new(-10.0, 5.0, 0.0)]);
+    s.push(&[Vec3::new(4.0, 4.0, 4.0), Vec3::new(5.0, 5.0, 5.0)]);
+    s.point_attributes.push(tubes::Attribute {
+        name: "fa".into(),
+        components: 1,
+        values: vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6],
+    });
+    s.point_attributes.push(tubes::Attribute {
+        name: "colors".into(),
+        components: 3,
+        values: (0..18).map(|i| i as f32).collect(),
+    });
+    s.line_attributes.push(tubes::Attribute {
+        name: "id".into(),
+        components: 1,
+        values: vec![7.0, 8.0, 9.0],
+    });
+    s
+}
+
+#[test]
+fn our_files_round_trip_exactly() {
+    let d = tempfile::tempdir().unwrap();
+    let s = sample();
+    for name in ["a.trk", "a.trk.gz", "a.tck", "a.tck.gz"] {
+        let p = d.path().join(name);
+        tubes::save(&p, &s).unwrap();
+        let r = tubes::load(&p).unwrap();
+        assert_eq!(r.points, s.points, "{name}: points");
+        assert_eq!(r.offsets, s.offsets, "{name}");
+        if name.contains("trk") {
+            assert_eq!(r.point_attributes, s.point_attributes, "{name}");
+            assert_eq!(r.line_attributes, s.line_attributes, "{name}");
+            // Written again in the space it was read in: still exact.
+            let p2 = d.path().join(format!("b{name}"));
+            tubes::save(&p2, &r).unwrap();
+            assert_eq!(
+                tubes::load(&p2).unwrap().points,
+                s.points,
+                "{name}: second trip"
+            );
+        }
+    }
+}
+
+#[test]
+fn nibabel_files_read_write_read_equal() {
+    let d = tempfile::tempdir().unwrap();
+    for rel in [
+        "nibabel/standard.trk",
+        "nibabel/standard.LPS.trk",
+        "nibabel/complex.trk",
+        "nibabel/complex_big_endian.trk",
+        "nibabel/standard.tck",
+        "nibabel/simple_big_endian.tck",
+        "dipy/tracks300.trk",
+        "nibabel/empty.trk",
+        "nibabel/empty.tck",
+    ] {
+        let a = tubes::load(&dir().join(rel)).unwrap();
+        let ext = if rel.ends_with(".trk") { "trk" } else { "tck" };
+        let p = d.path().join(format!("x.{ext}"));
+        tubes::save(&p, &a).unwrap();
+        let b = tubes::load(&p).unwrap();
+        assert_eq!(a.offsets, b.offsets, "{rel}");
+        for (x, y) in a.points.iter().zip(&b.points) {
+            assert!(
+                (*x - *y).abs().max_element() <= 1e-5 * (1.0 + x.abs().max_element()),
+                "{rel}: {x} vs {y}"
+            );
+        }
+        assert_eq!(a.point_attributes, b.point_attributes, "{rel}");
+        assert_eq!(a.line_attributes, b.line_attributes, "{rel}");
+    }
+}
+
+fn replace(bytes: &[u8], from: &str, to: &str) -> Vec<u8> {
+    let pos = bytes
+        .windows(from.len())
+        .position(|w| w == from.as_bytes())
+        .unwrap_or_else(|| panic!("'{from}' not found"));
+    [&bytes[..pos], to.as_bytes(), &bytes[pos + from.len()..]].concat()
+}
+
+fn expect_err(d: &Path, name: &str, bytes: &[u8], what: &str) -> String {
+    let p = d.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    match std::panic::catch_unwind(|| tubes::load(&p)) {
+        Err(_) => panic!("{name} ({what}): panic"),
+        Ok(Ok(_)) => panic!("{name} ({what}): read without error"),
+        Ok(Err(e)) => {
+            let m = e.to_string();
+            assert!(
+                m.contains(name),
+                "{what}: error does not name the file: {m}"
+            );
+            m
+        }
+    }
+}
+
+#[test]
+fn malformed_tractograms_are_errors_not_panics() {
+    let d = tempfile::tempdir().unwrap();
+    let trk = std::fs::read(dir().join("nibabel/complex.trk")).unwrap();
+    let tck = std::fs::read(dir().join("nibabel/standard.tck")).unwrap();
+    // Wrong magic.
+    let mut b = trk.clone();
+    b[0] = b'X';
+    assert!(expect_err(d.path(), "m.trk", &b, "magic").contains("TRACK"));
+    let mut b = tck.clone();
+    b[0] = b'X';
+    expect_err(d.path(), "m.tck", &b, "magic");
+    // Version 123 and hdr_size 1234 (nibabel's own rejects).
+    let mut b = trk.clone();
+    b[992..996].copy_from_slice(&123i32.to_le_bytes());
+    assert!(expect_err(d.path(), "v.trk", &b, "version").contains("version"));
+    let mut b = trk.clone();
+    b[996..1000].copy_from_slice(&1234i32.to_le_bytes());
+    expect_err(d.path(), "h.trk", &b, "hdr_size");
+    // An absurd point count: an error, and no allocation from it.
+    let mut b = trk.clone();
+    b[1000..1004].copy_from_slice(&i32::MAX.to_le_bytes());
+    assert!(expect_err(d.path(), "n.trk", &b, "count").contains("claims"));
+    // No END, a header past the end of the file, an unsupported datatype, no end marker.
+    let text = String::from_utf8_lossy(&tck[..tck.windows(4).position(|w| w == b"END\n").unwrap()])
+        .to_string();
+    expect_err(d.path(), "e.tck", text.as_bytes(), "no END");
+    expect_err(d.path(), "t.tck", &tck[..62], "62-byte file");
+    let off = replace(&tck, "file: . 67", "file: . 99999");
+    expect_err(d.path(), "o.tck", &off, "offset past the end");
+    let dt = replace(&tck, "Float32LE", "Int16LEXX");
+    expect_err(d.path(), "d.tck", &dt, "datatype");
+    assert!(expect_err(d.path(), "x.tck", &tck[..tck.len() - 12], "no end marker").contains("inf"));
+    // Truncation at every offset never panics, and is an error unless only whitespace went.
+    for (name, bytes) in [("c.trk", &trk), ("s.tck", &tck)] {
+        for cut in 1..bytes.len() {
+            let p = d.path().join(name);
+            std::fs::write(&p, &bytes[..cut]).unwrap();
+            let r = std::panic::catch_unwind(|| tubes::load(&p));
+            assert!(r.is_ok(), "{name} cut at {cut}: panic");
+        }
+    }
+    // Empty files are empty sets.
+    for name in ["z.trk", "z.tck"] {
+        let p = d.path().join(name);
+        std::fs::write(&p, b"").unwrap();
+        assert!(tubes::load(&p).unwrap().is_empty());
+    }
+}
+
+#[test]
+fn header_counts_that_disagree_warn_and_the_data_win() {
+    let d = tempfile::tempdir().unwrap();
+    let tck = std::fs::read(dir().join("nibabel/simple.tck")).unwrap();
+    let b = replace(&tck, "count: 0000000003", "count: 0000615000");
+    let p = d.path().join("c.tck");
+    std::fs::write(&p, &b).unwrap();
+    let s = tubes::load(&p).unwrap();
+    assert_eq!(s.len(), 3);
+    assert!(
+        s.warnings.iter().any(|w| w.contains("615000")),
+        "{:?}",
+        s.warnings
+    );
+    // Lower-case voxel order is accepted.
+    let mut trk = std::fs::read(dir().join("nibabel/standard.LPS.trk")).unwrap();
+    trk[948..951].copy_from_slice(b"lps");
+    let p = d.path().join("l.trk");
+    std::fs::write(&p, &trk).unwrap();
+    let a = tubes::load(&p).unwrap();
+    let b = tubes::load(&dir().join("nibabel/standard.LPS.trk")).unwrap();
+    assert_eq!(a.points, b.points);
+}

@@ -1,0 +1,230 @@
+//! MRtrix `.tck` reader and writer (plain or gzip).
+//!
+//! Header: the line `mrtrix tracks`, then `key: value` lines (a key may repeat: its values are
+//! joined with newlines, as MRtrix and nibabel do for multi-line fields), then `END`. The
+//! `file: . <offset>` key gives where the data start; `datatype` is `Float32LE`, `Float32BE`,
+//! `Float64LE` or `Float64BE`. Data: point triplets in RAS+ mm, a NaN triplet between
+//! streamlines and an Inf triplet at the end (any non-standard NaN or Inf bit pattern counts).
+//! As nibabel: no magic, no `END`, a header running past the end of the file, an unsupported
+//! datatype or data without the final Inf triplet are errors; a `count` that disagrees with the
+//! data gives a warning and the data win.
+
+use crate::error::{read_maybe_gz, write_atomic, Result, TubesError};
+use crate::Streamlines;
+use glam::Vec3;
+use std::path::Path;
+
+/// Reads a `.tck` or `.tck.gz` file.
+pub fn read(path: &Path) -> Result<Streamlines> {
+    let bytes = read_maybe_gz(path)?;
+    if bytes.is_empty() {
+        return Ok(Streamlines::new());
+    }
+    let magic = b"mrtrix tracks";
+    if !bytes.starts_with(magic) {
+        return Err(TubesError::format(
+            path,
+            "magic",
+            "the file does not start with 'mrtrix tracks'",
+        ));
+    }
+    // Header lines up to END.
+    let mut pos = 0;
+    let mut keys: Vec<(String, String)> = Vec::new();
+    let mut ended = false;
+    let mut first = true;
+    while pos < bytes.len() {
+        let end = bytes[pos..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map(|e| pos + e);
+        let Some(end) = end else { break };
+        let line = String::from_utf8_lossy(&bytes[pos..end])
+            .trim_end_matches('\r')
+            .to_string();
+        pos = end + 1;
+        if first {
+            first = false;
+            continue;
+        }
+        if line.trim() == "END" {
+            ended = true;
+            break;
+        }
+        if line.trim().is_empty() {
+            continue;
+        }
+        let Some((k, v)) = line.split_once(':') else {
+            return Err(TubesError::format(
+                path,
+                "header",
+                format!(
+                    "line '{}' is not 'key: value'",
+                    line.chars().take(60).collect::<String>()
+                ),
+            ));
+        };
+        let (k, v) = (k.trim().to_string(), v.trim().to_string());
+        match keys.iter_mut().find(|(key, _)| *key == k) {
+            Some((_, val)) => {
+                val.push('\n');
+                val.push_str(&v);
+            }
+            None => keys.push((k, v)),
+        }
+    }
+    if !ended {
+        return Err(TubesError::format(
+            path,
+            "END",
+            "the header has no END line (truncated file?)",
+        ));
+    }
+    let get = |k: &str| {
+        keys.iter()
+            .find(|(key, _)| key == k)
+            .map(|(_, v)| v.as_str())
+    };
+    let file = get("file").ok_or_else(|| TubesError::format(path, "file", "missing"))?;
+    let offset: usize = match file.split_whitespace().collect::<Vec<_>>().as_slice() {
+        [".", off] => off.parse().map_err(|_| {
+            TubesError::format(path, "file", format!("'{file}': offset is not a number"))
+        })?,
+        _ => {
+            return Err(TubesError::format(
+                path,
+                "file",
+                format!("'{file}': only '. <offset>' (data in this file) is supported"),
+            ))
+        }
+    };
+    if offset < pos || offset > bytes.len() {
+        return Err(TubesError::format(
+            path,
+            "file",
+            format!(
+                "data offset {offset} is outside the file ({} bytes, header ends at {pos})",
+                bytes.len()
+            ),
+        ));
+    }
+    let (size, big) = match get("datatype") {
+        Some("Float32LE") => (4, false),
+        Some("Float32BE") => (4, true),
+        Some("Float64LE") => (8, false),
+        Some("Float64BE") => (8, true),
+        Some(other) => {
+            return Err(TubesError::format(
+                path,
+                "datatype",
+                format!("'{other}' is not Float32LE/BE or Float64LE/BE"),
+            ))
+        }
+        None => return Err(TubesError::format(path, "datatype", "missing")),
+    };
+    let data = &bytes[offset..];
+    let triplet = 3 * size;
+    let value = |o: usize| -> f64 {
+        if size == 4 {
+            let a: [u8; 4] = data[o..o + 4].try_into().unwrap();
+            (if big {
+                f32::from_be_bytes(a)
+            } else {
+                f32::from_le_bytes(a)
+            }) as f64
+        } else {
+            let a: [u8; 8] = data[o..o + 8].try_into().unwrap();
+            if big {
+                f64::from_be_bytes(a)
+            } else {
+                f64::from_le_bytes(a)
+            }
+        }
+    };
+    let mut s = Streamlines::new();
+    let mut terminated = false;
+    let mut open = 0usize; // points since the last delimiter
+    let mut o = 0;
+    while o + triplet <= data.len() {
+        let (x, y, z) = (value(o), value(o + size), value(o + 2 * size));
+        o += triplet;
+        if x.is_nan() || y.is_nan() || z.is_nan() {
+            if open > 0 {
+                s.offsets.push(s.points.len());
+            }
+            open = 0;
+            continue;
+        }
+        if x.is_infinite() || y.is_infinite() || z.is_infinite() {
+            if open > 0 {
+                s.offsets.push(s.points.len());
+            }
+            terminated = true;
+            break;
+        }
+        s.points.push(Vec3::new(x as f32, y as f32, z as f32));
+        open += 1;
+    }
+    if !terminated {
+        return Err(TubesError::format(
+            path,
+            "data",
+            if data.len() % triplet != 0 {
+                format!("{} data bytes are not whole {triplet}-byte triplets and no 'inf inf inf' end marker was found", data.len())
+            } else {
+                "expecting the end-of-file marker 'inf inf inf'".to_string()
+            },
+        ));
+    }
+    if let Some(c) = get("count") {
+        match c.trim().parse::<usize>() {
+            Ok(n) if n != s.len() => s.warnings.push(format!(
+                "header count {n} disagrees with the {} streamlines in the data; using the data",
+                s.len()
+            )),
+            Ok(_) => {}
+            Err(_) => s
+                .warnings
+                .push(format!("header count '{c}' is not a number; ignored")),
+        }
+    }
+    s.format = "tck".into();
+    Ok(s)
+}
+
+/// Writes a `.tck` file (Float32LE; gzip when the name ends in `.gz`). Attributes are not part
+/// of the format and are not written.
+pub fn write(path: &Path, s: &Streamlines) -> Result<()> {
+    s.validate()
+        .map_err(|e| TubesError::Invalid(format!("{}: {e}", path.display())))?;
+    let mut header = format!(
+        "mrtrix tracks\ndatatype: Float32LE\ncount: {:010}\ntimestamp: 0\n",
+        s.len()
+    );
+    // `file: . OFFSET` with the offset of the data: the line's own length depends on it.
+    let base = header.len() + "file: . \nEND\n".len();
+    let mut digits = 1;
+    while (base + digits).to_string().len() != digits {
+        digits += 1;
+    }
+    let offset = base + digits;
+    header += &format!("file: . {offset}\nEND\n");
+    debug_assert_eq!(header.len(), offset);
+    let mut out = header.into_bytes();
+    out.reserve(12 * (s.points.len() + s.len() + 1));
+    // As MRtrix and nibabel: every streamline is followed by a NaN triplet.
+    for i in 0..s.len() {
+        for p in s.line(i) {
+            for v in [p.x, p.y, p.z] {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        for _ in 0..3 {
+            out.extend_from_slice(&f32::NAN.to_le_bytes());
+        }
+    }
+    for _ in 0..3 {
+        out.extend_from_slice(&f32::INFINITY.to_le_bytes());
+    }
+    write_atomic(path, out)
+}
