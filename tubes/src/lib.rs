@@ -5,6 +5,7 @@
 //! tractography); the fitting, framing and meshing modules turn them into a tube mesh. Nothing
 //! here knows about rendering.
 
+pub mod bspline_fit;
 pub mod error;
 pub mod tck;
 pub mod trk;
