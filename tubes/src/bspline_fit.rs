@@ -436,15 +436,15 @@ pub fn least_squares(points: &[DVec3], m: usize) -> BSpline {
 
 /// The four non-zero cubic basis values at `t` (for control points `span .. span + 4`).
 fn basis_weights(c: &BSpline, t: f64) -> [f64; 4] {
-    let mut w = [0.0; 4];
-    let mut probe = c.clone();
+    // Evaluate a curve whose control points are unit steps in x, y, z, w by component: the
+    // basis values of the span's four control points.
     let k = c.locate(t);
-    for a in 0..4 {
-        probe.control.iter_mut().for_each(|p| *p = DVec3::ZERO);
-        probe.control[k + a] = DVec3::X;
-        w[a] = probe.eval(t).x;
-    }
-    w
+    let mut probe = BSpline::new(vec![DVec3::ZERO; c.control.len()]);
+    probe.control[k] = DVec3::X;
+    probe.control[k + 1] = DVec3::Y;
+    probe.control[k + 2] = DVec3::Z;
+    let first3 = probe.eval(t);
+    [first3.x, first3.y, first3.z, 1.0 - first3.x - first3.y - first3.z]
 }
 
 /// Wiggle measure: total absolute curvature of the curve (integral of kappa ds, sampled) over

@@ -7,8 +7,10 @@
 
 pub mod bspline_fit;
 pub mod error;
+pub mod mesh_io;
 pub mod tck;
 pub mod trk;
+pub mod tube_mesh;
 
 pub use error::{Result, TubesError};
 use glam::{DMat4, DVec3, Vec3};

@@ -1,0 +1,220 @@
+//! Stream-tube stability: the adversarial curves of the stream-tube issue, each meshed with
+//! rotation-minimizing frames. Required of every mesh: no NaN, no degenerate or inward-facing
+//! triangle, a twist of at most 1 degree between rings, every ring at least half the area of
+//! the ideal polygon at its radius.
+
+use glam::{DVec3, Vec3};
+use tubes::bspline_fit::{FitMethod, FitOptions};
+use tubes::tube_mesh::{
+    build, ColorMode, FrameMethod, RadiusMode, TubeMesh, TubeOptions, TubeStats,
+};
+use tubes::Streamlines;
+
+fn opts(radius: f64) -> TubeOptions<'static> {
+    TubeOptions {
+        radius,
+        sides: 8,
+        per_span: 4,
+        chordal: None,
+        max_turn_deg: 15.0,
+        frame: FrameMethod::Rmf,
+        radius_mode: RadiusMode::Local,
+        fit: FitOptions {
+            epsilon: 0.02,
+            method: FitMethod::Iterative,
+            max_iterations: 100,
+        },
+        caps: true,
+        color: ColorMode::Direction,
+    }
+}
+
+fn lines(curves: &[Vec<DVec3>]) -> Streamlines {
+    let mut s = Streamlines::new();
+    for c in curves {
+        s.push(&c.iter().map(|p| p.as_vec3()).collect::<Vec<Vec3>>());
+    }
+    s
+}
+
+/// Checks the mesh invariants; returns the smallest triangle area.
+fn check(name: &str, mesh: &TubeMesh, st: &TubeStats, radius: f64) {
+    assert!(
+        mesh.positions
+            .iter()
+            .chain(&mesh.normals)
+            .all(|v| v.is_finite()),
+        "{name}: NaN in the mesh"
+    );
+    assert!(
+        mesh.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-3),
+        "{name}: normals not unit"
+    );
+    for tri in mesh.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize].as_dvec3());
+        let g = (b - a).cross(c - a);
+        let n: DVec3 = tri
+            .iter()
+            .map(|&i| mesh.normals[i as usize].as_dvec3())
+            .sum();
+        // Degenerate: (nearly) collinear or coincident vertices, relative to the triangle's size.
+        let e = (b - a).length().max((c - b).length()).max((a - c).length());
+        assert!(
+            e > 0.0 && g.length() > 1e-6 * e * e,
+            "{name}: degenerate triangle {tri:?} (area {}, edge {e})",
+            g.length() / 2.0
+        );
+        let _ = radius;
+        assert!(g.dot(n) > 0.0, "{name}: inward-facing triangle {tri:?}");
+    }
+    assert!(
+        st.max_twist_deg <= 1.0,
+        "{name}: twist {} degrees",
+        st.max_twist_deg
+    );
+    assert!(
+        st.min_section_ratio >= 0.5,
+        "{name}: section ratio {}",
+        st.min_section_ratio
+    );
+    assert!(
+        st.max_deviation <= 0.02 + 1e-9,
+        "{name}: deviation {}",
+        st.max_deviation
+    );
+}
+
+fn hairpin(turn_deg: f64, planar: bool) -> Vec<DVec3> {
+    let d1 = DVec3::X;
+    let a = turn_deg.to_radians();
+    let d2 = if planar {
+        DVec3::new(a.cos(), a.sin(), 0.0)
+    } else {
+        DVec3::new(a.cos(), a.sin() * 0.6, a.sin() * 0.8)
+    };
+    let mut pts: Vec<DVec3> = (0..=20).map(|i| -d1 * (10.0 - 0.5 * i as f64)).collect();
+    pts.extend((1..=20).map(|i| d2 * (0.5 * i as f64)));
+    pts
+}
+
+#[test]
+fn hairpins_of_150_179_and_180_degrees() {
+    for planar in [true, false] {
+        for turn in [150.0, 179.0, 180.0] {
+            let s = lines(&[hairpin(turn, planar)]);
+            let (mesh, st) = build(&s, &opts(0.3));
+            check(&format!("hairpin {turn} planar={planar}"), &mesh, &st, 0.3);
+            if turn == 180.0 {
+                assert_eq!(st.splits, 1, "an exact reversal is split");
+                assert_eq!(st.streamlines_out, 2);
+            } else {
+                // The tight turn clamps the radius locally instead of folding the tube; at 179
+                // degrees the fitted apex is so sharp that the tube is cut there.
+                assert!(st.radius_clamps > 0, "turn {turn}: no clamps");
+                assert!(st.splits <= 1);
+                if turn == 150.0 {
+                    assert_eq!(st.splits, 0);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn s_curves_helices_and_straight_lines() {
+    let s_curve: Vec<DVec3> = (0..200)
+        .map(|i| {
+            let t = i as f64 * 0.06;
+            DVec3::new(t, t.sin(), 0.0)
+        })
+        .collect();
+    // A helix of radius 0.2 with a tube of radius 0.5: tighter than the tube.
+    let helix: Vec<DVec3> = (0..300)
+        .map(|i| {
+            let t = i as f64 * 0.05;
+            DVec3::new(0.2 * t.cos(), 0.2 * t.sin(), 0.05 * t)
+        })
+        .collect();
+    let straight: Vec<DVec3> = (0..50)
+        .map(|i| DVec3::new(1.0, 2.0, 3.0) + DVec3::new(0.3, 0.4, 0.5) * i as f64)
+        .collect();
+    for (name, c, r) in [
+        ("s-curve", &s_curve, 0.2),
+        ("tight helix", &helix, 0.5),
+        ("collinear", &straight, 0.2),
+    ] {
+        let (mesh, st) = build(&lines(&[c.clone()]), &opts(r));
+        check(name, &mesh, &st, r);
+        if name == "tight helix" {
+            assert!(st.radius_clamps > 0);
+        }
+        if name == "collinear" {
+            assert!(
+                st.control_points <= 6,
+                "a line needs few control points: {}",
+                st.control_points
+            );
+        }
+    }
+}
+
+#[test]
+fn degenerate_inputs() {
+    let mut dup: Vec<DVec3> = Vec::new();
+    for i in 0..30 {
+        let p = DVec3::new(i as f64 * 0.2, (i as f64 * 0.3).sin(), 0.0);
+        dup.push(p);
+        dup.push(p);
+        if i % 5 == 0 {
+            dup.push(p);
+        }
+    }
+    let one = vec![DVec3::new(1.0, 1.0, 1.0)];
+    let two = vec![DVec3::ZERO, DVec3::new(0.0, 0.0, 2.0)];
+    let mut nan = hairpin(90.0, true);
+    nan[5] = DVec3::NAN;
+    nan[30] = DVec3::new(f64::NAN, 1.0, 2.0);
+    let s = lines(&[dup, one, two, nan]);
+    let (mesh, st) = build(&s, &opts(0.25));
+    check("degenerate inputs", &mesh, &st, 0.25);
+    assert_eq!(st.streamlines_in, 4);
+    assert_eq!(
+        st.skipped_streamlines, 1,
+        "the one-point streamline has no tube"
+    );
+    assert_eq!(st.streamlines_out, 3);
+    assert!(
+        st.dropped_points >= 2 + 36,
+        "NaN and repeated points are dropped: {}",
+        st.dropped_points
+    );
+}
+
+#[test]
+fn far_from_the_origin() {
+    let off = DVec3::splat(1e6);
+    let c: Vec<DVec3> = hairpin(179.0, false)
+        .into_iter()
+        .map(|p| p * 0.1 + off)
+        .collect();
+    let (mesh, st) = build(&lines(&[c]), &opts(0.03));
+    check("offset 1e6", &mesh, &st, 0.03);
+    assert!((mesh.origin - off).length() < 10.0);
+}
+
+#[test]
+fn frenet_frames_twist_where_rmf_does_not() {
+    // A non-planar hairpin: the Frenet normal swings round the turn; RMF stays put.
+    let c = hairpin(170.0, false);
+    let mut o = opts(0.2);
+    let (_, rmf) = build(&lines(&[c.clone()]), &o);
+    o.frame = FrameMethod::Frenet;
+    let (_, fr) = build(&lines(&[c]), &o);
+    assert!(rmf.max_twist_deg <= 1.0);
+    assert!(
+        fr.max_twist_deg > 5.0 * rmf.max_twist_deg.max(0.1),
+        "frenet {} vs rmf {}",
+        fr.max_twist_deg,
+        rmf.max_twist_deg
+    );
+}

@@ -1,0 +1,641 @@
+//! Stream tubes: a circle swept along the fitted B-spline of each streamline (Schott et al.,
+//! IEEE TVCG, section 4, steps 2 and 3), with rotation-minimizing frames, a radius kept below
+//! the local radius of curvature, and rings placed where the curve needs them.
+//!
+//! # Frames
+//! * Rotation-minimizing frames by the double reflection method (Wang, Juttler, Zheng and Liu,
+//!   ACM TOG 27(1), 2008), the default: for ring points `x_i`, unit tangents `t_i` and frame
+//!   vector `r_i`, reflect `r_i` and `t_i` in the plane normal to `v1 = x_{i+1} - x_i`
+//!   (`r_L`, `t_L`), then reflect `r_L` in the plane normal to `v2 = t_{i+1} - t_L`.
+//! * Frenet frames with the paper's flip correction (the normal `C'' - (C'' . t) t` is negated
+//!   whenever it turns by more than 90 degrees from the previous ring's, and the previous normal
+//!   is carried over where the curvature vanishes), for comparison.
+//!
+//! # Radius
+//! The paper keeps the radius below `1 / kappa_max` of the whole curve. The default here reduces
+//! it only where needed, `r_i = min(r, 0.9 / kappa_i)` per ring, and counts the rings clamped;
+//! `RadiusMode::Global` is the paper's rule. The curvature used is the larger of the curve's and
+//! the discrete one between consecutive rings (turn angle over spacing), so that the inner side of
+//! a bend cannot fold between two rings either; the radius' slope is limited to `|dr/ds| <= 1`,
+//! so that a clamp narrows the tube as a cone instead of a step. Where the radius varies, the vertex normal tilts by
+//! `-dr/ds` along the tangent (the swept surface's normal).
+//!
+//! # Rings
+//! `per_span` rings per B-spline span (the paper's uniform tessellation), then intervals are
+//! bisected while the tangent turns by more than `max_turn_deg` across them, or, with a chordal
+//! tolerance, while the axis' sagitta `L^2 kappa / 8` exceeds it. With a chordal tolerance the
+//! number of sides follows too: the smallest `N` with `r (1 - cos(pi / N)) <= tol`.
+//!
+//! # Exact reversals
+//! A streamline whose direction reverses (a turn above 179.9 degrees between consecutive
+//! segments) has no tangent there; it is split into two tubes at that sample. Where a fitted
+//! curve turns so tightly that even a thousandth of the radius would fold (the apex of a
+//! near-reversal), the rings there are left out and the tube is cut as well; both count as
+//! splits.
+
+use crate::bspline_fit::{clean, fit, BSpline, FitOptions};
+use crate::Streamlines;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameMethod {
+    Rmf,
+    Frenet,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RadiusMode {
+    Local,
+    Global,
+}
+
+/// How vertices are coloured.
+pub enum ColorMode<'a> {
+    /// Absolute unit tangent as RGB (the usual directionally encoded colour).
+    Direction,
+    Constant([f32; 3]),
+    /// A per-point attribute of the streamlines (first component), through the colour map over
+    /// its range.
+    Scalar(String),
+    /// A scalar function of world position (a volume sampled along the tube), with its range.
+    Field(&'a (dyn Fn(DVec3) -> f64 + Sync), [f64; 2]),
+}
+
+/// Options of [`build`].
+pub struct TubeOptions<'a> {
+    pub radius: f64,
+    pub sides: usize,
+    pub per_span: usize,
+    /// Chordal tolerance in world units: sides and ring spacing follow it (error-bounded mode).
+    pub chordal: Option<f64>,
+    pub max_turn_deg: f64,
+    pub frame: FrameMethod,
+    pub radius_mode: RadiusMode,
+    pub fit: FitOptions,
+    pub caps: bool,
+    pub color: ColorMode<'a>,
+}
+
+/// An indexed triangle mesh. Positions are relative to `origin` (kept in f64 so that tubes far
+/// from the world origin, 1e6 say, keep their shape in f32).
+#[derive(Clone, Debug, Default)]
+pub struct TubeMesh {
+    pub origin: DVec3,
+    pub positions: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
+    pub colors: Vec<[u8; 3]>,
+    pub indices: Vec<u32>,
+}
+
+impl TubeMesh {
+    pub fn triangles(&self) -> usize {
+        self.indices.len() / 3
+    }
+}
+
+/// What the mesher did (the keys of `umbra tubes --stats-json`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TubeStats {
+    pub streamlines_in: usize,
+    pub streamlines_out: usize,
+    pub points_in: usize,
+    pub control_points: usize,
+    pub triangles: usize,
+    pub max_deviation: f64,
+    pub max_twist_deg: f64,
+    pub min_section_ratio: f64,
+    pub radius_clamps: usize,
+    pub splits: usize,
+    pub dropped_points: usize,
+    pub skipped_streamlines: usize,
+}
+
+/// Splits a cleaned polyline where its direction reverses (turn > 179.9 degrees).
+pub fn split_reversals(points: &[DVec3]) -> Vec<Vec<DVec3>> {
+    let mut out = vec![vec![points[0]]];
+    for i in 1..points.len() {
+        if i + 1 < points.len() {
+            let (a, b) = (
+                (points[i] - points[i - 1]).normalize_or_zero(),
+                (points[i + 1] - points[i]).normalize_or_zero(),
+            );
+            if a.dot(b) < (179.9f64).to_radians().cos() {
+                out.last_mut().unwrap().push(points[i]);
+                out.push(vec![points[i]]);
+                continue;
+            }
+        }
+        out.last_mut().unwrap().push(points[i]);
+    }
+    out
+}
+
+fn any_perpendicular(t: DVec3) -> DVec3 {
+    let a = if t.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+    t.cross(a).normalize()
+}
+
+/// Rotation-minimizing frame vectors by double reflection.
+pub fn rmf(x: &[DVec3], t: &[DVec3]) -> Vec<DVec3> {
+    let mut r = Vec::with_capacity(x.len());
+    r.push(any_perpendicular(t[0]));
+    for i in 0..x.len() - 1 {
+        let v1 = x[i + 1] - x[i];
+        let c1 = v1.dot(v1);
+        let ri = r[i];
+        let (rl, tl) = if c1 > 1e-300 {
+            (
+                ri - v1 * (2.0 / c1 * v1.dot(ri)),
+                t[i] - v1 * (2.0 / c1 * v1.dot(t[i])),
+            )
+        } else {
+            (ri, t[i])
+        };
+        let v2 = t[i + 1] - tl;
+        let c2 = v2.dot(v2);
+        let next = if c2 > 1e-300 {
+            rl - v2 * (2.0 / c2 * v2.dot(rl))
+        } else {
+            rl
+        };
+        // Re-orthonormalise against the tangent (rounding).
+        let next = (next - t[i + 1] * next.dot(t[i + 1])).normalize_or(any_perpendicular(t[i + 1]));
+        r.push(next);
+    }
+    r
+}
+
+/// Frenet normals with the flip correction.
+pub fn frenet(curve: &BSpline, params: &[f64], t: &[DVec3]) -> Vec<DVec3> {
+    let mut r: Vec<DVec3> = Vec::with_capacity(params.len());
+    for (i, &u) in params.iter().enumerate() {
+        let (_, _, d2) = curve.eval_d(u);
+        let n = d2 - t[i] * d2.dot(t[i]);
+        let n = if n.length() > 1e-9 * (1.0 + d2.length()) {
+            n.normalize()
+        } else if let Some(&p) = r.last() {
+            (p - t[i] * p.dot(t[i])).normalize_or(any_perpendicular(t[i]))
+        } else {
+            any_perpendicular(t[i])
+        };
+        let n = match r.last() {
+            Some(&p) if n.dot(p) < 0.0 => -n,
+            _ => n,
+        };
+        r.push(n);
+    }
+    r
+}
+
+/// Angle (degrees) between `r1` and `r0` carried from `t0` to `t1` by the smallest rotation.
+pub fn twist_deg(t0: DVec3, t1: DVec3, r0: DVec3, r1: DVec3) -> f64 {
+    let axis = t0.cross(t1);
+    let s = axis.length();
+    let c = t0.dot(t1).clamp(-1.0, 1.0);
+    let carried = if s < 1e-15 {
+        r0
+    } else {
+        let k = axis / s;
+        // Rodrigues.
+        r0 * c + k.cross(r0) * s + k * (k.dot(r0) * (1.0 - c))
+    };
+    carried.dot(r1).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// Ring parameters along a curve.
+fn ring_params(curve: &BSpline, per_span: usize, max_turn: f64, chordal: Option<f64>) -> Vec<f64> {
+    let n = curve.spans() * per_span.max(1);
+    let mut base: Vec<f64> = (0..=n).map(|i| i as f64 / n as f64).collect();
+    let tan = |u: f64| curve.eval_d(u).1.normalize_or_zero();
+    let mut out = vec![0.0];
+    let cos_max = max_turn.to_radians().cos();
+    for w in base.windows(2) {
+        // Bisect [a, b] until it is smooth enough.
+        let mut stack = vec![(w[0], w[1], 0)];
+        let mut pieces = Vec::new();
+        while let Some((a, b, depth)) = stack.pop() {
+            let turn_ok = tan(a).dot(tan(b)) >= cos_max;
+            let chord_ok = match chordal {
+                Some(tol) => {
+                    let len = (curve.eval(b) - curve.eval(a)).length();
+                    let k = curve.curvature(0.5 * (a + b));
+                    len * len * k / 8.0 <= tol
+                }
+                None => true,
+            };
+            if (turn_ok && chord_ok) || depth >= 12 {
+                pieces.push(b);
+            } else {
+                let m = 0.5 * (a + b);
+                stack.push((m, b, depth + 1));
+                stack.push((a, m, depth + 1));
+            }
+        }
+        // The stack visits left halves first.
+        out.extend(pieces);
+    }
+    base.clear();
+    out
+}
+
+/// Sides for a chordal tolerance: the smallest `N >= 3` with `r (1 - cos(pi / N)) <= tol`.
+pub fn sides_for(radius: f64, tol: f64) -> usize {
+    (3..=256)
+        .find(|&n| radius * (1.0 - (std::f64::consts::PI / n as f64).cos()) <= tol)
+        .unwrap_or(256)
+}
+
+/// Colour map for scalars in [0, 1] (a perceptually ordered blue-green-yellow ramp, viridis
+/// anchors).
+pub fn colormap(v: f64) -> [f32; 3] {
+    const A: [[f32; 3]; 5] = [
+        [0.267, 0.005, 0.329],
+        [0.229, 0.322, 0.546],
+        [0.128, 0.567, 0.551],
+        [0.369, 0.789, 0.383],
+        [0.993, 0.906, 0.144],
+    ];
+    let v = if v.is_finite() {
+        v.clamp(0.0, 1.0)
+    } else {
+        0.0
+    } * 4.0;
+    let i = (v.floor() as usize).min(3);
+    let f = (v - i as f64) as f32;
+    [0, 1, 2].map(|c| A[i][c] + (A[i + 1][c] - A[i][c]) * f)
+}
+
+struct Piece {
+    positions: Vec<DVec3>,
+    normals: Vec<DVec3>,
+    colors: Vec<[f32; 3]>,
+    indices: Vec<u32>,
+    stats: TubeStats,
+}
+
+/// Builds the tube of one cleaned polyline piece.
+fn tube(
+    points: &[DVec3],
+    attr: Option<(&[f32], [f64; 2])>,
+    o: &TubeOptions,
+    origin: DVec3,
+) -> Piece {
+    let mut st = TubeStats {
+        min_section_ratio: f64::INFINITY,
+        ..Default::default()
+    };
+    let f = fit(points, &o.fit);
+    st.control_points = f.curve.control.len();
+    st.max_deviation = f.max_deviation;
+    let curve = &f.curve;
+    let params = ring_params(curve, o.per_span, o.max_turn_deg, o.chordal);
+    let sides = match o.chordal {
+        Some(tol) => sides_for(o.radius, tol),
+        None => o.sides.max(3),
+    };
+    let (mut x, mut t, mut k): (Vec<DVec3>, Vec<DVec3>, Vec<f64>) =
+        (Vec::new(), Vec::new(), Vec::new());
+    let mut kept_params = Vec::with_capacity(params.len());
+    for (pi, &u) in params.iter().enumerate() {
+        let (c, d1, d2) = curve.eval_d(u);
+        // Rings closer than 1e-4 radius to the previous one (where the fitted curve all but
+        // stops, at the apex of a near-reversal) would give zero-area quads: skip them, but keep
+        // the last ring.
+        if let Some(&prev) = x.last() {
+            if (c - prev).length() < 1e-4 * o.radius {
+                if pi + 1 < params.len() {
+                    continue;
+                }
+                x.pop();
+                t.pop();
+                k.pop();
+                kept_params.pop();
+            }
+        }
+        kept_params.push(u);
+        x.push(c);
+        t.push(d1.normalize_or(if let Some(&p) = t.last() { p } else { DVec3::X }));
+        let l = d1.length();
+        k.push(if l > 1e-300 {
+            d1.cross(d2).length() / (l * l * l)
+        } else {
+            0.0
+        });
+    }
+    let params = kept_params;
+    let frames = match o.frame {
+        FrameMethod::Rmf => rmf(&x, &t),
+        FrameMethod::Frenet => frenet(curve, &params, &t),
+    };
+    // Discrete curvature between consecutive rings (turn over spacing): a ring may not be wider
+    // than this allows either, or the inner side of the bend folds between two rings.
+    let kd: Vec<f64> = (0..x.len().saturating_sub(1))
+        .map(|i| {
+            let ds = (x[i + 1] - x[i]).length().max(1e-300);
+            t[i].dot(t[i + 1]).clamp(-1.0, 1.0).acos() / ds
+        })
+        .collect();
+    let kloc: Vec<f64> = (0..x.len())
+        .map(|i| {
+            let a = if i > 0 { kd[i - 1] } else { 0.0 };
+            let b = kd.get(i).copied().unwrap_or(0.0);
+            k[i].max(a).max(b)
+        })
+        .collect();
+    let kmax = kloc.iter().cloned().fold(0.0, f64::max);
+    let radii: Vec<f64> = kloc
+        .iter()
+        .map(|&ki| {
+            let limit = match o.radius_mode {
+                RadiusMode::Local => 0.9 / ki.max(1e-300),
+                RadiusMode::Global => 0.9 / kmax.max(1e-300),
+            };
+            o.radius.min(limit)
+        })
+        .collect();
+    // Where even 1/1000 of the radius would fold (the apex of a near-reversal, whose fitted
+    // curve turns within a hair's breadth), the tube is cut instead: rings there are left out
+    // and the pieces on either side end there (with caps when asked for).
+    let floor = 1e-3 * o.radius;
+    let cut: Vec<bool> = radii.iter().map(|&r| r < floor).collect();
+    // Arc length for dr/ds.
+    let mut s = vec![0.0];
+    for w in x.windows(2) {
+        s.push(s.last().unwrap() + (w[1] - w[0]).length());
+    }
+    // Limit the radius' slope to |dr/ds| <= 1: a clamp then narrows the tube as a cone of at
+    // most 45 degrees instead of a step, which keeps the quads next to it facing outwards.
+    let mut radii = radii;
+    for i in 1..radii.len() {
+        radii[i] = radii[i].min(radii[i - 1] + (s[i] - s[i - 1]));
+    }
+    for i in (0..radii.len().saturating_sub(1)).rev() {
+        radii[i] = radii[i].min(radii[i + 1] + (s[i + 1] - s[i]));
+    }
+    st.radius_clamps = radii.iter().filter(|&&r| r < o.radius).count();
+    let n = x.len();
+    // Scalar colour along the curve: interpolate the attribute at ring parameters.
+    let attr_at = |u: f64| -> f64 {
+        let Some((vals, _)) = attr else { return 0.0 };
+        let p = &f.sample_params;
+        let j = p.partition_point(|&q| q < u).min(p.len() - 1);
+        if j == 0 {
+            vals[0] as f64
+        } else {
+            let (a, b) = (p[j - 1], p[j]);
+            let w = if b > a { (u - a) / (b - a) } else { 0.0 };
+            vals[j - 1] as f64 * (1.0 - w) + vals[j] as f64 * w
+        }
+    };
+    let mut piece = Piece {
+        positions: Vec::with_capacity(n * sides),
+        normals: Vec::with_capacity(n * sides),
+        colors: Vec::with_capacity(n * sides),
+        indices: Vec::new(),
+        stats: TubeStats::default(),
+    };
+    let step = std::f64::consts::TAU / sides as f64;
+    let ideal = |r: f64| 0.5 * sides as f64 * r * r * step.sin();
+    let mut base: Vec<Option<u32>> = vec![None; n];
+    for i in 0..n {
+        if cut[i] {
+            continue;
+        }
+        base[i] = Some(piece.positions.len() as u32);
+        let r_vec = frames[i];
+        let b_vec = t[i].cross(r_vec);
+        let drds = if n > 1 {
+            let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
+            if s[b] > s[a] {
+                (radii[b] - radii[a]) / (s[b] - s[a])
+            } else {
+                0.0
+            }
+        } else {
+            0.0
+        };
+        let color = match &o.color {
+            ColorMode::Direction => [
+                t[i].x.abs() as f32,
+                t[i].y.abs() as f32,
+                t[i].z.abs() as f32,
+            ],
+            ColorMode::Constant(c) => *c,
+            ColorMode::Scalar(_) => {
+                let [lo, hi] = attr.map(|a| a.1).unwrap_or([0.0, 1.0]);
+                colormap((attr_at(params[i]) - lo) / (hi - lo).max(1e-300))
+            }
+            ColorMode::Field(func, [lo, hi]) => colormap((func(x[i]) - lo) / (hi - lo).max(1e-300)),
+        };
+        let mut ring = Vec::with_capacity(sides);
+        for j in 0..sides {
+            let a = step * j as f64;
+            let radial = r_vec * a.cos() + b_vec * a.sin();
+            let p = x[i] + radial * radii[i];
+            ring.push(p);
+            piece.positions.push(p - origin);
+            piece.normals.push((radial - t[i] * drds).normalize());
+            piece.colors.push(color);
+        }
+        // Section ratio: the ring polygon projected on the plane normal to its tangent, in the
+        // precision it is stored in.
+        let stored: Vec<DVec3> = ring
+            .iter()
+            .map(|p| (*p - origin).as_vec3().as_dvec3())
+            .collect();
+        let c = stored.iter().sum::<DVec3>() / sides as f64;
+        let mut area = 0.0;
+        for j in 0..sides {
+            let (p, q) = (stored[j] - c, stored[(j + 1) % sides] - c);
+            area += 0.5 * p.cross(q).dot(t[i]);
+        }
+        let ratio = if radii[i] > 0.0 {
+            area / ideal(radii[i])
+        } else {
+            1.0
+        };
+        st.min_section_ratio = st.min_section_ratio.min(ratio);
+        if i > 0 {
+            st.max_twist_deg =
+                st.max_twist_deg
+                    .max(twist_deg(t[i - 1], t[i], frames[i - 1], frames[i]));
+        }
+    }
+    // Quads between consecutive rings, counter-clockwise seen from outside.
+    for i in 0..n.saturating_sub(1) {
+        let (Some(r0), Some(r1)) = (base[i], base[i + 1]) else {
+            continue;
+        };
+        for j in 0..sides as u32 {
+            let (a, b) = (r0 + j, r0 + (j + 1) % sides as u32);
+            let (c, d) = (r1 + j, r1 + (j + 1) % sides as u32);
+            piece.indices.extend_from_slice(&[a, b, d, a, d, c]);
+        }
+    }
+    // Runs of rings between cuts: one tube piece each.
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    let mut i = 0;
+    while i < n {
+        if base[i].is_none() {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i + 1 < n && base[i + 1].is_some() {
+            i += 1;
+        }
+        runs.push((start, i));
+        i += 1;
+    }
+    st.splits += runs.len().saturating_sub(1);
+    if o.caps {
+        for &(first_ring, last_ring) in &runs {
+            if first_ring == last_ring {
+                continue;
+            }
+            for (ring, dir, flip) in [
+                (first_ring, -t[first_ring], true),
+                (last_ring, t[last_ring], false),
+            ] {
+                let rb = base[ring].unwrap();
+                let centre = piece.positions.len() as u32;
+                piece.positions.push(x[ring] - origin);
+                piece.normals.push(dir);
+                piece.colors.push(piece.colors[rb as usize]);
+                let first = piece.positions.len() as u32;
+                for j in 0..sides as u32 {
+                    piece.positions.push(piece.positions[(rb + j) as usize]);
+                    piece.normals.push(dir);
+                    piece.colors.push(piece.colors[(rb + j) as usize]);
+                }
+                for j in 0..sides as u32 {
+                    let (p, q) = (first + j, first + (j + 1) % sides as u32);
+                    if flip {
+                        piece.indices.extend_from_slice(&[centre, q, p]);
+                    } else {
+                        piece.indices.extend_from_slice(&[centre, p, q]);
+                    }
+                }
+            }
+        }
+    }
+    st.triangles = piece.indices.len() / 3;
+    piece.stats = st;
+    piece
+}
+
+/// Builds the tube mesh of all streamlines (in parallel) and its statistics.
+pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
+    let origin = s
+        .bounds()
+        .map(|[lo, hi]| ((lo + hi) * 0.5).as_dvec3())
+        .unwrap_or(DVec3::ZERO);
+    let scalar = match &o.color {
+        ColorMode::Scalar(name) => s.point_attributes.iter().find(|a| &a.name == name),
+        _ => None,
+    };
+    let range = scalar.map(|a| {
+        let v = a
+            .values
+            .iter()
+            .step_by(a.components)
+            .filter(|v| v.is_finite());
+        let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| {
+            (l.min(x as f64), h.max(x as f64))
+        });
+        [lo, hi]
+    });
+    let pieces: Vec<(Vec<Piece>, TubeStats)> = (0..s.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut st = TubeStats {
+                streamlines_in: 1,
+                points_in: s.line(i).len(),
+                min_section_ratio: f64::INFINITY,
+                ..Default::default()
+            };
+            let raw: Vec<DVec3> = s.line(i).iter().map(|p| p.as_dvec3()).collect();
+            let vals: Option<Vec<f32>> = scalar.map(|a| {
+                (s.offsets[i]..s.offsets[i + 1])
+                    .map(|p| a.values[p * a.components])
+                    .collect()
+            });
+            // Keep attribute values aligned with the cleaned points.
+            let mut pts = Vec::with_capacity(raw.len());
+            let mut kept_vals = Vec::new();
+            for (j, &p) in raw.iter().enumerate() {
+                let dup = pts.last().is_some_and(|q: &DVec3| {
+                    (p - *q).length() <= 1e-9 * (1.0 + p.abs().max_element())
+                });
+                if p.is_finite() && !dup {
+                    pts.push(p);
+                    if let Some(v) = &vals {
+                        kept_vals.push(v[j]);
+                    }
+                }
+            }
+            debug_assert_eq!(pts, clean(&raw).0);
+            st.dropped_points = raw.len() - pts.len();
+            if pts.len() < 2 {
+                st.skipped_streamlines = 1;
+                return (Vec::new(), st);
+            }
+            let parts = split_reversals(&pts);
+            st.splits = parts.len() - 1;
+            let mut out = Vec::new();
+            let mut off = 0;
+            for part in &parts {
+                let len = part.len();
+                let av = vals.as_ref().map(|_| &kept_vals[off..off + len]);
+                off += len - 1;
+                if len < 2 {
+                    continue;
+                }
+                let p = tube(part, av.zip(range), o, origin);
+                out.push(p);
+            }
+            (out, st)
+        })
+        .collect();
+    let mut mesh = TubeMesh {
+        origin,
+        ..Default::default()
+    };
+    let mut stats = TubeStats {
+        min_section_ratio: f64::INFINITY,
+        ..Default::default()
+    };
+    for (parts, st) in pieces {
+        stats.streamlines_in += st.streamlines_in;
+        stats.points_in += st.points_in;
+        stats.dropped_points += st.dropped_points;
+        stats.skipped_streamlines += st.skipped_streamlines;
+        stats.splits += st.splits;
+        for p in parts {
+            let base = mesh.positions.len() as u32;
+            mesh.positions
+                .extend(p.positions.iter().map(|v| v.as_vec3()));
+            mesh.normals.extend(p.normals.iter().map(|v| v.as_vec3()));
+            mesh.colors.extend(
+                p.colors
+                    .iter()
+                    .map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)),
+            );
+            mesh.indices.extend(p.indices.iter().map(|&i| i + base));
+            stats.streamlines_out += 1;
+            stats.control_points += p.stats.control_points;
+            stats.triangles += p.stats.triangles;
+            stats.max_deviation = stats.max_deviation.max(p.stats.max_deviation);
+            stats.max_twist_deg = stats.max_twist_deg.max(p.stats.max_twist_deg);
+            stats.min_section_ratio = stats.min_section_ratio.min(p.stats.min_section_ratio);
+            stats.radius_clamps += p.stats.radius_clamps;
+            stats.splits += p.stats.splits;
+            stats.streamlines_out += p.stats.splits;
+        }
+    }
+    if !stats.min_section_ratio.is_finite() {
+        stats.min_section_ratio = 1.0;
+    }
+    (mesh, stats)
+}
