@@ -143,7 +143,7 @@ fn s_curves_helices_and_straight_lines() {
         ("tight helix", &helix, 0.5),
         ("collinear", &straight, 0.2),
     ] {
-        let (mesh, st) = build(&lines(&[c.clone()]), &opts(r));
+        let (mesh, st) = build(&lines(std::slice::from_ref(c)), &opts(r));
         check(name, &mesh, &st, r);
         if name == "tight helix" {
             assert!(st.radius_clamps > 0);
@@ -207,7 +207,7 @@ fn frenet_frames_twist_where_rmf_does_not() {
     // A non-planar hairpin: the Frenet normal swings round the turn; RMF stays put.
     let c = hairpin(170.0, false);
     let mut o = opts(0.2);
-    let (_, rmf) = build(&lines(&[c.clone()]), &o);
+    let (_, rmf) = build(&lines(std::slice::from_ref(&c)), &o);
     o.frame = FrameMethod::Frenet;
     let (_, fr) = build(&lines(&[c]), &o);
     assert!(rmf.max_twist_deg <= 1.0);
