@@ -11,3 +11,4 @@ pub mod iso_reference;
 pub mod smoke;
 pub mod sweep_cmd;
 pub mod synth;
+pub mod tubes_cmd;

@@ -129,6 +129,50 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// B-spline stream tubes of a tractogram (.trk, .tck), written as PLY or OBJ.
+    Tubes {
+        /// Input tractogram.
+        input: PathBuf,
+        /// Output mesh: .ply (binary) or .obj.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Tube radius (world units).
+        #[arg(long, default_value_t = 0.5)]
+        radius: f64,
+        /// Sides of a ring.
+        #[arg(long, default_value_t = 8)]
+        sides: usize,
+        /// Rings per B-spline span before adaptive refinement.
+        #[arg(long, default_value_t = 2)]
+        per_span: usize,
+        /// Largest distance of an input point to the fitted curve (world units).
+        #[arg(long, default_value_t = 0.05)]
+        tolerance: f64,
+        /// Error-bounded tessellation: sides and ring spacing from this chordal tolerance.
+        #[arg(long)]
+        chordal: Option<f64>,
+        /// Curve fit: iterative (the paper's), least-squares, or none.
+        #[arg(long, default_value = "iterative")]
+        fit: String,
+        /// Frames: rmf (rotation minimizing) or frenet (with flip correction).
+        #[arg(long, default_value = "rmf")]
+        frame: String,
+        /// Radius limit: local (per ring, below 1/curvature) or global (the paper's 1/kappa_max).
+        #[arg(long, default_value = "local")]
+        radius_mode: String,
+        /// Colour: direction, scalar:NAME, volume:PATH, or #rrggbb.
+        #[arg(long, default_value = "direction")]
+        color: String,
+        /// Close the tube ends.
+        #[arg(long)]
+        caps: bool,
+        /// Row-major 4x4 transform applied to the points, as 16 comma-separated numbers.
+        #[arg(long, allow_hyphen_values = true)]
+        transform: Option<String>,
+        /// Write the statistics as JSON to this file.
+        #[arg(long)]
+        stats_json: Option<PathBuf>,
+    },
     /// Write a synthetic scene as NRRD: validation (the sweeping paper's solids, [0,100]^3),
     /// three-solids (sphere, torus, box in [0,1]^3), abc, burgers, rotation (vector fields).
     Synth {
@@ -380,6 +424,83 @@ fn run(cli: Cli) -> Result<(), String> {
                     stats.seconds
                 );
             }
+            Ok(())
+        }
+        Command::Tubes {
+            input,
+            output,
+            radius,
+            sides,
+            per_span,
+            tolerance,
+            chordal,
+            fit,
+            frame,
+            radius_mode,
+            color,
+            caps,
+            transform,
+            stats_json,
+        } => {
+            use tubes::bspline_fit::FitMethod;
+            use tubes::tube_mesh::{FrameMethod, RadiusMode};
+            let fit = match fit.as_str() {
+                "iterative" => FitMethod::Iterative,
+                "least-squares" => FitMethod::LeastSquares,
+                "none" => FitMethod::None,
+                o => return Err(format!("--fit {o}: use iterative, least-squares or none")),
+            };
+            let frame = match frame.as_str() {
+                "rmf" => FrameMethod::Rmf,
+                "frenet" => FrameMethod::Frenet,
+                o => return Err(format!("--frame {o}: use rmf or frenet")),
+            };
+            let radius_mode = match radius_mode.as_str() {
+                "local" => RadiusMode::Local,
+                "global" => RadiusMode::Global,
+                o => return Err(format!("--radius-mode {o}: use local or global")),
+            };
+            let transform = match transform {
+                None => None,
+                Some(t) => {
+                    let v: Vec<f64> = t
+                        .split(',')
+                        .map(|x| x.trim().parse::<f64>())
+                        .collect::<Result<_, _>>()
+                        .map_err(|_| format!("--transform {t}: 16 comma-separated numbers"))?;
+                    Some(
+                        <[f64; 16]>::try_from(v)
+                            .map_err(|_| format!("--transform {t}: 16 comma-separated numbers"))?,
+                    )
+                }
+            };
+            let args = engine::tubes_cmd::TubesArgs {
+                input,
+                output: output.clone(),
+                radius,
+                sides,
+                per_span,
+                tolerance,
+                chordal,
+                fit,
+                frame,
+                radius_mode,
+                color,
+                caps,
+                transform,
+            };
+            let s = engine::tubes_cmd::run(&args)?;
+            for w in &s.warnings {
+                eprintln!("umbra: warning: {}: {w}", args.input.display());
+            }
+            let json = serde_json::to_string_pretty(&s).unwrap();
+            if let Some(p) = stats_json {
+                volume::write_atomic(&p, json.as_bytes()).map_err(|e| e.to_string())?;
+            }
+            eprintln!(
+                "wrote {}: {} tubes, {} triangles, {} control points for {} points, max deviation {:.4}, {:.2} s",
+                output.display(), s.streamlines_out, s.triangles, s.control_points, s.points_in, s.max_deviation, s.seconds.total
+            );
             Ok(())
         }
         Command::Synth { scene, output, n } => {

@@ -77,7 +77,8 @@ impl BSpline {
     /// Span index and local coordinate of a parameter.
     fn locate(&self, t: f64) -> usize {
         let s = self.spans();
-        ((t.clamp(0.0, 1.0) * s as f64).floor() as usize).min(s - 1)
+        // Non-negative after the clamp, so truncation is the floor.
+        ((t.clamp(0.0, 1.0) * s as f64) as usize).min(s - 1)
     }
 
     /// Point and first two derivatives at `t` (de Boor with derivatives by differencing the
@@ -89,6 +90,34 @@ impl BSpline {
     /// `(C(t), C'(t), C''(t))`.
     pub fn eval_d(&self, t: f64) -> (DVec3, DVec3, DVec3) {
         let t = t.clamp(0.0, 1.0);
+        let sp = self.spans();
+        let j = self.locate(t);
+        if j >= 3 && j + 4 <= sp {
+            // Interior span: all knots around it are uniform, so the basis is the uniform cubic
+            // B-spline's, in closed form (derivatives scale by the number of spans).
+            let s = sp as f64;
+            let u = t * s - j as f64;
+            let (u2, u3) = (u * u, u * u * u);
+            let v = 1.0 - u;
+            let p = &self.control[j..j + 4];
+            let b = [
+                v * v * v / 6.0,
+                (3.0 * u3 - 6.0 * u2 + 4.0) / 6.0,
+                (-3.0 * u3 + 3.0 * u2 + 3.0 * u + 1.0) / 6.0,
+                u3 / 6.0,
+            ];
+            let d = [
+                -v * v / 2.0,
+                (3.0 * u2 - 4.0 * u) / 2.0,
+                (-3.0 * u2 + 2.0 * u + 1.0) / 2.0,
+                u2 / 2.0,
+            ];
+            let dd = [v, 3.0 * u - 2.0, -3.0 * u + 1.0, u];
+            let c = p[0] * b[0] + p[1] * b[1] + p[2] * b[2] + p[3] * b[3];
+            let c1 = (p[0] * d[0] + p[1] * d[1] + p[2] * d[2] + p[3] * d[3]) * s;
+            let c2 = (p[0] * dd[0] + p[1] * dd[1] + p[2] * dd[2] + p[3] * dd[3]) * (s * s);
+            return (c, c1, c2);
+        }
         let k = self.locate(t) + 3; // knot interval [u_k, u_{k+1})
         let u = |i: usize| self.knot(i as isize);
         // Basis functions by Cox-de Boor, degree 0..3, with derivatives.
@@ -150,34 +179,37 @@ impl BSpline {
         }
     }
 
-    /// Closest parameter to `x` near `t0` (Newton on `(C(t) - x) . C'(t) = 0`, clamped, with
-    /// a fallback to the better end point of the search bracket).
+    /// Closest parameter to `x` near `t0` (Newton on `(C(t) - x) . C'(t) = 0`, steps clamped to
+    /// half a span); falls back to `t0` when Newton ends farther away than it started.
     pub fn project(&self, x: DVec3, t0: f64) -> (f64, f64) {
-        let mut t = t0.clamp(0.0, 1.0);
-        for _ in 0..8 {
+        let t0 = t0.clamp(0.0, 1.0);
+        let max_step = 0.5 / self.spans() as f64;
+        let mut t = t0;
+        let mut d0 = f64::NAN;
+        let mut best = (t0, f64::INFINITY);
+        for it in 0..5 {
             let (c, d1, d2) = self.eval_d(t);
             let r = c - x;
+            let dist = r.length();
+            if it == 0 {
+                d0 = dist;
+            }
+            if dist < best.1 {
+                best = (t, dist);
+            }
             let g = r.dot(d1);
             let h = d1.length_squared() + r.dot(d2);
             if h <= 1e-300 {
                 break;
             }
-            let step = (g / h).clamp(-0.5 / self.spans() as f64, 0.5 / self.spans() as f64);
-            let nt = (t - step).clamp(0.0, 1.0);
-            if (nt - t).abs() < 1e-12 {
-                t = nt;
+            let nt = (t - (g / h).clamp(-max_step, max_step)).clamp(0.0, 1.0);
+            if (nt - t).abs() < 1e-7 * max_step {
                 break;
             }
             t = nt;
         }
-        let d = (self.eval(t) - x).length();
-        // Guard against converging to a far local minimum: compare with the start.
-        let d0 = (self.eval(t0.clamp(0.0, 1.0)) - x).length();
-        if d0 < d {
-            (t0.clamp(0.0, 1.0), d0)
-        } else {
-            (t, d)
-        }
+        let _ = d0;
+        best
     }
 }
 
@@ -219,27 +251,37 @@ pub fn resample_polyline(points: &[DVec3], n: usize) -> Vec<DVec3> {
 }
 
 /// PIA fit of `samples` (at least 4) with as many control points, to within `epsilon`.
+///
+/// The curve is evaluated at the Greville abscissae through the banded collocation matrix
+/// (at most four non-zero basis values per row, computed once), so an iteration costs a few
+/// multiply-adds per control point.
 pub fn pia(samples: &[DVec3], epsilon: f64, max_iter: usize) -> BSpline {
     let m = samples.len();
     let mut curve = BSpline::new(samples.to_vec());
-    let params: Vec<f64> = (0..m).map(|i| curve.greville(i)).collect();
+    let rows: Vec<(usize, [f64; 4])> = (0..m)
+        .map(|i| {
+            let t = curve.greville(i);
+            let k = curve.locate(t);
+            (k, basis_weights(&curve, t))
+        })
+        .collect();
     let w = 1.5;
+    let eps2 = epsilon * epsilon;
+    let mut res = vec![DVec3::ZERO; m];
     for _ in 0..max_iter {
         let mut worst = 0.0f64;
-        let res: Vec<DVec3> = params
-            .iter()
-            .zip(samples)
-            .map(|(&t, &q)| {
-                let r = q - curve.eval(t);
-                worst = worst.max(r.length());
-                r
-            })
-            .collect();
-        if worst <= epsilon {
+        for (i, &(k, b)) in rows.iter().enumerate() {
+            let p = &curve.control;
+            let c = p[k] * b[0] + p[k + 1] * b[1] + p[k + 2] * b[2] + p[k + 3] * b[3];
+            let r = samples[i] - c;
+            worst = worst.max(r.length_squared());
+            res[i] = r;
+        }
+        if worst <= eps2 {
             break;
         }
-        for (p, r) in curve.control.iter_mut().zip(res) {
-            *p += r * w;
+        for (p, r) in curve.control.iter_mut().zip(&res) {
+            *p += *r * w;
         }
     }
     curve
@@ -273,16 +315,42 @@ pub struct Fit {
     pub sample_params: Vec<f64>,
 }
 
-/// Largest distance of `points` to `curve`, projecting from the given start parameters.
-fn deviation(curve: &BSpline, points: &[DVec3], guess: &[f64]) -> (f64, Vec<f64>) {
+/// Largest distance of `points` to `curve`, projecting from the given start parameters; stops
+/// as soon as a distance exceeds `limit` (the answer is then just "more than `limit`").
+fn deviation(curve: &BSpline, points: &[DVec3], guess: &[f64], limit: f64) -> (f64, Vec<f64>) {
     let mut worst = 0.0f64;
     let mut params = Vec::with_capacity(points.len());
     for (&x, &t0) in points.iter().zip(guess) {
         let (t, d) = curve.project(x, t0);
         worst = worst.max(d);
         params.push(t);
+        if worst > limit {
+            break;
+        }
     }
     (worst, params)
+}
+
+/// Whether every point is within `limit` of `curve`: the distance to the curve point at the
+/// carried parameter is an upper bound of the distance to the curve, so points are projected
+/// (Newton) only when that bound exceeds the limit. Returns the largest bound and the
+/// parameters, or `None` as soon as a point is farther than `limit`.
+fn within(curve: &BSpline, points: &[DVec3], guess: &[f64], limit: f64) -> Option<(f64, Vec<f64>)> {
+    let mut worst = 0.0f64;
+    let mut params = Vec::with_capacity(points.len());
+    for (&x, &t0) in points.iter().zip(guess) {
+        let mut d = (curve.eval(t0) - x).length();
+        let mut t = t0;
+        if d > limit {
+            (t, d) = curve.project(x, t0);
+            if d > limit {
+                return None;
+            }
+        }
+        worst = worst.max(d);
+        params.push(t);
+    }
+    Some((worst, params))
 }
 
 /// Fits a cleaned polyline of at least two points.
@@ -298,7 +366,7 @@ pub fn fit(points: &[DVec3], opts: &FitOptions) -> Fit {
         FitMethod::None => {
             let curve = BSpline::new(base.clone());
             let guess: Vec<f64> = chord_params(points);
-            let (d, p) = deviation(&curve, points, &guess);
+            let (d, p) = deviation(&curve, points, &guess, f64::INFINITY);
             Fit {
                 curve,
                 max_deviation: d,
@@ -306,7 +374,7 @@ pub fn fit(points: &[DVec3], opts: &FitOptions) -> Fit {
             }
         }
         FitMethod::Iterative | FitMethod::LeastSquares => {
-            let mut curve = pia(&base, opts.epsilon * 0.05, opts.max_iterations);
+            let mut curve = pia(&base, opts.epsilon * 0.2, opts.max_iterations);
             // Parameters of the original samples on gamma_1: the Greville abscissae (or chord
             // length when the polyline was resampled).
             let mut guess: Vec<f64> = if points.len() < 4 {
@@ -314,8 +382,11 @@ pub fn fit(points: &[DVec3], opts: &FitOptions) -> Fit {
             } else {
                 (0..points.len()).map(|i| curve.greville(i)).collect()
             };
-            let (mut dev, mut params) = deviation(&curve, points, &guess);
+            // Sample i sits at the Greville abscissa i of gamma_1 (to within the PIA tolerance): the
+            // projections start there, and are computed once, for the curve that is kept.
+            let (mut dev, mut params) = (f64::NAN, guess.clone());
             let mut m = base.len();
+            let mut reduced = false;
             while m / 2 >= 4 {
                 let m2 = m / 2;
                 // Sample the old curve at the new curve's Greville abscissae (see the module doc),
@@ -323,24 +394,27 @@ pub fn fit(points: &[DVec3], opts: &FitOptions) -> Fit {
                 let probe = BSpline::new(vec![DVec3::ZERO; m2]);
                 let g: Vec<f64> = (0..m2).map(|j| probe.greville(j)).collect();
                 let samples: Vec<DVec3> = g.iter().map(|&t| curve.eval(t)).collect();
-                let next = pia(&samples, opts.epsilon * 0.05, opts.max_iterations);
+                let next = pia(&samples, opts.epsilon * 0.2, opts.max_iterations);
                 // A point at parameter t of the old curve is sampled at the same parameter of the
                 // new one: carry the projections' parameters over unchanged.
                 let carried: Vec<f64> = params.clone();
-                let (d2, p2) = deviation(&next, points, &carried);
-                if d2 > opts.epsilon {
+                let Some((d2, p2)) = within(&next, points, &carried, opts.epsilon) else {
                     break;
-                }
+                };
                 curve = next;
                 dev = d2;
                 params = p2;
+                reduced = true;
                 guess = carried;
                 m = m2;
             }
             let _ = guess;
+            // The bounds above are upper bounds: report the true largest distance.
+            let _ = (reduced, dev);
+            (dev, params) = deviation(&curve, points, &params, f64::INFINITY);
             if opts.method == FitMethod::LeastSquares {
                 let ls = least_squares(points, curve.control.len());
-                let (d, p) = deviation(&ls, points, &chord_params(points));
+                let (d, p) = deviation(&ls, points, &chord_params(points), f64::INFINITY);
                 return Fit {
                     curve: ls,
                     max_deviation: d,
@@ -436,15 +510,31 @@ pub fn least_squares(points: &[DVec3], m: usize) -> BSpline {
 
 /// The four non-zero cubic basis values at `t` (for control points `span .. span + 4`).
 fn basis_weights(c: &BSpline, t: f64) -> [f64; 4] {
-    // Evaluate a curve whose control points are unit steps in x, y, z, w by component: the
-    // basis values of the span's four control points.
     let k = c.locate(t);
+    let sp = c.spans();
+    if k >= 3 && k + 4 <= sp {
+        let u = t.clamp(0.0, 1.0) * sp as f64 - k as f64;
+        let v = 1.0 - u;
+        return [
+            v * v * v / 6.0,
+            (3.0 * u * u * u - 6.0 * u * u + 4.0) / 6.0,
+            (-3.0 * u * u * u + 3.0 * u * u + 3.0 * u + 1.0) / 6.0,
+            u * u * u / 6.0,
+        ];
+    }
+    // Evaluate a curve whose control points are unit steps in x, y, z by component: the basis
+    // values of the span's four control points (the fourth is the rest of the partition of unity).
     let mut probe = BSpline::new(vec![DVec3::ZERO; c.control.len()]);
     probe.control[k] = DVec3::X;
     probe.control[k + 1] = DVec3::Y;
     probe.control[k + 2] = DVec3::Z;
     let first3 = probe.eval(t);
-    [first3.x, first3.y, first3.z, 1.0 - first3.x - first3.y - first3.z]
+    [
+        first3.x,
+        first3.y,
+        first3.z,
+        1.0 - first3.x - first3.y - first3.z,
+    ]
 }
 
 /// Wiggle measure: total absolute curvature of the curve (integral of kappa ds, sampled) over
@@ -498,6 +588,42 @@ mod tests {
             let fd2 = (c.eval(t + h) - c.eval(t) * 2.0 + c.eval(t - h)) / (h * h);
             assert!((d1 - fd1).length() < 1e-5 * (1.0 + d1.length()));
             assert!((d2 - fd2).length() < 1e-2 * (1.0 + d2.length()));
+        }
+    }
+
+    #[test]
+    fn the_closed_form_interior_basis_matches_de_boor() {
+        // 20 control points: spans 3..=13 take the closed form; compare with finite differences
+        // and with the general recursion's partition of unity at the span borders.
+        let c = BSpline::new(
+            (0..20)
+                .map(|i| DVec3::new(i as f64, ((i * 7) % 5) as f64, (i as f64).sin()))
+                .collect(),
+        );
+        for k in 0..200 {
+            let t = k as f64 / 199.0;
+            let (_, d1, d2) = c.eval_d(t);
+            let h = 1e-6;
+            let (a, b) = ((t - h).max(0.0), (t + h).min(1.0));
+            let fd1 = (c.eval(b) - c.eval(a)) / (b - a);
+            assert!(
+                (d1 - fd1).length() < 1e-4 * (1.0 + d1.length()),
+                "t {t}: {d1} vs {fd1}"
+            );
+            let h2 = 1e-4;
+            if t > h2 && t < 1.0 - h2 {
+                let fd2 = (c.eval(t + h2) - c.eval(t) * 2.0 + c.eval(t - h2)) / (h2 * h2);
+                assert!(
+                    (d2 - fd2).length() < 1e-2 * (1.0 + d2.length()),
+                    "t {t}: {d2} vs {fd2}"
+                );
+            }
+        }
+        // Continuity across the border between general and closed-form spans.
+        let s = c.spans() as f64;
+        for border in [3.0, s - 3.0] {
+            let t = border / s;
+            assert!((c.eval(t - 1e-12) - c.eval(t + 1e-12)).length() < 1e-9);
         }
     }
 

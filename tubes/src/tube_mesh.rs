@@ -267,11 +267,16 @@ pub fn colormap(v: f64) -> [f32; 3] {
 }
 
 struct Piece {
-    positions: Vec<DVec3>,
-    normals: Vec<DVec3>,
-    colors: Vec<[f32; 3]>,
+    /// Relative to the mesh origin.
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    colors: Vec<[u8; 3]>,
     indices: Vec<u32>,
     stats: TubeStats,
+}
+
+fn rgb8(c: [f32; 3]) -> [u8; 3] {
+    c.map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
 }
 
 /// Builds the tube of one cleaned polyline piece.
@@ -396,6 +401,9 @@ fn tube(
         stats: TubeStats::default(),
     };
     let step = std::f64::consts::TAU / sides as f64;
+    let trig: Vec<(f64, f64)> = (0..sides)
+        .map(|j| ((step * j as f64).cos(), (step * j as f64).sin()))
+        .collect();
     let ideal = |r: f64| 0.5 * sides as f64 * r * r * step.sin();
     let mut base: Vec<Option<u32>> = vec![None; n];
     for i in 0..n {
@@ -428,26 +436,24 @@ fn tube(
             }
             ColorMode::Field(func, [lo, hi]) => colormap((func(x[i]) - lo) / (hi - lo).max(1e-300)),
         };
-        let mut ring = Vec::with_capacity(sides);
-        for j in 0..sides {
-            let a = step * j as f64;
-            let radial = r_vec * a.cos() + b_vec * a.sin();
-            let p = x[i] + radial * radii[i];
-            ring.push(p);
-            piece.positions.push(p - origin);
-            piece.normals.push((radial - t[i] * drds).normalize());
+        let color = rgb8(color);
+        let ring_start = piece.positions.len();
+        let centre = x[i] - origin;
+        for &(ca, sa) in &trig {
+            let radial = r_vec * ca + b_vec * sa;
+            piece.positions.push((centre + radial * radii[i]).as_vec3());
+            piece
+                .normals
+                .push((radial - t[i] * drds).normalize().as_vec3());
             piece.colors.push(color);
         }
         // Section ratio: the ring polygon projected on the plane normal to its tangent, in the
-        // precision it is stored in.
-        let stored: Vec<DVec3> = ring
-            .iter()
-            .map(|p| (*p - origin).as_vec3().as_dvec3())
-            .collect();
-        let c = stored.iter().sum::<DVec3>() / sides as f64;
+        // precision it is stored in (a fan about the stored ring's first vertex).
+        let ring = &piece.positions[ring_start..];
+        let p0 = ring[0].as_dvec3();
         let mut area = 0.0;
-        for j in 0..sides {
-            let (p, q) = (stored[j] - c, stored[(j + 1) % sides] - c);
+        for j in 1..sides - 1 {
+            let (p, q) = (ring[j].as_dvec3() - p0, ring[j + 1].as_dvec3() - p0);
             area += 0.5 * p.cross(q).dot(t[i]);
         }
         let ratio = if radii[i] > 0.0 {
@@ -456,7 +462,7 @@ fn tube(
             1.0
         };
         st.min_section_ratio = st.min_section_ratio.min(ratio);
-        if i > 0 {
+        if i > 0 && !cut[i - 1] {
             st.max_twist_deg =
                 st.max_twist_deg
                     .max(twist_deg(t[i - 1], t[i], frames[i - 1], frames[i]));
@@ -500,13 +506,13 @@ fn tube(
             ] {
                 let rb = base[ring].unwrap();
                 let centre = piece.positions.len() as u32;
-                piece.positions.push(x[ring] - origin);
-                piece.normals.push(dir);
+                piece.positions.push((x[ring] - origin).as_vec3());
+                piece.normals.push(dir.as_vec3());
                 piece.colors.push(piece.colors[rb as usize]);
                 let first = piece.positions.len() as u32;
                 for j in 0..sides as u32 {
                     piece.positions.push(piece.positions[(rb + j) as usize]);
-                    piece.normals.push(dir);
+                    piece.normals.push(dir.as_vec3());
                     piece.colors.push(piece.colors[(rb + j) as usize]);
                 }
                 for j in 0..sides as u32 {
@@ -606,6 +612,7 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
         min_section_ratio: f64::INFINITY,
         ..Default::default()
     };
+    let mut flat: Vec<Piece> = Vec::new();
     for (parts, st) in pieces {
         stats.streamlines_in += st.streamlines_in;
         stats.points_in += st.points_in;
@@ -613,17 +620,7 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
         stats.skipped_streamlines += st.skipped_streamlines;
         stats.splits += st.splits;
         for p in parts {
-            let base = mesh.positions.len() as u32;
-            mesh.positions
-                .extend(p.positions.iter().map(|v| v.as_vec3()));
-            mesh.normals.extend(p.normals.iter().map(|v| v.as_vec3()));
-            mesh.colors.extend(
-                p.colors
-                    .iter()
-                    .map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)),
-            );
-            mesh.indices.extend(p.indices.iter().map(|&i| i + base));
-            stats.streamlines_out += 1;
+            stats.streamlines_out += 1 + p.stats.splits;
             stats.control_points += p.stats.control_points;
             stats.triangles += p.stats.triangles;
             stats.max_deviation = stats.max_deviation.max(p.stats.max_deviation);
@@ -631,9 +628,33 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
             stats.min_section_ratio = stats.min_section_ratio.min(p.stats.min_section_ratio);
             stats.radius_clamps += p.stats.radius_clamps;
             stats.splits += p.stats.splits;
-            stats.streamlines_out += p.stats.splits;
+            flat.push(p);
         }
     }
+    // Concatenate in order, in parallel: vertex offsets by prefix sums.
+    let mut base = Vec::with_capacity(flat.len());
+    let mut nv = 0u32;
+    for p in &flat {
+        base.push(nv);
+        nv += p.positions.len() as u32;
+    }
+    mesh.positions = flat
+        .par_iter()
+        .flat_map_iter(|p| p.positions.iter().copied())
+        .collect();
+    mesh.normals = flat
+        .par_iter()
+        .flat_map_iter(|p| p.normals.iter().copied())
+        .collect();
+    mesh.colors = flat
+        .par_iter()
+        .flat_map_iter(|p| p.colors.iter().copied())
+        .collect();
+    mesh.indices = flat
+        .par_iter()
+        .zip(&base)
+        .flat_map_iter(|(p, &b)| p.indices.iter().map(move |&i| i + b))
+        .collect();
     if !stats.min_section_ratio.is_finite() {
         stats.min_section_ratio = 1.0;
     }

@@ -1,0 +1,74 @@
+#!/usr/bin/env python3
+"""VTK peers of the stream-tube benchmark: vtkTubeFilter alone and vtkSplineFilter +
+vtkTubeFilter on the same polylines (a .tck written by `cargo run --release -p umbra --example
+tubes_bench -- 10000 3 lines.tck`), radius 0.2, 8 sides. Prints one JSON line per method:
+seconds (median of --repeat; filter Update() only, the polydata is built beforehand) and
+triangles. Needs: pip install vtk nibabel numpy.
+
+Usage: python3 bench/peers_tubes.py lines.tck [--repeat 3]
+"""
+import argparse
+import json
+import time
+
+import numpy as np
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("tck")
+    ap.add_argument("--repeat", type=int, default=3)
+    a = ap.parse_args()
+    import nibabel as nib
+    import vtk
+    from vtk.util import numpy_support as ns
+
+    s = nib.streamlines.load(a.tck).streamlines
+    pts = np.concatenate([np.asarray(x) for x in s]).astype(np.float32)
+    lens = np.array([len(x) for x in s])
+    poly = vtk.vtkPolyData()
+    vp = vtk.vtkPoints()
+    vp.SetData(ns.numpy_to_vtk(pts, deep=True))
+    poly.SetPoints(vp)
+    offsets = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+    conn = np.arange(len(pts), dtype=np.int64)
+    cells = vtk.vtkCellArray()
+    cells.SetData(ns.numpy_to_vtkIdTypeArray(offsets, deep=True), ns.numpy_to_vtkIdTypeArray(conn, deep=True))
+    poly.SetLines(cells)
+
+    def tris(out):
+        n = 0
+        strips = out.GetStrips()
+        if strips.GetNumberOfCells():
+            o = ns.vtk_to_numpy(strips.GetOffsetsArray())
+            n += int(np.sum(np.diff(o) - 2))
+        n += out.GetPolys().GetNumberOfCells()
+        return n
+
+    for name in ["vtkTubeFilter", "vtkSplineFilter+vtkTubeFilter"]:
+        times, ntri = [], 0
+        for _ in range(a.repeat):
+            tube = vtk.vtkTubeFilter()
+            tube.SetRadius(0.2)
+            tube.SetNumberOfSides(8)
+            tube.CappingOff()
+            if name == "vtkTubeFilter":
+                tube.SetInputData(poly)
+                t0 = time.perf_counter()
+                tube.Update()
+                times.append(time.perf_counter() - t0)
+            else:
+                spline = vtk.vtkSplineFilter()
+                spline.SetInputData(poly)
+                spline.SetSubdivideToSpecified()
+                spline.SetNumberOfSubdivisions(199)
+                tube.SetInputConnection(spline.GetOutputPort())
+                t0 = time.perf_counter()
+                tube.Update()
+                times.append(time.perf_counter() - t0)
+            ntri = tris(tube.GetOutput())
+        print(json.dumps({"method": name, "seconds": float(np.median(times)), "triangles": ntri, "vtk": vtk.vtkVersion.GetVTKVersion()}))
+
+
+if __name__ == "__main__":
+    main()
