@@ -11,4 +11,5 @@ pub mod iso_reference;
 pub mod smoke;
 pub mod sweep_cmd;
 pub mod synth;
+pub mod trace_cmd;
 pub mod tubes_cmd;

@@ -129,6 +129,49 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Trace streamlines through a vector field (3-component volume) into .tck or .trk.
+    Trace {
+        /// Vector field: any volume with a 3-component array (NIfTI V1, VTK vectors, ...).
+        input: PathBuf,
+        /// Output tractogram (.tck or .trk).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The vector array, by name.
+        #[arg(long)]
+        field: Option<String>,
+        /// Seeds: grid:N, random:N, plane:x=VALUE:N (also y, z), or a CSV file of x,y,z.
+        #[arg(long, default_value = "grid:10")]
+        seeds: String,
+        /// Step in world units (default: half the smallest voxel spacing).
+        #[arg(long)]
+        step: Option<f64>,
+        /// Integrator: rk4, rk45 (adaptive) or euler.
+        #[arg(long, default_value = "rk4")]
+        integrator: String,
+        /// RK45 local error bound (world units).
+        #[arg(long, default_value_t = 1e-3)]
+        tolerance: f64,
+        /// Longest streamline (world units; default: twice the grid's diagonal).
+        #[arg(long)]
+        max_length: Option<f64>,
+        /// Stop where the field's magnitude falls below this.
+        #[arg(long, default_value_t = 1e-6)]
+        min_speed: f64,
+        /// Stop where this scalar volume (e.g. FA) falls below --threshold.
+        #[arg(long)]
+        mask: Option<PathBuf>,
+        #[arg(long, default_value_t = 0.2)]
+        threshold: f64,
+        /// Stop where the direction turns by more than this many degrees in one step.
+        #[arg(long, default_value_t = 60.0)]
+        max_angle: f64,
+        /// The field is an eigenvector field (no sign): orient it along the direction of travel.
+        #[arg(long)]
+        eigen: bool,
+        /// Trace forward only (default: both ways from each seed).
+        #[arg(long)]
+        one_way: bool,
+    },
     /// B-spline stream tubes of a tractogram (.trk, .tck), written as PLY or OBJ.
     Tubes {
         /// Input tractogram.
@@ -424,6 +467,49 @@ fn run(cli: Cli) -> Result<(), String> {
                     stats.seconds
                 );
             }
+            Ok(())
+        }
+        Command::Trace {
+            input,
+            output,
+            field,
+            seeds,
+            step,
+            integrator,
+            tolerance,
+            max_length,
+            min_speed,
+            mask,
+            threshold,
+            max_angle,
+            eigen,
+            one_way,
+        } => {
+            use tubes::trace::Integrator;
+            let integrator = match integrator.as_str() {
+                "rk4" => Integrator::Rk4,
+                "rk45" => Integrator::Rk45,
+                "euler" => Integrator::Euler,
+                o => return Err(format!("--integrator {o}: use rk4, rk45 or euler")),
+            };
+            let args = engine::trace_cmd::TraceArgs {
+                input,
+                output: output.clone(),
+                field,
+                seeds,
+                step,
+                integrator,
+                tolerance,
+                max_length,
+                min_speed,
+                mask,
+                threshold,
+                max_angle,
+                eigen,
+                one_way,
+            };
+            let (n, p) = engine::trace_cmd::run(&args)?;
+            eprintln!("wrote {}: {n} streamlines, {p} points", output.display());
             Ok(())
         }
         Command::Tubes {

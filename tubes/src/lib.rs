@@ -9,6 +9,7 @@ pub mod bspline_fit;
 pub mod error;
 pub mod mesh_io;
 pub mod tck;
+pub mod trace;
 pub mod trk;
 pub mod tube_mesh;
 
