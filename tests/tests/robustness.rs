@@ -12,7 +12,8 @@ fn cases() -> Vec<(PathBuf, Option<PathBuf>)> {
     for entry in std::fs::read_dir(fixtures()).unwrap() {
         let p = entry.unwrap().path();
         let name = p.file_name().unwrap().to_string_lossy().to_string();
-        if p.is_dir() || name.ends_with(".json") || name.ends_with(".py") || name.ends_with(".raw") {
+        if p.is_dir() || name.ends_with(".json") || name.ends_with(".py") || name.ends_with(".raw")
+        {
             continue;
         }
         let companion = match p.extension().and_then(|e| e.to_str()) {

@@ -95,7 +95,8 @@ fn fixtures_round_trip_through_both_writers() {
     for entry in std::fs::read_dir(fixtures()).unwrap() {
         let p = entry.unwrap().path();
         let name = p.file_name().unwrap().to_string_lossy().to_string();
-        if p.is_dir() || name.ends_with(".json") || name.ends_with(".py") || name.ends_with(".raw") {
+        if p.is_dir() || name.ends_with(".json") || name.ends_with(".py") || name.ends_with(".raw")
+        {
             continue;
         }
         let vol = volume::load(&p).unwrap_or_else(|e| panic!("{e}"));

@@ -269,3 +269,53 @@ fn header_counts_that_disagree_warn_and_the_data_win() {
     let b = tubes::load(&dir().join("nibabel/standard.LPS.trk")).unwrap();
     assert_eq!(a.points, b.points);
 }
+
+#[test]
+fn vtk_polylines_read_in_both_layouts_and_encodings() {
+    // Written by VTK 9.7 (`vtkPolyDataWriter`): version 5.1 (OFFSETS/CONNECTIVITY) in ASCII and
+    // BINARY, and the classic 4.2 layout; three lines, point arrays fa (1) and rgb (3), a cell
+    // array id.
+    for name in ["lines_ascii.vtk", "lines_binary.vtk", "lines_v42.vtk"] {
+        let s = tubes::load(&dir().join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(s.len(), 3, "{name}");
+        assert_eq!(
+            s.line(0),
+            &[
+                Vec3::ZERO,
+                Vec3::X,
+                Vec3::new(2.0, 1.0, 0.0),
+                Vec3::new(3.0, 1.0, 1.0)
+            ],
+            "{name}"
+        );
+        assert_eq!(
+            s.line(2),
+            &[Vec3::new(3.0, 1.0, 1.0), Vec3::new(2.0, 1.0, 0.0)],
+            "{name}: shared points"
+        );
+        let fa = s.point_attributes.iter().find(|a| a.name == "fa").unwrap();
+        assert_eq!(fa.values.len(), 9);
+        assert!(
+            (fa.values[7] - 0.3).abs() < 1e-6 && (fa.values[8] - 0.2).abs() < 1e-6,
+            "{name}: fa gathered along the lines"
+        );
+        let rgb = s.point_attributes.iter().find(|a| a.name == "rgb").unwrap();
+        assert_eq!(rgb.components, 3);
+        assert_eq!(&rgb.values[3 * 4..3 * 5], &[12.0, 13.0, 14.0]);
+        assert_eq!(s.line_attributes[0].values, vec![10.0, 20.0, 30.0]);
+    }
+    // Indices past the points and truncation are errors, never panics.
+    let d = tempfile::tempdir().unwrap();
+    let text = std::fs::read(dir().join("lines_v42.vtk")).unwrap();
+    let bad = replace(&text, "4 0 1 2 3", "4 0 1 2 99");
+    assert!(expect_err(d.path(), "b.vtk", &bad, "index").contains("99"));
+    let bin = std::fs::read(dir().join("lines_binary.vtk")).unwrap();
+    for cut in (1..bin.len()).step_by(7) {
+        let p = d.path().join("c.vtk");
+        std::fs::write(&p, &bin[..cut]).unwrap();
+        assert!(
+            std::panic::catch_unwind(|| tubes::load(&p)).is_ok(),
+            "cut at {cut}"
+        );
+    }
+}

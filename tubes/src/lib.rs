@@ -12,6 +12,7 @@ pub mod tck;
 pub mod trace;
 pub mod trk;
 pub mod tube_mesh;
+pub mod vtk_lines;
 
 pub use error::{Result, TubesError};
 use glam::{DMat4, DVec3, Vec3};
@@ -39,11 +40,13 @@ pub fn load(path: &Path) -> Result<Streamlines> {
         trk::read(path)?
     } else if stem.ends_with(".tck") {
         tck::read(path)?
+    } else if stem.ends_with(".vtk") {
+        vtk_lines::read(path)?
     } else {
         return Err(TubesError::format(
             path,
             "file name",
-            "unknown tractogram format (expected .trk, .tck, optionally .gz)",
+            "unknown tractogram format (expected .trk, .tck or VTK polylines .vtk, optionally .gz)",
         ));
     };
     s.validate()
@@ -70,14 +73,29 @@ pub fn save(path: &Path, s: &Streamlines) -> Result<()> {
     }
 }
 
-/// Whether a file name looks like a tractogram this crate reads.
+/// Whether a file looks like a tractogram this crate reads: `.trk`, `.tck`, or a `.vtk` whose
+/// dataset is POLYDATA.
 pub fn is_tractogram(path: &Path) -> bool {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
     let stem = name.strip_suffix(".gz").unwrap_or(&name);
-    stem.ends_with(".trk") || stem.ends_with(".tck")
+    if stem.ends_with(".trk") || stem.ends_with(".tck") {
+        return true;
+    }
+    if stem.ends_with(".vtk") {
+        // A VTK file is a tractogram when its dataset is POLYDATA (else a volume).
+        use std::io::Read;
+        let mut head = Vec::new();
+        if let Ok(f) = std::fs::File::open(path) {
+            let _ = f.take(512).read_to_end(&mut head);
+        }
+        return String::from_utf8_lossy(&head)
+            .to_ascii_uppercase()
+            .contains("POLYDATA");
+    }
+    false
 }
 
 /// A named attribute with `components` values per point or per streamline.
