@@ -194,7 +194,7 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                 let n = count(path, "POINTS", c.token())?;
                 let ty = c.token().unwrap_or("float").to_ascii_lowercase();
                 c.end_line();
-                let v = c.values(path, "POINTS", &ty, n.checked_mul(3).unwrap_or(usize::MAX))?;
+                let v = c.values(path, "POINTS", &ty, n.saturating_mul(3))?;
                 points = v
                     .chunks_exact(3)
                     .map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
@@ -306,12 +306,7 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                 } else {
                     c.end_line();
                 }
-                let v = c.values(
-                    path,
-                    &name,
-                    &ty,
-                    n_section.checked_mul(comps).unwrap_or(usize::MAX),
-                )?;
+                let v = c.values(path, &name, &ty, n_section.saturating_mul(comps))?;
                 let dest = if section == "cell" {
                     &mut cell_attrs
                 } else {
@@ -329,12 +324,7 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                     let tuples = count(path, "FIELD", c.token())?;
                     let ty = c.token().unwrap_or("float").to_ascii_lowercase();
                     c.end_line();
-                    let v = c.values(
-                        path,
-                        &name,
-                        &ty,
-                        comps.checked_mul(tuples).unwrap_or(usize::MAX),
-                    )?;
+                    let v = c.values(path, &name, &ty, comps.saturating_mul(tuples))?;
                     if tuples == n_section && (1..=16).contains(&comps) {
                         let dest = if section == "cell" {
                             &mut cell_attrs
