@@ -18,6 +18,7 @@
 //!   file's own frame ([`Space::File`]).
 //! * Vector components are world directions (see each reader for the conversion it makes).
 
+pub mod cfd_grid;
 pub mod distance_sweep;
 pub mod error;
 pub(crate) mod io_util;
