@@ -24,11 +24,21 @@ use rayon::prelude::*;
 #[derive(Clone, Debug)]
 pub enum Geometry {
     /// Axis-aligned with per-axis coordinates (node positions).
-    Rectilinear { x: Vec<f64>, y: Vec<f64>, z: Vec<f64> },
+    Rectilinear {
+        x: Vec<f64>,
+        y: Vec<f64>,
+        z: Vec<f64>,
+    },
     /// Curvilinear: `dims` nodes, positions x fastest.
-    Structured { dims: [usize; 3], points: Vec<DVec3> },
+    Structured {
+        dims: [usize; 3],
+        points: Vec<DVec3>,
+    },
     /// Cells over a point list.
-    Unstructured { points: Vec<DVec3>, cells: Vec<Cell> },
+    Unstructured {
+        points: Vec<DVec3>,
+        cells: Vec<Cell>,
+    },
 }
 
 /// A cell of an unstructured grid: a tetrahedron (4 ids) or a hexahedron (8 ids in VTK's
@@ -59,14 +69,32 @@ pub struct CfdGrid {
 /// Corners of structured cell (i, j, k) in VTK hexahedron order.
 fn structured_corners(dims: [usize; 3], i: usize, j: usize, k: usize) -> [usize; 8] {
     let id = |a: usize, b: usize, c: usize| a + dims[0] * (b + dims[1] * c);
-    [id(i, j, k), id(i + 1, j, k), id(i + 1, j + 1, k), id(i, j + 1, k), id(i, j, k + 1), id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)]
+    [
+        id(i, j, k),
+        id(i + 1, j, k),
+        id(i + 1, j + 1, k),
+        id(i, j + 1, k),
+        id(i, j, k + 1),
+        id(i + 1, j, k + 1),
+        id(i + 1, j + 1, k + 1),
+        id(i, j + 1, k + 1),
+    ]
 }
 
 /// Trilinear shape functions in VTK hexahedron order at parametric `(r, s, t)`.
 fn hex_weights(p: DVec3) -> [f64; 8] {
     let (r, s, t) = (p.x, p.y, p.z);
     let (rm, sm, tm) = (1.0 - r, 1.0 - s, 1.0 - t);
-    [rm * sm * tm, r * sm * tm, r * s * tm, rm * s * tm, rm * sm * t, r * sm * t, r * s * t, rm * s * t]
+    [
+        rm * sm * tm,
+        r * sm * tm,
+        r * s * tm,
+        rm * s * tm,
+        rm * sm * t,
+        r * sm * t,
+        r * s * t,
+        rm * s * t,
+    ]
 }
 
 /// Parametric coordinates of `x` in the hexahedron with corners `c`, or `None` outside.
@@ -78,9 +106,36 @@ fn hex_locate(c: &[DVec3; 8], x: DVec3) -> Option<DVec3> {
         let (r, s, t) = (p.x, p.y, p.z);
         let (rm, sm, tm) = (1.0 - r, 1.0 - s, 1.0 - t);
         // Derivatives of the weights.
-        let dr = [-sm * tm, sm * tm, s * tm, -s * tm, -sm * t, sm * t, s * t, -s * t];
-        let ds = [-rm * tm, -r * tm, r * tm, rm * tm, -rm * t, -r * t, r * t, rm * t];
-        let dt = [-rm * sm, -r * sm, -r * s, -rm * s, rm * sm, r * sm, r * s, rm * s];
+        let dr = [
+            -sm * tm,
+            sm * tm,
+            s * tm,
+            -s * tm,
+            -sm * t,
+            sm * t,
+            s * t,
+            -s * t,
+        ];
+        let ds = [
+            -rm * tm,
+            -r * tm,
+            r * tm,
+            rm * tm,
+            -rm * t,
+            -r * t,
+            r * t,
+            rm * t,
+        ];
+        let dt = [
+            -rm * sm,
+            -r * sm,
+            -r * s,
+            -rm * s,
+            rm * sm,
+            r * sm,
+            r * s,
+            rm * s,
+        ];
         let j = DMat3::from_cols(
             (0..8).map(|a| c[a] * dr[a]).sum(),
             (0..8).map(|a| c[a] * ds[a]).sum(),
@@ -100,7 +155,8 @@ fn hex_locate(c: &[DVec3; 8], x: DVec3) -> Option<DVec3> {
         }
     }
     let eps = 1e-7;
-    (p.min_element() >= -eps && p.max_element() <= 1.0 + eps).then_some(p.clamp(DVec3::ZERO, DVec3::ONE))
+    (p.min_element() >= -eps && p.max_element() <= 1.0 + eps)
+        .then_some(p.clamp(DVec3::ZERO, DVec3::ONE))
 }
 
 /// Barycentric coordinates of `x` in a tetrahedron, or `None` outside.
@@ -117,7 +173,10 @@ fn tet_locate(c: &[DVec3; 4], x: DVec3) -> Option<[f64; 4]> {
 
 /// A located sample: the cell index and the weights of its nodes.
 enum Hit {
-    Nodes { cell: usize, nodes: Vec<(usize, f64)> },
+    Nodes {
+        cell: usize,
+        nodes: Vec<(usize, f64)>,
+    },
 }
 
 /// Buckets of cell indices over the grid's bounds.
@@ -136,11 +195,19 @@ impl Buckets {
         let vol = ext.x * ext.y * ext.z;
         let h = (vol / count).cbrt().max(1e-12);
         let n = [0, 1, 2].map(|a| ((ext[a] / h).ceil() as usize).clamp(1, 512));
-        let size = DVec3::new(ext.x / n[0] as f64, ext.y / n[1] as f64, ext.z / n[2] as f64);
+        let size = DVec3::new(
+            ext.x / n[0] as f64,
+            ext.y / n[1] as f64,
+            ext.z / n[2] as f64,
+        );
         let mut cells = vec![Vec::new(); n[0] * n[1] * n[2]];
         for (ci, b) in boxes.iter().enumerate() {
-            let i0 = [0, 1, 2].map(|a| (((b[0][a] - bounds[0][a]) / size[a]).floor().max(0.0) as usize).min(n[a] - 1));
-            let i1 = [0, 1, 2].map(|a| (((b[1][a] - bounds[0][a]) / size[a]).floor().max(0.0) as usize).min(n[a] - 1));
+            let i0 = [0, 1, 2].map(|a| {
+                (((b[0][a] - bounds[0][a]) / size[a]).floor().max(0.0) as usize).min(n[a] - 1)
+            });
+            let i1 = [0, 1, 2].map(|a| {
+                (((b[1][a] - bounds[0][a]) / size[a]).floor().max(0.0) as usize).min(n[a] - 1)
+            });
             for k in i0[2]..=i1[2] {
                 for j in i0[1]..=i1[1] {
                     for i in i0[0]..=i1[0] {
@@ -149,7 +216,12 @@ impl Buckets {
                 }
             }
         }
-        Buckets { lo: bounds[0], size, n, cells }
+        Buckets {
+            lo: bounds[0],
+            size,
+            n,
+            cells,
+        }
     }
 
     fn at(&self, p: DVec3) -> &[u32] {
@@ -176,13 +248,18 @@ impl<'a> Locator<'a> {
         let buckets = match &grid.geometry {
             Geometry::Rectilinear { .. } => None,
             Geometry::Structured { dims, points } => {
-                let nc = [dims[0].saturating_sub(1), dims[1].saturating_sub(1), dims[2].saturating_sub(1)];
+                let nc = [
+                    dims[0].saturating_sub(1),
+                    dims[1].saturating_sub(1),
+                    dims[2].saturating_sub(1),
+                ];
                 let mut boxes = Vec::with_capacity(nc[0] * nc[1] * nc[2]);
                 for k in 0..nc[2] {
                     for j in 0..nc[1] {
                         for i in 0..nc[0] {
                             let c = structured_corners(*dims, i, j, k);
-                            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+                            let (mut lo, mut hi) =
+                                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
                             for id in c {
                                 lo = lo.min(points[id]);
                                 hi = hi.max(points[id]);
@@ -201,7 +278,8 @@ impl<'a> Locator<'a> {
                             Cell::Tet(i) => i,
                             Cell::Hex(i) => i,
                         };
-                        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+                        let (mut lo, mut hi) =
+                            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
                         for &id in ids {
                             lo = lo.min(points[id as usize]);
                             hi = hi.max(points[id as usize]);
@@ -217,7 +295,11 @@ impl<'a> Locator<'a> {
 
     fn locate(&self, x: DVec3) -> Option<Hit> {
         match &self.grid.geometry {
-            Geometry::Rectilinear { x: xs, y: ys, z: zs } => {
+            Geometry::Rectilinear {
+                x: xs,
+                y: ys,
+                z: zs,
+            } => {
                 let find = |c: &[f64], v: f64| -> Option<(usize, f64)> {
                     if c.len() < 2 {
                         return (c.len() == 1 && (v - c[0]).abs() < 1e-12).then_some((0, 0.0));
@@ -227,7 +309,11 @@ impl<'a> Locator<'a> {
                         return None;
                     }
                     let inc = c[c.len() - 1] >= c[0];
-                    let i = if inc { c.partition_point(|&q| q <= v) } else { c.partition_point(|&q| q >= v) };
+                    let i = if inc {
+                        c.partition_point(|&q| q <= v)
+                    } else {
+                        c.partition_point(|&q| q >= v)
+                    };
                     let i = i.clamp(1, c.len() - 1) - 1;
                     let f = (v - c[i]) / (c[i + 1] - c[i]);
                     Some((i, f.clamp(0.0, 1.0)))
@@ -236,12 +322,30 @@ impl<'a> Locator<'a> {
                 let (j, fy) = find(ys, x.y)?;
                 let (k, fz) = find(zs, x.z)?;
                 let d = [xs.len(), ys.len(), zs.len()];
-                let nc = [d[0].saturating_sub(1).max(1), d[1].saturating_sub(1).max(1), d[2].saturating_sub(1).max(1)];
+                let nc = [
+                    d[0].saturating_sub(1).max(1),
+                    d[1].saturating_sub(1).max(1),
+                    d[2].saturating_sub(1).max(1),
+                ];
                 let cell = i.min(nc[0] - 1) + nc[0] * (j.min(nc[1] - 1) + nc[1] * k.min(nc[2] - 1));
-                let id = |a: usize, b: usize, c: usize| a.min(d[0] - 1) + d[0] * (b.min(d[1] - 1) + d[1] * c.min(d[2] - 1));
+                let id = |a: usize, b: usize, c: usize| {
+                    a.min(d[0] - 1) + d[0] * (b.min(d[1] - 1) + d[1] * c.min(d[2] - 1))
+                };
                 let w = hex_weights(DVec3::new(fx, fy, fz));
-                let corners = [id(i, j, k), id(i + 1, j, k), id(i + 1, j + 1, k), id(i, j + 1, k), id(i, j, k + 1), id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)];
-                Some(Hit::Nodes { cell, nodes: corners.iter().copied().zip(w).collect() })
+                let corners = [
+                    id(i, j, k),
+                    id(i + 1, j, k),
+                    id(i + 1, j + 1, k),
+                    id(i, j + 1, k),
+                    id(i, j, k + 1),
+                    id(i + 1, j, k + 1),
+                    id(i + 1, j + 1, k + 1),
+                    id(i, j + 1, k + 1),
+                ];
+                Some(Hit::Nodes {
+                    cell,
+                    nodes: corners.iter().copied().zip(w).collect(),
+                })
             }
             Geometry::Structured { dims, points } => {
                 let b = self.buckets.as_ref()?;
@@ -252,7 +356,10 @@ impl<'a> Locator<'a> {
                     let ids = structured_corners(*dims, i, j, k);
                     let c = ids.map(|id| points[id]);
                     if let Some(p) = hex_locate(&c, x) {
-                        return Some(Hit::Nodes { cell: ci, nodes: ids.iter().copied().zip(hex_weights(p)).collect() });
+                        return Some(Hit::Nodes {
+                            cell: ci,
+                            nodes: ids.iter().copied().zip(hex_weights(p)).collect(),
+                        });
                     }
                 }
                 None
@@ -265,13 +372,23 @@ impl<'a> Locator<'a> {
                         Cell::Tet(ids) => {
                             let c = ids.map(|id| points[id as usize]);
                             if let Some(w) = tet_locate(&c, x) {
-                                return Some(Hit::Nodes { cell: ci, nodes: ids.iter().map(|&i| i as usize).zip(w).collect() });
+                                return Some(Hit::Nodes {
+                                    cell: ci,
+                                    nodes: ids.iter().map(|&i| i as usize).zip(w).collect(),
+                                });
                             }
                         }
                         Cell::Hex(ids) => {
                             let c = ids.map(|id| points[id as usize]);
                             if let Some(p) = hex_locate(&c, x) {
-                                return Some(Hit::Nodes { cell: ci, nodes: ids.iter().map(|&i| i as usize).zip(hex_weights(p)).collect() });
+                                return Some(Hit::Nodes {
+                                    cell: ci,
+                                    nodes: ids
+                                        .iter()
+                                        .map(|&i| i as usize)
+                                        .zip(hex_weights(p))
+                                        .collect(),
+                                });
                             }
                         }
                     }
@@ -300,7 +417,9 @@ impl CfdGrid {
                     }
                 }
             }
-            Geometry::Structured { points, .. } | Geometry::Unstructured { points, .. } => points.iter().copied().for_each(&mut add),
+            Geometry::Structured { points, .. } | Geometry::Unstructured { points, .. } => {
+                points.iter().copied().for_each(&mut add)
+            }
         }
         [lo, hi]
     }
@@ -313,20 +432,33 @@ impl CfdGrid {
     /// assembled into a vector). Returns the arrays and how to combine them.
     fn pick(&self, sel: &str) -> Result<(Vec<&GridArray>, FieldPart)> {
         let find = |n: &str| {
-            self.arrays.iter().find(|a| a.name == n).ok_or_else(|| VolumeError::Invalid(format!("--field {n}: no such array; the grid has: {}", self.names().join(", "))))
+            self.arrays.iter().find(|a| a.name == n).ok_or_else(|| {
+                VolumeError::Invalid(format!(
+                    "--field {n}: no such array; the grid has: {}",
+                    self.names().join(", ")
+                ))
+            })
         };
         let parts: Vec<&str> = sel.split(',').map(str::trim).collect();
         if parts.len() == 3 {
             let arrays: Vec<&GridArray> = parts.iter().map(|n| find(n)).collect::<Result<_>>()?;
-            if arrays.iter().any(|a| a.components != 1 || a.on_cells != arrays[0].on_cells) {
-                return Err(VolumeError::Invalid(format!("--field {sel}: three scalar arrays on the same entities are needed")));
+            if arrays
+                .iter()
+                .any(|a| a.components != 1 || a.on_cells != arrays[0].on_cells)
+            {
+                return Err(VolumeError::Invalid(format!(
+                    "--field {sel}: three scalar arrays on the same entities are needed"
+                )));
             }
             return Ok((arrays, FieldPart::Whole));
         }
         let s: FieldSelector = sel.parse()?;
         let a = find(&s.name)?;
         if s.part != FieldPart::Whole && a.components != 3 {
-            return Err(VolumeError::Invalid(format!("--field {sel}: '{}' has {} components", a.name, a.components)));
+            return Err(VolumeError::Invalid(format!(
+                "--field {sel}: '{}' has {} components",
+                a.name, a.components
+            )));
         }
         Ok((vec![a], s.part))
     }
@@ -335,16 +467,37 @@ impl CfdGrid {
     /// bounding box; samples outside the mesh are NaN.
     pub fn resample(&self, sel: &str, dims: [usize; 3]) -> Result<Volume> {
         if dims.iter().any(|&d| !(1..=2048).contains(&d)) || dims[0] * dims[1] * dims[2] > 1 << 28 {
-            return Err(VolumeError::Invalid(format!("--dims {dims:?}: each 1 to 2048, at most 2^28 samples")));
+            return Err(VolumeError::Invalid(format!(
+                "--dims {dims:?}: each 1 to 2048, at most 2^28 samples"
+            )));
         }
         let (arrays, part) = self.pick(sel)?;
-        let out_comps = if arrays.len() == 3 { 3 } else if part == FieldPart::Whole { arrays[0].components } else { 1 };
+        let out_comps = if arrays.len() == 3 {
+            3
+        } else if part == FieldPart::Whole {
+            arrays[0].components
+        } else {
+            1
+        };
         if out_comps != 1 && out_comps != 3 {
-            return Err(VolumeError::Invalid(format!("--field {sel}: {out_comps} components; select one with NAME:x or NAME:magnitude")));
+            return Err(VolumeError::Invalid(format!(
+                "--field {sel}: {out_comps} components; select one with NAME:x or NAME:magnitude"
+            )));
         }
         let [lo, hi] = self.bounds();
-        let step = |a: usize| if dims[a] > 1 { (hi[a] - lo[a]) / (dims[a] - 1) as f64 } else { 1.0 };
-        let affine = DMat4::from_cols(DVec4::new(step(0), 0.0, 0.0, 0.0), DVec4::new(0.0, step(1), 0.0, 0.0), DVec4::new(0.0, 0.0, step(2), 0.0), DVec4::from((lo, 1.0)));
+        let step = |a: usize| {
+            if dims[a] > 1 {
+                (hi[a] - lo[a]) / (dims[a] - 1) as f64
+            } else {
+                1.0
+            }
+        };
+        let affine = DMat4::from_cols(
+            DVec4::new(step(0), 0.0, 0.0, 0.0),
+            DVec4::new(0.0, step(1), 0.0, 0.0),
+            DVec4::new(0.0, 0.0, step(2), 0.0),
+            DVec4::from((lo, 1.0)),
+        );
         let loc = Locator::new(self);
         let n = dims[0] * dims[1] * dims[2];
         let sample = |hit: &Hit| -> [f32; 3] {
@@ -353,17 +506,30 @@ impl CfdGrid {
                 if a.on_cells {
                     a.data[cell * a.components + c] as f64
                 } else {
-                    nodes.iter().map(|&(id, w)| w * a.data[id * a.components + c] as f64).sum()
+                    nodes
+                        .iter()
+                        .map(|&(id, w)| w * a.data[id * a.components + c] as f64)
+                        .sum()
                 }
             };
             if arrays.len() == 3 {
-                [value(arrays[0], 0) as f32, value(arrays[1], 0) as f32, value(arrays[2], 0) as f32]
+                [
+                    value(arrays[0], 0) as f32,
+                    value(arrays[1], 0) as f32,
+                    value(arrays[2], 0) as f32,
+                ]
             } else {
                 let a = arrays[0];
                 match part {
-                    FieldPart::Whole if a.components == 3 => [value(a, 0) as f32, value(a, 1) as f32, value(a, 2) as f32],
+                    FieldPart::Whole if a.components == 3 => {
+                        [value(a, 0) as f32, value(a, 1) as f32, value(a, 2) as f32]
+                    }
                     FieldPart::Whole => [value(a, 0) as f32, 0.0, 0.0],
-                    FieldPart::Magnitude => [DVec3::new(value(a, 0), value(a, 1), value(a, 2)).length() as f32, 0.0, 0.0],
+                    FieldPart::Magnitude => [
+                        DVec3::new(value(a, 0), value(a, 1), value(a, 2)).length() as f32,
+                        0.0,
+                        0.0,
+                    ],
                     FieldPart::Component(c) => [value(a, c) as f32, 0.0, 0.0],
                 }
             }
@@ -371,7 +537,11 @@ impl CfdGrid {
         let data: Vec<f32> = (0..n)
             .into_par_iter()
             .flat_map_iter(|id| {
-                let (i, j, k) = (id % dims[0], (id / dims[0]) % dims[1], id / (dims[0] * dims[1]));
+                let (i, j, k) = (
+                    id % dims[0],
+                    (id / dims[0]) % dims[1],
+                    id / (dims[0] * dims[1]),
+                );
                 let x = (affine * DVec4::new(i as f64, j as f64, k as f64, 1.0)).truncate();
                 let v = match loc.locate(x) {
                     Some(hit) => sample(&hit),
@@ -380,8 +550,22 @@ impl CfdGrid {
                 v.into_iter().take(out_comps)
             })
             .collect();
-        let name = if arrays.len() == 3 { sel.replace(',', "_") } else { sel.to_string() };
-        let mut v = Volume::new(dims, affine, Space::File, Field { name, components: out_comps, stored: ScalarType::F32, data })?;
+        let name = if arrays.len() == 3 {
+            sel.replace(',', "_")
+        } else {
+            sel.to_string()
+        };
+        let mut v = Volume::new(
+            dims,
+            affine,
+            Space::File,
+            Field {
+                name,
+                components: out_comps,
+                stored: ScalarType::F32,
+                data,
+            },
+        )?;
         v.format = format!("{} resampled", self.format);
         Ok(v)
     }
@@ -398,7 +582,11 @@ mod tests {
                 for i in 0..n[0] {
                     let (x, y, z) = (i as f64, j as f64, k as f64);
                     // A smooth, non-affine warp: cells are curved hexahedra.
-                    pts.push(DVec3::new(x + 0.25 * (0.7 * y).sin(), y + 0.2 * (0.5 * z + 0.3 * x).cos(), z * 1.5 + 0.1 * x * y / n[0] as f64));
+                    pts.push(DVec3::new(
+                        x + 0.25 * (0.7 * y).sin(),
+                        y + 0.2 * (0.5 * z + 0.3 * x).cos(),
+                        z * 1.5 + 0.1 * x * y / n[0] as f64,
+                    ));
                 }
             }
         }
@@ -410,11 +598,26 @@ mod tests {
         let lin = |p: DVec3| DVec3::new(2.0 * p.x - p.y + 0.5 * p.z + 1.0, p.y, -p.z);
         let n = [9, 8, 7];
         let pts = warped(n);
-        let data: Vec<f32> = pts.iter().flat_map(|&p| {
-            let v = lin(p);
-            [v.x as f32, v.y as f32, v.z as f32]
-        }).collect();
-        let g = CfdGrid { format: "test".into(), geometry: Geometry::Structured { dims: n, points: pts.clone() }, arrays: vec![GridArray { name: "v".into(), components: 3, on_cells: false, data: data.clone() }] };
+        let data: Vec<f32> = pts
+            .iter()
+            .flat_map(|&p| {
+                let v = lin(p);
+                [v.x as f32, v.y as f32, v.z as f32]
+            })
+            .collect();
+        let g = CfdGrid {
+            format: "test".into(),
+            geometry: Geometry::Structured {
+                dims: n,
+                points: pts.clone(),
+            },
+            arrays: vec![GridArray {
+                name: "v".into(),
+                components: 3,
+                on_cells: false,
+                data: data.clone(),
+            }],
+        };
         let vol = g.resample("v", [20, 18, 16]).unwrap();
         let (mut inside, mut worst) = (0, 0.0f64);
         for (id, v) in vol.fields[0].data.chunks_exact(3).enumerate() {
@@ -435,13 +638,28 @@ mod tests {
             for j in 0..n[1] - 1 {
                 for i in 0..n[0] - 1 {
                     let c = structured_corners(n, i, j, k).map(|v| v as u32);
-                    for t in [[0, 1, 3, 4], [1, 2, 3, 6], [1, 4, 5, 6], [3, 4, 6, 7], [1, 3, 4, 6]] {
+                    for t in [
+                        [0, 1, 3, 4],
+                        [1, 2, 3, 6],
+                        [1, 4, 5, 6],
+                        [3, 4, 6, 7],
+                        [1, 3, 4, 6],
+                    ] {
                         cells.push(Cell::Tet(t.map(|q| c[q])));
                     }
                 }
             }
         }
-        let u = CfdGrid { format: "test".into(), geometry: Geometry::Unstructured { points: pts, cells }, arrays: vec![GridArray { name: "v".into(), components: 3, on_cells: false, data }] };
+        let u = CfdGrid {
+            format: "test".into(),
+            geometry: Geometry::Unstructured { points: pts, cells },
+            arrays: vec![GridArray {
+                name: "v".into(),
+                components: 3,
+                on_cells: false,
+                data,
+            }],
+        };
         let vu = u.resample("v:x", [12, 12, 12]).unwrap();
         let mut found = 0;
         for (id, &v) in vu.fields[0].data.iter().enumerate() {
@@ -450,7 +668,11 @@ mod tests {
             }
             let (i, j, k) = (id % 12, (id / 12) % 12, id / 144);
             let x = vu.index_to_world(DVec3::new(i as f64, j as f64, k as f64));
-            assert!((v as f64 - lin(x).x).abs() < 1e-4, "tet sample {v} vs {}", lin(x).x);
+            assert!(
+                (v as f64 - lin(x).x).abs() < 1e-4,
+                "tet sample {v} vs {}",
+                lin(x).x
+            );
             found += 1;
         }
         assert!(found > 300);
@@ -460,12 +682,36 @@ mod tests {
     fn rectilinear_grids_with_cell_data_and_assembled_vectors() {
         let g = CfdGrid {
             format: "test".into(),
-            geometry: Geometry::Rectilinear { x: vec![0.0, 1.0, 3.0], y: vec![0.0, 2.0], z: vec![-1.0, 0.0, 1.0] },
+            geometry: Geometry::Rectilinear {
+                x: vec![0.0, 1.0, 3.0],
+                y: vec![0.0, 2.0],
+                z: vec![-1.0, 0.0, 1.0],
+            },
             arrays: vec![
-                GridArray { name: "p".into(), components: 1, on_cells: true, data: vec![1.0, 2.0, 3.0, 4.0] },
-                GridArray { name: "u".into(), components: 1, on_cells: false, data: (0..18).map(|i| i as f32).collect() },
-                GridArray { name: "v".into(), components: 1, on_cells: false, data: vec![1.0; 18] },
-                GridArray { name: "w".into(), components: 1, on_cells: false, data: vec![2.0; 18] },
+                GridArray {
+                    name: "p".into(),
+                    components: 1,
+                    on_cells: true,
+                    data: vec![1.0, 2.0, 3.0, 4.0],
+                },
+                GridArray {
+                    name: "u".into(),
+                    components: 1,
+                    on_cells: false,
+                    data: (0..18).map(|i| i as f32).collect(),
+                },
+                GridArray {
+                    name: "v".into(),
+                    components: 1,
+                    on_cells: false,
+                    data: vec![1.0; 18],
+                },
+                GridArray {
+                    name: "w".into(),
+                    components: 1,
+                    on_cells: false,
+                    data: vec![2.0; 18],
+                },
             ],
         };
         let p = g.resample("p", [7, 3, 5]).unwrap();

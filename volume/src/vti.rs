@@ -89,13 +89,60 @@ pub fn base64_lenient(text: &[u8]) -> std::result::Result<Vec<u8>, String> {
 }
 
 struct RawArray {
-    extent: [i64; 6],
+    section: Section,
+    piece: usize,
+    extent: Option<[i64; 6]>,
+    /// Tuples the array must hold, when the piece says (None: as many as the data hold).
+    tuples: Option<usize>,
     name: String,
     ty: ScalarType,
     comps: usize,
     format: String,
     offset: Option<usize>,
     text: Vec<u8>,
+}
+
+/// Where a DataArray sits in a VTK XML file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Section {
+    PointData,
+    CellData,
+    Points,
+    Coordinates,
+    Cells,
+}
+
+/// A decoded DataArray.
+#[derive(Clone, Debug)]
+pub struct XmlArray {
+    pub section: Section,
+    pub piece: usize,
+    /// The piece's extent (structured kinds).
+    pub extent: Option<[i64; 6]>,
+    pub name: String,
+    pub ty: ScalarType,
+    pub comps: usize,
+    pub values: Vec<f32>,
+}
+
+/// A parsed VTK XML file.
+#[derive(Clone, Debug)]
+pub struct XmlDoc {
+    /// `ImageData`, `RectilinearGrid`, `StructuredGrid` or `UnstructuredGrid`.
+    pub kind: String,
+    /// Attributes of the dataset element (WholeExtent, Origin, Spacing, ...).
+    pub dataset: Vec<(String, String)>,
+    /// Attributes of each Piece.
+    pub pieces: Vec<Vec<(String, String)>>,
+    pub arrays: Vec<XmlArray>,
+    /// The `Scalars` attribute of PointData.
+    pub scalars: Option<String>,
+}
+
+impl XmlDoc {
+    pub fn attr(&self, k: &str) -> Option<&str> {
+        get(&self.dataset, k)
+    }
 }
 
 struct Ctx<'a> {
@@ -124,8 +171,9 @@ impl Ctx<'_> {
         }
     }
 
-    /// Decodes one binary array (header + data, compressed or not) from `bytes`.
-    fn block(&self, field: &str, bytes: &[u8], nbytes: usize) -> Result<Vec<u8>> {
+    /// Decodes one binary array (header + data, compressed or not) from `bytes`; with
+    /// `expected`, the size the header states must be that.
+    fn block(&self, field: &str, bytes: &[u8], expected: Option<usize>) -> Result<Vec<u8>> {
         let hs = self.header_size;
         let err = |m: String| VolumeError::format(self.path, field, m);
         if !self.compressed {
@@ -133,15 +181,18 @@ impl Ctx<'_> {
                 return Err(err("data ends inside the size header".into()));
             }
             let n = self.word(bytes);
-            if n != nbytes as u64 {
-                return Err(err(format!(
-                    "size header says {n} bytes, the extent and type need {nbytes}"
-                )));
+            if let Some(nbytes) = expected {
+                if n != nbytes as u64 {
+                    return Err(err(format!(
+                        "size header says {n} bytes, the extent and type need {nbytes}"
+                    )));
+                }
             }
+            let n = usize::try_from(n).map_err(|_| err("absurd size".into()))?;
             return bytes
-                .get(hs..hs + nbytes)
+                .get(hs..hs.saturating_add(n))
                 .map(|b| b.to_vec())
-                .ok_or_else(|| err(format!("{} data bytes, {nbytes} needed", bytes.len() - hs)));
+                .ok_or_else(|| err(format!("{} data bytes, {n} needed", bytes.len() - hs)));
         }
         if bytes.len() < 3 * hs {
             return Err(err("data ends inside the compression header".into()));
@@ -159,18 +210,22 @@ impl Ctx<'_> {
         let total = if nblocks == 0 {
             0
         } else {
-            block * (nblocks as u64 - 1) + if last == 0 { block } else { last }
+            block
+                .saturating_mul(nblocks as u64 - 1)
+                .saturating_add(if last == 0 { block } else { last })
         };
-        if total != nbytes as u64 {
-            return Err(err(format!(
-                "compressed blocks hold {total} bytes, the extent and type need {nbytes}"
-            )));
+        if let Some(nbytes) = expected {
+            if total != nbytes as u64 {
+                return Err(err(format!(
+                    "compressed blocks hold {total} bytes, the extent and type need {nbytes}"
+                )));
+            }
         }
         let head = (3 + nblocks) * hs;
         if bytes.len() < head {
             return Err(err("data ends inside the block size table".into()));
         }
-        let mut out = Vec::with_capacity(nbytes.min(bytes.len() * 8));
+        let mut out = Vec::with_capacity((total as usize).min(bytes.len().saturating_mul(8)));
         let mut pos = head;
         for b in 0..nblocks {
             let csize = self.word(&bytes[(3 + b) * hs..]) as usize;
@@ -239,8 +294,9 @@ fn extent(path: &Path, field: &str, s: &str) -> Result<[i64; 6]> {
     Ok(e)
 }
 
-/// Reads a `.vti` file.
-pub fn read(path: &Path) -> Result<Volume> {
+/// Parses a VTK XML file of one of `kinds` and decodes all its DataArrays (point and cell
+/// data, points, coordinates and cells), checking each against the size its piece implies.
+pub fn parse_xml(path: &Path, kinds: &[&str]) -> Result<XmlDoc> {
     let raw = io_util::read_file(path)?;
     if !raw.trim_ascii_end().ends_with(b"</VTKFile>") {
         return Err(VolumeError::format(
@@ -254,18 +310,37 @@ pub fn read(path: &Path) -> Result<Volume> {
     let mut reader = quick_xml::Reader::from_reader(xml);
     let mut buf = Vec::new();
     let mut file_attrs = None;
-    let mut image_attrs = None;
+    let mut kind = String::new();
+    let mut dataset: Option<Vec<(String, String)>> = None;
+    let mut pieces: Vec<Vec<(String, String)>> = Vec::new();
     let mut piece_extent: Option<[i64; 6]> = None;
-    let mut in_point = false;
+    let mut section: Option<Section> = None;
+    let mut coordinate = 0usize;
     let mut scalars_name: Option<String> = None;
     let mut arrays: Vec<RawArray> = Vec::new();
     let mut current: Option<RawArray> = None;
     // Depth of elements nested inside the current DataArray (VTK writes <InformationKey>
     // children with range values there; their text is not array data).
     let mut nested = 0usize;
+    let count_attr = |attrs: &[(String, String)], k: &str| -> Result<Option<usize>> {
+        get(attrs, k)
+            .map(|v| {
+                v.trim()
+                    .parse::<usize>()
+                    .ok()
+                    .filter(|&n| n as u64 <= io_util::MAX_SAMPLES)
+                    .ok_or_else(|| {
+                        VolumeError::format(
+                            path,
+                            format!("Piece {k}"),
+                            format!("'{v}' is not a count"),
+                        )
+                    })
+            })
+            .transpose()
+    };
     loop {
-        let ev = reader.read_event_into(&mut buf);
-        let ev = match ev {
+        let ev = match reader.read_event_into(&mut buf) {
             Ok(ev) => ev,
             Err(e) => {
                 if app_pos.is_some() {
@@ -284,45 +359,44 @@ pub fn read(path: &Path) -> Result<Volume> {
         };
         match ev {
             Event::Eof => break,
-            Event::Start(e) if current.is_some() => {
-                if !empty {
-                    nested += 1;
-                }
-                let _ = e;
-            }
+            Event::Start(_) if current.is_some() && !empty => nested += 1,
+            Event::Start(_) if current.is_some() => {}
             Event::Start(e) => {
                 let name = e.name().as_ref().to_vec();
                 let attrs = attr_map(path, &e)?;
                 match name.as_slice() {
                     b"VTKFile" => {
-                        if get(&attrs, "type") != Some("ImageData") {
+                        let t = get(&attrs, "type").unwrap_or("missing").to_string();
+                        if !kinds.contains(&t.as_str()) {
                             return Err(VolumeError::format(
                                 path,
                                 "VTKFile type",
-                                format!(
-                                    "{:?} is not ImageData",
-                                    get(&attrs, "type").unwrap_or("missing")
-                                ),
+                                format!("{t:?} is not {}", kinds.join(" or ")),
                             ));
                         }
+                        kind = t;
                         file_attrs = Some(attrs);
                     }
-                    b"ImageData" => image_attrs = Some(attrs),
+                    n if n == kind.as_bytes() && !kind.is_empty() => dataset = Some(attrs),
                     b"Piece" => {
-                        piece_extent = Some(extent(
-                            path,
-                            "Piece Extent",
-                            get(&attrs, "Extent").ok_or_else(|| {
-                                VolumeError::format(path, "Piece Extent", "missing")
-                            })?,
-                        )?);
+                        piece_extent = get(&attrs, "Extent")
+                            .map(|x| extent(path, "Piece Extent", x))
+                            .transpose()?;
+                        pieces.push(attrs);
                     }
                     b"PointData" => {
-                        in_point = true;
+                        section = Some(Section::PointData);
                         scalars_name = scalars_name.or(get(&attrs, "Scalars").map(str::to_string));
                     }
-                    b"CellData" => in_point = false,
-                    b"DataArray" if in_point => {
+                    b"CellData" => section = Some(Section::CellData),
+                    b"Points" => section = Some(Section::Points),
+                    b"Coordinates" => {
+                        section = Some(Section::Coordinates);
+                        coordinate = 0;
+                    }
+                    b"Cells" => section = Some(Section::Cells),
+                    b"DataArray" if section.is_some() && !pieces.is_empty() => {
+                        let sec = section.unwrap();
                         let name = get(&attrs, "Name").unwrap_or("data").to_string();
                         let field = format!("DataArray {name}");
                         let ty = xml_type(
@@ -352,11 +426,32 @@ pub fn read(path: &Path) -> Result<Volume> {
                                     .map_err(|_| VolumeError::format(path, &field, "bad offset"))
                             })
                             .transpose()?;
-                        let ext = piece_extent.ok_or_else(|| {
-                            VolumeError::format(path, &field, "DataArray outside a Piece")
-                        })?;
+                        let piece = pieces.len() - 1;
+                        let pattrs = &pieces[piece];
+                        // Tuples implied by the piece.
+                        let span = |e: [i64; 6], a: usize| (e[2 * a + 1] - e[2 * a] + 1) as usize;
+                        let tuples = match (sec, piece_extent) {
+                            (Section::PointData | Section::Points, Some(e)) => {
+                                Some(span(e, 0) * span(e, 1) * span(e, 2))
+                            }
+                            (Section::CellData, Some(e)) => {
+                                Some((0..3).map(|a| (span(e, a) - 1).max(1)).product())
+                            }
+                            (Section::Coordinates, Some(e)) => {
+                                coordinate += 1;
+                                Some(span(e, (coordinate - 1).min(2)))
+                            }
+                            (Section::PointData | Section::Points, None) => {
+                                count_attr(pattrs, "NumberOfPoints")?
+                            }
+                            (Section::CellData, None) => count_attr(pattrs, "NumberOfCells")?,
+                            _ => None,
+                        };
                         let arr = RawArray {
-                            extent: ext,
+                            section: sec,
+                            piece,
+                            extent: piece_extent,
+                            tuples,
                             name,
                             ty,
                             comps,
@@ -385,7 +480,9 @@ pub fn read(path: &Path) -> Result<Volume> {
                         arrays.push(c);
                     }
                 }
-                b"PointData" => in_point = false,
+                b"PointData" | b"CellData" | b"Points" | b"Coordinates" | b"Cells" => {
+                    section = None
+                }
                 _ => {}
             },
             _ => {}
@@ -394,8 +491,8 @@ pub fn read(path: &Path) -> Result<Volume> {
     }
     let file_attrs =
         file_attrs.ok_or_else(|| VolumeError::format(path, "VTKFile", "no VTKFile element"))?;
-    let image = image_attrs
-        .ok_or_else(|| VolumeError::format(path, "ImageData", "no ImageData element"))?;
+    let dataset =
+        dataset.ok_or_else(|| VolumeError::format(path, &kind, format!("no {kind} element")))?;
     let big_endian = match get(&file_attrs, "byte_order") {
         Some("BigEndian") => true,
         Some("LittleEndian") | None => false,
@@ -429,24 +526,159 @@ pub fn read(path: &Path) -> Result<Volume> {
         header_size,
         compressed,
     };
+    // Appended section.
+    let appended: Option<(&[u8], bool)> = match app_pos {
+        None => None,
+        Some(p) => {
+            let rest = &raw[p..];
+            let tag_end = rest
+                .iter()
+                .position(|&b| b == b'>')
+                .ok_or_else(|| VolumeError::format(path, "AppendedData", "unterminated tag"))?;
+            let tag = String::from_utf8_lossy(&rest[..tag_end]);
+            let base64 = tag.contains("\"base64\"");
+            let after = &rest[tag_end + 1..];
+            let us = after
+                .iter()
+                .position(|&b| b == b'_')
+                .ok_or_else(|| VolumeError::format(path, "AppendedData", "no '_' marker"))?;
+            Some((&after[us + 1..], base64))
+        }
+    };
+    let mut out = Vec::with_capacity(arrays.len());
+    for a in arrays {
+        let field = format!("DataArray {}", a.name);
+        let count = a
+            .tuples
+            .map(|t| {
+                t.checked_mul(a.comps)
+                    .filter(|&n| n as u64 <= io_util::MAX_SAMPLES)
+                    .ok_or_else(|| VolumeError::format(path, &field, "too large"))
+            })
+            .transpose()?;
+        let nbytes = count.map(|c| c * a.ty.size());
+        let values = match a.format.as_str() {
+            "ascii" => match count {
+                Some(count) => {
+                    let (v, used) = io_util::parse_ascii(path, &field, &a.text, count)?;
+                    if a.text[used..].iter().any(|b| !b.is_ascii_whitespace()) {
+                        return Err(VolumeError::format(
+                            path,
+                            &field,
+                            format!("more than {count} values"),
+                        ));
+                    }
+                    v
+                }
+                None => {
+                    let n = a
+                        .text
+                        .split(|b| b.is_ascii_whitespace())
+                        .filter(|t| !t.is_empty())
+                        .count();
+                    io_util::parse_ascii(path, &field, &a.text, n)?.0
+                }
+            },
+            "binary" => {
+                let bytes =
+                    base64_lenient(&a.text).map_err(|m| VolumeError::format(path, &field, m))?;
+                let data = ctx.block(&field, &bytes, nbytes)?;
+                io_util::decode_samples(
+                    &data[..data.len() / a.ty.size() * a.ty.size()],
+                    a.ty,
+                    big_endian,
+                )
+            }
+            "appended" => {
+                let (app, b64) = appended.ok_or_else(|| {
+                    VolumeError::format(path, &field, "format appended but no AppendedData")
+                })?;
+                let off = a.offset.ok_or_else(|| {
+                    VolumeError::format(path, &field, "appended array without offset")
+                })?;
+                let start = app.get(off..).ok_or_else(|| {
+                    VolumeError::format(
+                        path,
+                        &field,
+                        format!("offset {off} is past the appended data"),
+                    )
+                })?;
+                let bytes: std::borrow::Cow<[u8]> = if b64 {
+                    let end = start.iter().position(|&b| b == b'<').unwrap_or(start.len());
+                    std::borrow::Cow::Owned(
+                        base64_lenient(&start[..end])
+                            .map_err(|m| VolumeError::format(path, &field, m))?,
+                    )
+                } else {
+                    std::borrow::Cow::Borrowed(start)
+                };
+                let data = ctx.block(&field, &bytes, nbytes)?;
+                io_util::decode_samples(
+                    &data[..data.len() / a.ty.size() * a.ty.size()],
+                    a.ty,
+                    big_endian,
+                )
+            }
+            other => {
+                return Err(VolumeError::format(
+                    path,
+                    &field,
+                    format!("format '{other}' is not ascii, binary or appended"),
+                ))
+            }
+        };
+        if values.len() % a.comps != 0 {
+            return Err(VolumeError::format(
+                path,
+                &field,
+                format!(
+                    "{} values are not whole {}-component tuples",
+                    values.len(),
+                    a.comps
+                ),
+            ));
+        }
+        out.push(XmlArray {
+            section: a.section,
+            piece: a.piece,
+            extent: a.extent,
+            name: a.name,
+            ty: a.ty,
+            comps: a.comps,
+            values,
+        });
+    }
+    Ok(XmlDoc {
+        kind,
+        dataset,
+        pieces,
+        arrays: out,
+        scalars: scalars_name,
+    })
+}
+
+/// Reads a `.vti` file.
+pub fn read(path: &Path) -> Result<Volume> {
+    let doc = parse_xml(path, &["ImageData"])?;
+    let image = &doc.dataset;
     let whole = extent(
         path,
         "WholeExtent",
-        get(&image, "WholeExtent")
+        get(image, "WholeExtent")
             .ok_or_else(|| VolumeError::format(path, "WholeExtent", "missing"))?,
     )?;
-    let origin = match get(&image, "Origin") {
+    let origin = match get(image, "Origin") {
         Some(s) => io_util::parse_n_floats(path, "Origin", s, 3)?,
         None => vec![0.0; 3],
     };
-    let spacing = match get(&image, "Spacing") {
+    let spacing = match get(image, "Spacing") {
         Some(s) => io_util::parse_n_floats(path, "Spacing", s, 3)?,
         None => vec![1.0; 3],
     };
     if spacing.contains(&0.0) {
         return Err(VolumeError::format(path, "Spacing", "a spacing of 0"));
     }
-    let dir = match get(&image, "Direction") {
+    let dir = match get(image, "Direction") {
         Some(s) => io_util::parse_n_floats(path, "Direction", s, 9)?,
         None => vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
     };
@@ -477,36 +709,17 @@ pub fn read(path: &Path) -> Result<Volume> {
         whole[5] - whole[4] + 1,
     ];
     let wcount = checked_count(path, "WholeExtent", &wd)?;
-    // Appended section.
-    let appended: Option<(&[u8], bool)> = match app_pos {
-        None => None,
-        Some(p) => {
-            let rest = &raw[p..];
-            let tag_end = rest
-                .iter()
-                .position(|&b| b == b'>')
-                .ok_or_else(|| VolumeError::format(path, "AppendedData", "unterminated tag"))?;
-            let tag = String::from_utf8_lossy(&rest[..tag_end]);
-            let base64 = tag.contains("\"base64\"");
-            let after = &rest[tag_end + 1..];
-            let us = after
-                .iter()
-                .position(|&b| b == b'_')
-                .ok_or_else(|| VolumeError::format(path, "AppendedData", "no '_' marker"))?;
-            Some((&after[us + 1..], base64))
-        }
-    };
-    // Decode every array of every piece.
-    let mut decoded: Vec<(RawArray, Vec<f32>)> = Vec::new();
-    for a in arrays {
-        let field = format!("DataArray {}", a.name);
-        let pd = [
-            a.extent[1] - a.extent[0] + 1,
-            a.extent[3] - a.extent[2] + 1,
-            a.extent[5] - a.extent[4] + 1,
-        ];
+    let decoded: Vec<&XmlArray> = doc
+        .arrays
+        .iter()
+        .filter(|a| a.section == Section::PointData)
+        .collect();
+    for a in &decoded {
+        let e = a
+            .extent
+            .ok_or_else(|| VolumeError::format(path, "Piece Extent", "missing"))?;
         for ax in 0..3 {
-            if a.extent[2 * ax] < whole[2 * ax] || a.extent[2 * ax + 1] > whole[2 * ax + 1] {
+            if e[2 * ax] < whole[2 * ax] || e[2 * ax + 1] > whole[2 * ax + 1] {
                 return Err(VolumeError::format(
                     path,
                     "Piece Extent",
@@ -514,61 +727,6 @@ pub fn read(path: &Path) -> Result<Volume> {
                 ));
             }
         }
-        let count = checked_count(path, &field, &pd)? * a.comps;
-        let nbytes = count * a.ty.size();
-        let values = match a.format.as_str() {
-            "ascii" => {
-                let (v, used) = io_util::parse_ascii(path, &field, &a.text, count)?;
-                if a.text[used..].iter().any(|b| !b.is_ascii_whitespace()) {
-                    return Err(VolumeError::format(
-                        path,
-                        &field,
-                        format!("more than {count} values"),
-                    ));
-                }
-                v
-            }
-            "binary" => {
-                let bytes =
-                    base64_lenient(&a.text).map_err(|m| VolumeError::format(path, &field, m))?;
-                let data = ctx.block(&field, &bytes, nbytes)?;
-                io_util::decode_samples(&data, a.ty, big_endian)
-            }
-            "appended" => {
-                let (app, b64) = appended.ok_or_else(|| {
-                    VolumeError::format(path, &field, "format appended but no AppendedData")
-                })?;
-                let off = a.offset.ok_or_else(|| {
-                    VolumeError::format(path, &field, "appended array without offset")
-                })?;
-                let start = app.get(off..).ok_or_else(|| {
-                    VolumeError::format(
-                        path,
-                        &field,
-                        format!("offset {off} is past the appended data"),
-                    )
-                })?;
-                let bytes: std::borrow::Cow<[u8]> = if b64 {
-                    let end = start.iter().position(|&b| b == b'<').unwrap_or(start.len());
-                    std::borrow::Cow::Owned(
-                        base64_lenient(&start[..end])
-                            .map_err(|m| VolumeError::format(path, &field, m))?,
-                    )
-                } else {
-                    std::borrow::Cow::Borrowed(start)
-                };
-                let data = ctx.block(&field, &bytes, nbytes)?;
-                io_util::decode_samples(&data, a.ty, big_endian)
-            }
-            other => {
-                return Err(VolumeError::format(
-                    path,
-                    &field,
-                    format!("format '{other}' is not ascii, binary or appended"),
-                ))
-            }
-        };
-        decoded.push((a, values));
     }
     if decoded.is_empty() {
         return Err(VolumeError::format(
@@ -579,7 +737,7 @@ pub fn read(path: &Path) -> Result<Volume> {
     }
     // Assemble pieces into whole-extent fields.
     let mut names: Vec<String> = Vec::new();
-    for (a, _) in &decoded {
+    for a in &decoded {
         if !names.contains(&a.name) {
             names.push(a.name.clone());
         }
@@ -587,12 +745,11 @@ pub fn read(path: &Path) -> Result<Volume> {
     let mut fields = Vec::new();
     let mut default_field = 0;
     for name in names {
-        let parts: Vec<&(RawArray, Vec<f32>)> =
-            decoded.iter().filter(|(a, _)| a.name == name).collect();
-        let comps = parts[0].0.comps;
-        let ty = parts[0].0.ty;
-        let have: usize = parts.iter().map(|(_, v)| v.len()).sum();
-        if parts.iter().any(|(a, _)| a.comps != comps) || have < wcount * comps {
+        let parts: Vec<&&XmlArray> = decoded.iter().filter(|a| a.name == name).collect();
+        let comps = parts[0].comps;
+        let ty = parts[0].ty;
+        let have: usize = parts.iter().map(|a| a.values.len()).sum();
+        if parts.iter().any(|a| a.comps != comps) || have < wcount * comps {
             return Err(VolumeError::format(
                 path,
                 format!("DataArray {name}"),
@@ -600,13 +757,13 @@ pub fn read(path: &Path) -> Result<Volume> {
             ));
         }
         let data = if parts.len() == 1 {
-            parts[0].1.clone()
+            parts[0].values.clone()
         } else {
             let mut out = vec![f32::NAN; wcount * comps];
-            for (a, v) in &parts {
-                let e = a.extent;
+            for a in &parts {
+                let e = a.extent.unwrap();
                 let (px, py) = ((e[1] - e[0] + 1) as usize, (e[3] - e[2] + 1) as usize);
-                for (n, chunk) in v.chunks_exact(comps).enumerate() {
+                for (n, chunk) in a.values.chunks_exact(comps).enumerate() {
                     let (i, j, k) = (n % px, (n / px) % py, n / (px * py));
                     let gi = (e[0] - whole[0]) as usize + i;
                     let gj = (e[2] - whole[2]) as usize + j;
@@ -617,7 +774,7 @@ pub fn read(path: &Path) -> Result<Volume> {
             }
             out
         };
-        if Some(&name) == scalars_name.as_ref() {
+        if Some(&name) == doc.scalars.as_ref() {
             default_field = fields.len();
         }
         crate::vtk_legacy::push_field(&mut fields, name, comps, ty, data);
