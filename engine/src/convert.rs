@@ -13,6 +13,17 @@ pub fn convert(
 ) -> Result<(), VolumeError> {
     let vol = volume::load(input)?;
     let f = vol.select(field)?;
+    write_field(output, &vol, &f, gzip)
+}
+
+/// Writes one field of a volume as `.nrrd` (optionally gzip-encoded), `.nii` or `.nii.gz`,
+/// atomically (temporary file, then rename).
+pub fn write_field(
+    output: &Path,
+    vol: &volume::Volume,
+    f: &volume::Field,
+    gzip: bool,
+) -> Result<(), VolumeError> {
     let name = output.to_string_lossy().to_ascii_lowercase();
     if name.ends_with(".nrrd") {
         let enc = if gzip {
@@ -20,9 +31,9 @@ pub fn convert(
         } else {
             nrrd::WriteEncoding::Raw
         };
-        nrrd::write(output, &vol, &f, enc)
+        nrrd::write(output, vol, f, enc)
     } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
-        nifti::write(output, &vol, &f)
+        nifti::write(output, vol, f)
     } else {
         Err(VolumeError::Invalid(format!(
             "{}: output format unknown; use .nrrd, .nii or .nii.gz",

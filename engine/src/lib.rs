@@ -8,6 +8,7 @@ pub mod gpu;
 pub mod info;
 pub mod iso_cmd;
 pub mod iso_reference;
+pub mod resample_cmd;
 pub mod smoke;
 pub mod sweep_cmd;
 pub mod synth;

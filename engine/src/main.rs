@@ -240,6 +240,46 @@ enum Command {
         #[arg(long)]
         gzip: bool,
     },
+    /// Resample a CFD grid (.vtr, .vts, .vtu, legacy .vtk STRUCTURED_GRID/RECTILINEAR_GRID,
+    /// PLOT3D) onto a regular grid; samples outside the mesh are NaN.
+    Resample {
+        /// Grid file; any name other than .vtr/.vts/.vtu/.vtk is read as a PLOT3D grid.
+        input: PathBuf,
+        /// PLOT3D solution (q) file: gives density, momentum, energy, velocity, pressure.
+        #[arg(long)]
+        q: Option<PathBuf>,
+        /// Array: NAME, NAME:magnitude, NAME:x|y|z, or three scalars A,B,C assembled into a
+        /// vector (e.g. "X Velocity,Y Velocity,Z Velocity").
+        #[arg(long)]
+        field: String,
+        /// Output dimensions NX,NY,NZ (default: --size on the longest side, equal spacing).
+        #[arg(long, value_parser = parse_dims)]
+        dims: Option<[usize; 3]>,
+        /// Samples along the longest side when --dims is not given.
+        #[arg(long, default_value_t = 128)]
+        size: usize,
+        /// Output volume (.nrrd, .nii, .nii.gz).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Gzip-encode NRRD output.
+        #[arg(long)]
+        gzip: bool,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn parse_dims(s: &str) -> Result<[usize; 3], String> {
+    let v: Vec<usize> = s
+        .split(',')
+        .map(|t| t.trim().parse::<usize>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}' is not NX,NY,NZ"))?;
+    match v.as_slice() {
+        &[x, y, z] if x > 0 && y > 0 && z > 0 => Ok([x, y, z]),
+        _ => Err(format!("'{s}' is not three positive integers NX,NY,NZ")),
+    }
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -610,6 +650,60 @@ fn run(cli: Cli) -> Result<(), String> {
             let sel = parse_field(&field)?;
             engine::convert::convert(&input, &output, sel.as_ref(), gzip)
                 .map_err(|e| e.to_string())?;
+            eprintln!("wrote {}", output.display());
+            Ok(())
+        }
+        Command::Resample {
+            input,
+            q,
+            field,
+            dims,
+            size,
+            output,
+            gzip,
+            json,
+        } => {
+            let r = engine::resample_cmd::resample(
+                &input,
+                q.as_deref(),
+                &field,
+                dims,
+                size,
+                &output,
+                gzip,
+            )
+            .map_err(|e| e.to_string())?;
+            for w in &r.warnings {
+                eprintln!("warning: {w}");
+            }
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&r).map_err(|e| e.to_string())?
+                );
+            } else {
+                println!(
+                    "{} grid: {} points, {} cells; arrays: {}",
+                    r.format,
+                    r.points,
+                    r.cells,
+                    r.arrays.join(", ")
+                );
+                println!(
+                    "resampled '{}' to {}x{}x{} over [{:.4}, {:.4}, {:.4}]..[{:.4}, {:.4}, {:.4}]; {:.1}% of samples inside the mesh",
+                    r.field,
+                    r.dims[0],
+                    r.dims[1],
+                    r.dims[2],
+                    r.bounds[0][0],
+                    r.bounds[0][1],
+                    r.bounds[0][2],
+                    r.bounds[1][0],
+                    r.bounds[1][1],
+                    r.bounds[1][2],
+                    100.0 * r.inside
+                );
+            }
             eprintln!("wrote {}", output.display());
             Ok(())
         }

@@ -249,3 +249,96 @@ fn info_describes_tractograms() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("END"));
 }
+
+#[test]
+fn resample_writes_a_regular_volume_from_a_curvilinear_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    // A sheared 3x3x3 curvilinear grid carrying s = x + 2y - z.
+    let mut pts = Vec::new();
+    let mut s = Vec::new();
+    for k in 0..3 {
+        for j in 0..3 {
+            for i in 0..3 {
+                let (x, y, z) = (i as f64 + 0.3 * j as f64, j as f64, k as f64);
+                pts.push(format!("{x} {y} {z}"));
+                s.push(format!("{}", x + 2.0 * y - z));
+            }
+        }
+    }
+    let text = format!(
+        "# vtk DataFile Version 3.0\nsheared\nASCII\nDATASET STRUCTURED_GRID\nDIMENSIONS 3 3 3\nPOINTS 27 double\n{}\nPOINT_DATA 27\nSCALARS s double\nLOOKUP_TABLE default\n{}\n",
+        pts.join("\n"),
+        s.join(" ")
+    );
+    let input = dir.path().join("sheared.vtk");
+    std::fs::write(&input, text).unwrap();
+    let output = dir.path().join("s.nrrd");
+    let out = umbra()
+        .arg("resample")
+        .arg(&input)
+        .args(["--field", "s", "--dims", "9,5,5", "--json", "-o"])
+        .arg(&output)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["points"], 27);
+    assert_eq!(report["dims"], serde_json::json!([9, 5, 5]));
+    let inside = report["inside"].as_f64().unwrap();
+    assert!(inside > 0.6 && inside < 1.0, "{inside}");
+    let vol = volume::load(&output).unwrap();
+    let f = vol.select(None).unwrap();
+    let mut checked = 0;
+    for (n, &v) in f.data.iter().enumerate() {
+        if v.is_nan() {
+            continue;
+        }
+        let (i, j, k) = (n % 9, (n / 9) % 5, n / 45);
+        let p = vol.index_to_world(glam::DVec3::new(i as f64, j as f64, k as f64));
+        assert!(
+            (v as f64 - (p.x + 2.0 * p.y - p.z)).abs() < 1e-5,
+            "sample {n}: {v}"
+        );
+        checked += 1;
+    }
+    assert!(checked > 100);
+
+    // PLOT3D without its q file: a clear error and no output.
+    let p3 = dir.path().join("grid.xyz");
+    let mut b = Vec::new();
+    for d in [2i32, 2, 2] {
+        b.extend(d.to_be_bytes());
+    }
+    for c in 0..3 {
+        for n in 0..8 {
+            b.extend((((n >> c) & 1) as f32).to_be_bytes());
+        }
+    }
+    std::fs::write(&p3, b).unwrap();
+    let o2 = dir.path().join("none.nrrd");
+    let out = umbra()
+        .arg("resample")
+        .arg(&p3)
+        .args(["--field", "density", "-o"])
+        .arg(&o2)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("grid.xyz") && err.contains("--q"), "{err}");
+    assert!(!o2.exists());
+    // A bad --dims is refused by the parser.
+    let out = umbra()
+        .arg("resample")
+        .arg(&input)
+        .args(["--field", "s", "--dims", "9,0,5", "-o"])
+        .arg(&o2)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("NX,NY,NZ"));
+}

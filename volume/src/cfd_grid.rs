@@ -155,8 +155,15 @@ fn hex_locate(c: &[DVec3; 8], x: DVec3) -> Option<DVec3> {
         }
     }
     let eps = 1e-7;
-    (p.min_element() >= -eps && p.max_element() <= 1.0 + eps)
-        .then_some(p.clamp(DVec3::ZERO, DVec3::ONE))
+    if !(p.min_element() >= -eps && p.max_element() <= 1.0 + eps) {
+        return None;
+    }
+    let p = p.clamp(DVec3::ZERO, DVec3::ONE);
+    // Newton may stall in strongly distorted cells: accept only a converged position.
+    let w = hex_weights(p);
+    let residual = ((0..8).map(|a| c[a] * w[a]).sum::<DVec3>() - x).length();
+    let size = (c[6] - c[0]).length().max((c[7] - c[1]).length());
+    (residual <= 1e-6 * size.max(1e-300)).then_some(p)
 }
 
 /// Barycentric coordinates of `x` in a tetrahedron, or `None` outside.
@@ -400,6 +407,106 @@ impl<'a> Locator<'a> {
 }
 
 impl CfdGrid {
+    /// Number of nodes.
+    pub fn n_points(&self) -> usize {
+        match &self.geometry {
+            Geometry::Rectilinear { x, y, z } => x.len() * y.len() * z.len(),
+            Geometry::Structured { points, .. } | Geometry::Unstructured { points, .. } => {
+                points.len()
+            }
+        }
+    }
+
+    /// Number of cells.
+    pub fn n_cells(&self) -> usize {
+        let c = |n: usize| n.saturating_sub(1).max(1);
+        match &self.geometry {
+            Geometry::Rectilinear { x, y, z } => c(x.len()) * c(y.len()) * c(z.len()),
+            Geometry::Structured { dims, .. } => c(dims[0]) * c(dims[1]) * c(dims[2]),
+            Geometry::Unstructured { cells, .. } => cells.len(),
+        }
+    }
+
+    /// Checks what the locator and the interpolation rely on: finite node positions,
+    /// increasing rectilinear coordinates, node counts that match the dimensions, cell ids in
+    /// range and array lengths that match their entities. Errors name `path` and the field.
+    /// NaN or infinite array values are allowed: they resample to NaN ("no data").
+    pub fn validate(&self, path: &std::path::Path) -> Result<()> {
+        let bad = |field: &str, msg: String| Err(VolumeError::format(path, field, msg));
+        match &self.geometry {
+            Geometry::Rectilinear { x, y, z } => {
+                for (name, c) in [
+                    ("x coordinates", x),
+                    ("y coordinates", y),
+                    ("z coordinates", z),
+                ] {
+                    if c.is_empty() {
+                        return bad(name, "empty".into());
+                    }
+                    if let Some(i) = c.iter().position(|v| !v.is_finite()) {
+                        return bad(name, format!("value {i} is {}", c[i]));
+                    }
+                    if let Some(i) = c.windows(2).position(|w| w[1] <= w[0]) {
+                        return bad(
+                            name,
+                            format!("not increasing at {}: {} then {}", i + 1, c[i], c[i + 1]),
+                        );
+                    }
+                }
+            }
+            Geometry::Structured { dims, points } => {
+                let n = dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
+                if dims.contains(&0) || n != Some(points.len()) {
+                    return bad(
+                        "points",
+                        format!("{} points for dimensions {dims:?}", points.len()),
+                    );
+                }
+            }
+            Geometry::Unstructured { points, cells } => {
+                for (ci, c) in cells.iter().enumerate() {
+                    let ids: &[u32] = match c {
+                        Cell::Tet(i) => i,
+                        Cell::Hex(i) => i,
+                    };
+                    if let Some(&id) = ids.iter().find(|&&id| id as usize >= points.len()) {
+                        return bad(
+                            "connectivity",
+                            format!("cell {ci} uses point {id}; there are {}", points.len()),
+                        );
+                    }
+                }
+            }
+        }
+        if let Geometry::Structured { points, .. } | Geometry::Unstructured { points, .. } =
+            &self.geometry
+        {
+            if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+                return bad("points", format!("point {i} is {:?}", points[i]));
+            }
+        }
+        for a in &self.arrays {
+            let n = if a.on_cells {
+                self.n_cells()
+            } else {
+                self.n_points()
+            };
+            if a.components == 0 || a.data.len() != n * a.components {
+                return bad(
+                    &a.name,
+                    format!(
+                        "{} values, {n} {} x {} components need {}",
+                        a.data.len(),
+                        if a.on_cells { "cells" } else { "points" },
+                        a.components,
+                        n * a.components
+                    ),
+                );
+            }
+        }
+        Ok(())
+    }
+
     /// World bounding box of the nodes.
     pub fn bounds(&self) -> [DVec3; 2] {
         let mut lo = DVec3::splat(f64::INFINITY);
@@ -486,7 +593,7 @@ impl CfdGrid {
         }
         let [lo, hi] = self.bounds();
         let step = |a: usize| {
-            if dims[a] > 1 {
+            if dims[a] > 1 && hi[a] > lo[a] {
                 (hi[a] - lo[a]) / (dims[a] - 1) as f64
             } else {
                 1.0

@@ -28,6 +28,7 @@ pub mod nifti;
 pub mod nrrd;
 pub mod occlusion_shading;
 pub mod occlusion_sweep;
+pub mod plot3d;
 pub mod slc;
 pub mod synthetic;
 pub mod vti;
@@ -435,6 +436,28 @@ pub fn load(path: &Path) -> Result<Volume> {
     vol.validate()
         .map_err(|e| VolumeError::format(path, "data", e.to_string()))?;
     Ok(vol)
+}
+
+/// Reads a CFD grid for resampling: VTK XML `.vtr`, `.vts`, `.vtu`, VTK legacy `.vtk`
+/// (STRUCTURED_GRID, RECTILINEAR_GRID, STRUCTURED_POINTS), or a PLOT3D grid (any other name;
+/// `q` is its solution file). Returns the grid and reader warnings.
+pub fn load_grid(path: &Path, q: Option<&Path>) -> Result<(cfd_grid::CfdGrid, Vec<String>)> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let ext = name.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    if q.is_some() && matches!(ext, "vtr" | "vts" | "vtu" | "vtk") {
+        return Err(VolumeError::Invalid(format!(
+            "{}: --q is for PLOT3D grids; VTK files carry their own arrays",
+            path.display()
+        )));
+    }
+    match ext {
+        "vtr" | "vts" | "vtu" => Ok((vti::read_grid(path)?, vec![])),
+        "vtk" => Ok((vtk_legacy::read_grid(path)?, vec![])),
+        _ => plot3d::read(path, q),
+    }
 }
 
 fn sniff(path: &Path) -> Result<Volume> {

@@ -10,6 +10,7 @@
 //! Base64 is decoded leniently: VTK encodes the block header and the data of a compressed array
 //! as two separately padded base64 runs, so `=` padding may appear inside one text.
 
+use crate::cfd_grid::{Cell, CfdGrid, Geometry, GridArray};
 use crate::io_util::{self, checked_count};
 use crate::{Result, ScalarType, Space, Volume, VolumeError};
 use glam::{DMat3, DMat4, DVec3};
@@ -788,4 +789,237 @@ pub fn read(path: &Path) -> Result<Volume> {
         default_field,
         warnings: vec![],
     })
+}
+
+/// Reads a VTK XML grid: `.vtr` (RectilinearGrid), `.vts` (StructuredGrid) or `.vtu`
+/// (UnstructuredGrid), one piece. Unstructured cells: tetrahedra (VTK type 10), hexahedra (12),
+/// voxels (11, reordered to hexahedra), wedges (13, split into 3 tetrahedra), pyramids (14,
+/// split into 2), and the quadratic tetrahedron and hexahedron (24, 25; their corner nodes).
+/// Split cells repeat their cell data. Other cell types (2D cells, polyhedra) are refused.
+pub fn read_grid(path: &Path) -> Result<CfdGrid> {
+    let doc = parse_xml(
+        path,
+        &["RectilinearGrid", "StructuredGrid", "UnstructuredGrid"],
+    )?;
+    if doc.pieces.len() != 1 {
+        return Err(VolumeError::format(
+            path,
+            "Piece",
+            format!(
+                "{} pieces; umbra reads single-piece grids",
+                doc.pieces.len()
+            ),
+        ));
+    }
+    let section = |s: Section| doc.arrays.iter().filter(move |a| a.section == s);
+    let piece_dims = || -> Result<[usize; 3]> {
+        let e = doc
+            .arrays
+            .iter()
+            .find_map(|a| a.extent)
+            .or_else(|| get(&doc.pieces[0], "Extent").and_then(|s| extent(path, "Extent", s).ok()))
+            .ok_or_else(|| VolumeError::format(path, "Piece Extent", "missing"))?;
+        Ok([0, 1, 2].map(|a| (e[2 * a + 1] - e[2 * a] + 1).max(1) as usize))
+    };
+    let (geometry, cell_origin) = match doc.kind.as_str() {
+        "RectilinearGrid" => {
+            let c: Vec<&XmlArray> = section(Section::Coordinates).collect();
+            if c.len() != 3 || c.iter().any(|a| a.comps != 1) {
+                return Err(VolumeError::format(
+                    path,
+                    "Coordinates",
+                    format!("{} arrays; three 1-component arrays needed", c.len()),
+                ));
+            }
+            let dims = piece_dims()?;
+            for (a, arr) in c.iter().enumerate() {
+                if arr.values.len() != dims[a] {
+                    return Err(VolumeError::format(
+                        path,
+                        "Coordinates",
+                        format!(
+                            "axis {a}: {} values, the extent gives {}",
+                            arr.values.len(),
+                            dims[a]
+                        ),
+                    ));
+                }
+            }
+            let axis = |a: usize| c[a].values.iter().map(|&v| v as f64).collect();
+            (
+                Geometry::Rectilinear {
+                    x: axis(0),
+                    y: axis(1),
+                    z: axis(2),
+                },
+                None,
+            )
+        }
+        kind => {
+            let p = section(Section::Points)
+                .next()
+                .ok_or_else(|| VolumeError::format(path, "Points", "missing"))?;
+            if p.comps != 3 {
+                return Err(VolumeError::format(
+                    path,
+                    "Points",
+                    format!("{} components, 3 needed", p.comps),
+                ));
+            }
+            let points: Vec<DVec3> = p
+                .values
+                .chunks_exact(3)
+                .map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64))
+                .collect();
+            if kind == "StructuredGrid" {
+                (
+                    Geometry::Structured {
+                        dims: piece_dims()?,
+                        points,
+                    },
+                    None,
+                )
+            } else {
+                let (cells, origin) = unstructured_cells(path, &doc, points.len())?;
+                (Geometry::Unstructured { points, cells }, Some(origin))
+            }
+        }
+    };
+    let mut arrays = Vec::new();
+    for a in doc.arrays.iter() {
+        let on_cells = match a.section {
+            Section::PointData => false,
+            Section::CellData => true,
+            _ => continue,
+        };
+        let data = match (&cell_origin, on_cells) {
+            (Some(origin), true) => {
+                let n = a.values.len() / a.comps.max(1);
+                let mut d = Vec::with_capacity(origin.len() * a.comps);
+                for &o in origin {
+                    if o >= n {
+                        return Err(VolumeError::format(
+                            path,
+                            format!("CellData {}", a.name),
+                            format!("{n} tuples for more cells"),
+                        ));
+                    }
+                    d.extend_from_slice(&a.values[o * a.comps..(o + 1) * a.comps]);
+                }
+                d
+            }
+            _ => a.values.clone(),
+        };
+        arrays.push(GridArray {
+            name: a.name.clone(),
+            components: a.comps,
+            on_cells,
+            data,
+        });
+    }
+    let grid = CfdGrid {
+        format: match doc.kind.as_str() {
+            "RectilinearGrid" => "vtr",
+            "StructuredGrid" => "vts",
+            _ => "vtu",
+        }
+        .into(),
+        geometry,
+        arrays,
+    };
+    grid.validate(path)?;
+    Ok(grid)
+}
+
+/// Converts VTU connectivity into tetrahedra and hexahedra, with each output cell's source
+/// cell index.
+fn unstructured_cells(
+    path: &Path,
+    doc: &XmlDoc,
+    npoints: usize,
+) -> Result<(Vec<Cell>, Vec<usize>)> {
+    // Ids pass through f32 in XmlArray; they are exact below 2^24.
+    if npoints > 1 << 24 {
+        return Err(VolumeError::format(
+            path,
+            "Points",
+            format!("{npoints} points; umbra reads unstructured grids up to 2^24 points"),
+        ));
+    }
+    let get_cells = |name: &str| {
+        doc.arrays
+            .iter()
+            .find(|a| a.section == Section::Cells && a.name == name)
+            .map(|a| &a.values)
+            .ok_or_else(|| VolumeError::format(path, format!("Cells {name}"), "missing"))
+    };
+    let conn = get_cells("connectivity")?;
+    let offsets = get_cells("offsets")?;
+    let types = get_cells("types")?;
+    if offsets.len() != types.len() {
+        return Err(VolumeError::format(
+            path,
+            "Cells offsets",
+            format!("{} offsets for {} types", offsets.len(), types.len()),
+        ));
+    }
+    let mut cells = Vec::with_capacity(types.len());
+    let mut origin = Vec::with_capacity(types.len());
+    let mut start = 0usize;
+    for (ci, (&off, &ty)) in offsets.iter().zip(types.iter()).enumerate() {
+        let end = off as usize;
+        if off < 0.0 || end < start || end > conn.len() {
+            return Err(VolumeError::format(
+                path,
+                "Cells offsets",
+                format!(
+                    "cell {ci}: offset {off} after {start} (connectivity has {})",
+                    conn.len()
+                ),
+            ));
+        }
+        let ids: Vec<u32> = conn[start..end].iter().map(|&v| v as u32).collect();
+        start = end;
+        let need = match ty as u32 {
+            10 | 24 => 4,
+            11 | 12 | 25 => 8,
+            13 => 6,
+            14 => 5,
+            t => {
+                return Err(VolumeError::format(
+                    path,
+                    "Cells types",
+                    format!("cell {ci} has VTK type {t}; umbra resamples tetrahedra, hexahedra, voxels, wedges and pyramids"),
+                ))
+            }
+        };
+        let quadratic = matches!(ty as u32, 24 | 25);
+        if ids.len() < need || (!quadratic && ids.len() != need) {
+            return Err(VolumeError::format(
+                path,
+                "Cells connectivity",
+                format!("cell {ci} (type {ty}) has {} ids", ids.len()),
+            ));
+        }
+        let i = &ids;
+        let mut push = |c: Cell| {
+            cells.push(c);
+            origin.push(ci);
+        };
+        match ty as u32 {
+            10 | 24 => push(Cell::Tet([i[0], i[1], i[2], i[3]])),
+            12 | 25 => push(Cell::Hex([i[0], i[1], i[2], i[3], i[4], i[5], i[6], i[7]])),
+            11 => push(Cell::Hex([i[0], i[1], i[3], i[2], i[4], i[5], i[7], i[6]])),
+            13 => {
+                push(Cell::Tet([i[0], i[1], i[2], i[3]]));
+                push(Cell::Tet([i[1], i[2], i[3], i[4]]));
+                push(Cell::Tet([i[2], i[3], i[4], i[5]]));
+            }
+            _ => {
+                push(Cell::Tet([i[0], i[1], i[2], i[4]]));
+                push(Cell::Tet([i[0], i[2], i[3], i[4]]));
+            }
+        }
+    }
+    Ok((cells, origin))
 }

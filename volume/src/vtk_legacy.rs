@@ -1,16 +1,19 @@
-//! VTK legacy (`.vtk`) STRUCTURED_POINTS reader, ASCII and BINARY (big-endian).
+//! VTK legacy (`.vtk`) reader, ASCII and BINARY (big-endian): STRUCTURED_POINTS volumes
+//! ([`read`]) and STRUCTURED_GRID / RECTILINEAR_GRID CFD grids ([`read_grid`], resampled by
+//! [`crate::cfd_grid`]).
 //!
 //! Point-data attributes `SCALARS` (1 or 3 components; others are split per component),
 //! `VECTORS`, `NORMALS`, `COLOR_SCALARS` and `FIELD` arrays all become named fields;
-//! `LOOKUP_TABLE` blocks and `CELL_DATA` sections are skipped (cell data is not on the sample
-//! grid), as are VTK 5 `METADATA` blocks. Geometry: `DIMENSIONS`, `SPACING` (or the old
-//! `ASPECT_RATIO`), `ORIGIN`; the frame is the file's own (`space: file`).
-//! Curvilinear, rectilinear and unstructured datasets are not regular volumes; they are refused
-//! with an error that says so.
+//! `LOOKUP_TABLE` blocks and VTK 5 `METADATA` blocks are skipped. For volumes `CELL_DATA` is
+//! skipped (cell data is not on the sample grid); grids keep it. Geometry: `DIMENSIONS`,
+//! `SPACING` (or the old `ASPECT_RATIO`), `ORIGIN` for volumes, whose frame is the file's own
+//! (`space: file`); `POINTS` (curvilinear) or `X/Y/Z_COORDINATES` (rectilinear) for grids.
+//! Unstructured datasets and polydata are refused with an error that says so.
 
+use crate::cfd_grid::{CfdGrid, Geometry, GridArray};
 use crate::io_util::{self, checked_count, Cursor};
 use crate::{Field, Result, ScalarType, Space, Volume, VolumeError};
-use glam::{DMat4, DVec4};
+use glam::{DMat4, DVec3, DVec4};
 use std::path::Path;
 
 fn vtk_type(path: &Path, field: &str, t: &str) -> Result<ScalarType> {
@@ -91,8 +94,30 @@ fn read_values(
     }
 }
 
-/// Reads a legacy `.vtk` STRUCTURED_POINTS file.
-pub fn read(path: &Path) -> Result<Volume> {
+/// One data array of a legacy file.
+struct LegacyArray {
+    name: String,
+    comps: usize,
+    ty: ScalarType,
+    data: Vec<f32>,
+    on_cells: bool,
+    /// Declared with SCALARS (the first such point array is the default field).
+    scalars: bool,
+}
+
+/// Everything a legacy file holds that umbra uses.
+struct Legacy {
+    kind: String,
+    dims: Option<[i64; 3]>,
+    spacing: [f64; 3],
+    origin: [f64; 3],
+    points: Option<Vec<f32>>,
+    coords: [Option<Vec<f32>>; 3],
+    arrays: Vec<LegacyArray>,
+}
+
+/// Parses any of the structured legacy kinds.
+fn parse(path: &Path) -> Result<Legacy> {
     let raw = io_util::read_file(path)?;
     let mut cur = Cursor::new(&raw);
     let first = cur.line().unwrap_or_default();
@@ -122,18 +147,23 @@ pub fn read(path: &Path) -> Result<Volume> {
     let kind = ds.strip_prefix("DATASET").map(str::trim).ok_or_else(|| {
         VolumeError::format(path, "DATASET", format!("expected DATASET, found '{ds}'"))
     })?;
-    if kind != "STRUCTURED_POINTS" {
+    if !matches!(
+        kind,
+        "STRUCTURED_POINTS" | "STRUCTURED_GRID" | "RECTILINEAR_GRID"
+    ) {
         return Err(VolumeError::format(
             path,
             "DATASET",
-            format!("{kind} is not a regular grid; umbra reads STRUCTURED_POINTS volumes (curvilinear and unstructured grids need resampling)"),
+            format!("{kind} is not supported; umbra reads STRUCTURED_POINTS volumes and STRUCTURED_GRID or RECTILINEAR_GRID grids (unstructured grids as .vtu)"),
         ));
     }
+    let kind = kind.to_string();
     let mut dims: Option<[i64; 3]> = None;
     let mut spacing = [1.0f64; 3];
     let mut origin = [0.0f64; 3];
-    let mut fields: Vec<Field> = Vec::new();
-    let mut active: Option<usize> = None;
+    let mut points: Option<Vec<f32>> = None;
+    let mut coords: [Option<Vec<f32>>; 3] = [None, None, None];
+    let mut arrays: Vec<LegacyArray> = Vec::new();
     let mut npoints: Option<usize> = None;
     let mut in_cell_data = false;
     let mut ncells = 0usize;
@@ -160,6 +190,46 @@ pub fn read(path: &Path) -> Result<Volume> {
                 for v in &mut origin {
                     *v = float(path, "ORIGIN", cur.token())?;
                 }
+            }
+            "POINTS" => {
+                let n = int(path, "POINTS", cur.token())?;
+                let ty = vtk_type(path, "POINTS", text(path, "POINTS", cur.token())?)?;
+                let d = dims.ok_or_else(|| {
+                    VolumeError::format(path, "POINTS", "comes before DIMENSIONS")
+                })?;
+                let expect = checked_count(path, "DIMENSIONS", &d)?;
+                if n != expect as i64 {
+                    return Err(VolumeError::format(
+                        path,
+                        "POINTS",
+                        format!("{n} points, DIMENSIONS {d:?} give {expect}"),
+                    ));
+                }
+                cur.skip_line();
+                points = Some(read_values(
+                    path,
+                    "POINTS",
+                    &mut cur,
+                    binary,
+                    ty,
+                    expect * 3,
+                )?);
+            }
+            "X_COORDINATES" | "Y_COORDINATES" | "Z_COORDINATES" => {
+                let axis = (kw.as_bytes()[0] - b'X') as usize;
+                let n = int(path, &kw, cur.token())?;
+                let ty = vtk_type(path, &kw, text(path, &kw, cur.token())?)?;
+                let d =
+                    dims.ok_or_else(|| VolumeError::format(path, &kw, "comes before DIMENSIONS"))?;
+                if n != d[axis] {
+                    return Err(VolumeError::format(
+                        path,
+                        &kw,
+                        format!("{n} values, DIMENSIONS give {}", d[axis]),
+                    ));
+                }
+                cur.skip_line();
+                coords[axis] = Some(read_values(path, &kw, &mut cur, binary, ty, n as usize)?);
             }
             "POINT_DATA" => {
                 let n = int(path, "POINT_DATA", cur.token())?;
@@ -193,6 +263,7 @@ pub fn read(path: &Path) -> Result<Volume> {
                         .ok_or_else(|| VolumeError::format(path, &kw, "comes before POINT_DATA"))?
                 };
                 let name = text(path, &kw, cur.token())?.to_string();
+                let mut bit = false;
                 let (ty, comps) = match kw.as_str() {
                     "COLOR_SCALARS" => {
                         let c = int(path, "COLOR_SCALARS", cur.token())?;
@@ -214,8 +285,13 @@ pub fn read(path: &Path) -> Result<Volume> {
                         )
                     }
                     _ => {
-                        let ty =
-                            vtk_type(path, &format!("{kw} {name}"), text(path, &kw, cur.token())?)?;
+                        let tname = text(path, &kw, cur.token())?;
+                        bit = tname.eq_ignore_ascii_case("bit");
+                        let ty = if bit {
+                            ScalarType::U8
+                        } else {
+                            vtk_type(path, &format!("{kw} {name}"), tname)?
+                        };
                         let comps = match kw.as_str() {
                             "SCALARS" => {
                                 // Optional component count on the same line.
@@ -262,13 +338,25 @@ pub fn read(path: &Path) -> Result<Volume> {
                 let count = n
                     .checked_mul(comps)
                     .ok_or_else(|| VolumeError::format(path, &kw, "size overflows"))?;
-                let data = read_values(path, &format!("{kw} {name}"), &mut cur, binary, ty, count)?;
-                if !in_cell_data {
-                    push_field(&mut fields, name, comps, ty, data);
-                    if kw == "SCALARS" && active.is_none() {
-                        active = Some(fields.len() - 1);
-                    }
-                }
+                let data = if bit && binary {
+                    // Packed bits, most significant first, each array padded to a byte.
+                    let bytes = cur.take(count.div_ceil(8)).ok_or_else(|| {
+                        VolumeError::format(path, format!("{kw} {name}"), "file ends in the bits")
+                    })?;
+                    (0..count)
+                        .map(|i| ((bytes[i / 8] >> (7 - i % 8)) & 1) as f32)
+                        .collect()
+                } else {
+                    read_values(path, &format!("{kw} {name}"), &mut cur, binary, ty, count)?
+                };
+                arrays.push(LegacyArray {
+                    name,
+                    comps,
+                    ty,
+                    data,
+                    on_cells: in_cell_data,
+                    scalars: kw == "SCALARS",
+                });
             }
             "LOOKUP_TABLE" => {
                 let _name = cur.token();
@@ -333,8 +421,16 @@ pub fn read(path: &Path) -> Result<Volume> {
                         ty,
                         count,
                     )?;
-                    if !in_cell_data && Some(tuples as usize) == npoints {
-                        push_field(&mut fields, name, comps as usize, ty, data);
+                    let expect = if in_cell_data { Some(ncells) } else { npoints };
+                    if Some(tuples as usize) == expect {
+                        arrays.push(LegacyArray {
+                            name,
+                            comps: comps as usize,
+                            ty,
+                            data,
+                            on_cells: in_cell_data,
+                            scalars: false,
+                        });
                     }
                 }
             }
@@ -356,7 +452,43 @@ pub fn read(path: &Path) -> Result<Volume> {
             }
         }
     }
+    Ok(Legacy {
+        kind,
+        dims,
+        spacing,
+        origin,
+        points,
+        coords,
+        arrays,
+    })
+}
+
+/// Reads a legacy `.vtk` STRUCTURED_POINTS file.
+pub fn read(path: &Path) -> Result<Volume> {
+    let Legacy {
+        kind,
+        dims,
+        spacing,
+        origin,
+        arrays,
+        ..
+    } = parse(path)?;
+    if kind != "STRUCTURED_POINTS" {
+        return Err(VolumeError::format(
+            path,
+            "DATASET",
+            format!("{kind} is not a regular grid; resample it with `umbra resample` first"),
+        ));
+    }
     let d = dims.ok_or_else(|| VolumeError::format(path, "DIMENSIONS", "missing"))?;
+    let mut fields: Vec<Field> = Vec::new();
+    let mut active: Option<usize> = None;
+    for a in arrays.into_iter().filter(|a| !a.on_cells) {
+        push_field(&mut fields, a.name, a.comps, a.ty, a.data);
+        if a.scalars && active.is_none() {
+            active = Some(fields.len() - 1);
+        }
+    }
     if fields.is_empty() {
         return Err(VolumeError::format(
             path,
@@ -406,4 +538,67 @@ pub(crate) fn push_field(
             });
         }
     }
+}
+
+/// Reads a legacy STRUCTURED_GRID or RECTILINEAR_GRID file as a CFD grid.
+pub fn read_grid(path: &Path) -> Result<CfdGrid> {
+    let lg = parse(path)?;
+    let d = lg
+        .dims
+        .ok_or_else(|| VolumeError::format(path, "DIMENSIONS", "missing"))?;
+    let dims = [d[0] as usize, d[1] as usize, d[2] as usize];
+    let geometry = match lg.kind.as_str() {
+        "STRUCTURED_GRID" => {
+            let p = lg
+                .points
+                .ok_or_else(|| VolumeError::format(path, "POINTS", "missing"))?;
+            Geometry::Structured {
+                dims,
+                points: p
+                    .chunks_exact(3)
+                    .map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64))
+                    .collect(),
+            }
+        }
+        "RECTILINEAR_GRID" => {
+            let [x, y, z] = lg
+                .coords
+                .map(|c| c.map(|v| v.iter().map(|&f| f as f64).collect()));
+            let miss = |a: &str| VolumeError::format(path, format!("{a}_COORDINATES"), "missing");
+            Geometry::Rectilinear {
+                x: x.ok_or_else(|| miss("X"))?,
+                y: y.ok_or_else(|| miss("Y"))?,
+                z: z.ok_or_else(|| miss("Z"))?,
+            }
+        }
+        _ => {
+            // Regular: expand to coordinates.
+            let axis = |a: usize| {
+                (0..dims[a])
+                    .map(|i| lg.origin[a] + lg.spacing[a] * i as f64)
+                    .collect()
+            };
+            Geometry::Rectilinear {
+                x: axis(0),
+                y: axis(1),
+                z: axis(2),
+            }
+        }
+    };
+    let grid = CfdGrid {
+        format: format!("vtk-legacy {}", lg.kind.to_ascii_lowercase()),
+        geometry,
+        arrays: lg
+            .arrays
+            .into_iter()
+            .map(|a| GridArray {
+                name: a.name,
+                components: a.comps,
+                on_cells: a.on_cells,
+                data: a.data,
+            })
+            .collect(),
+    };
+    grid.validate(path)?;
+    Ok(grid)
 }
