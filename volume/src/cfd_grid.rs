@@ -248,12 +248,23 @@ impl Buckets {
 pub struct Locator<'a> {
     grid: &'a CfdGrid,
     buckets: Option<Buckets>,
+    /// Bounding box of each cell, slightly enlarged: a cheap test before Newton's method.
+    boxes: Vec<[DVec3; 2]>,
+}
+
+fn grow(b: [DVec3; 2]) -> [DVec3; 2] {
+    let e = (b[1] - b[0]).max_element() * 1e-7 + 1e-12;
+    [b[0] - DVec3::splat(e), b[1] + DVec3::splat(e)]
+}
+
+fn in_box(b: &[DVec3; 2], x: DVec3) -> bool {
+    x.cmpge(b[0]).all() && x.cmple(b[1]).all()
 }
 
 impl<'a> Locator<'a> {
     pub fn new(grid: &'a CfdGrid) -> Self {
-        let buckets = match &grid.geometry {
-            Geometry::Rectilinear { .. } => None,
+        let (buckets, boxes) = match &grid.geometry {
+            Geometry::Rectilinear { .. } => (None, Vec::new()),
             Geometry::Structured { dims, points } => {
                 let nc = [
                     dims[0].saturating_sub(1),
@@ -275,7 +286,7 @@ impl<'a> Locator<'a> {
                         }
                     }
                 }
-                Some(Buckets::new(grid.bounds(), &boxes))
+                (Some(Buckets::new(grid.bounds(), &boxes)), boxes)
             }
             Geometry::Unstructured { points, cells } => {
                 let boxes: Vec<[DVec3; 2]> = cells
@@ -294,10 +305,15 @@ impl<'a> Locator<'a> {
                         [lo, hi]
                     })
                     .collect();
-                Some(Buckets::new(grid.bounds(), &boxes))
+                (Some(Buckets::new(grid.bounds(), &boxes)), boxes)
             }
         };
-        Locator { grid, buckets }
+        let boxes = boxes.into_iter().map(grow).collect();
+        Locator {
+            grid,
+            buckets,
+            boxes,
+        }
     }
 
     fn locate(&self, x: DVec3) -> Option<Hit> {
@@ -359,6 +375,9 @@ impl<'a> Locator<'a> {
                 let nc = [dims[0] - 1, dims[1] - 1];
                 for &ci in b.at(x) {
                     let ci = ci as usize;
+                    if !in_box(&self.boxes[ci], x) {
+                        continue;
+                    }
                     let (i, j, k) = (ci % nc[0], (ci / nc[0]) % nc[1], ci / (nc[0] * nc[1]));
                     let ids = structured_corners(*dims, i, j, k);
                     let c = ids.map(|id| points[id]);
@@ -375,6 +394,9 @@ impl<'a> Locator<'a> {
                 let b = self.buckets.as_ref()?;
                 for &ci in b.at(x) {
                     let ci = ci as usize;
+                    if !in_box(&self.boxes[ci], x) {
+                        continue;
+                    }
                     match cells[ci] {
                         Cell::Tet(ids) => {
                             let c = ids.map(|id| points[id as usize]);
