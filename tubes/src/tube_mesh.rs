@@ -266,13 +266,151 @@ pub fn colormap(v: f64) -> [f32; 3] {
     [0, 1, 2].map(|c| A[i][c] + (A[i + 1][c] - A[i][c]) * f)
 }
 
-struct Piece {
-    /// Relative to the mesh origin.
-    positions: Vec<Vec3>,
-    normals: Vec<Vec3>,
-    colors: Vec<[u8; 3]>,
-    indices: Vec<u32>,
+/// One tube piece, ready to be written: its rings (frame, radius, colour) and what it needs in
+/// the output buffers. Vertices are written straight into the mesh by [`Rings::emit`], so no
+/// per-piece vertex buffers are built and concatenated.
+struct Rings {
+    sides: usize,
+    /// Ring centres relative to the mesh origin; `None` where the tube is cut.
+    centre: Vec<Option<DVec3>>,
+    r: Vec<DVec3>,
+    b: Vec<DVec3>,
+    t: Vec<DVec3>,
+    radius: Vec<f64>,
+    drds: Vec<f64>,
+    color: Vec<[u8; 3]>,
+    /// Runs of kept rings `(first, last)` that get end caps.
+    caps: Vec<(usize, usize)>,
+    vertices: usize,
+    indices: usize,
     stats: TubeStats,
+}
+
+impl Rings {
+    /// Writes the vertices and triangles into the given parts of the mesh buffers (exactly
+    /// `self.vertices` and `self.indices` long); `first` is the index of the first vertex.
+    /// Returns the smallest section ratio: the stored ring polygon's area, projected on the
+    /// plane normal to its tangent, over the ideal polygon's.
+    fn emit(
+        &self,
+        first: u32,
+        pos: &mut [std::mem::MaybeUninit<Vec3>],
+        nor: &mut [std::mem::MaybeUninit<Vec3>],
+        col: &mut [std::mem::MaybeUninit<[u8; 3]>],
+        idx: &mut [std::mem::MaybeUninit<u32>],
+    ) -> f64 {
+        let sides = self.sides;
+        let step = std::f64::consts::TAU / sides as f64;
+        let trig: Vec<(f64, f64)> = (0..sides)
+            .map(|j| ((step * j as f64).cos(), (step * j as f64).sin()))
+            .collect();
+        let ideal = |r: f64| 0.5 * sides as f64 * r * r * step.sin();
+        let mut min_ratio = f64::INFINITY;
+        let mut v = 0usize;
+        let mut base: Vec<Option<u32>> = Vec::with_capacity(self.centre.len());
+        for i in 0..self.centre.len() {
+            let Some(centre) = self.centre[i] else {
+                base.push(None);
+                continue;
+            };
+            base.push(Some(first + v as u32));
+            let (r, b, t, radius, drds) = (
+                self.r[i],
+                self.b[i],
+                self.t[i],
+                self.radius[i],
+                self.drds[i],
+            );
+            for &(ca, sa) in &trig {
+                let radial = r * ca + b * sa;
+                let p = (centre + radial * radius).as_vec3();
+                pos[v].write(p);
+                // The radial direction is a unit vector; only a changing radius tilts it.
+                let n = if drds == 0.0 {
+                    radial
+                } else {
+                    (radial - t * drds).normalize()
+                };
+                nor[v].write(n.as_vec3());
+                col[v].write(self.color[i]);
+                v += 1;
+            }
+            // Section ratio in the stored precision (a fan about the ring's first vertex).
+            let at = |j: usize| {
+                let (ca, sa) = trig[j];
+                (centre + (r * ca + b * sa) * radius).as_vec3().as_dvec3()
+            };
+            let p0 = at(0);
+            let mut area = 0.0;
+            let mut prev = at(1) - p0;
+            for j in 2..sides {
+                let q = at(j) - p0;
+                area += 0.5 * prev.cross(q).dot(t);
+                prev = q;
+            }
+            let ratio = if radius > 0.0 {
+                area / ideal(radius)
+            } else {
+                1.0
+            };
+            min_ratio = min_ratio.min(ratio);
+        }
+        // Quads between consecutive rings, counter-clockwise seen from outside.
+        let mut k = 0usize;
+        let mut put = |i: u32, k: &mut usize| {
+            idx[*k].write(i);
+            *k += 1;
+        };
+        let s32 = sides as u32;
+        for w in base.windows(2) {
+            let (Some(r0), Some(r1)) = (w[0], w[1]) else {
+                continue;
+            };
+            for j in 0..s32 {
+                let (a, b) = (r0 + j, r0 + (j + 1) % s32);
+                let (c, d) = (r1 + j, r1 + (j + 1) % s32);
+                for i in [a, b, d, a, d, c] {
+                    put(i, &mut k);
+                }
+            }
+        }
+        for &(first_ring, last_ring) in &self.caps {
+            for (ring, dir, flip) in [
+                (first_ring, -self.t[first_ring], true),
+                (last_ring, self.t[last_ring], false),
+            ] {
+                let rb = (base[ring].unwrap() - first) as usize;
+                let centre = first + v as u32;
+                pos[v].write(self.centre[ring].unwrap().as_vec3());
+                nor[v].write(dir.as_vec3());
+                col[v].write(self.color[ring]);
+                v += 1;
+                let rim = first + v as u32;
+                for j in 0..sides {
+                    // SAFETY: vertex rb + j of this piece was written above.
+                    let p = unsafe { pos[rb + j].assume_init() };
+                    pos[v].write(p);
+                    nor[v].write(dir.as_vec3());
+                    col[v].write(self.color[ring]);
+                    v += 1;
+                }
+                for j in 0..s32 {
+                    let (p, q) = (rim + j, rim + (j + 1) % s32);
+                    let tri = if flip { [centre, q, p] } else { [centre, p, q] };
+                    for i in tri {
+                        put(i, &mut k);
+                    }
+                }
+            }
+        }
+        assert!(
+            v == self.vertices && k == self.indices,
+            "tube piece wrote {v} vertices and {k} indices, {} and {} counted",
+            self.vertices,
+            self.indices
+        );
+        min_ratio
+    }
 }
 
 fn rgb8(c: [f32; 3]) -> [u8; 3] {
@@ -285,7 +423,7 @@ fn tube(
     attr: Option<(&[f32], [f64; 2])>,
     o: &TubeOptions,
     origin: DVec3,
-) -> Piece {
+) -> Rings {
     let mut st = TubeStats {
         min_section_ratio: f64::INFINITY,
         ..Default::default()
@@ -393,26 +531,26 @@ fn tube(
             vals[j - 1] as f64 * (1.0 - w) + vals[j] as f64 * w
         }
     };
-    let mut piece = Piece {
-        positions: Vec::with_capacity(n * sides),
-        normals: Vec::with_capacity(n * sides),
-        colors: Vec::with_capacity(n * sides),
-        indices: Vec::new(),
+    let mut rings = Rings {
+        sides,
+        centre: Vec::with_capacity(n),
+        r: Vec::with_capacity(n),
+        b: Vec::with_capacity(n),
+        t: Vec::with_capacity(n),
+        radius: radii.clone(),
+        drds: Vec::with_capacity(n),
+        color: Vec::with_capacity(n),
+        caps: Vec::new(),
+        vertices: 0,
+        indices: 0,
         stats: TubeStats::default(),
     };
-    let step = std::f64::consts::TAU / sides as f64;
-    let trig: Vec<(f64, f64)> = (0..sides)
-        .map(|j| ((step * j as f64).cos(), (step * j as f64).sin()))
-        .collect();
-    let ideal = |r: f64| 0.5 * sides as f64 * r * r * step.sin();
-    let mut base: Vec<Option<u32>> = vec![None; n];
     for i in 0..n {
-        if cut[i] {
-            continue;
-        }
-        base[i] = Some(piece.positions.len() as u32);
         let r_vec = frames[i];
-        let b_vec = t[i].cross(r_vec);
+        rings.centre.push((!cut[i]).then(|| x[i] - origin));
+        rings.r.push(r_vec);
+        rings.b.push(t[i].cross(r_vec));
+        rings.t.push(t[i]);
         let drds = if n > 1 {
             let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
             if s[b] > s[a] {
@@ -423,6 +561,7 @@ fn tube(
         } else {
             0.0
         };
+        rings.drds.push(drds);
         let color = match &o.color {
             ColorMode::Direction => [
                 t[i].x.abs() as f32,
@@ -436,99 +575,39 @@ fn tube(
             }
             ColorMode::Field(func, [lo, hi]) => colormap((func(x[i]) - lo) / (hi - lo).max(1e-300)),
         };
-        let color = rgb8(color);
-        let ring_start = piece.positions.len();
-        let centre = x[i] - origin;
-        for &(ca, sa) in &trig {
-            let radial = r_vec * ca + b_vec * sa;
-            piece.positions.push((centre + radial * radii[i]).as_vec3());
-            piece
-                .normals
-                .push((radial - t[i] * drds).normalize().as_vec3());
-            piece.colors.push(color);
-        }
-        // Section ratio: the ring polygon projected on the plane normal to its tangent, in the
-        // precision it is stored in (a fan about the stored ring's first vertex).
-        let ring = &piece.positions[ring_start..];
-        let p0 = ring[0].as_dvec3();
-        let mut area = 0.0;
-        for j in 1..sides - 1 {
-            let (p, q) = (ring[j].as_dvec3() - p0, ring[j + 1].as_dvec3() - p0);
-            area += 0.5 * p.cross(q).dot(t[i]);
-        }
-        let ratio = if radii[i] > 0.0 {
-            area / ideal(radii[i])
-        } else {
-            1.0
-        };
-        st.min_section_ratio = st.min_section_ratio.min(ratio);
-        if i > 0 && !cut[i - 1] {
+        rings.color.push(rgb8(color));
+        if i > 0 && !cut[i] && !cut[i - 1] {
             st.max_twist_deg =
                 st.max_twist_deg
                     .max(twist_deg(t[i - 1], t[i], frames[i - 1], frames[i]));
-        }
-    }
-    // Quads between consecutive rings, counter-clockwise seen from outside.
-    for i in 0..n.saturating_sub(1) {
-        let (Some(r0), Some(r1)) = (base[i], base[i + 1]) else {
-            continue;
-        };
-        for j in 0..sides as u32 {
-            let (a, b) = (r0 + j, r0 + (j + 1) % sides as u32);
-            let (c, d) = (r1 + j, r1 + (j + 1) % sides as u32);
-            piece.indices.extend_from_slice(&[a, b, d, a, d, c]);
         }
     }
     // Runs of rings between cuts: one tube piece each.
     let mut runs: Vec<(usize, usize)> = Vec::new();
     let mut i = 0;
     while i < n {
-        if base[i].is_none() {
+        if cut[i] {
             i += 1;
             continue;
         }
         let start = i;
-        while i + 1 < n && base[i + 1].is_some() {
+        while i + 1 < n && !cut[i + 1] {
             i += 1;
         }
         runs.push((start, i));
         i += 1;
     }
     st.splits += runs.len().saturating_sub(1);
+    let kept = cut.iter().filter(|&&c| !c).count();
+    let quads: usize = runs.iter().map(|&(a, b)| b - a).sum();
     if o.caps {
-        for &(first_ring, last_ring) in &runs {
-            if first_ring == last_ring {
-                continue;
-            }
-            for (ring, dir, flip) in [
-                (first_ring, -t[first_ring], true),
-                (last_ring, t[last_ring], false),
-            ] {
-                let rb = base[ring].unwrap();
-                let centre = piece.positions.len() as u32;
-                piece.positions.push((x[ring] - origin).as_vec3());
-                piece.normals.push(dir.as_vec3());
-                piece.colors.push(piece.colors[rb as usize]);
-                let first = piece.positions.len() as u32;
-                for j in 0..sides as u32 {
-                    piece.positions.push(piece.positions[(rb + j) as usize]);
-                    piece.normals.push(dir.as_vec3());
-                    piece.colors.push(piece.colors[(rb + j) as usize]);
-                }
-                for j in 0..sides as u32 {
-                    let (p, q) = (first + j, first + (j + 1) % sides as u32);
-                    if flip {
-                        piece.indices.extend_from_slice(&[centre, q, p]);
-                    } else {
-                        piece.indices.extend_from_slice(&[centre, p, q]);
-                    }
-                }
-            }
-        }
+        rings.caps = runs.iter().copied().filter(|&(a, b)| a != b).collect();
     }
-    st.triangles = piece.indices.len() / 3;
-    piece.stats = st;
-    piece
+    rings.vertices = kept * sides + rings.caps.len() * 2 * (sides + 1);
+    rings.indices = quads * sides * 6 + rings.caps.len() * 2 * sides * 3;
+    st.triangles = rings.indices / 3;
+    rings.stats = st;
+    rings
 }
 
 /// Builds the tube mesh of all streamlines (in parallel) and its statistics.
@@ -552,7 +631,7 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
         });
         [lo, hi]
     });
-    let pieces: Vec<(Vec<Piece>, TubeStats)> = (0..s.len())
+    let pieces: Vec<(Vec<Rings>, TubeStats)> = (0..s.len())
         .into_par_iter()
         .map(|i| {
             let mut st = TubeStats {
@@ -612,7 +691,7 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
         min_section_ratio: f64::INFINITY,
         ..Default::default()
     };
-    let mut flat: Vec<Piece> = Vec::new();
+    let mut flat: Vec<Rings> = Vec::new();
     for (parts, st) in pieces {
         stats.streamlines_in += st.streamlines_in;
         stats.points_in += st.points_in;
@@ -625,36 +704,61 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
             stats.triangles += p.stats.triangles;
             stats.max_deviation = stats.max_deviation.max(p.stats.max_deviation);
             stats.max_twist_deg = stats.max_twist_deg.max(p.stats.max_twist_deg);
-            stats.min_section_ratio = stats.min_section_ratio.min(p.stats.min_section_ratio);
             stats.radius_clamps += p.stats.radius_clamps;
             stats.splits += p.stats.splits;
             flat.push(p);
         }
     }
-    // Concatenate in order, in parallel: vertex offsets by prefix sums.
-    let mut base = Vec::with_capacity(flat.len());
-    let mut nv = 0u32;
-    for p in &flat {
-        base.push(nv);
-        nv += p.positions.len() as u32;
+    // Write every piece straight into the mesh buffers, in parallel: each piece gets its own
+    // disjoint parts of the (uninitialised) buffers, found by prefix sums of its counts.
+    let nv: usize = flat.iter().map(|p| p.vertices).sum();
+    let ni: usize = flat.iter().map(|p| p.indices).sum();
+    assert!(
+        nv <= u32::MAX as usize,
+        "{nv} vertices do not fit 32-bit indices"
+    );
+    let mut positions: Vec<Vec3> = Vec::with_capacity(nv);
+    let mut normals: Vec<Vec3> = Vec::with_capacity(nv);
+    let mut colors: Vec<[u8; 3]> = Vec::with_capacity(nv);
+    let mut indices: Vec<u32> = Vec::with_capacity(ni);
+    {
+        let mut jobs = Vec::with_capacity(flat.len());
+        let (mut pos, mut nor, mut col, mut idx) = (
+            &mut positions.spare_capacity_mut()[..nv],
+            &mut normals.spare_capacity_mut()[..nv],
+            &mut colors.spare_capacity_mut()[..nv],
+            &mut indices.spare_capacity_mut()[..ni],
+        );
+        let mut first = 0u32;
+        for p in &flat {
+            let (a, rest) = std::mem::take(&mut pos).split_at_mut(p.vertices);
+            pos = rest;
+            let (b, rest) = std::mem::take(&mut nor).split_at_mut(p.vertices);
+            nor = rest;
+            let (c, rest) = std::mem::take(&mut col).split_at_mut(p.vertices);
+            col = rest;
+            let (d, rest) = std::mem::take(&mut idx).split_at_mut(p.indices);
+            idx = rest;
+            jobs.push((p, first, a, b, c, d));
+            first += p.vertices as u32;
+        }
+        stats.min_section_ratio = jobs
+            .into_par_iter()
+            .map(|(p, first, a, b, c, d)| p.emit(first, a, b, c, d))
+            .reduce(|| f64::INFINITY, f64::min);
     }
-    mesh.positions = flat
-        .par_iter()
-        .flat_map_iter(|p| p.positions.iter().copied())
-        .collect();
-    mesh.normals = flat
-        .par_iter()
-        .flat_map_iter(|p| p.normals.iter().copied())
-        .collect();
-    mesh.colors = flat
-        .par_iter()
-        .flat_map_iter(|p| p.colors.iter().copied())
-        .collect();
-    mesh.indices = flat
-        .par_iter()
-        .zip(&base)
-        .flat_map_iter(|(p, &b)| p.indices.iter().map(move |&i| i + b))
-        .collect();
+    // SAFETY: the pieces cover 0..nv and 0..ni exactly (the slices above are split by their
+    // counts), and `emit` writes every element of its slices (it asserts its counts).
+    unsafe {
+        positions.set_len(nv);
+        normals.set_len(nv);
+        colors.set_len(nv);
+        indices.set_len(ni);
+    }
+    mesh.positions = positions;
+    mesh.normals = normals;
+    mesh.colors = colors;
+    mesh.indices = indices;
     if !stats.min_section_ratio.is_finite() {
         stats.min_section_ratio = 1.0;
     }
