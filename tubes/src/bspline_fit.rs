@@ -84,6 +84,20 @@ impl BSpline {
     /// Point and first two derivatives at `t` (de Boor with derivatives by differencing the
     /// control points).
     pub fn eval(&self, t: f64) -> DVec3 {
+        let t = t.clamp(0.0, 1.0);
+        let sp = self.spans();
+        let j = self.locate(t);
+        if j >= 3 && j + 4 <= sp {
+            // Interior span: the uniform cubic basis in closed form (as in `eval_d`).
+            let u = t * sp as f64 - j as f64;
+            let v = 1.0 - u;
+            let (u2, u3) = (u * u, u * u * u);
+            let p = &self.control[j..j + 4];
+            return p[0] * (v * v * v / 6.0)
+                + p[1] * ((3.0 * u3 - 6.0 * u2 + 4.0) / 6.0)
+                + p[2] * ((-3.0 * u3 + 3.0 * u2 + 3.0 * u + 1.0) / 6.0)
+                + p[3] * (u3 / 6.0);
+        }
         self.eval_d(t).0
     }
 
@@ -331,6 +345,35 @@ fn deviation(curve: &BSpline, points: &[DVec3], guess: &[f64], limit: f64) -> (f
     (worst, params)
 }
 
+/// The largest distance of `points` to `curve` where it is at least `exact_above`, else an upper
+/// bound of it below `exact_above`: the distance to the curve point at the carried parameter
+/// bounds the distance to the curve, and only points whose bound exceeds `exact_above` are
+/// projected (Newton). If the true largest distance is `>= exact_above`, that point's bound is
+/// too, so it is projected and the result is exact; otherwise every bound is below
+/// `exact_above` and so is the result. Returns the distance and the parameters.
+fn bounded_deviation(
+    curve: &BSpline,
+    points: &[DVec3],
+    guess: &[f64],
+    exact_above: f64,
+) -> (f64, Vec<f64>) {
+    let mut worst = 0.0f64;
+    let mut params = Vec::with_capacity(points.len());
+    for (&x, &t0) in points.iter().zip(guess) {
+        let mut d = (curve.eval(t0) - x).length();
+        let mut t = t0;
+        if d > exact_above {
+            let (tp, dp) = curve.project(x, t0);
+            if dp < d {
+                (t, d) = (tp, dp);
+            }
+        }
+        worst = worst.max(d);
+        params.push(t);
+    }
+    (worst, params)
+}
+
 /// Whether every point is within `limit` of `curve`: the distance to the curve point at the
 /// carried parameter is an upper bound of the distance to the curve, so points are projected
 /// (Newton) only when that bound exceeds the limit. Returns the largest bound and the
@@ -411,7 +454,7 @@ pub fn fit(points: &[DVec3], opts: &FitOptions) -> Fit {
             let _ = guess;
             // The bounds above are upper bounds: report the true largest distance.
             let _ = (reduced, dev);
-            (dev, params) = deviation(&curve, points, &params, f64::INFINITY);
+            (dev, params) = bounded_deviation(&curve, points, &params, 0.5 * opts.epsilon);
             if opts.method == FitMethod::LeastSquares {
                 let ls = least_squares(points, curve.control.len());
                 let (d, p) = deviation(&ls, points, &chord_params(points), f64::INFINITY);
@@ -675,6 +718,56 @@ mod tests {
             for i in 0..100 {
                 let p = f.curve.eval(i as f64 / 99.0);
                 assert!((p.truncate().length() - 10.0).abs() <= eps * 1.5);
+            }
+        }
+    }
+
+    #[test]
+    fn reported_deviation_bounds_the_true_distance_and_is_exact_above_half_epsilon() {
+        // A helix with a varying pitch: the reduction stops where the tolerance binds.
+        let pts: Vec<DVec3> = (0..200)
+            .map(|i| {
+                let a = i as f64 * 0.05;
+                DVec3::new(a.cos() * 3.0, a.sin() * 3.0, 0.1 * a * a)
+            })
+            .collect();
+        for eps in [0.05, 0.01, 0.002] {
+            let f = fit(
+                &pts,
+                &FitOptions {
+                    epsilon: eps,
+                    method: FitMethod::Iterative,
+                    max_iterations: 200,
+                },
+            );
+            // The true distance of each sample to the curve, by dense sampling then Newton.
+            let n = 20_000;
+            let truth = pts
+                .iter()
+                .map(|&x| {
+                    let (mut bt, mut bd) = (0.0, f64::INFINITY);
+                    for k in 0..=n {
+                        let t = k as f64 / n as f64;
+                        let d = (f.curve.eval(t) - x).length();
+                        if d < bd {
+                            (bt, bd) = (t, d);
+                        }
+                    }
+                    f.curve.project(x, bt).1.min(bd)
+                })
+                .fold(0.0f64, f64::max);
+            assert!(f.max_deviation <= eps, "eps {eps}: {}", f.max_deviation);
+            assert!(
+                f.max_deviation >= truth - 1e-9,
+                "eps {eps}: reported {} below the true {truth}",
+                f.max_deviation
+            );
+            if truth >= 0.5 * eps {
+                assert!(
+                    (f.max_deviation - truth).abs() <= 1e-6 * eps,
+                    "eps {eps}: reported {} vs true {truth}",
+                    f.max_deviation
+                );
             }
         }
     }
