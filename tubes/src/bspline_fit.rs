@@ -272,13 +272,7 @@ pub fn resample_polyline(points: &[DVec3], n: usize) -> Vec<DVec3> {
 pub fn pia(samples: &[DVec3], epsilon: f64, max_iter: usize) -> BSpline {
     let m = samples.len();
     let mut curve = BSpline::new(samples.to_vec());
-    let rows: Vec<(usize, [f64; 4])> = (0..m)
-        .map(|i| {
-            let t = curve.greville(i);
-            let k = curve.locate(t);
-            (k, basis_weights(&curve, t))
-        })
-        .collect();
+    let rows = collocation_rows(m);
     let w = 1.5;
     let eps2 = epsilon * epsilon;
     let mut res = vec![DVec3::ZERO; m];
@@ -299,6 +293,37 @@ pub fn pia(samples: &[DVec3], epsilon: f64, max_iter: usize) -> BSpline {
         }
     }
     curve
+}
+
+thread_local! {
+    /// Collocation rows by number of control points: they depend on nothing else (the knots are
+    /// uniform and clamped), and polylines of one tractogram mostly share their lengths.
+    static ROWS: std::cell::RefCell<std::collections::HashMap<usize, std::rc::Rc<Vec<(usize, [f64; 4])>>>> =
+        Default::default();
+}
+
+/// The span and the four basis values at each Greville abscissa of an `m`-point spline.
+fn collocation_rows(m: usize) -> std::rc::Rc<Vec<(usize, [f64; 4])>> {
+    ROWS.with(|cache| {
+        let mut cache = cache.borrow_mut();
+        if cache.len() > 4096 {
+            cache.clear();
+        }
+        cache
+            .entry(m)
+            .or_insert_with(|| {
+                let curve = BSpline::new(vec![DVec3::ZERO; m]);
+                std::rc::Rc::new(
+                    (0..m)
+                        .map(|i| {
+                            let t = curve.greville(i);
+                            (curve.locate(t), basis_weights(&curve, t))
+                        })
+                        .collect(),
+                )
+            })
+            .clone()
+    })
 }
 
 /// Options of [`fit`].
