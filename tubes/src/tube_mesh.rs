@@ -206,14 +206,23 @@ pub fn twist_deg(t0: DVec3, t1: DVec3, r0: DVec3, r1: DVec3) -> f64 {
 /// Ring parameters along a curve.
 fn ring_params(curve: &BSpline, per_span: usize, max_turn: f64, chordal: Option<f64>) -> Vec<f64> {
     let n = curve.spans() * per_span.max(1);
-    let mut base: Vec<f64> = (0..=n).map(|i| i as f64 / n as f64).collect();
     let tan = |u: f64| curve.eval_d(u).1.normalize_or_zero();
-    let mut out = vec![0.0];
+    let mut out = Vec::with_capacity(n + 1);
+    out.push(0.0);
     let cos_max = max_turn.to_radians().cos();
-    for w in base.windows(2) {
+    let (mut stack, mut pieces) = (Vec::new(), Vec::new());
+    let mut ta = tan(0.0);
+    for i in 0..n {
+        let (a0, b0) = (i as f64 / n as f64, (i + 1) as f64 / n as f64);
+        let tb = tan(b0);
+        if chordal.is_none() && ta.dot(tb) >= cos_max {
+            // The common case: the span is smooth enough as it is.
+            out.push(b0);
+            ta = tb;
+            continue;
+        }
         // Bisect [a, b] until it is smooth enough.
-        let mut stack = vec![(w[0], w[1], 0)];
-        let mut pieces = Vec::new();
+        stack.push((a0, b0, 0));
         while let Some((a, b, depth)) = stack.pop() {
             let turn_ok = tan(a).dot(tan(b)) >= cos_max;
             let chord_ok = match chordal {
@@ -233,9 +242,9 @@ fn ring_params(curve: &BSpline, per_span: usize, max_turn: f64, chordal: Option<
             }
         }
         // The stack visits left halves first.
-        out.extend(pieces);
+        out.append(&mut pieces);
+        ta = tb;
     }
-    base.clear();
     out
 }
 
