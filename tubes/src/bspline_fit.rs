@@ -157,7 +157,8 @@ impl BSpline {
         }
         let idx = k - 3;
         let p = &self.control;
-        let c = (0..4).map(|j| p[idx + j] * n[3][j]).sum::<DVec3>();
+        let c =
+            p[idx] * n[3][0] + p[idx + 1] * n[3][1] + p[idx + 2] * n[3][2] + p[idx + 3] * n[3][3];
         // Derivatives: the curve's derivative is a quadratic B-spline with control points
         // 3 (P_{i+1} - P_i) / (u_{i+4} - u_{i+1}); evaluate with the degree-2 basis.
         let d1 = |i: usize| {
@@ -168,17 +169,18 @@ impl BSpline {
                 DVec3::ZERO
             }
         };
-        let cd = (0..3).map(|j| d1(idx + j) * n[2][j]).sum::<DVec3>();
+        let (e0, e1, e2) = (d1(idx), d1(idx + 1), d1(idx + 2));
+        let cd = e0 * n[2][0] + e1 * n[2][1] + e2 * n[2][2];
         // Second derivative: linear B-spline of 2 (D_{i+1} - D_i) / (u_{i+4} - u_{i+2}).
-        let d2 = |i: usize| {
+        let d2 = |i: usize, a: DVec3, b: DVec3| {
             let den = u(i + 4) - u(i + 2);
             if den > 0.0 {
-                (d1(i + 1) - d1(i)) * (2.0 / den)
+                (b - a) * (2.0 / den)
             } else {
                 DVec3::ZERO
             }
         };
-        let cdd = (0..2).map(|j| d2(idx + j) * n[1][j]).sum::<DVec3>();
+        let cdd = d2(idx, e0, e1) * n[1][0] + d2(idx + 1, e1, e2) * n[1][1];
         (c, cd, cdd)
     }
 

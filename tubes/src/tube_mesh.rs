@@ -113,21 +113,28 @@ pub struct TubeStats {
 
 /// Splits a cleaned polyline where its direction reverses (turn > 179.9 degrees).
 pub fn split_reversals(points: &[DVec3]) -> Vec<Vec<DVec3>> {
-    let mut out = vec![vec![points[0]]];
-    for i in 1..points.len() {
-        if i + 1 < points.len() {
-            let (a, b) = (
-                (points[i] - points[i - 1]).normalize_or_zero(),
-                (points[i + 1] - points[i]).normalize_or_zero(),
-            );
-            if a.dot(b) < (179.9f64).to_radians().cos() {
-                out.last_mut().unwrap().push(points[i]);
-                out.push(vec![points[i]]);
-                continue;
-            }
+    reversal_ranges(points)
+        .into_iter()
+        .map(|(a, b)| points[a..=b].to_vec())
+        .collect()
+}
+
+/// The pieces of [`split_reversals`] as inclusive index ranges (neighbours share the point at
+/// the reversal).
+fn reversal_ranges(points: &[DVec3]) -> Vec<(usize, usize)> {
+    // a . b < cos(179.9 deg) |a| |b|, squared (the cosine is negative) to avoid square roots.
+    let c = (179.9f64).to_radians().cos();
+    let mut out = Vec::with_capacity(1);
+    let mut start = 0;
+    for i in 1..points.len().saturating_sub(1) {
+        let (a, b) = (points[i] - points[i - 1], points[i + 1] - points[i]);
+        let d = a.dot(b);
+        if d < 0.0 && d * d > c * c * a.length_squared() * b.length_squared() {
+            out.push((start, i));
+            start = i;
         }
-        out.last_mut().unwrap().push(points[i]);
     }
+    out.push((start, points.len() - 1));
     out
 }
 
@@ -203,22 +210,34 @@ pub fn twist_deg(t0: DVec3, t1: DVec3, r0: DVec3, r1: DVec3) -> f64 {
     carried.dot(r1).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
-/// Ring parameters along a curve.
-fn ring_params(curve: &BSpline, per_span: usize, max_turn: f64, chordal: Option<f64>) -> Vec<f64> {
+/// A curve point with its first two derivatives: `(u, C(u), C'(u), C''(u))`.
+type CurvePoint = (f64, DVec3, DVec3, DVec3);
+
+/// Ring parameters along a curve, with the curve evaluated there.
+fn ring_params(
+    curve: &BSpline,
+    per_span: usize,
+    max_turn: f64,
+    chordal: Option<f64>,
+) -> Vec<CurvePoint> {
     let n = curve.spans() * per_span.max(1);
+    let at = |u: f64| {
+        let (c, d1, d2) = curve.eval_d(u);
+        (u, c, d1, d2)
+    };
     let tan = |u: f64| curve.eval_d(u).1.normalize_or_zero();
     let mut out = Vec::with_capacity(n + 1);
-    out.push(0.0);
+    let mut pa = at(0.0);
+    out.push(pa);
     let cos_max = max_turn.to_radians().cos();
     let (mut stack, mut pieces) = (Vec::new(), Vec::new());
-    let mut ta = tan(0.0);
     for i in 0..n {
         let (a0, b0) = (i as f64 / n as f64, (i + 1) as f64 / n as f64);
-        let tb = tan(b0);
-        if chordal.is_none() && ta.dot(tb) >= cos_max {
+        let pb = at(b0);
+        if chordal.is_none() && pa.2.normalize_or_zero().dot(pb.2.normalize_or_zero()) >= cos_max {
             // The common case: the span is smooth enough as it is.
-            out.push(b0);
-            ta = tb;
+            out.push(pb);
+            pa = pb;
             continue;
         }
         // Bisect [a, b] until it is smooth enough.
@@ -234,7 +253,7 @@ fn ring_params(curve: &BSpline, per_span: usize, max_turn: f64, chordal: Option<
                 None => true,
             };
             if (turn_ok && chord_ok) || depth >= 12 {
-                pieces.push(b);
+                pieces.push(if b == b0 { pb } else { at(b) });
             } else {
                 let m = 0.5 * (a + b);
                 stack.push((m, b, depth + 1));
@@ -243,7 +262,7 @@ fn ring_params(curve: &BSpline, per_span: usize, max_turn: f64, chordal: Option<
         }
         // The stack visits left halves first.
         out.append(&mut pieces);
-        ta = tb;
+        pa = pb;
     }
     out
 }
@@ -449,8 +468,7 @@ fn tube(
     let (mut x, mut t, mut k): (Vec<DVec3>, Vec<DVec3>, Vec<f64>) =
         (Vec::new(), Vec::new(), Vec::new());
     let mut kept_params = Vec::with_capacity(params.len());
-    for (pi, &u) in params.iter().enumerate() {
-        let (c, d1, d2) = curve.eval_d(u);
+    for (pi, &(u, c, d1, d2)) in params.iter().enumerate() {
         // Rings closer than 1e-4 radius to the previous one (where the fitted curve all but
         // stops, at the apex of a near-reversal) would give zero-area quads: skip them, but keep
         // the last ring.
@@ -649,16 +667,17 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
                 min_section_ratio: f64::INFINITY,
                 ..Default::default()
             };
-            let raw: Vec<DVec3> = s.line(i).iter().map(|p| p.as_dvec3()).collect();
+            let line = s.line(i);
             let vals: Option<Vec<f32>> = scalar.map(|a| {
                 (s.offsets[i]..s.offsets[i + 1])
                     .map(|p| a.values[p * a.components])
                     .collect()
             });
-            // Keep attribute values aligned with the cleaned points.
-            let mut pts = Vec::with_capacity(raw.len());
+            // Clean as `clean` does, keeping attribute values aligned with the kept points.
+            let mut pts: Vec<DVec3> = Vec::with_capacity(line.len());
             let mut kept_vals = Vec::new();
-            for (j, &p) in raw.iter().enumerate() {
+            for (j, p) in line.iter().enumerate() {
+                let p = p.as_dvec3();
                 let dup = pts.last().is_some_and(|q: &DVec3| {
                     (p - *q).length() <= 1e-9 * (1.0 + p.abs().max_element())
                 });
@@ -669,25 +688,24 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
                     }
                 }
             }
-            debug_assert_eq!(pts, clean(&raw).0);
-            st.dropped_points = raw.len() - pts.len();
+            debug_assert_eq!(
+                pts,
+                clean(&line.iter().map(|p| p.as_dvec3()).collect::<Vec<_>>()).0
+            );
+            st.dropped_points = line.len() - pts.len();
             if pts.len() < 2 {
                 st.skipped_streamlines = 1;
                 return (Vec::new(), st);
             }
-            let parts = split_reversals(&pts);
+            let parts = reversal_ranges(&pts);
             st.splits = parts.len() - 1;
-            let mut out = Vec::new();
-            let mut off = 0;
-            for part in &parts {
-                let len = part.len();
-                let av = vals.as_ref().map(|_| &kept_vals[off..off + len]);
-                off += len - 1;
-                if len < 2 {
+            let mut out = Vec::with_capacity(parts.len());
+            for &(a, b) in &parts {
+                if b == a {
                     continue;
                 }
-                let p = tube(part, av.zip(range), o, origin);
-                out.push(p);
+                let av = vals.as_ref().map(|_| &kept_vals[a..=b]);
+                out.push(tube(&pts[a..=b], av.zip(range), o, origin));
             }
             (out, st)
         })
