@@ -384,21 +384,23 @@ fn bounded_deviation(
     guess: &[f64],
     exact_above: f64,
 ) -> (f64, Vec<f64>) {
-    let mut worst = 0.0f64;
+    // Squared distances: no square root unless a point is projected.
+    let mut worst2 = 0.0f64;
     let mut params = Vec::with_capacity(points.len());
+    let above2 = exact_above * exact_above;
     for (&x, &t0) in points.iter().zip(guess) {
-        let mut d = (curve.eval(t0) - x).length();
+        let mut d2 = (curve.eval(t0) - x).length_squared();
         let mut t = t0;
-        if d > exact_above {
+        if d2 > above2 {
             let (tp, dp) = curve.project(x, t0);
-            if dp < d {
-                (t, d) = (tp, dp);
+            if dp * dp < d2 {
+                (t, d2) = (tp, dp * dp);
             }
         }
-        worst = worst.max(d);
+        worst2 = worst2.max(d2);
         params.push(t);
     }
-    (worst, params)
+    (worst2.sqrt(), params)
 }
 
 /// Whether every point is within `limit` of `curve`: the distance to the curve point at the
@@ -406,21 +408,23 @@ fn bounded_deviation(
 /// (Newton) only when that bound exceeds the limit. Returns the largest bound and the
 /// parameters, or `None` as soon as a point is farther than `limit`.
 fn within(curve: &BSpline, points: &[DVec3], guess: &[f64], limit: f64) -> Option<(f64, Vec<f64>)> {
-    let mut worst = 0.0f64;
+    let mut worst2 = 0.0f64;
     let mut params = Vec::with_capacity(points.len());
+    let limit2 = limit * limit;
     for (&x, &t0) in points.iter().zip(guess) {
-        let mut d = (curve.eval(t0) - x).length();
+        let mut d2 = (curve.eval(t0) - x).length_squared();
         let mut t = t0;
-        if d > limit {
-            (t, d) = curve.project(x, t0);
+        if d2 > limit2 {
+            let (tp, d) = curve.project(x, t0);
             if d > limit {
                 return None;
             }
+            (t, d2) = (tp, d * d);
         }
-        worst = worst.max(d);
+        worst2 = worst2.max(d2);
         params.push(t);
     }
-    Some((worst, params))
+    Some((worst2.sqrt(), params))
 }
 
 /// Fits a cleaned polyline of at least two points.
