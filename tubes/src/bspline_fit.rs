@@ -297,15 +297,17 @@ pub fn pia(samples: &[DVec3], epsilon: f64, max_iter: usize) -> BSpline {
     curve
 }
 
+/// The span and the four basis values at each Greville abscissa of a spline.
+type Rows = std::rc::Rc<Vec<(usize, [f64; 4])>>;
+
 thread_local! {
     /// Collocation rows by number of control points: they depend on nothing else (the knots are
     /// uniform and clamped), and polylines of one tractogram mostly share their lengths.
-    static ROWS: std::cell::RefCell<std::collections::HashMap<usize, std::rc::Rc<Vec<(usize, [f64; 4])>>>> =
-        Default::default();
+    static ROWS: std::cell::RefCell<std::collections::HashMap<usize, Rows>> = Default::default();
 }
 
 /// The span and the four basis values at each Greville abscissa of an `m`-point spline.
-fn collocation_rows(m: usize) -> std::rc::Rc<Vec<(usize, [f64; 4])>> {
+fn collocation_rows(m: usize) -> Rows {
     ROWS.with(|cache| {
         let mut cache = cache.borrow_mut();
         if cache.len() > 4096 {

@@ -197,6 +197,12 @@ pub fn frenet(curve: &BSpline, params: &[f64], t: &[DVec3]) -> Vec<DVec3> {
 
 /// Angle (degrees) between `r1` and `r0` carried from `t0` to `t1` by the smallest rotation.
 pub fn twist_deg(t0: DVec3, t1: DVec3, r0: DVec3, r1: DVec3) -> f64 {
+    twist_cos(t0, t1, r0, r1).acos().to_degrees()
+}
+
+/// The cosine of [`twist_deg`]'s angle (the largest twist along a tube is the arccosine of the
+/// smallest of these, one arccosine per tube).
+fn twist_cos(t0: DVec3, t1: DVec3, r0: DVec3, r1: DVec3) -> f64 {
     let axis = t0.cross(t1);
     let s = axis.length();
     let c = t0.dot(t1).clamp(-1.0, 1.0);
@@ -207,7 +213,7 @@ pub fn twist_deg(t0: DVec3, t1: DVec3, r0: DVec3, r1: DVec3) -> f64 {
         // Rodrigues.
         r0 * c + k.cross(r0) * s + k * (k.dot(r0) * (1.0 - c))
     };
-    carried.dot(r1).clamp(-1.0, 1.0).acos().to_degrees()
+    carried.dot(r1).clamp(-1.0, 1.0)
 }
 
 /// A curve point with its first two derivatives: `(u, C(u), C'(u), C''(u))`.
@@ -572,6 +578,7 @@ fn tube(
         indices: 0,
         stats: TubeStats::default(),
     };
+    let mut min_twist_cos = 1.0f64;
     for i in 0..n {
         let r_vec = frames[i];
         rings.centre.push((!cut[i]).then(|| x[i] - origin));
@@ -604,11 +611,10 @@ fn tube(
         };
         rings.color.push(rgb8(color));
         if i > 0 && !cut[i] && !cut[i - 1] {
-            st.max_twist_deg =
-                st.max_twist_deg
-                    .max(twist_deg(t[i - 1], t[i], frames[i - 1], frames[i]));
+            min_twist_cos = min_twist_cos.min(twist_cos(t[i - 1], t[i], frames[i - 1], frames[i]));
         }
     }
+    st.max_twist_deg = min_twist_cos.acos().to_degrees();
     // Runs of rings between cuts: one tube piece each.
     let mut runs: Vec<(usize, usize)> = Vec::new();
     let mut i = 0;
