@@ -370,10 +370,9 @@ impl Rings {
                 v += 1;
             }
             // Section ratio in the stored precision (a fan about the ring's first vertex).
-            let at = |j: usize| {
-                let (ca, sa) = trig[j];
-                (centre + (r * ca + b * sa) * radius).as_vec3().as_dvec3()
-            };
+            let ring = v - sides;
+            // SAFETY: the ring's vertices were written just above.
+            let at = |j: usize| unsafe { pos[ring + j].assume_init() }.as_dvec3();
             let p0 = at(0);
             let mut area = 0.0;
             let mut prev = at(1) - p0;
