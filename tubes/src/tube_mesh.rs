@@ -307,9 +307,10 @@ struct Rings {
     sides: usize,
     /// Ring centres relative to the mesh origin; `None` where the tube is cut.
     centre: Vec<Option<DVec3>>,
-    r: Vec<DVec3>,
-    b: Vec<DVec3>,
-    t: Vec<DVec3>,
+    /// Frame vectors (unit; f32 is ample for directions and halves the memory).
+    r: Vec<Vec3>,
+    b: Vec<Vec3>,
+    t: Vec<Vec3>,
     radius: Vec<f64>,
     drds: Vec<f64>,
     color: Vec<[u8; 3]>,
@@ -349,9 +350,9 @@ impl Rings {
             };
             base.push(Some(first + v as u32));
             let (r, b, t, radius, drds) = (
-                self.r[i],
-                self.b[i],
-                self.t[i],
+                self.r[i].as_dvec3(),
+                self.b[i].as_dvec3(),
+                self.t[i].as_dvec3(),
                 self.radius[i],
                 self.drds[i],
             );
@@ -409,8 +410,8 @@ impl Rings {
         }
         for &(first_ring, last_ring) in &self.caps {
             for (ring, dir, flip) in [
-                (first_ring, -self.t[first_ring], true),
-                (last_ring, self.t[last_ring], false),
+                (first_ring, -self.t[first_ring].as_dvec3(), true),
+                (last_ring, self.t[last_ring].as_dvec3(), false),
             ] {
                 let rb = (base[ring].unwrap() - first) as usize;
                 let centre = first + v as u32;
@@ -581,9 +582,9 @@ fn tube(
     for i in 0..n {
         let r_vec = frames[i];
         rings.centre.push((!cut[i]).then(|| x[i] - origin));
-        rings.r.push(r_vec);
-        rings.b.push(t[i].cross(r_vec));
-        rings.t.push(t[i]);
+        rings.r.push(r_vec.as_vec3());
+        rings.b.push(t[i].cross(r_vec).as_vec3());
+        rings.t.push(t[i].as_vec3());
         let drds = if n > 1 {
             let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
             if s[b] > s[a] {
