@@ -402,8 +402,8 @@ fn max_deviation(curve: &BSpline, points: &[DVec3], guess: &[f64]) -> (f64, Vec<
         d2
     };
     best2 = best2.max(project(top, &mut params));
-    for i in 0..points.len() {
-        if i != top && bounds[i] > best2 {
+    for (i, &b) in bounds.iter().enumerate() {
+        if i != top && b > best2 {
             best2 = best2.max(project(i, &mut params));
         }
     }
@@ -784,7 +784,7 @@ mod tests {
             (&line, 0.01),
         ] {
             let f = fit(
-                &pts,
+                pts,
                 &FitOptions {
                     epsilon: eps,
                     method: FitMethod::Iterative,
