@@ -643,6 +643,28 @@ fn tube(
     rings
 }
 
+/// Asks Linux to back a large fresh buffer with transparent huge pages (where the system allows
+/// it, `madvise` mode): a 255 MB mesh then costs about a hundred page faults instead of sixty
+/// thousand. Advice only: nothing changes if it is refused.
+fn advise_huge_pages<T>(buf: &mut [std::mem::MaybeUninit<T>]) {
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        let start = buf.as_mut_ptr() as usize;
+        let end = start + std::mem::size_of_val(buf);
+        let (a, b) = (start.div_ceil(HUGE) * HUGE, end / HUGE * HUGE);
+        if b > a {
+            // SAFETY: [a, b) lies inside `buf`, which we own; MADV_HUGEPAGE does not change its
+            // contents or validity.
+            unsafe {
+                libc::madvise(a as *mut libc::c_void, b - a, libc::MADV_HUGEPAGE);
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = buf;
+}
+
 /// Builds the tube mesh of all streamlines (in parallel) and its statistics.
 pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
     let origin = s
@@ -754,6 +776,10 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
     let mut normals: Vec<Vec3> = Vec::with_capacity(nv);
     let mut colors: Vec<[u8; 3]> = Vec::with_capacity(nv);
     let mut indices: Vec<u32> = Vec::with_capacity(ni);
+    advise_huge_pages(positions.spare_capacity_mut());
+    advise_huge_pages(normals.spare_capacity_mut());
+    advise_huge_pages(colors.spare_capacity_mut());
+    advise_huge_pages(indices.spare_capacity_mut());
     {
         let mut jobs = Vec::with_capacity(flat.len());
         let (mut pos, mut nor, mut col, mut idx) = (
