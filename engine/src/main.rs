@@ -185,8 +185,9 @@ enum Command {
         /// Sides of a ring.
         #[arg(long, default_value_t = 8)]
         sides: usize,
-        /// Rings per B-spline span before adaptive refinement.
-        #[arg(long, default_value_t = 2)]
+        /// Rings per B-spline span before adaptive refinement (spans are bisected until the
+        /// tangent turns by at most 15 degrees between rings).
+        #[arg(long, default_value_t = 1)]
         per_span: usize,
         /// Largest distance of an input point to the fitted curve (world units).
         #[arg(long, default_value_t = 0.05)]

@@ -14,7 +14,7 @@ fn opts(radius: f64) -> TubeOptions<'static> {
     TubeOptions {
         radius,
         sides: 8,
-        per_span: 4,
+        per_span: 1, // the CLI default
         chordal: None,
         max_turn_deg: 15.0,
         frame: FrameMethod::Rmf,
@@ -99,11 +99,20 @@ fn hairpin(turn_deg: f64, planar: bool) -> Vec<DVec3> {
 
 #[test]
 fn hairpins_of_150_179_and_180_degrees() {
-    for planar in [true, false] {
+    for (planar, per_span) in [(true, 1), (false, 1), (true, 4), (false, 4)] {
         for turn in [150.0, 179.0, 180.0] {
             let s = lines(&[hairpin(turn, planar)]);
-            let (mesh, st) = build(&s, &opts(0.3));
-            check(&format!("hairpin {turn} planar={planar}"), &mesh, &st, 0.3);
+            let o = TubeOptions {
+                per_span,
+                ..opts(0.3)
+            };
+            let (mesh, st) = build(&s, &o);
+            check(
+                &format!("hairpin {turn} planar={planar} per_span={per_span}"),
+                &mesh,
+                &st,
+                0.3,
+            );
             if turn == 180.0 {
                 assert_eq!(st.splits, 1, "an exact reversal is split");
                 assert_eq!(st.streamlines_out, 2);
