@@ -159,3 +159,101 @@ pub fn tractogram_text(path: &str, s: &tubes::Streamlines) -> String {
     }
     out
 }
+
+/// The JSON description of a CFD grid: `format`, `geometry` (`rectilinear`, `structured`,
+/// `unstructured`), `dims` (node counts per axis, structured kinds only), `points`, `cells`,
+/// `bounds`, `arrays` (`[{name, components, on: "points"|"cells", range, nonfinite}]`; `range`
+/// over finite values, per component for scalars and of the magnitude for vectors).
+pub fn grid_json(g: &volume::cfd_grid::CfdGrid) -> Value {
+    use volume::cfd_grid::Geometry;
+    let [lo, hi] = g.bounds();
+    let (geometry, dims) = match &g.geometry {
+        Geometry::Rectilinear { x, y, z } => ("rectilinear", json!([x.len(), y.len(), z.len()])),
+        Geometry::Structured { dims, .. } => ("structured", json!(dims)),
+        Geometry::Unstructured { .. } => ("unstructured", Value::Null),
+    };
+    let num = |v: f64| if v.is_finite() { json!(v) } else { Value::Null };
+    let arrays: Vec<Value> = g
+        .arrays
+        .iter()
+        .map(|a| {
+            let c = a.components.max(1);
+            let (mut min, mut max, mut bad) = (f64::INFINITY, f64::NEG_INFINITY, 0usize);
+            for t in a.data.chunks(c) {
+                let v = if c == 1 {
+                    t[0] as f64
+                } else {
+                    t.iter()
+                        .map(|&x| (x as f64) * (x as f64))
+                        .sum::<f64>()
+                        .sqrt()
+                };
+                if v.is_finite() {
+                    min = min.min(v);
+                    max = max.max(v);
+                } else {
+                    bad += 1;
+                }
+            }
+            json!({
+                "name": a.name,
+                "components": a.components,
+                "on": if a.on_cells { "cells" } else { "points" },
+                "range": [num(min), num(max)],
+                "nonfinite": bad,
+            })
+        })
+        .collect();
+    json!({
+        "format": g.format,
+        "geometry": geometry,
+        "dims": dims,
+        "points": g.n_points(),
+        "cells": g.n_cells(),
+        "bounds": [[lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z]],
+        "arrays": arrays,
+    })
+}
+
+/// The same as text.
+pub fn grid_text(path: &str, g: &volume::cfd_grid::CfdGrid) -> String {
+    let j = grid_json(g);
+    let b = &j["bounds"];
+    let mut out = format!(
+        "file:       {path}\nformat:     {} ({} grid)\n",
+        j["format"].as_str().unwrap_or(""),
+        j["geometry"].as_str().unwrap_or("")
+    );
+    if let Some(d) = j["dims"].as_array() {
+        let d: Vec<String> = d.iter().map(|v| v.to_string()).collect();
+        out += &format!("dims:       {}\n", d.join(" x "));
+    }
+    out += &format!(
+        "points:     {}\ncells:      {}\nbounds:     min ({}, {}, {})  max ({}, {}, {})\n",
+        j["points"], j["cells"], b[0][0], b[0][1], b[0][2], b[1][0], b[1][1], b[1][2]
+    );
+    out += "arrays:\n";
+    for a in j["arrays"].as_array().into_iter().flatten() {
+        let what = if a["components"] == 1 {
+            "range".to_string()
+        } else {
+            format!("{} components, magnitude", a["components"])
+        };
+        out += &format!(
+            "  {:<28} on {:<6} {what} {} .. {}{}\n",
+            a["name"].as_str().unwrap_or(""),
+            a["on"].as_str().unwrap_or(""),
+            a["range"][0],
+            a["range"][1],
+            match a["nonfinite"].as_u64() {
+                Some(0) | None => String::new(),
+                Some(n) => format!(" ({n} non-finite)"),
+            }
+        );
+    }
+    if j["arrays"].as_array().is_none_or(|a| a.is_empty()) {
+        out += "  (none)\n";
+    }
+    out += "resample onto a regular grid with `umbra resample FILE --field NAME -o out.nrrd`\n";
+    out
+}

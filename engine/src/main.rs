@@ -28,6 +28,9 @@ enum Command {
         /// Describe the GPU adapter and run the GPU smoke check instead of reading a file.
         #[arg(long)]
         gpu: bool,
+        /// PLOT3D solution (q) file, for a PLOT3D grid.
+        #[arg(long)]
+        q: Option<PathBuf>,
     },
     /// Signed distance and eight octant occlusion fields of an isosurface (fast sweeping).
     Sweep {
@@ -311,6 +314,7 @@ fn run(cli: Cli) -> Result<(), String> {
             json,
             field,
             gpu,
+            q,
         } => {
             if gpu {
                 let g = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
@@ -353,8 +357,44 @@ fn run(cli: Cli) -> Result<(), String> {
                 }
                 return Ok(());
             }
+            // CFD grids: by name, or PLOT3D (no signature) when --q is given or the file is no
+            // volume but parses as a PLOT3D grid.
+            let grid = if volume::is_grid(&file) || q.is_some() {
+                Some(volume::load_grid(&file, q.as_deref()).map_err(|e| e.to_string())?)
+            } else {
+                None
+            };
+            let vol = match grid {
+                Some(g) => Err(g),
+                None => match volume::load(&file) {
+                    Ok(v) => Ok(v),
+                    Err(e) => match volume::plot3d::read(&file, None) {
+                        Ok(g) => Err(g),
+                        Err(_) => return Err(e.to_string()),
+                    },
+                },
+            };
+            let vol = match vol {
+                Ok(v) => v,
+                Err((g, warnings)) => {
+                    for w in &warnings {
+                        eprintln!("umbra: warning: {w}");
+                    }
+                    if json {
+                        println!(
+                            "{}",
+                            serde_json::to_string(&engine::info::grid_json(&g)).unwrap()
+                        );
+                    } else {
+                        print!(
+                            "{}",
+                            engine::info::grid_text(&file.display().to_string(), &g)
+                        );
+                    }
+                    return Ok(());
+                }
+            };
             let sel = parse_field(&field)?;
-            let vol = volume::load(&file).map_err(|e| e.to_string())?;
             for w in &vol.warnings {
                 eprintln!("umbra: warning: {}: {w}", file.display());
             }

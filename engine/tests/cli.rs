@@ -307,6 +307,28 @@ fn resample_writes_a_regular_volume_from_a_curvilinear_grid() {
     }
     assert!(checked > 100);
 
+    // `umbra info` describes the grid itself.
+    let out = umbra()
+        .arg("info")
+        .arg(&input)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["geometry"], "structured");
+    assert_eq!(j["dims"], serde_json::json!([3, 3, 3]));
+    assert_eq!(j["arrays"][0]["name"], "s");
+    assert_eq!(j["arrays"][0]["on"], "points");
+    // s = x + 2y - z over the nodes: x in 0..2.6, y and z in 0..2.
+    let r = &j["arrays"][0]["range"];
+    assert_eq!(r[0], -2.0);
+    assert!((r[1].as_f64().unwrap() - 6.6).abs() < 1e-6, "{r}");
+
     // PLOT3D without its q file: a clear error and no output.
     let p3 = dir.path().join("grid.xyz");
     let mut b = Vec::new();
@@ -331,6 +353,16 @@ fn resample_writes_a_regular_volume_from_a_curvilinear_grid() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("grid.xyz") && err.contains("--q"), "{err}");
     assert!(!o2.exists());
+    // ... but `umbra info` recognises it (no signature: tried when the file is no volume).
+    let out = umbra().arg("info").arg(&p3).arg("--json").output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["format"], "plot3d");
+    assert_eq!(j["points"], 8);
     // A bad --dims is refused by the parser.
     let out = umbra()
         .arg("resample")

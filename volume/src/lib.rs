@@ -438,6 +438,27 @@ pub fn load(path: &Path) -> Result<Volume> {
     Ok(vol)
 }
 
+/// Whether a file is a CFD grid rather than a volume: `.vtr`, `.vts`, `.vtu`, or a legacy
+/// `.vtk` whose dataset is STRUCTURED_GRID or RECTILINEAR_GRID. (PLOT3D files have no
+/// signature; callers try them when a file is no volume.)
+pub fn is_grid(path: &Path) -> bool {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let ext = name.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    match ext {
+        "vtr" | "vts" | "vtu" => true,
+        "vtk" => io_util::read_head(path, 512)
+            .map(|h| {
+                let h = String::from_utf8_lossy(&h).to_ascii_uppercase();
+                h.contains("STRUCTURED_GRID") || h.contains("RECTILINEAR_GRID")
+            })
+            .unwrap_or(false),
+        _ => false,
+    }
+}
+
 /// Reads a CFD grid for resampling: VTK XML `.vtr`, `.vts`, `.vtu`, VTK legacy `.vtk`
 /// (STRUCTURED_GRID, RECTILINEAR_GRID, STRUCTURED_POINTS), or a PLOT3D grid (any other name;
 /// `q` is its solution file). Returns the grid and reader warnings.
