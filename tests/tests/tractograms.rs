@@ -319,3 +319,191 @@ fn vtk_polylines_read_in_both_layouts_and_encodings() {
         );
     }
 }
+
+fn trx_dir() -> PathBuf {
+    dir().join("trx")
+}
+
+#[test]
+fn trx_files_agree_with_trx_python_and_with_their_trackvis_sources() {
+    let text = std::fs::read_to_string(trx_dir().join("expected.json")).unwrap();
+    let exp: serde_json::Value = serde_json::from_str(&text).unwrap();
+    for (name, e) in exp.as_object().unwrap() {
+        let s = tubes::load(&trx_dir().join(name)).unwrap();
+        assert_eq!(s.format, "trx");
+        assert_eq!(s.len() as u64, e["streamlines"].as_u64().unwrap(), "{name}");
+        assert_eq!(
+            s.points.len() as u64,
+            e["points"].as_u64().unwrap(),
+            "{name}"
+        );
+        for (k, p) in e["first"].as_array().unwrap().iter().enumerate() {
+            assert!(close3(s.line(0)[k], p), "{name}: first {k}");
+        }
+        let last = s.line(s.len() - 1);
+        assert!(close3(last[last.len() - 1], &e["last"][0]), "{name}: last");
+        for (i, l) in e["lengths"].as_array().unwrap().iter().enumerate() {
+            assert_eq!(
+                s.line(i).len() as u64,
+                l.as_u64().unwrap(),
+                "{name}: line {i}"
+            );
+        }
+        for (attrs, key) in [(&s.point_attributes, "dpv"), (&s.line_attributes, "dps")] {
+            let want = e[key].as_object().unwrap();
+            assert_eq!(attrs.len(), want.len(), "{name} {key}");
+            for a in attrs.iter() {
+                assert_eq!(a.components as u64, want[&a.name].as_u64().unwrap());
+            }
+        }
+    }
+    // The same streamlines as the TrackVis files they were made from: exact for float32
+    // positions, within half a float16 unit in the last place for float16.
+    let pairs = [
+        ("complex.trx", "nibabel/complex.trk", 0.0f32),
+        ("tracks300_f16.trx", "dipy/tracks300.trk", 1.0 / 2048.0),
+    ];
+    for (trx, trk, rel) in pairs {
+        let a = tubes::load(&trx_dir().join(trx)).unwrap();
+        let b = tubes::load(&dir().join(trk)).unwrap();
+        assert_eq!(a.offsets, b.offsets, "{trx}");
+        for (p, q) in a.points.iter().zip(&b.points) {
+            let tol = rel * q.abs().max_element();
+            assert!((*p - *q).abs().max_element() <= tol, "{trx}: {p} vs {q}");
+        }
+    }
+    let c = tubes::load(&trx_dir().join("complex.trx")).unwrap();
+    let t = tubes::load(&dir().join("nibabel/complex.trk")).unwrap();
+    let fa = |s: &Streamlines| {
+        s.point_attributes
+            .iter()
+            .find(|a| a.name == "fa")
+            .unwrap()
+            .values
+            .clone()
+    };
+    assert_eq!(fa(&c), fa(&t));
+    // Groups are reported, not silently dropped.
+    let g = tubes::load(&trx_dir().join("tracks300_f16.trx")).unwrap();
+    assert!(
+        g.warnings.iter().any(|w| w.contains("groups/first_ten")),
+        "{:?}",
+        g.warnings
+    );
+}
+
+/// Writes an uncompressed TRX directory.
+fn trx_folder(d: &Path, files: &[(&str, Vec<u8>)]) -> PathBuf {
+    let root = d.join(format!("t{}.trx", files.len()));
+    let _ = std::fs::remove_dir_all(&root);
+    for (name, bytes) in files {
+        let p = root.join(name);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, bytes).unwrap();
+    }
+    root
+}
+
+#[test]
+fn trx_directories_old_offsets_and_malformed_archives() {
+    let d = tempfile::tempdir().unwrap();
+    let header = |nv: u64, ns: u64| {
+        format!("{{\"NB_VERTICES\": {nv}, \"NB_STREAMLINES\": {ns}, \"DIMENSIONS\": [1,1,1], \"VOXEL_TO_RASMM\": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}}").into_bytes()
+    };
+    let pos: Vec<u8> = (0..15).flat_map(|i| (i as f64).to_le_bytes()).collect();
+    // The spec's older layout: NB_STREAMLINES offsets (no final NB_VERTICES), float64 points.
+    let ok = trx_folder(
+        d.path(),
+        &[
+            ("header.json", header(5, 2)),
+            ("positions.3.float64", pos.clone()),
+            (
+                "offsets.uint64",
+                [0u64, 2].iter().flat_map(|v| v.to_le_bytes()).collect(),
+            ),
+            (
+                "dpv/w.int16",
+                [1i16, -2, 3, -4, 5]
+                    .iter()
+                    .flat_map(|v| v.to_le_bytes())
+                    .collect(),
+            ),
+        ],
+    );
+    let s = tubes::load(&ok).unwrap();
+    assert_eq!(s.offsets, vec![0, 2, 5]);
+    assert_eq!(s.points[4], Vec3::new(12.0, 13.0, 14.0));
+    assert_eq!(
+        s.point_attributes[0].values,
+        vec![1.0, -2.0, 3.0, -4.0, 5.0]
+    );
+
+    let offs = |v: &[u32]| v.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>();
+    type Files<'a> = Vec<(&'a str, Vec<u8>)>;
+    let cases: Vec<(Files, &str)> = vec![
+        (vec![("positions.3.float64", pos.clone())], "header.json"),
+        (
+            vec![
+                ("header.json", b"{not json".to_vec()),
+                ("positions.3.float64", pos.clone()),
+            ],
+            "header.json",
+        ),
+        (
+            vec![
+                ("header.json", header(1 << 50, 2)),
+                ("positions.3.float64", pos.clone()),
+            ],
+            "NB_VERTICES",
+        ),
+        (
+            vec![
+                ("header.json", header(6, 2)),
+                ("positions.3.float64", pos.clone()),
+                ("offsets.uint32", offs(&[0, 2, 6])),
+            ],
+            "positions.3.float64",
+        ),
+        (
+            vec![
+                ("header.json", header(5, 2)),
+                ("positions.3.float64", pos.clone()),
+                ("offsets.uint32", offs(&[0, 4, 2])),
+            ],
+            "offsets",
+        ),
+        (
+            vec![
+                ("header.json", header(5, 2)),
+                ("positions.3.float64", pos.clone()),
+                ("offsets.uint32", offs(&[0, 2, 5])),
+                ("dps/x.3.float32", vec![0u8; 12]),
+            ],
+            "dps/x.3.float32",
+        ),
+        (
+            vec![
+                ("header.json", header(5, 2)),
+                ("positions.3.complex64", pos.clone()),
+                ("offsets.uint32", offs(&[0, 2, 5])),
+            ],
+            "unknown data type",
+        ),
+    ];
+    for (files, what) in cases {
+        let p = trx_folder(d.path(), &files);
+        let e = tubes::load(&p).unwrap_err().to_string();
+        assert!(
+            e.contains(what) && e.contains(".trx"),
+            "expected '{what}' in: {e}"
+        );
+    }
+    // Not a zip at all, and a zip cut short.
+    let z = d.path().join("bad.trx");
+    std::fs::write(&z, b"PK\x03\x04 definitely not a zip").unwrap();
+    let e = tubes::load(&z).unwrap_err().to_string();
+    assert!(e.contains("bad.trx") && e.contains("zip"), "{e}");
+    let full = std::fs::read(trx_dir().join("complex.trx")).unwrap();
+    std::fs::write(&z, &full[..full.len() / 2]).unwrap();
+    assert!(tubes::load(&z).is_err());
+}

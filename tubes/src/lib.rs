@@ -11,6 +11,7 @@ pub mod mesh_io;
 pub mod tck;
 pub mod trace;
 pub mod trk;
+pub mod trx;
 pub mod tube_mesh;
 pub mod vtk_lines;
 
@@ -29,7 +30,8 @@ pub struct ReferenceSpace {
     pub voxel_order: [u8; 3],
 }
 
-/// Reads a tractogram by file name: `.trk`, `.tck`, optionally gzip-compressed (`.gz`).
+/// Reads a tractogram by file name: `.trk`, `.tck`, VTK polylines `.vtk` (these optionally
+/// gzip-compressed, `.gz`), or TRX `.trx` (a zip archive or a directory).
 pub fn load(path: &Path) -> Result<Streamlines> {
     let name = path
         .file_name()
@@ -42,11 +44,13 @@ pub fn load(path: &Path) -> Result<Streamlines> {
         tck::read(path)?
     } else if stem.ends_with(".vtk") {
         vtk_lines::read(path)?
+    } else if name.ends_with(".trx") {
+        trx::read(path)?
     } else {
         return Err(TubesError::format(
             path,
             "file name",
-            "unknown tractogram format (expected .trk, .tck or VTK polylines .vtk, optionally .gz)",
+            "unknown tractogram format (expected .trk, .tck, VTK polylines .vtk, optionally .gz, or .trx)",
         ));
     };
     s.validate()
@@ -81,7 +85,7 @@ pub fn is_tractogram(path: &Path) -> bool {
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
     let stem = name.strip_suffix(".gz").unwrap_or(&name);
-    if stem.ends_with(".trk") || stem.ends_with(".tck") {
+    if stem.ends_with(".trk") || stem.ends_with(".tck") || name.ends_with(".trx") {
         return true;
     }
     if stem.ends_with(".vtk") {
