@@ -712,6 +712,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 size,
                 &output,
                 gzip,
+                !json && std::io::IsTerminal::is_terminal(&std::io::stderr()),
             )
             .map_err(|e| e.to_string())?;
             for w in &r.warnings {

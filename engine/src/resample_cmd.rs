@@ -34,7 +34,9 @@ pub fn fit_dims(bounds: [[f64; 3]; 2], longest: usize) -> [usize; 3] {
 }
 
 /// Reads `input` (and the PLOT3D solution `q`), resamples `field` onto `dims` (or onto
-/// `longest` samples along the longest side), and writes `output`.
+/// `longest` samples along the longest side), and writes `output`. `progress` shows a spinner
+/// with the current stage on standard error.
+#[allow(clippy::too_many_arguments)]
 pub fn resample(
     input: &Path,
     q: Option<&Path>,
@@ -43,7 +45,19 @@ pub fn resample(
     longest: usize,
     output: &Path,
     gzip: bool,
+    progress: bool,
 ) -> Result<ResampleReport, VolumeError> {
+    let bar = progress.then(|| {
+        let b = indicatif::ProgressBar::new_spinner();
+        b.enable_steady_tick(std::time::Duration::from_millis(120));
+        b
+    });
+    let stage = |m: &str| {
+        if let Some(b) = &bar {
+            b.set_message(m.to_string());
+        }
+    };
+    stage("reading the grid");
     let (grid, warnings) = volume::load_grid(input, q)?;
     if grid.arrays.is_empty() {
         return Err(VolumeError::Invalid(format!(
@@ -59,6 +73,7 @@ pub fn resample(
     let b = grid.bounds();
     let bounds = [b[0].to_array(), b[1].to_array()];
     let dims = dims.unwrap_or_else(|| fit_dims(bounds, longest));
+    stage("locating samples and interpolating");
     let vol = grid.resample(field, dims)?;
     let f = vol.select(None)?;
     let comps = f.components;
@@ -68,7 +83,11 @@ pub fn resample(
         .filter(|c| c.iter().all(|v| !v.is_nan()))
         .count() as f64
         / (f.data.len() / comps).max(1) as f64;
+    stage("writing");
     crate::convert::write_field(output, &vol, &f, gzip)?;
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
     Ok(ResampleReport {
         format: grid.format.clone(),
         points: grid.n_points(),
