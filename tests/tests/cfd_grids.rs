@@ -330,3 +330,64 @@ fn truncated_and_mismatched_legacy_grids_are_refused() {
         "{e}"
     );
 }
+
+#[test]
+fn legacy_unstructured_grids_in_both_layouts_match_the_xml_grid() {
+    let dir = umbra_tests::fixtures().join("grids");
+    let load = |n: &str| volume::load_grid(&dir.join(n), None).unwrap().0;
+    let xml = load("fire_part.vtu");
+    let dims = [24, 8, 4];
+    let reference = xml.resample("uvw", dims).unwrap();
+    let rf = reference.select(None).unwrap();
+    // Cells of mixed types: the XML file's own counts.
+    assert_eq!((xml.n_points(), xml.n_cells()), (712, 300));
+    for name in ["fire_part_42_ascii.vtk", "fire_part_51_binary.vtk"] {
+        let g = load(name);
+        assert_eq!(
+            (g.n_points(), g.n_cells()),
+            (xml.n_points(), xml.n_cells()),
+            "{name}"
+        );
+        let v = g.resample("uvw", dims).unwrap();
+        let f = v.select(None).unwrap();
+        for (a, b) in f.data.iter().zip(&rf.data) {
+            assert_eq!(a.is_nan(), b.is_nan(), "{name}: inside/outside differ");
+            if !a.is_nan() {
+                // The ASCII file carries 6 significant digits.
+                assert!(
+                    (a - b).abs() <= 1e-4 * (1.0 + b.abs()),
+                    "{name}: {a} vs {b}"
+                );
+            }
+        }
+        let (err, inside) = linear_error(g.clone(), dims);
+        assert!(
+            err < 1e-4 && inside > 100,
+            "{name}: linear field off by {err}"
+        );
+        // Cell data stay with their cells.
+        let c = g.resample("cell_id", dims).unwrap();
+        let cx = xml.resample("cell_id", dims).unwrap();
+        let (c, cx) = (c.select(None).unwrap(), cx.select(None).unwrap());
+        let same = c
+            .data
+            .iter()
+            .zip(&cx.data)
+            .filter(|(a, b)| a == b || (a.is_nan() && b.is_nan()))
+            .count();
+        assert!(
+            same as f64 >= 0.99 * c.data.len() as f64,
+            "{name}: {same} of {}",
+            c.data.len()
+        );
+    }
+    // A CELLS list that runs past its declared size.
+    let text = std::fs::read_to_string(dir.join("fire_part_42_ascii.vtk")).unwrap();
+    let bad = text.replacen("CELLS 300 2700", "CELLS 300 2000", 1);
+    assert!(bad != text, "fixture layout changed");
+    let t = tempfile::tempdir().unwrap();
+    let p = t.path().join("bad.vtk");
+    std::fs::write(&p, bad).unwrap();
+    let e = volume::load_grid(&p, None).unwrap_err().to_string();
+    assert!(e.contains("bad.vtk") && e.contains("CELL"), "{e}");
+}

@@ -956,6 +956,18 @@ fn unstructured_cells(
     let conn = get_cells("connectivity")?;
     let offsets = get_cells("offsets")?;
     let types = get_cells("types")?;
+    cells_from_vtk(path, conn, offsets, types)
+}
+
+/// Converts VTK cell arrays - connectivity, the end offset of each cell, and VTK cell types -
+/// into tetrahedra and hexahedra, with each output cell's source cell index (see
+/// [`read_grid`] for the cell types).
+pub(crate) fn cells_from_vtk(
+    path: &Path,
+    conn: &[f32],
+    offsets: &[f32],
+    types: &[f32],
+) -> Result<(Vec<Cell>, Vec<usize>)> {
     if offsets.len() != types.len() {
         return Err(VolumeError::format(
             path,

@@ -1,14 +1,16 @@
 //! VTK legacy (`.vtk`) reader, ASCII and BINARY (big-endian): STRUCTURED_POINTS volumes
-//! ([`read`]) and STRUCTURED_GRID / RECTILINEAR_GRID CFD grids ([`read_grid`], resampled by
-//! [`crate::cfd_grid`]).
+//! ([`read`]) and STRUCTURED_GRID / RECTILINEAR_GRID / UNSTRUCTURED_GRID CFD grids
+//! ([`read_grid`], resampled by [`crate::cfd_grid`]).
 //!
 //! Point-data attributes `SCALARS` (1 or 3 components; others are split per component),
 //! `VECTORS`, `NORMALS`, `COLOR_SCALARS` and `FIELD` arrays all become named fields;
 //! `LOOKUP_TABLE` blocks and VTK 5 `METADATA` blocks are skipped. For volumes `CELL_DATA` is
 //! skipped (cell data is not on the sample grid); grids keep it. Geometry: `DIMENSIONS`,
 //! `SPACING` (or the old `ASPECT_RATIO`), `ORIGIN` for volumes, whose frame is the file's own
-//! (`space: file`); `POINTS` (curvilinear) or `X/Y/Z_COORDINATES` (rectilinear) for grids.
-//! Unstructured datasets and polydata are refused with an error that says so.
+//! (`space: file`); `POINTS` (curvilinear) or `X/Y/Z_COORDINATES` (rectilinear) for grids, and
+//! for unstructured grids `POINTS`, `CELLS` (classic: each cell's id count then its ids; VTK
+//! 5.1: `OFFSETS` and `CONNECTIVITY` arrays) and `CELL_TYPES`, converted as `.vtu` cells are
+//! ([`crate::vti::read_grid`]). Polydata are refused with an error that says so.
 
 use crate::cfd_grid::{CfdGrid, Geometry, GridArray};
 use crate::io_util::{self, checked_count, Cursor};
@@ -113,6 +115,8 @@ struct Legacy {
     origin: [f64; 3],
     points: Option<Vec<f32>>,
     coords: [Option<Vec<f32>>; 3],
+    /// Unstructured cells: connectivity, end offset of each cell, VTK cell types.
+    cells: Option<(Vec<f32>, Vec<f32>, Vec<f32>)>,
     arrays: Vec<LegacyArray>,
 }
 
@@ -149,12 +153,12 @@ fn parse(path: &Path) -> Result<Legacy> {
     })?;
     if !matches!(
         kind,
-        "STRUCTURED_POINTS" | "STRUCTURED_GRID" | "RECTILINEAR_GRID"
+        "STRUCTURED_POINTS" | "STRUCTURED_GRID" | "RECTILINEAR_GRID" | "UNSTRUCTURED_GRID"
     ) {
         return Err(VolumeError::format(
             path,
             "DATASET",
-            format!("{kind} is not supported; umbra reads STRUCTURED_POINTS volumes and STRUCTURED_GRID or RECTILINEAR_GRID grids (unstructured grids as .vtu)"),
+            format!("{kind} is not supported; umbra reads STRUCTURED_POINTS volumes and STRUCTURED_GRID, RECTILINEAR_GRID or UNSTRUCTURED_GRID grids"),
         ));
     }
     let kind = kind.to_string();
@@ -162,6 +166,10 @@ fn parse(path: &Path) -> Result<Legacy> {
     let mut spacing = [1.0f64; 3];
     let mut origin = [0.0f64; 3];
     let mut points: Option<Vec<f32>> = None;
+    let mut n_points_decl: Option<usize> = None;
+    let mut cell_conn: Option<Vec<f32>> = None;
+    let mut cell_ends: Option<Vec<f32>> = None;
+    let mut cell_types: Option<Vec<f32>> = None;
     let mut coords: [Option<Vec<f32>>; 3] = [None, None, None];
     let mut arrays: Vec<LegacyArray> = Vec::new();
     let mut npoints: Option<usize> = None;
@@ -194,17 +202,26 @@ fn parse(path: &Path) -> Result<Legacy> {
             "POINTS" => {
                 let n = int(path, "POINTS", cur.token())?;
                 let ty = vtk_type(path, "POINTS", text(path, "POINTS", cur.token())?)?;
-                let d = dims.ok_or_else(|| {
-                    VolumeError::format(path, "POINTS", "comes before DIMENSIONS")
-                })?;
-                let expect = checked_count(path, "DIMENSIONS", &d)?;
-                if n != expect as i64 {
-                    return Err(VolumeError::format(
-                        path,
-                        "POINTS",
-                        format!("{n} points, DIMENSIONS {d:?} give {expect}"),
-                    ));
-                }
+                let expect = if kind == "UNSTRUCTURED_GRID" {
+                    if n < 0 || n as u64 > io_util::MAX_SAMPLES {
+                        return Err(VolumeError::format(path, "POINTS", format!("{n} points")));
+                    }
+                    n as usize
+                } else {
+                    let d = dims.ok_or_else(|| {
+                        VolumeError::format(path, "POINTS", "comes before DIMENSIONS")
+                    })?;
+                    let expect = checked_count(path, "DIMENSIONS", &d)?;
+                    if n != expect as i64 {
+                        return Err(VolumeError::format(
+                            path,
+                            "POINTS",
+                            format!("{n} points, DIMENSIONS {d:?} give {expect}"),
+                        ));
+                    }
+                    expect
+                };
+                n_points_decl = Some(expect);
                 cur.skip_line();
                 points = Some(read_values(
                     path,
@@ -233,19 +250,112 @@ fn parse(path: &Path) -> Result<Legacy> {
             }
             "POINT_DATA" => {
                 let n = int(path, "POINT_DATA", cur.token())?;
-                let d = dims.ok_or_else(|| {
-                    VolumeError::format(path, "POINT_DATA", "comes before DIMENSIONS")
-                })?;
-                let expect = checked_count(path, "DIMENSIONS", &d)?;
+                let expect = match (dims, n_points_decl) {
+                    (Some(d), _) => checked_count(path, "DIMENSIONS", &d)?,
+                    (None, Some(p)) => p,
+                    (None, None) => {
+                        return Err(VolumeError::format(
+                            path,
+                            "POINT_DATA",
+                            "comes before DIMENSIONS or POINTS",
+                        ))
+                    }
+                };
                 if n != expect as i64 {
                     return Err(VolumeError::format(
                         path,
                         "POINT_DATA",
-                        format!("{n} points, DIMENSIONS {d:?} give {expect}"),
+                        format!("{n} points, the geometry has {expect}"),
                     ));
                 }
                 npoints = Some(expect);
                 in_cell_data = false;
+            }
+            "CELLS" => {
+                // Classic: CELLS n size, then per cell its id count and ids. VTK 5.1: CELLS
+                // n_offsets n_connectivity, then OFFSETS and CONNECTIVITY arrays.
+                let a = int(path, "CELLS", cur.token())?;
+                let b = int(path, "CELLS", cur.token())?;
+                if a < 0
+                    || b < 0
+                    || a as u64 > io_util::MAX_SAMPLES
+                    || b as u64 > io_util::MAX_SAMPLES
+                {
+                    return Err(VolumeError::format(path, "CELLS", format!("{a} {b}")));
+                }
+                cur.skip_line();
+                let save = cur.pos;
+                if cur
+                    .token()
+                    .is_some_and(|t| t.eq_ignore_ascii_case(b"OFFSETS"))
+                {
+                    let ty = vtk_type(path, "OFFSETS", text(path, "OFFSETS", cur.token())?)?;
+                    cur.skip_line();
+                    let offs = read_values(path, "OFFSETS", &mut cur, binary, ty, a as usize)?;
+                    let kw = text(path, "CONNECTIVITY", cur.token())?.to_ascii_uppercase();
+                    if kw != "CONNECTIVITY" {
+                        return Err(VolumeError::format(
+                            path,
+                            "CONNECTIVITY",
+                            format!("expected after OFFSETS, found '{kw}'"),
+                        ));
+                    }
+                    let ty = vtk_type(
+                        path,
+                        "CONNECTIVITY",
+                        text(path, "CONNECTIVITY", cur.token())?,
+                    )?;
+                    cur.skip_line();
+                    let conn = read_values(path, "CONNECTIVITY", &mut cur, binary, ty, b as usize)?;
+                    if offs.first().is_some_and(|&o| o != 0.0) {
+                        return Err(VolumeError::format(path, "OFFSETS", "must start at 0"));
+                    }
+                    cell_ends = Some(offs.get(1..).unwrap_or(&[]).to_vec());
+                    cell_conn = Some(conn);
+                } else {
+                    cur.pos = save;
+                    let list =
+                        read_values(path, "CELLS", &mut cur, binary, ScalarType::I32, b as usize)?;
+                    let (mut conn, mut ends) = (
+                        Vec::with_capacity(list.len()),
+                        Vec::with_capacity(a as usize),
+                    );
+                    let mut i = 0usize;
+                    for c in 0..a as usize {
+                        let k = list.get(i).copied().unwrap_or(-1.0);
+                        if k < 0.0 || i + 1 + k as usize > list.len() {
+                            return Err(VolumeError::format(
+                                path,
+                                "CELLS",
+                                format!("cell {c}: {k} ids do not fit the list of {b}"),
+                            ));
+                        }
+                        conn.extend_from_slice(&list[i + 1..i + 1 + k as usize]);
+                        ends.push(conn.len() as f32);
+                        i += 1 + k as usize;
+                    }
+                    cell_ends = Some(ends);
+                    cell_conn = Some(conn);
+                }
+            }
+            "CELL_TYPES" => {
+                let n = int(path, "CELL_TYPES", cur.token())?;
+                if n < 0 || n as u64 > io_util::MAX_SAMPLES {
+                    return Err(VolumeError::format(
+                        path,
+                        "CELL_TYPES",
+                        format!("{n} cells"),
+                    ));
+                }
+                cur.skip_line();
+                cell_types = Some(read_values(
+                    path,
+                    "CELL_TYPES",
+                    &mut cur,
+                    binary,
+                    ScalarType::I32,
+                    n as usize,
+                )?);
             }
             "CELL_DATA" => {
                 let n = int(path, "CELL_DATA", cur.token())?;
@@ -452,6 +562,10 @@ fn parse(path: &Path) -> Result<Legacy> {
             }
         }
     }
+    let cells = match (cell_conn, cell_ends, cell_types) {
+        (Some(c), Some(e), Some(t)) => Some((c, e, t)),
+        _ => None,
+    };
     Ok(Legacy {
         kind,
         dims,
@@ -459,6 +573,7 @@ fn parse(path: &Path) -> Result<Legacy> {
         origin,
         points,
         coords,
+        cells,
         arrays,
     })
 }
@@ -543,11 +658,43 @@ pub(crate) fn push_field(
 /// Reads a legacy STRUCTURED_GRID or RECTILINEAR_GRID file as a CFD grid.
 pub fn read_grid(path: &Path) -> Result<CfdGrid> {
     let lg = parse(path)?;
-    let d = lg
-        .dims
-        .ok_or_else(|| VolumeError::format(path, "DIMENSIONS", "missing"))?;
-    let dims = [d[0] as usize, d[1] as usize, d[2] as usize];
+    let mut cell_origin: Option<Vec<usize>> = None;
+    let dims = match lg.kind.as_str() {
+        "UNSTRUCTURED_GRID" => [0; 3],
+        _ => {
+            let d = lg
+                .dims
+                .ok_or_else(|| VolumeError::format(path, "DIMENSIONS", "missing"))?;
+            [d[0] as usize, d[1] as usize, d[2] as usize]
+        }
+    };
     let geometry = match lg.kind.as_str() {
+        "UNSTRUCTURED_GRID" => {
+            let p = lg
+                .points
+                .as_ref()
+                .ok_or_else(|| VolumeError::format(path, "POINTS", "missing"))?;
+            let (conn, ends, types) = lg
+                .cells
+                .as_ref()
+                .ok_or_else(|| VolumeError::format(path, "CELLS", "missing (with CELL_TYPES)"))?;
+            if p.len() / 3 > 1 << 24 {
+                return Err(VolumeError::format(
+                    path,
+                    "POINTS",
+                    "more than 2^24 points in an unstructured grid",
+                ));
+            }
+            let (cells, origin) = crate::vti::cells_from_vtk(path, conn, ends, types)?;
+            cell_origin = Some(origin);
+            Geometry::Unstructured {
+                points: p
+                    .chunks_exact(3)
+                    .map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64))
+                    .collect(),
+                cells,
+            }
+        }
         "STRUCTURED_GRID" => {
             let p = lg
                 .points
@@ -591,11 +738,24 @@ pub fn read_grid(path: &Path) -> Result<CfdGrid> {
         arrays: lg
             .arrays
             .into_iter()
-            .map(|a| GridArray {
-                name: a.name,
-                components: a.comps,
-                on_cells: a.on_cells,
-                data: a.data,
+            .map(|a| {
+                // Split cells repeat their source cell's values.
+                let data = match (&cell_origin, a.on_cells) {
+                    (Some(o), true)
+                        if a.data.len() >= o.iter().max().map_or(0, |m| m + 1) * a.comps =>
+                    {
+                        o.iter()
+                            .flat_map(|&c| a.data[c * a.comps..(c + 1) * a.comps].iter().copied())
+                            .collect()
+                    }
+                    _ => a.data,
+                };
+                GridArray {
+                    name: a.name,
+                    components: a.comps,
+                    on_cells: a.on_cells,
+                    data,
+                }
             })
             .collect(),
     };
