@@ -592,7 +592,7 @@ impl CfdGrid {
         Ok((vec![a], s.part))
     }
 
-    /// Resamples an array (see [`CfdGrid::pick`]) onto `dims` samples spanning the grid's
+    /// Resamples an array (`NAME`, `NAME:magnitude`, `NAME:x|y|z` or `A,B,C`) onto `dims` samples spanning the grid's
     /// bounding box; samples outside the mesh are NaN.
     pub fn resample(&self, sel: &str, dims: [usize; 3]) -> Result<Volume> {
         if dims.iter().any(|&d| !(1..=2048).contains(&d)) || dims[0] * dims[1] * dims[2] > 1 << 28 {
