@@ -3,6 +3,7 @@
 //! The `umbra` binary (src/main.rs) only parses arguments and calls into this library, so that
 //! tests exercise the same code the command line runs.
 
+pub mod camera;
 pub mod convert;
 pub mod gpu;
 pub mod info;
