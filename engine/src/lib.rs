@@ -10,6 +10,7 @@ pub mod info;
 pub mod iso_cmd;
 pub mod iso_reference;
 pub mod resample_cmd;
+pub mod scene;
 pub mod smoke;
 pub mod sweep_cmd;
 pub mod synth;

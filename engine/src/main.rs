@@ -244,6 +244,15 @@ enum Command {
         #[arg(long)]
         gzip: bool,
     },
+    /// Check a scene file (TOML) and print it resolved, with defaults and --set overrides, as
+    /// JSON (the renderer of issue 5 reads the same files).
+    Scene {
+        /// Scene file.
+        file: PathBuf,
+        /// Override a key by its dotted path, e.g. --set render.width=640 (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
     /// Resample a CFD grid (.vtr, .vts, .vtu, legacy .vtk STRUCTURED_GRID/RECTILINEAR_GRID,
     /// PLOT3D) onto a regular grid; samples outside the mesh are NaN.
     Resample {
@@ -692,6 +701,14 @@ fn run(cli: Cli) -> Result<(), String> {
             engine::convert::convert(&input, &output, sel.as_ref(), gzip)
                 .map_err(|e| e.to_string())?;
             eprintln!("wrote {}", output.display());
+            Ok(())
+        }
+        Command::Scene { file, set } => {
+            let scene = engine::scene::load(&file, &set)?;
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&scene).map_err(|e| e.to_string())?
+            );
             Ok(())
         }
         Command::Resample {

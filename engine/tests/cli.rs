@@ -374,3 +374,41 @@ fn resample_writes_a_regular_volume_from_a_curvilinear_grid() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("NX,NY,NZ"));
 }
+
+#[test]
+fn scene_files_resolve_with_overrides_and_unknown_keys_are_errors() {
+    let example = root().join("datasets/scenes/example.toml");
+    let out = umbra()
+        .arg("scene")
+        .arg(&example)
+        .args([
+            "--set",
+            "render.width=640",
+            "--set",
+            "tubes.0.color=#ff0000",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["render"]["width"], 640);
+    assert_eq!(j["render"]["height"], 768);
+    assert_eq!(j["tubes"][0]["color"], "#ff0000");
+    // Paths resolve against the scene file's folder and exist for the bundled example.
+    let vol = j["volume"]["path"].as_str().unwrap();
+    assert!(std::path::Path::new(vol).exists(), "{vol}");
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[camera]\nfov_y = 30\nazimut = 10\n").unwrap();
+    let out = umbra().arg("scene").arg(&bad).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("bad.toml") && err.contains("azimut") && err.contains("line 3"),
+        "{err}"
+    );
+}

@@ -1,0 +1,574 @@
+//! Scene files (TOML): what `umbra render` (issue 5) draws and how. This module reads and checks
+//! them; `umbra scene <file> [--set KEY=VALUE ...]` prints the resolved scene as JSON.
+//!
+//! Every key, its unit and default is documented in the README ("Scene files") and in the
+//! commented example `datasets/scenes/example.toml`, which the tests parse. Unknown keys are
+//! errors that name the key and its line; `--set section.key=value` overrides any key by its
+//! dotted path (the value is read as a TOML value - `42`, `0.5`, `"text"`, `[1, 2, 3]` - and
+//! as a string when it is none).
+//!
+//! Units: lengths in world units (mm for MRI data); extinction per world unit (a step of length
+//! d has opacity `1 - exp(-sigma d)`, so images do not change with the slice count); angles in
+//! degrees; colours as `[r, g, b]` in [0, 1] or `"#rrggbb"`.
+
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A colour: `[r, g, b]` in [0, 1] or `"#rrggbb"`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Color {
+    Rgb([f64; 3]),
+    Hex(String),
+}
+
+impl Color {
+    /// The colour as RGB in [0, 1], or why it is not one.
+    pub fn rgb(&self) -> Result<[f64; 3], String> {
+        match self {
+            Color::Rgb(c) if c.iter().all(|v| (0.0..=1.0).contains(v)) => Ok(*c),
+            Color::Rgb(c) => Err(format!("{c:?} has a component outside [0, 1]")),
+            Color::Hex(s) => {
+                let h = s.strip_prefix('#').unwrap_or("");
+                if h.len() != 6 || !h.bytes().all(|b| b.is_ascii_hexdigit()) {
+                    return Err(format!("'{s}' is not #rrggbb"));
+                }
+                let v = |i: usize| u8::from_str_radix(&h[i..i + 2], 16).unwrap() as f64 / 255.0;
+                Ok([v(0), v(2), v(4)])
+            }
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ProjectionKind {
+    Perspective,
+    Orthographic,
+}
+
+/// `[camera]`: either `eye`/`target`/`up`, or orbit angles around the scene's centre.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraSpec {
+    pub projection: ProjectionKind,
+    /// Vertical field of view, degrees (perspective).
+    pub fov_y: f64,
+    /// View height, world units (orthographic; default: fits the scene).
+    pub height: Option<f64>,
+    pub eye: Option<[f64; 3]>,
+    /// Default: the centre of the scene's bounds.
+    pub target: Option<[f64; 3]>,
+    pub up: [f64; 3],
+    /// Orbit angles (used when `eye` is absent), degrees.
+    pub azimuth: f64,
+    pub elevation: f64,
+    /// Orbit distance in bounding-sphere radii.
+    pub distance: f64,
+    /// Clipping planes, world units (default: fitted to the scene's bounds).
+    pub near: Option<f64>,
+    pub far: Option<f64>,
+}
+
+impl Default for CameraSpec {
+    fn default() -> Self {
+        CameraSpec {
+            projection: ProjectionKind::Perspective,
+            fov_y: 35.0,
+            height: None,
+            eye: None,
+            target: None,
+            up: [0.0, 0.0, 1.0],
+            azimuth: 30.0,
+            elevation: 20.0,
+            distance: 3.0,
+            near: None,
+            far: None,
+        }
+    }
+}
+
+/// One control point of a 1-D transfer function: value, colour, extinction per world unit.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TfPoint {
+    pub value: f64,
+    pub color: Color,
+    pub extinction: f64,
+    /// Gradient magnitude at which this point applies (2-D transfer functions; all points of
+    /// a 2-D function carry it).
+    pub gradient: Option<f64>,
+}
+
+/// `[volume.transfer]`: a preset, or piecewise-linear points.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TransferSpec {
+    /// `grey`, `bone`, `fire`, `cool-warm` (ramps over the value range), or empty for `points`.
+    pub preset: String,
+    /// Extinction at the top of a preset's ramp, per world unit.
+    pub extinction: f64,
+    pub points: Vec<TfPoint>,
+}
+
+impl Default for TransferSpec {
+    fn default() -> Self {
+        TransferSpec {
+            preset: "grey".into(),
+            extinction: 0.5,
+            points: vec![],
+        }
+    }
+}
+
+/// `[volume]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VolumeSpec {
+    pub path: PathBuf,
+    /// Field: NAME, NAME:magnitude, NAME:x|y|z (default: the file's active array).
+    pub field: Option<String>,
+    #[serde(default)]
+    pub transfer: TransferSpec,
+}
+
+/// `[[tubes]]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TubesSpec {
+    /// A tractogram (.trk, .tck, .vtk, .trx) or a mesh (.ply, .obj).
+    pub path: PathBuf,
+    #[serde(default = "default_radius")]
+    pub radius: f64,
+    /// `direction`, `scalar:NAME`, `volume:PATH`, or a colour.
+    #[serde(default = "default_color")]
+    pub color: String,
+    /// Row-major 4x4 applied to the points.
+    pub transform: Option<[f64; 16]>,
+    /// Fitting tolerance, world units.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+}
+
+fn default_radius() -> f64 {
+    0.5
+}
+fn default_color() -> String {
+    "direction".into()
+}
+fn default_tolerance() -> f64 {
+    0.05
+}
+
+/// `[[clip]]`: keeps the half-space `normal . x <= offset`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClipSpec {
+    pub normal: [f64; 3],
+    pub offset: f64,
+}
+
+/// `[light]`: a head light with Phong parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LightSpec {
+    pub ambient: f64,
+    pub diffuse: f64,
+    pub specular: f64,
+    pub shininess: f64,
+}
+
+impl Default for LightSpec {
+    fn default() -> Self {
+        LightSpec {
+            ambient: 0.3,
+            diffuse: 0.7,
+            specular: 0.3,
+            shininess: 32.0,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    Combined,
+    Dos,
+    Vicinity,
+    Ea,
+    Phong,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Combine {
+    Min,
+    Product,
+}
+
+/// `[render]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RenderSpec {
+    pub method: Method,
+    pub width: u32,
+    pub height: u32,
+    /// Slice count (default: chosen from the data) or distance between slices (world units).
+    pub slices: Option<u32>,
+    pub slice_distance: Option<f64>,
+    /// Occlusion cone half-angle, degrees.
+    pub theta: f64,
+    /// Occlusion blur samples per axis (n x n).
+    pub blur_samples: u32,
+    /// Vicinity samples (Poisson disk, at most 118).
+    pub vicinity_samples: u32,
+    /// Virtual slice distance l_vicinity, world units.
+    pub vicinity_distance: f64,
+    /// Extinction of the tubes for light travelling through the volume, per world unit.
+    pub geometry_extinction: f64,
+    pub combine: Combine,
+    /// MSAA samples (lowered to what the adapter supports, with a warning).
+    pub msaa: u32,
+    pub fxaa: bool,
+}
+
+impl Default for RenderSpec {
+    fn default() -> Self {
+        RenderSpec {
+            method: Method::Combined,
+            width: 1024,
+            height: 768,
+            slices: None,
+            slice_distance: None,
+            theta: 25.0,
+            blur_samples: 3,
+            vicinity_samples: 32,
+            vicinity_distance: 2.0,
+            geometry_extinction: 10.0,
+            combine: Combine::Min,
+            msaa: 4,
+            fxaa: true,
+        }
+    }
+}
+
+/// A scene file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    #[serde(default)]
+    pub camera: CameraSpec,
+    #[serde(default = "default_background")]
+    pub background: Color,
+    pub volume: Option<VolumeSpec>,
+    #[serde(default)]
+    pub tubes: Vec<TubesSpec>,
+    #[serde(default)]
+    pub clip: Vec<ClipSpec>,
+    #[serde(default)]
+    pub light: LightSpec,
+    #[serde(default)]
+    pub render: RenderSpec,
+}
+
+fn default_background() -> Color {
+    Color::Rgb([1.0, 1.0, 1.0])
+}
+
+/// Sets `dotted.key = value` in a TOML table (creating tables on the way).
+fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
+    let parts: Vec<&str> = key.split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        return Err(format!("--set {key}: empty key component"));
+    }
+    // The value as TOML, else as a string.
+    let v: toml::Value = format!("v = {value}")
+        .parse::<toml::Table>()
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(value.to_string()));
+    let mut t = table;
+    for (i, p) in parts.iter().enumerate() {
+        if i + 1 == parts.len() {
+            t.insert(p.to_string(), v);
+            return Ok(());
+        }
+        // `tubes.0.radius`: an index into an array of tables.
+        let entry = t
+            .entry(p.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        t = match entry {
+            toml::Value::Table(tt) => tt,
+            toml::Value::Array(a) => {
+                let idx: usize = parts
+                    .get(i + 1)
+                    .and_then(|s| s.parse().ok())
+                    .ok_or_else(|| format!("--set {key}: '{p}' is a list; give an index"))?;
+                // The index is consumed here: continue from the element with the rest.
+                let rest = parts[i + 2..].join(".");
+                let n = a.len();
+                let el = a
+                    .get_mut(idx)
+                    .ok_or_else(|| format!("--set {key}: '{p}' has {n} entries"))?;
+                return match el {
+                    toml::Value::Table(tt) if !rest.is_empty() => set(tt, &rest, value),
+                    _ => Err(format!("--set {key}: cannot set inside '{p}.{idx}'")),
+                };
+            }
+            _ => return Err(format!("--set {key}: '{p}' is not a table")),
+        };
+    }
+    Ok(())
+}
+
+/// Reads a scene from TOML text; `name` labels errors, relative paths resolve against `dir`.
+pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result<Scene, String> {
+    // Parse as written first: serde's errors then carry the line of an unknown or bad key.
+    let mut scene: Scene = toml::from_str(text).map_err(|e| format!("{name}: {e}"))?;
+    if !overrides.is_empty() {
+        let mut table: toml::Table = text.parse().map_err(|e| format!("{name}: {e}"))?;
+        for o in overrides {
+            let (k, v) = o
+                .split_once('=')
+                .ok_or_else(|| format!("--set {o}: expected KEY=VALUE"))?;
+            set(&mut table, k.trim(), v.trim())?;
+        }
+        scene = toml::Value::Table(table)
+            .try_into()
+            .map_err(|e| format!("{name} with --set: {e}"))?;
+    }
+    validate(&mut scene, dir)?;
+    Ok(scene)
+}
+
+/// Reads a scene file.
+pub fn load(path: &Path, overrides: &[String]) -> Result<Scene, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    parse(&text, &path.display().to_string(), dir, overrides)
+}
+
+/// Checks ranges and resolves relative paths.
+fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
+    let bad = |key: &str, why: String| Err(format!("scene key {key}: {why}"));
+    let c = &s.camera;
+    if !(c.fov_y > 0.0 && c.fov_y < 180.0) {
+        return bad(
+            "camera.fov_y",
+            format!("{} is not in (0, 180) degrees", c.fov_y),
+        );
+    }
+    if c.distance <= 1.0 {
+        return bad(
+            "camera.distance",
+            format!("{} must exceed 1 (bounding-sphere radii)", c.distance),
+        );
+    }
+    if let (Some(n), Some(f)) = (c.near, c.far) {
+        if !(n > 0.0 && f > n) {
+            return bad(
+                "camera.near",
+                format!("near {n} and far {f} need 0 < near < far"),
+            );
+        }
+    }
+    if let Some(h) = c.height {
+        if h <= 0.0 {
+            return bad("camera.height", format!("{h} is not positive"));
+        }
+    }
+    s.background
+        .rgb()
+        .or_else(|e| bad("background", e).map(|()| [0.0; 3]))?;
+    if let Some(v) = &mut s.volume {
+        if v.path.is_relative() {
+            v.path = dir.join(&v.path);
+        }
+        let t = &v.transfer;
+        const PRESETS: [&str; 4] = ["grey", "bone", "fire", "cool-warm"];
+        if t.points.is_empty() && !PRESETS.contains(&t.preset.as_str()) {
+            return bad(
+                "volume.transfer.preset",
+                format!("'{}' is not one of {}", t.preset, PRESETS.join(", ")),
+            );
+        }
+        for (i, p) in t.points.iter().enumerate() {
+            p.color.rgb().or_else(|e| {
+                bad(&format!("volume.transfer.points[{i}].color"), e).map(|()| [0.0; 3])
+            })?;
+            if !(p.extinction >= 0.0 && p.extinction.is_finite() && p.value.is_finite()) {
+                return bad(
+                    &format!("volume.transfer.points[{i}]"),
+                    "value must be finite and extinction finite and >= 0".into(),
+                );
+            }
+        }
+        let twod = t.points.iter().filter(|p| p.gradient.is_some()).count();
+        if twod != 0 && twod != t.points.len() {
+            return bad(
+                "volume.transfer.points",
+                "either every point has a gradient (2-D) or none does".into(),
+            );
+        }
+        if twod == 0 && t.points.windows(2).any(|w| w[1].value < w[0].value) {
+            return bad("volume.transfer.points", "values must not decrease".into());
+        }
+    }
+    for (i, t) in s.tubes.iter_mut().enumerate() {
+        if t.path.is_relative() {
+            t.path = dir.join(&t.path);
+        }
+        if !(t.radius > 0.0 && t.radius.is_finite()) {
+            return bad(
+                &format!("tubes[{i}].radius"),
+                format!("{} is not positive", t.radius),
+            );
+        }
+        if t.tolerance.is_nan() || t.tolerance <= 0.0 {
+            return bad(
+                &format!("tubes[{i}].tolerance"),
+                format!("{} is not positive", t.tolerance),
+            );
+        }
+        let c = t.color.as_str();
+        let ok = c == "direction"
+            || c.starts_with("scalar:")
+            || c.starts_with("volume:")
+            || Color::Hex(c.to_string()).rgb().is_ok();
+        if !ok {
+            return bad(
+                &format!("tubes[{i}].color"),
+                format!("'{c}' is not direction, scalar:NAME, volume:PATH or #rrggbb"),
+            );
+        }
+    }
+    for (i, c) in s.clip.iter().enumerate() {
+        if glam::DVec3::from(c.normal).length() < 1e-12 {
+            return bad(&format!("clip[{i}].normal"), "is zero".into());
+        }
+    }
+    let r = &s.render;
+    if !(1..=16384).contains(&r.width) || !(1..=16384).contains(&r.height) {
+        return bad(
+            "render.width",
+            format!("{} x {} is not within 1..16384", r.width, r.height),
+        );
+    }
+    if r.slices.is_some() && r.slice_distance.is_some() {
+        return bad(
+            "render.slices",
+            "give slices or slice_distance, not both".into(),
+        );
+    }
+    if r.slices == Some(0) || r.slice_distance.is_some_and(|d| d <= 0.0) {
+        return bad("render.slices", "must be positive".into());
+    }
+    if !(r.theta > 0.0 && r.theta < 90.0) {
+        return bad(
+            "render.theta",
+            format!("{} is not in (0, 90) degrees", r.theta),
+        );
+    }
+    if r.vicinity_samples > 118 {
+        return bad(
+            "render.vicinity_samples",
+            format!("{} exceeds 118", r.vicinity_samples),
+        );
+    }
+    if !(1..=9).contains(&r.blur_samples) {
+        return bad(
+            "render.blur_samples",
+            format!("{} is not in 1..9", r.blur_samples),
+        );
+    }
+    if ![1, 2, 4, 8].contains(&r.msaa) {
+        return bad("render.msaa", format!("{} is not 1, 2, 4 or 8", r.msaa));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn example() -> String {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/scenes/example.toml");
+        std::fs::read_to_string(p).unwrap()
+    }
+
+    #[test]
+    fn the_documented_example_parses_with_its_values() {
+        let s = parse(&example(), "example.toml", Path::new("/d"), &[]).unwrap();
+        assert_eq!(s.tubes.len(), 1);
+        assert_eq!(s.render.method, Method::Combined);
+        assert!(s.volume.as_ref().unwrap().path.starts_with("/d"));
+        assert_eq!(s.clip.len(), 1);
+    }
+
+    #[test]
+    fn defaults_fill_an_empty_scene() {
+        let s = parse("", "empty", Path::new("."), &[]).unwrap();
+        assert_eq!(s.render, RenderSpec::default());
+        assert_eq!(s.camera, CameraSpec::default());
+        assert!(s.volume.is_none() && s.tubes.is_empty());
+    }
+
+    #[test]
+    fn unknown_keys_name_the_key_and_line() {
+        let text = "[render]\nwidth = 100\nslizes = 12\n";
+        let e = parse(text, "s.toml", Path::new("."), &[]).unwrap_err();
+        assert!(
+            e.contains("s.toml") && e.contains("slizes") && e.contains("line 3"),
+            "{e}"
+        );
+        let e = parse("[camera]\nfov_y = 200\n", "s.toml", Path::new("."), &[]).unwrap_err();
+        assert!(e.contains("camera.fov_y"), "{e}");
+        let e = parse(
+            "[render]\nvicinity_samples = 119\n",
+            "s",
+            Path::new("."),
+            &[],
+        )
+        .unwrap_err();
+        assert!(e.contains("118"), "{e}");
+    }
+
+    #[test]
+    fn set_overrides_by_dotted_path() {
+        let text = "[render]\nwidth = 100\n[[tubes]]\npath = \"a.trk\"\n";
+        let o = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let s = parse(
+            text,
+            "s",
+            Path::new("."),
+            &o(&[
+                "render.width=640",
+                "camera.eye=[1, 2, 3]",
+                "tubes.0.radius=0.25",
+                "render.method=vicinity",
+            ]),
+        )
+        .unwrap();
+        assert_eq!(s.render.width, 640);
+        assert_eq!(s.camera.eye, Some([1.0, 2.0, 3.0]));
+        assert_eq!(s.tubes[0].radius, 0.25);
+        assert_eq!(s.render.method, Method::Vicinity);
+        let e = parse(text, "s", Path::new("."), &o(&["render.nope=1"])).unwrap_err();
+        assert!(e.contains("nope"), "{e}");
+        let e = parse(text, "s", Path::new("."), &o(&["tubes.3.radius=1"])).unwrap_err();
+        assert!(e.contains("1 entries"), "{e}");
+        assert!(parse(text, "s", Path::new("."), &o(&["render.width"])).is_err());
+    }
+
+    #[test]
+    fn colours_parse_and_bad_ones_are_refused() {
+        assert_eq!(
+            Color::Hex("#ff8000".into()).rgb().unwrap(),
+            [1.0, 128.0 / 255.0, 0.0]
+        );
+        assert!(Color::Hex("ff8000".into()).rgb().is_err());
+        assert!(Color::Rgb([1.5, 0.0, 0.0]).rgb().is_err());
+        let e = parse("background = \"#12\"\n", "s", Path::new("."), &[]).unwrap_err();
+        assert!(e.contains("background"), "{e}");
+    }
+}
