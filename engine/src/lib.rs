@@ -5,10 +5,12 @@
 
 pub mod camera;
 pub mod convert;
+pub mod ea_pass;
 pub mod gpu;
 pub mod info;
 pub mod iso_cmd;
 pub mod iso_reference;
+pub mod render_cmd;
 pub mod resample_cmd;
 pub mod scene;
 pub mod smoke;

@@ -244,6 +244,21 @@ enum Command {
         #[arg(long)]
         gzip: bool,
     },
+    /// Render a scene file to PNG on the GPU. So far only the emission-absorption baseline
+    /// (render.method = "ea") of the scene's volume; the occlusion methods come with issue 5.
+    Render {
+        /// Scene file (see `umbra scene` and the README).
+        scene: PathBuf,
+        /// Output image (PNG, sRGB).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Override a scene key by its dotted path (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Check a scene file (TOML) and print it resolved, with defaults and --set overrides, as
     /// JSON (the renderer of issue 5 reads the same files).
     Scene {
@@ -700,6 +715,27 @@ fn run(cli: Cli) -> Result<(), String> {
             let sel = parse_field(&field)?;
             engine::convert::convert(&input, &output, sel.as_ref(), gzip)
                 .map_err(|e| e.to_string())?;
+            eprintln!("wrote {}", output.display());
+            Ok(())
+        }
+        Command::Render {
+            scene,
+            output,
+            set,
+            json,
+        } => {
+            let r = engine::render_cmd::run(&scene, &set, &output)?;
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&r).map_err(|e| e.to_string())?
+                );
+            } else {
+                println!(
+                    "{}: {} x {}, {} slices {:.4} apart, on {}, {:.2} s",
+                    r.method, r.width, r.height, r.slices, r.slice_distance, r.adapter, r.seconds
+                );
+            }
             eprintln!("wrote {}", output.display());
             Ok(())
         }

@@ -1,0 +1,189 @@
+//! `umbra render <scene.toml> -o image.png`: the renderer of issue 5 as far as it exists - the
+//! emission-absorption baseline (`render.method = "ea"`) of the scene's volume on the GPU.
+//! Other methods, tubes and clipping planes are refused with a message that says so.
+
+use crate::camera::{Camera, Projection};
+use crate::ea_pass::{self, EaView, Transfer};
+use crate::scene::{self, Method, ProjectionKind, Scene, TransferSpec};
+use glam::DVec3;
+use std::path::Path;
+use std::time::Instant;
+
+/// What `render` did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderReport {
+    pub method: String,
+    pub width: u32,
+    pub height: u32,
+    pub slices: u32,
+    pub slice_distance: f64,
+    pub adapter: String,
+    pub seconds: f64,
+}
+
+/// The transfer function of a scene for a field with value range `range`.
+pub fn transfer(spec: &TransferSpec, range: [f64; 2]) -> Result<Transfer, String> {
+    if !spec.points.is_empty() {
+        if spec.points.iter().any(|p| p.gradient.is_some()) {
+            return Err(
+                "volume.transfer: 2-D transfer functions (gradient) are not rendered yet".into(),
+            );
+        }
+        let points = spec
+            .points
+            .iter()
+            .map(|p| Ok((p.value, p.color.rgb()?, p.extinction)))
+            .collect::<Result<Vec<_>, String>>()?;
+        return Ok(Transfer { points });
+    }
+    let [lo, hi] = range;
+    let at = |t: f64| lo + (hi - lo) * t;
+    let ramp: &[(f64, [f64; 3])] = match spec.preset.as_str() {
+        "grey" => &[(0.0, [0.0; 3]), (1.0, [1.0; 3])],
+        "bone" => &[
+            (0.0, [0.0; 3]),
+            (0.5, [0.8, 0.62, 0.45]),
+            (1.0, [1.0, 0.98, 0.92]),
+        ],
+        "fire" => &[
+            (0.0, [0.0; 3]),
+            (0.4, [0.8, 0.1, 0.0]),
+            (0.75, [1.0, 0.8, 0.1]),
+            (1.0, [1.0, 1.0, 0.9]),
+        ],
+        "cool-warm" => &[
+            (0.0, [0.23, 0.3, 0.75]),
+            (0.5, [0.87, 0.87, 0.87]),
+            (1.0, [0.71, 0.02, 0.15]),
+        ],
+        other => return Err(format!("volume.transfer.preset: unknown '{other}'")),
+    };
+    Ok(Transfer {
+        points: ramp
+            .iter()
+            .map(|&(t, c)| (at(t), c, spec.extinction * t))
+            .collect(),
+    })
+}
+
+/// The scene's camera for a volume with `bounds`.
+pub fn camera(s: &Scene, bounds: [DVec3; 2]) -> Result<Camera, String> {
+    let c = &s.camera;
+    let centre = (bounds[0] + bounds[1]) * 0.5;
+    let radius = ((bounds[1] - bounds[0]) * 0.5).length();
+    let mut cam = match c.eye {
+        Some(eye) => {
+            let projection = match c.projection {
+                ProjectionKind::Perspective => Projection::Perspective { fov_y_deg: c.fov_y },
+                ProjectionKind::Orthographic => Projection::Orthographic {
+                    height: c.height.unwrap_or(2.1 * radius),
+                },
+            };
+            Camera::look_at(
+                DVec3::from(eye),
+                c.target.map(DVec3::from).unwrap_or(centre),
+                DVec3::from(c.up),
+                projection,
+                bounds,
+            )?
+        }
+        None => {
+            let mut cam = Camera::orbit(
+                bounds,
+                c.azimuth,
+                c.elevation,
+                c.distance,
+                (c.projection == ProjectionKind::Perspective).then_some(c.fov_y),
+            );
+            if let (Some(h), Projection::Orthographic { .. }) = (c.height, cam.projection) {
+                cam.projection = Projection::Orthographic { height: h };
+            }
+            cam
+        }
+    };
+    if let Some(n) = c.near {
+        cam.near = n;
+    }
+    if let Some(f) = c.far {
+        cam.far = f;
+    }
+    Ok(cam)
+}
+
+/// Renders the scene in `path` (with `--set` overrides) to `output` (PNG, sRGB).
+pub fn run(path: &Path, overrides: &[String], output: &Path) -> Result<RenderReport, String> {
+    let t0 = Instant::now();
+    let s = scene::load(path, overrides)?;
+    if s.render.method != Method::Ea {
+        return Err(format!(
+            "{}: render.method = {:?} is not implemented yet (issue 5); the emission-absorption baseline renders with --set render.method=ea",
+            path.display(),
+            s.render.method
+        )
+        .to_lowercase());
+    }
+    if !s.tubes.is_empty() || !s.clip.is_empty() {
+        return Err(format!(
+            "{}: tubes and clipping planes are not rendered yet (issue 5); remove [[tubes]] and [[clip]] for the ea baseline",
+            path.display()
+        ));
+    }
+    let vspec = s
+        .volume
+        .as_ref()
+        .ok_or_else(|| format!("{}: the ea method needs a [volume]", path.display()))?;
+    let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
+    let sel = vspec
+        .field
+        .as_deref()
+        .map(str::parse::<volume::FieldSelector>)
+        .transpose()
+        .map_err(|e| e.to_string())?;
+    let field = vol.select(sel.as_ref()).map_err(|e| e.to_string())?;
+    if field.components != 1 {
+        return Err(format!(
+            "volume.field: '{}' has {} components; choose NAME:magnitude or NAME:x|y|z",
+            field.name, field.components
+        ));
+    }
+    let st = field.stats();
+    if !(st.min.is_finite() && st.max.is_finite()) {
+        return Err(format!(
+            "{}: the field has no finite values",
+            vspec.path.display()
+        ));
+    }
+    let tf = transfer(&vspec.transfer, [st.min, st.max])?;
+    let cam = camera(&s, vol.bounds())?;
+    let bg = s.background.rgb()?;
+    let r = &s.render;
+    let view = EaView::new(&vol, cam, r.width, r.height, r.slices, r.slice_distance, bg);
+    let gpu = crate::gpu::Gpu::new().map_err(|e| e.to_string())?;
+    let data = ea_pass::prepare(&field.data);
+    let img = ea_pass::render(&gpu, &data, &vol, &tf, &view).map_err(|e| e.to_string())?;
+    let mut buf = image::RgbImage::new(r.width, r.height);
+    for (i, c) in img.iter().enumerate() {
+        let s8 = crate::iso_reference::srgb8;
+        buf.put_pixel(
+            i as u32 % r.width,
+            i as u32 / r.width,
+            image::Rgb([s8(c[0]), s8(c[1]), s8(c[2])]),
+        );
+    }
+    let mut bytes = Vec::new();
+    buf.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| format!("{}: {e}", output.display()))?;
+    volume::write_atomic(output, &bytes).map_err(|e| e.to_string())?;
+    Ok(RenderReport {
+        method: "ea".into(),
+        width: r.width,
+        height: r.height,
+        slices: view.slices,
+        slice_distance: view.dz,
+        adapter: gpu.report().name,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
