@@ -18,6 +18,8 @@ struct Params {
     slicing: vec4<f32>,
     // n_slices, n_tf, width, height
     counts: vec4<u32>,
+    // bricks per axis (x, y, z), brick edge in voxels
+    bricks: vec4<u32>,
 };
 
 @group(0) @binding(0) var<uniform> P: Params;
@@ -25,6 +27,10 @@ struct Params {
 // Transfer function points: (value, r, g, b, extinction, 0, 0, 0) each.
 @group(0) @binding(2) var<storage, read> tf: array<f32>;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
+// Empty-space skipping: 1 where the transfer function gives some extinction to a value the
+// brick's voxels span, 0 where every sample in the brick is transparent (skipping those is
+// exact: a sample with zero extinction adds nothing).
+@group(0) @binding(4) var<storage, read> occupied: array<u32>;
 
 fn voxel(i: vec3<u32>) -> f32 {
     return field[i.x + P.dims.x * (i.y + P.dims.y * i.z)];
@@ -98,9 +104,24 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let cosine = dot(d, f);
     let o_depth = dot(o - P.eye.xyz, f);
     let seg = P.slicing.y / cosine;
+    // Clip the slice range to where the ray is inside the grid's box (in index space the box
+    // is [0, dims - 1]^3; the ray's index-space position is affine in s).
+    let qo = (P.world_to_index * vec4<f32>(o, 1.0)).xyz;
+    let qd = (P.world_to_index * vec4<f32>(d, 0.0)).xyz;
+    let hi = vec3<f32>(P.dims.xyz) - vec3<f32>(1.0);
+    let inv = 1.0 / select(qd, vec3<f32>(1e-30), abs(qd) < vec3<f32>(1e-30));
+    let t0 = (vec3<f32>(0.0) - qo) * inv;
+    let t1 = (hi - qo) * inv;
+    let s_in = max(max(min(t0.x, t1.x), min(t0.y, t1.y)), min(t0.z, t1.z));
+    let s_out = min(min(max(t0.x, t1.x), max(t0.y, t1.y)), max(t0.z, t1.z));
+    // Slice k is at ray parameter (z0 + (k + 0.5) dz - o_depth) / cosine.
+    let k_in = (s_in * cosine + o_depth - P.slicing.x) / P.slicing.y - 0.5;
+    let k_out = (s_out * cosine + o_depth - P.slicing.x) / P.slicing.y - 0.5;
+    let k_first = u32(clamp(floor(k_in), 0.0, f32(P.counts.x)));
+    let k_last = u32(clamp(ceil(k_out) + 1.0, 0.0, f32(P.counts.x)));
     var colour = vec3<f32>(0.0);
     var alpha = 0.0;
-    for (var k = 0u; k < P.counts.x; k = k + 1u) {
+    for (var k = k_first; k < k_last; k = k + 1u) {
         let depth = P.slicing.x + (f32(k) + 0.5) * P.slicing.y;
         let s = (depth - o_depth) / cosine;
         if (s < 0.0) {
@@ -108,6 +129,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         let p = o + d * s;
         let q = (P.world_to_index * vec4<f32>(p, 1.0)).xyz;
+        if (any(q < vec3<f32>(0.0)) || any(q > vec3<f32>(P.dims.xyz) - vec3<f32>(1.0))) {
+            continue;
+        }
+        let br = min(vec3<u32>(q) / P.bricks.w, P.bricks.xyz - vec3<u32>(1u));
+        if (occupied[br.x + P.bricks.x * (br.y + P.bricks.y * br.z)] == 0u) {
+            continue;
+        }
         let v = sample(q);
         // Outside the grid, or next to a sample without data (NaN, uploaded as -3e38).
         if (v.y == 0.0 || v.x < -1e30) {

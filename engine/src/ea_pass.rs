@@ -13,6 +13,9 @@
 //! volume (front-to-back "under" blending; issue 5 notes that Algorithm 1's initialisation with
 //! the background adds it instead). The default slice distance is half the smallest voxel
 //! spacing (two samples per voxel along the view, the Nyquist rate of trilinear data).
+//! Each ray only visits the slices where it is inside the grid's box, and empty space is
+//! skipped per brick of 8^3 cells whose value range the transfer function maps to zero
+//! extinction ([`occupancy`]); both are exact, and the CPU twin, which does neither, checks it.
 
 use crate::camera::Camera;
 use crate::gpu::{Gpu, GpuError};
@@ -29,6 +32,20 @@ pub struct Transfer {
 }
 
 impl Transfer {
+    /// Whether the extinction is zero for every value in `[lo, hi]` (piecewise linear: the
+    /// largest value on an interval is at its ends or at a point inside it).
+    pub fn transparent_over(&self, lo: f64, hi: f64) -> bool {
+        let inside = self
+            .points
+            .iter()
+            .filter(|p| p.0 > lo && p.0 < hi)
+            .map(|p| p.2);
+        let m = inside
+            .chain([self.eval(lo).1, self.eval(hi).1])
+            .fold(0.0f64, f64::max);
+        m <= 0.0
+    }
+
     /// A ramp from transparent black at `lo` to `colour` with `extinction` at `hi`.
     pub fn ramp(lo: f64, hi: f64, colour: [f64; 3], extinction: f64) -> Transfer {
         Transfer {
@@ -213,6 +230,38 @@ pub fn reference(data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[
     out
 }
 
+/// Edge of an empty-space brick, in voxels.
+pub const BRICK: usize = 8;
+
+/// Bricks per axis and, per brick, whether any value its voxels span (the brick's cells,
+/// voxels `b B ..= b B + B`) has extinction; data as [`prepare`] returns it.
+pub fn occupancy(data: &[f32], dims: [usize; 3], tf: &Transfer) -> ([usize; 3], Vec<u32>) {
+    use rayon::prelude::*;
+    let nb = dims.map(|d| d.saturating_sub(1).max(1).div_ceil(BRICK));
+    let r = |b: usize, a: usize| b * BRICK..=((b + 1) * BRICK).min(dims[a] - 1);
+    let occ: Vec<u32> = (0..nb[0] * nb[1] * nb[2])
+        .into_par_iter()
+        .map(|n| {
+            let (bx, by, bz) = (n % nb[0], (n / nb[0]) % nb[1], n / (nb[0] * nb[1]));
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for k in r(bz, 2) {
+                for j in r(by, 1) {
+                    let row = dims[0] * (j + dims[1] * k);
+                    for &v in &data[row + bx * BRICK..=row + ((bx + 1) * BRICK).min(dims[0] - 1)] {
+                        let v = v as f64;
+                        if v >= -1e30 {
+                            lo = lo.min(v);
+                            hi = hi.max(v);
+                        }
+                    }
+                }
+            }
+            (lo <= hi && !tf.transparent_over(lo, hi)) as u32
+        })
+        .collect();
+    (nb, occ)
+}
+
 fn mat_bytes(m: DMat4, out: &mut Vec<u8>) {
     for v in m.to_cols_array() {
         out.extend((v as f32).to_le_bytes());
@@ -250,7 +299,7 @@ pub fn render(
         source: wgpu::ShaderSource::Wgsl(SHADER.into()),
     });
     let aspect = v.width as f64 / v.height.max(1) as f64;
-    let mut p = Vec::with_capacity(224);
+    let mut p = Vec::with_capacity(240);
     mat_bytes(v.camera.view_projection(aspect).inverse(), &mut p);
     mat_bytes(world_to_index(vol), &mut p);
     let e = v.camera.eye;
@@ -266,6 +315,15 @@ pub fn render(
     for c in [v.slices, tf.points.len() as u32, v.width, v.height] {
         p.extend(c.to_le_bytes());
     }
+    let (nb, occ) = occupancy(data, vol.dims, tf);
+    for c in [nb[0], nb[1], nb[2], BRICK] {
+        p.extend((c as u32).to_le_bytes());
+    }
+    let occbuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("ea occupancy"),
+        contents: bytemuck::cast_slice(&occ),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
     let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("ea params"),
         contents: &p,
@@ -338,6 +396,10 @@ pub fn render(
                 binding: 3,
                 resource: image.as_entire_binding(),
             },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: occbuf.as_entire_binding(),
+            },
         ],
     });
     let mut enc = device.create_command_encoder(&Default::default());
@@ -381,5 +443,34 @@ mod tests {
         assert_eq!(t.eval(0.5), ([0.5, 0.25, 0.0], 1.0));
         assert_eq!(t.eval(2.0), ([0.5, 0.25, 0.5], 1.0));
         assert_eq!(t.eval(9.0), ([0.0, 0.0, 1.0], 0.0));
+    }
+
+    #[test]
+    fn empty_bricks_are_exactly_the_transparent_ones() {
+        // A spike of extinction at 0.5 only.
+        let t = Transfer {
+            points: vec![
+                (0.4, [1.0; 3], 0.0),
+                (0.5, [1.0; 3], 2.0),
+                (0.6, [1.0; 3], 0.0),
+            ],
+        };
+        assert!(t.transparent_over(-1.0, 0.4));
+        assert!(t.transparent_over(0.6, 9.0));
+        assert!(!t.transparent_over(0.3, 0.7)); // the spike lies inside
+        assert!(!t.transparent_over(0.45, 0.46));
+        // A ramp x / 32 (exact in f32): only bricks whose values reach (0.4, 0.6) are used.
+        let dims = [41, 3, 3];
+        let data: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
+            .map(|n| (n % dims[0]) as f32 / 32.0)
+            .collect();
+        let (nb, occ) = occupancy(&data, dims, &t);
+        assert_eq!(nb, [5, 1, 1]);
+        // Bricks cover x in [0, 8], [8, 16], ...: values [0, .25], [.25, .5], [.5, .75], ...
+        assert_eq!(occ, vec![0, 1, 1, 0, 0]);
+        // NaN voxels (prepared) do not widen a brick's range.
+        let mut d2 = data.clone();
+        d2[3] = f32::NAN;
+        assert_eq!(occupancy(&prepare(&d2), dims, &t).1, vec![0, 1, 1, 0, 0]);
     }
 }

@@ -21,7 +21,12 @@ pub struct RenderReport {
     pub seconds: f64,
 }
 
-/// The transfer function of a scene for a field with value range `range`.
+/// Fraction of the value range below which the presets are transparent.
+pub const PRESET_CUTOFF: f64 = 0.1;
+
+/// The transfer function of a scene for a field with value range `range`: points as given, or
+/// a preset's colour ramp over the range with extinction zero below [`PRESET_CUTOFF`] of it,
+/// rising linearly to `extinction` at the top.
 pub fn transfer(spec: &TransferSpec, range: [f64; 2]) -> Result<Transfer, String> {
     if !spec.points.is_empty() {
         if spec.points.iter().any(|p| p.gradient.is_some()) {
@@ -58,10 +63,28 @@ pub fn transfer(spec: &TransferSpec, range: [f64; 2]) -> Result<Transfer, String
         ],
         other => return Err(format!("volume.transfer.preset: unknown '{other}'")),
     };
-    Ok(Transfer {
-        points: ramp
+    // Colour over the whole range; extinction zero up to 10% of the range (air and noise),
+    // then rising linearly to `extinction` at the top.
+    let colour = |t: f64| {
+        let j = ramp
             .iter()
-            .map(|&(t, c)| (at(t), c, spec.extinction * t))
+            .position(|r| r.0 >= t)
+            .unwrap_or(ramp.len() - 1)
+            .max(1);
+        let (a, b) = (ramp[j - 1], ramp[j]);
+        let u = ((t - a.0) / (b.0 - a.0)).clamp(0.0, 1.0);
+        [0, 1, 2].map(|k| a.1[k] + (b.1[k] - a.1[k]) * u)
+    };
+    let mut ts: Vec<f64> = ramp.iter().map(|r| r.0).chain([PRESET_CUTOFF]).collect();
+    ts.sort_by(f64::total_cmp);
+    ts.dedup();
+    Ok(Transfer {
+        points: ts
+            .into_iter()
+            .map(|t| {
+                let e = spec.extinction * ((t - PRESET_CUTOFF) / (1.0 - PRESET_CUTOFF)).max(0.0);
+                (at(t), colour(t), e)
+            })
             .collect(),
     })
 }
