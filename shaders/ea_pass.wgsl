@@ -20,6 +20,9 @@ struct Params {
     counts: vec4<u32>,
     // bricks per axis (x, y, z), brick edge in voxels
     bricks: vec4<u32>,
+    // clipping planes (normal, offset), keeping normal . p <= offset; n_clip.x of them
+    clip: array<vec4<f32>, 8>,
+    n_clip: vec4<u32>,
 };
 
 @group(0) @binding(0) var<uniform> P: Params;
@@ -128,6 +131,15 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             continue;
         }
         let p = o + d * s;
+        var clipped = false;
+        for (var c = 0u; c < P.n_clip.x; c = c + 1u) {
+            if (dot(P.clip[c].xyz, p) > P.clip[c].w) {
+                clipped = true;
+            }
+        }
+        if (clipped) {
+            continue;
+        }
         let q = (P.world_to_index * vec4<f32>(p, 1.0)).xyz;
         if (any(q < vec3<f32>(0.0)) || any(q > vec3<f32>(P.dims.xyz) - vec3<f32>(1.0))) {
             continue;

@@ -91,7 +91,13 @@ pub struct EaView {
     pub dz: f64,
     pub slices: u32,
     pub background: [f64; 3],
+    /// Clipping planes `(normal, offset)`: samples with `normal . p > offset` are removed
+    /// (at most [`MAX_CLIP`]).
+    pub clip: Vec<([f64; 3], f64)>,
 }
+
+/// The most clipping planes a view has.
+pub const MAX_CLIP: usize = 8;
 
 impl EaView {
     /// Slices spanning `vol`'s bounding box seen by `camera`: `slices`, or `slice_distance`
@@ -141,6 +147,7 @@ impl EaView {
             dz,
             slices: n,
             background,
+            clip: vec![],
         }
     }
 }
@@ -204,6 +211,9 @@ pub fn reference(data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[
                     continue;
                 }
                 let p = o + d * s;
+                if v.clip.iter().any(|(n, off)| DVec3::from(*n).dot(p) > *off) {
+                    continue;
+                }
                 let q = (w2i * DVec4::from((p, 1.0))).truncate();
                 let Some(val) = sample(data, vol.dims, q).filter(|&v| v >= -1e30) else {
                     continue;
@@ -299,7 +309,7 @@ pub fn render(
         source: wgpu::ShaderSource::Wgsl(SHADER.into()),
     });
     let aspect = v.width as f64 / v.height.max(1) as f64;
-    let mut p = Vec::with_capacity(240);
+    let mut p = Vec::with_capacity(384);
     mat_bytes(v.camera.view_projection(aspect).inverse(), &mut p);
     mat_bytes(world_to_index(vol), &mut p);
     let e = v.camera.eye;
@@ -318,6 +328,19 @@ pub fn render(
     let (nb, occ) = occupancy(data, vol.dims, tf);
     for c in [nb[0], nb[1], nb[2], BRICK] {
         p.extend((c as u32).to_le_bytes());
+    }
+    if v.clip.len() > MAX_CLIP {
+        return Err(GpuError::Operation(format!(
+            "{} clipping planes; at most {MAX_CLIP}",
+            v.clip.len()
+        )));
+    }
+    for i in 0..MAX_CLIP {
+        let (n, off) = v.clip.get(i).copied().unwrap_or(([0.0; 3], 0.0));
+        vec4_bytes([n[0], n[1], n[2], off], &mut p);
+    }
+    for c in [v.clip.len() as u32, 0, 0, 0] {
+        p.extend(c.to_le_bytes());
     }
     let occbuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("ea occupancy"),

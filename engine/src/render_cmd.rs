@@ -1,6 +1,6 @@
 //! `umbra render <scene.toml> -o image.png`: the renderer of issue 5 as far as it exists - the
 //! emission-absorption baseline (`render.method = "ea"`) of the scene's volume on the GPU.
-//! Other methods, tubes and clipping planes are refused with a message that says so.
+//! Clipping planes apply; other methods and tubes are refused with a message that says so.
 
 use crate::camera::{Camera, Projection};
 use crate::ea_pass::{self, EaView, Transfer};
@@ -145,10 +145,18 @@ pub fn run(path: &Path, overrides: &[String], output: &Path) -> Result<RenderRep
         )
         .to_lowercase());
     }
-    if !s.tubes.is_empty() || !s.clip.is_empty() {
+    if !s.tubes.is_empty() {
         return Err(format!(
-            "{}: tubes and clipping planes are not rendered yet (issue 5); remove [[tubes]] and [[clip]] for the ea baseline",
+            "{}: tubes are not rendered yet (issue 5); remove [[tubes]] for the ea baseline",
             path.display()
+        ));
+    }
+    if s.clip.len() > ea_pass::MAX_CLIP {
+        return Err(format!(
+            "{}: {} clipping planes; at most {}",
+            path.display(),
+            s.clip.len(),
+            ea_pass::MAX_CLIP
         ));
     }
     let vspec = s
@@ -180,7 +188,8 @@ pub fn run(path: &Path, overrides: &[String], output: &Path) -> Result<RenderRep
     let cam = camera(&s, vol.bounds())?;
     let bg = s.background.rgb()?;
     let r = &s.render;
-    let view = EaView::new(&vol, cam, r.width, r.height, r.slices, r.slice_distance, bg);
+    let mut view = EaView::new(&vol, cam, r.width, r.height, r.slices, r.slice_distance, bg);
+    view.clip = s.clip.iter().map(|c| (c.normal, c.offset)).collect();
     let gpu = crate::gpu::Gpu::new().map_err(|e| e.to_string())?;
     let data = ea_pass::prepare(&field.data);
     let img = ea_pass::render(&gpu, &data, &vol, &tf, &view).map_err(|e| e.to_string())?;

@@ -55,17 +55,19 @@ fn gpu_image_matches_the_cpu_reference() {
     let gpu = Gpu::new().expect("a GPU adapter (CI installs mesa-vulkan-drivers for lavapipe)");
     let vol = blob();
     let data = vol.select(None).unwrap().data;
-    for (cam, bg) in [
-        (
-            Camera::orbit(vol.bounds(), 40.0, 25.0, 2.5, Some(40.0)),
-            [1.0, 1.0, 1.0],
-        ),
+    let persp = Camera::orbit(vol.bounds(), 40.0, 25.0, 2.5, Some(40.0));
+    for (cam, bg, clip) in [
+        (persp, [1.0, 1.0, 1.0], vec![]),
         (
             Camera::orbit(vol.bounds(), -70.0, 60.0, 3.0, None),
             [0.1, 0.2, 0.3],
+            vec![],
         ),
+        // The paper's Fig. 11 cut: half the blob removed (x > 1.5 here).
+        (persp, [1.0, 1.0, 1.0], vec![([1.0, 0.0, 0.0], 1.5)]),
     ] {
-        let view = EaView::new(&vol, cam, 48, 40, None, None, bg);
+        let mut view = EaView::new(&vol, cam, 48, 40, None, None, bg);
+        view.clip = clip;
         let gpu_img = render(&gpu, &data, &vol, &tf(), &view).unwrap();
         let cpu_img = reference(&data, &vol, &tf(), &view);
         let mut worst = 0.0f64;
@@ -78,7 +80,19 @@ fn gpu_image_matches_the_cpu_reference() {
         assert!(worst < 2e-3, "GPU and CPU differ by {worst}");
         // The blob is seen in the middle, the corners show the background.
         let centre = cpu_img[24 + 48 * 20];
-        assert!(centre[3] > 0.3, "centre alpha {}", centre[3]);
+        assert!(centre[3] > 0.2, "centre alpha {}", centre[3]);
+        if !view.clip.is_empty() {
+            // Half the blob is gone: clearly less opacity in all.
+            let full = EaView::new(&vol, cam, 48, 40, None, None, bg);
+            let whole = reference(&data, &vol, &tf(), &full);
+            let sum = |img: &[[f64; 4]]| img.iter().map(|p| p[3]).sum::<f64>();
+            assert!(
+                sum(&cpu_img) < 0.8 * sum(&whole),
+                "{} vs {}",
+                sum(&cpu_img),
+                sum(&whole)
+            );
+        }
         let corner = cpu_img[0];
         assert_eq!(corner[3], 0.0);
         for k in 0..3 {
