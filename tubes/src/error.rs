@@ -60,37 +60,31 @@ pub fn read_maybe_gz(path: &Path) -> Result<Vec<u8>> {
     }
 }
 
-/// Writes through a temporary file and a rename; gzip when the name ends in `.gz`.
+/// Writes through a temporary file and a rename (`volume::write_atomic`); gzip when the name
+/// ends in `.gz`.
 pub fn write_atomic(path: &Path, bytes: Vec<u8>) -> Result<()> {
-    use std::io::Write;
     let bytes = if path.to_string_lossy().to_ascii_lowercase().ends_with(".gz") {
-        let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::new(6));
-        enc.write_all(&bytes).map_err(|e| TubesError::io(path, e))?;
-        enc.finish().map_err(|e| TubesError::io(path, e))?
+        volume::gzip_bytes(&bytes)
     } else {
         bytes
     };
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .ok_or_else(|| TubesError::Invalid(format!("{}: not a file path", path.display())))?;
-    let tmp = dir.join(format!(
-        ".{}.{}.tmp",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let res = (|| -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(&bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = res {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(TubesError::io(path, e));
+    volume::write_atomic(path, &bytes).map_err(TubesError::from)
+}
+
+impl From<volume::VolumeError> for TubesError {
+    fn from(e: volume::VolumeError) -> Self {
+        match e {
+            volume::VolumeError::Io { path, source } => TubesError::Io { path, source },
+            volume::VolumeError::Format {
+                path,
+                field,
+                problem,
+            } => TubesError::Format {
+                path,
+                field,
+                problem,
+            },
+            volume::VolumeError::Invalid(m) => TubesError::Invalid(m),
+        }
     }
-    Ok(())
 }

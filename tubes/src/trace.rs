@@ -153,31 +153,7 @@ impl<'a> GridField<'a> {
 
     /// World bounding box of the grid.
     pub fn bounds(&self) -> [DVec3; 2] {
-        let mut lo = DVec3::splat(f64::INFINITY);
-        let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for c in 0..8 {
-            let ijk = DVec3::new(
-                if c & 1 != 0 {
-                    (self.dims[0] - 1) as f64
-                } else {
-                    0.0
-                },
-                if c & 2 != 0 {
-                    (self.dims[1] - 1) as f64
-                } else {
-                    0.0
-                },
-                if c & 4 != 0 {
-                    (self.dims[2] - 1) as f64
-                } else {
-                    0.0
-                },
-            );
-            let p = (self.affine * DVec4::from((ijk, 1.0))).truncate();
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-        [lo, hi]
+        volume::grid_bounds(self.dims, self.affine)
     }
 
     /// The smallest voxel spacing (a natural default step is a fraction of it).

@@ -22,38 +22,6 @@ use std::path::Path;
 
 const HDR: usize = 1000;
 
-struct Rd<'a> {
-    b: &'a [u8],
-    be: bool,
-}
-
-impl Rd<'_> {
-    fn i16(&self, o: usize) -> i16 {
-        let a = [self.b[o], self.b[o + 1]];
-        if self.be {
-            i16::from_be_bytes(a)
-        } else {
-            i16::from_le_bytes(a)
-        }
-    }
-    fn i32(&self, o: usize) -> i32 {
-        let a: [u8; 4] = self.b[o..o + 4].try_into().unwrap();
-        if self.be {
-            i32::from_be_bytes(a)
-        } else {
-            i32::from_le_bytes(a)
-        }
-    }
-    fn f32(&self, o: usize) -> f32 {
-        let a: [u8; 4] = self.b[o..o + 4].try_into().unwrap();
-        if self.be {
-            f32::from_be_bytes(a)
-        } else {
-            f32::from_le_bytes(a)
-        }
-    }
-}
-
 /// Axis codes (R/L, A/P, S/I) of a 3x3 orientation: for each voxel axis the world axis it runs
 /// along most and its direction (nibabel's `aff2axcodes` for affines without strong shear).
 fn axcodes(m: &DMat3) -> [(usize, i32); 3] {
@@ -181,7 +149,13 @@ fn name_field(b: &[u8]) -> (String, usize) {
 }
 
 /// Splits `n` values per point (or streamline) into named attributes.
-fn names(path: &Path, hdr: &Rd, at: usize, n: usize, field: &str) -> Result<Vec<(String, usize)>> {
+fn names(
+    path: &Path,
+    hdr: &volume::Bytes,
+    at: usize,
+    n: usize,
+    field: &str,
+) -> Result<Vec<(String, usize)>> {
     let mut out = Vec::new();
     let mut total = 0;
     for i in 0..10 {
@@ -244,7 +218,10 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             ))
         }
     };
-    let h = Rd { b: &bytes, be: big };
+    let h = volume::Bytes {
+        b: &bytes,
+        big_endian: big,
+    };
     let version = h.i32(992);
     if version != 1 && version != 2 {
         return Err(TubesError::format(

@@ -66,9 +66,12 @@ pub struct CfdGrid {
     pub arrays: Vec<GridArray>,
 }
 
-/// Corners of structured cell (i, j, k) in VTK hexahedron order.
+/// Corners of structured cell (i, j, k) in VTK hexahedron order; node indices are clamped to
+/// the grid, so a flat axis (one node) gives a cell of repeated nodes.
 fn structured_corners(dims: [usize; 3], i: usize, j: usize, k: usize) -> [usize; 8] {
-    let id = |a: usize, b: usize, c: usize| a + dims[0] * (b + dims[1] * c);
+    let id = |a: usize, b: usize, c: usize| {
+        a.min(dims[0] - 1) + dims[0] * (b.min(dims[1] - 1) + dims[1] * c.min(dims[2] - 1))
+    };
     [
         id(i, j, k),
         id(i + 1, j, k),
@@ -351,20 +354,8 @@ impl<'a> Locator<'a> {
                     d[2].saturating_sub(1).max(1),
                 ];
                 let cell = i.min(nc[0] - 1) + nc[0] * (j.min(nc[1] - 1) + nc[1] * k.min(nc[2] - 1));
-                let id = |a: usize, b: usize, c: usize| {
-                    a.min(d[0] - 1) + d[0] * (b.min(d[1] - 1) + d[1] * c.min(d[2] - 1))
-                };
                 let w = hex_weights(DVec3::new(fx, fy, fz));
-                let corners = [
-                    id(i, j, k),
-                    id(i + 1, j, k),
-                    id(i + 1, j + 1, k),
-                    id(i, j + 1, k),
-                    id(i, j, k + 1),
-                    id(i + 1, j, k + 1),
-                    id(i + 1, j + 1, k + 1),
-                    id(i, j + 1, k + 1),
-                ];
+                let corners = structured_corners(d, i, j, k);
                 Some(Hit::Nodes {
                     cell,
                     nodes: corners.iter().copied().zip(w).collect(),

@@ -13,6 +13,34 @@ use std::path::Path;
 /// rejected before anything is read.
 pub const MAX_SAMPLES: u64 = 1 << 32;
 
+/// Fixed-offset reads from a binary header in either byte order (NIfTI, TrackVis). Offsets
+/// must lie inside the slice: callers check the header's length first.
+pub struct Bytes<'a> {
+    pub b: &'a [u8],
+    pub big_endian: bool,
+}
+
+macro_rules! bytes_getter {
+    ($name:ident, $t:ty, $n:literal) => {
+        pub fn $name(&self, o: usize) -> $t {
+            let a: [u8; $n] = self.b[o..o + $n].try_into().unwrap();
+            if self.big_endian {
+                <$t>::from_be_bytes(a)
+            } else {
+                <$t>::from_le_bytes(a)
+            }
+        }
+    };
+}
+
+impl Bytes<'_> {
+    bytes_getter!(i16, i16, 2);
+    bytes_getter!(i32, i32, 4);
+    bytes_getter!(i64, i64, 8);
+    bytes_getter!(f32, f32, 4);
+    bytes_getter!(f64, f64, 8);
+}
+
 pub fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| VolumeError::io(path, e))
 }

@@ -36,7 +36,7 @@ pub mod vtk_legacy;
 
 pub use error::{Result, VolumeError};
 use glam::{DMat4, DVec3, DVec4};
-pub use io_util::write_atomic;
+pub use io_util::{gzip_bytes, write_atomic, Bytes};
 use std::path::Path;
 
 /// The sample type a file stores.
@@ -385,32 +385,28 @@ impl Volume {
 
     /// Axis-aligned world bounding box of the voxel centres: `[min, max]`.
     pub fn bounds(&self) -> [DVec3; 2] {
-        let mut lo = DVec3::splat(f64::INFINITY);
-        let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for c in 0..8 {
-            let ijk = DVec3::new(
-                if c & 1 != 0 {
-                    (self.dims[0] - 1) as f64
-                } else {
-                    0.0
-                },
-                if c & 2 != 0 {
-                    (self.dims[1] - 1) as f64
-                } else {
-                    0.0
-                },
-                if c & 4 != 0 {
-                    (self.dims[2] - 1) as f64
-                } else {
-                    0.0
-                },
-            );
-            let p = self.index_to_world(ijk);
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-        [lo, hi]
+        grid_bounds(self.dims, self.affine)
     }
+}
+
+/// Axis-aligned world bounding box of the node positions of a `dims` grid whose index-to-world
+/// map is `affine`: the box of its eight corner nodes.
+pub fn grid_bounds(dims: [usize; 3], affine: DMat4) -> [DVec3; 2] {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for c in 0..8 {
+        let corner = |bit: usize, a: usize| {
+            if c & bit != 0 {
+                dims[a].saturating_sub(1) as f64
+            } else {
+                0.0
+            }
+        };
+        let p = (affine * DVec4::new(corner(1, 0), corner(2, 1), corner(4, 2), 1.0)).truncate();
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    [lo, hi]
 }
 
 /// Reads a volume, choosing the reader by file name (and by content where the name says nothing).

@@ -47,54 +47,6 @@ struct Header {
     magic: [u8; 4],
 }
 
-struct Bytes<'a> {
-    b: &'a [u8],
-    be: bool,
-}
-
-impl Bytes<'_> {
-    fn i16(&self, o: usize) -> i64 {
-        let a = [self.b[o], self.b[o + 1]];
-        (if self.be {
-            i16::from_be_bytes(a)
-        } else {
-            i16::from_le_bytes(a)
-        }) as i64
-    }
-    fn i32(&self, o: usize) -> i32 {
-        let a: [u8; 4] = self.b[o..o + 4].try_into().unwrap();
-        if self.be {
-            i32::from_be_bytes(a)
-        } else {
-            i32::from_le_bytes(a)
-        }
-    }
-    fn i64(&self, o: usize) -> i64 {
-        let a: [u8; 8] = self.b[o..o + 8].try_into().unwrap();
-        if self.be {
-            i64::from_be_bytes(a)
-        } else {
-            i64::from_le_bytes(a)
-        }
-    }
-    fn f32(&self, o: usize) -> f64 {
-        let a: [u8; 4] = self.b[o..o + 4].try_into().unwrap();
-        (if self.be {
-            f32::from_be_bytes(a)
-        } else {
-            f32::from_le_bytes(a)
-        }) as f64
-    }
-    fn f64(&self, o: usize) -> f64 {
-        let a: [u8; 8] = self.b[o..o + 8].try_into().unwrap();
-        if self.be {
-            f64::from_be_bytes(a)
-        } else {
-            f64::from_le_bytes(a)
-        }
-    }
-}
-
 fn parse_header(path: &Path, b: &[u8]) -> Result<Header> {
     if b.len() < 4 {
         return Err(VolumeError::format(
@@ -129,7 +81,7 @@ fn parse_header(path: &Path, b: &[u8]) -> Result<Header> {
             ),
         ));
     }
-    let r = Bytes { b, be: big_endian };
+    let r = io_util::Bytes { b, big_endian };
     let mut h = Header {
         version,
         big_endian,
@@ -149,21 +101,21 @@ fn parse_header(path: &Path, b: &[u8]) -> Result<Header> {
     };
     if version == 1 {
         for i in 0..8 {
-            h.dim[i] = r.i16(40 + 2 * i);
-            h.pixdim[i] = r.f32(76 + 4 * i);
+            h.dim[i] = r.i16(40 + 2 * i) as i64;
+            h.pixdim[i] = r.f32(76 + 4 * i) as f64;
         }
         h.intent_code = r.i16(68) as i32;
         h.datatype = r.i16(70) as i32;
-        h.vox_offset = r.f32(108);
-        h.scl_slope = r.f32(112);
-        h.scl_inter = r.f32(116);
+        h.vox_offset = r.f32(108) as f64;
+        h.scl_slope = r.f32(112) as f64;
+        h.scl_inter = r.f32(116) as f64;
         h.qform_code = r.i16(252) as i32;
         h.sform_code = r.i16(254) as i32;
         for i in 0..3 {
-            h.quatern[i] = r.f32(256 + 4 * i);
-            h.qoffset[i] = r.f32(268 + 4 * i);
+            h.quatern[i] = r.f32(256 + 4 * i) as f64;
+            h.qoffset[i] = r.f32(268 + 4 * i) as f64;
             for j in 0..4 {
-                h.srow[i][j] = r.f32(280 + 16 * i + 4 * j);
+                h.srow[i][j] = r.f32(280 + 16 * i + 4 * j) as f64;
             }
         }
         h.magic.copy_from_slice(&b[344..348]);
