@@ -494,11 +494,28 @@ pub fn srgb8(v: f32) -> u8 {
 
 /// Writes the colour of an image as an 8-bit sRGB PNG through a temporary file.
 pub fn write_png(path: &std::path::Path, img: &IsoImage) -> Result<(), String> {
-    let mut buf = image::RgbImage::new(img.width as u32, img.height as u32);
-    for (i, c) in img.color.iter().enumerate() {
+    write_rgb_png(path, img.width, img.height, &img.color)
+}
+
+/// Writes linear RGB pixels (rows top to bottom) as an 8-bit sRGB PNG through a temporary file.
+pub fn write_rgb_png(
+    path: &std::path::Path,
+    width: usize,
+    height: usize,
+    color: &[[f32; 3]],
+) -> Result<(), String> {
+    if color.len() != width * height {
+        return Err(format!(
+            "{}: {} pixels for a {width} x {height} image",
+            path.display(),
+            color.len()
+        ));
+    }
+    let mut buf = image::RgbImage::new(width as u32, height as u32);
+    for (i, c) in color.iter().enumerate() {
         buf.put_pixel(
-            (i % img.width) as u32,
-            (i / img.width) as u32,
+            (i % width) as u32,
+            (i / width) as u32,
             image::Rgb([srgb8(c[0]), srgb8(c[1]), srgb8(c[2])]),
         );
     }

@@ -298,6 +298,23 @@ enum Command {
     },
 }
 
+/// Prints `umbra info`'s answer: the JSON object, or the text for a person.
+fn print_info(
+    json: bool,
+    value: serde_json::Value,
+    text: impl FnOnce() -> Result<String, String>,
+) -> Result<(), String> {
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string(&value).map_err(|e| e.to_string())?
+        );
+    } else {
+        print!("{}", text()?);
+    }
+    Ok(())
+}
+
 fn parse_dims(s: &str) -> Result<[usize; 3], String> {
     let v: Vec<usize> = s
         .split(',')
@@ -363,76 +380,44 @@ fn run(cli: Cli) -> Result<(), String> {
                 return Ok(());
             }
             let file = file.ok_or("umbra info: give a file, or --gpu")?;
+            let name = file.display().to_string();
+            let warn = |ws: &[String]| {
+                ws.iter()
+                    .for_each(|w| eprintln!("umbra: warning: {name}: {w}"))
+            };
             if tubes::is_tractogram(&file) {
                 let s = tubes::load(&file).map_err(|e| e.to_string())?;
-                for w in &s.warnings {
-                    eprintln!("umbra: warning: {}: {w}", file.display());
-                }
-                if json {
-                    println!(
-                        "{}",
-                        serde_json::to_string(&engine::info::tractogram_json(&s)).unwrap()
-                    );
-                } else {
-                    print!(
-                        "{}",
-                        engine::info::tractogram_text(&file.display().to_string(), &s)
-                    );
-                }
-                return Ok(());
+                warn(&s.warnings);
+                return print_info(json, engine::info::tractogram_json(&s), || {
+                    Ok(engine::info::tractogram_text(&name, &s))
+                });
             }
             // CFD grids: by name, or PLOT3D (no signature) when --q is given or the file is no
             // volume but parses as a PLOT3D grid.
-            let grid = if volume::is_grid(&file) || q.is_some() {
-                Some(volume::load_grid(&file, q.as_deref()).map_err(|e| e.to_string())?)
+            let (grid, warnings) = if volume::is_grid(&file) || q.is_some() {
+                volume::load_grid(&file, q.as_deref()).map_err(|e| e.to_string())?
             } else {
-                None
-            };
-            let vol = match grid {
-                Some(g) => Err(g),
-                None => match volume::load(&file) {
-                    Ok(v) => Ok(v),
-                    Err(e) => match volume::plot3d::read(&file, None) {
-                        Ok(g) => Err(g),
-                        Err(_) => return Err(e.to_string()),
-                    },
-                },
-            };
-            let vol = match vol {
-                Ok(v) => v,
-                Err((g, warnings)) => {
-                    for w in &warnings {
-                        eprintln!("umbra: warning: {w}");
+                match volume::load(&file) {
+                    Ok(vol) => {
+                        warn(&vol.warnings);
+                        let sel = parse_field(&field)?;
+                        let j = engine::info::volume_json(&vol, sel.as_ref())
+                            .map_err(|e| e.to_string())?;
+                        return print_info(json, j, || {
+                            engine::info::volume_text(&name, &vol, sel.as_ref())
+                                .map_err(|e| e.to_string())
+                        });
                     }
-                    if json {
-                        println!(
-                            "{}",
-                            serde_json::to_string(&engine::info::grid_json(&g)).unwrap()
-                        );
-                    } else {
-                        print!(
-                            "{}",
-                            engine::info::grid_text(&file.display().to_string(), &g)
-                        );
-                    }
-                    return Ok(());
+                    Err(e) => volume::plot3d::read(&file, None).map_err(|_| e.to_string())?,
                 }
             };
-            let sel = parse_field(&field)?;
-            for w in &vol.warnings {
-                eprintln!("umbra: warning: {}: {w}", file.display());
-            }
-            if json {
-                let v = engine::info::volume_json(&vol, sel.as_ref()).map_err(|e| e.to_string())?;
-                println!("{}", serde_json::to_string(&v).unwrap());
-            } else {
-                print!(
-                    "{}",
-                    engine::info::volume_text(&file.display().to_string(), &vol, sel.as_ref())
-                        .map_err(|e| e.to_string())?
-                );
-            }
-            Ok(())
+            // Grid readers' warnings name their file themselves.
+            warnings
+                .iter()
+                .for_each(|w| eprintln!("umbra: warning: {w}"));
+            print_info(json, engine::info::grid_json(&grid), || {
+                Ok(engine::info::grid_text(&name, &grid))
+            })
         }
         Command::Sweep {
             input,

@@ -193,22 +193,8 @@ pub fn run(path: &Path, overrides: &[String], output: &Path) -> Result<RenderRep
     let gpu = crate::gpu::Gpu::new().map_err(|e| e.to_string())?;
     let data = ea_pass::prepare(&field.data);
     let img = ea_pass::render(&gpu, &data, &vol, &tf, &view).map_err(|e| e.to_string())?;
-    let mut buf = image::RgbImage::new(r.width, r.height);
-    for (i, c) in img.iter().enumerate() {
-        let s8 = crate::iso_reference::srgb8;
-        buf.put_pixel(
-            i as u32 % r.width,
-            i as u32 / r.width,
-            image::Rgb([s8(c[0]), s8(c[1]), s8(c[2])]),
-        );
-    }
-    let mut bytes = Vec::new();
-    buf.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| format!("{}: {e}", output.display()))?;
-    volume::write_atomic(output, &bytes).map_err(|e| e.to_string())?;
+    let rgb: Vec<[f32; 3]> = img.iter().map(|c| [c[0], c[1], c[2]]).collect();
+    crate::iso_reference::write_rgb_png(output, r.width as usize, r.height as usize, &rgb)?;
     Ok(RenderReport {
         method: "ea".into(),
         width: r.width,
