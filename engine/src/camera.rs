@@ -14,9 +14,15 @@
 //!   multiples of the bounding-sphere radius.
 //! * Near and far planes follow the scene: the bounding sphere seen from the eye, with the near
 //!   plane clamped to a small fraction of the far one so depth precision stays usable.
-//! * Vicinity occlusion's sampling radius in texture space (issue 5, the corrected eq. 4-5):
-//!   `R_t = 0.5 (P00, P11) r / |z|` under perspective and `0.5 (P00, P11) r` under orthographic
-//!   projection, `P` the projection matrix; texture units span [0, 1] across the image.
+//! * Vicinity occlusion's sampling radius in texture space: Schott et al. (IEEE TVCG), section
+//!   3.2.5, eq. 4-5 give `R_c = T P (r, r, z, 1)` and `R_t = (x_t, y_t) / w_t`. As printed, the
+//!   scale-and-bias matrix `T` also adds its 0.5 offset, so the result is a texture position,
+//!   not a radius. Derivation of the radius: a view-space offset `(r, r)` at depth `z` moves clip
+//!   x by `P00 r` and y by `P11 r`; under perspective `w = -z = |z|`, so NDC moves by
+//!   `P00 r / |z|`, and texture coordinates (NDC scaled by 0.5) by
+//!   `R_t = 0.5 (P00, P11) r / |z|`; under orthographic projection `w = 1` and
+//!   `R_t = 0.5 (P00, P11) r`. `P` is the projection matrix; texture units span [0, 1] across
+//!   the image ([`Camera::texture_radius`], tested against the projected size).
 
 use glam::{DMat4, DVec3, DVec4};
 

@@ -1,6 +1,16 @@
 //! Emission-absorption volume rendering through view-aligned slices: the `ea` baseline of
 //! issue 5, and the first GPU pass of the renderer. Shader: `shaders/ea_pass.wgsl`; the same
-//! maths in f64 on the CPU is [`reference`], which the tests compare it with on lavapipe.
+//! maths in f64 on the CPU is [`reference()`], which the tests compare it with on lavapipe.
+//!
+//! Paper: Schott et al., "Ambient Occlusion Effects for Combined Volumes and Tubular Geometry"
+//! (IEEE TVCG), section 3.2: the view-aligned slice traversal of Algorithm 1 and the eye-buffer
+//! update of Algorithm 2 (section 3.2.2) with the occlusion factor set to 1 - i.e. without the
+//! volumetric occlusion buffer (Algorithm 3), partial occlusion (Algorithm 4), vicinity
+//! occlusion (Algorithm 5) and the geometry depth test, which later passes add. Two departures,
+//! as issue 5 asks: the transfer function gives extinction per world unit, not opacity per
+//! slice (opacity `1 - exp(-sigma l)` for the ray's length `l` between slices), and the
+//! background is composited last instead of initialising the eye buffer with it (Algorithm 1's
+//! ONE_MINUS_DST_ALPHA blending would add it instead of attenuating it).
 //!
 //! Slices are planes perpendicular to the viewing direction at distances
 //! `z0 + (k + 1/2) dz` from the eye, spanning the volume's bounding box. A pixel's ray meets

@@ -34,6 +34,18 @@
 //! sample projected onto the curve by Newton steps from the parameter carried over from the
 //! previous level) stays within `epsilon`. The last curve within `epsilon` is kept.
 //!
+//! # Deviation: bound first, project only where needed
+//! The distance `|C(t_i) - Q_i|` to the curve point at a sample's carried parameter `t_i` is an
+//! upper bound of the sample's distance to the curve. A halving step is accepted when every
+//! bound is within `epsilon`; only samples whose bound exceeds it are projected (Newton on
+//! `(C(t) - Q) . C'(t) = 0`, [`BSpline::project`]), and the step is refused as soon as one
+//! projected distance exceeds `epsilon` (`within`). The reported largest deviation of the kept
+//! curve is exact, by branch and bound (`max_deviation`): project the sample with the largest
+//! bound, then only the samples whose bound exceeds the largest distance found so far; no
+//! other sample can be farther. The collocation rows of the PIA (span and four basis values at
+//! each Greville abscissa) depend only on the number of control points and are cached per
+//! thread.
+//!
 //! # Least squares (for comparison)
 //! The same clamped cubic with a given number of control points, fitted to the samples at
 //! chord-length parameters by the normal equations (banded, solved by Cholesky). Least squares
