@@ -106,12 +106,16 @@ pub struct EaView {
     pub clip: Vec<([f64; 3], f64)>,
 }
 
+/// The most slices a view has (a bound on the work per pixel).
+pub const MAX_SLICES: u32 = 16384;
+
 /// The most clipping planes a view has.
 pub const MAX_CLIP: usize = 8;
 
 impl EaView {
     /// Slices spanning `vol`'s bounding box seen by `camera`: `slices`, or `slice_distance`
-    /// apart, or (neither given) half the smallest voxel spacing apart.
+    /// apart, or (neither given) half the smallest voxel spacing apart; at most
+    /// [`MAX_SLICES`] (an error names the setting that asks for more).
     pub fn new(
         vol: &Volume,
         camera: Camera,
@@ -120,7 +124,7 @@ impl EaView {
         slices: Option<u32>,
         slice_distance: Option<f64>,
         background: [f64; 3],
-    ) -> EaView {
+    ) -> Result<EaView, String> {
         let [lo, hi] = vol.bounds();
         let f = camera.forward();
         let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -137,19 +141,23 @@ impl EaView {
         let zmin = zmin.max(0.0);
         let depth = (zmax - zmin).max(1e-9);
         let sp = vol.spacing();
-        let (n, dz) = match (slices, slice_distance) {
-            (Some(n), _) => (n.max(1), depth / n.max(1) as f64),
-            (None, Some(d)) => {
-                let n = (depth / d).ceil().clamp(1.0, 1e6) as u32;
-                (n, depth / n as f64)
-            }
-            (None, None) => {
-                let d = 0.5 * sp.iter().cloned().fold(f64::INFINITY, f64::min);
-                let n = (depth / d).ceil().clamp(1.0, 1e6) as u32;
-                (n, depth / n as f64)
-            }
+        let count = |d: f64| (depth / d).ceil().max(1.0);
+        let (n, what) = match (slices, slice_distance) {
+            (Some(n), _) => (n as f64, "render.slices"),
+            (None, Some(d)) => (count(d), "render.slice_distance"),
+            (None, None) => (
+                count(0.5 * sp.iter().cloned().fold(f64::INFINITY, f64::min)),
+                "the default slice distance (half the smallest voxel spacing)",
+            ),
         };
-        EaView {
+        if !(n >= 1.0 && n <= MAX_SLICES as f64) {
+            return Err(format!(
+                "{what} gives {n} slices through a slab {depth:.4} deep; 1 to {MAX_SLICES} are allowed"
+            ));
+        }
+        let n = n as u32;
+        let dz = depth / n as f64;
+        Ok(EaView {
             camera,
             width,
             height,
@@ -158,7 +166,7 @@ impl EaView {
             slices: n,
             background,
             clip: vec![],
-        }
+        })
     }
 }
 

@@ -130,6 +130,12 @@ pub fn camera(s: &Scene, bounds: [DVec3; 2]) -> Result<Camera, String> {
     if let Some(f) = c.far {
         cam.far = f;
     }
+    if !(cam.near > 0.0 && cam.far > cam.near) {
+        return Err(format!(
+            "camera.near {} and camera.far {} (given or fitted to the scene) need 0 < near < far",
+            cam.near, cam.far
+        ));
+    }
     Ok(cam)
 }
 
@@ -188,7 +194,8 @@ pub fn run(path: &Path, overrides: &[String], output: &Path) -> Result<RenderRep
     let cam = camera(&s, vol.bounds())?;
     let bg = s.background.rgb()?;
     let r = &s.render;
-    let mut view = EaView::new(&vol, cam, r.width, r.height, r.slices, r.slice_distance, bg);
+    let mut view = EaView::new(&vol, cam, r.width, r.height, r.slices, r.slice_distance, bg)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     view.clip = s.clip.iter().map(|c| (c.normal, c.offset)).collect();
     let gpu = crate::gpu::Gpu::new().map_err(|e| e.to_string())?;
     let data = ea_pass::prepare(&field.data);

@@ -460,8 +460,11 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             "give slices or slice_distance, not both".into(),
         );
     }
-    if r.slices == Some(0) || r.slice_distance.is_some_and(|d| d <= 0.0) {
+    if r.slices == Some(0) || r.slice_distance.is_some_and(|d| d.is_nan() || d <= 0.0) {
         return bad("render.slices", "must be positive".into());
+    }
+    if r.slices.is_some_and(|n| n > 16384) {
+        return bad("render.slices", "at most 16384".into());
     }
     if !(r.theta > 0.0 && r.theta < 90.0) {
         return bad(

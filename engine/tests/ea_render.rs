@@ -66,7 +66,7 @@ fn gpu_image_matches_the_cpu_reference() {
         // The paper's Fig. 11 cut: half the blob removed (x > 1.5 here).
         (persp, [1.0, 1.0, 1.0], vec![([1.0, 0.0, 0.0], 1.5)]),
     ] {
-        let mut view = EaView::new(&vol, cam, 48, 40, None, None, bg);
+        let mut view = EaView::new(&vol, cam, 48, 40, None, None, bg).unwrap();
         view.clip = clip;
         let gpu_img = render(&gpu, &data, &vol, &tf(), &view).unwrap();
         let cpu_img = reference(&data, &vol, &tf(), &view);
@@ -83,7 +83,7 @@ fn gpu_image_matches_the_cpu_reference() {
         assert!(centre[3] > 0.2, "centre alpha {}", centre[3]);
         if !view.clip.is_empty() {
             // Half the blob is gone: clearly less opacity in all.
-            let full = EaView::new(&vol, cam, 48, 40, None, None, bg);
+            let full = EaView::new(&vol, cam, 48, 40, None, None, bg).unwrap();
             let whole = reference(&data, &vol, &tf(), &full);
             let sum = |img: &[[f64; 4]]| img.iter().map(|p| p[3]).sum::<f64>();
             assert!(
@@ -106,8 +106,8 @@ fn the_image_does_not_depend_on_the_slice_count() {
     let vol = blob();
     let data = vol.select(None).unwrap().data;
     let cam = Camera::orbit(vol.bounds(), 40.0, 25.0, 2.5, Some(40.0));
-    let coarse = EaView::new(&vol, cam, 40, 32, None, None, [1.0; 3]);
-    let fine = EaView::new(&vol, cam, 40, 32, Some(coarse.slices * 4), None, [1.0; 3]);
+    let coarse = EaView::new(&vol, cam, 40, 32, None, None, [1.0; 3]).unwrap();
+    let fine = EaView::new(&vol, cam, 40, 32, Some(coarse.slices * 4), None, [1.0; 3]).unwrap();
     let (a, b) = (
         reference(&data, &vol, &tf(), &coarse),
         reference(&data, &vol, &tf(), &fine),
@@ -171,6 +171,21 @@ fn umbra_render_draws_the_ea_baseline_and_refuses_what_is_not_there() {
     assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0]);
     let lit = img.pixels().filter(|p| p.0[0] > 60).count();
     assert!(lit > 64 * 48 / 10, "{lit} lit pixels");
+    // Settings that would hang or draw nothing are refused, naming the key; no image.
+    std::fs::remove_file(&png).unwrap();
+    for (set, key) in [
+        ("render.slice_distance=1e-9", "render.slice_distance"),
+        ("render.slices=20000", "render.slices"),
+        ("camera.near=1e9", "camera.near"),
+    ] {
+        let out = run(&["--set", set]);
+        assert!(!out.status.success(), "{set}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(key), "{set}: {err}");
+        assert!(!png.exists());
+    }
+    let out = run(&[]);
+    assert!(out.status.success());
     // The occlusion methods are not there yet: a clear error, no image.
     std::fs::remove_file(&png).unwrap();
     let out = run(&["--set", "render.method=combined"]);

@@ -122,7 +122,8 @@ enum Container {
 impl Container {
     /// Reads a member, refusing more than `limit` bytes.
     fn read(&mut self, path: &Path, m: &Member, limit: u64) -> Result<Vec<u8>> {
-        let mut out = Vec::with_capacity(m.size.min(limit) as usize);
+        // The zip directory's size is a claim: reserve no more than 64 MiB up front.
+        let mut out = Vec::with_capacity(m.size.min(limit).min(1 << 26) as usize);
         let got = match self {
             Container::Zip(z) => {
                 let f = z.by_index(m.index).map_err(|e| {
