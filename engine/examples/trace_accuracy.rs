@@ -11,7 +11,9 @@
 //! `cargo run --release -p umbra --example trace_accuracy > docs/data/trace_accuracy.csv`
 use glam::DVec3;
 use tubes::trace::{trace, GridField, Integrator, TraceOptions};
-use volume::synthetic::{cube_affine, sample_vector, AbcFlow, RigidRotation, VectorField};
+use volume::synthetic::{
+    cube_affine, reference_streamline_end, rotation_slab, sample_vector, AbcFlow,
+};
 
 fn opts(
     integrator: Integrator,
@@ -46,20 +48,7 @@ fn main() {
     let steps = [0.2, 0.1, 0.05, 0.025, 0.0125, 0.00625];
     let tols = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7];
     // Rigid rotation.
-    let dims = [41, 41, 9];
-    let mut affine = cube_affine([41, 41, 41], -1.0, 1.0);
-    affine.z_axis.z = 0.05;
-    affine.w_axis.z = -0.2;
-    let v = sample_vector(
-        &RigidRotation {
-            center: DVec3::ZERO,
-            axis: DVec3::Z,
-            omega: 1.0,
-        },
-        dims,
-        affine,
-        "v",
-    );
+    let v = rotation_slab();
     let f = GridField::from_volume(&v, None).unwrap();
     let r0 = 0.5;
     let seed = [DVec3::new(r0, 0.0, 0.0)];
@@ -86,16 +75,7 @@ fn main() {
     let abc = AbcFlow::default();
     let seed = DVec3::new(3.0, 3.2, 3.1);
     let length: f64 = 2.5;
-    let dir = |p: DVec3| abc.velocity(p).normalize();
-    let mut p = seed;
-    let hs: f64 = 1e-4;
-    for _ in 0..(length / hs).round() as usize {
-        let k1 = dir(p);
-        let k2 = dir(p + k1 * (hs / 2.0));
-        let k3 = dir(p + k2 * (hs / 2.0));
-        let k4 = dir(p + k3 * hs);
-        p += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (hs / 6.0);
-    }
+    let p = reference_streamline_end(&abc, seed, length, 1e-4);
     let tau = 2.0 * std::f64::consts::PI;
     for n in [32usize, 64, 128] {
         let v = sample_vector(&abc, [n; 3], cube_affine([n; 3], 0.0, tau), "v");

@@ -3,7 +3,9 @@
 
 use glam::DVec3;
 use tubes::trace::{trace, GridField, GridScalar, Integrator, TraceOptions};
-use volume::synthetic::{cube_affine, sample_vector, AbcFlow, RigidRotation, VectorField};
+use volume::synthetic::{
+    cube_affine, reference_streamline_end, rotation_slab, sample_vector, AbcFlow,
+};
 
 fn opts(integrator: Integrator, step: f64, max_length: f64) -> TraceOptions<'static> {
     TraceOptions {
@@ -21,20 +23,7 @@ fn opts(integrator: Integrator, step: f64, max_length: f64) -> TraceOptions<'sta
 
 #[test]
 fn rigid_rotation_traces_circles_and_rk4_converges_at_fourth_order() {
-    let dims = [41, 41, 9];
-    let mut affine = cube_affine([41, 41, 41], -1.0, 1.0);
-    affine.z_axis.z = 0.05;
-    affine.w_axis.z = -0.2;
-    let v = sample_vector(
-        &RigidRotation {
-            center: DVec3::ZERO,
-            axis: DVec3::Z,
-            omega: 1.0,
-        },
-        dims,
-        affine,
-        "v",
-    );
+    let v = rotation_slab();
     let f = GridField::from_volume(&v, None).unwrap();
     let r0 = 0.5;
     let seed = [DVec3::new(r0, 0.0, 0.0)];
@@ -86,16 +75,7 @@ fn abc_flow_agrees_with_a_high_accuracy_integration() {
     let length = 2.5;
     // Reference: RK4 on the analytic field with a tiny step.
     let abc = AbcFlow::default();
-    let dir = |p: DVec3| abc.velocity(p).normalize();
-    let mut p = seed;
-    let hs = 1e-3;
-    for _ in 0..(length / hs) as usize {
-        let k1 = dir(p);
-        let k2 = dir(p + k1 * (hs / 2.0));
-        let k3 = dir(p + k2 * (hs / 2.0));
-        let k4 = dir(p + k3 * hs);
-        p += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (hs / 6.0);
-    }
+    let p = reference_streamline_end(&abc, seed, length, 1e-3);
     let mut errs = Vec::new();
     for integ in [Integrator::Euler, Integrator::Rk4, Integrator::Rk45] {
         let s = trace(&f, &[seed], &opts(integ, 0.05, length));

@@ -327,6 +327,41 @@ impl VectorField for BurgersVortex {
 }
 
 /// Samples a vector field on a grid as a 3-component volume.
+/// The rigid rotation about the z axis (omega 1) sampled on a 41 x 41 x 9 slab over
+/// [-1, 1]^2 x [-0.2, 0.2]: a linear field, so trilinear interpolation is exact and a tracer's
+/// error on it is the integrator's alone (streamlines are circles about the z axis).
+pub fn rotation_slab() -> Volume {
+    let mut affine = cube_affine([41, 41, 41], -1.0, 1.0);
+    affine.z_axis.z = 0.05;
+    affine.w_axis.z = -0.2;
+    sample_vector(
+        &RigidRotation {
+            center: DVec3::ZERO,
+            axis: DVec3::Z,
+            omega: 1.0,
+        },
+        [41, 41, 9],
+        affine,
+        "v",
+    )
+}
+
+/// End point after arc length `length` of the streamline of `f` from `seed`, by classic RK4 on
+/// the analytic field's direction with step `h` (the high-accuracy reference of the tracing
+/// tests and of `engine/examples/trace_accuracy.rs`).
+pub fn reference_streamline_end(f: &dyn VectorField, seed: DVec3, length: f64, h: f64) -> DVec3 {
+    let dir = |p: DVec3| f.velocity(p).normalize();
+    let mut p = seed;
+    for _ in 0..(length / h).round() as usize {
+        let k1 = dir(p);
+        let k2 = dir(p + k1 * (h / 2.0));
+        let k3 = dir(p + k2 * (h / 2.0));
+        let k4 = dir(p + k3 * h);
+        p += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
+    }
+    p
+}
+
 pub fn sample_vector(
     field: &dyn VectorField,
     dims: [usize; 3],
