@@ -397,26 +397,8 @@ pub fn render(
         usage: wgpu::BufferUsages::STORAGE,
     });
     let n = (v.width * v.height) as u64;
-    let image = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("ea image"),
-        size: n * 16,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let readback = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("ea readback"),
-        size: n * 16,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let pipe = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("ea"),
-        layout: None,
-        module: &module,
-        entry_point: Some("main"),
-        compilation_options: Default::default(),
-        cache: None,
-    });
+    let (image, readback) = gpu.output_buffers("ea image", n * 16);
+    let pipe = gpu.compute_pipeline(&module, "main", "ea");
     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("ea"),
         layout: &pipe.get_bind_group_layout(0),

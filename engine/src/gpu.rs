@@ -214,6 +214,47 @@ impl Gpu {
     }
 
     /// Copies a buffer (which must have `MAP_READ`) back to the host.
+    /// A storage buffer of `size` bytes for a compute pass to write, and a mappable buffer of
+    /// the same size to copy it into for [`Gpu::read_buffer`].
+    pub fn output_buffers(&self, label: &str, size: u64) -> (wgpu::Buffer, wgpu::Buffer) {
+        let make = |suffix: &str, usage| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(&format!("{label} {suffix}")),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        (
+            make(
+                "output",
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            make(
+                "readback",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+        )
+    }
+
+    /// A compute pipeline for `entry` of `module`, its bind group layouts taken from the shader.
+    pub fn compute_pipeline(
+        &self,
+        module: &wgpu::ShaderModule,
+        entry: &str,
+        label: &str,
+    ) -> wgpu::ComputePipeline {
+        self.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: None,
+                module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+    }
+
     pub fn read_buffer(&self, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
         let slice = buffer.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();

@@ -32,26 +32,8 @@ pub fn run(gpu: &Gpu, requested_msaa: u32) -> Result<SmokeReport, GpuError> {
 
     // Compute: values[i] = i*i + 7.
     let n: u32 = 1000;
-    let storage = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("smoke values"),
-        size: n as u64 * 4,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let readback = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("smoke readback"),
-        size: n as u64 * 4,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let cpipe = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("smoke square"),
-        layout: None,
-        module: &module,
-        entry_point: Some("square"),
-        compilation_options: Default::default(),
-        cache: None,
-    });
+    let (storage, readback) = gpu.output_buffers("smoke values", n as u64 * 4);
+    let cpipe = gpu.compute_pipeline(&module, "square", "smoke square");
     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("smoke values"),
         layout: &cpipe.get_bind_group_layout(0),
