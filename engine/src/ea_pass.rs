@@ -1,6 +1,8 @@
-//! Emission-absorption volume rendering through view-aligned slices: the `ea` baseline of
-//! issue 5, and the first GPU pass of the renderer. Shader: `shaders/ea_pass.wgsl`; the same
-//! maths in f64 on the CPU is [`reference()`], which the tests compare it with on lavapipe.
+//! Emission-absorption volume rendering through view-aligned slices: the model of the `ea`
+//! baseline of issue 5 - the transfer function, where the slices are ([`EaView`]), empty-space
+//! bricks ([`occupancy`]) - and its f64 CPU twin [`reference()`], which the tests compare the
+//! GPU's `ea` method (`slice_pass`, entry `march` of `shaders/slice_pass.wgsl`) with on
+//! lavapipe.
 //!
 //! Paper: Schott et al., "Ambient Occlusion Effects for Combined Volumes and Tubular Geometry"
 //! (IEEE TVCG), section 3.2: the view-aligned slice traversal of Algorithm 1 and the eye-buffer
@@ -28,11 +30,8 @@
 //! extinction ([`occupancy`]); both are exact, and the CPU twin, which does neither, checks it.
 
 use crate::camera::Camera;
-use crate::gpu::{Gpu, GpuError};
 use glam::{DMat4, DVec3, DVec4};
 use volume::Volume;
-
-const SHADER: &str = include_str!("../../shaders/ea_pass.wgsl");
 
 /// A piecewise-linear transfer function: `(value, rgb, extinction)` points, values
 /// non-decreasing; constant beyond the ends.
@@ -125,7 +124,34 @@ impl EaView {
         slice_distance: Option<f64>,
         background: [f64; 3],
     ) -> Result<EaView, String> {
-        let [lo, hi] = vol.bounds();
+        let sp = vol.spacing();
+        let spacing = sp.iter().cloned().fold(f64::INFINITY, f64::min);
+        EaView::span(
+            vol.bounds(),
+            spacing,
+            camera,
+            width,
+            height,
+            slices,
+            slice_distance,
+            background,
+        )
+    }
+
+    /// Slices spanning the box `bounds` (the volume's and the tubes' together) seen by
+    /// `camera`; the default slice distance is half `spacing` (the smallest voxel spacing).
+    #[allow(clippy::too_many_arguments)]
+    pub fn span(
+        bounds: [DVec3; 2],
+        spacing: f64,
+        camera: Camera,
+        width: u32,
+        height: u32,
+        slices: Option<u32>,
+        slice_distance: Option<f64>,
+        background: [f64; 3],
+    ) -> Result<EaView, String> {
+        let [lo, hi] = bounds;
         let f = camera.forward();
         let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
         for i in 0..8 {
@@ -140,13 +166,12 @@ impl EaView {
         }
         let zmin = zmin.max(0.0);
         let depth = (zmax - zmin).max(1e-9);
-        let sp = vol.spacing();
         let count = |d: f64| (depth / d).ceil().max(1.0);
         let (n, what) = match (slices, slice_distance) {
             (Some(n), _) => (n as f64, "render.slices"),
             (None, Some(d)) => (count(d), "render.slice_distance"),
             (None, None) => (
-                count(0.5 * sp.iter().cloned().fold(f64::INFINITY, f64::min)),
+                count(0.5 * spacing),
                 "the default slice distance (half the smallest voxel spacing)",
             ),
         };
@@ -208,6 +233,32 @@ pub fn prepare(data: &[f32]) -> Vec<f32> {
         .collect()
 }
 
+/// The depth interval of slice `k`'s slab that the ray `o + s d` keeps behind the clipping
+/// planes (`normal . p <= offset`); empty when `b <= a`. The renderer samples the volume at
+/// its middle, over its length: cut faces then have no slice steps.
+pub fn slab_interval(v: &EaView, o: DVec3, d: DVec3, k: u32) -> (f64, f64) {
+    let f = v.camera.forward();
+    let cosine = d.dot(f);
+    let o_depth = (o - v.camera.eye).dot(f);
+    let mut a = v.z0 + k as f64 * v.dz;
+    let mut b = a + v.dz;
+    for (n, off) in &v.clip {
+        let n = DVec3::from(*n);
+        let g1 = n.dot(d) / cosine;
+        let g0 = n.dot(o) - off - g1 * o_depth;
+        if g1.abs() < 1e-12 {
+            if g0 > 0.0 {
+                b = a;
+            }
+        } else if g1 > 0.0 {
+            b = b.min(-g0 / g1);
+        } else {
+            a = a.max(-g0 / g1);
+        }
+    }
+    (a, b)
+}
+
 /// The CPU twin of the shader, in f64: RGBA per pixel (rows top to bottom), alpha the
 /// volume's opacity. `data` as [`prepare`] returns it.
 pub fn reference(data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[f64; 4]> {
@@ -220,18 +271,19 @@ pub fn reference(data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[
             let (o, d) = v.camera.ray(x as f64, y as f64, w, h);
             let cosine = d.dot(f);
             let o_depth = (o - v.camera.eye).dot(f);
-            let seg = v.dz / cosine;
             let (mut c, mut a) = ([0.0f64; 3], 0.0f64);
             for k in 0..v.slices {
-                let depth = v.z0 + (k as f64 + 0.5) * v.dz;
+                let (lo, hi) = slab_interval(v, o, d, k);
+                if hi <= lo {
+                    continue;
+                }
+                let depth = 0.5 * (lo + hi);
                 let s = (depth - o_depth) / cosine;
                 if s < 0.0 {
                     continue;
                 }
+                let seg = (hi - lo) / cosine;
                 let p = o + d * s;
-                if v.clip.iter().any(|(n, off)| DVec3::from(*n).dot(p) > *off) {
-                    continue;
-                }
                 let q = (w2i * DVec4::from((p, 1.0))).truncate();
                 let Some(val) = sample(data, vol.dims, q).filter(|&v| v >= -1e30) else {
                     continue;
@@ -288,165 +340,6 @@ pub fn occupancy(data: &[f32], dims: [usize; 3], tf: &Transfer) -> ([usize; 3], 
         })
         .collect();
     (nb, occ)
-}
-
-fn mat_bytes(m: DMat4, out: &mut Vec<u8>) {
-    for v in m.to_cols_array() {
-        out.extend((v as f32).to_le_bytes());
-    }
-}
-
-fn vec4_bytes(v: [f64; 4], out: &mut Vec<u8>) {
-    for x in v {
-        out.extend((x as f32).to_le_bytes());
-    }
-}
-
-/// Renders on the GPU: RGBA per pixel (rows top to bottom).
-pub fn render(
-    gpu: &Gpu,
-    data: &[f32],
-    vol: &Volume,
-    tf: &Transfer,
-    v: &EaView,
-) -> Result<Vec<[f32; 4]>, GpuError> {
-    use wgpu::util::DeviceExt;
-    let device = &gpu.device;
-    let limit = device.limits().max_storage_buffer_binding_size as usize;
-    if data.len() * 4 > limit {
-        return Err(GpuError::Operation(format!(
-            "the volume has {} samples; this adapter binds at most {} bytes ({} samples)",
-            data.len(),
-            limit,
-            limit / 4
-        )));
-    }
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("ea_pass.wgsl"),
-        source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-    });
-    let aspect = v.width as f64 / v.height.max(1) as f64;
-    let mut p = Vec::with_capacity(384);
-    mat_bytes(v.camera.view_projection(aspect).inverse(), &mut p);
-    mat_bytes(world_to_index(vol), &mut p);
-    let e = v.camera.eye;
-    let f = v.camera.forward();
-    vec4_bytes([e.x, e.y, e.z, 1.0], &mut p);
-    vec4_bytes([f.x, f.y, f.z, 0.0], &mut p);
-    let b = v.background;
-    vec4_bytes([b[0], b[1], b[2], 1.0], &mut p);
-    for d in [vol.dims[0], vol.dims[1], vol.dims[2], 0] {
-        p.extend((d as u32).to_le_bytes());
-    }
-    vec4_bytes([v.z0, v.dz, 0.0, 0.0], &mut p);
-    for c in [v.slices, tf.points.len() as u32, v.width, v.height] {
-        p.extend(c.to_le_bytes());
-    }
-    let (nb, occ) = occupancy(data, vol.dims, tf);
-    for c in [nb[0], nb[1], nb[2], BRICK] {
-        p.extend((c as u32).to_le_bytes());
-    }
-    if v.clip.len() > MAX_CLIP {
-        return Err(GpuError::Operation(format!(
-            "{} clipping planes; at most {MAX_CLIP}",
-            v.clip.len()
-        )));
-    }
-    for i in 0..MAX_CLIP {
-        let (n, off) = v.clip.get(i).copied().unwrap_or(([0.0; 3], 0.0));
-        vec4_bytes([n[0], n[1], n[2], off], &mut p);
-    }
-    for c in [v.clip.len() as u32, 0, 0, 0] {
-        p.extend(c.to_le_bytes());
-    }
-    let occbuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("ea occupancy"),
-        contents: bytemuck::cast_slice(&occ),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("ea params"),
-        contents: &p,
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
-    let field = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("ea field"),
-        contents: bytemuck::cast_slice(data),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let mut tfb: Vec<f32> = Vec::with_capacity(8 * tf.points.len().max(1));
-    for (val, rgb, sigma) in &tf.points {
-        tfb.extend([
-            *val as f32,
-            rgb[0] as f32,
-            rgb[1] as f32,
-            rgb[2] as f32,
-            *sigma as f32,
-            0.0,
-            0.0,
-            0.0,
-        ]);
-    }
-    if tfb.is_empty() {
-        tfb.resize(8, 0.0);
-    }
-    let tfbuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("ea transfer"),
-        contents: bytemuck::cast_slice(&tfb),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let n = (v.width * v.height) as u64;
-    let (image, readback) = gpu.output_buffers("ea image", n * 16);
-    let pipe = gpu.compute_pipeline(&module, "main", "ea");
-    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("ea"),
-        layout: &pipe.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: field.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: tfbuf.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: image.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: occbuf.as_entire_binding(),
-            },
-        ],
-    });
-    let mut enc = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipe);
-        pass.set_bind_group(0, &bind, &[]);
-        pass.dispatch_workgroups(v.width.div_ceil(8), v.height.div_ceil(8), 1);
-    }
-    enc.copy_buffer_to_buffer(&image, 0, &readback, 0, n * 16);
-    gpu.queue.submit([enc.finish()]);
-    if let Some(e) = pollster::block_on(scope.pop()) {
-        return Err(GpuError::Operation(format!(
-            "validation error in the ea pass: {e}"
-        )));
-    }
-    let bytes = gpu.read_buffer(&readback)?;
-    Ok(bytes
-        .chunks_exact(16)
-        .map(|c| {
-            let g = |i: usize| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap());
-            [g(0), g(1), g(2), g(3)]
-        })
-        .collect())
 }
 
 #[cfg(test)]

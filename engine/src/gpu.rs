@@ -23,6 +23,52 @@ pub enum GpuError {
     Check(String),
 }
 
+/// A uniform block being written field by field (f32 and u32, 16-byte rows as WGSL lays out
+/// `vec4` and `mat4x4` members).
+#[derive(Default)]
+pub struct Uniform(pub Vec<u8>);
+
+impl Uniform {
+    pub fn mat(&mut self, m: glam::DMat4) -> &mut Self {
+        for v in m.to_cols_array() {
+            self.0.extend((v as f32).to_le_bytes());
+        }
+        self
+    }
+    pub fn vec4(&mut self, v: [f64; 4]) -> &mut Self {
+        for x in v {
+            self.0.extend((x as f32).to_le_bytes());
+        }
+        self
+    }
+    pub fn u32x4(&mut self, v: [u32; 4]) -> &mut Self {
+        for x in v {
+            self.0.extend(x.to_le_bytes());
+        }
+        self
+    }
+}
+
+/// What binding `i` of a layout made by [`Gpu::layout`] holds.
+#[derive(Clone, Copy, Debug)]
+pub enum Slot {
+    Uniform,
+    /// A uniform buffer bound with a dynamic offset.
+    UniformDynamic,
+    /// A read-only storage buffer.
+    Storage,
+    /// A read-only storage buffer bound with a dynamic offset.
+    StorageDynamic,
+    StorageRw,
+    /// A filterable float 2-D texture.
+    Texture,
+    /// A float 2-D texture read with `textureLoad` only (r32float and the like).
+    UnfilterableTexture,
+    Sampler,
+    /// A write-only storage texture of this format.
+    StorageTexture(wgpu::TextureFormat),
+}
+
 /// An adapter with its device and queue.
 pub struct Gpu {
     pub adapter: wgpu::Adapter,
@@ -213,7 +259,6 @@ impl Gpu {
             .map_err(|e| GpuError::Operation(format!("waiting for the device: {e}")))
     }
 
-    /// Copies a buffer (which must have `MAP_READ`) back to the host.
     /// A storage buffer of `size` bytes for a compute pass to write, and a mappable buffer of
     /// the same size to copy it into for [`Gpu::read_buffer`].
     pub fn output_buffers(&self, label: &str, size: u64) -> (wgpu::Buffer, wgpu::Buffer) {
@@ -255,6 +300,152 @@ impl Gpu {
             })
     }
 
+    /// A bind group layout whose binding `i` is `slots[i]`, visible to `stages`.
+    pub fn layout(
+        &self,
+        label: &str,
+        stages: wgpu::ShaderStages,
+        slots: &[Slot],
+    ) -> wgpu::BindGroupLayout {
+        let entries: Vec<wgpu::BindGroupLayoutEntry> = slots
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let buffer = |ty, has_dynamic_offset| wgpu::BindingType::Buffer {
+                    ty,
+                    has_dynamic_offset,
+                    min_binding_size: None,
+                };
+                let texture = |filterable| wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                };
+                let ty = match s {
+                    Slot::Uniform => buffer(wgpu::BufferBindingType::Uniform, false),
+                    Slot::UniformDynamic => buffer(wgpu::BufferBindingType::Uniform, true),
+                    Slot::Storage => {
+                        buffer(wgpu::BufferBindingType::Storage { read_only: true }, false)
+                    }
+                    Slot::StorageDynamic => {
+                        buffer(wgpu::BufferBindingType::Storage { read_only: true }, true)
+                    }
+                    Slot::StorageRw => {
+                        buffer(wgpu::BufferBindingType::Storage { read_only: false }, false)
+                    }
+                    Slot::Texture => texture(true),
+                    Slot::UnfilterableTexture => texture(false),
+                    Slot::Sampler => {
+                        wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)
+                    }
+                    Slot::StorageTexture(format) => wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: *format,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                };
+                wgpu::BindGroupLayoutEntry {
+                    binding: i as u32,
+                    visibility: stages,
+                    ty,
+                    count: None,
+                }
+            })
+            .collect();
+        self.device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries: &entries,
+            })
+    }
+
+    /// A bind group whose binding `i` is `resources[i]`.
+    pub fn bind(
+        &self,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        resources: &[wgpu::BindingResource],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = resources
+            .iter()
+            .enumerate()
+            .map(|(i, r)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: r.clone(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout,
+            entries: &entries,
+        })
+    }
+
+    /// A pipeline layout of the given bind group layouts (group `i` is `layouts[i]`).
+    pub fn pipeline_layout(
+        &self,
+        label: &str,
+        layouts: &[&wgpu::BindGroupLayout],
+    ) -> wgpu::PipelineLayout {
+        let l: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
+        self.device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &l,
+                immediate_size: 0,
+            })
+    }
+
+    /// A compute pipeline for `entry` of `module` with an explicit layout.
+    pub fn compute_pipeline_with(
+        &self,
+        module: &wgpu::ShaderModule,
+        entry: &str,
+        layout: &wgpu::PipelineLayout,
+        label: &str,
+    ) -> wgpu::ComputePipeline {
+        self.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: Some(layout),
+                module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+    }
+
+    /// A buffer holding `bytes` with `usage`.
+    pub fn buffer(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage,
+            })
+    }
+
+    /// An uninitialised storage buffer of `size` bytes (at least 16).
+    pub fn scratch(&self, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: size.max(16),
+            usage: wgpu::BufferUsages::STORAGE | extra,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// A WGSL module; compile errors come back through the caller's error scope.
+    pub fn shader(&self, label: &str, source: &str) -> wgpu::ShaderModule {
+        self.device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+    }
+
+    /// Copies a buffer (which must have `MAP_READ`) back to the host.
     pub fn read_buffer(&self, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
         let slice = buffer.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();

@@ -244,14 +244,33 @@ enum Command {
         #[arg(long)]
         gzip: bool,
     },
-    /// Render a scene file to PNG on the GPU. So far only the emission-absorption baseline
-    /// (render.method = "ea") of the scene's volume; the occlusion methods come with issue 5.
+    /// Render a scene file on the GPU: volume and tubes with combined occlusion (or the
+    /// dos, vicinity, ea, phong baselines) to PNG (sRGB) or EXR (linear RGBA, --aov layers).
     Render {
         /// Scene file (see `umbra scene` and the README).
         scene: PathBuf,
-        /// Output image (PNG, sRGB).
+        /// Output image: .png (8-bit sRGB) or .exr (linear float RGBA).
         #[arg(short, long)]
         output: PathBuf,
+        /// Image width (render.width).
+        #[arg(long)]
+        width: Option<u32>,
+        /// Image height (render.height).
+        #[arg(long)]
+        height: Option<u32>,
+        /// combined, dos, vicinity, ea or phong (render.method).
+        #[arg(long)]
+        method: Option<String>,
+        /// Frames timed; total_ms is their median.
+        #[arg(long, default_value_t = 3)]
+        frames: u32,
+        /// Write the timings (total_ms, passes) as JSON to this file.
+        #[arg(long)]
+        timings_json: Option<PathBuf>,
+        /// Add the AOV channels to the EXR: volumetric, partial, vicinity and combined
+        /// occlusion, linear depth (Z).
+        #[arg(long)]
+        aov: bool,
         /// Override a scene key by its dotted path (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
@@ -706,10 +725,51 @@ fn run(cli: Cli) -> Result<(), String> {
         Command::Render {
             scene,
             output,
+            width,
+            height,
+            method,
+            frames,
+            timings_json,
+            aov,
             set,
             json,
         } => {
-            let r = engine::render_cmd::run(&scene, &set, &output)?;
+            let mut overrides = vec![];
+            if let Some(w) = width {
+                overrides.push(format!("render.width={w}"));
+            }
+            if let Some(h) = height {
+                overrides.push(format!("render.height={h}"));
+            }
+            if let Some(m) = method {
+                overrides.push(format!("render.method=\"{m}\""));
+            }
+            overrides.extend(set);
+            let r = engine::render_cmd::run(&engine::render_cmd::RenderArgs {
+                scene,
+                output: output.clone(),
+                overrides,
+                frames,
+                aov,
+            })?;
+            for n in &r.notes {
+                eprintln!("note: {n}");
+            }
+            if let Some(t) = timings_json {
+                let j = serde_json::json!({
+                    "total_ms": r.total_ms,
+                    "passes": r.passes,
+                    "frames_ms": r.frames_ms,
+                    "method": r.method,
+                    "width": r.width,
+                    "height": r.height,
+                    "slices": r.slices,
+                    "triangles": r.triangles,
+                    "adapter": r.adapter,
+                });
+                let text = serde_json::to_string_pretty(&j).map_err(|e| e.to_string())?;
+                volume::write_atomic(&t, text.as_bytes()).map_err(|e| e.to_string())?;
+            }
             if json {
                 println!(
                     "{}",
@@ -717,8 +777,21 @@ fn run(cli: Cli) -> Result<(), String> {
                 );
             } else {
                 println!(
-                    "{}: {} x {}, {} slices {:.4} apart, on {}, {:.2} s",
-                    r.method, r.width, r.height, r.slices, r.slice_distance, r.adapter, r.seconds
+                    "{}: {} x {}, {} slices {:.4} apart, {} triangles, on {}: {:.1} ms per frame ({}), {:.2} s in all",
+                    r.method,
+                    r.width,
+                    r.height,
+                    r.slices,
+                    r.slice_distance,
+                    r.triangles,
+                    r.adapter,
+                    r.total_ms,
+                    r.passes
+                        .iter()
+                        .map(|(k, v)| format!("{k} {v:.1}"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    r.seconds
                 );
             }
             eprintln!("wrote {}", output.display());

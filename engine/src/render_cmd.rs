@@ -1,13 +1,17 @@
-//! `umbra render <scene.toml> -o image.png`: the renderer of issue 5 as far as it exists - the
-//! emission-absorption baseline (`render.method = "ea"`) of the scene's volume on the GPU.
-//! Clipping planes apply; other methods and tubes are refused with a message that says so.
+//! `umbra render <scene.toml> -o image.png|image.exr`: reads a scene, builds its model (the
+//! volume's field and transfer function, a tube mesh per tube set), fits the camera and the
+//! slices to the volume and the tubes together, renders with `renderer::render` and writes
+//! the image (PNG 8-bit sRGB, or EXR linear float RGBA with optional AOV channels).
 
 use crate::camera::{Camera, Projection};
 use crate::ea_pass::{self, EaView, Transfer};
-use crate::scene::{self, Method, ProjectionKind, Scene, TransferSpec};
+use crate::renderer::{self, Aov, Settings, Timings};
+use crate::scene::{self, ProjectionKind, Scene, TransferSpec};
+use crate::slice_pass::VolumeInput;
 use glam::DVec3;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
+use tubes::tube_mesh::TubeMesh;
 
 /// What `render` did.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -17,8 +21,28 @@ pub struct RenderReport {
     pub height: u32,
     pub slices: u32,
     pub slice_distance: f64,
+    pub triangles: u64,
     pub adapter: String,
+    /// Median frame time and per-pass times (see `renderer::Timings`).
+    pub total_ms: f64,
+    pub passes: std::collections::BTreeMap<String, f64>,
+    pub frames_ms: Vec<f64>,
+    /// Wall time of the whole command: loading, meshing, rendering, writing.
     pub seconds: f64,
+    pub notes: Vec<String>,
+}
+
+/// What `umbra render` is asked to do.
+#[derive(Clone, Debug, Default)]
+pub struct RenderArgs {
+    pub scene: PathBuf,
+    pub output: PathBuf,
+    /// `--set KEY=VALUE` overrides (`--width`, `--height` and `--method` become these too).
+    pub overrides: Vec<String>,
+    /// Frames timed (the median is `total_ms`); at least 1.
+    pub frames: u32,
+    /// Write the AOV channels (EXR output only).
+    pub aov: bool,
 }
 
 /// Fraction of the value range below which the presets are transparent.
@@ -139,76 +163,300 @@ pub fn camera(s: &Scene, bounds: [DVec3; 2]) -> Result<Camera, String> {
     Ok(cam)
 }
 
-/// Renders the scene in `path` (with `--set` overrides) to `output` (PNG, sRGB).
-pub fn run(path: &Path, overrides: &[String], output: &Path) -> Result<RenderReport, String> {
-    let t0 = Instant::now();
-    let s = scene::load(path, overrides)?;
-    if s.render.method != Method::Ea {
-        return Err(format!(
-            "{}: render.method = {:?} is not implemented yet (issue 5); the emission-absorption baseline renders with --set render.method=ea",
-            path.display(),
-            s.render.method
-        )
-        .to_lowercase());
+/// A scene's model on the CPU: the volume as the passes read it, and the tube meshes.
+pub struct Model {
+    pub volume: Option<(volume::Volume, Vec<f32>, Transfer)>,
+    pub meshes: Vec<TubeMesh>,
+    pub bounds: [DVec3; 2],
+    /// Default slice distance's scale: the smallest voxel spacing, or without a volume the
+    /// bounding box's diagonal / 512.
+    pub spacing: f64,
+    pub notes: Vec<String>,
+}
+
+fn mesh_bounds(m: &TubeMesh) -> Option<[DVec3; 2]> {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for p in &m.positions {
+        let q = m.origin + p.as_dvec3();
+        lo = lo.min(q);
+        hi = hi.max(q);
     }
-    if !s.tubes.is_empty() {
-        return Err(format!(
-            "{}: tubes are not rendered yet (issue 5); remove [[tubes]] for the ea baseline",
-            path.display()
-        ));
+    (lo.x <= hi.x).then_some([lo, hi])
+}
+
+/// Loads the scene's volume and builds its tube meshes.
+pub fn model(s: &Scene) -> Result<Model, String> {
+    let mut notes = vec![];
+    let volume = match &s.volume {
+        None => None,
+        Some(vspec) => {
+            let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
+            let sel = vspec
+                .field
+                .as_deref()
+                .map(str::parse::<volume::FieldSelector>)
+                .transpose()
+                .map_err(|e| e.to_string())?;
+            let field = vol.select(sel.as_ref()).map_err(|e| e.to_string())?;
+            if field.components != 1 {
+                return Err(format!(
+                    "volume.field: '{}' has {} components; choose NAME:magnitude or NAME:x|y|z",
+                    field.name, field.components
+                ));
+            }
+            let st = field.stats();
+            if !(st.min.is_finite() && st.max.is_finite()) {
+                return Err(format!(
+                    "{}: the field has no finite values",
+                    vspec.path.display()
+                ));
+            }
+            let bad = field.data.iter().filter(|v| !v.is_finite()).count();
+            if bad > 0 {
+                notes.push(format!(
+                    "{}: {bad} NaN or infinite samples are rendered as gaps",
+                    vspec.path.display()
+                ));
+            }
+            let tf = transfer(&vspec.transfer, [st.min, st.max])?;
+            let data = ea_pass::prepare(&field.data);
+            Some((vol, data, tf))
+        }
+    };
+    let mut meshes = vec![];
+    for (i, t) in s.tubes.iter().enumerate() {
+        let mut sl = tubes::load(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
+        if let Some(m) = t.transform {
+            let rows = glam::DMat4::from_cols_array(&m).transpose();
+            if !m.iter().all(|v| v.is_finite()) || rows.determinant() == 0.0 {
+                return Err(format!(
+                    "tubes[{i}].transform: 16 finite numbers of an invertible row-major 4x4 matrix"
+                ));
+            }
+            sl.transform(&rows);
+        }
+        notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
+        let args = crate::tubes_cmd::TubesArgs {
+            input: t.path.clone(),
+            output: PathBuf::new(),
+            radius: t.radius,
+            sides: 8,
+            per_span: 1,
+            tolerance: t.tolerance,
+            chordal: None,
+            fit: tubes::bspline_fit::FitMethod::Iterative,
+            frame: tubes::tube_mesh::FrameMethod::Rmf,
+            radius_mode: tubes::tube_mesh::RadiusMode::Local,
+            color: t.color.clone(),
+            caps: true,
+            transform: None,
+        };
+        let (mesh, _) = crate::tubes_cmd::build_mesh(&sl, &args)
+            .map_err(|e| format!("tubes[{i}] ({}): {e}", t.path.display()))?;
+        meshes.push(mesh);
     }
-    if s.clip.len() > ea_pass::MAX_CLIP {
-        return Err(format!(
-            "{}: {} clipping planes; at most {}",
-            path.display(),
-            s.clip.len(),
-            ea_pass::MAX_CLIP
-        ));
+    let mut boxes: Vec<[DVec3; 2]> = meshes.iter().filter_map(mesh_bounds).collect();
+    if let Some((v, _, _)) = &volume {
+        boxes.push(v.bounds());
     }
-    let vspec = s
+    let Some(first) = boxes.first().copied() else {
+        return Err("the scene has neither a [volume] nor [[tubes]] with geometry".into());
+    };
+    let bounds = boxes
+        .iter()
+        .fold(first, |a, b| [a[0].min(b[0]), a[1].max(b[1])]);
+    let spacing = match &volume {
+        Some((v, _, _)) => v.spacing().iter().cloned().fold(f64::INFINITY, f64::min),
+        None => (bounds[1] - bounds[0]).length().max(1e-9) / 512.0,
+    };
+    Ok(Model {
+        volume,
+        meshes,
+        bounds,
+        spacing,
+        notes,
+    })
+}
+
+/// The renderer's settings from a scene.
+pub fn settings(s: &Scene) -> Settings {
+    let r = &s.render;
+    let l = &s.light;
+    Settings {
+        method: r.method,
+        theta_deg: r.theta,
+        blur_samples: r.blur_samples,
+        vicinity_samples: r.vicinity_samples,
+        vicinity_distance: r.vicinity_distance,
+        vicinity_bias: r
+            .vicinity_bias
+            .unwrap_or(scene::VICINITY_BIAS * r.vicinity_distance),
+        geometry_extinction: r.geometry_extinction,
+        column: r.geometry_shadow == scene::GeometryShadow::Column,
+        combine: r.combine,
+        fxaa: r.fxaa,
+        light: [l.ambient, l.diffuse, l.specular, l.shininess],
+        occlusion_cell: r.occlusion_cell,
+    }
+}
+
+/// The slices and image of a scene for a model.
+pub fn view(s: &Scene, m: &Model) -> Result<EaView, String> {
+    let cam = camera(s, m.bounds)?;
+    let r = &s.render;
+    let mut v = EaView::span(
+        m.bounds,
+        m.spacing,
+        cam,
+        r.width,
+        r.height,
+        r.slices,
+        r.slice_distance,
+        s.background.rgb()?,
+    )?;
+    v.clip = s.clip.iter().map(|c| (c.normal, c.offset)).collect();
+    Ok(v)
+}
+
+/// The clipping planes that cut the tubes.
+pub fn tube_clip(s: &Scene) -> Vec<([f64; 3], f64)> {
+    s.clip
+        .iter()
+        .filter(|c| !c.volume_only)
+        .map(|c| (c.normal, c.offset))
+        .collect()
+}
+
+/// Renders a loaded scene: the frame and the view it was seen through.
+pub fn render_scene(
+    gpu: &crate::gpu::Gpu,
+    s: &Scene,
+    m: &Model,
+    frames: u32,
+) -> Result<(renderer::Output, EaView), String> {
+    let v = view(s, m)?;
+    let vi = m
         .volume
         .as_ref()
-        .ok_or_else(|| format!("{}: the ea method needs a [volume]", path.display()))?;
-    let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
-    let sel = vspec
-        .field
-        .as_deref()
-        .map(str::parse::<volume::FieldSelector>)
-        .transpose()
-        .map_err(|e| e.to_string())?;
-    let field = vol.select(sel.as_ref()).map_err(|e| e.to_string())?;
-    if field.components != 1 {
+        .map(|(vol, data, tf)| VolumeInput { vol, data, tf });
+    let out = renderer::render(
+        gpu,
+        vi.as_ref(),
+        &m.meshes,
+        &tube_clip(s),
+        &v,
+        &settings(s),
+        frames,
+    )
+    .map_err(|e| e.to_string())?;
+    Ok((out, v))
+}
+
+/// Writes linear RGBA and AOVs as EXR (channels R, G, B, A, and with `aov`
+/// `occlusion.volumetric`, `occlusion.partial`, `occlusion.vicinity`, `occlusion.combined`,
+/// `Z`), through a temporary file renamed into place.
+pub fn write_exr(
+    path: &Path,
+    w: usize,
+    h: usize,
+    image: &[[f32; 4]],
+    aov: Option<&[Aov]>,
+) -> Result<(), String> {
+    use exr::prelude::*;
+    let ch = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    for (k, n) in ["R", "G", "B", "A"].iter().enumerate() {
+        list.push(ch(n, image.iter().map(|p| p[k]).collect()));
+    }
+    if let Some(a) = aov {
+        type Channel = (&'static str, fn(&Aov) -> f32);
+        let get: [Channel; 5] = [
+            ("occlusion.volumetric", |a| a.volumetric),
+            ("occlusion.partial", |a| a.partial),
+            ("occlusion.vicinity", |a| a.vicinity),
+            ("occlusion.combined", |a| a.combined),
+            ("Z", |a| a.depth),
+        ];
+        for (n, f) in get {
+            list.push(ch(n, a.iter().map(f).collect()));
+        }
+    }
+    let img = Image::from_channels((w, h), AnyChannels::sort(list));
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| format!("{}: encoding EXR: {e}", path.display()))?;
+    volume::write_atomic(path, bytes.get_ref()).map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// Runs `umbra render`.
+pub fn run(a: &RenderArgs) -> Result<RenderReport, String> {
+    let t0 = Instant::now();
+    let path = &a.scene;
+    let s = scene::load(path, &a.overrides)?;
+    let ext = a
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let exr = match ext.as_deref() {
+        Some("png") => false,
+        Some("exr") => true,
+        _ => {
+            return Err(format!(
+                "{}: the output must end in .png or .exr",
+                a.output.display()
+            ))
+        }
+    };
+    if a.aov && !exr {
         return Err(format!(
-            "volume.field: '{}' has {} components; choose NAME:magnitude or NAME:x|y|z",
-            field.name, field.components
+            "--aov: AOV channels are written to EXR only; {} is a PNG",
+            a.output.display()
         ));
     }
-    let st = field.stats();
-    if !(st.min.is_finite() && st.max.is_finite()) {
-        return Err(format!(
-            "{}: the field has no finite values",
-            vspec.path.display()
-        ));
-    }
-    let tf = transfer(&vspec.transfer, [st.min, st.max])?;
-    let cam = camera(&s, vol.bounds())?;
-    let bg = s.background.rgb()?;
-    let r = &s.render;
-    let mut view = EaView::new(&vol, cam, r.width, r.height, r.slices, r.slice_distance, bg)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    view.clip = s.clip.iter().map(|c| (c.normal, c.offset)).collect();
+    let m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
     let gpu = crate::gpu::Gpu::new().map_err(|e| e.to_string())?;
-    let data = ea_pass::prepare(&field.data);
-    let img = ea_pass::render(&gpu, &data, &vol, &tf, &view).map_err(|e| e.to_string())?;
-    let rgb: Vec<[f32; 3]> = img.iter().map(|c| [c[0], c[1], c[2]]).collect();
-    crate::iso_reference::write_rgb_png(output, r.width as usize, r.height as usize, &rgb)?;
+    let (out, v) = render_scene(&gpu, &s, &m, a.frames.max(1))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let (w, h) = (v.width as usize, v.height as usize);
+    if exr {
+        write_exr(&a.output, w, h, &out.image, a.aov.then_some(&out.aov[..]))?;
+    } else {
+        let rgb: Vec<[f32; 3]> = out.image.iter().map(|c| [c[0], c[1], c[2]]).collect();
+        crate::iso_reference::write_rgb_png(&a.output, w, h, &rgb)?;
+    }
+    let mut notes = m.notes;
+    if s.render.msaa > 1 {
+        notes.push(format!(
+            "render.msaa = {}: multisampling is not implemented yet; the G-buffer has one sample{}",
+            s.render.msaa,
+            if s.render.fxaa {
+                " and FXAA smooths the edges"
+            } else {
+                ""
+            }
+        ));
+    }
+    let Timings {
+        total_ms,
+        frames_ms,
+        passes,
+    } = out.timings;
     Ok(RenderReport {
-        method: "ea".into(),
-        width: r.width,
-        height: r.height,
-        slices: view.slices,
-        slice_distance: view.dz,
+        method: format!("{:?}", s.render.method).to_lowercase(),
+        width: v.width,
+        height: v.height,
+        slices: v.slices,
+        slice_distance: v.dz,
+        triangles: out.triangles,
         adapter: gpu.report().name,
+        total_ms,
+        passes,
+        frames_ms,
         seconds: t0.elapsed().as_secs_f64(),
+        notes,
     })
 }

@@ -166,6 +166,9 @@ fn default_tolerance() -> f64 {
 pub struct ClipSpec {
     pub normal: [f64; 3],
     pub offset: f64,
+    /// Cut the volume only, leaving the tubes whole (the paper's Fig. 11).
+    #[serde(default)]
+    pub volume_only: bool,
 }
 
 /// `[light]`: a head light with Phong parameters.
@@ -199,6 +202,19 @@ pub enum Method {
     Phong,
 }
 
+/// How tubes shadow the volume behind them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GeometryShadow {
+    /// Only where a slice sample lies inside a tube (between its front and back faces).
+    Inside,
+    /// Every sample behind a surface (the paper's rule: an endless shadow column).
+    Column,
+}
+
+/// Default vicinity depth bias as a fraction of `vicinity_distance`.
+pub const VICINITY_BIAS: f64 = 0.05;
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Combine {
@@ -224,9 +240,16 @@ pub struct RenderSpec {
     pub vicinity_samples: u32,
     /// Virtual slice distance l_vicinity, world units.
     pub vicinity_distance: f64,
+    /// Vicinity depth bias, world units (default: 5% of `vicinity_distance`).
+    pub vicinity_bias: Option<f64>,
     /// Extinction of the tubes for light travelling through the volume, per world unit.
     pub geometry_extinction: f64,
+    /// `inside` (the tubes' thickness) or `column` (the paper's endless shadow).
+    pub geometry_shadow: GeometryShadow,
     pub combine: Combine,
+    /// Edge of the occlusion buffer's cells in pixels, 1 to 16 (default: 2, or larger when
+    /// the light volume would not fit the adapter).
+    pub occlusion_cell: Option<u32>,
     /// MSAA samples (lowered to what the adapter supports, with a warning).
     pub msaa: u32,
     pub fxaa: bool,
@@ -244,8 +267,11 @@ impl Default for RenderSpec {
             blur_samples: 3,
             vicinity_samples: 32,
             vicinity_distance: 2.0,
+            vicinity_bias: None,
             geometry_extinction: 10.0,
+            geometry_shadow: GeometryShadow::Inside,
             combine: Combine::Min,
+            occlusion_cell: None,
             msaa: 4,
             fxaa: true,
         }
@@ -478,11 +504,31 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             format!("{} exceeds 118", r.vicinity_samples),
         );
     }
+    if !(r.vicinity_distance > 0.0 && r.vicinity_distance.is_finite()) {
+        return bad(
+            "render.vicinity_distance",
+            format!("{} is not positive", r.vicinity_distance),
+        );
+    }
+    if r.vicinity_bias
+        .is_some_and(|b| !(b >= 0.0 && b.is_finite()))
+    {
+        return bad("render.vicinity_bias", "must be finite and >= 0".into());
+    }
+    if !(r.geometry_extinction >= 0.0 && r.geometry_extinction.is_finite()) {
+        return bad(
+            "render.geometry_extinction",
+            format!("{} must be finite and >= 0", r.geometry_extinction),
+        );
+    }
     if !(1..=9).contains(&r.blur_samples) {
         return bad(
             "render.blur_samples",
             format!("{} is not in 1..9", r.blur_samples),
         );
+    }
+    if r.occlusion_cell.is_some_and(|c| !(1..=16).contains(&c)) {
+        return bad("render.occlusion_cell", "must be 1 to 16 pixels".into());
     }
     if ![1, 2, 4, 8].contains(&r.msaa) {
         return bad("render.msaa", format!("{} is not 1, 2, 4 or 8", r.msaa));

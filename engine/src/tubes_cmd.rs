@@ -6,7 +6,9 @@ use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
 use tubes::bspline_fit::{FitMethod, FitOptions};
-use tubes::tube_mesh::{build, ColorMode, FrameMethod, RadiusMode, TubeOptions, TubeStats};
+use tubes::tube_mesh::{
+    build, ColorMode, FrameMethod, RadiusMode, TubeMesh, TubeOptions, TubeStats,
+};
 
 /// What `umbra tubes` is asked to do.
 #[derive(Clone, Debug)]
@@ -98,6 +100,52 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
         s.transform(&rows);
     }
     let t_read = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let (mesh, st) = build_mesh(&s, a)?;
+    let t_compute = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    tubes::mesh_io::write(&a.output, &mesh).map_err(|e| e.to_string())?;
+    let t_write = t2.elapsed().as_secs_f64();
+    let mut warnings = s.warnings.clone();
+    if st.dropped_points > 0 {
+        warnings.push(format!(
+            "{} NaN or repeated points were dropped",
+            st.dropped_points
+        ));
+    }
+    if st.skipped_streamlines > 0 {
+        warnings.push(format!(
+            "{} streamlines with fewer than two distinct points have no tube",
+            st.skipped_streamlines
+        ));
+    }
+    Ok(TubesSummary {
+        streamlines_in: st.streamlines_in,
+        streamlines_out: st.streamlines_out,
+        points_in: st.points_in,
+        control_points: st.control_points,
+        triangles: st.triangles,
+        max_deviation: st.max_deviation,
+        max_twist_deg: st.max_twist_deg,
+        min_section_ratio: st.min_section_ratio,
+        radius_clamps: st.radius_clamps,
+        splits: st.splits,
+        dropped_points: st.dropped_points,
+        skipped_streamlines: st.skipped_streamlines,
+        vertices: mesh.positions.len(),
+        seconds: Seconds {
+            read: t_read,
+            compute: t_compute,
+            write: t_write,
+            total: t0.elapsed().as_secs_f64(),
+        },
+        warnings,
+    })
+}
+
+/// The tube mesh of `s` with the options of `a` (its paths are not used): the colour source
+/// resolved (a volume is loaded for `volume:PATH`), then `tubes::tube_mesh::build`.
+pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, TubeStats), String> {
     // Colour source.
     let vol_field;
     let sampler;
@@ -159,45 +207,5 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
         caps: a.caps,
         color,
     };
-    let t1 = Instant::now();
-    let (mesh, st): (_, TubeStats) = build(&s, &opts);
-    let t_compute = t1.elapsed().as_secs_f64();
-    let t2 = Instant::now();
-    tubes::mesh_io::write(&a.output, &mesh).map_err(|e| e.to_string())?;
-    let t_write = t2.elapsed().as_secs_f64();
-    let mut warnings = s.warnings.clone();
-    if st.dropped_points > 0 {
-        warnings.push(format!(
-            "{} NaN or repeated points were dropped",
-            st.dropped_points
-        ));
-    }
-    if st.skipped_streamlines > 0 {
-        warnings.push(format!(
-            "{} streamlines with fewer than two distinct points have no tube",
-            st.skipped_streamlines
-        ));
-    }
-    Ok(TubesSummary {
-        streamlines_in: st.streamlines_in,
-        streamlines_out: st.streamlines_out,
-        points_in: st.points_in,
-        control_points: st.control_points,
-        triangles: st.triangles,
-        max_deviation: st.max_deviation,
-        max_twist_deg: st.max_twist_deg,
-        min_section_ratio: st.min_section_ratio,
-        radius_clamps: st.radius_clamps,
-        splits: st.splits,
-        dropped_points: st.dropped_points,
-        skipped_streamlines: st.skipped_streamlines,
-        vertices: mesh.positions.len(),
-        seconds: Seconds {
-            read: t_read,
-            compute: t_compute,
-            write: t_write,
-            total: t0.elapsed().as_secs_f64(),
-        },
-        warnings,
-    })
+    Ok(build(s, &opts))
 }

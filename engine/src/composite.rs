@@ -1,0 +1,117 @@
+//! Final compositing and shading (Schott et al., section 3.2.6, Algorithm 6, eq. 7-10), as a
+//! compute pass. Shader: `shaders/composite.wgsl`.
+//!
+//! Where a surface is: `combined = min(partial, vicinity)` (eq. 7) or their product (eq. 8),
+//! the terms a method does not compute being 1; the surface is shaded by the head light,
+//! `combined * colour * (ambient + diffuse (n.l)) + specular (r.v)^shininess` (eq. 9), and the
+//! volume in front of it is composited over it, `surface (1 - alpha_v) + volume_rgb` (eq. 10).
+//! Elsewhere the background takes the surface's place, composited last ("under" blending;
+//! Algorithm 1 initialises the eye buffer with it, which adds it instead of attenuating it).
+//! The AOVs: volumetric occlusion (the opacity-weighted mean of the occlusion along the eye
+//! ray), partial, vicinity and combined occlusion, and linear depth (of the surface, or where
+//! the volume becomes half opaque if that is nearer).
+
+use crate::camera::Camera;
+use crate::gbuffer::GBuffer;
+use crate::gpu::{Gpu, Slot, Uniform};
+use crate::scene::Combine;
+
+const SHADER: &str = include_str!("../../shaders/composite.wgsl");
+
+/// Which occlusion terms shade the surfaces, and how they combine.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CompositeSettings {
+    pub partial: bool,
+    pub vicinity: bool,
+    pub combine: Combine,
+    /// ambient, diffuse, specular, shininess
+    pub light: [f64; 4],
+    pub background: [f64; 3],
+}
+
+pub struct CompositePass {
+    pipe: wgpu::ComputePipeline,
+    bind: wgpu::BindGroup,
+    pub image: wgpu::Buffer,
+    pub aov: wgpu::Buffer,
+    size: (u32, u32),
+}
+
+impl CompositePass {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        gpu: &Gpu,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        gbuf: &GBuffer,
+        eye: &wgpu::Buffer,
+        state: &wgpu::Buffer,
+        vicinity: &wgpu::Buffer,
+        s: &CompositeSettings,
+    ) -> CompositePass {
+        let module = gpu.shader("composite.wgsl", SHADER);
+        let layout = gpu.layout(
+            "composite",
+            wgpu::ShaderStages::COMPUTE,
+            &[
+                Slot::Uniform,
+                Slot::Storage,
+                Slot::Storage,
+                Slot::Storage,
+                Slot::UnfilterableTexture,
+                Slot::UnfilterableTexture,
+                Slot::UnfilterableTexture,
+                Slot::StorageRw,
+                Slot::StorageRw,
+            ],
+        );
+        let pl = gpu.pipeline_layout("composite", &[&layout]);
+        let pipe = gpu.compute_pipeline_with(&module, "main", &pl, "composite");
+        let aspect = width as f64 / height.max(1) as f64;
+        let b = s.background;
+        let mut u = Uniform::default();
+        u.mat(camera.view_projection(aspect).inverse())
+            .vec4([b[0], b[1], b[2], 1.0])
+            .vec4(s.light)
+            .u32x4([
+                width,
+                height,
+                s.partial as u32 | (s.vicinity as u32) << 1,
+                (s.combine == Combine::Product) as u32,
+            ]);
+        let params = gpu.buffer("composite params", &u.0, wgpu::BufferUsages::UNIFORM);
+        let n = width as u64 * height as u64;
+        let image = gpu.scratch("image", n * 16, wgpu::BufferUsages::COPY_SRC);
+        let aov = gpu.scratch("aov", n * 32, wgpu::BufferUsages::COPY_SRC);
+        let bind = gpu.bind(
+            "composite",
+            &layout,
+            &[
+                params.as_entire_binding(),
+                eye.as_entire_binding(),
+                state.as_entire_binding(),
+                vicinity.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&gbuf.color),
+                wgpu::BindingResource::TextureView(&gbuf.normal),
+                wgpu::BindingResource::TextureView(&gbuf.front),
+                image.as_entire_binding(),
+                aov.as_entire_binding(),
+            ],
+        );
+        CompositePass {
+            pipe,
+            bind,
+            image,
+            aov,
+            size: (width, height),
+        }
+    }
+
+    pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&self.pipe);
+        pass.set_bind_group(0, &self.bind, &[]);
+        pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+    }
+}

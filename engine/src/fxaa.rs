@@ -1,0 +1,61 @@
+//! FXAA on the final image (T. Lottes, "FXAA", NVIDIA white paper 2009; the compact variant of
+//! FXAA 3.11 for consoles) as a compute pass over the linear RGBA buffer. Shader:
+//! `shaders/fxaa.wgsl`. Luma is `sqrt` of the Rec. 601 weights of linear colour (close to the
+//! display encoding FXAA expects); pixels whose 2x2-diagonal luma range is below
+//! `max(1/32, max/8)` are copied; elsewhere the edge direction from the diagonal luma
+//! differences picks two or four bilinear taps along the edge, the wider blend rejected when
+//! it leaves the local luma range.
+
+use crate::gpu::{Gpu, Slot, Uniform};
+
+const SHADER: &str = include_str!("../../shaders/fxaa.wgsl");
+
+pub struct FxaaPass {
+    pipe: wgpu::ComputePipeline,
+    bind: wgpu::BindGroup,
+    pub output: wgpu::Buffer,
+    size: (u32, u32),
+}
+
+impl FxaaPass {
+    pub fn new(gpu: &Gpu, width: u32, height: u32, input: &wgpu::Buffer) -> FxaaPass {
+        let module = gpu.shader("fxaa.wgsl", SHADER);
+        let layout = gpu.layout(
+            "fxaa",
+            wgpu::ShaderStages::COMPUTE,
+            &[Slot::Uniform, Slot::Storage, Slot::StorageRw],
+        );
+        let pl = gpu.pipeline_layout("fxaa", &[&layout]);
+        let pipe = gpu.compute_pipeline_with(&module, "main", &pl, "fxaa");
+        let mut u = Uniform::default();
+        u.u32x4([width, height, 0, 0]);
+        let params = gpu.buffer("fxaa params", &u.0, wgpu::BufferUsages::UNIFORM);
+        let output = gpu.scratch(
+            "fxaa image",
+            width as u64 * height as u64 * 16,
+            wgpu::BufferUsages::COPY_SRC,
+        );
+        let bind = gpu.bind(
+            "fxaa",
+            &layout,
+            &[
+                params.as_entire_binding(),
+                input.as_entire_binding(),
+                output.as_entire_binding(),
+            ],
+        );
+        FxaaPass {
+            pipe,
+            bind,
+            output,
+            size: (width, height),
+        }
+    }
+
+    pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&self.pipe);
+        pass.set_bind_group(0, &self.bind, &[]);
+        pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+    }
+}

@@ -1,0 +1,238 @@
+//! The tubes' G-buffer (Schott et al., section 3.2.1), the one rasterised pass of the
+//! renderer. Shader: `shaders/gbuffer.wgsl`.
+//!
+//! Targets (all `width x height`, cleared to zero): surface colour (`rgba8unorm`, alpha 1 where
+//! a surface is), world-space normal facing the viewer (`rgba16float`), linear view depth of
+//! the nearest surface (`r32float`, the distance along the viewing direction, the same measure
+//! as the slices' depth; 0 where no surface is), and in a second pass the linear depth of the
+//! nearest back-facing surface, so that "inside a tube" is `front <= z <= back` (issue 5: the
+//! paper, with the front depth only, shadows an endless column behind every surface).
+//! Back faces are told by the interpolated vertex normal, not by the mesh's winding.
+//! Vertices are drawn camera-relative (`position + origin - eye` in f32 through
+//! `projection * view * translate(eye)`), which keeps precision for tubes far from the origin.
+//! Clipping planes discard fragments, as they remove volume samples.
+//!
+//! Not written yet: multisampling (the targets have one sample; FXAA smooths the edges).
+
+use crate::camera::Camera;
+use crate::gpu::{Gpu, Slot, Uniform};
+use glam::{DMat4, DVec3};
+use tubes::tube_mesh::TubeMesh;
+
+const SHADER: &str = include_str!("../../shaders/gbuffer.wgsl");
+
+pub const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+pub const NORMAL: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+pub const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+
+/// Bytes per vertex: position (3 f32), normal (3 f32), colour (4 unorm8).
+const STRIDE: u64 = 28;
+
+struct MeshBuffers {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    count: u32,
+    bind: wgpu::BindGroup,
+}
+
+/// The G-buffer's textures and the recorded draw of every mesh.
+pub struct GBuffer {
+    pub color: wgpu::TextureView,
+    pub normal: wgpu::TextureView,
+    pub front: wgpu::TextureView,
+    pub back: wgpu::TextureView,
+    depth_front: wgpu::TextureView,
+    depth_back: wgpu::TextureView,
+    front_pipe: wgpu::RenderPipeline,
+    back_pipe: wgpu::RenderPipeline,
+    meshes: Vec<MeshBuffers>,
+}
+
+fn target(
+    gpu: &Gpu,
+    label: &str,
+    format: wgpu::TextureFormat,
+    w: u32,
+    h: u32,
+) -> wgpu::TextureView {
+    gpu.device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+        .create_view(&Default::default())
+}
+
+impl GBuffer {
+    /// Uploads `meshes` and prepares the two passes for `camera` at `width x height`.
+    pub fn new(
+        gpu: &Gpu,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        meshes: &[TubeMesh],
+        clip: &[([f64; 3], f64)],
+    ) -> GBuffer {
+        let device = &gpu.device;
+        let module = gpu.shader("gbuffer.wgsl", SHADER);
+        let layout = gpu.layout(
+            "gbuffer",
+            wgpu::ShaderStages::VERTEX_FRAGMENT,
+            &[Slot::Uniform],
+        );
+        let pl = gpu.pipeline_layout("gbuffer", &[&layout]);
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4];
+        let vbl = [Some(wgpu::VertexBufferLayout {
+            array_stride: STRIDE,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &attributes,
+        })];
+        let pipeline = |entry: &str, targets: &[Option<wgpu::ColorTargetState>]| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pl),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs"),
+                    compilation_options: Default::default(),
+                    buffers: &vbl,
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: wgpu::TextureFormat::Depth32Float,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let t = |f| Some(wgpu::ColorTargetState::from(f));
+        let front_pipe = pipeline("fs_front", &[t(COLOR), t(NORMAL), t(DEPTH)]);
+        let back_pipe = pipeline("fs_back", &[t(DEPTH)]);
+        let aspect = width as f64 / height.max(1) as f64;
+        let vp_rel = camera.view_projection(aspect) * DMat4::from_translation(camera.eye);
+        let f = camera.forward();
+        let e = camera.eye;
+        let meshes = meshes
+            .iter()
+            .filter(|m| !m.indices.is_empty())
+            .map(|m| {
+                let mut v = Vec::with_capacity(m.positions.len() * STRIDE as usize);
+                for i in 0..m.positions.len() {
+                    let n = m.normals.get(i).copied().unwrap_or(glam::Vec3::Z);
+                    let c = m.colors.get(i).copied().unwrap_or([200, 200, 200]);
+                    for x in m.positions[i].to_array().into_iter().chain(n.to_array()) {
+                        v.extend(x.to_le_bytes());
+                    }
+                    v.extend([c[0], c[1], c[2], 255]);
+                }
+                let offset: DVec3 = m.origin - e;
+                let mut u = Uniform::default();
+                u.mat(vp_rel)
+                    .vec4([offset.x, offset.y, offset.z, 0.0])
+                    .vec4([f.x, f.y, f.z, 0.0])
+                    .vec4([e.x, e.y, e.z, 1.0]);
+                for i in 0..8 {
+                    let (n, o) = clip.get(i).copied().unwrap_or(([0.0; 3], 0.0));
+                    u.vec4([n[0], n[1], n[2], o]);
+                }
+                u.u32x4([clip.len().min(8) as u32, 0, 0, 0]);
+                let params = gpu.buffer("gbuffer params", &u.0, wgpu::BufferUsages::UNIFORM);
+                MeshBuffers {
+                    vertices: gpu.buffer("tube vertices", &v, wgpu::BufferUsages::VERTEX),
+                    indices: gpu.buffer(
+                        "tube indices",
+                        bytemuck::cast_slice(&m.indices),
+                        wgpu::BufferUsages::INDEX,
+                    ),
+                    count: m.indices.len() as u32,
+                    bind: gpu.bind("gbuffer", &layout, &[params.as_entire_binding()]),
+                }
+            })
+            .collect();
+        let depth = |l| target(gpu, l, wgpu::TextureFormat::Depth32Float, width, height);
+        GBuffer {
+            color: target(gpu, "gbuffer colour", COLOR, width, height),
+            normal: target(gpu, "gbuffer normal", NORMAL, width, height),
+            front: target(gpu, "gbuffer front depth", DEPTH, width, height),
+            back: target(gpu, "gbuffer back depth", DEPTH, width, height),
+            depth_front: depth("gbuffer z front"),
+            depth_back: depth("gbuffer z back"),
+            front_pipe,
+            back_pipe,
+            meshes,
+        }
+    }
+
+    /// Triangles drawn per pass.
+    pub fn triangles(&self) -> u64 {
+        self.meshes.iter().map(|m| m.count as u64 / 3).sum()
+    }
+
+    /// Records both passes (they also clear the targets when there are no meshes).
+    pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
+        let clear = |view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        };
+        let passes: [(&wgpu::RenderPipeline, Vec<_>, &wgpu::TextureView); 2] = [
+            (
+                &self.front_pipe,
+                vec![clear(&self.color), clear(&self.normal), clear(&self.front)],
+                &self.depth_front,
+            ),
+            (&self.back_pipe, vec![clear(&self.back)], &self.depth_back),
+        ];
+        for (pipe, targets, depth) in passes {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("gbuffer"),
+                color_attachments: &targets,
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(pipe);
+            for m in &self.meshes {
+                pass.set_bind_group(0, &m.bind, &[]);
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..m.count, 0, 0..1);
+            }
+        }
+    }
+}

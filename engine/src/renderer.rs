@@ -1,0 +1,293 @@
+//! The frame: the passes of Schott et al.'s combined volume and tube occlusion in order -
+//! G-buffer (raster), slices (compute; eye buffer, volumetric and partial occlusion),
+//! vicinity occlusion, compositing and FXAA (compute) - with per-pass timings.
+//!
+//! Data flows one way: the model (a volume with its transfer function, tube meshes) and the
+//! view come in; an image and its AOVs come out. Methods (`render.method`):
+//!
+//! | method     | volume shading            | surface occlusion          | dispatches per frame |
+//! |------------|---------------------------|----------------------------|----------------------|
+//! | `combined` | occlusion buffer (DOS)    | partial and vicinity       | one per slice        |
+//! | `dos`      | occlusion buffer (DOS)    | partial                    | one per slice        |
+//! | `vicinity` | emission-absorption       | vicinity                   | one                  |
+//! | `ea`       | emission-absorption       | none                       | one                  |
+//! | `phong`    | Phong, gradient normals   | none                       | one                  |
+//!
+//! Timings: `total_ms` is the median over frames of one frame's submit-to-completion time
+//! (everything recorded in one command buffer, then waited for); the per-pass figures come
+//! from one more frame in which each pass is submitted and waited for on its own (fences;
+//! timestamp queries are not used yet), so they include a submission's overhead each.
+
+use crate::camera::Camera;
+use crate::composite::{CompositePass, CompositeSettings};
+use crate::ea_pass::EaView;
+use crate::fxaa::FxaaPass;
+use crate::gbuffer::GBuffer;
+use crate::gpu::{Gpu, GpuError};
+use crate::scene::{Combine, Method};
+use crate::slice_pass::{SlicePass, SliceSettings, VolumeInput};
+use crate::vicinity::{VicinityPass, VicinitySettings};
+use std::collections::BTreeMap;
+use std::time::Instant;
+use tubes::tube_mesh::TubeMesh;
+
+/// Everything about how a frame is shaded.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    pub method: Method,
+    pub theta_deg: f64,
+    pub blur_samples: u32,
+    pub vicinity_samples: u32,
+    pub vicinity_distance: f64,
+    /// Vicinity depth bias, world units.
+    pub vicinity_bias: f64,
+    pub geometry_extinction: f64,
+    /// The paper's endless shadow column behind surfaces.
+    pub column: bool,
+    pub combine: Combine,
+    pub fxaa: bool,
+    /// ambient, diffuse, specular, shininess
+    pub light: [f64; 4],
+    /// Occlusion buffer cell edge in pixels (None: chosen, see `slice_pass::auto_cell`).
+    pub occlusion_cell: Option<u32>,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            method: Method::Combined,
+            theta_deg: 25.0,
+            blur_samples: 3,
+            vicinity_samples: 32,
+            vicinity_distance: 2.0,
+            vicinity_bias: 0.1,
+            geometry_extinction: 10.0,
+            column: false,
+            combine: Combine::Min,
+            fxaa: true,
+            light: [0.3, 0.7, 0.3, 32.0],
+            occlusion_cell: None,
+        }
+    }
+}
+
+/// Per-pixel occlusion and depth outputs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Aov {
+    pub volumetric: f32,
+    pub partial: f32,
+    pub vicinity: f32,
+    pub combined: f32,
+    /// Linear view depth; 0 where nothing is.
+    pub depth: f32,
+}
+
+/// What the passes took.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Timings {
+    /// Median submit-to-completion time of one frame.
+    pub total_ms: f64,
+    /// Each frame's time, in order.
+    pub frames_ms: Vec<f64>,
+    /// Per pass, each submitted and waited for alone.
+    pub passes: BTreeMap<String, f64>,
+}
+
+/// A rendered frame: linear RGBA (alpha: coverage) and AOVs, rows top to bottom.
+pub struct Output {
+    pub image: Vec<[f32; 4]>,
+    pub aov: Vec<Aov>,
+    pub timings: Timings,
+    pub triangles: u64,
+}
+
+/// A pass's recording into a command encoder, with its name.
+type Recorder<'a> = (&'static str, Box<dyn Fn(&mut wgpu::CommandEncoder) + 'a>);
+
+struct Frame {
+    gbuf: GBuffer,
+    slices: SlicePass,
+    vicinity: Option<VicinityPass>,
+    composite: CompositePass,
+    fxaa: Option<FxaaPass>,
+}
+
+impl Frame {
+    fn passes(&self) -> Vec<Recorder<'_>> {
+        let mut p: Vec<Recorder<'_>> = vec![
+            ("gbuffer", Box::new(|e| self.gbuf.record(e))),
+            ("slices", Box::new(|e| self.slices.record(e))),
+        ];
+        if let Some(v) = &self.vicinity {
+            p.push(("vicinity", Box::new(move |e| v.record(e))));
+        }
+        p.push(("composite", Box::new(|e| self.composite.record(e))));
+        if let Some(f) = &self.fxaa {
+            p.push(("fxaa", Box::new(move |e| f.record(e))));
+        }
+        p
+    }
+
+    fn final_image(&self) -> &wgpu::Buffer {
+        self.fxaa
+            .as_ref()
+            .map(|f| &f.output)
+            .unwrap_or(&self.composite.image)
+    }
+}
+
+fn submit_and_wait(gpu: &Gpu, record: &dyn Fn(&mut wgpu::CommandEncoder)) -> Result<f64, GpuError> {
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    record(&mut enc);
+    let t = Instant::now();
+    gpu.queue.submit([enc.finish()]);
+    gpu.wait()?;
+    Ok(t.elapsed().as_secs_f64() * 1e3)
+}
+
+/// Renders `frames` frames (at least 1) of the model seen through `view` (whose clipping
+/// planes cut the volume; `tube_clip` cuts the tubes) and reads the last one back.
+pub fn render(
+    gpu: &Gpu,
+    volume: Option<&VolumeInput>,
+    meshes: &[TubeMesh],
+    tube_clip: &[([f64; 3], f64)],
+    view: &EaView,
+    s: &Settings,
+    frames: u32,
+) -> Result<Output, GpuError> {
+    let (w, h) = (view.width, view.height);
+    if w == 0 || h == 0 {
+        return Err(GpuError::Operation(format!(
+            "the viewport is {w} x {h}; width and height must be positive"
+        )));
+    }
+    let lim = gpu.device.limits().max_texture_dimension_2d;
+    if w > lim || h > lim {
+        return Err(GpuError::Operation(format!(
+            "{w} x {h} exceeds this adapter's largest 2-D texture ({lim})"
+        )));
+    }
+    let occlusion = matches!(s.method, Method::Combined | Method::Dos);
+    let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let cam: &Camera = &view.camera;
+    let gbuf = GBuffer::new(gpu, cam, w, h, meshes, tube_clip);
+    let slices = SlicePass::new(
+        gpu,
+        volume,
+        view,
+        &gbuf,
+        &SliceSettings {
+            occlusion,
+            cell: s.occlusion_cell,
+            phong: s.method == Method::Phong,
+            column: s.column,
+            theta_deg: s.theta_deg,
+            blur_samples: s.blur_samples,
+            geometry_extinction: s.geometry_extinction,
+            light: s.light,
+        },
+    )?;
+    let use_vicinity = matches!(s.method, Method::Combined | Method::Vicinity);
+    let vicinity = VicinityPass::new(
+        gpu,
+        cam,
+        w,
+        h,
+        &gbuf,
+        &VicinitySettings {
+            samples: s.vicinity_samples,
+            distance: s.vicinity_distance,
+            theta_deg: s.theta_deg,
+            bias: s.vicinity_bias,
+        },
+    );
+    let composite = CompositePass::new(
+        gpu,
+        cam,
+        w,
+        h,
+        &gbuf,
+        &slices.eye,
+        &slices.state,
+        &vicinity.output,
+        &CompositeSettings {
+            partial: occlusion,
+            vicinity: use_vicinity,
+            combine: s.combine,
+            light: s.light,
+            background: view.background,
+        },
+    );
+    let fxaa = s.fxaa.then(|| FxaaPass::new(gpu, w, h, &composite.image));
+    let frame = Frame {
+        gbuf,
+        slices,
+        vicinity: use_vicinity.then_some(vicinity),
+        composite,
+        fxaa,
+    };
+    let passes = frame.passes();
+    let whole = |enc: &mut wgpu::CommandEncoder| {
+        for (_, p) in &passes {
+            p(enc);
+        }
+    };
+    let mut frames_ms = Vec::new();
+    for _ in 0..frames.max(1) {
+        frames_ms.push(submit_and_wait(gpu, &whole)?);
+    }
+    let mut per_pass = BTreeMap::new();
+    for (name, p) in &passes {
+        per_pass.insert(name.to_string(), submit_and_wait(gpu, p.as_ref())?);
+    }
+    if let Some(e) = pollster::block_on(oom.pop()) {
+        return Err(GpuError::Operation(format!(
+            "the GPU ran out of memory rendering {w} x {h}: {e}"
+        )));
+    }
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        return Err(GpuError::Operation(format!(
+            "validation error in a render pass: {e}"
+        )));
+    }
+    let n = w as u64 * h as u64;
+    let (_, image_rb) = gpu.output_buffers("image", n * 16);
+    let (_, aov_rb) = gpu.output_buffers("aov", n * 32);
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(frame.final_image(), 0, &image_rb, 0, n * 16);
+    enc.copy_buffer_to_buffer(&frame.composite.aov, 0, &aov_rb, 0, n * 32);
+    gpu.queue.submit([enc.finish()]);
+    let f32s = |b: Vec<u8>| -> Vec<f32> {
+        b.chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    };
+    let img = f32s(gpu.read_buffer(&image_rb)?);
+    let aov = f32s(gpu.read_buffer(&aov_rb)?);
+    let mut sorted = frames_ms.clone();
+    sorted.sort_by(f64::total_cmp);
+    Ok(Output {
+        image: img
+            .chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect(),
+        aov: aov
+            .chunks_exact(8)
+            .map(|c| Aov {
+                volumetric: c[0],
+                partial: c[1],
+                vicinity: c[2],
+                combined: c[3],
+                depth: c[4],
+            })
+            .collect(),
+        timings: Timings {
+            total_ms: sorted[sorted.len() / 2],
+            frames_ms,
+            passes: per_pass,
+        },
+        triangles: frame.gbuf.triangles(),
+    })
+}

@@ -1,0 +1,79 @@
+// Final compositing and shading (Schott et al., Algorithm 6, eq. 7-10) as a compute pass.
+// Rust side: engine/src/composite.rs.
+
+struct Params {
+    inv_view_proj: mat4x4<f32>,
+    background: vec4<f32>,
+    // ambient, diffuse, specular, shininess
+    light: vec4<f32>,
+    // width, height, occlusion terms used (1 partial, 2 vicinity), combine (0 min, 1 product)
+    mode: vec4<u32>,
+};
+
+@group(0) @binding(0) var<uniform> C: Params;
+@group(0) @binding(1) var<storage, read> eye_buf: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> state: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> vicinity: array<f32>;
+@group(0) @binding(4) var g_color: texture_2d<f32>;
+@group(0) @binding(5) var g_normal: texture_2d<f32>;
+@group(0) @binding(6) var front_depth: texture_2d<f32>;
+// Linear RGBA: colour, and alpha = coverage (1 where a surface is, else the volume's opacity).
+@group(0) @binding(7) var<storage, read_write> image: array<vec4<f32>>;
+// AOVs per pixel: (volumetric, partial, vicinity, combined), (linear depth, 0, 0, 0).
+@group(0) @binding(8) var<storage, read_write> aov: array<vec4<f32>>;
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = C.mode.x;
+    let h = C.mode.y;
+    if (id.x >= w || id.y >= h) {
+        return;
+    }
+    let idx = id.x + w * id.y;
+    let e = eye_buf[idx];
+    let s0 = state[2u * idx];
+    let s1 = state[2u * idx + 1u];
+    let z = textureLoad(front_depth, vec2<i32>(id.xy), 0).r;
+    let volumetric = select(1.0, s0.z / s0.w, s0.w > 1e-6);
+    var partial = 1.0;
+    var vic = 1.0;
+    var combined = 1.0;
+    var under = C.background.rgb;
+    var coverage = e.a;
+    if (z > 0.0) {
+        if ((C.mode.z & 1u) != 0u) {
+            partial = s0.y;
+        }
+        if ((C.mode.z & 2u) != 0u) {
+            vic = vicinity[idx];
+        }
+        // eq. 7 (min) or eq. 8 (product)
+        combined = select(min(partial, vic), partial * vic, C.mode.w == 1u);
+        // The head light: from the eye along the pixel's ray.
+        let ndc = vec2<f32>(
+            2.0 * (f32(id.x) + 0.5) / f32(w) - 1.0,
+            1.0 - 2.0 * (f32(id.y) + 0.5) / f32(h),
+        );
+        let a4 = C.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
+        let b4 = C.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
+        let to_eye = -normalize(b4.xyz / b4.w - a4.xyz / a4.w);
+        let n = textureLoad(g_normal, vec2<i32>(id.xy), 0).xyz;
+        let nl = max(dot(n, to_eye), 0.0);
+        // Head light: the reflection of the light about n makes angle 2 acos(n.l) with the
+        // view direction; cos of it is 2 (n.l)^2 - 1.
+        let rv = max(2.0 * nl * nl - 1.0, 0.0);
+        let spec = C.light.z * pow(rv, C.light.w);
+        let albedo = textureLoad(g_color, vec2<i32>(id.xy), 0).rgb;
+        // eq. 9
+        under = combined * albedo * (C.light.x + C.light.y * nl) + vec3<f32>(spec);
+        coverage = 1.0;
+    }
+    // eq. 10, with the background last when no surface is there.
+    image[idx] = vec4<f32>(under * (1.0 - e.a) + e.rgb, coverage);
+    var depth = z;
+    if (s1.x > 0.0 && (z <= 0.0 || s1.x < z)) {
+        depth = s1.x;
+    }
+    aov[2u * idx] = vec4<f32>(volumetric, partial, vic, combined);
+    aov[2u * idx + 1u] = vec4<f32>(depth, 0.0, 0.0, 0.0);
+}

@@ -1,0 +1,67 @@
+// FXAA on the final image (Lottes' FXAA 3.11, the compact "PC console" variant) as a compute
+// pass over a linear RGBA buffer. Rust side: engine/src/fxaa.rs.
+
+struct Params {
+    // width, height, unused, unused
+    size: vec4<u32>,
+};
+
+@group(0) @binding(0) var<uniform> F: Params;
+@group(0) @binding(1) var<storage, read> src: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> dst: array<vec4<f32>>;
+
+fn texel(p: vec2<i32>) -> vec4<f32> {
+    let q = clamp(p, vec2<i32>(0), vec2<i32>(i32(F.size.x) - 1, i32(F.size.y) - 1));
+    return src[u32(q.x) + F.size.x * u32(q.y)];
+}
+
+// Bilinear fetch at a continuous pixel position (texel centres at half-integers).
+fn fetch(t: vec2<f32>) -> vec4<f32> {
+    let s = t - vec2<f32>(0.5);
+    let b = vec2<i32>(floor(s));
+    let f = s - floor(s);
+    let a = mix(texel(b), texel(b + vec2<i32>(1, 0)), f.x);
+    let c = mix(texel(b + vec2<i32>(0, 1)), texel(b + vec2<i32>(1, 1)), f.x);
+    return mix(a, c, f.y);
+}
+
+// Perceptual luma of linear colour (sqrt approximates the display encoding).
+fn luma(c: vec4<f32>) -> f32 {
+    return sqrt(max(dot(c.rgb, vec3<f32>(0.299, 0.587, 0.114)), 0.0));
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= F.size.x || id.y >= F.size.y) {
+        return;
+    }
+    let p = vec2<i32>(id.xy);
+    let centre = vec2<f32>(id.xy) + vec2<f32>(0.5);
+    let m = texel(p);
+    let l_m = luma(m);
+    let l_nw = luma(fetch(centre + vec2<f32>(-0.5, -0.5)));
+    let l_ne = luma(fetch(centre + vec2<f32>(0.5, -0.5)));
+    let l_sw = luma(fetch(centre + vec2<f32>(-0.5, 0.5)));
+    let l_se = luma(fetch(centre + vec2<f32>(0.5, 0.5)));
+    let l_min = min(l_m, min(min(l_nw, l_ne), min(l_sw, l_se)));
+    let l_max = max(l_m, max(max(l_nw, l_ne), max(l_sw, l_se)));
+    let idx = id.x + F.size.x * id.y;
+    // Low contrast: no edge (FXAA's edge threshold 1/8, minimum 1/32).
+    if (l_max - l_min < max(1.0 / 32.0, l_max / 8.0)) {
+        dst[idx] = m;
+        return;
+    }
+    // Edge direction from the diagonal luma differences (pixel y down).
+    var dir = vec2<f32>(-((l_nw + l_ne) - (l_sw + l_se)), (l_nw + l_sw) - (l_ne + l_se));
+    let reduce = max((l_nw + l_ne + l_sw + l_se) * 0.25 * (1.0 / 8.0), 1.0 / 128.0);
+    let rcp = 1.0 / (min(abs(dir.x), abs(dir.y)) + reduce);
+    dir = clamp(dir * rcp, vec2<f32>(-8.0), vec2<f32>(8.0));
+    let a = 0.5 * (fetch(centre + dir * (1.0 / 3.0 - 0.5)) + fetch(centre + dir * (2.0 / 3.0 - 0.5)));
+    let b = a * 0.5 + 0.25 * (fetch(centre - dir * 0.5) + fetch(centre + dir * 0.5));
+    let l_b = luma(b);
+    if (l_b < l_min || l_b > l_max) {
+        dst[idx] = a;
+    } else {
+        dst[idx] = b;
+    }
+}

@@ -1,0 +1,482 @@
+// View-aligned slices through the volume and the tubes: Schott et al., Algorithms 1-4.
+// Rust side and the maths it implements: engine/src/slice_pass.rs. Conventions:
+// engine/src/camera.rs. Slice k is the plane at view depth z_k = z0 + (k + 0.5) d; it stands
+// for the slab [z0 + k d, z0 + (k + 1) d].
+//
+// Two entry points share the per-sample code:
+// * `light` does one slice of the volumetric occlusion buffer (Alg. 3) on a grid of cells of
+//   s x s pixels (the dispatch is the barrier the blur needs): O_k gathered from the light
+//   leaving slice k - 1 with the cone blur, the light leaving slice k through the volume and
+//   the tubes' thickness, O_k stored in the light volume (cells x slices).
+// * `march` walks every slice of a pixel in one invocation: the eye buffer (Alg. 2) with the
+//   volume's colour modulated by the light volume when there is one, rays clipped to the
+//   grid's box and to the surface, empty bricks skipped, early termination; then the partial
+//   occlusion of the surface (Alg. 4, eq. 1-3 in the intended order) from the light volume.
+
+struct Params {
+    inv_view_proj: mat4x4<f32>,
+    world_to_index: mat4x4<f32>,
+    eye: vec4<f32>,
+    forward: vec4<f32>,
+    dims: vec4<u32>,
+    // z0, d, tan(theta), geometry extinction per world unit
+    slicing: vec4<f32>,
+    // n_slices, n_tf, width, height
+    counts: vec4<u32>,
+    // bricks per axis (x, y, z), brick edge in voxels
+    bricks: vec4<u32>,
+    clip: array<vec4<f32>, 8>,
+    // n_clip, mode bits (1 light volume, 2 Phong volume, 4 endless shadow columns),
+    // has_volume, blur samples per axis
+    flags: vec4<u32>,
+    // P00, P11, perspective (1) or orthographic (0), unused
+    proj: vec4<f32>,
+    // ambient, diffuse, specular, shininess
+    light: vec4<f32>,
+    // cells per axis (x, y), cell edge in pixels, unused
+    cells: vec4<u32>,
+};
+
+// Per slice (a dynamic offset into a storage buffer): the index, whether the blur needs the
+// tap loop (radius above one cell), the radius in cells, and otherwise the blur as a 3x3
+// stencil (rows y = -1, 0, 1 in xyz of w[0..3]) - the n x n bilinear taps summed on the CPU,
+// the same for every cell of the slice.
+struct Slice {
+    k: u32,
+    wide: u32,
+    pad0: u32,
+    pad1: u32,
+    rpx: vec4<f32>,
+    w: array<vec4<f32>, 3>,
+};
+
+@group(0) @binding(0) var<uniform> P: Params;
+@group(0) @binding(1) var<storage, read> field: array<f32>;
+// Transfer function points: (value, r, g, b, extinction, 0, 0, 0) each.
+@group(0) @binding(2) var<storage, read> tf: array<f32>;
+@group(0) @binding(3) var<storage, read> occupied: array<u32>;
+// Eye buffer: premultiplied colour and opacity of the volume in front of the surface.
+@group(0) @binding(4) var<storage, read_write> eye_buf: array<vec4<f32>>;
+// Per pixel two vec4: (unused, partial occlusion, sum w O, sum w), (depth where the eye
+// buffer's opacity reached 0.5 or 0, unused x3).
+@group(0) @binding(5) var<storage, read_write> state: array<vec4<f32>>;
+// Linear depth of the tubes' nearest front and back faces (0: none).
+@group(0) @binding(6) var front_depth: texture_2d<f32>;
+@group(0) @binding(7) var back_depth: texture_2d<f32>;
+// O_k per cell and slice (index cx + cells.x (cy + cells.y k)).
+@group(0) @binding(8) var<storage, read_write> light_volume: array<f32>;
+// Per cell: (nearest front depth of its pixels or 0, farthest back depth, 1 / cos of the
+// cell's ray, unused).
+@group(0) @binding(9) var<storage, read_write> cell_state: array<vec4<f32>>;
+@group(1) @binding(0) var<storage, read> S: Slice;
+// Light leaving the previous slice towards the next (L_{k-1} = O_{k-1} (1 - alpha_{k-1})),
+// and the same for this slice, per cell.
+@group(1) @binding(1) var<storage, read> occ_in: array<f32>;
+@group(1) @binding(2) var<storage, read_write> occ_out: array<f32>;
+
+fn occ_texel(p: vec2<i32>) -> f32 {
+    let q = clamp(p, vec2<i32>(0), vec2<i32>(P.cells.xy) - vec2<i32>(1));
+    return occ_in[u32(q.x) + P.cells.x * u32(q.y)];
+}
+
+// Bilinear read of the previous slice's light at a continuous cell position (centres at
+// half-integers, clamped at the border).
+fn occ_bilinear(t: vec2<f32>) -> f32 {
+    let s = t - vec2<f32>(0.5);
+    let b = vec2<i32>(floor(s));
+    let f = s - floor(s);
+    let a = mix(occ_texel(b), occ_texel(b + vec2<i32>(1, 0)), f.x);
+    let c = mix(occ_texel(b + vec2<i32>(0, 1)), occ_texel(b + vec2<i32>(1, 1)), f.x);
+    return mix(a, c, f.y);
+}
+
+// O of slice k (clamped to the slices) at a continuous pixel position, bilinear over cells.
+fn light_at(px: vec2<f32>, k: u32) -> f32 {
+    let kk = min(k, P.counts.x - 1u);
+    let c = px / f32(P.cells.z) - vec2<f32>(0.5);
+    let b = vec2<i32>(floor(c));
+    let f = c - floor(c);
+    let hi = vec2<i32>(P.cells.xy) - vec2<i32>(1);
+    let base = P.cells.x * P.cells.y * kk;
+    var v: array<f32, 4>;
+    for (var i = 0; i < 4; i = i + 1) {
+        let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
+        v[i] = light_volume[base + u32(q.x) + P.cells.x * u32(q.y)];
+    }
+    return mix(mix(v[0], v[1], f.x), mix(v[2], v[3], f.x), f.y);
+}
+
+fn voxel(i: vec3<u32>) -> f32 {
+    return field[i.x + P.dims.x * (i.y + P.dims.y * i.z)];
+}
+
+// Trilinear sample at index-space position q (inside the grid).
+fn trilinear(q: vec3<f32>) -> f32 {
+    let b = min(vec3<u32>(floor(q)), max(P.dims.xyz, vec3<u32>(2u)) - vec3<u32>(2u));
+    let f = q - vec3<f32>(b);
+    let x00 = mix(voxel(b), voxel(b + vec3<u32>(1u, 0u, 0u)), f.x);
+    let x10 = mix(voxel(b + vec3<u32>(0u, 1u, 0u)), voxel(b + vec3<u32>(1u, 1u, 0u)), f.x);
+    let x01 = mix(voxel(b + vec3<u32>(0u, 0u, 1u)), voxel(b + vec3<u32>(1u, 0u, 1u)), f.x);
+    let x11 = mix(voxel(b + vec3<u32>(0u, 1u, 1u)), voxel(b + vec3<u32>(1u, 1u, 1u)), f.x);
+    return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
+}
+
+// Colour (rgb) and extinction (a) at value v.
+fn transfer(v: f32) -> vec4<f32> {
+    let n = P.counts.y;
+    if (n == 0u) {
+        return vec4<f32>(0.0);
+    }
+    if (v <= tf[0]) {
+        return vec4<f32>(tf[1], tf[2], tf[3], tf[4]);
+    }
+    for (var i = 1u; i < n; i = i + 1u) {
+        let x1 = tf[8u * i];
+        if (v <= x1) {
+            let j = 8u * (i - 1u);
+            let x0 = tf[j];
+            let a = vec4<f32>(tf[j + 1u], tf[j + 2u], tf[j + 3u], tf[j + 4u]);
+            let b = vec4<f32>(tf[8u * i + 1u], tf[8u * i + 2u], tf[8u * i + 3u], tf[8u * i + 4u]);
+            return mix(a, b, select(0.0, (v - x0) / (x1 - x0), x1 > x0));
+        }
+    }
+    let l = 8u * (n - 1u);
+    return vec4<f32>(tf[l + 1u], tf[l + 2u], tf[l + 3u], tf[l + 4u]);
+}
+
+// The slices a ray meets inside the grid's box (first, one past the last), in front of the
+// surface at depth `front` when there is one (> 0). In index space the box is
+// [0, dims - 1]^3 and the ray's position is affine in its parameter s.
+fn box_slices(r: Ray, front: f32) -> vec2<u32> {
+    let qo = (P.world_to_index * vec4<f32>(r.o, 1.0)).xyz;
+    let qd = (P.world_to_index * vec4<f32>(r.d, 0.0)).xyz;
+    let hi = vec3<f32>(P.dims.xyz) - vec3<f32>(1.0);
+    let inv = 1.0 / select(qd, vec3<f32>(1e-30), abs(qd) < vec3<f32>(1e-30));
+    let t0 = (vec3<f32>(0.0) - qo) * inv;
+    let t1 = (hi - qo) * inv;
+    let s_in = max(max(min(t0.x, t1.x), min(t0.y, t1.y)), min(t0.z, t1.z));
+    let s_out = min(min(max(t0.x, t1.x), max(t0.y, t1.y)), max(t0.z, t1.z));
+    if (s_out < s_in || P.flags.z == 0u) {
+        return vec2<u32>(0u);
+    }
+    let k_in = (s_in * r.cosine + r.o_depth - P.slicing.x) / P.slicing.y - 0.5;
+    var k_out = (s_out * r.cosine + r.o_depth - P.slicing.x) / P.slicing.y - 0.5;
+    if (front > 0.0) {
+        k_out = min(k_out, (front - P.slicing.x) / P.slicing.y);
+    }
+    let n = f32(P.counts.x);
+    return vec2<u32>(u32(clamp(floor(k_in), 0.0, n)), u32(clamp(ceil(k_out) + 1.0, 0.0, n)));
+}
+
+struct Ray {
+    o: vec3<f32>,
+    d: vec3<f32>,
+    cosine: f32,
+    o_depth: f32,
+};
+
+// The ray through a continuous pixel position (y down), as Camera::ray.
+fn ray_at(px: vec2<f32>) -> Ray {
+    let ndc = vec2<f32>(
+        2.0 * px.x / f32(P.counts.z) - 1.0,
+        1.0 - 2.0 * px.y / f32(P.counts.w),
+    );
+    let a4 = P.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
+    let b4 = P.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
+    var r: Ray;
+    r.o = a4.xyz / a4.w;
+    r.d = normalize(b4.xyz / b4.w - r.o);
+    r.cosine = dot(r.d, P.forward.xyz);
+    r.o_depth = dot(r.o - P.eye.xyz, P.forward.xyz);
+    return r;
+}
+
+// The part of slice k's slab [z0 + k d, z0 + (k + 1) d] (view depths) the ray keeps: in front
+// of the surface at depth `front` (when > 0) and on the kept side of every clipping plane
+// (n . p <= offset; along the ray n . p is affine in depth). Empty when y <= x. Clipping the
+// slab rather than dropping samples keeps cut faces free of slice steps.
+fn slab_interval(r: Ray, k: u32, front: f32) -> vec2<f32> {
+    var a = P.slicing.x + f32(k) * P.slicing.y;
+    var b = a + P.slicing.y;
+    if (front > 0.0) {
+        b = min(b, front);
+    }
+    for (var c = 0u; c < P.flags.x; c = c + 1u) {
+        let n = P.clip[c].xyz;
+        let g1 = dot(n, r.d) / r.cosine;
+        let g0 = dot(n, r.o) - P.clip[c].w - g1 * r.o_depth;
+        if (abs(g1) < 1e-12) {
+            if (g0 > 0.0) {
+                b = a;
+            }
+        } else if (g1 > 0.0) {
+            b = min(b, -g0 / g1);
+        } else {
+            a = max(a, -g0 / g1);
+        }
+    }
+    return vec2<f32>(a, b);
+}
+
+// A volume sample at view depth `depth` along the ray: colour (rgb) and extinction (a); zero
+// extinction outside the grid, in an empty brick, next to a NaN voxel, or behind the eye.
+// `grad` receives the world-space gradient when the Phong volume asks for it.
+fn volume_sample(r: Ray, depth: f32, grad: ptr<function, vec3<f32>>) -> vec4<f32> {
+    if (P.flags.z == 0u) {
+        return vec4<f32>(0.0);
+    }
+    let s = (depth - r.o_depth) / r.cosine;
+    if (s < 0.0) {
+        return vec4<f32>(0.0);
+    }
+    let p = r.o + r.d * s;
+    let q = (P.world_to_index * vec4<f32>(p, 1.0)).xyz;
+    let hi = vec3<f32>(P.dims.xyz) - vec3<f32>(1.0);
+    if (any(q < vec3<f32>(0.0)) || any(q > hi)) {
+        return vec4<f32>(0.0);
+    }
+    let br = min(vec3<u32>(q) / P.bricks.w, P.bricks.xyz - vec3<u32>(1u));
+    if (occupied[br.x + P.bricks.x * (br.y + P.bricks.y * br.z)] == 0u) {
+        return vec4<f32>(0.0);
+    }
+    let v = trilinear(q);
+    if (v < -1e30) {
+        return vec4<f32>(0.0);
+    }
+    if ((P.flags.y & 2u) != 0u) {
+        // Central differences in index space (one-sided at the border), to world space by
+        // the transpose of the index-from-world Jacobian.
+        let e = vec3<f32>(1.0, 0.0, 0.0);
+        let gx = trilinear(min(q + e.xyz, hi)) - trilinear(max(q - e.xyz, vec3<f32>(0.0)));
+        let gy = trilinear(min(q + e.yxz, hi)) - trilinear(max(q - e.yxz, vec3<f32>(0.0)));
+        let gz = trilinear(min(q + e.zyx, hi)) - trilinear(max(q - e.zyx, vec3<f32>(0.0)));
+        let gq = 0.5 * vec3<f32>(gx, gy, gz);
+        let m = P.world_to_index;
+        *grad = vec3<f32>(
+            dot(m[0].xyz, gq),
+            dot(m[1].xyz, gq),
+            dot(m[2].xyz, gq),
+        );
+    }
+    return transfer(v);
+}
+
+// Colour of a volume sample under the head light: unshaded emission, or Phong with the
+// gradient as normal (two-sided; flat regions keep their emission).
+fn shade_volume(c: vec3<f32>, grad: vec3<f32>, view_dir: vec3<f32>) -> vec3<f32> {
+    if ((P.flags.y & 2u) == 0u) {
+        return c;
+    }
+    let g = length(grad);
+    if (g < 1e-12) {
+        return c;
+    }
+    let n = grad / g;
+    let nl = abs(dot(n, view_dir));
+    let spec = P.light.z * pow(nl, P.light.w);
+    return c * (P.light.x + P.light.y * nl) + vec3<f32>(spec);
+}
+
+// Adds a sample to the eye buffer value `e` (Alg. 2) over the depth interval `iv` of its slab
+// (clipped at the surface and the clipping planes). Accumulates the volumetric AOV
+// (opacity-weighted occlusion) in `acc` and the depth where the volume becomes half opaque in
+// `half`.
+fn composite_eye(
+    e: ptr<function, vec4<f32>>, acc: ptr<function, vec2<f32>>, half: ptr<function, f32>,
+    r: Ray, iv: vec2<f32>, c: vec4<f32>, grad: vec3<f32>, occlusion: f32,
+) {
+    let len = iv.y - iv.x;
+    if (len <= 0.0 || c.a <= 0.0) {
+        return;
+    }
+    let a = 1.0 - exp(-c.a * len / r.cosine);
+    let rgb = shade_volume(c.rgb, grad, -r.d) * occlusion;
+    let w = (1.0 - (*e).a) * a;
+    let before = (*e).a;
+    *e = vec4<f32>((*e).rgb + w * rgb, (*e).a + w);
+    *acc = *acc + vec2<f32>(w * occlusion, w);
+    if ((*e).a >= 0.5 && before < 0.5) {
+        *half = 0.5 * (iv.x + iv.y);
+    }
+}
+
+// Concentric map of [-1, 1]^2 onto the unit disk (Shirley and Chiu).
+fn concentric(a: vec2<f32>) -> vec2<f32> {
+    if (a.x == 0.0 && a.y == 0.0) {
+        return vec2<f32>(0.0);
+    }
+    let q = 0.78539816;
+    if (abs(a.x) > abs(a.y)) {
+        let t = q * a.y / a.x;
+        return a.x * vec2<f32>(cos(t), sin(t));
+    }
+    let t = 1.57079633 - q * a.x / a.y;
+    return a.y * vec2<f32>(cos(t), sin(t));
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn light(@builtin(global_invocation_id) id: vec3<u32>) {
+    let cw = P.cells.x;
+    let ch = P.cells.y;
+    if (id.x >= cw || id.y >= ch) {
+        return;
+    }
+    let ci = id.x + cw * id.y;
+    let k = S.k;
+    let d = P.slicing.y;
+    let z_k = P.slicing.x + (f32(k) + 0.5) * d;
+    let s = P.cells.z;
+    let centre = (vec2<f32>(id.xy) + vec2<f32>(0.5)) * f32(s);
+    let r = ray_at(centre);
+    // Per-cell constants at the first slice: the depth range of the tubes over its pixels.
+    var cs: vec4<f32>;
+    if (k == 0u) {
+        var lo = 3e38;
+        var hi = 0.0;
+        for (var j = 0u; j < s; j = j + 1u) {
+            for (var i = 0u; i < s; i = i + 1u) {
+                let p = vec2<i32>(min(id.xy * s + vec2<u32>(i, j), vec2<u32>(P.counts.z, P.counts.w) - vec2<u32>(1u)));
+                let f = textureLoad(front_depth, p, 0).r;
+                if (f > 0.0) {
+                    lo = min(lo, f);
+                    hi = max(hi, max(textureLoad(back_depth, p, 0).r, f));
+                }
+            }
+        }
+        cs = vec4<f32>(select(0.0, lo, hi > 0.0), hi, 1.0 / r.cosine, 0.0);
+        cell_state[ci] = cs;
+    } else {
+        cs = cell_state[ci];
+    }
+    // O_k: the light reaching slice k, gathered from the light leaving slice k - 1 over the
+    // disk the cone of half-angle theta cuts from it: radius d tan(theta) in world units at
+    // depth z_{k-1}, in cells 0.5 (P00 w, P11 h) r / (z s) (camera::texture_radius).
+    var occl = 1.0;
+    if (k > 0u) {
+        let p = vec2<i32>(id.xy);
+        if (S.wide == 0u) {
+            var sum = 0.0;
+            for (var j = 0; j < 3; j = j + 1) {
+                let row = S.w[j];
+                sum = sum + row.x * occ_texel(p + vec2<i32>(-1, j - 1))
+                    + row.y * occ_texel(p + vec2<i32>(0, j - 1))
+                    + row.z * occ_texel(p + vec2<i32>(1, j - 1));
+            }
+            occl = sum;
+        } else {
+            let c = vec2<f32>(id.xy) + vec2<f32>(0.5);
+            let n = P.flags.w;
+            var sum = 0.0;
+            for (var i = 0u; i < n; i = i + 1u) {
+                for (var j = 0u; j < n; j = j + 1u) {
+                    var g = vec2<f32>(0.0);
+                    if (n > 1u) {
+                        g = (vec2<f32>(f32(i), f32(j)) + vec2<f32>(0.5)) / f32(n) * 2.0 - vec2<f32>(1.0);
+                    }
+                    sum = sum + occ_bilinear(c + concentric(g) * S.rpx.xy);
+                }
+            }
+            occl = sum / f32(n * n);
+        }
+    }
+    light_volume[ci + cw * ch * k] = occl;
+    // The light leaving slice k: through the volume's extinction at the cell's ray, and
+    // through the tubes where the slice lies inside them (between front and back faces; with
+    // flag 4 everywhere behind a front face, the paper's rule), as the mean transmittance of
+    // the cell's pixels. Over the whole slab: occlusion does not stop at the surface.
+    let seg = d * cs.z;
+    var grad = vec3<f32>(0.0);
+    let iv = slab_interval(r, k, 0.0);
+    var t = 1.0;
+    if (iv.y > iv.x) {
+        let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
+        t = exp(-max(c.a, 0.0) * (iv.y - iv.x) * cs.z);
+    }
+    let column = (P.flags.y & 4u) != 0u;
+    if (cs.x > 0.0 && z_k >= cs.x && (column || z_k <= cs.y)) {
+        var inside = 0.0;
+        for (var j = 0u; j < s; j = j + 1u) {
+            for (var i = 0u; i < s; i = i + 1u) {
+                let p = vec2<i32>(min(id.xy * s + vec2<u32>(i, j), vec2<u32>(P.counts.z, P.counts.w) - vec2<u32>(1u)));
+                let f = textureLoad(front_depth, p, 0).r;
+                if (f > 0.0 && z_k >= f && (column || z_k <= textureLoad(back_depth, p, 0).r)) {
+                    inside = inside + 1.0;
+                }
+            }
+        }
+        let cov = inside / f32(s * s);
+        t = t * (1.0 - cov * (1.0 - exp(-P.slicing.w * seg)));
+    }
+    occ_out[ci] = occl * t;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn march(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = P.counts.z;
+    let h = P.counts.w;
+    if (id.x >= w || id.y >= h) {
+        return;
+    }
+    let idx = id.x + w * id.y;
+    let px = vec2<f32>(id.xy) + vec2<f32>(0.5);
+    let r = ray_at(px);
+    let front = textureLoad(front_depth, vec2<i32>(id.xy), 0).r;
+    let lit = (P.flags.y & 1u) != 0u;
+    var e = vec4<f32>(0.0);
+    var acc = vec2<f32>(0.0);
+    var half = 0.0;
+    let kr = box_slices(r, front);
+    for (var k = kr.x; k < kr.y; k = k + 1u) {
+        let iv = slab_interval(r, k, front);
+        if (iv.y <= iv.x) {
+            continue;
+        }
+        var grad = vec3<f32>(0.0);
+        let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
+        if (c.a > 0.0) {
+            var o = 1.0;
+            if (lit) {
+                o = light_at(px, k);
+            }
+            composite_eye(&e, &acc, &half, r, iv, c, grad, o);
+            if (e.a > 0.999) {
+                break;
+            }
+        }
+    }
+    eye_buf[idx] = e;
+    // Partial occlusion (eq. 1-3): a surface at z between z_{k-1} and z_k receives
+    // lerp(O_{k-1}, O_k, (z - z_{k-1}) / d) (O_{-1} = 1; beyond the last slice O of the last).
+    // The light volume's cells mix the pixels of s x s blocks: looked up at the nearest
+    // surface depth of the cells around the pixel, a tube does not shadow itself; occluders
+    // nearer than that within the cell are the vicinity term's.
+    var partial = 1.0;
+    if (lit && front > 0.0) {
+        let c = px / f32(P.cells.z) - vec2<f32>(0.5);
+        let b = vec2<i32>(floor(c));
+        var z = front;
+        for (var i = 0; i < 4; i = i + 1) {
+            let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), vec2<i32>(P.cells.xy) - vec2<i32>(1));
+            let m = cell_state[u32(q.x) + P.cells.x * u32(q.y)].x;
+            if (m > 0.0) {
+                z = min(z, m);
+            }
+        }
+        let kf = (z - P.slicing.x) / P.slicing.y - 0.5;
+        if (kf >= 0.0) {
+            let k1 = u32(floor(kf)) + 1u;
+            let ratio = min(kf - floor(kf), 1.0);
+            let o0 = light_at(px, k1 - 1u);
+            var o1 = o0;
+            if (k1 < P.counts.x) {
+                o1 = light_at(px, k1);
+            }
+            partial = mix(o0, o1, ratio);
+        } else {
+            // In front of slice 0: between O_{-1} = 1 and O_0.
+            partial = mix(1.0, light_at(px, 0u), clamp(kf + 1.0, 0.0, 1.0));
+        }
+    }
+    state[2u * idx] = vec4<f32>(1.0, partial, acc.x, acc.y);
+    state[2u * idx + 1u] = vec4<f32>(half, 0.0, 0.0, 0.0);
+}

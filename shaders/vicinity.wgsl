@@ -1,0 +1,58 @@
+// Vicinity occlusion (Schott et al., Algorithm 5, eq. 4-6) as a compute pass: the tubes'
+// occlusion of each other from their linear depths. Rust side and the corrections to the
+// paper: engine/src/vicinity.rs.
+
+struct Params {
+    // P00, P11, perspective (1) or orthographic (0), radius r = l tan(theta) (world units)
+    proj: vec4<f32>,
+    // bias, range (l_vicinity), sample count, unused
+    test: vec4<f32>,
+    // width, height, unused, unused
+    size: vec4<u32>,
+};
+
+@group(0) @binding(0) var<uniform> V: Params;
+@group(0) @binding(1) var front_depth: texture_2d<f32>;
+// Poisson-disk offsets in the unit disk (xy), N of them.
+@group(0) @binding(2) var<storage, read> disk: array<vec2<f32>>;
+@group(0) @binding(3) var<storage, read_write> vicinity: array<f32>;
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = V.size.x;
+    let h = V.size.y;
+    if (id.x >= w || id.y >= h) {
+        return;
+    }
+    let z = textureLoad(front_depth, vec2<i32>(id.xy), 0).r;
+    if (z <= 0.0) {
+        vicinity[id.x + w * id.y] = 1.0;
+        return;
+    }
+    // Texture-space radius R_t = 0.5 (P00, P11) r / |z| (eq. 4-5 corrected), in pixels here.
+    var rt = 0.5 * V.proj.xy * V.proj.w;
+    if (V.proj.z > 0.5) {
+        rt = rt / z;
+    }
+    let rpx = rt * vec2<f32>(f32(w), f32(h));
+    let centre = vec2<f32>(id.xy) + vec2<f32>(0.5);
+    let n = u32(V.test.z);
+    var hits = 0.0;
+    var valid = 0.0;
+    for (var i = 0u; i < n; i = i + 1u) {
+        // eq. 6: t_i = f_t + p_i (texture y runs down; the disk is symmetric)
+        let t = centre + disk[i] * rpx;
+        if (t.x < 0.0 || t.y < 0.0 || t.x >= f32(w) || t.y >= f32(h)) {
+            // Off screen: unknown, left out of the ratio rather than counted as open.
+            continue;
+        }
+        valid = valid + 1.0;
+        let zs = textureLoad(front_depth, vec2<i32>(t), 0).r;
+        // A neighbour occludes when it is closer to the eye than the biased surface depth
+        // (Algorithm 5 adds the bias the other way) and within the cone's reach l_vicinity.
+        if (zs > 0.0 && zs < z - V.test.x && z - zs <= V.test.y) {
+            hits = hits + 1.0;
+        }
+    }
+    vicinity[id.x + w * id.y] = select(1.0, 1.0 - hits / valid, valid > 0.0);
+}
