@@ -1,0 +1,437 @@
+//! The occlusion renderer's properties on whatever adapter this machine has (lavapipe in CI),
+//! on small synthetic scenes with known answers (issue 5, "How it is checked"): an
+//! all-transparent transfer function gives the background; in a uniform medium the partial
+//! occlusion of a surface falls with depth as exp(-sigma depth); a tube darkens the volume
+//! behind it; a dense volume in front of a tube darkens the tube; a tube in a groove gets more
+//! vicinity occlusion than an isolated one; min and product combine as eq. 7 and 8;
+//! orthographic and perspective cameras agree; clipping planes remove what they should.
+
+use engine::camera::{Camera, Projection};
+use engine::ea_pass::{EaView, Transfer};
+use engine::gpu::Gpu;
+use engine::renderer::{self, Output, Settings};
+use engine::scene::{Combine, Method};
+use engine::slice_pass::VolumeInput;
+use glam::{DMat4, DVec3, DVec4, Vec3};
+use tubes::tube_mesh::TubeMesh;
+use volume::{Field, ScalarType, Space, Volume};
+
+const W: u32 = 64;
+const H: u32 = 64;
+
+/// A cube [-10, 10]^3 sampled at 1 unit with values f(p).
+fn cube(f: impl Fn(DVec3) -> f32) -> Volume {
+    let n = 21;
+    let affine = DMat4::from_cols(
+        DVec4::X,
+        DVec4::Y,
+        DVec4::Z,
+        DVec4::new(-10.0, -10.0, -10.0, 1.0),
+    );
+    let mut data = Vec::with_capacity(n * n * n);
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let p = DVec3::new(i as f64 - 10.0, j as f64 - 10.0, k as f64 - 10.0);
+                data.push(f(p));
+            }
+        }
+    }
+    let field = Field {
+        name: "v".into(),
+        components: 1,
+        stored: ScalarType::F32,
+        data,
+    };
+    Volume::new([n, n, n], affine, Space::File, field).unwrap()
+}
+
+/// Constant white with extinction `sigma` per unit for values in [0.5, 2], none below.
+fn medium(sigma: f64) -> Transfer {
+    Transfer {
+        points: vec![
+            (0.49, [1.0; 3], 0.0),
+            (0.5, [1.0; 3], sigma),
+            (2.0, [1.0; 3], sigma),
+        ],
+    }
+}
+
+/// Straight tubes of `radius` through the given end points, grey.
+fn tubes(lines: &[[[f32; 3]; 2]], radius: f64) -> TubeMesh {
+    let mut s = tubes::Streamlines::new();
+    for l in lines {
+        let (a, b) = (Vec3::from(l[0]), Vec3::from(l[1]));
+        let pts: Vec<Vec3> = (0..=20).map(|i| a + (b - a) * (i as f32 / 20.0)).collect();
+        s.push(&pts);
+    }
+    let args = engine::tubes_cmd::TubesArgs {
+        input: Default::default(),
+        output: Default::default(),
+        radius,
+        sides: 16,
+        per_span: 1,
+        tolerance: 0.01,
+        chordal: None,
+        fit: tubes::bspline_fit::FitMethod::Iterative,
+        frame: tubes::tube_mesh::FrameMethod::Rmf,
+        radius_mode: tubes::tube_mesh::RadiusMode::Local,
+        color: "#c0c0c0".into(),
+        caps: true,
+        transform: None,
+    };
+    engine::tubes_cmd::build_mesh(&s, &args).unwrap().0
+}
+
+/// Looking down -z from above, orthographic (24 units tall) or perspective (30 degrees).
+fn top_camera(perspective: bool) -> Camera {
+    let bounds = [DVec3::splat(-12.0), DVec3::splat(12.0)];
+    let projection = if perspective {
+        Projection::Perspective { fov_y_deg: 30.0 }
+    } else {
+        Projection::Orthographic { height: 24.0 }
+    };
+    let eye = DVec3::new(0.0, 0.0, if perspective { 46.0 } else { 40.0 });
+    Camera::look_at(eye, DVec3::ZERO, DVec3::Y, projection, bounds).unwrap()
+}
+
+fn view(cam: Camera) -> EaView {
+    let bounds = [DVec3::splat(-12.0), DVec3::splat(12.0)];
+    EaView::span(bounds, 1.0, cam, W, H, None, Some(0.25), [1.0, 1.0, 1.0]).unwrap()
+}
+
+struct Scene {
+    vol: Option<(Volume, Vec<f32>, Transfer)>,
+    meshes: Vec<TubeMesh>,
+    tube_clip: Vec<([f64; 3], f64)>,
+}
+
+impl Scene {
+    fn new(vol: Option<(Volume, Transfer)>, meshes: Vec<TubeMesh>) -> Scene {
+        Scene {
+            vol: vol.map(|(v, t)| {
+                let d = engine::ea_pass::prepare(&v.select(None).unwrap().data);
+                (v, d, t)
+            }),
+            meshes,
+            tube_clip: vec![],
+        }
+    }
+
+    fn render(&self, gpu: &Gpu, v: &EaView, s: &Settings) -> Output {
+        let vi = self
+            .vol
+            .as_ref()
+            .map(|(vol, data, tf)| VolumeInput { vol, data, tf });
+        renderer::render(gpu, vi.as_ref(), &self.meshes, &self.tube_clip, v, s, 1).unwrap()
+    }
+}
+
+fn settings(method: Method) -> Settings {
+    Settings {
+        method,
+        fxaa: false,
+        ..Default::default()
+    }
+}
+
+fn gpu() -> Gpu {
+    Gpu::new().expect("a GPU adapter (CI installs mesa-vulkan-drivers for lavapipe)")
+}
+
+/// Pixel index of a world point.
+fn pixel(cam: &Camera, p: [f64; 3]) -> usize {
+    let (x, y, _) = cam
+        .to_pixel(DVec3::from(p), W as usize, H as usize)
+        .unwrap();
+    x as usize + W as usize * y as usize
+}
+
+/// Mean of `f` over the pixels of the segment a-b (world), sampled at 9 points.
+fn mean_along(
+    out: &Output,
+    cam: &Camera,
+    a: [f64; 3],
+    b: [f64; 3],
+    f: fn(&renderer::Aov) -> f32,
+) -> f64 {
+    let (a, b) = (DVec3::from(a), DVec3::from(b));
+    let vals: Vec<f64> = (0..9)
+        .map(|i| {
+            let p = a + (b - a) * (i as f64 / 8.0);
+            f(&out.aov[pixel(cam, p.into())]) as f64
+        })
+        .collect();
+    vals.iter().sum::<f64>() / vals.len() as f64
+}
+
+#[test]
+fn an_all_transparent_transfer_function_gives_the_background() {
+    let gpu = gpu();
+    let vol = cube(|p| (p.x * 0.3).sin() as f32 + 1.0);
+    let clear = Transfer {
+        points: vec![(0.0, [1.0, 0.0, 0.0], 0.0), (2.0, [0.0, 1.0, 0.0], 0.0)],
+    };
+    let scene = Scene::new(Some((vol, clear)), vec![]);
+    let mut v = view(top_camera(false));
+    v.background = [0.2, 0.4, 0.6];
+    for m in [
+        Method::Combined,
+        Method::Dos,
+        Method::Vicinity,
+        Method::Ea,
+        Method::Phong,
+    ] {
+        let mut s = settings(m);
+        s.fxaa = true;
+        let out = scene.render(&gpu, &v, &s);
+        let worst = out
+            .image
+            .iter()
+            .flat_map(|p| [p[0] - 0.2, p[1] - 0.4, p[2] - 0.6, p[3]])
+            .fold(0.0f32, |a, d| a.max(d.abs()));
+        assert!(worst < 1e-5, "{m:?}: {worst}");
+    }
+}
+
+/// Three tubes along x at depths below the top of a uniform medium (z = 10): 4.5, 9.5 and
+/// 14.5 units of medium above their tops.
+fn depth_scene() -> (Scene, [[f64; 3]; 3]) {
+    let vol = cube(|_| 1.0);
+    let lines = [
+        [[-4.0, -5.0, 5.0], [4.0, -5.0, 5.0]],
+        [[-4.0, 0.0, 0.0], [4.0, 0.0, 0.0]],
+        [[-4.0, 5.0, -5.0], [4.0, 5.0, -5.0]],
+    ];
+    let tops = [[0.0, -5.0, 5.5], [0.0, 0.0, 0.5], [0.0, 5.0, -4.5]];
+    (
+        Scene::new(Some((vol, medium(0.15))), vec![tubes(&lines, 0.5)]),
+        tops,
+    )
+}
+
+#[test]
+fn partial_occlusion_in_a_uniform_medium_is_the_transmittance_above_the_surface() {
+    let gpu = gpu();
+    let (scene, tops) = depth_scene();
+    for perspective in [false, true] {
+        let cam = top_camera(perspective);
+        let out = scene.render(&gpu, &view(cam), &settings(Method::Dos));
+        let mut last = 1.0;
+        for t in tops {
+            // Along the tube's top line, away from its ends.
+            let got = mean_along(&out, &cam, [-2.0, t[1], t[2]], [2.0, t[1], t[2]], |a| {
+                a.partial
+            });
+            // Light reaching the top along the eye ray (cos ~ 1 at the image centre).
+            let expect = (-0.15 * (10.0 - t[2])).exp();
+            eprintln!(
+                "perspective {perspective}: z {}: partial {got:.4}, expected {expect:.4}",
+                t[2]
+            );
+            assert!(
+                (got - expect).abs() < 0.02,
+                "perspective {perspective}: top at z = {}: partial {got}, expected {expect}",
+                t[2]
+            );
+            assert!(got < last, "occlusion must fall with depth");
+            last = got;
+        }
+        // The ea method computes no volumetric occlusion: the terms stay 1.
+        let ea = scene.render(&gpu, &view(cam), &settings(Method::Ea));
+        let t = tops[2];
+        assert_eq!(ea.aov[pixel(&cam, t)].partial, 1.0);
+    }
+}
+
+#[test]
+fn a_tube_darkens_the_volume_behind_it_and_the_column_rule_darkens_more() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    // A tube above the medium (z = 12 over a medium ending at z = 10), a wide cone.
+    let vol = cube(|_| 1.0);
+    let above = Scene::new(
+        Some((vol.clone(), medium(0.1))),
+        vec![tubes(&[[[-6.0, 0.0, 11.5], [6.0, 0.0, 11.5]]], 1.0)],
+    );
+    let v = view(cam);
+    let mut s = settings(Method::Dos);
+    s.theta_deg = 60.0;
+    let lit = {
+        let mut s0 = s.clone();
+        s0.geometry_extinction = 0.0;
+        above.render(&gpu, &v, &s0)
+    };
+    let shadowed = above.render(&gpu, &v, &s);
+    // Beside the tube's silhouette (radius 1: the edge at y = 1), the volume is darker where
+    // the tube's shadow spreads; far away nothing changes.
+    let near =
+        |o: &Output| mean_along(o, &cam, [-3.0, 1.6, 0.0], [3.0, 1.6, 0.0], |a| a.volumetric);
+    let far = |o: &Output| mean_along(o, &cam, [-3.0, 7.0, 0.0], [3.0, 7.0, 0.0], |a| a.volumetric);
+    eprintln!(
+        "volumetric beside the tube {:.3} (without its extinction {:.3}), far {:.3}",
+        near(&shadowed),
+        near(&lit),
+        far(&shadowed)
+    );
+    assert!(
+        near(&shadowed) < near(&lit) - 0.03,
+        "beside the tube: {} with its extinction, {} without",
+        near(&shadowed),
+        near(&lit)
+    );
+    assert!((far(&shadowed) - far(&lit)).abs() < 0.01);
+    // Inside the medium, the paper's endless column behind the tube shadows more than the
+    // tube's real thickness, and never less.
+    let inside = Scene::new(
+        Some((vol, medium(0.1))),
+        vec![tubes(&[[[-6.0, 0.0, 6.0], [6.0, 0.0, 6.0]]], 1.0)],
+    );
+    let thick = inside.render(&gpu, &v, &s);
+    let mut sc = s.clone();
+    sc.column = true;
+    let column = inside.render(&gpu, &v, &sc);
+    let mut most = 0.0f32;
+    for (a, b) in thick.aov.iter().zip(&column.aov) {
+        assert!(b.volumetric <= a.volumetric + 1e-4);
+        most = most.max(a.volumetric - b.volumetric);
+    }
+    eprintln!("column rule: up to {most:.3} darker");
+    assert!(
+        most > 0.02,
+        "the column rule changed the volume by {most} at most"
+    );
+}
+
+#[test]
+fn a_dense_volume_in_front_of_a_tube_darkens_it() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    // A dense slab (z in [4, 6]) over the left half (x < 0) of a tube at z = 0.
+    let vol = cube(|p| {
+        if p.x < 0.0 && (4.0..=6.0).contains(&p.z) {
+            1.0
+        } else {
+            0.0
+        }
+    });
+    let scene = Scene::new(
+        Some((vol, medium(1.0))),
+        vec![tubes(&[[[-8.0, 0.0, 0.0], [8.0, 0.0, 0.0]]], 0.7)],
+    );
+    let v = view(cam);
+    for m in [Method::Dos, Method::Combined] {
+        let out = scene.render(&gpu, &v, &settings(m));
+        let left = mean_along(&out, &cam, [-7.0, 0.0, 0.7], [-3.0, 0.0, 0.7], |a| {
+            a.partial
+        });
+        let right = mean_along(&out, &cam, [3.0, 0.0, 0.7], [7.0, 0.0, 0.7], |a| a.partial);
+        eprintln!("{m:?}: partial under the slab {left:.3}, beside it {right:.3}");
+        assert!(
+            left < 0.3 && right > 0.85,
+            "{m:?}: left {left}, right {right}"
+        );
+        // And the shaded tube is darker there (beyond what the slab's own attenuation of the
+        // view does: compare with the ea method's image).
+        let ea = scene.render(&gpu, &v, &settings(Method::Ea));
+        let p = pixel(&cam, [-5.0, 0.0, 0.7]);
+        assert!(out.image[p][0] < ea.image[p][0] - 0.02, "{m:?}");
+    }
+}
+
+/// Tubes along y: two side by side at the top, one in the groove between them, one alone at
+/// the groove's depth.
+fn groove() -> (Vec<TubeMesh>, [f64; 3], [f64; 3]) {
+    let lines = [
+        [[-1.2, -6.0, 0.0], [-1.2, 6.0, 0.0]],
+        [[1.2, -6.0, 0.0], [1.2, 6.0, 0.0]],
+        [[0.0, -6.0, -0.8], [0.0, 6.0, -0.8]],
+        [[6.0, -6.0, -0.8], [6.0, 6.0, -0.8]],
+    ];
+    (vec![tubes(&lines, 0.5)], [0.0, 0.0, -0.3], [6.0, 0.0, -0.3])
+}
+
+#[test]
+fn a_tube_in_a_groove_gets_more_vicinity_occlusion_than_an_isolated_one() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let (meshes, in_groove, alone) = groove();
+    let scene = Scene::new(None, meshes);
+    let mut s = settings(Method::Vicinity);
+    s.theta_deg = 45.0;
+    s.vicinity_samples = 64;
+    let out = scene.render(&gpu, &view(cam), &s);
+    let line = |c: [f64; 3]| {
+        mean_along(&out, &cam, [c[0], -4.0, c[2]], [c[0], 4.0, c[2]], |a| {
+            a.vicinity
+        })
+    };
+    let (g, a) = (line(in_groove), line(alone));
+    eprintln!("vicinity: groove {g:.3}, alone {a:.3}");
+    assert!(g < a - 0.1, "groove {g}, alone {a}");
+    assert!(a > 0.8, "an isolated tube is mostly open: {a}");
+    // Off-screen samples are left out: a tube cut by the image border is as open as one in the
+    // middle.
+    let edge = mean_along(&out, &cam, [6.0, 11.5, -0.3], [6.0, 11.9, -0.3], |a| {
+        a.vicinity
+    });
+    assert!(
+        (edge - a).abs() < 0.1,
+        "at the border {edge}, in the middle {a}"
+    );
+}
+
+#[test]
+fn min_and_product_combine_as_equations_7_and_8() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let (meshes, in_groove, _) = groove();
+    // The groove under a uniform medium, so that both terms are below 1.
+    let scene = Scene::new(Some((cube(|_| 1.0), medium(0.05))), meshes);
+    let v = view(cam);
+    let mut s = settings(Method::Combined);
+    s.theta_deg = 45.0;
+    let min = scene.render(&gpu, &v, &s);
+    s.combine = Combine::Product;
+    let product = scene.render(&gpu, &v, &s);
+    let mut gap = 0.0f32;
+    for (a, b) in min.aov.iter().zip(&product.aov) {
+        assert!((a.combined - a.partial.min(a.vicinity)).abs() < 1e-6);
+        assert!((b.combined - b.partial * b.vicinity).abs() < 1e-6);
+        assert!(b.combined <= a.combined + 1e-6);
+        gap = gap.max(a.combined - b.combined);
+    }
+    assert!(gap > 0.05, "product and min agree everywhere (gap {gap})");
+    // Fig. 6: where the volumetric term dominates, min loses the vicinity term's variation
+    // across the groove; the product keeps it.
+    let p = pixel(&cam, in_groove);
+    let q = pixel(&cam, [1.2, 0.0, 0.5]);
+    assert!(
+        (product.aov[p].combined - product.aov[q].combined).abs()
+            > (min.aov[p].combined - min.aov[q].combined).abs() - 1e-6
+    );
+}
+
+#[test]
+fn clipping_planes_remove_the_volume_and_optionally_the_tubes() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let mut scene = Scene::new(
+        Some((cube(|_| 1.0), medium(0.3))),
+        vec![tubes(&[[[-8.0, 0.0, 11.0], [8.0, 0.0, 11.0]]], 0.5)],
+    );
+    let mut v = view(cam);
+    v.clip = vec![([1.0, 0.0, 0.0], 0.0)]; // keep x <= 0
+    let out = scene.render(&gpu, &v, &settings(Method::Ea));
+    let right = pixel(&cam, [5.0, 5.0, 0.0]);
+    let left = pixel(&cam, [-5.0, 5.0, 0.0]);
+    assert!(out.image[right][3] < 1e-6, "volume left at x > 0");
+    assert!(out.image[left][3] > 0.9);
+    // Volume-only clipping keeps the tube whole; clipping the tubes too cuts it.
+    let tube_right = pixel(&cam, [5.0, 0.0, 11.5]);
+    assert_eq!(out.image[tube_right][3], 1.0);
+    scene.tube_clip = v.clip.clone();
+    let cut = scene.render(&gpu, &v, &settings(Method::Ea));
+    assert!(cut.image[tube_right][3] < 1e-6);
+    assert_eq!(cut.image[pixel(&cam, [-5.0, 0.0, 11.5])][3], 1.0);
+}
