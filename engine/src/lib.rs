@@ -8,6 +8,7 @@
 pub mod camera;
 pub mod composite;
 pub mod convert;
+pub mod demo;
 pub mod ea_pass;
 pub mod fxaa;
 pub mod gbuffer;

@@ -278,6 +278,29 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Render a bundled demo scene by the combined method: `mni` (the MNI T1 template with
+    /// HCP1065 tracts; the default) or `cfd` (carotid flow with traced streamlines).
+    Demo {
+        /// mni or cfd.
+        #[arg(default_value = "mni")]
+        which: String,
+        /// Output image (.png or .exr).
+        #[arg(short, long, default_value = "demo.png")]
+        output: PathBuf,
+        #[arg(long)]
+        width: Option<u32>,
+        #[arg(long)]
+        height: Option<u32>,
+        /// combined, dos, vicinity, ea or phong.
+        #[arg(long)]
+        method: Option<String>,
+        /// Frames timed; total_ms is their median.
+        #[arg(long, default_value_t = 1)]
+        frames: u32,
+        /// Override a scene key by its dotted path (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
     /// Check a scene file (TOML) and print it resolved, with defaults and --set overrides, as
     /// JSON (the renderer of issue 5 reads the same files).
     Scene {
@@ -734,17 +757,7 @@ fn run(cli: Cli) -> Result<(), String> {
             set,
             json,
         } => {
-            let mut overrides = vec![];
-            if let Some(w) = width {
-                overrides.push(format!("render.width={w}"));
-            }
-            if let Some(h) = height {
-                overrides.push(format!("render.height={h}"));
-            }
-            if let Some(m) = method {
-                overrides.push(format!("render.method=\"{m}\""));
-            }
-            overrides.extend(set);
+            let overrides = size_method_overrides(width, height, method, set);
             let r = engine::render_cmd::run(&engine::render_cmd::RenderArgs {
                 scene,
                 output: output.clone(),
@@ -776,24 +789,26 @@ fn run(cli: Cli) -> Result<(), String> {
                     serde_json::to_string_pretty(&r).map_err(|e| e.to_string())?
                 );
             } else {
-                println!(
-                    "{}: {} x {}, {} slices {:.4} apart, {} triangles, on {}: {:.1} ms per frame ({}), {:.2} s in all",
-                    r.method,
-                    r.width,
-                    r.height,
-                    r.slices,
-                    r.slice_distance,
-                    r.triangles,
-                    r.adapter,
-                    r.total_ms,
-                    r.passes
-                        .iter()
-                        .map(|(k, v)| format!("{k} {v:.1}"))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    r.seconds
-                );
+                println!("{}", summary(&r));
             }
+            eprintln!("wrote {}", output.display());
+            Ok(())
+        }
+        Command::Demo {
+            which,
+            output,
+            width,
+            height,
+            method,
+            frames,
+            set,
+        } => {
+            let overrides = size_method_overrides(width, height, method, set);
+            let r = engine::demo::run(&which, &output, &overrides, frames)?;
+            for n in &r.notes {
+                eprintln!("note: {n}");
+            }
+            println!("{}", summary(&r));
             eprintln!("wrote {}", output.display());
             Ok(())
         }
@@ -871,4 +886,46 @@ fn main() -> ExitCode {
             ExitCode::from(1)
         }
     }
+}
+
+/// `--width`, `--height`, `--method` as scene overrides, before the `--set` ones.
+fn size_method_overrides(
+    width: Option<u32>,
+    height: Option<u32>,
+    method: Option<String>,
+    set: Vec<String>,
+) -> Vec<String> {
+    let mut o = vec![];
+    if let Some(w) = width {
+        o.push(format!("render.width={w}"));
+    }
+    if let Some(h) = height {
+        o.push(format!("render.height={h}"));
+    }
+    if let Some(m) = method {
+        o.push(format!("render.method=\"{m}\""));
+    }
+    o.extend(set);
+    o
+}
+
+/// One line about a render.
+fn summary(r: &engine::render_cmd::RenderReport) -> String {
+    format!(
+        "{}: {} x {}, {} slices {:.4} apart, {} triangles, on {}: {:.1} ms per frame ({}), {:.2} s in all",
+        r.method,
+        r.width,
+        r.height,
+        r.slices,
+        r.slice_distance,
+        r.triangles,
+        r.adapter,
+        r.total_ms,
+        r.passes
+            .iter()
+            .map(|(k, v)| format!("{k} {v:.1}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        r.seconds
+    )
 }

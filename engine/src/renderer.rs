@@ -1,5 +1,6 @@
 //! The frame: the passes of Schott et al.'s combined volume and tube occlusion in order -
-//! G-buffer (raster), slices (compute; eye buffer, volumetric and partial occlusion),
+//! G-buffer (raster), light volume (compute, one dispatch per slice; volumetric occlusion),
+//! march (compute; eye buffer, partial occlusion),
 //! vicinity occlusion, compositing and FXAA (compute) - with per-pass timings.
 //!
 //! Data flows one way: the model (a volume with its transfer function, tube meshes) and the
@@ -114,10 +115,11 @@ struct Frame {
 
 impl Frame {
     fn passes(&self) -> Vec<Recorder<'_>> {
-        let mut p: Vec<Recorder<'_>> = vec![
-            ("gbuffer", Box::new(|e| self.gbuf.record(e))),
-            ("slices", Box::new(|e| self.slices.record(e))),
-        ];
+        let mut p: Vec<Recorder<'_>> = vec![("gbuffer", Box::new(|e| self.gbuf.record(e)))];
+        if self.slices.has_light() {
+            p.push(("light", Box::new(|e| self.slices.record_light(e))));
+        }
+        p.push(("march", Box::new(|e| self.slices.record_march(e))));
         if let Some(v) = &self.vicinity {
             p.push(("vicinity", Box::new(move |e| v.record(e))));
         }

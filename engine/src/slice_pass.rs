@@ -406,22 +406,36 @@ impl SlicePass {
         })
     }
 
-    /// Records the slices in one compute pass: the light volume slice by slice, then the eye
-    /// march.
-    pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
+    /// Whether the light volume is computed (the `light` pass has work).
+    pub fn has_light(&self) -> bool {
+        self.occlusion
+    }
+
+    /// Records the light volume, slice by slice, in one compute pass.
+    pub fn record_light(&self, enc: &mut wgpu::CommandEncoder) {
+        if !self.occlusion {
+            return;
+        }
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("slices"),
+            label: Some("light"),
             timestamp_writes: None,
         });
         pass.set_bind_group(0, &self.group0, &[]);
-        if self.occlusion {
-            let (gx, gy) = (self.cells.0.div_ceil(8), self.cells.1.div_ceil(8));
-            pass.set_pipeline(&self.light_pipe);
-            for k in 0..self.slices {
-                pass.set_bind_group(1, &self.group1[(k % 2) as usize], &[k * self.stride]);
-                pass.dispatch_workgroups(gx, gy, 1);
-            }
+        let (gx, gy) = (self.cells.0.div_ceil(8), self.cells.1.div_ceil(8));
+        pass.set_pipeline(&self.light_pipe);
+        for k in 0..self.slices {
+            pass.set_bind_group(1, &self.group1[(k % 2) as usize], &[k * self.stride]);
+            pass.dispatch_workgroups(gx, gy, 1);
         }
+    }
+
+    /// Records the eye march (after the light volume).
+    pub fn record_march(&self, enc: &mut wgpu::CommandEncoder) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("march"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &self.group0, &[]);
         pass.set_pipeline(&self.march_pipe);
         pass.set_bind_group(1, &self.group1[0], &[0]);
         pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);

@@ -1,0 +1,207 @@
+//! `umbra render` and `umbra demo` end to end on lavapipe: the demo against its reference
+//! image, EXR output with AOV channels, `--timings-json`, and clear errors for bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
+}
+
+fn umbra() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_umbra"))
+}
+
+fn ok(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn the_demo_matches_its_reference_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("demo.png");
+    let out = umbra()
+        .args(["demo", "--width", "160", "--height", "120", "-o"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    ok(&out);
+    let got = image::open(&png).unwrap().to_rgb8();
+    let want = image::open(root().join("tests/fixtures/render/demo_160x120.png"))
+        .unwrap()
+        .to_rgb8();
+    assert_eq!(got.dimensions(), want.dimensions());
+    let mut diffs: Vec<i32> = got
+        .pixels()
+        .zip(want.pixels())
+        .flat_map(|(a, b)| (0..3).map(move |k| (a.0[k] as i32 - b.0[k] as i32).abs()))
+        .collect();
+    let mean = diffs.iter().sum::<i32>() as f64 / diffs.len() as f64;
+    diffs.sort();
+    let p99 = diffs[diffs.len() * 99 / 100];
+    assert!(
+        mean < 1.5 && p99 <= 16,
+        "mean {mean:.3}/255, 99th percentile {p99}/255"
+    );
+}
+
+/// A small scene: the bundled CT head with the dipy tractogram moved into it.
+fn small_scene(dir: &Path, extra: &str) -> PathBuf {
+    let s = dir.join("s.toml");
+    std::fs::write(
+        &s,
+        format!(
+            "[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n\
+             [[tubes]]\npath = \"{}\"\nradius = 1.0\n\
+             transform = [1, 0, 0, 10, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n\
+             [render]\nwidth = 64\nheight = 48\nslices = 64\n{extra}",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display(),
+            root()
+                .join("tests/fixtures/tracts/dipy/tracks300.trk")
+                .display()
+        ),
+    )
+    .unwrap();
+    s
+}
+
+#[test]
+fn render_writes_exr_with_aovs_and_timings() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_scene(dir.path(), "");
+    let exr = dir.path().join("out.exr");
+    let timings = dir.path().join("t.json");
+    let out = umbra()
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(&exr)
+        .args([
+            "--aov",
+            "--frames",
+            "2",
+            "--method",
+            "combined",
+            "--timings-json",
+        ])
+        .arg(&timings)
+        .output()
+        .unwrap();
+    ok(&out);
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&timings).unwrap()).unwrap();
+    assert!(t["total_ms"].as_f64().unwrap() > 0.0);
+    for pass in ["gbuffer", "light", "march", "vicinity", "composite", "fxaa"] {
+        assert!(t["passes"][pass].as_f64().unwrap() >= 0.0, "{pass}: {t}");
+    }
+    assert_eq!(t["frames_ms"].as_array().unwrap().len(), 2);
+    let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
+    let chan = |name: &str| -> Vec<f32> {
+        let c = img
+            .layer_data
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .unwrap_or_else(|| panic!("no channel {name}"));
+        c.sample_data.values_as_f32().collect()
+    };
+    let (a, z) = (chan("A"), chan("Z"));
+    let (p, v, c) = (
+        chan("occlusion.partial"),
+        chan("occlusion.vicinity"),
+        chan("occlusion.combined"),
+    );
+    assert_eq!(a.len(), 64 * 48);
+    // The default combine is min (eq. 7); surfaces are where the depth is set and alpha is 1.
+    let mut surfaces = 0;
+    for i in 0..a.len() {
+        assert!((c[i] - p[i].min(v[i])).abs() < 1e-6);
+        if a[i] == 1.0 && z[i] > 0.0 {
+            surfaces += 1;
+        }
+    }
+    assert!(surfaces > 5, "{surfaces} surface pixels");
+    assert!(chan("R").iter().all(|x| x.is_finite()));
+    // --aov needs EXR.
+    let out = umbra()
+        .arg("render")
+        .arg(&scene)
+        .args(["-o", "x.png", "--aov"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("EXR"));
+}
+
+#[test]
+fn bad_render_input_gets_clear_errors_and_no_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("o.png");
+    let run = |scene: &Path, extra: &[&str]| {
+        umbra()
+            .arg("render")
+            .arg(scene)
+            .arg("-o")
+            .arg(&png)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let scene = small_scene(dir.path(), "");
+    for (extra, needle) in [
+        (vec!["--width", "0"], "render.width"),
+        (vec!["--method", "fancy"], "fancy"),
+        (
+            vec!["--set", "tubes.0.path=\"/nope/missing.trk\""],
+            "missing.trk",
+        ),
+        (
+            vec!["--set", "render.occlusion_cell=0"],
+            "render.occlusion_cell",
+        ),
+        (
+            vec!["--set", "render.geometry_extinction=-1"],
+            "render.geometry_extinction",
+        ),
+        (
+            vec!["--set", "clip=[{normal = [0, 0, 0], offset = 1}]"],
+            "clip[0].normal",
+        ),
+    ] {
+        let out = run(&scene, &extra);
+        assert!(!out.status.success(), "{extra:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{extra:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!png.exists());
+    }
+    // NaN voxels render as gaps, with a note.
+    let nan = dir.path().join("nan.nrrd");
+    std::fs::write(
+        &nan,
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n1 nan 1 1 inf 1 1 1\n",
+    )
+    .unwrap();
+    let s2 = dir.path().join("nan.toml");
+    std::fs::write(
+        &s2,
+        format!(
+            "[volume]\npath = \"{}\"\n[render]\nwidth = 32\nheight = 32\nmethod = \"dos\"\n",
+            nan.display()
+        ),
+    )
+    .unwrap();
+    let out = run(&s2, &[]);
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("NaN or infinite"), "{err}");
+    assert!(png.exists());
+}
