@@ -404,13 +404,28 @@ impl Gpu {
         layout: &wgpu::PipelineLayout,
         label: &str,
     ) -> wgpu::ComputePipeline {
+        self.compute_pipeline_constants(module, entry, layout, label, &[])
+    }
+
+    /// As [`Gpu::compute_pipeline_with`], with values for the shader's `override` constants.
+    pub fn compute_pipeline_constants(
+        &self,
+        module: &wgpu::ShaderModule,
+        entry: &str,
+        layout: &wgpu::PipelineLayout,
+        label: &str,
+        constants: &[(&str, f64)],
+    ) -> wgpu::ComputePipeline {
         self.device
             .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(label),
                 layout: Some(layout),
                 module,
                 entry_point: Some(entry),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants,
+                    ..Default::default()
+                },
                 cache: None,
             })
     }

@@ -328,7 +328,72 @@ pub fn tube_clip(s: &Scene) -> Vec<([f64; 3], f64)> {
         .collect()
 }
 
-/// Renders a loaded scene: the frame and the view it was seen through.
+/// Halves the grid (2x2x2 box filter, NaN samples left out of the means; odd edges keep their
+/// last sample) until the field fits in `max_bytes` as f32; `None` when it already fits. The
+/// new voxel centres lie at the old ones' means, so the affine is scaled by 2 and shifted by
+/// half an old voxel. Returns the volume (geometry only: an empty field), its data, and a note.
+pub fn fit_volume(
+    vol: &volume::Volume,
+    data: &[f32],
+    max_bytes: u64,
+) -> Option<(volume::Volume, Vec<f32>, String)> {
+    if (data.len() as u64) * 4 <= max_bytes {
+        return None;
+    }
+    let (mut dims, mut affine, mut d) = (vol.dims, vol.affine, data.to_vec());
+    while (d.len() as u64) * 4 > max_bytes && dims.iter().any(|&n| n > 1) {
+        let nd = dims.map(|n| n.div_ceil(2));
+        let mut out = vec![0.0f32; nd[0] * nd[1] * nd[2]];
+        for k in 0..nd[2] {
+            for j in 0..nd[1] {
+                for i in 0..nd[0] {
+                    let (mut sum, mut n) = (0.0f64, 0u32);
+                    for c in 0..8 {
+                        let (x, y, z) = (2 * i + (c & 1), 2 * j + (c >> 1 & 1), 2 * k + (c >> 2));
+                        if x < dims[0] && y < dims[1] && z < dims[2] {
+                            let v = d[x + dims[0] * (y + dims[1] * z)];
+                            if v > -1e30 {
+                                sum += v as f64;
+                                n += 1;
+                            }
+                        }
+                    }
+                    out[i + nd[0] * (j + nd[1] * k)] = if n > 0 {
+                        (sum / n as f64) as f32
+                    } else {
+                        -3e38
+                    };
+                }
+            }
+        }
+        affine = affine
+            * glam::DMat4::from_translation(DVec3::splat(0.5))
+            * glam::DMat4::from_scale(DVec3::splat(2.0));
+        dims = nd;
+        d = out;
+    }
+    let note = format!(
+        "the volume ({} x {} x {}, {} MB as f32) exceeds this adapter's storage binding limit ({} MB): downsampled by 2x2x2 box filtering to {} x {} x {}",
+        vol.dims[0],
+        vol.dims[1],
+        vol.dims[2],
+        data.len() * 4 >> 20,
+        max_bytes >> 20,
+        dims[0],
+        dims[1],
+        dims[2]
+    );
+    let field = volume::Field {
+        name: "downsampled".into(),
+        components: 1,
+        stored: volume::ScalarType::F32,
+        data: vec![0.0; d.len()],
+    };
+    let v = volume::Volume::new(dims, affine, vol.space, field).ok()?;
+    Some((v, d, note))
+}
+
+/// Renders a loaded scene: the frame and the view it was seen through (and notes).
 pub fn render_scene(
     gpu: &crate::gpu::Gpu,
     s: &Scene,
@@ -351,6 +416,39 @@ pub fn render_scene(
     )
     .map_err(|e| e.to_string())?;
     Ok((out, v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn oversized_volumes_are_halved_until_they_fit() {
+        let vol = volume::synthetic::validation_scene(33);
+        let data = vol.select(None).unwrap().data;
+        assert!(fit_volume(&vol, &data, data.len() as u64 * 4).is_none());
+        let (v, d, note) = fit_volume(&vol, &data, 20_000).unwrap();
+        assert_eq!(v.dims, [17, 17, 17]);
+        assert!(d.len() * 4 <= 20_000, "{}", d.len());
+        assert!(
+            note.contains("downsampled") && note.contains("17 x 17 x 17"),
+            "{note}"
+        );
+        // The same world box (up to the half voxel at the odd edge) and a box-filtered field.
+        let (a, b) = (vol.bounds(), v.bounds());
+        let half = 0.5 * vol.spacing()[0];
+        assert!(
+            (a[0] - (b[0] - DVec3::splat(half))).length() < 1e-9,
+            "{a:?} {b:?}"
+        );
+        assert!((v.spacing()[0] - 4.0 * half).abs() < 1e-9);
+        // New voxel (3, 4, 5) is the mean of old voxels (6..8, 8..10, 10..12).
+        let mut sum = 0.0;
+        for c in 0..8 {
+            sum += data[vol.index(6 + (c & 1), 8 + (c >> 1 & 1), 10 + (c >> 2))] as f64;
+        }
+        assert!((d[3 + 17 * (4 + 17 * 5)] as f64 - sum / 8.0).abs() < 1e-4);
+    }
 }
 
 /// Writes linear RGBA and AOVs as EXR (channels R, G, B, A, and with `aov`

@@ -211,7 +211,13 @@ impl SlicePass {
         );
         let pl = gpu.pipeline_layout("slice", &[&l0, &l1]);
         let light_pipe = gpu.compute_pipeline_with(&module, "light", &pl, "light");
-        let march_pipe = gpu.compute_pipeline_with(&module, "march", &pl, "march");
+        let march_pipe = gpu.compute_pipeline_constants(
+            &module,
+            "march",
+            &pl,
+            "march",
+            &[("PHONG", if s.phong { 1.0 } else { 0.0 })],
+        );
 
         let aspect = v.width as f64 / v.height.max(1) as f64;
         let proj = v.camera.projection_matrix(aspect);
