@@ -377,7 +377,7 @@ pub fn fit_volume(
         vol.dims[0],
         vol.dims[1],
         vol.dims[2],
-        data.len() * 4 >> 20,
+        (data.len() * 4) >> 20,
         max_bytes >> 20,
         dims[0],
         dims[1],
@@ -416,39 +416,6 @@ pub fn render_scene(
     )
     .map_err(|e| e.to_string())?;
     Ok((out, v))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn oversized_volumes_are_halved_until_they_fit() {
-        let vol = volume::synthetic::validation_scene(33);
-        let data = vol.select(None).unwrap().data;
-        assert!(fit_volume(&vol, &data, data.len() as u64 * 4).is_none());
-        let (v, d, note) = fit_volume(&vol, &data, 20_000).unwrap();
-        assert_eq!(v.dims, [17, 17, 17]);
-        assert!(d.len() * 4 <= 20_000, "{}", d.len());
-        assert!(
-            note.contains("downsampled") && note.contains("17 x 17 x 17"),
-            "{note}"
-        );
-        // The same world box (up to the half voxel at the odd edge) and a box-filtered field.
-        let (a, b) = (vol.bounds(), v.bounds());
-        let half = 0.5 * vol.spacing()[0];
-        assert!(
-            (a[0] - (b[0] - DVec3::splat(half))).length() < 1e-9,
-            "{a:?} {b:?}"
-        );
-        assert!((v.spacing()[0] - 4.0 * half).abs() < 1e-9);
-        // New voxel (3, 4, 5) is the mean of old voxels (6..8, 8..10, 10..12).
-        let mut sum = 0.0;
-        for c in 0..8 {
-            sum += data[vol.index(6 + (c & 1), 8 + (c >> 1 & 1), 10 + (c >> 2))] as f64;
-        }
-        assert!((d[3 + 17 * (4 + 17 * 5)] as f64 - sum / 8.0).abs() < 1e-4);
-    }
 }
 
 /// Writes linear RGBA and AOVs as EXR (channels R, G, B, A, and with `aov`
@@ -557,4 +524,37 @@ pub fn run(a: &RenderArgs) -> Result<RenderReport, String> {
         seconds: t0.elapsed().as_secs_f64(),
         notes,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn oversized_volumes_are_halved_until_they_fit() {
+        let vol = volume::synthetic::validation_scene(33);
+        let data = vol.select(None).unwrap().data;
+        assert!(fit_volume(&vol, &data, data.len() as u64 * 4).is_none());
+        let (v, d, note) = fit_volume(&vol, &data, 20_000).unwrap();
+        assert_eq!(v.dims, [17, 17, 17]);
+        assert!(d.len() * 4 <= 20_000, "{}", d.len());
+        assert!(
+            note.contains("downsampled") && note.contains("17 x 17 x 17"),
+            "{note}"
+        );
+        // The same world box (up to the half voxel at the odd edge) and a box-filtered field.
+        let (a, b) = (vol.bounds(), v.bounds());
+        let half = 0.5 * vol.spacing()[0];
+        assert!(
+            (a[0] - (b[0] - DVec3::splat(half))).length() < 1e-9,
+            "{a:?} {b:?}"
+        );
+        assert!((v.spacing()[0] - 4.0 * half).abs() < 1e-9);
+        // New voxel (3, 4, 5) is the mean of old voxels (6..8, 8..10, 10..12).
+        let mut sum = 0.0;
+        for c in 0..8 {
+            sum += data[vol.index(6 + (c & 1), 8 + (c >> 1 & 1), 10 + (c >> 2))] as f64;
+        }
+        assert!((d[3 + 17 * (4 + 17 * 5)] as f64 - sum / 8.0).abs() < 1e-4);
+    }
 }
