@@ -37,6 +37,7 @@ for m in a.methods.split(","):
     else:
         configs.append((m, None))
 results = {c: [] for c in configs}
+failed = {}
 passes = {}
 adapter = ""
 with tempfile.TemporaryDirectory() as d:
@@ -48,7 +49,10 @@ with tempfile.TemporaryDirectory() as d:
                    "--timings-json", t, "--set", f"render.slices={a.slices}"]
             if cell:
                 cmd += ["--set", f"render.occlusion_cell={cell}"]
-            subprocess.run(cmd, check=True, capture_output=True)
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            if r.returncode != 0:
+                failed[(m, cell)] = r.stderr.strip().splitlines()[-1]
+                continue
             j = json.load(open(t))
             results[(m, cell)].append(j["total_ms"])
             if j["total_ms"] <= min(results[(m, cell)]):
@@ -66,6 +70,9 @@ ea = min(results[("ea", None)]) if ("ea", None) in results else None
 print("| method | cell | total ms (best round median) | round medians | x E/A | passes (ms, each submitted alone) |")
 print("|---|---|---|---|---|---|")
 for c in configs:
+    if not results[c]:
+        print(f"| {c[0]} | {c[1] or '-'} | - | - | - | {failed.get(c, 'failed')} |")
+        continue
     best = min(results[c])
     ratio = f"{best / ea:.2f}" if ea else "-"
     p = ", ".join(f"{k} {v:.0f}" for k, v in sorted(passes[c].items()))
