@@ -18,6 +18,12 @@
 // when a uniform flag skips it).
 override PHONG: bool = false;
 
+// The cone-following occlusion model (engine/src/slice_pass.rs): the light buffers carry, per
+// cell, the light L and the shadow-weighted age of the shadow S D (S = 1 - L), and each step's
+// blur radius grows with that age so that a shadow spreads as the cone does. Off: the paper's
+// constant per-slice blur (the buffers then hold L only, at the same stride).
+override CONE: bool = false;
+
 struct Params {
     inv_view_proj: mat4x4<f32>,
     world_to_index: mat4x4<f32>,
@@ -81,7 +87,23 @@ struct Slice {
 
 fn occ_texel(p: vec2<i32>) -> f32 {
     let q = clamp(p, vec2<i32>(0), vec2<i32>(P.cells.xy) - vec2<i32>(1));
-    return occ_in[u32(q.x) + P.cells.x * u32(q.y)];
+    return occ_in[2u * (u32(q.x) + P.cells.x * u32(q.y))];
+}
+
+// Both channels of a cell (light, shadow-weighted age).
+fn occ_texel2(p: vec2<i32>) -> vec2<f32> {
+    let q = clamp(p, vec2<i32>(0), vec2<i32>(P.cells.xy) - vec2<i32>(1));
+    let i = 2u * (u32(q.x) + P.cells.x * u32(q.y));
+    return vec2<f32>(occ_in[i], occ_in[i + 1u]);
+}
+
+fn occ_bilinear2(t: vec2<f32>) -> vec2<f32> {
+    let s = t - vec2<f32>(0.5);
+    let b = vec2<i32>(floor(s));
+    let f = s - floor(s);
+    let a = mix(occ_texel2(b), occ_texel2(b + vec2<i32>(1, 0)), f.x);
+    let c = mix(occ_texel2(b + vec2<i32>(0, 1)), occ_texel2(b + vec2<i32>(1, 1)), f.x);
+    return mix(a, c, f.y);
 }
 
 // Bilinear read of the previous slice's light at a continuous cell position (centres at
@@ -357,7 +379,43 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     // disk the cone of half-angle theta cuts from it: radius d tan(theta) in world units at
     // depth z_{k-1}, in cells 0.5 (P00 w, P11 h) r / (z s) (camera::texture_radius).
     var occl = 1.0;
-    if (k > 0u) {
+    // Shadow-weighted mean age of the shadow arriving here (cone model).
+    var age = 0.0;
+    if (CONE && k > 0u) {
+        // The step that makes the shadow of an occluder at distance D reach the variance of
+        // the cone's disk at D + d: r^2 = tan^2(theta) ((D + d)^2 - D^2), i.e. the paper's
+        // radius d tan(theta) times sqrt(1 + 2 D / d); taps grow with the radius in cells.
+        let own = occ_texel2(vec2<i32>(id.xy));
+        let d0 = own.y / max(1.0 - own.x, 1e-6);
+        let rc = S.rpx.xy * sqrt(1.0 + 2.0 * max(d0, 0.0) / d);
+        var sum = vec2<f32>(0.0);
+        if (max(rc.x, rc.y) <= 2.0) {
+            // The 3x3 stencil with the disk's variance (slice_pass::blur_stencil).
+            let v = rc * rc * 0.25;
+            let kx = vec3<f32>(0.5 * v.x, 1.0 - v.x, 0.5 * v.x);
+            let ky = vec3<f32>(0.5 * v.y, 1.0 - v.y, 0.5 * v.y);
+            for (var j = 0; j < 3; j = j + 1) {
+                for (var i = 0; i < 3; i = i + 1) {
+                    sum = sum + kx[i] * ky[j] * occ_texel2(vec2<i32>(id.xy) + vec2<i32>(i - 1, j - 1));
+                }
+            }
+        } else {
+            let n = clamp(u32(ceil(max(rc.x, rc.y))), P.flags.w, 9u);
+            let c = vec2<f32>(id.xy) + vec2<f32>(0.5);
+            for (var i = 0u; i < n; i = i + 1u) {
+                for (var j = 0u; j < n; j = j + 1u) {
+                    var g = vec2<f32>(0.0);
+                    if (n > 1u) {
+                        g = (vec2<f32>(f32(i), f32(j)) + vec2<f32>(0.5)) / f32(n) * 2.0 - vec2<f32>(1.0);
+                    }
+                    sum = sum + occ_bilinear2(c + concentric(g) * rc);
+                }
+            }
+            sum = sum / f32(n * n);
+        }
+        occl = sum.x;
+        age = sum.y / max(1.0 - occl, 1e-6);
+    } else if (k > 0u) {
         let p = vec2<i32>(id.xy);
         if (S.wide == 0u) {
             var sum = 0.0;
@@ -412,7 +470,12 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
         let cov = inside / f32(s * s);
         t = t * (1.0 - cov * (1.0 - exp(-P.slicing.w * seg)));
     }
-    occ_out[ci] = occl * t;
+    let leave = occl * t;
+    occ_out[2u * ci] = leave;
+    if (CONE) {
+        // The arriving shadow (1 - O) ages by d; the shadow made here is new.
+        occ_out[2u * ci + 1u] = (1.0 - occl) * (age + d);
+    }
 }
 
 @compute @workgroup_size(8, 8, 1)

@@ -51,6 +51,8 @@ pub struct Settings {
     pub light: [f64; 4],
     /// Occlusion buffer cell edge in pixels (None: chosen, see `slice_pass::auto_cell`).
     pub occlusion_cell: Option<u32>,
+    /// The cone-following occlusion model instead of the paper's.
+    pub cone: bool,
 }
 
 impl Default for Settings {
@@ -68,6 +70,7 @@ impl Default for Settings {
             fxaa: true,
             light: [0.3, 0.7, 0.3, 32.0],
             occlusion_cell: None,
+            cone: false,
         }
     }
 }
@@ -183,6 +186,7 @@ pub fn render(
         &SliceSettings {
             occlusion,
             cell: s.occlusion_cell,
+            cone: s.cone,
             phong: s.method == Method::Phong,
             column: s.column,
             theta_deg: s.theta_deg,

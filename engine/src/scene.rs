@@ -212,6 +212,16 @@ pub enum GeometryShadow {
     Column,
 }
 
+/// How the volumetric occlusion buffer spreads shadows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OcclusionModel {
+    /// The paper's constant blur per slice (a random walk: depends on the slice count).
+    Paper,
+    /// A blur that grows with the shadow's distance from its occluders (follows the cone).
+    Cone,
+}
+
 /// Default vicinity depth bias as a fraction of `vicinity_distance`.
 pub const VICINITY_BIAS: f64 = 0.05;
 
@@ -250,6 +260,8 @@ pub struct RenderSpec {
     /// Edge of the occlusion buffer's cells in pixels, 1 to 16 (default: 2, or larger when
     /// the light volume would not fit the adapter).
     pub occlusion_cell: Option<u32>,
+    /// `paper` (constant blur per slice) or `cone` (follows the cone; slice-count independent).
+    pub occlusion_model: OcclusionModel,
     /// MSAA samples (lowered to what the adapter supports, with a warning).
     pub msaa: u32,
     pub fxaa: bool,
@@ -272,6 +284,7 @@ impl Default for RenderSpec {
             geometry_shadow: GeometryShadow::Inside,
             combine: Combine::Min,
             occlusion_cell: None,
+            occlusion_model: OcclusionModel::Paper,
             msaa: 4,
             fxaa: true,
         }

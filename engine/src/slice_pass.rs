@@ -27,6 +27,20 @@
 //!   receives `lerp(O_{k-1}, O_k, (z_s - z_{k-1}) / d)`. Algorithm 1's order of updates with
 //!   Algorithm 3's buffer swap reverses these weights if copied literally.
 //!
+//! The cone-following model (`render.occlusion_model = "cone"`; issue 5 item 5). The paper's
+//! incremental blur is a random walk: a blur of radius `r` (uniform disk, variance `r^2 / 4`
+//! per axis) per slice spreads a shadow after a distance `L` to a standard deviation of
+//! `tan(theta) sqrt(L d) / 2`, where the cone it models puts it on a disk of radius
+//! `L tan(theta)` (deviation `L tan(theta) / 2`); the result depends on the slice count and
+//! never reaches the cone. Here each cell also carries the shadow-weighted age `D` of its
+//! shadow (how far behind its occluders it lies; the buffers hold `L` and `(1 - L) D`), and
+//! the step's radius is chosen so the variances add up to the cone's:
+//! `r^2 = tan^2(theta) ((D + d)^2 - D^2)`, i.e. `r = d tan(theta) sqrt(1 + 2 D / d)` - the
+//! paper's radius at `D = 0`; after `n` steps from a point occluder the variance is
+//! `(n d tan(theta))^2 / 4`, the cone's at `L = n d`, whatever `d` is. Ages mix linearly where
+//! shadows of different occluders overlap (an approximation), and the taps (`n x n`, at least
+//! `blur_samples`, up to 9 per axis) grow with the radius in cells.
+//!
 //! Departure from the paper, for speed (issue 5, "beat the paper's design"): the occlusion
 //! buffer lives on cells of `s x s` pixels (`render.occlusion_cell`), one dispatch per slice
 //! (the `light` entry; the dispatch is the barrier the blur needs), and stores every slice's
@@ -55,6 +69,8 @@ pub struct SliceSettings {
     pub occlusion: bool,
     /// Cell edge of the occlusion buffer in pixels (None: [`auto_cell`] from 2).
     pub cell: Option<u32>,
+    /// The cone-following model instead of the paper's constant per-slice blur.
+    pub cone: bool,
     /// Phong shading of the volume with on-the-fly gradients.
     pub phong: bool,
     /// The paper's endless shadow column behind surfaces instead of the tubes' thickness.
@@ -105,40 +121,28 @@ pub fn concentric(a: [f64; 2]) -> [f64; 2] {
     [r * t.cos(), r * t.sin()]
 }
 
-/// The occlusion blur of one slice: `n x n` taps on the disk of radius `rpx` pixels (x, y),
-/// mapped concentrically, each bilinear. When the radius is at most one pixel every tap lies
-/// in the 3x3 neighbourhood and the taps sum to one 3x3 stencil (rows y = -1, 0, 1), the same
-/// for every pixel: returned with `false`. Otherwise `true` (the shader loops over the taps).
-pub fn blur_stencil(rpx: [f64; 2], n: u32) -> (bool, [[f64; 3]; 3]) {
+/// The occlusion blur of one slice, a uniform disk of radius `rpx` cells (x, y). On a grid a
+/// sub-cell blur cannot be sampled with bilinear taps without adding the interpolation's own
+/// diffusion (a tap at offset `o` spreads variance `|o| (1 - |o|)`, linear in `o`, where the
+/// disk adds `r^2 / 4`): repeated every slice, that diffusion would dominate and make the
+/// spread depend on the cell size instead of the cone. Up to a radius of two cells the blur
+/// is therefore the 3x3 stencil with the disk's variance per axis, `v = r^2 / 4`: the outer
+/// product of `[v/2, 1 - v, v/2]` in x and y (rows y = -1, 0, 1), returned with `false`; the
+/// same for every cell of the slice. Beyond, `true`: the shader takes `n x n` bilinear taps
+/// mapped concentrically onto the disk (`n` = `blur_samples`).
+pub fn blur_stencil(rpx: [f64; 2]) -> (bool, [[f64; 3]; 3]) {
     let mut w = [[0.0; 3]; 3];
-    if rpx[0] > 1.0 || rpx[1] > 1.0 {
+    if rpx[0] > 2.0 || rpx[1] > 2.0 {
         return (true, w);
     }
-    let n = n.max(1);
-    let share = 1.0 / (n * n) as f64;
-    for i in 0..n {
-        for j in 0..n {
-            let g = if n > 1 {
-                [
-                    (i as f64 + 0.5) / n as f64 * 2.0 - 1.0,
-                    (j as f64 + 0.5) / n as f64 * 2.0 - 1.0,
-                ]
-            } else {
-                [0.0, 0.0]
-            };
-            let c = concentric(g);
-            let o = [c[0] * rpx[0], c[1] * rpx[1]];
-            let b = [o[0].floor(), o[1].floor()];
-            let f = [o[0] - b[0], o[1] - b[1]];
-            for (dx, wx) in [(0, 1.0 - f[0]), (1, f[0])] {
-                for (dy, wy) in [(0, 1.0 - f[1]), (1, f[1])] {
-                    let x = (b[0] as i64 + dx + 1) as usize;
-                    let y = (b[1] as i64 + dy + 1) as usize;
-                    if wx * wy > 0.0 {
-                        w[y][x] += share * wx * wy;
-                    }
-                }
-            }
+    let k = |r: f64| {
+        let v = r * r / 4.0;
+        [v / 2.0, 1.0 - v, v / 2.0]
+    };
+    let (kx, ky) = (k(rpx[0]), k(rpx[1]));
+    for (y, row) in w.iter_mut().enumerate() {
+        for (x, c) in row.iter_mut().enumerate() {
+            *c = ky[y] * kx[x];
         }
     }
     (false, w)
@@ -210,7 +214,13 @@ impl SlicePass {
             &[Slot::StorageDynamic, Slot::Storage, Slot::StorageRw],
         );
         let pl = gpu.pipeline_layout("slice", &[&l0, &l1]);
-        let light_pipe = gpu.compute_pipeline_with(&module, "light", &pl, "light");
+        let light_pipe = gpu.compute_pipeline_constants(
+            &module,
+            "light",
+            &pl,
+            "light",
+            &[("CONE", if s.cone { 1.0 } else { 0.0 })],
+        );
         let march_pipe = gpu.compute_pipeline_constants(
             &module,
             "march",
@@ -366,7 +376,7 @@ impl SlicePass {
                 scale * proj.x_axis.x * v.width as f64,
                 scale * proj.y_axis.y * v.height as f64,
             ];
-            let (wide, w) = blur_stencil(rpx, s.blur_samples.max(1));
+            let (wide, w) = blur_stencil(rpx);
             let mut u = Uniform::default();
             u.u32x4([k, wide as u32, 0, 0])
                 .vec4([rpx[0], rpx[1], 0.0, 0.0]);
@@ -377,8 +387,8 @@ impl SlicePass {
             kb[at..at + u.0.len()].copy_from_slice(&u.0);
         }
         let kbuf = gpu.buffer("slice index", &kb, wgpu::BufferUsages::STORAGE);
-        let a = gpu.scratch("occlusion a", ncell * 4, wgpu::BufferUsages::empty());
-        let b = gpu.scratch("occlusion b", ncell * 4, wgpu::BufferUsages::empty());
+        let a = gpu.scratch("occlusion a", ncell * 8, wgpu::BufferUsages::empty());
+        let b = gpu.scratch("occlusion b", ncell * 8, wgpu::BufferUsages::empty());
         let k_binding = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
             buffer: &kbuf,
             offset: 0,

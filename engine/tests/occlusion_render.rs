@@ -435,3 +435,56 @@ fn clipping_planes_remove_the_volume_and_optionally_the_tubes() {
     assert!(cut.image[tube_right][3] < 1e-6);
     assert_eq!(cut.image[pixel(&cam, [-5.0, 0.0, 11.5])][3], 1.0);
 }
+
+#[test]
+fn the_cone_model_spreads_shadows_independently_of_the_slice_count() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    // A small dense block (2 x 2 x 1 around (0, 0, 8)) shadows a tube along x 16 units below.
+    let vol = cube(|p| {
+        if p.x.abs() <= 1.0 && p.y.abs() <= 1.0 && (7.5..=8.5).contains(&p.z) {
+            1.0
+        } else {
+            0.0
+        }
+    });
+    let scene = Scene::new(
+        Some((vol, medium(5.0))),
+        vec![tubes(&[[[-9.0, 0.0, -8.0], [9.0, 0.0, -8.0]]], 0.5)],
+    );
+    let profile = |cone: bool, d: f64| -> Vec<f64> {
+        let bounds = [DVec3::splat(-12.0), DVec3::splat(12.0)];
+        let v = EaView::span(bounds, 1.0, cam, W, H, None, Some(d), [1.0; 3]).unwrap();
+        let mut s = settings(Method::Dos);
+        s.theta_deg = 20.0;
+        s.cone = cone;
+        s.occlusion_cell = Some(1);
+        let out = scene.render(&gpu, &v, &s);
+        (0..=16)
+            .map(|i| out.aov[pixel(&cam, [-8.0 + i as f64, 0.0, -7.5])].partial as f64)
+            .collect()
+    };
+    let diff = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max)
+    };
+    let (paper_coarse, paper_fine) = (profile(false, 0.5), profile(false, 0.125));
+    let (cone_coarse, cone_fine) = (profile(true, 0.5), profile(true, 0.125));
+    let (dp, dc) = (
+        diff(&paper_coarse, &paper_fine),
+        diff(&cone_coarse, &cone_fine),
+    );
+    eprintln!("paper: {paper_coarse:.2?}\n       {paper_fine:.2?}\ncone:  {cone_coarse:.2?}\n       {cone_fine:.2?}");
+    eprintln!("slice-count change: paper {dp:.3}, cone {dc:.3}");
+    assert!(dc < 0.06, "the cone model moved by {dc} with 4x the slices");
+    assert!(dp > 2.0 * dc, "paper {dp}, cone {dc}");
+    // The cone's shadow reaches about L tan(theta) = 15.5 tan(20 deg) = 5.6 units from the
+    // block's edge: darker than open at 4 units from the centre, open at 8.
+    let at = |x: f64| cone_fine[(x + 8.0) as usize];
+    assert!(
+        at(0.0) < 0.9 && at(4.0) < 0.99 && at(8.0) > 0.97,
+        "{cone_fine:?}"
+    );
+}
