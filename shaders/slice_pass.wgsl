@@ -24,6 +24,10 @@ override PHONG: bool = false;
 // constant per-slice blur (the buffers then hold L only, at the same stride).
 override CONE: bool = false;
 
+// A 2-D transfer function (value x gradient magnitude): rows of 1-D points, interpolated in
+// the gradient magnitude (ea_pass::Transfer). A constant, so 1-D functions skip the gradient.
+override TF2D: bool = false;
+
 struct Params {
     inv_view_proj: mat4x4<f32>,
     world_to_index: mat4x4<f32>,
@@ -44,7 +48,7 @@ struct Params {
     proj: vec4<f32>,
     // ambient, diffuse, specular, shininess
     light: vec4<f32>,
-    // cells per axis (x, y), cell edge in pixels, unused
+    // cells per axis (x, y), cell edge in pixels, 2-D transfer function rows (0: 1-D)
     cells: vec4<u32>,
 };
 
@@ -148,16 +152,16 @@ fn trilinear(q: vec3<f32>) -> f32 {
     return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
 }
 
-// Colour (rgb) and extinction (a) at value v.
-fn transfer(v: f32) -> vec4<f32> {
-    let n = P.counts.y;
-    if (n == 0u) {
+// Colour (rgb) and extinction (a) at value v of the 1-D function in points [first, end).
+fn transfer_row(v: f32, first: u32, end: u32) -> vec4<f32> {
+    if (end <= first) {
         return vec4<f32>(0.0);
     }
-    if (v <= tf[0]) {
-        return vec4<f32>(tf[1], tf[2], tf[3], tf[4]);
+    let f = 8u * first;
+    if (v <= tf[f]) {
+        return vec4<f32>(tf[f + 1u], tf[f + 2u], tf[f + 3u], tf[f + 4u]);
     }
-    for (var i = 1u; i < n; i = i + 1u) {
+    for (var i = first + 1u; i < end; i = i + 1u) {
         let x1 = tf[8u * i];
         if (v <= x1) {
             let j = 8u * (i - 1u);
@@ -167,8 +171,34 @@ fn transfer(v: f32) -> vec4<f32> {
             return mix(a, b, select(0.0, (v - x0) / (x1 - x0), x1 > x0));
         }
     }
-    let l = 8u * (n - 1u);
+    let l = 8u * (end - 1u);
     return vec4<f32>(tf[l + 1u], tf[l + 2u], tf[l + 3u], tf[l + 4u]);
+}
+
+// Colour (rgb) and extinction (a) at value v and gradient magnitude g. The rows of a 2-D
+// function follow the points in `tf`: (gradient, first point, end point, 0) each.
+fn transfer(v: f32, g: f32) -> vec4<f32> {
+    let n = P.counts.y;
+    let nr = P.cells.w;
+    if (!TF2D || nr == 0u) {
+        return transfer_row(v, 0u, n);
+    }
+    let base = 8u * n;
+    if (g <= tf[base]) {
+        return transfer_row(v, u32(tf[base + 1u]), u32(tf[base + 2u]));
+    }
+    for (var j = 1u; j < nr; j = j + 1u) {
+        let r = base + 4u * j;
+        if (g <= tf[r]) {
+            let q = r - 4u;
+            let t = select(0.0, (g - tf[q]) / (tf[r] - tf[q]), tf[r] > tf[q]);
+            let a = transfer_row(v, u32(tf[q + 1u]), u32(tf[q + 2u]));
+            let b = transfer_row(v, u32(tf[r + 1u]), u32(tf[r + 2u]));
+            return mix(a, b, t);
+        }
+    }
+    let l = base + 4u * (nr - 1u);
+    return transfer_row(v, u32(tf[l + 1u]), u32(tf[l + 2u]));
 }
 
 // The slices a ray meets inside the grid's box (first, one past the last), in front of the
@@ -270,7 +300,7 @@ fn volume_sample(r: Ray, depth: f32, grad: ptr<function, vec3<f32>>) -> vec4<f32
     if (v < -1e30) {
         return vec4<f32>(0.0);
     }
-    if (PHONG) {
+    if (PHONG || TF2D) {
         // Central differences in index space (one-sided at the border), to world space by
         // the transpose of the index-from-world Jacobian.
         let e = vec3<f32>(1.0, 0.0, 0.0);
@@ -285,7 +315,7 @@ fn volume_sample(r: Ray, depth: f32, grad: ptr<function, vec3<f32>>) -> vec4<f32
             dot(m[2].xyz, gq),
         );
     }
-    return transfer(v);
+    return transfer(v, length(*grad));
 }
 
 // Colour of a volume sample under the head light: unshaded emission, or Phong with the

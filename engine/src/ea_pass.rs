@@ -35,56 +35,106 @@ use volume::Volume;
 
 /// A piecewise-linear transfer function: `(value, rgb, extinction)` points, values
 /// non-decreasing; constant beyond the ends.
+///
+/// 2-D (over value and gradient magnitude, Schott et al.'s Algorithm 2): `rows` lists, by
+/// increasing gradient magnitude, each row's gradient and the index of its first point in
+/// `points` (a row runs to the next row's first point); each row is a 1-D function of value,
+/// and between two rows the result is interpolated linearly in the gradient magnitude
+/// (constant beyond the first and last rows). Empty `rows`: 1-D.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Transfer {
     pub points: Vec<(f64, [f64; 3], f64)>,
+    pub rows: Vec<(f64, usize)>,
+}
+
+/// A 1-D piecewise-linear function's colour and extinction at `v`.
+fn eval_points(p: &[(f64, [f64; 3], f64)], v: f64) -> ([f64; 3], f64) {
+    if p.is_empty() {
+        return ([0.0; 3], 0.0);
+    }
+    if v <= p[0].0 {
+        return (p[0].1, p[0].2);
+    }
+    for i in 1..p.len() {
+        if v <= p[i].0 {
+            let (a, b) = (&p[i - 1], &p[i]);
+            let t = if b.0 > a.0 {
+                (v - a.0) / (b.0 - a.0)
+            } else {
+                0.0
+            };
+            let c = [0, 1, 2].map(|k| a.1[k] + (b.1[k] - a.1[k]) * t);
+            return (c, a.2 + (b.2 - a.2) * t);
+        }
+    }
+    let l = p.last().unwrap();
+    (l.1, l.2)
 }
 
 impl Transfer {
     /// Whether the extinction is zero for every value in `[lo, hi]` (piecewise linear: the
     /// largest value on an interval is at its ends or at a point inside it).
+    /// For a 2-D function: whether every row is (the rows bound the interpolation).
     pub fn transparent_over(&self, lo: f64, hi: f64) -> bool {
-        let inside = self
-            .points
-            .iter()
-            .filter(|p| p.0 > lo && p.0 < hi)
-            .map(|p| p.2);
-        let m = inside
-            .chain([self.eval(lo).1, self.eval(hi).1])
-            .fold(0.0f64, f64::max);
-        m <= 0.0
+        self.row_slices().into_iter().all(|p| {
+            let inside = p.iter().filter(|q| q.0 > lo && q.0 < hi).map(|q| q.2);
+            let m = inside
+                .chain([eval_points(p, lo).1, eval_points(p, hi).1])
+                .fold(0.0f64, f64::max);
+            m <= 0.0
+        })
+    }
+
+    /// The rows' points (one slice, all points, for a 1-D function).
+    pub fn row_slices(&self) -> Vec<&[(f64, [f64; 3], f64)]> {
+        if self.rows.is_empty() {
+            return vec![&self.points];
+        }
+        (0..self.rows.len())
+            .map(|r| {
+                let end = self.rows.get(r + 1).map_or(self.points.len(), |x| x.1);
+                &self.points[self.rows[r].1..end]
+            })
+            .collect()
+    }
+
+    /// Colour and extinction at value `v` and gradient magnitude `g` (`g` is ignored by a 1-D
+    /// function).
+    pub fn eval2(&self, v: f64, g: f64) -> ([f64; 3], f64) {
+        let rows = self.row_slices();
+        if self.rows.is_empty() {
+            return eval_points(rows[0], v);
+        }
+        let r = &self.rows;
+        if g <= r[0].0 {
+            return eval_points(rows[0], v);
+        }
+        for j in 1..r.len() {
+            if g <= r[j].0 {
+                let t = if r[j].0 > r[j - 1].0 {
+                    (g - r[j - 1].0) / (r[j].0 - r[j - 1].0)
+                } else {
+                    0.0
+                };
+                let (a, b) = (eval_points(rows[j - 1], v), eval_points(rows[j], v));
+                let c = [0, 1, 2].map(|k| a.0[k] + (b.0[k] - a.0[k]) * t);
+                return (c, a.1 + (b.1 - a.1) * t);
+            }
+        }
+        eval_points(rows[r.len() - 1], v)
     }
 
     /// A ramp from transparent black at `lo` to `colour` with `extinction` at `hi`.
     pub fn ramp(lo: f64, hi: f64, colour: [f64; 3], extinction: f64) -> Transfer {
         Transfer {
             points: vec![(lo, [0.0; 3], 0.0), (hi.max(lo), colour, extinction)],
+            rows: vec![],
         }
     }
 
-    /// Colour and extinction at `v`.
+    /// Colour and extinction at `v` (a 2-D function's lowest-gradient row).
     pub fn eval(&self, v: f64) -> ([f64; 3], f64) {
-        let p = &self.points;
-        if p.is_empty() {
-            return ([0.0; 3], 0.0);
-        }
-        if v <= p[0].0 {
-            return (p[0].1, p[0].2);
-        }
-        for i in 1..p.len() {
-            if v <= p[i].0 {
-                let (a, b) = (&p[i - 1], &p[i]);
-                let t = if b.0 > a.0 {
-                    (v - a.0) / (b.0 - a.0)
-                } else {
-                    0.0
-                };
-                let c = [0, 1, 2].map(|k| a.1[k] + (b.1[k] - a.1[k]) * t);
-                return (c, a.2 + (b.2 - a.2) * t);
-            }
-        }
-        let l = p.last().unwrap();
-        (l.1, l.2)
+        eval_points(self.row_slices()[0], v)
     }
 }
 
@@ -354,11 +404,34 @@ mod tests {
                 (1.0, [1.0, 0.5, 0.0], 2.0),
                 (3.0, [0.0, 0.0, 1.0], 0.0),
             ],
+            rows: vec![],
         };
         assert_eq!(t.eval(-5.0), ([0.0; 3], 0.0));
         assert_eq!(t.eval(0.5), ([0.5, 0.25, 0.0], 1.0));
         assert_eq!(t.eval(2.0), ([0.5, 0.25, 0.5], 1.0));
         assert_eq!(t.eval(9.0), ([0.0, 0.0, 1.0], 0.0));
+    }
+
+    #[test]
+    fn two_dimensional_transfer_functions_interpolate_between_gradient_rows() {
+        // Row g = 0: transparent; row g = 10: extinction 2 above value 1.
+        let t = Transfer {
+            points: vec![
+                (0.0, [0.0; 3], 0.0),
+                (1.0, [0.0; 3], 0.0),
+                (0.0, [1.0; 3], 0.0),
+                (1.0, [1.0; 3], 2.0),
+            ],
+            rows: vec![(0.0, 0), (10.0, 2)],
+        };
+        assert_eq!(t.eval2(1.0, 0.0), ([0.0; 3], 0.0));
+        assert_eq!(t.eval2(1.0, 10.0), ([1.0; 3], 2.0));
+        assert_eq!(t.eval2(1.0, 99.0), ([1.0; 3], 2.0));
+        assert_eq!(t.eval2(1.0, 2.5), ([0.25; 3], 0.5));
+        assert_eq!(t.eval2(0.5, 5.0).1, 0.5);
+        // Empty space: transparent only where every row is.
+        assert!(t.transparent_over(-1.0, 0.0));
+        assert!(!t.transparent_over(0.5, 0.6));
     }
 
     #[test]
@@ -370,6 +443,7 @@ mod tests {
                 (0.5, [1.0; 3], 2.0),
                 (0.6, [1.0; 3], 0.0),
             ],
+            rows: vec![],
         };
         assert!(t.transparent_over(-1.0, 0.4));
         assert!(t.transparent_over(0.6, 9.0));

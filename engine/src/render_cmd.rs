@@ -52,18 +52,42 @@ pub const PRESET_CUTOFF: f64 = 0.1;
 /// a preset's colour ramp over the range with extinction zero below [`PRESET_CUTOFF`] of it,
 /// rising linearly to `extinction` at the top.
 pub fn transfer(spec: &TransferSpec, range: [f64; 2]) -> Result<Transfer, String> {
-    if !spec.points.is_empty() {
-        if spec.points.iter().any(|p| p.gradient.is_some()) {
-            return Err(
-                "volume.transfer: 2-D transfer functions (gradient) are not rendered yet".into(),
-            );
+    if spec.points.iter().any(|p| p.gradient.is_some()) {
+        // Rows of equal gradient magnitude, by increasing gradient, each by value.
+        let mut pts = spec
+            .points
+            .iter()
+            .map(|p| {
+                Ok((
+                    p.gradient.unwrap_or(0.0),
+                    p.value,
+                    p.color.rgb()?,
+                    p.extinction,
+                ))
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        let mut rows: Vec<(f64, usize)> = vec![];
+        for (i, p) in pts.iter().enumerate() {
+            if rows.last().is_none_or(|r| r.0 != p.0) {
+                rows.push((p.0, i));
+            }
         }
+        return Ok(Transfer {
+            points: pts.into_iter().map(|p| (p.1, p.2, p.3)).collect(),
+            rows,
+        });
+    }
+    if !spec.points.is_empty() {
         let points = spec
             .points
             .iter()
             .map(|p| Ok((p.value, p.color.rgb()?, p.extinction)))
             .collect::<Result<Vec<_>, String>>()?;
-        return Ok(Transfer { points });
+        return Ok(Transfer {
+            points,
+            rows: vec![],
+        });
     }
     let [lo, hi] = range;
     let at = |t: f64| lo + (hi - lo) * t;
@@ -110,6 +134,7 @@ pub fn transfer(spec: &TransferSpec, range: [f64; 2]) -> Result<Transfer, String
                 (at(t), colour(t), e)
             })
             .collect(),
+        rows: vec![],
     })
 }
 
@@ -615,11 +640,13 @@ mod tests {
         assert_eq!(slice_distance(&vol, &data, &smooth).0, 0.5);
         let narrow = Transfer {
             points: vec![(10.0, [1.0; 3], 0.0), (10.4, [1.0; 3], 1.0)],
+            rows: vec![],
         };
         let (d, why) = slice_distance(&vol, &data, &narrow);
         assert!((d - 0.2).abs() < 1e-9, "{d} {why}");
         let step = Transfer {
             points: vec![(10.0, [1.0; 3], 0.0), (10.0001, [1.0; 3], 1.0)],
+            rows: vec![],
         };
         let (d, why) = slice_distance(&vol, &data, &step);
         assert_eq!(d, 0.125);

@@ -452,6 +452,15 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         if twod == 0 && t.points.windows(2).any(|w| w[1].value < w[0].value) {
             return bad("volume.transfer.points", "values must not decrease".into());
         }
+        if t.points
+            .iter()
+            .any(|p| p.gradient.is_some_and(|g| !(g >= 0.0 && g.is_finite())))
+        {
+            return bad(
+                "volume.transfer.points",
+                "gradient magnitudes must be finite and >= 0".into(),
+            );
+        }
     }
     for (i, t) in s.tubes.iter_mut().enumerate() {
         if t.path.is_relative() {

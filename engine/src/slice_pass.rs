@@ -192,6 +192,7 @@ impl SlicePass {
             }
         }
         let module = gpu.shader("slice_pass.wgsl", SHADER);
+        let tf2d = volume.is_some_and(|vi| !vi.tf.rows.is_empty());
         let l0 = gpu.layout(
             "slice group 0",
             wgpu::ShaderStages::COMPUTE,
@@ -219,14 +220,20 @@ impl SlicePass {
             "light",
             &pl,
             "light",
-            &[("CONE", if s.cone { 1.0 } else { 0.0 })],
+            &[
+                ("CONE", if s.cone { 1.0 } else { 0.0 }),
+                ("TF2D", if tf2d { 1.0 } else { 0.0 }),
+            ],
         );
         let march_pipe = gpu.compute_pipeline_constants(
             &module,
             "march",
             &pl,
             "march",
-            &[("PHONG", if s.phong { 1.0 } else { 0.0 })],
+            &[
+                ("PHONG", if s.phong { 1.0 } else { 0.0 }),
+                ("TF2D", if tf2d { 1.0 } else { 0.0 }),
+            ],
         );
 
         let aspect = v.width as f64 / v.height.max(1) as f64;
@@ -270,6 +277,12 @@ impl SlicePass {
                         0.0,
                         0.0,
                     ]);
+                }
+                let rows = vi.tf.row_slices();
+                let mut first = 0usize;
+                for (r, p) in vi.tf.rows.iter().zip(&rows) {
+                    tfb.extend([r.0 as f32, first as f32, (first + p.len()) as f32, 0.0]);
+                    first += p.len();
                 }
                 let (nb, occ) = occupancy(vi.data, vi.vol.dims, vi.tf);
                 (
@@ -327,7 +340,12 @@ impl SlicePass {
             0.0,
         ])
         .vec4(s.light)
-        .u32x4([cells.0, cells.1, cell, 0]);
+        .u32x4([
+            cells.0,
+            cells.1,
+            cell,
+            volume.map_or(0, |vi| vi.tf.rows.len() as u32),
+        ]);
         let storage = wgpu::BufferUsages::STORAGE;
         let params = gpu.buffer("slice params", &u.0, wgpu::BufferUsages::UNIFORM);
         let field = gpu.buffer("slice field", bytemuck::cast_slice(&field), storage);

@@ -54,6 +54,7 @@ fn medium(sigma: f64) -> Transfer {
             (0.5, [1.0; 3], sigma),
             (2.0, [1.0; 3], sigma),
         ],
+        rows: vec![],
     }
 }
 
@@ -171,6 +172,7 @@ fn an_all_transparent_transfer_function_gives_the_background() {
     let vol = cube(|p| (p.x * 0.3).sin() as f32 + 1.0);
     let clear = Transfer {
         points: vec![(0.0, [1.0, 0.0, 0.0], 0.0), (2.0, [0.0, 1.0, 0.0], 0.0)],
+        rows: vec![],
     };
     let scene = Scene::new(Some((vol, clear)), vec![]);
     let mut v = view(top_camera(false));
@@ -487,4 +489,43 @@ fn the_cone_model_spreads_shadows_independently_of_the_slice_count() {
         at(0.0) < 0.9 && at(4.0) < 0.99 && at(8.0) > 0.97,
         "{cone_fine:?}"
     );
+}
+
+#[test]
+fn a_two_dimensional_transfer_function_shows_boundaries_only() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    // A solid ball (value 1 inside radius 6): a 1-D function makes it a dense blob, a 2-D one
+    // with extinction only at high gradient magnitude a shell, seen as a ring.
+    let ball = cube(|p| if p.length() < 6.0 { 1.0 } else { 0.0 });
+    let one_d = Transfer {
+        points: vec![(0.0, [1.0; 3], 0.0), (1.0, [1.0; 3], 0.3)],
+        rows: vec![],
+    };
+    let two_d = Transfer {
+        points: vec![
+            (0.0, [1.0; 3], 0.0),
+            (1.0, [1.0; 3], 0.0),
+            (0.0, [1.0; 3], 0.3),
+            (1.0, [1.0; 3], 0.3),
+        ],
+        rows: vec![(0.0, 0), (0.4, 2)],
+    };
+    let v = view(cam);
+    let alpha = |tf: Transfer, at: [f64; 3]| {
+        let scene = Scene::new(Some((ball.clone(), tf)), vec![]);
+        scene.render(&gpu, &v, &settings(Method::Ea)).image[pixel(&cam, at)][3]
+    };
+    let (c1, r1) = (
+        alpha(one_d.clone(), [0.0; 3]),
+        alpha(one_d, [5.2, 0.0, 0.0]),
+    );
+    let (c2, r2) = (
+        alpha(two_d.clone(), [0.0; 3]),
+        alpha(two_d, [5.2, 0.0, 0.0]),
+    );
+    eprintln!("1-D: centre {c1:.3}, rim {r1:.3}; 2-D: centre {c2:.3}, rim {r2:.3}");
+    assert!(c1 > r1, "1-D: the centre is the densest");
+    assert!(r2 > c2 + 0.1, "2-D: the rim outshines the centre");
+    assert!(c2 < c1 - 0.1);
 }
