@@ -21,6 +21,9 @@ struct Params {
 @group(0) @binding(7) var<storage, read_write> image: array<vec4<f32>>;
 // AOVs per pixel: (volumetric, partial, vicinity, combined), (linear depth, 0, 0, 0).
 @group(0) @binding(8) var<storage, read_write> aov: array<vec4<f32>>;
+// The isosurface (iso_pass): shaded colour and linear depth (0: none), and its ambient term.
+@group(0) @binding(9) var<storage, read> iso_out: array<vec4<f32>>;
+@group(0) @binding(10) var<storage, read> iso_ambient: array<f32>;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -40,6 +43,17 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var combined = 1.0;
     var under = C.background.rgb;
     var coverage = e.a;
+    let iso = iso_out[idx];
+    if (iso.w > 0.0 && (z <= 0.0 || iso.w < z)) {
+        // The isosurface is the nearest surface: shaded by its swept ambient term.
+        combined = iso_ambient[idx];
+        under = iso.rgb;
+        coverage = 1.0;
+        image[idx] = vec4<f32>(under * (1.0 - e.a) + e.rgb, coverage);
+        aov[2u * idx] = vec4<f32>(volumetric, 1.0, 1.0, combined);
+        aov[2u * idx + 1u] = vec4<f32>(iso.w, 0.0, 0.0, 0.0);
+        return;
+    }
     if (z > 0.0) {
         if ((C.mode.z & 1u) != 0u) {
             partial = s0.y;

@@ -9,7 +9,8 @@
 //! Algorithm 1 initialises the eye buffer with it, which adds it instead of attenuating it).
 //! The AOVs: volumetric occlusion (the opacity-weighted mean of the occlusion along the eye
 //! ray), partial, vicinity and combined occlusion, and linear depth (of the surface, or where
-//! the volume becomes half opaque if that is nearer).
+//! the volume becomes half opaque if that is nearer). Where the isosurface of `iso_pass` is
+//! nearer than the tubes it is the surface, already shaded, its ambient term the combined AOV.
 
 use crate::camera::Camera;
 use crate::gbuffer::GBuffer;
@@ -48,6 +49,7 @@ impl CompositePass {
         eye: &wgpu::Buffer,
         state: &wgpu::Buffer,
         vicinity: &wgpu::Buffer,
+        iso: &crate::iso_pass::IsoPass,
         s: &CompositeSettings,
     ) -> CompositePass {
         let module = gpu.shader("composite.wgsl", SHADER);
@@ -64,6 +66,8 @@ impl CompositePass {
                 Slot::UnfilterableTexture,
                 Slot::StorageRw,
                 Slot::StorageRw,
+                Slot::Storage,
+                Slot::Storage,
             ],
         );
         let pl = gpu.pipeline_layout("composite", &[&layout]);
@@ -97,6 +101,8 @@ impl CompositePass {
                 wgpu::BindingResource::TextureView(&gbuf.front),
                 image.as_entire_binding(),
                 aov.as_entire_binding(),
+                iso.output.as_entire_binding(),
+                iso.ambient.as_entire_binding(),
             ],
         );
         CompositePass {

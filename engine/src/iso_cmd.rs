@@ -47,6 +47,61 @@ pub struct IsoStats {
     pub seconds: f64,
 }
 
+/// The distance field and (when `need_octants`) the eight octant visibilities of an
+/// isosurface: read from `fields` (the octants from `octants` or beside it) when given, else
+/// swept in memory.
+#[allow(clippy::too_many_arguments)]
+pub fn iso_fields(
+    vol: &volume::Volume,
+    values: &[f32],
+    iso: f32,
+    inside: Inside,
+    fields: Option<&std::path::Path>,
+    octants: Option<&std::path::Path>,
+    need_octants: bool,
+    subsurface_alpha: Option<f32>,
+) -> Result<(Vec<f32>, Option<volume::occlusion_sweep::OctantFields>), String> {
+    match fields {
+        Some(p) => {
+            let d = volume::load(p).map_err(|e| e.to_string())?;
+            if d.dims != vol.dims || d.fields[0].components != 1 {
+                return Err(format!(
+                    "{}: distance grid {:?} does not match the volume's {:?}",
+                    p.display(),
+                    d.dims,
+                    vol.dims
+                ));
+            }
+            let oct = if need_octants {
+                let op = octants
+                    .map(|o| o.to_path_buf())
+                    .unwrap_or_else(|| crate::sweep_cmd::default_octants_path(p));
+                Some(read_octants(&op, vol.dims)?)
+            } else {
+                None
+            };
+            Ok((d.fields[0].data.clone(), oct))
+        }
+        None => {
+            let sp = vol.spacing();
+            let dopts = DistanceOptions {
+                iso,
+                inside,
+                ..Default::default()
+            };
+            let (df, oct) = sweep_fields(
+                values,
+                vol.dims,
+                [sp[0] as f32, sp[1] as f32, sp[2] as f32],
+                &dopts,
+                &OcclusionOptions { subsurface_alpha },
+                true,
+            );
+            Ok((df.distance, oct))
+        }
+    }
+}
+
 /// Loads or computes the fields and renders; returns the image and its statistics.
 pub fn render_cli(args: &IsoArgs) -> Result<(IsoImage, IsoStats), String> {
     let t0 = Instant::now();
@@ -58,49 +113,17 @@ pub fn render_cli(args: &IsoArgs) -> Result<(IsoImage, IsoStats), String> {
         args.inside,
         &args.input,
     )?;
-    let (sdf, octants) = match &args.fields {
-        Some(p) => {
-            let d = volume::load(p).map_err(|e| e.to_string())?;
-            if d.dims != vol.dims || d.fields[0].components != 1 {
-                return Err(format!(
-                    "{}: distance grid {:?} does not match the volume's {:?}",
-                    p.display(),
-                    d.dims,
-                    vol.dims
-                ));
-            }
-            let need_octants = args.reference_ao.is_none() && !args.local;
-            let oct = if need_octants {
-                let op = args
-                    .octants
-                    .clone()
-                    .unwrap_or_else(|| crate::sweep_cmd::default_octants_path(p));
-                Some(read_octants(&op, vol.dims)?)
-            } else {
-                None
-            };
-            (d.fields[0].data.clone(), oct)
-        }
-        None => {
-            let sp = vol.spacing();
-            let dopts = DistanceOptions {
-                iso: args.iso,
-                inside: args.inside,
-                ..Default::default()
-            };
-            let (df, oct) = sweep_fields(
-                &values,
-                vol.dims,
-                [sp[0] as f32, sp[1] as f32, sp[2] as f32],
-                &dopts,
-                &OcclusionOptions {
-                    subsurface_alpha: args.subsurface_alpha,
-                },
-                true,
-            );
-            (df.distance, oct)
-        }
-    };
+    let need_octants = args.reference_ao.is_none() && !args.local;
+    let (sdf, octants) = iso_fields(
+        &vol,
+        &values,
+        args.iso,
+        args.inside,
+        args.fields.as_deref(),
+        args.octants.as_deref(),
+        need_octants,
+        args.subsurface_alpha,
+    )?;
     let surface = IsoSurface::new(
         vol.dims,
         vol.affine,

@@ -156,9 +156,24 @@ impl<'a> IsoSurface<'a> {
         self.trilinear(self.sdf, self.to_index(w))
     }
 
-    /// Outward world normal at a world point.
+    /// Outward world normal at a world point. On the closure beyond the grid (an object
+    /// touching the border is closed half a voxel outside it) the distance field, clamped at the
+    /// border, has no gradient across the face - only rounding noise - so the normal there is
+    /// the face's own (the sum of the faces' normals at an edge or corner).
     pub fn normal(&self, w: DVec3) -> DVec3 {
         let p = self.to_index(w);
+        let side = DVec3::from_array(std::array::from_fn(|a| {
+            if p[a] < 0.0 {
+                -1.0
+            } else if p[a] > (self.dims[a] - 1) as f64 {
+                1.0
+            } else {
+                0.0
+            }
+        }));
+        if side != DVec3::ZERO {
+            return (self.inv3.transpose() * side).normalize_or_zero();
+        }
         let e = 0.5;
         let grad_i = DVec3::new(
             self.trilinear(self.sdf, p + DVec3::X * e) - self.trilinear(self.sdf, p - DVec3::X * e),

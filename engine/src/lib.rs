@@ -15,6 +15,7 @@ pub mod gbuffer;
 pub mod gpu;
 pub mod info;
 pub mod iso_cmd;
+pub mod iso_pass;
 pub mod iso_reference;
 pub mod render_cmd;
 pub mod renderer;

@@ -188,9 +188,23 @@ pub fn camera(s: &Scene, bounds: [DVec3; 2]) -> Result<Camera, String> {
     Ok(cam)
 }
 
-/// A scene's model on the CPU: the volume as the passes read it, and the tube meshes.
+/// An isosurface with its swept fields (isosurface mode, `[volume.iso]`).
+pub struct IsoModel {
+    pub dims: [usize; 3],
+    pub affine: glam::DMat4,
+    /// Classified samples (inside where >= 0, NaN as -1).
+    pub g: Vec<f32>,
+    pub sdf: Vec<f32>,
+    pub octants: volume::occlusion_sweep::OctantFields,
+    pub model: volume::occlusion_shading::AmbientModel,
+    pub color: [f64; 3],
+}
+
+/// A scene's model on the CPU: the volume as the passes read it (or its isosurface), and the
+/// tube meshes.
 pub struct Model {
     pub volume: Option<(volume::Volume, Vec<f32>, Transfer)>,
+    pub iso: Option<IsoModel>,
     pub meshes: Vec<TubeMesh>,
     pub bounds: [DVec3; 2],
     /// Twice the default slice distance (`EaView::span` halves it): see [`slice_distance`].
@@ -309,6 +323,69 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             Some((vol, data, tf))
         }
     };
+    // Isosurface mode: the volume becomes its isosurface (no direct volume rendering).
+    let mut iso = None;
+    let mut iso_bounds = None;
+    if let (Some(vspec), Some(ispec)) = (&s.volume, s.volume.as_ref().and_then(|v| v.iso.as_ref()))
+    {
+        let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
+        let sel = vspec
+            .field
+            .as_deref()
+            .map(str::parse::<volume::FieldSelector>)
+            .transpose()
+            .map_err(|e| e.to_string())?;
+        let inside = if ispec.inside == scene::IsoInside::Below {
+            volume::distance_sweep::Inside::Below
+        } else {
+            volume::distance_sweep::Inside::Above
+        };
+        let values = crate::sweep_cmd::scalar_field(
+            &vol,
+            sel.as_ref(),
+            ispec.value as f32,
+            inside,
+            &vspec.path,
+        )?;
+        let (sdf, octants) = crate::iso_cmd::iso_fields(
+            &vol,
+            &values,
+            ispec.value as f32,
+            inside,
+            ispec.fields.as_deref(),
+            None,
+            true,
+            None,
+        )?;
+        let octants = octants.ok_or("volume.iso: the octant fields are missing")?;
+        let surface = crate::iso_reference::IsoSurface::new(
+            vol.dims,
+            vol.affine,
+            &values,
+            ispec.value as f32,
+            inside == volume::distance_sweep::Inside::Above,
+            &sdf,
+        );
+        let g = surface.g.clone();
+        let sky: volume::occlusion_shading::Sky = ispec.sky.parse()?;
+        let opts = volume::occlusion_shading::AmbientOptions {
+            sky,
+            gamma: ispec.gamma,
+            offset: ispec.offset,
+            ..Default::default()
+        };
+        iso_bounds = Some(vol.bounds());
+        iso = Some(IsoModel {
+            dims: vol.dims,
+            affine: vol.affine,
+            g,
+            sdf,
+            octants,
+            model: volume::occlusion_shading::AmbientModel::new(opts, &vol.affine),
+            color: ispec.color.rgb()?,
+        });
+    }
+    let volume = if iso.is_some() { None } else { volume };
     let mut meshes = vec![];
     for (i, t) in s.tubes.iter().enumerate() {
         let mut sl = tubes::load(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
@@ -345,6 +422,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     if let Some((v, _, _)) = &volume {
         boxes.push(v.bounds());
     }
+    if let Some(b) = iso_bounds {
+        boxes.push(b);
+    }
     let Some(first) = boxes.first().copied() else {
         return Err("the scene has neither a [volume] nor [[tubes]] with geometry".into());
     };
@@ -366,6 +446,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     };
     Ok(Model {
         volume,
+        iso,
         meshes,
         bounds,
         spacing,
@@ -488,7 +569,9 @@ pub fn fit_volume(
     Some((v, d, note))
 }
 
-/// Renders a loaded scene: the frame and the view it was seen through (and notes).
+/// Renders a loaded scene: the frame and the view it was seen through. A volume larger than
+/// the adapter's storage binding limit is downsampled first ([`fit_volume`], with a note on
+/// standard error).
 pub fn render_scene(
     gpu: &crate::gpu::Gpu,
     s: &Scene,
@@ -496,15 +579,47 @@ pub fn render_scene(
     frames: u32,
 ) -> Result<(renderer::Output, EaView), String> {
     let v = view(s, m)?;
-    let vi = m
+    let limit = gpu.device.limits().max_storage_buffer_binding_size;
+    let fitted = m
         .volume
         .as_ref()
-        .map(|(vol, data, tf)| VolumeInput { vol, data, tf });
+        .and_then(|(vol, data, _)| fit_volume(vol, data, limit));
+    if let Some((_, _, note)) = &fitted {
+        eprintln!("note: {note}");
+    }
+    let vi = m.volume.as_ref().map(|(vol, data, tf)| match &fitted {
+        Some((fv, fd, _)) => VolumeInput {
+            vol: fv,
+            data: fd,
+            tf,
+        },
+        None => VolumeInput { vol, data, tf },
+    });
+    if let Some(i) = &m.iso {
+        let bytes = (i.g.len() as u64) * 8;
+        if bytes > limit {
+            return Err(format!(
+                "volume.iso: the octant fields ({} MB) exceed this adapter's storage binding limit ({} MB)",
+                bytes >> 20,
+                limit >> 20
+            ));
+        }
+    }
+    let iso = m.iso.as_ref().map(|i| crate::iso_pass::IsoInput {
+        dims: i.dims,
+        affine: i.affine,
+        g: &i.g,
+        sdf: &i.sdf,
+        octants: &i.octants,
+        model: &i.model,
+        color: i.color,
+    });
     let out = renderer::render(
         gpu,
         vi.as_ref(),
         &m.meshes,
         &tube_clip(s),
+        iso.as_ref(),
         &v,
         &settings(s),
         frames,

@@ -25,6 +25,7 @@ use crate::ea_pass::EaView;
 use crate::fxaa::FxaaPass;
 use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, GpuError};
+use crate::iso_pass::{IsoInput, IsoPass};
 use crate::scene::{Combine, Method};
 use crate::slice_pass::{SlicePass, SliceSettings, VolumeInput};
 use crate::vicinity::{VicinityPass, VicinitySettings};
@@ -109,6 +110,7 @@ pub struct Output {
 type Recorder<'a> = (&'static str, Box<dyn Fn(&mut wgpu::CommandEncoder) + 'a>);
 
 struct Frame {
+    iso: IsoPass,
     gbuf: GBuffer,
     slices: SlicePass,
     vicinity: Option<VicinityPass>,
@@ -123,6 +125,9 @@ impl Frame {
             p.push(("light", Box::new(|e| self.slices.record_light(e))));
         }
         p.push(("march", Box::new(|e| self.slices.record_march(e))));
+        if self.iso.active() {
+            p.push(("iso", Box::new(|e| self.iso.record(e))));
+        }
         if let Some(v) = &self.vicinity {
             p.push(("vicinity", Box::new(move |e| v.record(e))));
         }
@@ -151,12 +156,15 @@ fn submit_and_wait(gpu: &Gpu, record: &dyn Fn(&mut wgpu::CommandEncoder)) -> Res
 }
 
 /// Renders `frames` frames (at least 1) of the model seen through `view` (whose clipping
-/// planes cut the volume; `tube_clip` cuts the tubes) and reads the last one back.
+/// planes cut the volume; `tube_clip` cuts the tubes), with the isosurface `iso` when given,
+/// and reads the last one back.
+#[allow(clippy::too_many_arguments)]
 pub fn render(
     gpu: &Gpu,
     volume: Option<&VolumeInput>,
     meshes: &[TubeMesh],
     tube_clip: &[([f64; 3], f64)],
+    iso: Option<&IsoInput>,
     view: &EaView,
     s: &Settings,
     frames: u32,
@@ -209,6 +217,7 @@ pub fn render(
             bias: s.vicinity_bias,
         },
     );
+    let iso_pass = IsoPass::new(gpu, cam, w, h, iso, s.light);
     let composite = CompositePass::new(
         gpu,
         cam,
@@ -218,6 +227,7 @@ pub fn render(
         &slices.eye,
         &slices.state,
         &vicinity.output,
+        &iso_pass,
         &CompositeSettings {
             partial: occlusion,
             vicinity: use_vicinity,
@@ -228,6 +238,7 @@ pub fn render(
     );
     let fxaa = s.fxaa.then(|| FxaaPass::new(gpu, w, h, &composite.image));
     let frame = Frame {
+        iso: iso_pass,
         gbuf,
         slices,
         vicinity: use_vicinity.then_some(vicinity),

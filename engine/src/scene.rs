@@ -121,6 +121,51 @@ impl Default for TransferSpec {
     }
 }
 
+/// Which side of an isosurface is inside.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IsoInside {
+    Above,
+    Below,
+}
+
+/// `[volume.iso]`: draw the volume as an isosurface with swept occlusion.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IsoSpec {
+    pub value: f64,
+    #[serde(default = "default_inside")]
+    pub inside: IsoInside,
+    /// Distance field from `umbra sweep` (octants beside it); swept when absent.
+    pub fields: Option<PathBuf>,
+    #[serde(default = "default_iso_color")]
+    pub color: Color,
+    /// `uniform`, `overcast` or `octant:1..8`.
+    #[serde(default = "default_sky")]
+    pub sky: String,
+    #[serde(default = "one")]
+    pub gamma: f64,
+    /// Flat-face correction c (visibilities looked up at P + c h_min N).
+    #[serde(default = "default_offset")]
+    pub offset: f64,
+}
+
+fn default_inside() -> IsoInside {
+    IsoInside::Above
+}
+fn default_iso_color() -> Color {
+    Color::Rgb([0.9, 0.9, 0.9])
+}
+fn default_sky() -> String {
+    "uniform".into()
+}
+fn one() -> f64 {
+    1.0
+}
+fn default_offset() -> f64 {
+    volume::occlusion_shading::DEFAULT_OFFSET
+}
+
 /// `[volume]`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -130,6 +175,8 @@ pub struct VolumeSpec {
     pub field: Option<String>,
     #[serde(default)]
     pub transfer: TransferSpec,
+    /// Isosurface mode: the volume drawn as this isosurface instead of by its transfer function.
+    pub iso: Option<IsoSpec>,
 }
 
 /// `[[tubes]]`.
@@ -422,6 +469,28 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
     if let Some(v) = &mut s.volume {
         if v.path.is_relative() {
             v.path = dir.join(&v.path);
+        }
+        if let Some(i) = &mut v.iso {
+            if let Some(f) = &mut i.fields {
+                if f.is_relative() {
+                    *f = dir.join(&*f);
+                }
+            }
+            if !i.value.is_finite() {
+                return bad("volume.iso.value", "must be finite".into());
+            }
+            i.color
+                .rgb()
+                .or_else(|e| bad("volume.iso.color", e).map(|()| [0.0; 3]))?;
+            if let Err(e) = i.sky.parse::<volume::occlusion_shading::Sky>() {
+                return bad("volume.iso.sky", e);
+            }
+            if !(i.gamma > 0.0 && i.gamma.is_finite()) {
+                return bad("volume.iso.gamma", format!("{} is not positive", i.gamma));
+            }
+            if !(i.offset >= 0.0 && i.offset.is_finite()) {
+                return bad("volume.iso.offset", format!("{} must be >= 0", i.offset));
+            }
         }
         let t = &v.transfer;
         const PRESETS: [&str; 4] = ["grey", "bone", "fire", "cool-warm"];

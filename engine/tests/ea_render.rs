@@ -51,7 +51,7 @@ fn render(gpu: &Gpu, data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> V
         ..Default::default()
     };
     let vi = VolumeInput { vol, data, tf };
-    renderer::render(gpu, Some(&vi), &[], &[], v, &settings, 1)
+    renderer::render(gpu, Some(&vi), &[], &[], None, v, &settings, 1)
         .unwrap()
         .image
 }

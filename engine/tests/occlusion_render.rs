@@ -124,7 +124,17 @@ impl Scene {
             .vol
             .as_ref()
             .map(|(vol, data, tf)| VolumeInput { vol, data, tf });
-        renderer::render(gpu, vi.as_ref(), &self.meshes, &self.tube_clip, v, s, 1).unwrap()
+        renderer::render(
+            gpu,
+            vi.as_ref(),
+            &self.meshes,
+            &self.tube_clip,
+            None,
+            v,
+            s,
+            1,
+        )
+        .unwrap()
     }
 }
 

@@ -247,6 +247,16 @@ impl AmbientModel {
     pub fn weights(&self) -> [f64; 8] {
         self.weights
     }
+
+    /// The normalisation of `ambient` (its largest unnormalised value over unit normals).
+    pub fn norm(&self) -> f64 {
+        self.norm
+    }
+
+    /// The rotation taking world normals to the index frame (`R^T`), as `ambient` applies it.
+    pub fn to_index(&self) -> DMat3 {
+        self.to_index
+    }
 }
 
 /// Octant weights for a sky.

@@ -1,0 +1,136 @@
+//! Isosurface mode against its CPU reference (`iso_reference`, the renderer of `umbra iso`):
+//! the same rays, surface, normal and swept ambient term, on lavapipe; and tubes in the same
+//! image.
+
+use engine::iso_reference::{ambient_at, AmbientSource, IsoSurface};
+use engine::render_cmd::{model, render_scene, view};
+use glam::DVec3;
+
+fn scene(dir: &std::path::Path, extra: &str) -> engine::scene::Scene {
+    let vol = volume::synthetic::validation_scene(40);
+    let path = dir.join("v.nrrd");
+    volume::nrrd::write(
+        &path,
+        &vol,
+        &vol.fields[0],
+        volume::nrrd::WriteEncoding::Raw,
+    )
+    .unwrap();
+    let text = format!(
+        "background = [0.0, 0.0, 0.0]\n[camera]\nazimuth = 35.0\nelevation = 30.0\n\
+         [volume]\npath = \"{}\"\n[volume.iso]\nvalue = 0.0\ninside = \"below\"\n{extra}\
+         [render]\nwidth = 72\nheight = 60\nfxaa = false\n",
+        path.display()
+    );
+    engine::scene::parse(&text, "iso.toml", dir, &[]).unwrap()
+}
+
+#[test]
+fn the_gpu_isosurface_matches_the_cpu_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path(), "");
+    let m = model(&s).unwrap();
+    let gpu = engine::gpu::Gpu::new().expect("a GPU adapter (lavapipe in CI)");
+    let (out, v) = render_scene(&gpu, &s, &m, 1).unwrap();
+    let iso = m.iso.as_ref().unwrap();
+    let (w, h) = (v.width as usize, v.height as usize);
+    // The CPU reference on the same rays.
+    let values: Vec<f32> = iso.g.clone(); // classified: inside where >= 0
+    let surface = IsoSurface::new(iso.dims, iso.affine, &values, 0.0, true, &iso.sdf);
+    let source = AmbientSource::Swept {
+        octants: &iso.octants,
+        model: &iso.model,
+    };
+    let (mut both, mut agree, mut only_one, mut sum) = (0, 0, 0, 0.0);
+    for y in 0..h {
+        for x in 0..w {
+            let (o, d) = v.camera.ray(x as f64, y as f64, w, h);
+            let cpu = surface.trace(o, d, 0.0, f64::INFINITY).map(|t| {
+                let p = o + d * t;
+                let mut n = surface.normal(p);
+                if n == DVec3::ZERO {
+                    n = -d;
+                }
+                if n.dot(d) > 0.0 {
+                    n = -n;
+                }
+                (
+                    ambient_at(&surface, &source, p, n, 0).0,
+                    (p - v.camera.eye).dot(v.camera.forward()),
+                )
+            });
+            let a = out.aov[x + w * y];
+            let gpu_hit = a.depth > 0.0 && out.image[x + w * y][3] == 1.0;
+            match (cpu, gpu_hit) {
+                (Some((amb, depth)), true) => {
+                    both += 1;
+                    let e = (amb - a.combined as f64).abs();
+                    sum += e;
+                    if e < 0.02 && (depth - a.depth as f64).abs() < 0.5 {
+                        agree += 1;
+                    } else if both - agree < 6 {
+                        eprintln!(
+                            "({x}, {y}): cpu A {amb:.4} depth {depth:.3}, gpu A {:.4} depth {:.3}",
+                            a.combined, a.depth
+                        );
+                    }
+                }
+                (None, false) => {}
+                _ => only_one += 1,
+            }
+        }
+    }
+    eprintln!(
+        "{both} pixels hit by both, {agree} agree, {only_one} hit by one only, mean |dA| {:.5}",
+        sum / both as f64
+    );
+    assert!(both > w * h / 5, "{both} hits");
+    assert!(agree as f64 > 0.97 * both as f64, "{agree} of {both} agree");
+    assert!(
+        only_one < w * h / 100 + 5,
+        "{only_one} silhouette disagreements"
+    );
+    assert!(sum / (both as f64) < 0.005);
+    // The ambient term varies: the pit and the sphere's underside are darker than tops.
+    let amb: Vec<f32> = (0..w * h)
+        .filter(|&i| out.aov[i].depth > 0.0)
+        .map(|i| out.aov[i].combined)
+        .collect();
+    let lo = amb.iter().cloned().fold(1.0f32, f32::min);
+    let hi = amb.iter().cloned().fold(0.0f32, f32::max);
+    assert!(hi - lo > 0.3, "ambient range {lo}..{hi}");
+}
+
+#[test]
+fn tubes_and_the_isosurface_share_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    // A tube floating above the validation scene (its grid spans [0, 100]^3).
+    let mut sl = tubes::Streamlines::new();
+    sl.push(&[
+        glam::Vec3::new(20.0, 50.0, 115.0),
+        glam::Vec3::new(80.0, 50.0, 115.0),
+    ]);
+    let trk = dir.path().join("t.tck");
+    tubes::save(&trk, &sl).unwrap();
+    let s = scene(
+        dir.path(),
+        &format!(
+            "[[tubes]]\npath = \"{}\"\nradius = 3.0\ncolor = \"#ff0000\"\n",
+            trk.display()
+        ),
+    );
+    let m = model(&s).unwrap();
+    let gpu = engine::gpu::Gpu::new().unwrap();
+    let (out, v) = render_scene(&gpu, &s, &m, 1).unwrap();
+    let (w, h) = (v.width as usize, v.height as usize);
+    let px = |p: [f64; 3]| {
+        let (x, y, _) = v.camera.to_pixel(DVec3::from(p), w, h).unwrap();
+        x as usize + w * y as usize
+    };
+    // The tube is in front: red there; the isosurface elsewhere: grey.
+    let t = out.image[px([50.0, 50.0, 118.0])];
+    assert!(t[0] > 2.0 * t[1] && t[0] > 0.2, "tube pixel {t:?}");
+    let b = out.image[px([70.0, 30.0, 49.0])];
+    assert!((b[0] - b[1]).abs() < 0.02 && b[0] > 0.1, "box top {b:?}");
+    let _ = view(&s, &m).unwrap();
+}
