@@ -23,8 +23,10 @@ struct Params {
     color: vec4<f32>,
     // ambient, diffuse, specular, shininess
     light: vec4<f32>,
-    // width, height, unused, unused
+    // width, height, clipping planes, unused
     size: vec4<u32>,
+    // clipping planes (normal, offset), keeping normal . p <= offset
+    clip: array<vec4<f32>, 8>,
 };
 
 @group(0) @binding(0) var<uniform> P: Params;
@@ -223,6 +225,23 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         t0 = max(t0, ta);
         t1 = min(t1, tb);
     }
+    // Clipping planes: the kept half-spaces bound the ray; a ray that enters one inside the
+    // solid meets the cut face there.
+    var cut = -1;
+    for (var c = 0u; c < P.size.z; c = c + 1u) {
+        let g0 = dot(P.clip[c].xyz, o) - P.clip[c].w;
+        let g1 = dot(P.clip[c].xyz, d);
+        if (abs(g1) < 1e-30) {
+            if (g0 > 0.0) {
+                return;
+            }
+        } else if (g1 > 0.0) {
+            t1 = min(t1, -g0 / g1);
+        } else if (-g0 / g1 > t0) {
+            t0 = -g0 / g1;
+            cut = i32(c);
+        }
+    }
     if (t0 > t1) {
         return;
     }
@@ -271,6 +290,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (any(side != vec3<f32>(0.0))) {
         gw = (P.normal_to_world * vec4<f32>(side, 0.0)).xyz;
     }
+    if (cut >= 0 && hit == t0) {
+        // The cut face: its normal points into the removed half-space.
+        gw = P.clip[cut].xyz;
+    }
     var n = -d;
     if (length(gw) > 1e-20) {
         n = normalize(gw);
@@ -279,7 +302,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         n = -n;
     }
     let look = p + n * (P.model.y * h_min);
-    let am = ambient(sample_octants((P.world_to_index * vec4<f32>(look, 1.0)).xyz), n);
+    var am = ambient(sample_octants((P.world_to_index * vec4<f32>(look, 1.0)).xyz), n);
+    if (cut >= 0 && hit == t0) {
+        // The swept fields describe the uncut volume, in which a cut face lies inside the
+        // solid: it faces the removed, empty half-space and is shaded unoccluded.
+        am = 1.0;
+    }
     // Shaded as the tubes are (eq. 9): A colour (ambient + diffuse (n.l)) + specular.
     let nl = max(dot(n, -d), 0.0);
     let rv = max(2.0 * nl * nl - 1.0, 0.0);

@@ -12,7 +12,10 @@
 //! at `P + c h_min N` (trilinear, open sky beyond the grid as the sweeps assume) and `G_s(N)`
 //! computed exactly (the projected solid angle of the octant clipped by `N`), not tabulated.
 //! The surface is shaded as the tubes are (eq. 9): `A colour (ambient + diffuse (N.L)) +
-//! specular` under the head light. Tested against the CPU reference on lavapipe.
+//! specular` under the head light. Tested against the CPU reference on lavapipe. Clipping
+//! planes that cut the volume cut the isosurface: a ray entering a kept half-space inside the
+//! solid meets the cut face (normal: the plane's; unoccluded, as it faces the removed half,
+//! which the swept fields of the uncut volume do not know is empty).
 
 use crate::camera::Camera;
 use crate::gpu::{Gpu, Slot, Uniform};
@@ -60,6 +63,7 @@ impl IsoPass {
         height: u32,
         iso: Option<&IsoInput>,
         light: [f64; 4],
+        clip: &[([f64; 3], f64)],
     ) -> IsoPass {
         let n = width as u64 * height as u64;
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
@@ -124,7 +128,11 @@ impl IsoPass {
                 }
                 u.vec4([i.color[0], i.color[1], i.color[2], 1.0])
                     .vec4(light)
-                    .u32x4([width, height, 0, 0]);
+                    .u32x4([width, height, clip.len().min(8) as u32, 0]);
+                for c in 0..8 {
+                    let (n, o) = clip.get(c).copied().unwrap_or(([0.0; 3], 0.0));
+                    u.vec4([n[0], n[1], n[2], o]);
+                }
                 let nvox = i.dims[0] * i.dims[1] * i.dims[2];
                 let mut packed = vec![0u32; 2 * nvox];
                 for s in 0..8 {
@@ -141,7 +149,7 @@ impl IsoPass {
             }
             None => {
                 let mut u = Uniform::default();
-                u.0.resize(16 * 4 * 4 + 16 * (4 + 4 + 8 + 3), 0);
+                u.0.resize(16 * 4 * 4 + 16 * (4 + 2 + 8 + 3 + 8), 0);
                 let z = [0u8; 16];
                 (
                     u.0,

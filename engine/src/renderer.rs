@@ -217,7 +217,7 @@ pub fn render(
             bias: s.vicinity_bias,
         },
     );
-    let iso_pass = IsoPass::new(gpu, cam, w, h, iso, s.light);
+    let iso_pass = IsoPass::new(gpu, cam, w, h, iso, s.light, &view.clip);
     let composite = CompositePass::new(
         gpu,
         cam,
