@@ -1,5 +1,6 @@
 // Final compositing and shading (Schott et al., Algorithm 6, eq. 7-10) as a compute pass.
-// Rust side: engine/src/composite.rs.
+// Rust side: engine/src/composite.rs, which prepends the G-buffer's colour and normal bindings
+// (4, 5; single or multisampled), `g_col`, `g_nrm` and `SAMPLES`.
 
 struct Params {
     inv_view_proj: mat4x4<f32>,
@@ -14,8 +15,6 @@ struct Params {
 @group(0) @binding(1) var<storage, read> eye_buf: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> state: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> vicinity: array<f32>;
-@group(0) @binding(4) var g_color: texture_2d<f32>;
-@group(0) @binding(5) var g_normal: texture_2d<f32>;
 @group(0) @binding(6) var front_depth: texture_2d<f32>;
 // Linear RGBA: colour, and alpha = coverage (1 where a surface is, else the volume's opacity).
 @group(0) @binding(7) var<storage, read_write> image: array<vec4<f32>>;
@@ -54,6 +53,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         aov[2u * idx + 1u] = vec4<f32>(iso.w, 0.0, 0.0, 0.0);
         return;
     }
+    // The surface, shaded per sample (each with its own normal) and averaged; samples no
+    // surface covers show the background. The occlusion terms are per pixel.
     if (z > 0.0) {
         if ((C.mode.z & 1u) != 0u) {
             partial = s0.y;
@@ -63,24 +64,37 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         // eq. 7 (min) or eq. 8 (product)
         combined = select(min(partial, vic), partial * vic, C.mode.w == 1u);
-        // The head light: from the eye along the pixel's ray.
-        let ndc = vec2<f32>(
-            2.0 * (f32(id.x) + 0.5) / f32(w) - 1.0,
-            1.0 - 2.0 * (f32(id.y) + 0.5) / f32(h),
-        );
-        let a4 = C.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
-        let b4 = C.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
-        let to_eye = -normalize(b4.xyz / b4.w - a4.xyz / a4.w);
-        let n = textureLoad(g_normal, vec2<i32>(id.xy), 0).xyz;
+    }
+    // The head light: from the eye along the pixel's ray.
+    let ndc = vec2<f32>(
+        2.0 * (f32(id.x) + 0.5) / f32(w) - 1.0,
+        1.0 - 2.0 * (f32(id.y) + 0.5) / f32(h),
+    );
+    let a4 = C.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
+    let b4 = C.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
+    let to_eye = -normalize(b4.xyz / b4.w - a4.xyz / a4.w);
+    var sum = vec3<f32>(0.0);
+    var covered = 0.0;
+    for (var s = 0; s < SAMPLES; s = s + 1) {
+        let c = g_col(vec2<i32>(id.xy), s);
+        if (c.a <= 0.0) {
+            sum = sum + C.background.rgb;
+            continue;
+        }
+        let n = g_nrm(vec2<i32>(id.xy), s).xyz;
         let nl = max(dot(n, to_eye), 0.0);
         // Head light: the reflection of the light about n makes angle 2 acos(n.l) with the
         // view direction; cos of it is 2 (n.l)^2 - 1.
         let rv = max(2.0 * nl * nl - 1.0, 0.0);
         let spec = C.light.z * pow(rv, C.light.w);
-        let albedo = textureLoad(g_color, vec2<i32>(id.xy), 0).rgb;
         // eq. 9
-        under = combined * albedo * (C.light.x + C.light.y * nl) + vec3<f32>(spec);
-        coverage = 1.0;
+        sum = sum + combined * c.rgb * (C.light.x + C.light.y * nl) + vec3<f32>(spec);
+        covered = covered + 1.0;
+    }
+    if (covered > 0.0) {
+        under = sum / f32(SAMPLES);
+        let f = covered / f32(SAMPLES);
+        coverage = f + (1.0 - f) * e.a;
     }
     // eq. 10, with the background last when no surface is there.
     image[idx] = vec4<f32>(under * (1.0 - e.a) + e.rgb, coverage);

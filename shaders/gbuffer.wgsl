@@ -58,6 +58,10 @@ struct FrontOut {
 
 @fragment
 fn fs_front(v: VOut) -> FrontOut {
+    return front_values(v);
+}
+
+fn front_values(v: VOut) -> FrontOut {
     if (clipped(v.rel)) {
         discard;
     }
@@ -71,6 +75,30 @@ fn fs_front(v: VOut) -> FrontOut {
     o.normal = vec4<f32>(n, 1.0);
     o.depth = vec4<f32>(dot(v.rel, G.forward.xyz), 0.0, 0.0, 1.0);
     return o;
+}
+
+// Multisampled G-buffer: colour and normal per sample (for per-sample shading).
+struct SurfaceOut {
+    @location(0) color: vec4<f32>,
+    @location(1) normal: vec4<f32>,
+};
+
+@fragment
+fn fs_surface(v: VOut) -> SurfaceOut {
+    let f = front_values(v);
+    var o: SurfaceOut;
+    o.color = f.color;
+    o.normal = f.normal;
+    return o;
+}
+
+// The nearest surface's linear depth alone (single sample, beside a multisampled G-buffer).
+@fragment
+fn fs_depth(v: VOut) -> @location(0) vec4<f32> {
+    if (clipped(v.rel)) {
+        discard;
+    }
+    return vec4<f32>(dot(v.rel, G.forward.xyz), 0.0, 0.0, 1.0);
 }
 
 @fragment

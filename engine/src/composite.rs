@@ -52,7 +52,25 @@ impl CompositePass {
         iso: &crate::iso_pass::IsoPass,
         s: &CompositeSettings,
     ) -> CompositePass {
-        let module = gpu.shader("composite.wgsl", SHADER);
+        // The G-buffer's colour and normal, single or multisampled, behind the same helpers.
+        let prelude = if gbuf.samples > 1 {
+            format!(
+                "const SAMPLES: i32 = {};\n\
+                 @group(0) @binding(4) var g_color: texture_multisampled_2d<f32>;\n\
+                 @group(0) @binding(5) var g_normal: texture_multisampled_2d<f32>;\n\
+                 fn g_col(p: vec2<i32>, s: i32) -> vec4<f32> {{ return textureLoad(g_color, p, s); }}\n\
+                 fn g_nrm(p: vec2<i32>, s: i32) -> vec4<f32> {{ return textureLoad(g_normal, p, s); }}\n",
+                gbuf.samples
+            )
+        } else {
+            "const SAMPLES: i32 = 1;\n\
+             @group(0) @binding(4) var g_color: texture_2d<f32>;\n\
+             @group(0) @binding(5) var g_normal: texture_2d<f32>;\n\
+             fn g_col(p: vec2<i32>, s: i32) -> vec4<f32> { return textureLoad(g_color, p, 0); }\n\
+             fn g_nrm(p: vec2<i32>, s: i32) -> vec4<f32> { return textureLoad(g_normal, p, 0); }\n"
+                .to_string()
+        };
+        let module = gpu.shader("composite.wgsl", &format!("{prelude}{SHADER}"));
         let layout = gpu.layout(
             "composite",
             wgpu::ShaderStages::COMPUTE,
@@ -61,8 +79,16 @@ impl CompositePass {
                 Slot::Storage,
                 Slot::Storage,
                 Slot::Storage,
-                Slot::UnfilterableTexture,
-                Slot::UnfilterableTexture,
+                if gbuf.samples > 1 {
+                    Slot::MultisampledTexture
+                } else {
+                    Slot::UnfilterableTexture
+                },
+                if gbuf.samples > 1 {
+                    Slot::MultisampledTexture
+                } else {
+                    Slot::UnfilterableTexture
+                },
                 Slot::UnfilterableTexture,
                 Slot::StorageRw,
                 Slot::StorageRw,

@@ -12,7 +12,11 @@
 //! `projection * view * translate(eye)`), which keeps precision for tubes far from the origin.
 //! Clipping planes discard fragments, as they remove volume samples.
 //!
-//! Not written yet: multisampling (the targets have one sample; FXAA smooths the edges).
+//! Multisampling (`render.msaa`, lowered to what the adapter supports for all three formats,
+//! with a note): colour and normal are rendered multisampled, so that compositing shades each
+//! sample with its own normal (a specular highlight on a thin tube is not averaged away before
+//! it is lit) and averages; the linear depths stay single-sampled (a third pass writes the
+//! nearest surface's), as the slices and the vicinity term need one precise depth per pixel.
 
 use crate::camera::Camera;
 use crate::gpu::{Gpu, Slot, Uniform};
@@ -37,15 +41,43 @@ struct MeshBuffers {
 
 /// The G-buffer's textures and the recorded draw of every mesh.
 pub struct GBuffer {
+    /// Colour and normal: `samples` samples each.
     pub color: wgpu::TextureView,
     pub normal: wgpu::TextureView,
     pub front: wgpu::TextureView,
     pub back: wgpu::TextureView,
+    pub samples: u32,
     depth_front: wgpu::TextureView,
     depth_back: wgpu::TextureView,
+    depth_ms: Option<wgpu::TextureView>,
+    /// Single sample: colour, normal and depth; multisampled: colour and normal.
     front_pipe: wgpu::RenderPipeline,
+    /// Multisampled only: the single-sample depth.
+    depth_pipe: Option<wgpu::RenderPipeline>,
     back_pipe: wgpu::RenderPipeline,
     meshes: Vec<MeshBuffers>,
+}
+
+/// The sample count for `requested` that colour, normal and depth targets all support, and a
+/// note when it had to be lowered.
+pub fn sample_count(gpu: &Gpu, requested: u32) -> (u32, Option<String>) {
+    let counts = |f| crate::gpu::supported_sample_counts(&gpu.adapter, f);
+    let (a, b, c) = (
+        counts(COLOR),
+        counts(NORMAL),
+        counts(wgpu::TextureFormat::Depth32Float),
+    );
+    let n = [1u32, 2, 4, 8, 16]
+        .into_iter()
+        .filter(|n| *n <= requested.max(1) && a.contains(n) && b.contains(n) && c.contains(n))
+        .max()
+        .unwrap_or(1);
+    let note = (n != requested.max(1)).then(|| {
+        format!(
+            "render.msaa = {requested}: this adapter renders the G-buffer with {a:?} samples for colour, {b:?} for normals, {c:?} for depth; using {n}"
+        )
+    });
+    (n, note)
 }
 
 fn target(
@@ -54,6 +86,17 @@ fn target(
     format: wgpu::TextureFormat,
     w: u32,
     h: u32,
+) -> wgpu::TextureView {
+    target_ms(gpu, label, format, w, h, 1)
+}
+
+fn target_ms(
+    gpu: &Gpu,
+    label: &str,
+    format: wgpu::TextureFormat,
+    w: u32,
+    h: u32,
+    samples: u32,
 ) -> wgpu::TextureView {
     gpu.device
         .create_texture(&wgpu::TextureDescriptor {
@@ -64,7 +107,7 @@ fn target(
                 depth_or_array_layers: 1,
             },
             mip_level_count: 1,
-            sample_count: 1,
+            sample_count: samples,
             dimension: wgpu::TextureDimension::D2,
             format,
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
@@ -74,7 +117,8 @@ fn target(
 }
 
 impl GBuffer {
-    /// Uploads `meshes` and prepares the two passes for `camera` at `width x height`.
+    /// Uploads `meshes` and prepares the passes for `camera` at `width x height` with
+    /// `samples` samples per pixel (a count [`sample_count`] returned).
     pub fn new(
         gpu: &Gpu,
         camera: &Camera,
@@ -82,6 +126,7 @@ impl GBuffer {
         height: u32,
         meshes: &[TubeMesh],
         clip: &[([f64; 3], f64)],
+        samples: u32,
     ) -> GBuffer {
         let device = &gpu.device;
         let module = gpu.shader("gbuffer.wgsl", SHADER);
@@ -97,7 +142,7 @@ impl GBuffer {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &attributes,
         })];
-        let pipeline = |entry: &str, targets: &[Option<wgpu::ColorTargetState>]| {
+        let pipeline = |entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(entry),
                 layout: Some(&pl),
@@ -115,7 +160,10 @@ impl GBuffer {
                     stencil: Default::default(),
                     bias: Default::default(),
                 }),
-                multisample: Default::default(),
+                multisample: wgpu::MultisampleState {
+                    count,
+                    ..Default::default()
+                },
                 fragment: Some(wgpu::FragmentState {
                     module: &module,
                     entry_point: Some(entry),
@@ -127,8 +175,14 @@ impl GBuffer {
             })
         };
         let t = |f| Some(wgpu::ColorTargetState::from(f));
-        let front_pipe = pipeline("fs_front", &[t(COLOR), t(NORMAL), t(DEPTH)]);
-        let back_pipe = pipeline("fs_back", &[t(DEPTH)]);
+        let ms = samples > 1;
+        let front_pipe = if ms {
+            pipeline("fs_surface", &[t(COLOR), t(NORMAL)], samples)
+        } else {
+            pipeline("fs_front", &[t(COLOR), t(NORMAL), t(DEPTH)], 1)
+        };
+        let depth_pipe = ms.then(|| pipeline("fs_depth", &[t(DEPTH)], 1));
+        let back_pipe = pipeline("fs_back", &[t(DEPTH)], 1);
         let aspect = width as f64 / height.max(1) as f64;
         let vp_rel = camera.view_projection(aspect) * DMat4::from_translation(camera.eye);
         let f = camera.forward();
@@ -172,8 +226,20 @@ impl GBuffer {
             .collect();
         let depth = |l| target(gpu, l, wgpu::TextureFormat::Depth32Float, width, height);
         GBuffer {
-            color: target(gpu, "gbuffer colour", COLOR, width, height),
-            normal: target(gpu, "gbuffer normal", NORMAL, width, height),
+            color: target_ms(gpu, "gbuffer colour", COLOR, width, height, samples),
+            normal: target_ms(gpu, "gbuffer normal", NORMAL, width, height, samples),
+            samples,
+            depth_ms: ms.then(|| {
+                target_ms(
+                    gpu,
+                    "gbuffer z ms",
+                    wgpu::TextureFormat::Depth32Float,
+                    width,
+                    height,
+                    samples,
+                )
+            }),
+            depth_pipe,
             front: target(gpu, "gbuffer front depth", DEPTH, width, height),
             back: target(gpu, "gbuffer back depth", DEPTH, width, height),
             depth_front: depth("gbuffer z front"),
@@ -202,14 +268,23 @@ impl GBuffer {
                 },
             })
         };
-        let passes: [(&wgpu::RenderPipeline, Vec<_>, &wgpu::TextureView); 2] = [
-            (
+        let mut passes: Vec<(&wgpu::RenderPipeline, Vec<_>, &wgpu::TextureView)> = vec![];
+        match (&self.depth_pipe, &self.depth_ms) {
+            (Some(dp), Some(dms)) => {
+                passes.push((
+                    &self.front_pipe,
+                    vec![clear(&self.color), clear(&self.normal)],
+                    dms,
+                ));
+                passes.push((dp, vec![clear(&self.front)], &self.depth_front));
+            }
+            _ => passes.push((
                 &self.front_pipe,
                 vec![clear(&self.color), clear(&self.normal), clear(&self.front)],
                 &self.depth_front,
-            ),
-            (&self.back_pipe, vec![clear(&self.back)], &self.depth_back),
-        ];
+            )),
+        }
+        passes.push((&self.back_pipe, vec![clear(&self.back)], &self.depth_back));
         for (pipe, targets, depth) in passes {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("gbuffer"),

@@ -64,6 +64,8 @@ pub enum Slot {
     Texture,
     /// A float 2-D texture read with `textureLoad` only (r32float and the like).
     UnfilterableTexture,
+    /// A multisampled float 2-D texture (`textureLoad` per sample).
+    MultisampledTexture,
     Sampler,
     /// A write-only storage texture of this format.
     StorageTexture(wgpu::TextureFormat),
@@ -316,10 +318,10 @@ impl Gpu {
                     has_dynamic_offset,
                     min_binding_size: None,
                 };
-                let texture = |filterable| wgpu::BindingType::Texture {
+                let texture = |filterable, multisampled| wgpu::BindingType::Texture {
                     sample_type: wgpu::TextureSampleType::Float { filterable },
                     view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: false,
+                    multisampled,
                 };
                 let ty = match s {
                     Slot::Uniform => buffer(wgpu::BufferBindingType::Uniform, false),
@@ -333,8 +335,9 @@ impl Gpu {
                     Slot::StorageRw => {
                         buffer(wgpu::BufferBindingType::Storage { read_only: false }, false)
                     }
-                    Slot::Texture => texture(true),
-                    Slot::UnfilterableTexture => texture(false),
+                    Slot::Texture => texture(true, false),
+                    Slot::UnfilterableTexture => texture(false, false),
+                    Slot::MultisampledTexture => texture(false, true),
                     Slot::Sampler => {
                         wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)
                     }

@@ -474,6 +474,7 @@ pub fn settings(s: &Scene) -> Settings {
         light: [l.ambient, l.diffuse, l.specular, l.shininess],
         occlusion_cell: r.occlusion_cell,
         cone: r.occlusion_model == scene::OcclusionModel::Cone,
+        msaa: r.msaa,
     }
 }
 
@@ -704,17 +705,7 @@ pub fn run(a: &RenderArgs) -> Result<RenderReport, String> {
         crate::iso_reference::write_rgb_png(&a.output, w, h, &rgb)?;
     }
     let mut notes = m.notes;
-    if s.render.msaa > 1 {
-        notes.push(format!(
-            "render.msaa = {}: multisampling is not implemented yet; the G-buffer has one sample{}",
-            s.render.msaa,
-            if s.render.fxaa {
-                " and FXAA smooths the edges"
-            } else {
-                ""
-            }
-        ));
-    }
+    notes.extend(out.notes.iter().cloned());
     let Timings {
         total_ms,
         frames_ms,

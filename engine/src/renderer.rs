@@ -54,6 +54,8 @@ pub struct Settings {
     pub occlusion_cell: Option<u32>,
     /// The cone-following occlusion model instead of the paper's.
     pub cone: bool,
+    /// G-buffer samples per pixel (lowered to what the adapter supports, with a note).
+    pub msaa: u32,
 }
 
 impl Default for Settings {
@@ -72,6 +74,7 @@ impl Default for Settings {
             light: [0.3, 0.7, 0.3, 32.0],
             occlusion_cell: None,
             cone: false,
+            msaa: 4,
         }
     }
 }
@@ -100,6 +103,8 @@ pub struct Timings {
 
 /// A rendered frame: linear RGBA (alpha: coverage) and AOVs, rows top to bottom.
 pub struct Output {
+    /// What the caller should know (e.g. a lowered MSAA count).
+    pub notes: Vec<String>,
     pub image: Vec<[f32; 4]>,
     pub aov: Vec<Aov>,
     pub timings: Timings,
@@ -185,7 +190,8 @@ pub fn render(
     let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
     let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let cam: &Camera = &view.camera;
-    let gbuf = GBuffer::new(gpu, cam, w, h, meshes, tube_clip);
+    let (samples, msaa_note) = crate::gbuffer::sample_count(gpu, s.msaa);
+    let gbuf = GBuffer::new(gpu, cam, w, h, meshes, tube_clip, samples);
     let slices = SlicePass::new(
         gpu,
         volume,
@@ -286,6 +292,7 @@ pub fn render(
     let mut sorted = frames_ms.clone();
     sorted.sort_by(f64::total_cmp);
     Ok(Output {
+        notes: msaa_note.into_iter().collect(),
         image: img
             .chunks_exact(4)
             .map(|c| [c[0], c[1], c[2], c[3]])

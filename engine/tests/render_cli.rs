@@ -120,11 +120,12 @@ fn render_writes_exr_with_aovs_and_timings() {
         chan("occlusion.combined"),
     );
     assert_eq!(a.len(), 64 * 48);
-    // The default combine is min (eq. 7); surfaces are where the depth is set and alpha is 1.
+    // The default combine is min (eq. 7); surfaces are where the depth is set and mostly
+    // covered (MSAA makes edge pixels partly so).
     let mut surfaces = 0;
     for i in 0..a.len() {
         assert!((c[i] - p[i].min(v[i])).abs() < 1e-6);
-        if a[i] == 1.0 && z[i] > 0.0 {
+        if a[i] > 0.5 && z[i] > 0.0 {
             surfaces += 1;
         }
     }
