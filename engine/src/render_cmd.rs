@@ -284,6 +284,44 @@ pub fn slice_distance(vol: &volume::Volume, data: &[f32], tf: &Transfer) -> (f64
     }
 }
 
+/// Whether a tube set's path is a triangle mesh (`.ply`, `.obj`) rather than a tractogram.
+pub fn is_mesh(p: &Path) -> bool {
+    let n = p.to_string_lossy().to_ascii_lowercase();
+    n.ends_with(".ply") || n.ends_with(".obj")
+}
+
+/// A mesh file as a tube set: read (`tubes::mesh_io::read`), moved by the set's transform
+/// (normals by its inverse transpose), coloured by the set's colour when it is one (else the
+/// file's vertex colours, else grey); radius and tolerance do not apply.
+fn mesh_set(i: usize, t: &scene::TubesSpec) -> Result<TubeMesh, String> {
+    let mut m = tubes::mesh_io::read(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
+    if let Some(a) = t.transform {
+        let rows = glam::DMat4::from_cols_array(&a).transpose();
+        if !a.iter().all(|v| v.is_finite()) || rows.determinant() == 0.0 {
+            return Err(format!(
+                "tubes[{i}].transform: 16 finite numbers of an invertible row-major 4x4 matrix"
+            ));
+        }
+        let nm = glam::DMat3::from_mat4(rows).inverse().transpose();
+        let origin = rows.transform_point3(m.origin);
+        for p in &mut m.positions {
+            *p = (rows.transform_point3(m.origin + p.as_dvec3()) - origin).as_vec3();
+        }
+        for n in &mut m.normals {
+            *n = (nm * n.as_dvec3()).normalize_or_zero().as_vec3();
+        }
+        m.origin = origin;
+    }
+    if t.color.starts_with('#') {
+        let c = scene::Color::Hex(t.color.clone())
+            .rgb()
+            .map_err(|e| format!("tubes[{i}].color: {e}"))?;
+        let c = c.map(|v| (v * 255.0).round() as u8);
+        m.colors = vec![c; m.positions.len()];
+    }
+    Ok(m)
+}
+
 /// Loads the scene's volume and builds its tube meshes.
 pub fn model(s: &Scene) -> Result<Model, String> {
     let mut notes = vec![];
@@ -388,6 +426,10 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     let volume = if iso.is_some() { None } else { volume };
     let mut meshes = vec![];
     for (i, t) in s.tubes.iter().enumerate() {
+        if is_mesh(&t.path) {
+            meshes.push(mesh_set(i, t)?);
+            continue;
+        }
         let mut sl = tubes::load(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
         if let Some(m) = t.transform {
             let rows = glam::DMat4::from_cols_array(&m).transpose();

@@ -206,3 +206,59 @@ fn bad_render_input_gets_clear_errors_and_no_image() {
     assert!(err.contains("NaN or infinite"), "{err}");
     assert!(png.exists());
 }
+
+#[test]
+fn mesh_files_are_tube_sets_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("t.ply");
+    let out = umbra()
+        .arg("tubes")
+        .arg(root().join("tests/fixtures/tracts/dipy/tracks300.trk"))
+        .arg("-o")
+        .arg(&ply)
+        .args(["--radius", "1.0"])
+        .output()
+        .unwrap();
+    ok(&out);
+    let s = dir.path().join("m.toml");
+    std::fs::write(
+        &s,
+        format!(
+            "background = [1.0, 1.0, 1.0]\n[[tubes]]\npath = \"{}\"\ncolor = \"#00ff00\"\n\
+             [render]\nwidth = 64\nheight = 48\nmethod = \"vicinity\"\n",
+            ply.display()
+        ),
+    )
+    .unwrap();
+    let png = dir.path().join("m.png");
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("-o")
+        .arg(&png)
+        .output()
+        .unwrap();
+    ok(&out);
+    let img = image::open(&png).unwrap().to_rgb8();
+    let green = img
+        .pixels()
+        .filter(|p| p.0[1] > 60 && p.0[1] as i32 > 2 * p.0[0] as i32)
+        .count();
+    assert!(green > 50, "{green} green pixels");
+    // A broken mesh is a named error.
+    std::fs::write(
+        &ply,
+        "ply\nformat ascii 1.0\nelement vertex 1\nend_header\n",
+    )
+    .unwrap();
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("-o")
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("tubes[0]") && err.contains("t.ply"), "{err}");
+}
