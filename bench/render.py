@@ -25,6 +25,7 @@ ap.add_argument("--frames", type=int, default=5)
 ap.add_argument("--cells", default="2,4")
 ap.add_argument("--rounds", type=int, default=2)
 ap.add_argument("--methods", default="ea,phong,vicinity,dos,combined")
+ap.add_argument("--set", action="append", default=[], help="scene overrides for every run")
 a = ap.parse_args()
 root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 os.chdir(root)
@@ -49,6 +50,8 @@ with tempfile.TemporaryDirectory() as d:
                    "--timings-json", t, "--set", f"render.slices={a.slices}"]
             if cell:
                 cmd += ["--set", f"render.occlusion_cell={cell}"]
+            for o in a.set:
+                cmd += ["--set", o]
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:
                 failed[(m, cell)] = r.stderr.strip().splitlines()[-1]
@@ -65,7 +68,7 @@ except Exception:
     pass
 print(f"machine: {os.cpu_count()} cores, {cpu}; adapter: {adapter}; {platform.system()}")
 print(f"scene: {a.scene}, {a.size}, {a.slices} slices, median of {a.frames} frames, "
-      f"best of {a.rounds} rounds\n")
+      f"best of {a.rounds} rounds{', --set ' + ' '.join(a.set) if a.set else ''}\n")
 ea = min(results[("ea", None)]) if ("ea", None) in results else None
 print("| method | cell | total ms (best round median) | round medians | x E/A | passes (ms, each submitted alone) |")
 print("|---|---|---|---|---|---|")
