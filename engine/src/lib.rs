@@ -5,6 +5,7 @@
 //! The `umbra` binary (src/main.rs) only parses arguments and calls into this library, so that
 //! tests exercise the same code the command line runs.
 
+pub mod bench_cmd;
 pub mod camera;
 pub mod composite;
 pub mod convert;
@@ -17,6 +18,7 @@ pub mod info;
 pub mod iso_cmd;
 pub mod iso_pass;
 pub mod iso_reference;
+pub mod reference;
 pub mod render_cmd;
 pub mod renderer;
 pub mod resample_cmd;

@@ -13,6 +13,36 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
+enum BenchCommand {
+    /// Every method at every combination of the swept settings, timed and compared with the
+    /// Monte Carlo reference of the same light model (cached): <out>/results.csv,
+    /// <out>/pareto.svg and .png. Images are 128 x 128 unless --set says otherwise.
+    Accuracy {
+        /// Scene file (without tubes: the reference does not model them yet).
+        scene: PathBuf,
+        /// KEY=V1,V2,... (repeatable): slices, cone (degrees), a render.* key by name, or a
+        /// dotted scene key.
+        #[arg(long = "sweep", value_name = "KEY=VALUES")]
+        sweeps: Vec<String>,
+        /// Methods, comma-separated.
+        #[arg(long, default_value = "combined,dos,vicinity,ea")]
+        methods: String,
+        /// Monte Carlo paths per pixel of the reference.
+        #[arg(long, default_value_t = 256)]
+        reference_spp: u32,
+        /// Frames timed per configuration (the median is its time).
+        #[arg(long, default_value_t = 3)]
+        frames: u32,
+        /// Override a scene key by its dotted path (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output folder.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+}
+
+#[derive(Subcommand)]
 enum Command {
     /// Describe a volume file (format, grid, world frame, value range), or the GPU with --gpu.
     Info {
@@ -277,6 +307,12 @@ enum Command {
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,
+    },
+    /// Benchmarks: `umbra bench accuracy` (every method against the Monte Carlo ground truth,
+    /// error against time, results.csv and a Pareto chart).
+    Bench {
+        #[command(subcommand)]
+        what: BenchCommand,
     },
     /// Render a bundled demo scene by the combined method: `mni` (the MNI T1 template with
     /// HCP1065 tracts; the default) or `cfd` (carotid flow with traced streamlines).
@@ -792,6 +828,59 @@ fn run(cli: Cli) -> Result<(), String> {
                 println!("{}", summary(&r));
             }
             eprintln!("wrote {}", output.display());
+            Ok(())
+        }
+        Command::Bench {
+            what:
+                BenchCommand::Accuracy {
+                    scene,
+                    sweeps,
+                    methods,
+                    reference_spp,
+                    frames,
+                    set,
+                    output,
+                },
+        } => {
+            let mut overrides = vec![
+                "render.width=128".to_string(),
+                "render.height=128".to_string(),
+            ];
+            overrides.extend(set);
+            let sweeps = sweeps
+                .iter()
+                .map(|s| engine::bench_cmd::parse_sweep(s))
+                .collect::<Result<Vec<_>, _>>()?;
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+            let rows = engine::bench_cmd::accuracy(
+                &engine::bench_cmd::AccuracyArgs {
+                    scene,
+                    overrides,
+                    sweeps,
+                    methods: methods.split(',').map(|m| m.trim().to_string()).collect(),
+                    spp: reference_spp,
+                    frames,
+                    out: output.clone(),
+                },
+                &|m| bar.set_message(m.to_string()),
+            )?;
+            bar.finish_and_clear();
+            for r in &rows {
+                println!(
+                    "{:9} {:>16} {:9.1} ms  rmse {:.5}  psnr {:6.2}  ssim {:.4}",
+                    r.method,
+                    r.values.join(" "),
+                    r.ms,
+                    r.rmse,
+                    r.psnr,
+                    r.ssim
+                );
+            }
+            eprintln!(
+                "wrote {0}/results.csv, {0}/pareto.svg, {0}/pareto.png",
+                output.display()
+            );
             Ok(())
         }
         Command::Demo {

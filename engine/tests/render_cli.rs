@@ -262,3 +262,97 @@ fn mesh_files_are_tube_sets_too() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("tubes[0]") && err.contains("t.ply"), "{err}");
 }
+
+#[test]
+fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = dir.path().join("a.toml");
+    std::fs::write(
+        &s,
+        format!(
+            "[camera]\nazimuth = 120.0\nelevation = 15.0\n[volume]\npath = \"{}\"\n\
+             [volume.transfer]\npreset = \"bone\"\nextinction = 0.1\n",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    let out_dir = dir.path().join("bench");
+    let run = || {
+        umbra()
+            .args(["bench", "accuracy"])
+            .arg(&s)
+            .args([
+                "--sweep",
+                "slices=48,96",
+                "--sweep",
+                "cone=30",
+                "--methods",
+                "dos,ea",
+                "--reference-spp",
+                "32",
+                "--frames",
+                "1",
+                "--set",
+                "render.width=40",
+                "--set",
+                "render.height=40",
+                "-o",
+            ])
+            .arg(&out_dir)
+            .output()
+            .unwrap()
+    };
+    ok(&run());
+    let csv = std::fs::read_to_string(out_dir.join("results.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(
+        lines[0],
+        "method,slices,cone,ms,rmse,max_err,psnr,ssim,ref_stderr"
+    );
+    assert_eq!(lines.len(), 5, "{csv}");
+    let rmse = |m: &str, sl: &str| -> f64 {
+        let l = lines
+            .iter()
+            .find(|l| l.starts_with(&format!("{m},{sl},")))
+            .unwrap();
+        l.split(',').nth(4).unwrap().parse().unwrap()
+    };
+    // Directional occlusion is the light model of the reference; leaving it out (ea) costs.
+    for sl in ["48", "96"] {
+        assert!(rmse("dos", sl) < 0.7 * rmse("ea", sl), "{csv}");
+    }
+    for f in ["pareto.svg", "pareto.png"] {
+        assert!(
+            std::fs::metadata(out_dir.join(f)).unwrap().len() > 1000,
+            "{f}"
+        );
+    }
+    let svg = std::fs::read_to_string(out_dir.join("pareto.svg")).unwrap();
+    assert!(svg.contains("Pareto front") && svg.contains("dos"));
+    // One cone angle: one cached reference, reused by a second run.
+    let refs = || {
+        std::fs::read_dir(out_dir.join("reference"))
+            .unwrap()
+            .count()
+    };
+    assert_eq!(refs(), 1);
+    let out = run();
+    ok(&out);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
+    assert_eq!(refs(), 1);
+    // Scenes with tubes are refused (the reference does not model them yet).
+    std::fs::write(
+        &s,
+        format!(
+            "[volume]\npath = \"{}\"\n[[tubes]]\npath = \"{}\"\n",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display(),
+            root()
+                .join("tests/fixtures/tracts/dipy/tracks300.trk")
+                .display()
+        ),
+    )
+    .unwrap();
+    let out = run();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("tubes"));
+}

@@ -1,0 +1,509 @@
+//! `umbra bench accuracy <scene.toml> --sweep KEY=V1,V2 ... --methods M1,M2 -o <dir>`: every
+//! method at every combination of the swept settings, timed on the GPU and compared with the
+//! Monte Carlo ground truth of the same light model (`reference`), written as
+//! `<dir>/results.csv` and charted (error against time, one series per method, the Pareto front
+//! marked) as `<dir>/pareto.svg` and `<dir>/pareto.png`.
+//!
+//! * Sweep keys: `slices` (render.slices), `cone` (render.theta, degrees), any other
+//!   `render.*` key by its name, or any dotted scene key.
+//! * The reference is the directional-occlusion ground truth for each cone angle (the `ea`
+//!   method is measured against it too: its error is the occlusion it leaves out), cached as
+//!   `<dir>/reference/<hash>.exr` (linear RGB and the per-pixel standard error as channel
+//!   `stderr`), the hash over the scene without the settings that do not change the ground
+//!   truth, and the samples per pixel.
+//! * Metrics on linear colour clamped to [0, 1]: RMSE and largest error over all channels,
+//!   PSNR with peak 1, SSIM of the luminance (Gaussian window, sigma 1.5, radius 5; C1 =
+//!   0.01^2, C2 = 0.03^2). `ms` is the renderer's `total_ms` (median frame).
+//! * Not yet: metrics on the occlusion AOVs, FLIP, `bench sweep`, `bench tubes`, `bench
+//!   stability`, and scenes with tubes (the reference does not model them yet: refused).
+
+use crate::reference::{self, RefSettings, RefVolume};
+use crate::render_cmd;
+use crate::scene::{self, Method};
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+/// What `umbra bench accuracy` is asked to do.
+#[derive(Clone, Debug)]
+pub struct AccuracyArgs {
+    pub scene: PathBuf,
+    pub overrides: Vec<String>,
+    /// `(key, values)`, in order.
+    pub sweeps: Vec<(String, Vec<String>)>,
+    pub methods: Vec<String>,
+    pub spp: u32,
+    pub frames: u32,
+    pub out: PathBuf,
+}
+
+/// One row of results.csv.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub method: String,
+    pub values: Vec<String>,
+    pub ms: f64,
+    pub rmse: f64,
+    pub max_err: f64,
+    pub psnr: f64,
+    pub ssim: f64,
+    /// Mean standard error of the reference over the pixels.
+    pub ref_stderr: f64,
+}
+
+/// The scene key a sweep key sets.
+pub fn sweep_key(k: &str) -> String {
+    match k {
+        "slices" => "render.slices".into(),
+        "cone" | "theta" => "render.theta".into(),
+        k if k.contains('.') => k.into(),
+        k => format!("render.{k}"),
+    }
+}
+
+/// Parses `KEY=V1,V2,...`.
+pub fn parse_sweep(s: &str) -> Result<(String, Vec<String>), String> {
+    let (k, v) = s
+        .split_once('=')
+        .ok_or_else(|| format!("--sweep {s}: expected KEY=V1,V2,..."))?;
+    let vals: Vec<String> = v
+        .split(',')
+        .map(|x| x.trim().to_string())
+        .filter(|x| !x.is_empty())
+        .collect();
+    if k.trim().is_empty() || vals.is_empty() {
+        return Err(format!("--sweep {s}: expected KEY=V1,V2,..."));
+    }
+    Ok((k.trim().to_string(), vals))
+}
+
+/// FNV-1a, 64 bits: the reference cache's key.
+fn fnv(bytes: &[u8]) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for b in bytes {
+        h ^= *b as u64;
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
+/// Luminance of linear RGB.
+fn luma(c: [f64; 3]) -> f64 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+/// Mean SSIM of two single-channel images (Gaussian window sigma 1.5, radius 5).
+pub fn ssim(a: &[f64], b: &[f64], w: usize, h: usize) -> f64 {
+    let r = 5i64;
+    let g: Vec<f64> = (-r..=r).map(|i| (-(i * i) as f64 / 4.5).exp()).collect();
+    let blur = |x: &[f64]| -> Vec<f64> {
+        let mut tmp = vec![0.0; w * h];
+        let mut out = vec![0.0; w * h];
+        for y in 0..h {
+            for xx in 0..w {
+                let (mut s, mut n) = (0.0, 0.0);
+                for (k, gk) in g.iter().enumerate() {
+                    let xi = xx as i64 + k as i64 - r;
+                    if xi >= 0 && xi < w as i64 {
+                        s += gk * x[xi as usize + w * y];
+                        n += gk;
+                    }
+                }
+                tmp[xx + w * y] = s / n;
+            }
+        }
+        for y in 0..h {
+            for xx in 0..w {
+                let (mut s, mut n) = (0.0, 0.0);
+                for (k, gk) in g.iter().enumerate() {
+                    let yi = y as i64 + k as i64 - r;
+                    if yi >= 0 && yi < h as i64 {
+                        s += gk * tmp[xx + w * yi as usize];
+                        n += gk;
+                    }
+                }
+                out[xx + w * y] = s / n;
+            }
+        }
+        out
+    };
+    let prod = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).collect::<Vec<_>>();
+    let (ma, mb) = (blur(a), blur(b));
+    let (saa, sbb, sab) = (blur(&prod(a, a)), blur(&prod(b, b)), blur(&prod(a, b)));
+    let (c1, c2) = (1e-4, 9e-4);
+    let mut total = 0.0;
+    for i in 0..w * h {
+        let (va, vb) = (saa[i] - ma[i] * ma[i], sbb[i] - mb[i] * mb[i]);
+        let cov = sab[i] - ma[i] * mb[i];
+        total += ((2.0 * ma[i] * mb[i] + c1) * (2.0 * cov + c2))
+            / ((ma[i] * ma[i] + mb[i] * mb[i] + c1) * (va + vb + c2));
+    }
+    total / (w * h) as f64
+}
+
+/// RMSE, largest error, PSNR and SSIM of `img` against `reference` (linear, clamped to [0, 1]).
+pub fn metrics(img: &[[f64; 3]], reference: &[[f64; 3]], w: usize, h: usize) -> [f64; 4] {
+    let c = |v: f64| v.clamp(0.0, 1.0);
+    let (mut se, mut mx) = (0.0, 0.0f64);
+    for (p, q) in img.iter().zip(reference) {
+        for k in 0..3 {
+            let d = c(p[k]) - c(q[k]);
+            se += d * d;
+            mx = mx.max(d.abs());
+        }
+    }
+    let mse = se / (3 * img.len()).max(1) as f64;
+    let la: Vec<f64> = img.iter().map(|p| luma(p.map(c))).collect();
+    let lb: Vec<f64> = reference.iter().map(|p| luma(p.map(c))).collect();
+    [
+        mse.sqrt(),
+        mx,
+        10.0 * (1.0 / mse.max(1e-20)).log10(),
+        ssim(&la, &lb, w, h),
+    ]
+}
+
+fn read_reference(path: &Path) -> Option<(Vec<[f64; 3]>, Vec<f64>)> {
+    let img = exr::prelude::read_first_flat_layer_from_file(path).ok()?;
+    let chan = |name: &str| -> Option<Vec<f64>> {
+        img.layer_data
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .map(|c| c.sample_data.values_as_f32().map(|v| v as f64).collect())
+    };
+    let (r, g, b, s) = (chan("R")?, chan("G")?, chan("B")?, chan("stderr")?);
+    Some(((0..r.len()).map(|i| [r[i], g[i], b[i]]).collect(), s))
+}
+
+fn write_reference(
+    path: &Path,
+    w: usize,
+    h: usize,
+    rgb: &[[f64; 3]],
+    se: &[f64],
+) -> Result<(), String> {
+    use exr::prelude::*;
+    let ch = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    for (k, n) in ["R", "G", "B"].iter().enumerate() {
+        list.push(ch(n, rgb.iter().map(|p| p[k] as f32).collect()));
+    }
+    list.push(ch("stderr", se.iter().map(|&v| v as f32).collect()));
+    let img = Image::from_channels((w, h), AnyChannels::sort(list));
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| format!("{}: encoding EXR: {e}", path.display()))?;
+    volume::write_atomic(path, bytes.get_ref()).map_err(|e| e.to_string())
+}
+
+/// The Pareto front of (ms, rmse) points: indices of the points no other is at least as good
+/// on both and better on one, by increasing time.
+pub fn pareto(points: &[(f64, f64)]) -> Vec<usize> {
+    let mut idx: Vec<usize> = (0..points.len()).collect();
+    idx.sort_by(|&a, &b| {
+        points[a]
+            .0
+            .total_cmp(&points[b].0)
+            .then(points[a].1.total_cmp(&points[b].1))
+    });
+    let mut front = vec![];
+    let mut best = f64::INFINITY;
+    for i in idx {
+        if points[i].1 < best {
+            best = points[i].1;
+            front.push(i);
+        }
+    }
+    front
+}
+
+const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+
+/// Draws RMSE against time, a series per method, the Pareto front as a line.
+fn chart<DB: plotters::prelude::DrawingBackend>(
+    root: plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    rows: &[Row],
+    title: &str,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    use plotters::prelude::*;
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    root.fill(&WHITE).map_err(err)?;
+    let (x0, x1) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| {
+        (a.min(r.ms), b.max(r.ms))
+    });
+    let (y0, y1) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| {
+        (a.min(r.rmse), b.max(r.rmse))
+    });
+    let (x0, x1) = ((x0 * 0.8).max(1e-3), x1 * 1.25);
+    let (y0, y1) = ((y0 * 0.8).max(1e-6), y1 * 1.25);
+    let mut c = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+        .map_err(err)?;
+    c.configure_mesh()
+        .x_desc("frame time (ms, median)")
+        .y_desc("RMSE against the Monte Carlo reference")
+        .draw()
+        .map_err(err)?;
+    let mut methods: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
+    methods.dedup();
+    methods.sort();
+    methods.dedup();
+    for (i, m) in methods.iter().enumerate() {
+        let col = Palette99::pick(i).to_rgba();
+        let pts: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|r| r.method == *m)
+            .map(|r| (r.ms, r.rmse))
+            .collect();
+        c.draw_series(pts.iter().map(|p| Circle::new(*p, 4, col.filled())))
+            .map_err(err)?
+            .label(*m)
+            .legend(move |(x, y)| Circle::new((x, y), 4, col.filled()));
+    }
+    let pts: Vec<(f64, f64)> = rows.iter().map(|r| (r.ms, r.rmse)).collect();
+    let front: Vec<(f64, f64)> = pareto(&pts).into_iter().map(|i| pts[i]).collect();
+    c.draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
+        .map_err(err)?
+        .label("Pareto front")
+        .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// Runs `umbra bench accuracy`; returns the rows written.
+pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
+    let base = scene::load(&a.scene, &a.overrides)?;
+    if !base.tubes.is_empty() {
+        return Err(format!(
+            "{}: the Monte Carlo reference does not model tubes yet; bench accuracy needs a scene without [[tubes]]",
+            a.scene.display()
+        ));
+    }
+    let methods: Vec<Method> = a
+        .methods
+        .iter()
+        .map(|m| {
+            serde_json::from_value(serde_json::Value::String(m.clone())).map_err(|_| {
+                format!("--methods: '{m}' is not combined, dos, vicinity, ea or phong")
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    std::fs::create_dir_all(a.out.join("reference"))
+        .map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let gpu = crate::gpu::Gpu::new().map_err(|e| e.to_string())?;
+    // Every combination of the swept values.
+    let mut combos: Vec<Vec<String>> = vec![vec![]];
+    for (_, vals) in &a.sweeps {
+        combos = combos
+            .into_iter()
+            .flat_map(|c| {
+                vals.iter().map(move |v| {
+                    let mut c = c.clone();
+                    c.push(v.clone());
+                    c
+                })
+            })
+            .collect();
+    }
+    let mut rows = vec![];
+    for combo in &combos {
+        let mut over = a.overrides.clone();
+        for ((k, _), v) in a.sweeps.iter().zip(combo) {
+            over.push(format!("{}={v}", sweep_key(k)));
+        }
+        let s = scene::load(&a.scene, &over)?;
+        let m = render_cmd::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
+        let (vol, data, tf) = m
+            .volume
+            .as_ref()
+            .ok_or("bench accuracy needs a [volume] rendered by its transfer function")?;
+        let view = render_cmd::view(&s, &m)?;
+        // The reference for this combination's light model.
+        let mut key = serde_json::to_value(&s).map_err(|e| e.to_string())?;
+        if let Some(r) = key.get_mut("render").and_then(|r| r.as_object_mut()) {
+            for k in [
+                "method",
+                "slices",
+                "slice_distance",
+                "blur_samples",
+                "vicinity_samples",
+                "vicinity_distance",
+                "vicinity_bias",
+                "combine",
+                "occlusion_cell",
+                "occlusion_model",
+                "msaa",
+                "fxaa",
+            ] {
+                r.remove(k);
+            }
+        }
+        let hash = fnv(format!("{key}|spp={}", a.spp).as_bytes());
+        let rpath = a.out.join("reference").join(format!("{hash:016x}.exr"));
+        let (w, h) = (view.width as usize, view.height as usize);
+        let (ref_rgb, ref_se) = match read_reference(&rpath).filter(|r| r.0.len() == w * h) {
+            Some(r) => r,
+            None => {
+                progress(&format!(
+                    "reference {} ({w} x {h}, {} spp, cone {} degrees)",
+                    rpath.display(),
+                    a.spp,
+                    s.render.theta
+                ));
+                let img = reference::render(
+                    &RefVolume { vol, data, tf },
+                    &view,
+                    &RefSettings {
+                        theta_deg: Some(s.render.theta),
+                        spp: a.spp,
+                        seed: hash,
+                    },
+                );
+                write_reference(&rpath, w, h, &img.rgb, &img.stderr)?;
+                (img.rgb, img.stderr)
+            }
+        };
+        let ref_stderr = ref_se.iter().sum::<f64>() / ref_se.len().max(1) as f64;
+        for &method in &methods {
+            let mut sm = s.clone();
+            sm.render.method = method;
+            let name = format!("{method:?}").to_lowercase();
+            progress(&format!("{name} {}", combo.join(" ")));
+            let (out, _) = render_cmd::render_scene(&gpu, &sm, &m, a.frames.max(1))?;
+            let img: Vec<[f64; 3]> = out
+                .image
+                .iter()
+                .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+                .collect();
+            let [rmse, max_err, psnr, ssim] = metrics(&img, &ref_rgb, w, h);
+            rows.push(Row {
+                method: name,
+                values: combo.clone(),
+                ms: out.timings.total_ms,
+                rmse,
+                max_err,
+                psnr,
+                ssim,
+                ref_stderr,
+            });
+        }
+    }
+    // results.csv
+    let mut csv = Vec::new();
+    let keys: Vec<&str> = a.sweeps.iter().map(|(k, _)| k.as_str()).collect();
+    let _ = writeln!(
+        csv,
+        "method{}{},ms,rmse,max_err,psnr,ssim,ref_stderr",
+        if keys.is_empty() { "" } else { "," },
+        keys.join(",")
+    );
+    for r in &rows {
+        let _ = writeln!(
+            csv,
+            "{}{}{},{:.3},{:.6},{:.6},{:.3},{:.5},{:.6}",
+            r.method,
+            if r.values.is_empty() { "" } else { "," },
+            r.values.join(","),
+            r.ms,
+            r.rmse,
+            r.max_err,
+            r.psnr,
+            r.ssim,
+            r.ref_stderr
+        );
+    }
+    volume::write_atomic(&a.out.join("results.csv"), &csv).map_err(|e| e.to_string())?;
+    // The charts.
+    plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, FONT)
+        .map_err(|_| "the chart font does not load".to_string())?;
+    let title = format!(
+        "{}: error against time",
+        a.scene.file_name().unwrap_or_default().to_string_lossy()
+    );
+    let svg = a.out.join("pareto.svg");
+    let mut text = String::new();
+    {
+        let root = plotters::prelude::SVGBackend::with_string(&mut text, (800, 560));
+        chart(
+            plotters::prelude::IntoDrawingArea::into_drawing_area(root),
+            &rows,
+            &title,
+        )?;
+    }
+    volume::write_atomic(&svg, text.as_bytes()).map_err(|e| e.to_string())?;
+    let mut px = vec![0u8; 800 * 560 * 3];
+    {
+        let root = plotters::prelude::BitMapBackend::with_buffer(&mut px, (800, 560));
+        chart(
+            plotters::prelude::IntoDrawingArea::into_drawing_area(root),
+            &rows,
+            &title,
+        )?;
+    }
+    let png: image::RgbImage = image::RgbImage::from_raw(800, 560, px).ok_or("chart buffer")?;
+    let mut bytes = Vec::new();
+    png.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| e.to_string())?;
+    volume::write_atomic(&a.out.join("pareto.png"), &bytes).map_err(|e| e.to_string())?;
+    Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pareto_front_keeps_what_nothing_beats() {
+        let p = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 1.0), (2.0, 6.0)];
+        assert_eq!(pareto(&p), vec![0, 1, 3]);
+    }
+
+    #[test]
+    fn metrics_of_an_image_against_itself_and_a_shifted_one() {
+        let (w, h) = (24, 20);
+        let a: Vec<[f64; 3]> = (0..w * h)
+            .map(|i| [((i % w) as f64 / w as f64); 3])
+            .collect();
+        let [rmse, mx, psnr, s] = metrics(&a, &a, w, h);
+        assert_eq!((rmse, mx), (0.0, 0.0));
+        assert!(psnr > 150.0 && (s - 1.0).abs() < 1e-9);
+        let b: Vec<[f64; 3]> = a.iter().map(|p| p.map(|v| v + 0.1)).collect();
+        let [rmse, mx, psnr, s] = metrics(&b, &a, w, h);
+        assert!(
+            (rmse - 0.1).abs() < 0.01 && (mx - 0.1).abs() < 1e-9,
+            "{rmse} {mx}"
+        );
+        assert!((psnr - 20.0).abs() < 1.0, "{psnr}");
+        assert!(s < 1.0 && s > 0.5, "{s}");
+    }
+
+    #[test]
+    fn sweeps_parse_and_name_their_keys() {
+        assert_eq!(
+            parse_sweep("slices=64,128").unwrap(),
+            ("slices".into(), vec!["64".into(), "128".into()])
+        );
+        assert!(parse_sweep("slices").is_err() && parse_sweep("=1").is_err());
+        assert_eq!(sweep_key("cone"), "render.theta");
+        assert_eq!(sweep_key("slices"), "render.slices");
+        assert_eq!(sweep_key("occlusion_cell"), "render.occlusion_cell");
+        assert_eq!(sweep_key("light.ambient"), "light.ambient");
+    }
+}
