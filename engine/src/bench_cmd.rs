@@ -253,20 +253,31 @@ where
         .y_desc("RMSE against the Monte Carlo reference")
         .draw()
         .map_err(err)?;
-    let mut methods: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
-    methods.dedup();
-    methods.sort();
-    methods.dedup();
-    for (i, m) in methods.iter().enumerate() {
+    // A series per method and non-numeric swept value (e.g. "dos cone").
+    let series = |r: &Row| {
+        std::iter::once(r.method.clone())
+            .chain(
+                r.values
+                    .iter()
+                    .filter(|v| v.parse::<f64>().is_err())
+                    .cloned(),
+            )
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let mut names: Vec<String> = rows.iter().map(series).collect();
+    names.sort();
+    names.dedup();
+    for (i, m) in names.iter().enumerate() {
         let col = Palette99::pick(i).to_rgba();
         let pts: Vec<(f64, f64)> = rows
             .iter()
-            .filter(|r| r.method == *m)
+            .filter(|r| series(r) == *m)
             .map(|r| (r.ms, r.rmse))
             .collect();
         c.draw_series(pts.iter().map(|p| Circle::new(*p, 4, col.filled())))
             .map_err(err)?
-            .label(*m)
+            .label(m.clone())
             .legend(move |(x, y)| Circle::new((x, y), 4, col.filled()));
     }
     let pts: Vec<(f64, f64)> = rows.iter().map(|r| (r.ms, r.rmse)).collect();
