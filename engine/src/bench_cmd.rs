@@ -518,3 +518,161 @@ mod tests {
         assert_eq!(sweep_key("light.ambient"), "light.ambient");
     }
 }
+
+/// A stability case: a scene built to make methods fail, its sweeps and the methods run.
+struct Case {
+    name: &'static str,
+    what: &'static str,
+    scene: String,
+    sweeps: Vec<(String, Vec<String>)>,
+    methods: Vec<String>,
+}
+
+/// Verdict on an RMSE against the reference: `ok` below 0.02, `degraded` below 0.05, `fails`.
+pub fn verdict(rmse: f64) -> &'static str {
+    if rmse < 0.02 {
+        "ok"
+    } else if rmse < 0.05 {
+        "degraded"
+    } else {
+        "fails"
+    }
+}
+
+/// Writes a scalar grid over [-10, 10]^3 (n^3 samples) as NRRD.
+fn write_grid(path: &Path, n: usize, f: impl Fn(glam::DVec3) -> f64 + Sync) -> Result<(), String> {
+    let affine = volume::synthetic::cube_affine([n, n, n], -10.0, 10.0);
+    let vol = volume::synthetic::sample_scalar([n, n, n], affine, "v", f);
+    volume::nrrd::write(path, &vol, &vol.fields[0], volume::nrrd::WriteEncoding::Raw)
+        .map_err(|e| e.to_string())
+}
+
+/// `umbra bench stability -o <dir>`: scenes built to make the volume methods fail (the cases
+/// with tubes and isosurfaces need references the Monte Carlo renderer does not have yet),
+/// each measured against the reference; `<dir>/stability.csv` with a verdict per row
+/// ([`verdict`]). Returns the rows with their case names.
+pub fn stability(
+    out: &Path,
+    spp: u32,
+    frames: u32,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<(String, String, Row)>, String> {
+    let sdir = out.join("scenes");
+    std::fs::create_dir_all(&sdir).map_err(|e| format!("{}: {e}", sdir.display()))?;
+    // A sheet 0.3 units thick (z in [-0.15, 0.15]), a blob, and a block shadowing a floor.
+    write_grid(&sdir.join("sheet.nrrd"), 81, |p| {
+        (-(p.z / 0.15).powi(8)).exp()
+    })?;
+    write_grid(&sdir.join("blob.nrrd"), 41, |p| {
+        (-(p - glam::DVec3::new(1.0, -1.0, 0.5)).length_squared() / 20.0).exp()
+    })?;
+    write_grid(&sdir.join("shadow.nrrd"), 41, |p| {
+        let block = p.x.abs() < 2.5 && p.y.abs() < 2.5 && (4.0..6.0).contains(&p.z);
+        let floor = (-7.0..-5.0).contains(&p.z);
+        if block || floor {
+            1.0
+        } else {
+            0.0
+        }
+    })?;
+    let scene = |file: &str, camera: &str, tf: &str| {
+        format!(
+            "background = [1.0, 1.0, 1.0]\n[camera]\n{camera}\n[volume]\npath = \"{}\"\n[volume.transfer]\n{tf}\n",
+            sdir.join(file).display()
+        )
+    };
+    let dense = "points = [{ value = 0.1, color = [0.9, 0.8, 0.7], extinction = 0.0 }, { value = 0.5, color = [0.9, 0.8, 0.7], extinction = 1.5 }]";
+    let soft = "points = [{ value = 0.1, color = [0.8, 0.8, 0.9], extinction = 0.0 }, { value = 1.0, color = [0.8, 0.8, 0.9], extinction = 0.4 }]";
+    let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    let all = s(&["dos", "ea"]);
+    let cases = vec![
+        Case {
+            name: "thin-sheet",
+            what: "a sheet 0.3 units thick, slices 0.1 to 2 units apart",
+            scene: scene("sheet.nrrd", "azimuth = 20.0\nelevation = 40.0", dense),
+            sweeps: vec![("slice_distance".into(), s(&["0.1", "0.5", "1.0", "2.0"]))],
+            methods: all.clone(),
+        },
+        Case {
+            name: "grazing",
+            what: "the same sheet seen almost edge-on (elevation 2 to 20 degrees)",
+            scene: scene("sheet.nrrd", "azimuth = 20.0", dense),
+            sweeps: vec![("camera.elevation".into(), s(&["2.0", "5.0", "20.0"]))],
+            methods: all.clone(),
+        },
+        Case {
+            name: "few-slices",
+            what: "a soft blob with 4 to 64 slices",
+            scene: scene("blob.nrrd", "azimuth = 30.0\nelevation = 20.0", soft),
+            sweeps: vec![("slices".into(), s(&["4", "8", "16", "64"]))],
+            methods: all.clone(),
+        },
+        Case {
+            name: "cone-extremes",
+            what: "a block shadowing a floor, theta 2 to 80 degrees",
+            scene: scene("shadow.nrrd", "azimuth = 30.0\nelevation = 50.0", dense),
+            sweeps: vec![("cone".into(), s(&["2", "25", "60", "80"]))],
+            methods: s(&["dos"]),
+        },
+        Case {
+            name: "zoom",
+            what: "the shadowed floor seen from 1.5 to 6 bounding radii (consistent occlusion?)",
+            scene: scene("shadow.nrrd", "azimuth = 30.0\nelevation = 50.0", dense),
+            sweeps: vec![("camera.distance".into(), s(&["1.5", "3.0", "6.0"]))],
+            methods: s(&["dos"]),
+        },
+        Case {
+            name: "rotation",
+            what: "the camera turning in 0.5-degree steps (frame-to-frame change of the error)",
+            scene: scene("shadow.nrrd", "elevation = 50.0", dense),
+            sweeps: vec![(
+                "camera.azimuth".into(),
+                s(&["30.0", "30.5", "31.0", "31.5"]),
+            )],
+            methods: s(&["dos"]),
+        },
+    ];
+    let mut all_rows = vec![];
+    for c in &cases {
+        let path = sdir.join(format!("{}.toml", c.name));
+        volume::write_atomic(&path, c.scene.as_bytes()).map_err(|e| e.to_string())?;
+        progress(c.name);
+        let rows = accuracy(
+            &AccuracyArgs {
+                scene: path,
+                overrides: vec!["render.width=96".into(), "render.height=96".into()],
+                sweeps: c.sweeps.clone(),
+                methods: c.methods.clone(),
+                spp,
+                frames,
+                out: out.join(c.name),
+            },
+            &|m| progress(&format!("{}: {m}", c.name)),
+        )?;
+        for r in rows {
+            all_rows.push((c.name.to_string(), c.what.to_string(), r));
+        }
+    }
+    let mut csv = Vec::new();
+    let _ = writeln!(
+        csv,
+        "case,method,setting,ms,rmse,max_err,psnr,ssim,ref_stderr,verdict"
+    );
+    for (name, _, r) in &all_rows {
+        let _ = writeln!(
+            csv,
+            "{name},{},{},{:.3},{:.6},{:.6},{:.3},{:.5},{:.6},{}",
+            r.method,
+            r.values.join(" "),
+            r.ms,
+            r.rmse,
+            r.max_err,
+            r.psnr,
+            r.ssim,
+            r.ref_stderr,
+            verdict(r.rmse)
+        );
+    }
+    volume::write_atomic(&out.join("stability.csv"), &csv).map_err(|e| e.to_string())?;
+    Ok(all_rows)
+}

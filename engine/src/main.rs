@@ -14,6 +14,18 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// Scenes built to make the volume methods fail (a sheet thinner than the slices, grazing
+    /// views, very few slices, cone angles near 0 and 80 degrees, zooming, turning in small
+    /// steps), each against the Monte Carlo reference: <out>/stability.csv with verdicts.
+    Stability {
+        /// Monte Carlo paths per pixel of the references.
+        #[arg(long, default_value_t = 256)]
+        reference_spp: u32,
+        #[arg(long, default_value_t = 1)]
+        frames: u32,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Every method at every combination of the swept settings, timed and compared with the
     /// Monte Carlo reference of the same light model (cached): <out>/results.csv,
     /// <out>/pareto.svg and .png. Images are 128 x 128 unless --set says otherwise.
@@ -881,6 +893,32 @@ fn run(cli: Cli) -> Result<(), String> {
                 "wrote {0}/results.csv, {0}/pareto.svg, {0}/pareto.png",
                 output.display()
             );
+            Ok(())
+        }
+        Command::Bench {
+            what:
+                BenchCommand::Stability {
+                    reference_spp,
+                    frames,
+                    output,
+                },
+        } => {
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+            let rows = engine::bench_cmd::stability(&output, reference_spp, frames, &|m| {
+                bar.set_message(m.to_string())
+            })?;
+            bar.finish_and_clear();
+            for (case, _, r) in &rows {
+                println!(
+                    "{case:14} {:5} {:>10}  rmse {:.4}  {}",
+                    r.method,
+                    r.values.join(" "),
+                    r.rmse,
+                    engine::bench_cmd::verdict(r.rmse)
+                );
+            }
+            eprintln!("wrote {}/stability.csv", output.display());
             Ok(())
         }
         Command::Demo {

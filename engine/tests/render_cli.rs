@@ -356,3 +356,44 @@ fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("tubes"));
 }
+
+#[test]
+fn bench_stability_measures_every_case_with_a_verdict() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("stab");
+    let out = umbra()
+        .args(["bench", "stability", "--reference-spp", "64", "-o"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    ok(&out);
+    let csv = std::fs::read_to_string(out_dir.join("stability.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    for case in [
+        "thin-sheet",
+        "grazing",
+        "few-slices",
+        "cone-extremes",
+        "zoom",
+        "rotation",
+    ] {
+        assert!(rows.iter().any(|r| r[0] == case), "{case} missing:\n{csv}");
+    }
+    assert!(rows
+        .iter()
+        .all(|r| ["ok", "degraded", "fails"].contains(&r[9])));
+    // A sheet thinner than the slice distance is where slicing breaks: much worse at 2 units
+    // than at 0.1.
+    let rmse = |m: &str, set: &str| -> f64 {
+        rows.iter()
+            .find(|r| r[0] == "thin-sheet" && r[1] == m && r[2] == set)
+            .unwrap()[4]
+            .parse()
+            .unwrap()
+    };
+    assert!(rmse("dos", "2.0") > 2.0 * rmse("dos", "0.1"), "{csv}");
+}
