@@ -476,49 +476,6 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
     Ok(rows)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_pareto_front_keeps_what_nothing_beats() {
-        let p = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 1.0), (2.0, 6.0)];
-        assert_eq!(pareto(&p), vec![0, 1, 3]);
-    }
-
-    #[test]
-    fn metrics_of_an_image_against_itself_and_a_shifted_one() {
-        let (w, h) = (24, 20);
-        let a: Vec<[f64; 3]> = (0..w * h)
-            .map(|i| [((i % w) as f64 / w as f64); 3])
-            .collect();
-        let [rmse, mx, psnr, s] = metrics(&a, &a, w, h);
-        assert_eq!((rmse, mx), (0.0, 0.0));
-        assert!(psnr > 150.0 && (s - 1.0).abs() < 1e-9);
-        let b: Vec<[f64; 3]> = a.iter().map(|p| p.map(|v| v + 0.1)).collect();
-        let [rmse, mx, psnr, s] = metrics(&b, &a, w, h);
-        assert!(
-            (rmse - 0.1).abs() < 0.01 && (mx - 0.1).abs() < 1e-9,
-            "{rmse} {mx}"
-        );
-        assert!((psnr - 20.0).abs() < 1.0, "{psnr}");
-        assert!(s < 1.0 && s > 0.5, "{s}");
-    }
-
-    #[test]
-    fn sweeps_parse_and_name_their_keys() {
-        assert_eq!(
-            parse_sweep("slices=64,128").unwrap(),
-            ("slices".into(), vec!["64".into(), "128".into()])
-        );
-        assert!(parse_sweep("slices").is_err() && parse_sweep("=1").is_err());
-        assert_eq!(sweep_key("cone"), "render.theta");
-        assert_eq!(sweep_key("slices"), "render.slices");
-        assert_eq!(sweep_key("occlusion_cell"), "render.occlusion_cell");
-        assert_eq!(sweep_key("light.ambient"), "light.ambient");
-    }
-}
-
 /// A stability case: a scene built to make methods fail, its sweeps and the methods run.
 struct Case {
     name: &'static str,
@@ -675,4 +632,47 @@ pub fn stability(
     }
     volume::write_atomic(&out.join("stability.csv"), &csv).map_err(|e| e.to_string())?;
     Ok(all_rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pareto_front_keeps_what_nothing_beats() {
+        let p = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 1.0), (2.0, 6.0)];
+        assert_eq!(pareto(&p), vec![0, 1, 3]);
+    }
+
+    #[test]
+    fn metrics_of_an_image_against_itself_and_a_shifted_one() {
+        let (w, h) = (24, 20);
+        let a: Vec<[f64; 3]> = (0..w * h)
+            .map(|i| [((i % w) as f64 / w as f64); 3])
+            .collect();
+        let [rmse, mx, psnr, s] = metrics(&a, &a, w, h);
+        assert_eq!((rmse, mx), (0.0, 0.0));
+        assert!(psnr > 150.0 && (s - 1.0).abs() < 1e-9);
+        let b: Vec<[f64; 3]> = a.iter().map(|p| p.map(|v| v + 0.1)).collect();
+        let [rmse, mx, psnr, s] = metrics(&b, &a, w, h);
+        assert!(
+            (rmse - 0.1).abs() < 0.01 && (mx - 0.1).abs() < 1e-9,
+            "{rmse} {mx}"
+        );
+        assert!((psnr - 20.0).abs() < 1.0, "{psnr}");
+        assert!(s < 1.0 && s > 0.5, "{s}");
+    }
+
+    #[test]
+    fn sweeps_parse_and_name_their_keys() {
+        assert_eq!(
+            parse_sweep("slices=64,128").unwrap(),
+            ("slices".into(), vec!["64".into(), "128".into()])
+        );
+        assert!(parse_sweep("slices").is_err() && parse_sweep("=1").is_err());
+        assert_eq!(sweep_key("cone"), "render.theta");
+        assert_eq!(sweep_key("slices"), "render.slices");
+        assert_eq!(sweep_key("occlusion_cell"), "render.occlusion_cell");
+        assert_eq!(sweep_key("light.ambient"), "light.ambient");
+    }
 }
