@@ -19,6 +19,7 @@ pub mod iso_cmd;
 pub mod iso_pass;
 pub mod iso_reference;
 pub mod reference;
+pub mod reference_tubes;
 pub mod render_cmd;
 pub mod renderer;
 pub mod resample_cmd;

@@ -18,8 +18,13 @@
 //! error of its mean (per channel, the largest), so that error bars are honest. Random numbers
 //! come from SplitMix64 seeded per pixel: images are reproducible.
 //!
-//! Not yet: the tubes (the geometry's extinction over their real thickness, the vicinity
-//! reference, hemisphere AO against the tube mesh); scenes with tubes are refused.
+//! Tubes (`reference_tubes`): the eye ray ends at the first tube surface, shaded as the GPU
+//! shades it (eq. 9 with the head light) with its occlusion estimated the same way as a volume
+//! sample's; every transmittance also passes through the tubes with `geometry_extinction` over
+//! the length it spends inside them (their real thickness: `geometry_shadow = "inside"`). Each
+//! path's eye ray is jittered within its pixel (a box filter, as MSAA and FXAA approximate).
+//! Not yet: the vicinity-only reference, hemisphere AO against the tube mesh, the paper's
+//! endless-column rule.
 
 use crate::ea_pass::{EaView, Transfer};
 use crate::iso_reference::SplitMix64;
@@ -33,6 +38,15 @@ pub struct RefVolume<'a> {
     /// As `ea_pass::prepare` returns it (NaN as -3e38).
     pub data: &'a [f32],
     pub tf: &'a Transfer,
+}
+
+/// The tubes of a scene, for the reference.
+pub struct RefTubes<'a> {
+    pub scene: &'a crate::reference_tubes::TubeScene,
+    /// Extinction per world unit inside a tube (render.geometry_extinction).
+    pub sigma: f64,
+    /// ambient, diffuse, specular, shininess (the head light's Phong parameters).
+    pub light: [f64; 4],
 }
 
 /// What to estimate.
@@ -176,9 +190,9 @@ fn cone_direction(axis: DVec3, cos_max: f64, rng: &mut SplitMix64) -> DVec3 {
     axis * cos_t + (u * phi.cos() + w * phi.sin()) * sin_t
 }
 
-/// Renders the reference of `v` seen through `view` (its camera, size, clipping planes and
-/// background).
-pub fn render(v: &RefVolume, view: &EaView, s: &RefSettings) -> RefImage {
+/// Renders the reference of `v` (and the tubes, when given) seen through `view` (its camera,
+/// size, clipping planes and background).
+pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSettings) -> RefImage {
     let majorant =
         v.tf.points
             .iter()
@@ -203,13 +217,42 @@ pub fn render(v: &RefVolume, view: &EaView, s: &RefSettings) -> RefImage {
         .map(|px| {
             let mut rng =
                 SplitMix64(s.seed ^ (px as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xA5A5_5A5A);
-            let (o, d) = view.camera.ray((px % w) as f64, (px / w) as f64, w, h);
-            let span = m.span(o, d);
             let (mut sum, mut sq) = ([0.0f64; 3], [0.0f64; 3]);
             let n = s.spp.max(1);
+            let occlusion = |p: DVec3, rng: &mut SplitMix64| -> f64 {
+                let Some(cm) = cos_max else {
+                    return 1.0;
+                };
+                let axis = if perspective {
+                    (view.camera.eye - p).normalize()
+                } else {
+                    -view.camera.forward()
+                };
+                let dir = cone_direction(axis, cm, rng);
+                let geometry = tubes.map_or(1.0, |t| {
+                    (-t.sigma * t.scene.inside_length(p, dir, f64::INFINITY)).exp()
+                });
+                if geometry < 1e-12 {
+                    return 0.0;
+                }
+                geometry * m.transmittance(p, dir, rng)
+            };
             for _ in 0..n {
+                // A ray through a random point of the pixel.
+                let (jx, jy) = (rng.next_f64() - 0.5, rng.next_f64() - 0.5);
+                let (o, d) = view
+                    .camera
+                    .ray((px % w) as f64 + jx, (px / w) as f64 + jy, w, h);
+                let surface = tubes.and_then(|t| {
+                    t.scene
+                        .hits(o, d, 0.0, f64::INFINITY)
+                        .first()
+                        .map(|hit| (hit.t, t.scene.surface(hit), t))
+                });
                 let mut value = bg;
-                if let Some((t0, t1)) = span {
+                let mut done = false;
+                if let Some((t0, t1)) = m.span(o, d) {
+                    let t1 = surface.map_or(t1, |x| t1.min(x.0));
                     let mut t = t0;
                     loop {
                         t -= (1.0 - rng.next_f64()).ln() / majorant;
@@ -219,20 +262,25 @@ pub fn render(v: &RefVolume, view: &EaView, s: &RefSettings) -> RefImage {
                         let p = o + d * t;
                         let (sigma, c) = m.at(p);
                         if rng.next_f64() * majorant < sigma {
-                            let occl = match cos_max {
-                                None => 1.0,
-                                Some(cm) => {
-                                    let axis = if perspective {
-                                        (view.camera.eye - p).normalize()
-                                    } else {
-                                        -view.camera.forward()
-                                    };
-                                    m.transmittance(p, cone_direction(axis, cm, &mut rng), &mut rng)
-                                }
-                            };
+                            let occl = occlusion(p, &mut rng);
                             value = c.map(|x| x * occl);
+                            done = true;
                             break;
                         }
+                    }
+                }
+                if !done {
+                    if let Some((ts, (mut nrm, albedo), t)) = surface {
+                        // The surface, shaded as the GPU does (eq. 9, head light).
+                        if nrm.dot(d) > 0.0 {
+                            nrm = -nrm;
+                        }
+                        let p = o + d * ts + nrm * 1e-4 * (1.0 + ts.abs());
+                        let occl = occlusion(p, &mut rng);
+                        let nl = nrm.dot(-d).max(0.0);
+                        let rv = (2.0 * nl * nl - 1.0).max(0.0);
+                        let spec = t.light[2] * rv.powf(t.light[3]);
+                        value = albedo.map(|a| occl * a * (t.light[0] + t.light[1] * nl) + spec);
                     }
                 }
                 for k in 0..3 {
@@ -316,6 +364,7 @@ mod tests {
         };
         let ea = render(
             &rv,
+            None,
             &view,
             &RefSettings {
                 theta_deg: None,
@@ -352,6 +401,7 @@ mod tests {
         }
         let dos = render(
             &rv,
+            None,
             &view,
             &RefSettings {
                 theta_deg: Some(theta),

@@ -539,3 +539,51 @@ fn a_two_dimensional_transfer_function_shows_boundaries_only() {
     assert!(r2 > c2 + 0.1, "2-D: the rim outshines the centre");
     assert!(c2 < c1 - 0.1);
 }
+
+#[test]
+fn the_gpu_agrees_with_the_monte_carlo_reference_on_tubes_in_a_medium() {
+    use engine::reference::{self, RefSettings, RefTubes, RefVolume};
+    use engine::reference_tubes::TubeScene;
+    let gpu = gpu();
+    let (scene, tops) = depth_scene();
+    let cam = top_camera(false);
+    let v = view(cam);
+    let mut s = settings(Method::Dos);
+    s.msaa = 1;
+    let out = scene.render(&gpu, &v, &s);
+    let (vol, data, tf) = scene.vol.as_ref().unwrap();
+    let ts = TubeScene::new(&scene.meshes, &[]);
+    let r = reference::render(
+        &RefVolume { vol, data, tf },
+        Some(&RefTubes {
+            scene: &ts,
+            sigma: s.geometry_extinction,
+            light: s.light,
+        }),
+        &v,
+        &RefSettings {
+            theta_deg: Some(s.theta_deg),
+            spp: 2048,
+            seed: 7,
+        },
+    );
+    for t in tops {
+        // The tube's top line, where the pixel is all tube (no silhouette).
+        let (mut g, mut c, mut se) = (0.0, 0.0, 0.0f64);
+        for i in 0..5 {
+            let p = pixel(&cam, [-2.0 + i as f64, t[1], t[2]]);
+            g += out.image[p][0] as f64 / 5.0;
+            c += r.rgb[p][0] / 5.0;
+            se = se.max(r.stderr[p]);
+        }
+        eprintln!(
+            "tube top at z {}: gpu {g:.4}, reference {c:.4} (se {se:.4})",
+            t[2]
+        );
+        assert!(
+            (g - c).abs() < 0.02 + 3.0 * se,
+            "z {}: gpu {g}, reference {c}",
+            t[2]
+        );
+    }
+}
