@@ -60,13 +60,14 @@ pub fn sweep_key(k: &str) -> String {
     }
 }
 
-/// Parses `KEY=V1,V2,...`.
+/// Parses `KEY=V1,V2,...` (`KEY=[..];[..]` when the values are arrays).
 pub fn parse_sweep(s: &str) -> Result<(String, Vec<String>), String> {
     let (k, v) = s
         .split_once('=')
         .ok_or_else(|| format!("--sweep {s}: expected KEY=V1,V2,..."))?;
+    let sep = if v.contains('[') { ';' } else { ',' };
     let vals: Vec<String> = v
-        .split(',')
+        .split(sep)
         .map(|x| x.trim().to_string())
         .filter(|x| !x.is_empty())
         .collect();
@@ -338,10 +339,43 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
         }
         let s = scene::load(&a.scene, &over)?;
         let m = render_cmd::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
-        let (vol, data, tf) = m
-            .volume
-            .as_ref()
-            .ok_or("bench accuracy needs a [volume] rendered by its transfer function")?;
+        if m.iso.is_some() {
+            return Err(format!(
+                "{}: the Monte Carlo reference does not model isosurfaces yet",
+                a.scene.display()
+            ));
+        }
+        // Without a volume the reference sees an empty one (all transparent).
+        let empty;
+        let (vol, data, tf) = match m.volume.as_ref() {
+            Some((v, d, t)) => (v, d, t),
+            None => {
+                let [lo, hi] = m.bounds;
+                let affine = glam::DMat4::from_cols(
+                    glam::DVec4::new(hi.x - lo.x, 0.0, 0.0, 0.0),
+                    glam::DVec4::new(0.0, hi.y - lo.y, 0.0, 0.0),
+                    glam::DVec4::new(0.0, 0.0, hi.z - lo.z, 0.0),
+                    lo.extend(1.0),
+                );
+                let field = volume::Field {
+                    name: "empty".into(),
+                    components: 1,
+                    stored: volume::ScalarType::F32,
+                    data: vec![0.0; 8],
+                };
+                let v = volume::Volume::new([2, 2, 2], affine, volume::Space::File, field)
+                    .map_err(|e| e.to_string())?;
+                empty = (
+                    v,
+                    vec![0.0f32; 8],
+                    crate::ea_pass::Transfer {
+                        points: vec![(0.0, [0.0; 3], 0.0)],
+                        rows: vec![],
+                    },
+                );
+                (&empty.0, &empty.1, &empty.2)
+            }
+        };
         let view = render_cmd::view(&s, &m)?;
         // The reference for this combination's light model.
         let mut key = serde_json::to_value(&s).map_err(|e| e.to_string())?;
@@ -431,13 +465,20 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
         if keys.is_empty() { "" } else { "," },
         keys.join(",")
     );
+    let quote = |v: &String| {
+        if v.contains(',') {
+            format!("\"{v}\"")
+        } else {
+            v.clone()
+        }
+    };
     for r in &rows {
         let _ = writeln!(
             csv,
             "{}{}{},{:.3},{:.6},{:.6},{:.3},{:.5},{:.6}",
             r.method,
             if r.values.is_empty() { "" } else { "," },
-            r.values.join(","),
+            r.values.iter().map(quote).collect::<Vec<_>>().join(","),
             r.ms,
             r.rmse,
             r.max_err,
@@ -541,6 +582,33 @@ pub fn stability(
             0.0
         }
     })?;
+    // Tube bundles along y: sparse (5 tubes 3 units apart) and dense (a 5 x 5 block 1.1 apart).
+    let bundle = |name: &str, pts: Vec<(f32, f32)>| -> Result<(), String> {
+        let mut sl = tubes::Streamlines::new();
+        for (x, z) in pts {
+            let line: Vec<glam::Vec3> = (0..=12)
+                .map(|i| glam::Vec3::new(x, i as f32 * 1.5 - 9.0, z))
+                .collect();
+            sl.push(&line);
+        }
+        tubes::save(&sdir.join(name), &sl).map_err(|e| e.to_string())
+    };
+    bundle(
+        "sparse.tck",
+        (0..5).map(|i| (i as f32 * 3.0 - 6.0, 0.0)).collect(),
+    )?;
+    bundle(
+        "dense.tck",
+        (0..25)
+            .map(|i| ((i % 5) as f32 * 1.1 - 2.2, (i / 5) as f32 * -1.1))
+            .collect(),
+    )?;
+    let tube_scene = |file: &str, camera: &str| {
+        format!(
+            "background = [1.0, 1.0, 1.0]\n[camera]\n{camera}\n[[tubes]]\npath = \"{}\"\nradius = 0.5\ncolor = \"#d0d0d0\"\n[render]\ntheta = 45.0\nvicinity_distance = 2.0\n",
+            sdir.join(file).display()
+        )
+    };
     let scene = |file: &str, camera: &str, tf: &str| {
         format!(
             "background = [1.0, 1.0, 1.0]\n[camera]\n{camera}\n[volume]\npath = \"{}\"\n[volume.transfer]\n{tf}\n",
@@ -588,6 +656,32 @@ pub fn stability(
             methods: s(&["dos"]),
         },
         Case {
+            name: "bundles",
+            what: "tubes alone, sparse (3 units apart) or dense (a 5 x 5 block 1.1 apart)",
+            scene: tube_scene("sparse.tck", "azimuth = 10.0\nelevation = 60.0"),
+            sweeps: vec![(
+                "tubes.0.path".into(),
+                vec![
+                    format!("\"{}\"", sdir.join("sparse.tck").display()),
+                    format!("\"{}\"", sdir.join("dense.tck").display()),
+                ],
+            )],
+            methods: s(&["combined", "vicinity", "dos", "ea"]),
+        },
+        Case {
+            name: "border",
+            what: "the dense bundle in the middle of the image or cut by its border",
+            scene: tube_scene(
+                "dense.tck",
+                "projection = \"orthographic\"\nheight = 14.0\neye = [0.0, 0.0, 40.0]\nup = [0.0, 1.0, 0.0]",
+            ),
+            sweeps: vec![(
+                "camera.target".into(),
+                s(&["[0.0, 0.0, 0.0]", "[6.0, 0.0, 0.0]"]),
+            )],
+            methods: s(&["combined", "vicinity"]),
+        },
+        Case {
             name: "rotation",
             what: "the camera turning in 0.5-degree steps (frame-to-frame change of the error)",
             scene: scene("shadow.nrrd", "elevation = 50.0", dense),
@@ -615,7 +709,17 @@ pub fn stability(
             },
             &|m| progress(&format!("{}: {m}", c.name)),
         )?;
-        for r in rows {
+        for mut r in rows {
+            // A path as its file name.
+            for v in &mut r.values {
+                if v.contains('/') {
+                    let t = v.trim_matches('"');
+                    *v = Path::new(t)
+                        .file_name()
+                        .map_or(t.to_string(), |n| n.to_string_lossy().to_string());
+                }
+                *v = v.replace(',', " ");
+            }
             all_rows.push((c.name.to_string(), c.what.to_string(), r));
         }
     }
@@ -679,6 +783,10 @@ mod tests {
             ("slices".into(), vec!["64".into(), "128".into()])
         );
         assert!(parse_sweep("slices").is_err() && parse_sweep("=1").is_err());
+        assert_eq!(
+            parse_sweep("camera.target=[0, 0, 0];[7,0,0]").unwrap().1,
+            vec!["[0, 0, 0]".to_string(), "[7,0,0]".to_string()]
+        );
         assert_eq!(sweep_key("cone"), "render.theta");
         assert_eq!(sweep_key("slices"), "render.slices");
         assert_eq!(sweep_key("occlusion_cell"), "render.occlusion_cell");
