@@ -222,11 +222,18 @@ pub fn pareto(points: &[(f64, f64)]) -> Vec<usize> {
 
 const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
-/// Draws RMSE against time, a series per method, the Pareto front as a line.
-fn chart<DB: plotters::prelude::DrawingBackend>(
+/// A log-log scatter chart: named point series and an optional line (e.g. a Pareto front).
+pub struct Plot {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<(String, Vec<(f64, f64)>)>,
+    pub line: Option<(String, Vec<(f64, f64)>)>,
+}
+
+fn draw<DB: plotters::prelude::DrawingBackend>(
     root: plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
-    rows: &[Row],
-    title: &str,
+    p: &Plot,
 ) -> Result<(), String>
 where
     DB::ErrorType: 'static,
@@ -234,59 +241,41 @@ where
     use plotters::prelude::*;
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(err)?;
-    let (x0, x1) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| {
-        (a.min(r.ms), b.max(r.ms))
-    });
-    let (y0, y1) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| {
-        (a.min(r.rmse), b.max(r.rmse))
-    });
-    let (x0, x1) = ((x0 * 0.8).max(1e-3), x1 * 1.25);
-    let (y0, y1) = ((y0 * 0.8).max(1e-6), y1 * 1.25);
+    let all = p.series.iter().flat_map(|s| s.1.iter());
+    let (x0, x1, y0, y1) = all.fold(
+        (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64),
+        |(a, b, c, d), q| (a.min(q.0), b.max(q.0), c.min(q.1), d.max(q.1)),
+    );
+    if !(x0.is_finite() && y0.is_finite()) {
+        return Err("nothing to chart".into());
+    }
+    let (x0, x1) = ((x0 * 0.8).max(1e-9), (x1 * 1.25).max(x0 * 2.0));
+    let (y0, y1) = ((y0 * 0.8).max(1e-9), (y1 * 1.25).max(y0 * 2.0));
     let mut c = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 18))
+        .caption(&p.title, ("sans-serif", 18))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
         .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
         .map_err(err)?;
     c.configure_mesh()
-        .x_desc("frame time (ms, median)")
-        .y_desc("RMSE against the Monte Carlo reference")
+        .x_desc(p.x_label.as_str())
+        .y_desc(p.y_label.as_str())
         .draw()
         .map_err(err)?;
-    // A series per method and non-numeric swept value (e.g. "dos cone").
-    let series = |r: &Row| {
-        std::iter::once(r.method.clone())
-            .chain(
-                r.values
-                    .iter()
-                    .filter(|v| v.parse::<f64>().is_err())
-                    .cloned(),
-            )
-            .collect::<Vec<_>>()
-            .join(" ")
-    };
-    let mut names: Vec<String> = rows.iter().map(series).collect();
-    names.sort();
-    names.dedup();
-    for (i, m) in names.iter().enumerate() {
+    for (i, (name, pts)) in p.series.iter().enumerate() {
         let col = Palette99::pick(i).to_rgba();
-        let pts: Vec<(f64, f64)> = rows
-            .iter()
-            .filter(|r| series(r) == *m)
-            .map(|r| (r.ms, r.rmse))
-            .collect();
-        c.draw_series(pts.iter().map(|p| Circle::new(*p, 4, col.filled())))
+        c.draw_series(pts.iter().map(|q| Circle::new(*q, 4, col.filled())))
             .map_err(err)?
-            .label(m.clone())
+            .label(name.clone())
             .legend(move |(x, y)| Circle::new((x, y), 4, col.filled()));
     }
-    let pts: Vec<(f64, f64)> = rows.iter().map(|r| (r.ms, r.rmse)).collect();
-    let front: Vec<(f64, f64)> = pareto(&pts).into_iter().map(|i| pts[i]).collect();
-    c.draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
-        .map_err(err)?
-        .label("Pareto front")
-        .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
+    if let Some((name, pts)) = &p.line {
+        c.draw_series(LineSeries::new(pts.clone(), BLACK.stroke_width(1)))
+            .map_err(err)?
+            .label(name.clone())
+            .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
+    }
     c.configure_series_labels()
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
@@ -294,6 +283,38 @@ where
         .map_err(err)?;
     root.present().map_err(err)?;
     Ok(())
+}
+
+/// Writes `p` as `<dir>/<stem>.svg` and `<dir>/<stem>.png` (800 x 560).
+pub fn write_chart(dir: &Path, stem: &str, p: &Plot) -> Result<(), String> {
+    plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, FONT)
+        .map_err(|_| "the chart font does not load".to_string())?;
+    let mut text = String::new();
+    {
+        let root = plotters::prelude::SVGBackend::with_string(&mut text, (800, 560));
+        draw(
+            plotters::prelude::IntoDrawingArea::into_drawing_area(root),
+            p,
+        )?;
+    }
+    volume::write_atomic(&dir.join(format!("{stem}.svg")), text.as_bytes())
+        .map_err(|e| e.to_string())?;
+    let mut px = vec![0u8; 800 * 560 * 3];
+    {
+        let root = plotters::prelude::BitMapBackend::with_buffer(&mut px, (800, 560));
+        draw(
+            plotters::prelude::IntoDrawingArea::into_drawing_area(root),
+            p,
+        )?;
+    }
+    let png: image::RgbImage = image::RgbImage::from_raw(800, 560, px).ok_or("chart buffer")?;
+    let mut bytes = Vec::new();
+    png.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| e.to_string())?;
+    volume::write_atomic(&dir.join(format!("{stem}.png")), &bytes).map_err(|e| e.to_string())
 }
 
 /// Runs `umbra bench accuracy`; returns the rows written.
@@ -488,41 +509,49 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
         );
     }
     volume::write_atomic(&a.out.join("results.csv"), &csv).map_err(|e| e.to_string())?;
-    // The charts.
-    plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, FONT)
-        .map_err(|_| "the chart font does not load".to_string())?;
-    let title = format!(
-        "{}: error against time",
-        a.scene.file_name().unwrap_or_default().to_string_lossy()
-    );
-    let svg = a.out.join("pareto.svg");
-    let mut text = String::new();
-    {
-        let root = plotters::prelude::SVGBackend::with_string(&mut text, (800, 560));
-        chart(
-            plotters::prelude::IntoDrawingArea::into_drawing_area(root),
-            &rows,
-            &title,
-        )?;
-    }
-    volume::write_atomic(&svg, text.as_bytes()).map_err(|e| e.to_string())?;
-    let mut px = vec![0u8; 800 * 560 * 3];
-    {
-        let root = plotters::prelude::BitMapBackend::with_buffer(&mut px, (800, 560));
-        chart(
-            plotters::prelude::IntoDrawingArea::into_drawing_area(root),
-            &rows,
-            &title,
-        )?;
-    }
-    let png: image::RgbImage = image::RgbImage::from_raw(800, 560, px).ok_or("chart buffer")?;
-    let mut bytes = Vec::new();
-    png.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| e.to_string())?;
-    volume::write_atomic(&a.out.join("pareto.png"), &bytes).map_err(|e| e.to_string())?;
+    // The chart: a series per method and non-numeric swept value (e.g. "dos cone").
+    let series = |r: &Row| {
+        std::iter::once(r.method.clone())
+            .chain(
+                r.values
+                    .iter()
+                    .filter(|v| v.parse::<f64>().is_err())
+                    .cloned(),
+            )
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let mut names: Vec<String> = rows.iter().map(series).collect();
+    names.sort();
+    names.dedup();
+    let pts: Vec<(f64, f64)> = rows.iter().map(|r| (r.ms, r.rmse)).collect();
+    write_chart(
+        &a.out,
+        "pareto",
+        &Plot {
+            title: format!(
+                "{}: error against time",
+                a.scene.file_name().unwrap_or_default().to_string_lossy()
+            ),
+            x_label: "frame time (ms, median)".into(),
+            y_label: "RMSE against the Monte Carlo reference".into(),
+            series: names
+                .iter()
+                .map(|n| {
+                    let p = rows
+                        .iter()
+                        .filter(|r| series(r) == *n)
+                        .map(|r| (r.ms, r.rmse))
+                        .collect();
+                    (n.clone(), p)
+                })
+                .collect(),
+            line: Some((
+                "Pareto front".into(),
+                pareto(&pts).into_iter().map(|i| pts[i]).collect(),
+            )),
+        },
+    )?;
     Ok(rows)
 }
 
@@ -792,4 +821,187 @@ mod tests {
         assert_eq!(sweep_key("occlusion_cell"), "render.occlusion_cell");
         assert_eq!(sweep_key("light.ambient"), "light.ambient");
     }
+}
+
+/// `umbra bench tubes <tractogram> --tolerances T1,T2 -o <dir>`: the stream tubes' cost
+/// against their accuracy: for each fitting tolerance, the control points, triangles, the
+/// exact largest deviation of the B-splines from the streamlines, and the meshing time
+/// (median of `runs`); `<dir>/tubes.csv` and the chart `<dir>/tubes.svg|png` (deviation against
+/// triangles).
+pub fn tubes(
+    input: &Path,
+    tolerances: &[f64],
+    radius: f64,
+    runs: usize,
+    out: &Path,
+) -> Result<Vec<(f64, usize, usize, f64, f64)>, String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let s = tubes::load(input).map_err(|e| e.to_string())?;
+    let mut rows = vec![];
+    for &tol in tolerances {
+        if !(tol > 0.0 && tol.is_finite()) {
+            return Err(format!("--tolerances: {tol} is not positive"));
+        }
+        let args = crate::tubes_cmd::TubesArgs {
+            input: input.to_path_buf(),
+            output: PathBuf::new(),
+            radius,
+            sides: 8,
+            per_span: 1,
+            tolerance: tol,
+            chordal: None,
+            fit: tubes::bspline_fit::FitMethod::Iterative,
+            frame: tubes::tube_mesh::FrameMethod::Rmf,
+            radius_mode: tubes::tube_mesh::RadiusMode::Local,
+            color: "direction".into(),
+            caps: true,
+            transform: None,
+        };
+        let mut times = vec![];
+        let mut stats = None;
+        for _ in 0..runs.max(1) {
+            let t = std::time::Instant::now();
+            let (_, st) = crate::tubes_cmd::build_mesh(&s, &args)?;
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            stats = Some(st);
+        }
+        times.sort_by(f64::total_cmp);
+        let st = stats.unwrap();
+        rows.push((
+            tol,
+            st.control_points,
+            st.triangles,
+            st.max_deviation,
+            times[times.len() / 2],
+        ));
+    }
+    let mut csv = Vec::new();
+    let _ = writeln!(csv, "tolerance,control_points,triangles,max_deviation,ms");
+    for r in &rows {
+        let _ = writeln!(csv, "{},{},{},{:.6},{:.2}", r.0, r.1, r.2, r.3, r.4);
+    }
+    volume::write_atomic(&out.join("tubes.csv"), &csv).map_err(|e| e.to_string())?;
+    write_chart(
+        out,
+        "tubes",
+        &Plot {
+            title: format!(
+                "{}: deviation against triangles",
+                input.file_name().unwrap_or_default().to_string_lossy()
+            ),
+            x_label: "triangles".into(),
+            y_label: "largest deviation from the streamlines (world units)".into(),
+            series: vec![(
+                "B-spline tubes, tolerance swept".into(),
+                rows.iter().map(|r| (r.2 as f64, r.3.max(1e-9))).collect(),
+            )],
+            line: None,
+        },
+    )?;
+    Ok(rows)
+}
+
+/// `umbra bench sweep -o <dir>`: occlusion sweeping against Monte Carlo ambient occlusion on
+/// the sweeping paper's validation scene at several grid sizes: sweep time (distance and eight
+/// octants), and the RMSE of the swept ambient term against hemisphere AO traced on the same
+/// isosurface (`spp` cosine-weighted rays per pixel, its standard error reported), on a
+/// `size x size` image; `<dir>/sweep.csv` and `<dir>/sweep.svg|png` (error against time).
+pub fn sweep(
+    sizes: &[usize],
+    spp: usize,
+    size: usize,
+    out: &Path,
+) -> Result<Vec<(usize, f64, f64, f64)>, String> {
+    use crate::iso_reference::{render, rmse, AmbientSource, IsoSurface, OrbitCamera, Shading};
+    use volume::occlusion_shading::{AmbientModel, AmbientOptions};
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let mut rows = vec![];
+    for &n in sizes {
+        if !(8..=512).contains(&n) {
+            return Err(format!("--sizes: {n} is not in 8..512"));
+        }
+        let vol = volume::synthetic::validation_scene(n);
+        let values = vol.select(None).map_err(|e| e.to_string())?.data;
+        let sp = vol.spacing();
+        let dopts = volume::distance_sweep::DistanceOptions {
+            iso: 0.0,
+            inside: volume::distance_sweep::Inside::Above,
+            ..Default::default()
+        };
+        let t = std::time::Instant::now();
+        let (df, oct) = volume::occlusion_sweep::sweep_fields(
+            &values,
+            vol.dims,
+            [sp[0] as f32, sp[1] as f32, sp[2] as f32],
+            &dopts,
+            &volume::occlusion_sweep::OcclusionOptions {
+                subsurface_alpha: None,
+            },
+            true,
+        );
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        let oct = oct.ok_or("octant fields missing")?;
+        let surface = IsoSurface::new(vol.dims, vol.affine, &values, 0.0, true, &df.distance);
+        let model = AmbientModel::new(AmbientOptions::default(), &vol.affine);
+        let cam = OrbitCamera {
+            width: size,
+            height: size,
+            azimuth_deg: 35.0,
+            elevation_deg: 35.0,
+            distance: 1.6,
+        };
+        let shading = Shading::default();
+        let swept = render(
+            &surface,
+            vol.bounds(),
+            &cam,
+            &AmbientSource::Swept {
+                octants: &oct,
+                model: &model,
+            },
+            &shading,
+        );
+        let reference = render(
+            &surface,
+            vol.bounds(),
+            &cam,
+            &AmbientSource::Reference {
+                rays: spp,
+                uniform: false,
+            },
+            &shading,
+        );
+        let hits: Vec<f32> = reference
+            .stderr
+            .iter()
+            .zip(&reference.ambient)
+            .filter(|(_, a)| a.is_finite())
+            .map(|(s, _)| *s)
+            .collect();
+        let se = hits.iter().map(|&v| v as f64).sum::<f64>() / hits.len().max(1) as f64;
+        rows.push((n, ms, rmse(&swept, &reference), se));
+    }
+    let mut csv = Vec::new();
+    let _ = writeln!(csv, "n,sweep_ms,rmse,reference_stderr");
+    for r in &rows {
+        let _ = writeln!(csv, "{},{:.2},{:.6},{:.6}", r.0, r.1, r.2, r.3);
+    }
+    volume::write_atomic(&out.join("sweep.csv"), &csv).map_err(|e| e.to_string())?;
+    write_chart(
+        out,
+        "sweep",
+        &Plot {
+            title: "occlusion sweeping: error against time (validation scene)".into(),
+            x_label: "sweep time (ms; distance and eight octants)".into(),
+            y_label: "RMSE of the ambient term against Monte Carlo AO".into(),
+            series: vec![(
+                "grid sizes".into(),
+                rows.iter()
+                    .map(|r| (r.1.max(1e-3), r.2.max(1e-9)))
+                    .collect(),
+            )],
+            line: None,
+        },
+    )?;
+    Ok(rows)
 }

@@ -14,6 +14,35 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// Stream tubes' cost against accuracy: control points, triangles, largest deviation and
+    /// meshing time per fitting tolerance: <out>/tubes.csv and a chart.
+    Tubes {
+        /// Tractogram.
+        input: PathBuf,
+        #[arg(long, default_value = "0.005,0.01,0.02,0.05,0.1,0.2")]
+        tolerances: String,
+        #[arg(long, default_value_t = 0.5)]
+        radius: f64,
+        /// Meshing runs per tolerance (the median is reported).
+        #[arg(long, default_value_t = 3)]
+        runs: usize,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Occlusion sweeping against Monte Carlo AO on the validation scene over grid sizes:
+    /// <out>/sweep.csv and a chart.
+    Sweep {
+        #[arg(long, default_value = "32,64,128")]
+        sizes: String,
+        /// Monte Carlo rays per pixel of the reference.
+        #[arg(long, default_value_t = 256)]
+        spp: usize,
+        /// Image size (square).
+        #[arg(long, default_value_t = 128)]
+        size: usize,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Scenes built to make the volume methods fail (a sheet thinner than the slices, grazing
     /// views, very few slices, cone angles near 0 and 80 degrees, zooming, turning in small
     /// steps), each against the Monte Carlo reference: <out>/stability.csv with verdicts.
@@ -891,6 +920,65 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             eprintln!(
                 "wrote {0}/results.csv, {0}/pareto.svg, {0}/pareto.png",
+                output.display()
+            );
+            Ok(())
+        }
+        Command::Bench {
+            what:
+                BenchCommand::Tubes {
+                    input,
+                    tolerances,
+                    radius,
+                    runs,
+                    output,
+                },
+        } => {
+            let t: Vec<f64> = tolerances
+                .split(',')
+                .map(|x| {
+                    x.trim()
+                        .parse::<f64>()
+                        .map_err(|_| format!("--tolerances: '{x}' is not a number"))
+                })
+                .collect::<Result<_, _>>()?;
+            for r in engine::bench_cmd::tubes(&input, &t, radius, runs, &output)? {
+                println!(
+                    "tolerance {:8}  control points {:9}  triangles {:10}  max deviation {:.5}  {:.1} ms",
+                    r.0, r.1, r.2, r.3, r.4
+                );
+            }
+            eprintln!(
+                "wrote {0}/tubes.csv, {0}/tubes.svg, {0}/tubes.png",
+                output.display()
+            );
+            Ok(())
+        }
+        Command::Bench {
+            what:
+                BenchCommand::Sweep {
+                    sizes,
+                    spp,
+                    size,
+                    output,
+                },
+        } => {
+            let n: Vec<usize> = sizes
+                .split(',')
+                .map(|x| {
+                    x.trim()
+                        .parse::<usize>()
+                        .map_err(|_| format!("--sizes: '{x}' is not a count"))
+                })
+                .collect::<Result<_, _>>()?;
+            for r in engine::bench_cmd::sweep(&n, spp, size, &output)? {
+                println!(
+                    "n {:4}  sweep {:9.1} ms  rmse {:.5}  (reference stderr {:.5})",
+                    r.0, r.1, r.2, r.3
+                );
+            }
+            eprintln!(
+                "wrote {0}/sweep.csv, {0}/sweep.svg, {0}/sweep.png",
                 output.display()
             );
             Ok(())

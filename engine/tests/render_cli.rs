@@ -395,3 +395,54 @@ fn bench_stability_measures_every_case_with_a_verdict() {
     };
     assert!(rmse("dos", "2.0") > 2.0 * rmse("dos", "0.1"), "{csv}");
 }
+
+#[test]
+fn bench_tubes_and_bench_sweep_write_their_tables_and_charts() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = dir.path().join("t");
+    let out = umbra()
+        .args(["bench", "tubes"])
+        .arg(root().join("tests/fixtures/tracts/dipy/tracks300.trk"))
+        .args(["--tolerances", "0.01,0.1,0.5", "--runs", "1", "-o"])
+        .arg(&t)
+        .output()
+        .unwrap();
+    ok(&out);
+    let csv = std::fs::read_to_string(t.join("tubes.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 3, "{csv}");
+    for r in &rows {
+        // The largest deviation stays within the tolerance (exact maximum, branch and bound).
+        assert!(r[3] <= r[0] * 1.001, "{csv}");
+    }
+    // A looser tolerance never costs more control points or triangles.
+    assert!(
+        rows[2][1] <= rows[0][1] && rows[2][2] <= rows[0][2],
+        "{csv}"
+    );
+    assert!(std::fs::metadata(t.join("tubes.svg")).unwrap().len() > 1000);
+    let s = dir.path().join("s");
+    let out = umbra()
+        .args([
+            "bench", "sweep", "--sizes", "16,24", "--spp", "16", "--size", "32", "-o",
+        ])
+        .arg(&s)
+        .output()
+        .unwrap();
+    ok(&out);
+    let csv = std::fs::read_to_string(s.join("sweep.csv")).unwrap();
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "n,sweep_ms,rmse,reference_stderr"
+    );
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    for l in csv.lines().skip(1) {
+        let rmse: f64 = l.split(',').nth(2).unwrap().parse().unwrap();
+        assert!(rmse.is_finite() && rmse > 0.0 && rmse < 0.5, "{csv}");
+    }
+    assert!(std::fs::metadata(s.join("sweep.png")).unwrap().len() > 1000);
+}
