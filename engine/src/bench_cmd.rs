@@ -823,6 +823,17 @@ mod tests {
     }
 }
 
+/// One tolerance of `bench tubes`.
+#[derive(Clone, Debug)]
+pub struct TubesRow {
+    pub tolerance: f64,
+    pub control_points: usize,
+    pub triangles: usize,
+    pub max_deviation: f64,
+    /// Median meshing time.
+    pub ms: f64,
+}
+
 /// `umbra bench tubes <tractogram> --tolerances T1,T2 -o <dir>`: the stream tubes' cost
 /// against their accuracy: for each fitting tolerance, the control points, triangles, the
 /// exact largest deviation of the B-splines from the streamlines, and the meshing time
@@ -834,7 +845,7 @@ pub fn tubes(
     radius: f64,
     runs: usize,
     out: &Path,
-) -> Result<Vec<(f64, usize, usize, f64, f64)>, String> {
+) -> Result<Vec<TubesRow>, String> {
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let s = tubes::load(input).map_err(|e| e.to_string())?;
     let mut rows = vec![];
@@ -867,18 +878,22 @@ pub fn tubes(
         }
         times.sort_by(f64::total_cmp);
         let st = stats.unwrap();
-        rows.push((
-            tol,
-            st.control_points,
-            st.triangles,
-            st.max_deviation,
-            times[times.len() / 2],
-        ));
+        rows.push(TubesRow {
+            tolerance: tol,
+            control_points: st.control_points,
+            triangles: st.triangles,
+            max_deviation: st.max_deviation,
+            ms: times[times.len() / 2],
+        });
     }
     let mut csv = Vec::new();
     let _ = writeln!(csv, "tolerance,control_points,triangles,max_deviation,ms");
     for r in &rows {
-        let _ = writeln!(csv, "{},{},{},{:.6},{:.2}", r.0, r.1, r.2, r.3, r.4);
+        let _ = writeln!(
+            csv,
+            "{},{},{},{:.6},{:.2}",
+            r.tolerance, r.control_points, r.triangles, r.max_deviation, r.ms
+        );
     }
     volume::write_atomic(&out.join("tubes.csv"), &csv).map_err(|e| e.to_string())?;
     write_chart(
@@ -893,7 +908,9 @@ pub fn tubes(
             y_label: "largest deviation from the streamlines (world units)".into(),
             series: vec![(
                 "B-spline tubes, tolerance swept".into(),
-                rows.iter().map(|r| (r.2 as f64, r.3.max(1e-9))).collect(),
+                rows.iter()
+                    .map(|r| (r.triangles as f64, r.max_deviation.max(1e-9)))
+                    .collect(),
             )],
             line: None,
         },

@@ -945,7 +945,7 @@ fn run(cli: Cli) -> Result<(), String> {
             for r in engine::bench_cmd::tubes(&input, &t, radius, runs, &output)? {
                 println!(
                     "tolerance {:8}  control points {:9}  triangles {:10}  max deviation {:.5}  {:.1} ms",
-                    r.0, r.1, r.2, r.3, r.4
+                    r.tolerance, r.control_points, r.triangles, r.max_deviation, r.ms
                 );
             }
             eprintln!(
