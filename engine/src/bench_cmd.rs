@@ -13,9 +13,12 @@
 //!   truth, and the samples per pixel.
 //! * Metrics on linear colour clamped to [0, 1]: RMSE and largest error over all channels,
 //!   PSNR with peak 1, SSIM of the luminance (Gaussian window, sigma 1.5, radius 5; C1 =
-//!   0.01^2, C2 = 0.03^2). `ms` is the renderer's `total_ms` (median frame).
-//! * Not yet: metrics on the occlusion AOVs, FLIP, `bench sweep`, `bench tubes`; the paper's
-//!   endless-column rule in the reference (such scenes are refused).
+//!   0.01^2, C2 = 0.03^2). `ms` is the renderer's `total_ms` (median frame). On the occlusion
+//!   AOVs: the RMSE of the volumetric term against the reference's mean occlusion at volume
+//!   collisions (pixels with some opacity), and of the combined term against the reference's
+//!   mean cone transmittance at the first tube surface (covered surface pixels).
+//! * Not yet: FLIP; the vicinity-only reference; the paper's endless-column rule in the
+//!   reference (such scenes are refused).
 
 use crate::reference::{self, RefSettings, RefVolume};
 use crate::render_cmd;
@@ -48,6 +51,11 @@ pub struct Row {
     pub ssim: f64,
     /// Mean standard error of the reference over the pixels.
     pub ref_stderr: f64,
+    /// RMSE of the volumetric-occlusion AOV against the reference's (pixels where both
+    /// have volume), and of the combined AOV on surfaces against the reference's surface
+    /// occlusion (pixels where both have a tube); NaN where there are none.
+    pub rmse_volumetric: f64,
+    pub rmse_surface: f64,
 }
 
 /// The scene key a sweep key sets.
@@ -163,7 +171,10 @@ pub fn metrics(img: &[[f64; 3]], reference: &[[f64; 3]], w: usize, h: usize) -> 
     ]
 }
 
-fn read_reference(path: &Path) -> Option<(Vec<[f64; 3]>, Vec<f64>)> {
+/// A cached reference: colour, standard error, volumetric and surface occlusion.
+type Cached = (Vec<[f64; 3]>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+fn read_reference(path: &Path) -> Option<Cached> {
     let img = exr::prelude::read_first_flat_layer_from_file(path).ok()?;
     let chan = |name: &str| -> Option<Vec<f64>> {
         img.layer_data
@@ -174,16 +185,12 @@ fn read_reference(path: &Path) -> Option<(Vec<[f64; 3]>, Vec<f64>)> {
             .map(|c| c.sample_data.values_as_f32().map(|v| v as f64).collect())
     };
     let (r, g, b, s) = (chan("R")?, chan("G")?, chan("B")?, chan("stderr")?);
-    Some(((0..r.len()).map(|i| [r[i], g[i], b[i]]).collect(), s))
+    let (v, o) = (chan("occlusion.volumetric")?, chan("occlusion.surface")?);
+    Some(((0..r.len()).map(|i| [r[i], g[i], b[i]]).collect(), s, v, o))
 }
 
-fn write_reference(
-    path: &Path,
-    w: usize,
-    h: usize,
-    rgb: &[[f64; 3]],
-    se: &[f64],
-) -> Result<(), String> {
+fn write_reference(path: &Path, w: usize, h: usize, c: &Cached) -> Result<(), String> {
+    let (rgb, se) = (&c.0, &c.1);
     use exr::prelude::*;
     let ch = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
@@ -191,6 +198,14 @@ fn write_reference(
         list.push(ch(n, rgb.iter().map(|p| p[k] as f32).collect()));
     }
     list.push(ch("stderr", se.iter().map(|&v| v as f32).collect()));
+    list.push(ch(
+        "occlusion.volumetric",
+        c.2.iter().map(|&v| v as f32).collect(),
+    ));
+    list.push(ch(
+        "occlusion.surface",
+        c.3.iter().map(|&v| v as f32).collect(),
+    ));
     let img = Image::from_channels((w, h), AnyChannels::sort(list));
     let mut bytes = std::io::Cursor::new(Vec::new());
     img.write()
@@ -421,7 +436,9 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
         let hash = fnv(format!("{key}|spp={}", a.spp).as_bytes());
         let rpath = a.out.join("reference").join(format!("{hash:016x}.exr"));
         let (w, h) = (view.width as usize, view.height as usize);
-        let (ref_rgb, ref_se) = match read_reference(&rpath).filter(|r| r.0.len() == w * h) {
+        let (ref_rgb, ref_se, ref_vol, ref_surf) = match read_reference(&rpath)
+            .filter(|r| r.0.len() == w * h)
+        {
             Some(r) => r,
             None => {
                 progress(&format!(
@@ -448,8 +465,9 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
                         seed: hash,
                     },
                 );
-                write_reference(&rpath, w, h, &img.rgb, &img.stderr)?;
-                (img.rgb, img.stderr)
+                let c = (img.rgb, img.stderr, img.volumetric, img.surface);
+                write_reference(&rpath, w, h, &c)?;
+                c
             }
         };
         let ref_stderr = ref_se.iter().sum::<f64>() / ref_se.len().max(1) as f64;
@@ -465,6 +483,33 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
                 .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
                 .collect();
             let [rmse, max_err, psnr, ssim] = metrics(&img, &ref_rgb, w, h);
+            // The occlusion AOVs where both the renderer and the reference have a value: the
+            // volumetric term where the volume is seen (some opacity), the combined term on
+            // surfaces (coverage 1, a tube hit).
+            let aov_rmse = |pick: &dyn Fn(usize) -> Option<(f64, f64)>| {
+                let (mut se, mut n) = (0.0, 0usize);
+                for i in 0..w * h {
+                    if let Some((a, b)) = pick(i) {
+                        if a.is_finite() && b.is_finite() {
+                            se += (a - b) * (a - b);
+                            n += 1;
+                        }
+                    }
+                }
+                if n == 0 {
+                    f64::NAN
+                } else {
+                    (se / n as f64).sqrt()
+                }
+            };
+            let rmse_volumetric = aov_rmse(&|i| {
+                (out.image[i][3] > 0.05 && out.aov[i].depth > 0.0)
+                    .then(|| (out.aov[i].volumetric as f64, ref_vol[i]))
+            });
+            let rmse_surface = aov_rmse(&|i| {
+                (out.image[i][3] >= 1.0 && out.aov[i].depth > 0.0 && !ref_surf[i].is_nan())
+                    .then(|| (out.aov[i].combined as f64, ref_surf[i]))
+            });
             rows.push(Row {
                 method: name,
                 values: combo.clone(),
@@ -474,6 +519,8 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
                 psnr,
                 ssim,
                 ref_stderr,
+                rmse_volumetric,
+                rmse_surface,
             });
         }
     }
@@ -482,7 +529,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
     let keys: Vec<&str> = a.sweeps.iter().map(|(k, _)| k.as_str()).collect();
     let _ = writeln!(
         csv,
-        "method{}{},ms,rmse,max_err,psnr,ssim,ref_stderr",
+        "method{}{},ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface",
         if keys.is_empty() { "" } else { "," },
         keys.join(",")
     );
@@ -496,7 +543,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
     for r in &rows {
         let _ = writeln!(
             csv,
-            "{}{}{},{:.3},{:.6},{:.6},{:.3},{:.5},{:.6}",
+            "{}{}{},{:.3},{:.6},{:.6},{:.3},{:.5},{:.6},{:.6},{:.6}",
             r.method,
             if r.values.is_empty() { "" } else { "," },
             r.values.iter().map(quote).collect::<Vec<_>>().join(","),
@@ -505,7 +552,9 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
             r.max_err,
             r.psnr,
             r.ssim,
-            r.ref_stderr
+            r.ref_stderr,
+            r.rmse_volumetric,
+            r.rmse_surface
         );
     }
     volume::write_atomic(&a.out.join("results.csv"), &csv).map_err(|e| e.to_string())?;

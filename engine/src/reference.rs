@@ -65,6 +65,12 @@ pub struct RefImage {
     pub height: usize,
     pub rgb: Vec<[f64; 3]>,
     pub stderr: Vec<f64>,
+    /// The reference of the volumetric AOV: the mean occlusion at the eye ray's collisions
+    /// in the volume (the opacity-weighted mean occlusion along the ray); NaN where none.
+    pub volumetric: Vec<f64>,
+    /// The reference of the surfaces' occlusion (the combined AOV): the mean cone
+    /// transmittance at the first tube surface; NaN where no path reached one.
+    pub surface: Vec<f64>,
 }
 
 struct Medium<'a> {
@@ -212,12 +218,14 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
         crate::camera::Projection::Perspective { .. }
     );
     let bg = view.background;
-    let pixels: Vec<([f64; 3], f64)> = (0..w * h)
+    let pixels: Vec<([f64; 3], f64, f64, f64)> = (0..w * h)
         .into_par_iter()
         .map(|px| {
             let mut rng =
                 SplitMix64(s.seed ^ (px as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xA5A5_5A5A);
             let (mut sum, mut sq) = ([0.0f64; 3], [0.0f64; 3]);
+            // (sum, count) of the occlusion at volume collisions and at surfaces.
+            let (mut vol_o, mut surf_o) = ((0.0f64, 0u32), (0.0f64, 0u32));
             let n = s.spp.max(1);
             let occlusion = |p: DVec3, rng: &mut SplitMix64| -> f64 {
                 let Some(cm) = cos_max else {
@@ -264,6 +272,7 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
                         if rng.next_f64() * majorant < sigma {
                             let occl = occlusion(p, &mut rng);
                             value = c.map(|x| x * occl);
+                            vol_o = (vol_o.0 + occl, vol_o.1 + 1);
                             done = true;
                             break;
                         }
@@ -281,6 +290,7 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
                         let rv = (2.0 * nl * nl - 1.0).max(0.0);
                         let spec = t.light[2] * rv.powf(t.light[3]);
                         value = albedo.map(|a| occl * a * (t.light[0] + t.light[1] * nl) + spec);
+                        surf_o = (surf_o.0 + occl, surf_o.1 + 1);
                     }
                 }
                 for k in 0..3 {
@@ -293,7 +303,14 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
             let se = (0..3)
                 .map(|k| ((sq[k] / nf - mean[k] * mean[k]).max(0.0) / nf.max(2.0 - 1.0)).sqrt())
                 .fold(0.0, f64::max);
-            (mean, se)
+            let avg = |x: (f64, u32)| {
+                if x.1 > 0 {
+                    x.0 / x.1 as f64
+                } else {
+                    f64::NAN
+                }
+            };
+            (mean, se, avg(vol_o), avg(surf_o))
         })
         .collect();
     RefImage {
@@ -301,6 +318,8 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
         height: h,
         rgb: pixels.iter().map(|p| p.0).collect(),
         stderr: pixels.iter().map(|p| p.1).collect(),
+        volumetric: pixels.iter().map(|p| p.2).collect(),
+        surface: pixels.iter().map(|p| p.3).collect(),
     }
 }
 

@@ -307,7 +307,7 @@ fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(
         lines[0],
-        "method,slices,cone,ms,rmse,max_err,psnr,ssim,ref_stderr"
+        "method,slices,cone,ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface"
     );
     assert_eq!(lines.len(), 5, "{csv}");
     let rmse = |m: &str, sl: &str| -> f64 {
