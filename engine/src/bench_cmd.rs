@@ -632,9 +632,9 @@ fn write_grid(path: &Path, n: usize, f: impl Fn(glam::DVec3) -> f64 + Sync) -> R
         .map_err(|e| e.to_string())
 }
 
-/// `umbra bench stability -o <dir>`: scenes built to make the volume methods fail (the cases
-/// with tubes and isosurfaces need references the Monte Carlo renderer does not have yet),
-/// each measured against the reference; `<dir>/stability.csv` with a verdict per row
+/// `umbra bench stability -o <dir>`: scenes built to make the methods fail - volumes, tubes,
+/// and occlusion sweeping on isosurfaces (against Monte Carlo AO, `method` = `sweep`, time =
+/// the sweep's) - each measured against its reference; `<dir>/stability.csv` with a verdict per row
 /// ([`verdict`]). Returns the rows with their case names.
 pub fn stability(
     out: &Path,
@@ -800,6 +800,58 @@ pub fn stability(
             }
             all_rows.push((c.name.to_string(), c.what.to_string(), r));
         }
+    }
+    // Occlusion sweeping's failure modes on isosurfaces: walls at an angle to the grid (the
+    // paper's diagonal artifacts) and sharp edges (its glow), against Monte Carlo AO.
+    let boxed = |angle: f64, round: f64| {
+        let (c, s) = (angle.to_radians().cos(), angle.to_radians().sin());
+        move |p: glam::DVec3| {
+            let q = glam::DVec3::new(c * p.x + s * p.y, -s * p.x + c * p.y, p.z);
+            let d = q.abs() - glam::DVec3::splat(5.0 - round);
+            let outside = d.max(glam::DVec3::ZERO).length() + d.max_element().min(0.0) - round;
+            -outside
+        }
+    };
+    let iso_cases: [(&str, &str, &str, f64, f64); 5] = [
+        (
+            "iso-walls",
+            "a box's walls at 0, 30 and 45 degrees to the grid",
+            "0",
+            0.0,
+            0.0,
+        ),
+        ("iso-walls", "", "30", 30.0, 0.0),
+        ("iso-walls", "", "45", 45.0, 0.0),
+        (
+            "iso-edges",
+            "a box with sharp or rounded (radius 2) edges",
+            "sharp",
+            20.0,
+            0.0,
+        ),
+        ("iso-edges", "", "rounded", 20.0, 2.0),
+    ];
+    for (name, what, setting, angle, round) in iso_cases {
+        progress(name);
+        let affine = volume::synthetic::cube_affine([48, 48, 48], -10.0, 10.0);
+        let vol = volume::synthetic::sample_scalar([48, 48, 48], affine, "v", boxed(angle, round));
+        let (ms, e, se) = iso_accuracy(&vol, spp as usize, 96, 30.0)?;
+        all_rows.push((
+            name.to_string(),
+            what.to_string(),
+            Row {
+                method: "sweep".into(),
+                values: vec![setting.to_string()],
+                ms,
+                rmse: e,
+                max_err: f64::NAN,
+                psnr: 10.0 * (1.0 / (e * e).max(1e-20)).log10(),
+                ssim: f64::NAN,
+                ref_stderr: se,
+                rmse_volumetric: f64::NAN,
+                rmse_surface: f64::NAN,
+            },
+        ));
     }
     let mut csv = Vec::new();
     let _ = writeln!(
@@ -967,6 +1019,79 @@ pub fn tubes(
     Ok(rows)
 }
 
+/// Occlusion sweeping on the isosurface 0 of `vol` (inside where positive) against Monte Carlo
+/// AO (`spp` cosine-weighted rays per pixel) on a `size x size` image from azimuth `azimuth`,
+/// elevation 35, distance 1.6: the sweep's milliseconds, the RMSE of the ambient term and the
+/// reference's mean standard error.
+pub fn iso_accuracy(
+    vol: &volume::Volume,
+    spp: usize,
+    size: usize,
+    azimuth: f64,
+) -> Result<(f64, f64, f64), String> {
+    use crate::iso_reference::{render, rmse, AmbientSource, IsoSurface, OrbitCamera, Shading};
+    use volume::occlusion_shading::{AmbientModel, AmbientOptions};
+    let values = vol.select(None).map_err(|e| e.to_string())?.data;
+    let sp = vol.spacing();
+    let dopts = volume::distance_sweep::DistanceOptions {
+        iso: 0.0,
+        inside: volume::distance_sweep::Inside::Above,
+        ..Default::default()
+    };
+    let t = std::time::Instant::now();
+    let (df, oct) = volume::occlusion_sweep::sweep_fields(
+        &values,
+        vol.dims,
+        [sp[0] as f32, sp[1] as f32, sp[2] as f32],
+        &dopts,
+        &volume::occlusion_sweep::OcclusionOptions {
+            subsurface_alpha: None,
+        },
+        true,
+    );
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let oct = oct.ok_or("octant fields missing")?;
+    let surface = IsoSurface::new(vol.dims, vol.affine, &values, 0.0, true, &df.distance);
+    let model = AmbientModel::new(AmbientOptions::default(), &vol.affine);
+    let cam = OrbitCamera {
+        width: size,
+        height: size,
+        azimuth_deg: azimuth,
+        elevation_deg: 35.0,
+        distance: 1.6,
+    };
+    let shading = Shading::default();
+    let swept = render(
+        &surface,
+        vol.bounds(),
+        &cam,
+        &AmbientSource::Swept {
+            octants: &oct,
+            model: &model,
+        },
+        &shading,
+    );
+    let reference = render(
+        &surface,
+        vol.bounds(),
+        &cam,
+        &AmbientSource::Reference {
+            rays: spp,
+            uniform: false,
+        },
+        &shading,
+    );
+    let hits: Vec<f32> = reference
+        .stderr
+        .iter()
+        .zip(&reference.ambient)
+        .filter(|(_, a)| a.is_finite())
+        .map(|(s, _)| *s)
+        .collect();
+    let se = hits.iter().map(|&v| v as f64).sum::<f64>() / hits.len().max(1) as f64;
+    Ok((ms, rmse(&swept, &reference), se))
+}
+
 /// `umbra bench sweep -o <dir>`: occlusion sweeping against Monte Carlo ambient occlusion on
 /// the sweeping paper's validation scene at several grid sizes: sweep time (distance and eight
 /// octants), and the RMSE of the swept ambient term against hemisphere AO traced on the same
@@ -978,74 +1103,14 @@ pub fn sweep(
     size: usize,
     out: &Path,
 ) -> Result<Vec<(usize, f64, f64, f64)>, String> {
-    use crate::iso_reference::{render, rmse, AmbientSource, IsoSurface, OrbitCamera, Shading};
-    use volume::occlusion_shading::{AmbientModel, AmbientOptions};
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let mut rows = vec![];
     for &n in sizes {
         if !(8..=512).contains(&n) {
             return Err(format!("--sizes: {n} is not in 8..512"));
         }
-        let vol = volume::synthetic::validation_scene(n);
-        let values = vol.select(None).map_err(|e| e.to_string())?.data;
-        let sp = vol.spacing();
-        let dopts = volume::distance_sweep::DistanceOptions {
-            iso: 0.0,
-            inside: volume::distance_sweep::Inside::Above,
-            ..Default::default()
-        };
-        let t = std::time::Instant::now();
-        let (df, oct) = volume::occlusion_sweep::sweep_fields(
-            &values,
-            vol.dims,
-            [sp[0] as f32, sp[1] as f32, sp[2] as f32],
-            &dopts,
-            &volume::occlusion_sweep::OcclusionOptions {
-                subsurface_alpha: None,
-            },
-            true,
-        );
-        let ms = t.elapsed().as_secs_f64() * 1e3;
-        let oct = oct.ok_or("octant fields missing")?;
-        let surface = IsoSurface::new(vol.dims, vol.affine, &values, 0.0, true, &df.distance);
-        let model = AmbientModel::new(AmbientOptions::default(), &vol.affine);
-        let cam = OrbitCamera {
-            width: size,
-            height: size,
-            azimuth_deg: 35.0,
-            elevation_deg: 35.0,
-            distance: 1.6,
-        };
-        let shading = Shading::default();
-        let swept = render(
-            &surface,
-            vol.bounds(),
-            &cam,
-            &AmbientSource::Swept {
-                octants: &oct,
-                model: &model,
-            },
-            &shading,
-        );
-        let reference = render(
-            &surface,
-            vol.bounds(),
-            &cam,
-            &AmbientSource::Reference {
-                rays: spp,
-                uniform: false,
-            },
-            &shading,
-        );
-        let hits: Vec<f32> = reference
-            .stderr
-            .iter()
-            .zip(&reference.ambient)
-            .filter(|(_, a)| a.is_finite())
-            .map(|(s, _)| *s)
-            .collect();
-        let se = hits.iter().map(|&v| v as f64).sum::<f64>() / hits.len().max(1) as f64;
-        rows.push((n, ms, rmse(&swept, &reference), se));
+        let (ms, e, se) = iso_accuracy(&volume::synthetic::validation_scene(n), spp, size, 35.0)?;
+        rows.push((n, ms, e, se));
     }
     let mut csv = Vec::new();
     let _ = writeln!(csv, "n,sweep_ms,rmse,reference_stderr");
