@@ -14,6 +14,17 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// Hemisphere ambient occlusion of a scene's tubes (Monte Carlo, the reference for the
+    /// cross-check with Mitsuba 3 in bench/mitsuba_ao.py): <out>/ao.exr, tubes.ply, camera.json.
+    Ao {
+        scene: PathBuf,
+        #[arg(long, default_value_t = 1024)]
+        spp: u32,
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Stream tubes' cost against accuracy: control points, triangles, largest deviation and
     /// meshing time per fitting tolerance: <out>/tubes.csv and a chart.
     Tubes {
@@ -920,6 +931,23 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             eprintln!(
                 "wrote {0}/results.csv, {0}/pareto.svg, {0}/pareto.png",
+                output.display()
+            );
+            Ok(())
+        }
+        Command::Bench {
+            what:
+                BenchCommand::Ao {
+                    scene,
+                    spp,
+                    set,
+                    output,
+                },
+        } => {
+            let mean = engine::bench_cmd::ao(&scene, &set, spp, &output)?;
+            println!("mean ambient occlusion (open fraction) {mean:.5}");
+            eprintln!(
+                "wrote {0}/ao.exr, {0}/tubes.ply, {0}/camera.json",
                 output.display()
             );
             Ok(())

@@ -446,3 +446,43 @@ fn bench_tubes_and_bench_sweep_write_their_tables_and_charts() {
     }
     assert!(std::fs::metadata(s.join("sweep.png")).unwrap().len() > 1000);
 }
+
+#[test]
+fn bench_ao_writes_the_cross_check_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("ao");
+    let out = umbra()
+        .args(["bench", "ao"])
+        .arg(root().join("bench/scenes/ao_tracks.toml"))
+        .args([
+            "--spp",
+            "16",
+            "--set",
+            "render.width=32",
+            "--set",
+            "render.height=32",
+            "-o",
+        ])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    ok(&out);
+    let mean: f64 = String::from_utf8_lossy(&out.stdout)
+        .split_whitespace()
+        .last()
+        .unwrap()
+        .parse()
+        .unwrap();
+    // Tubes cover part of the image and occlude each other: open, but not entirely.
+    assert!(mean > 0.5 && mean < 0.999, "{mean}");
+    let cam: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("camera.json")).unwrap())
+            .unwrap();
+    assert_eq!(cam["width"], 32);
+    assert!(cam["fov_y"].as_f64().unwrap() > 0.0);
+    // The PLY is the tubes' mesh in world coordinates: it reads back.
+    let m = tubes::mesh_io::read(&out_dir.join("tubes.ply")).unwrap();
+    assert!(m.triangles() > 1000);
+    let img = exr::prelude::read_first_flat_layer_from_file(out_dir.join("ao.exr")).unwrap();
+    assert_eq!(img.layer_data.channel_data.list.len(), 2);
+}
