@@ -182,66 +182,6 @@ impl TubeScene {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A closed tube of radius r along x from -5 to 5 (caps on).
-    fn tube(r: f64) -> TubeMesh {
-        let mut s = tubes::Streamlines::new();
-        let pts: Vec<glam::Vec3> = (0..=10)
-            .map(|i| glam::Vec3::new(i as f32 - 5.0, 0.0, 0.0))
-            .collect();
-        s.push(&pts);
-        let args = crate::tubes_cmd::TubesArgs {
-            input: Default::default(),
-            output: Default::default(),
-            radius: r,
-            sides: 64,
-            per_span: 1,
-            tolerance: 0.01,
-            chordal: None,
-            fit: tubes::bspline_fit::FitMethod::Iterative,
-            frame: tubes::tube_mesh::FrameMethod::Rmf,
-            radius_mode: tubes::tube_mesh::RadiusMode::Local,
-            color: "#ff0000".into(),
-            caps: true,
-            transform: None,
-        };
-        crate::tubes_cmd::build_mesh(&s, &args).unwrap().0
-    }
-
-    #[test]
-    fn rays_find_the_surface_and_the_chord_through_a_tube() {
-        let sc = TubeScene::new(&[tube(1.0)], &[]);
-        // Straight down through the axis: the top at z = 1, a chord of 2.
-        let o = DVec3::new(0.3, 0.0, 10.0);
-        let d = -DVec3::Z;
-        let h = sc.hits(o, d, 0.0, f64::INFINITY);
-        assert_eq!(h.len(), 2);
-        assert!((h[0].t - 9.0).abs() < 2e-3, "{}", h[0].t);
-        let (n, c) = sc.surface(&h[0]);
-        assert!(n.dot(DVec3::Z) > 0.99 && (c[0] - 1.0).abs() < 1e-9);
-        assert!((sc.inside_length(o, d, f64::INFINITY) - 2.0).abs() < 4e-3);
-        // Off axis by 0.6: chord 2 sqrt(1 - 0.36) = 1.6; missing it: 0; from inside: 1 + 0.
-        let o2 = DVec3::new(0.3, 0.6, 10.0);
-        assert!((sc.inside_length(o2, d, f64::INFINITY) - 1.6).abs() < 0.01);
-        assert_eq!(
-            sc.inside_length(DVec3::new(0.0, 3.0, 10.0), d, f64::INFINITY),
-            0.0
-        );
-        assert!((sc.inside_length(DVec3::new(0.0, 0.0, 0.0), d, f64::INFINITY) - 1.0).abs() < 4e-3);
-        // A clipping plane removing x > 0 removes the hits there.
-        let cut = TubeScene::new(&[tube(1.0)], &[([1.0, 0.0, 0.0], 0.0)]);
-        assert!(cut.hits(o, d, 0.0, f64::INFINITY).is_empty());
-        assert_eq!(
-            cut.hits(DVec3::new(-0.3, 0.0, 10.0), d, 0.0, f64::INFINITY)
-                .len(),
-            2
-        );
-    }
-}
-
 /// Hemisphere ambient occlusion of the tubes seen by `camera` (issue 6): per path a ray through
 /// a random point of the pixel (box filter) and, where it meets a tube, one cosine-weighted
 /// ray about the surface normal (facing the viewer) that counts as open when it meets no tube;
@@ -314,4 +254,64 @@ pub fn hemisphere_ao(
         px.iter().map(|p| p.0).collect(),
         px.iter().map(|p| p.1).collect(),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A closed tube of radius r along x from -5 to 5 (caps on).
+    fn tube(r: f64) -> TubeMesh {
+        let mut s = tubes::Streamlines::new();
+        let pts: Vec<glam::Vec3> = (0..=10)
+            .map(|i| glam::Vec3::new(i as f32 - 5.0, 0.0, 0.0))
+            .collect();
+        s.push(&pts);
+        let args = crate::tubes_cmd::TubesArgs {
+            input: Default::default(),
+            output: Default::default(),
+            radius: r,
+            sides: 64,
+            per_span: 1,
+            tolerance: 0.01,
+            chordal: None,
+            fit: tubes::bspline_fit::FitMethod::Iterative,
+            frame: tubes::tube_mesh::FrameMethod::Rmf,
+            radius_mode: tubes::tube_mesh::RadiusMode::Local,
+            color: "#ff0000".into(),
+            caps: true,
+            transform: None,
+        };
+        crate::tubes_cmd::build_mesh(&s, &args).unwrap().0
+    }
+
+    #[test]
+    fn rays_find_the_surface_and_the_chord_through_a_tube() {
+        let sc = TubeScene::new(&[tube(1.0)], &[]);
+        // Straight down through the axis: the top at z = 1, a chord of 2.
+        let o = DVec3::new(0.3, 0.0, 10.0);
+        let d = -DVec3::Z;
+        let h = sc.hits(o, d, 0.0, f64::INFINITY);
+        assert_eq!(h.len(), 2);
+        assert!((h[0].t - 9.0).abs() < 2e-3, "{}", h[0].t);
+        let (n, c) = sc.surface(&h[0]);
+        assert!(n.dot(DVec3::Z) > 0.99 && (c[0] - 1.0).abs() < 1e-9);
+        assert!((sc.inside_length(o, d, f64::INFINITY) - 2.0).abs() < 4e-3);
+        // Off axis by 0.6: chord 2 sqrt(1 - 0.36) = 1.6; missing it: 0; from inside: 1 + 0.
+        let o2 = DVec3::new(0.3, 0.6, 10.0);
+        assert!((sc.inside_length(o2, d, f64::INFINITY) - 1.6).abs() < 0.01);
+        assert_eq!(
+            sc.inside_length(DVec3::new(0.0, 3.0, 10.0), d, f64::INFINITY),
+            0.0
+        );
+        assert!((sc.inside_length(DVec3::new(0.0, 0.0, 0.0), d, f64::INFINITY) - 1.0).abs() < 4e-3);
+        // A clipping plane removing x > 0 removes the hits there.
+        let cut = TubeScene::new(&[tube(1.0)], &[([1.0, 0.0, 0.0], 0.0)]);
+        assert!(cut.hits(o, d, 0.0, f64::INFINITY).is_empty());
+        assert_eq!(
+            cut.hits(DVec3::new(-0.3, 0.0, 10.0), d, 0.0, f64::INFINITY)
+                .len(),
+            2
+        );
+    }
 }
