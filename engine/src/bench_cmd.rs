@@ -16,7 +16,10 @@
 //!   0.01^2, C2 = 0.03^2). `ms` is the renderer's `total_ms` (median frame). On the occlusion
 //!   AOVs: the RMSE of the volumetric term against the reference's mean occlusion at volume
 //!   collisions (pixels with some opacity), and of the combined term against the reference's
-//!   mean cone transmittance at the first tube surface (covered surface pixels).
+//!   mean cone transmittance at the first tube surface (covered surface pixels), and of the
+//!   vicinity term against the geometry-only cone visibility within l_vicinity there. A
+//!   per-pixel error image per configuration: `<dir>/errors/<method>_<values>.png`
+//!   (|colour - reference|, largest channel, 0.25 white).
 //! * Not yet: FLIP; the vicinity-only reference; the paper's endless-column rule in the
 //!   reference (such scenes are refused).
 
@@ -56,6 +59,9 @@ pub struct Row {
     /// occlusion (pixels where both have a tube); NaN where there are none.
     pub rmse_volumetric: f64,
     pub rmse_surface: f64,
+    /// RMSE of the vicinity AOV on surfaces against the geometry-only cone visibility within
+    /// l_vicinity.
+    pub rmse_vicinity: f64,
 }
 
 /// The scene key a sweep key sets.
@@ -171,8 +177,8 @@ pub fn metrics(img: &[[f64; 3]], reference: &[[f64; 3]], w: usize, h: usize) -> 
     ]
 }
 
-/// A cached reference: colour, standard error, volumetric and surface occlusion.
-type Cached = (Vec<[f64; 3]>, Vec<f64>, Vec<f64>, Vec<f64>);
+/// A cached reference: colour, standard error, volumetric, surface and vicinity occlusion.
+type Cached = (Vec<[f64; 3]>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
 fn read_reference(path: &Path) -> Option<Cached> {
     let img = exr::prelude::read_first_flat_layer_from_file(path).ok()?;
@@ -186,7 +192,14 @@ fn read_reference(path: &Path) -> Option<Cached> {
     };
     let (r, g, b, s) = (chan("R")?, chan("G")?, chan("B")?, chan("stderr")?);
     let (v, o) = (chan("occlusion.volumetric")?, chan("occlusion.surface")?);
-    Some(((0..r.len()).map(|i| [r[i], g[i], b[i]]).collect(), s, v, o))
+    let vi = chan("occlusion.vicinity")?;
+    Some((
+        (0..r.len()).map(|i| [r[i], g[i], b[i]]).collect(),
+        s,
+        v,
+        o,
+        vi,
+    ))
 }
 
 fn write_reference(path: &Path, w: usize, h: usize, c: &Cached) -> Result<(), String> {
@@ -436,7 +449,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
         let hash = fnv(format!("{key}|spp={}", a.spp).as_bytes());
         let rpath = a.out.join("reference").join(format!("{hash:016x}.exr"));
         let (w, h) = (view.width as usize, view.height as usize);
-        let (ref_rgb, ref_se, ref_vol, ref_surf) = match read_reference(&rpath)
+        let (ref_rgb, ref_se, ref_vol, ref_surf, ref_vic) = match read_reference(&rpath)
             .filter(|r| r.0.len() == w * h)
         {
             Some(r) => r,
@@ -463,9 +476,16 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
                         theta_deg: Some(s.render.theta),
                         spp: a.spp,
                         seed: hash,
+                        vicinity_range: Some(s.render.vicinity_distance),
                     },
                 );
-                let c = (img.rgb, img.stderr, img.volumetric, img.surface);
+                let c = (
+                    img.rgb,
+                    img.stderr,
+                    img.volumetric,
+                    img.surface,
+                    img.vicinity,
+                );
                 write_reference(&rpath, w, h, &c)?;
                 c
             }
@@ -510,6 +530,43 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
                 (out.image[i][3] >= 1.0 && out.aov[i].depth > 0.0 && !ref_surf[i].is_nan())
                     .then(|| (out.aov[i].combined as f64, ref_surf[i]))
             });
+            let rmse_vicinity = aov_rmse(&|i| {
+                (out.image[i][3] >= 1.0 && out.aov[i].depth > 0.0 && !ref_vic[i].is_nan())
+                    .then(|| (out.aov[i].vicinity as f64, ref_vic[i]))
+            });
+            // The per-pixel error image of this configuration: |colour - reference|, the
+            // largest channel, linear, as 8-bit grey scaled so that 0.25 is white.
+            let errs: Vec<[f32; 3]> = img
+                .iter()
+                .zip(&ref_rgb)
+                .map(|(p, q)| {
+                    let e = (0..3)
+                        .map(|k| (p[k].clamp(0.0, 1.0) - q[k].clamp(0.0, 1.0)).abs())
+                        .fold(0.0, f64::max);
+                    [(e * 4.0).min(1.0) as f32; 3]
+                })
+                .collect();
+            let stem = std::iter::once(name.clone())
+                .chain(combo.iter().map(|v| {
+                    v.chars()
+                        .map(|c| {
+                            if c.is_ascii_alphanumeric() || c == '.' {
+                                c
+                            } else {
+                                '_'
+                            }
+                        })
+                        .collect()
+                }))
+                .collect::<Vec<String>>()
+                .join("_");
+            std::fs::create_dir_all(a.out.join("errors")).map_err(|e| e.to_string())?;
+            crate::iso_reference::write_rgb_png(
+                &a.out.join("errors").join(format!("{stem}.png")),
+                w,
+                h,
+                &errs,
+            )?;
             rows.push(Row {
                 method: name,
                 values: combo.clone(),
@@ -521,6 +578,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
                 ref_stderr,
                 rmse_volumetric,
                 rmse_surface,
+                rmse_vicinity,
             });
         }
     }
@@ -529,7 +587,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
     let keys: Vec<&str> = a.sweeps.iter().map(|(k, _)| k.as_str()).collect();
     let _ = writeln!(
         csv,
-        "method{}{},ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface",
+        "method{}{},ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface,rmse_vicinity",
         if keys.is_empty() { "" } else { "," },
         keys.join(",")
     );
@@ -543,7 +601,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
     for r in &rows {
         let _ = writeln!(
             csv,
-            "{}{}{},{:.3},{:.6},{:.6},{:.3},{:.5},{:.6},{:.6},{:.6}",
+            "{}{}{},{:.3},{:.6},{:.6},{:.3},{:.5},{:.6},{:.6},{:.6},{:.6}",
             r.method,
             if r.values.is_empty() { "" } else { "," },
             r.values.iter().map(quote).collect::<Vec<_>>().join(","),
@@ -554,7 +612,8 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
             r.ssim,
             r.ref_stderr,
             r.rmse_volumetric,
-            r.rmse_surface
+            r.rmse_surface,
+            r.rmse_vicinity
         );
     }
     volume::write_atomic(&a.out.join("results.csv"), &csv).map_err(|e| e.to_string())?;
@@ -850,6 +909,7 @@ pub fn stability(
                 ref_stderr: se,
                 rmse_volumetric: f64::NAN,
                 rmse_surface: f64::NAN,
+                rmse_vicinity: f64::NAN,
             },
         ));
     }

@@ -56,6 +56,8 @@ pub struct RefSettings {
     pub theta_deg: Option<f64>,
     pub spp: u32,
     pub seed: u64,
+    /// l_vicinity for the vicinity reference (`None`: not estimated).
+    pub vicinity_range: Option<f64>,
 }
 
 /// A reference image: linear RGB per pixel (rows top to bottom) and the standard error of
@@ -71,6 +73,11 @@ pub struct RefImage {
     /// The reference of the surfaces' occlusion (the combined AOV): the mean cone
     /// transmittance at the first tube surface; NaN where no path reached one.
     pub surface: Vec<f64>,
+    /// The reference of the vicinity AOV: the geometry-only part of the same cone visibility at
+    /// the first tube surface, counting only tubes within `vicinity_range` (the virtual slice
+    /// distance l_vicinity, along the ray); NaN where no path reached a surface or no range
+    /// was given.
+    pub vicinity: Vec<f64>,
 }
 
 struct Medium<'a> {
@@ -218,7 +225,7 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
         crate::camera::Projection::Perspective { .. }
     );
     let bg = view.background;
-    let pixels: Vec<([f64; 3], f64, f64, f64)> = (0..w * h)
+    let pixels: Vec<([f64; 3], f64, f64, f64, f64)> = (0..w * h)
         .into_par_iter()
         .map(|px| {
             let mut rng =
@@ -226,6 +233,7 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
             let (mut sum, mut sq) = ([0.0f64; 3], [0.0f64; 3]);
             // (sum, count) of the occlusion at volume collisions and at surfaces.
             let (mut vol_o, mut surf_o) = ((0.0f64, 0u32), (0.0f64, 0u32));
+            let mut vic_o = (0.0f64, 0u32);
             let n = s.spp.max(1);
             let occlusion = |p: DVec3, rng: &mut SplitMix64| -> f64 {
                 let Some(cm) = cos_max else {
@@ -291,6 +299,17 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
                         let spec = t.light[2] * rv.powf(t.light[3]);
                         value = albedo.map(|a| occl * a * (t.light[0] + t.light[1] * nl) + spec);
                         surf_o = (surf_o.0 + occl, surf_o.1 + 1);
+                        if let (Some(range), Some(cm)) = (s.vicinity_range, cos_max) {
+                            // One more cone direction: open unless a tube lies within range.
+                            let axis = if perspective {
+                                (view.camera.eye - p).normalize()
+                            } else {
+                                -view.camera.forward()
+                            };
+                            let dir = cone_direction(axis, cm, &mut rng);
+                            let open = t.scene.hits(p, dir, 0.0, range).is_empty();
+                            vic_o = (vic_o.0 + open as u32 as f64, vic_o.1 + 1);
+                        }
                     }
                 }
                 for k in 0..3 {
@@ -310,7 +329,7 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
                     f64::NAN
                 }
             };
-            (mean, se, avg(vol_o), avg(surf_o))
+            (mean, se, avg(vol_o), avg(surf_o), avg(vic_o))
         })
         .collect();
     RefImage {
@@ -320,6 +339,7 @@ pub fn render(v: &RefVolume, tubes: Option<&RefTubes>, view: &EaView, s: &RefSet
         stderr: pixels.iter().map(|p| p.1).collect(),
         volumetric: pixels.iter().map(|p| p.2).collect(),
         surface: pixels.iter().map(|p| p.3).collect(),
+        vicinity: pixels.iter().map(|p| p.4).collect(),
     }
 }
 
@@ -389,6 +409,7 @@ mod tests {
                 theta_deg: None,
                 spp: 4000,
                 seed: 1,
+                vicinity_range: None,
             },
         );
         let want = 1.0 - (-s * 20.0f64).exp();
@@ -426,6 +447,7 @@ mod tests {
                 theta_deg: Some(theta),
                 spp: 4000,
                 seed: 2,
+                vicinity_range: None,
             },
         );
         // The four central pixels (near the axis; the side-face bound uses 10 units).

@@ -565,6 +565,7 @@ fn the_gpu_agrees_with_the_monte_carlo_reference_on_tubes_in_a_medium() {
             theta_deg: Some(s.theta_deg),
             spp: 2048,
             seed: 7,
+            vicinity_range: None,
         },
     );
     for t in tops {

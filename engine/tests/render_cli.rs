@@ -307,7 +307,7 @@ fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(
         lines[0],
-        "method,slices,cone,ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface"
+        "method,slices,cone,ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface,rmse_vicinity"
     );
     assert_eq!(lines.len(), 5, "{csv}");
     let rmse = |m: &str, sl: &str| -> f64 {
@@ -321,6 +321,7 @@ fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
     for sl in ["48", "96"] {
         assert!(rmse("dos", sl) < 0.7 * rmse("ea", sl), "{csv}");
     }
+    assert!(out_dir.join("errors/dos_48_30.png").exists());
     for f in ["pareto.svg", "pareto.png"] {
         assert!(
             std::fs::metadata(out_dir.join(f)).unwrap().len() > 1000,
