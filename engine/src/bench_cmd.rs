@@ -894,7 +894,7 @@ pub fn stability(
         progress(name);
         let affine = volume::synthetic::cube_affine([48, 48, 48], -10.0, 10.0);
         let vol = volume::synthetic::sample_scalar([48, 48, 48], affine, "v", boxed(angle, round));
-        let (ms, e, se) = iso_accuracy(&vol, spp as usize, 96, 30.0)?;
+        let (ms, e, se) = iso_accuracy(&vol, spp as usize, 96, 30.0, Default::default())?;
         all_rows.push((
             name.to_string(),
             what.to_string(),
@@ -1079,8 +1079,9 @@ pub fn tubes(
     Ok(rows)
 }
 
-/// Occlusion sweeping on the isosurface 0 of `vol` (inside where positive) against Monte Carlo
-/// AO (`spp` cosine-weighted rays per pixel) on a `size x size` image from azimuth `azimuth`,
+/// Occlusion sweeping on the isosurface 0 of `vol` (inside where positive) with the ambient
+/// options `opts` against Monte Carlo AO (`spp` rays per pixel: cosine-weighted, or uniform
+/// over the sphere for scalar AO without the geometry term) on a `size x size` image from azimuth `azimuth`,
 /// elevation 35, distance 1.6: the sweep's milliseconds, the RMSE of the ambient term and the
 /// reference's mean standard error.
 pub fn iso_accuracy(
@@ -1088,9 +1089,10 @@ pub fn iso_accuracy(
     spp: usize,
     size: usize,
     azimuth: f64,
+    opts: volume::occlusion_shading::AmbientOptions,
 ) -> Result<(f64, f64, f64), String> {
     use crate::iso_reference::{render, rmse, AmbientSource, IsoSurface, OrbitCamera, Shading};
-    use volume::occlusion_shading::{AmbientModel, AmbientOptions};
+    use volume::occlusion_shading::{AmbientModel, GeometryTerm};
     let values = vol.select(None).map_err(|e| e.to_string())?.data;
     let sp = vol.spacing();
     let dopts = volume::distance_sweep::DistanceOptions {
@@ -1112,7 +1114,7 @@ pub fn iso_accuracy(
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let oct = oct.ok_or("octant fields missing")?;
     let surface = IsoSurface::new(vol.dims, vol.affine, &values, 0.0, true, &df.distance);
-    let model = AmbientModel::new(AmbientOptions::default(), &vol.affine);
+    let model = AmbientModel::new(opts, &vol.affine);
     let cam = OrbitCamera {
         width: size,
         height: size,
@@ -1137,7 +1139,8 @@ pub fn iso_accuracy(
         &cam,
         &AmbientSource::Reference {
             rays: spp,
-            uniform: false,
+            // Scalar AO (no geometry term) is measured against uniform-sphere visibility.
+            uniform: opts.geometry == GeometryTerm::Constant,
         },
         &shading,
     );
@@ -1152,6 +1155,18 @@ pub fn iso_accuracy(
     Ok((ms, rmse(&swept, &reference), se))
 }
 
+/// One configuration of `bench sweep`.
+#[derive(Clone, Debug)]
+pub struct SweepRow {
+    pub n: usize,
+    pub offset: f64,
+    /// `cosine` (with the geometry term) or `constant` (scalar AO).
+    pub geometry: String,
+    pub ms: f64,
+    pub rmse: f64,
+    pub reference_stderr: f64,
+}
+
 /// `umbra bench sweep -o <dir>`: occlusion sweeping against Monte Carlo ambient occlusion on
 /// the sweeping paper's validation scene at several grid sizes: sweep time (distance and eight
 /// octants), and the RMSE of the swept ambient term against hemisphere AO traced on the same
@@ -1159,23 +1174,46 @@ pub fn iso_accuracy(
 /// `size x size` image; `<dir>/sweep.csv` and `<dir>/sweep.svg|png` (error against time).
 pub fn sweep(
     sizes: &[usize],
+    offsets: &[f64],
+    geometries: &[volume::occlusion_shading::GeometryTerm],
     spp: usize,
     size: usize,
     out: &Path,
-) -> Result<Vec<(usize, f64, f64, f64)>, String> {
+) -> Result<Vec<SweepRow>, String> {
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let mut rows = vec![];
     for &n in sizes {
         if !(8..=512).contains(&n) {
             return Err(format!("--sizes: {n} is not in 8..512"));
         }
-        let (ms, e, se) = iso_accuracy(&volume::synthetic::validation_scene(n), spp, size, 35.0)?;
-        rows.push((n, ms, e, se));
+        let vol = volume::synthetic::validation_scene(n);
+        for &geometry in geometries {
+            for &offset in offsets {
+                let opts = volume::occlusion_shading::AmbientOptions {
+                    geometry,
+                    offset,
+                    ..Default::default()
+                };
+                let (ms, rmse, se) = iso_accuracy(&vol, spp, size, 35.0, opts)?;
+                rows.push(SweepRow {
+                    n,
+                    offset,
+                    geometry: format!("{geometry:?}").to_lowercase(),
+                    ms,
+                    rmse,
+                    reference_stderr: se,
+                });
+            }
+        }
     }
     let mut csv = Vec::new();
-    let _ = writeln!(csv, "n,sweep_ms,rmse,reference_stderr");
+    let _ = writeln!(csv, "n,offset,geometry,sweep_ms,rmse,reference_stderr");
     for r in &rows {
-        let _ = writeln!(csv, "{},{:.2},{:.6},{:.6}", r.0, r.1, r.2, r.3);
+        let _ = writeln!(
+            csv,
+            "{},{},{},{:.2},{:.6},{:.6}",
+            r.n, r.offset, r.geometry, r.ms, r.rmse, r.reference_stderr
+        );
     }
     volume::write_atomic(&out.join("sweep.csv"), &csv).map_err(|e| e.to_string())?;
     write_chart(
@@ -1185,12 +1223,23 @@ pub fn sweep(
             title: "occlusion sweeping: error against time (validation scene)".into(),
             x_label: "sweep time (ms; distance and eight octants)".into(),
             y_label: "RMSE of the ambient term against Monte Carlo AO".into(),
-            series: vec![(
-                "grid sizes".into(),
-                rows.iter()
-                    .map(|r| (r.1.max(1e-3), r.2.max(1e-9)))
-                    .collect(),
-            )],
+            series: {
+                let name = |r: &SweepRow| format!("{}, offset {}", r.geometry, r.offset);
+                let mut names: Vec<String> = rows.iter().map(name).collect();
+                names.sort();
+                names.dedup();
+                names
+                    .into_iter()
+                    .map(|nm| {
+                        let pts = rows
+                            .iter()
+                            .filter(|r| name(r) == nm)
+                            .map(|r| (r.ms.max(1e-3), r.rmse.max(1e-9)))
+                            .collect();
+                        (nm, pts)
+                    })
+                    .collect()
+            },
             line: None,
         },
     )?;

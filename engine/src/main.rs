@@ -45,6 +45,13 @@ enum BenchCommand {
     Sweep {
         #[arg(long, default_value = "32,64,128")]
         sizes: String,
+        /// Flat-face offsets c (comma-separated).
+        #[arg(long, default_value = "1.5")]
+        offsets: String,
+        /// Geometry terms: cosine (AO, against cosine-weighted rays), constant (scalar AO,
+        /// against uniform-sphere visibility).
+        #[arg(long, default_value = "cosine")]
+        geometry: String,
         /// Monte Carlo rays per pixel of the reference.
         #[arg(long, default_value_t = 256)]
         spp: usize,
@@ -986,11 +993,30 @@ fn run(cli: Cli) -> Result<(), String> {
             what:
                 BenchCommand::Sweep {
                     sizes,
+                    offsets,
+                    geometry,
                     spp,
                     size,
                     output,
                 },
         } => {
+            let offs: Vec<f64> = offsets
+                .split(',')
+                .map(|x| {
+                    x.trim()
+                        .parse::<f64>()
+                        .map_err(|_| format!("--offsets: '{x}' is not a number"))
+                })
+                .collect::<Result<_, _>>()?;
+            let geoms = geometry
+                .split(',')
+                .map(|g| match g.trim() {
+                    "cosine" => Ok(volume::occlusion_shading::GeometryTerm::Cosine),
+                    "constant" | "none" => Ok(volume::occlusion_shading::GeometryTerm::Constant),
+                    "abs" => Ok(volume::occlusion_shading::GeometryTerm::Absolute),
+                    o => Err(format!("--geometry: '{o}' is not cosine, constant or abs")),
+                })
+                .collect::<Result<Vec<_>, _>>()?;
             let n: Vec<usize> = sizes
                 .split(',')
                 .map(|x| {
@@ -999,10 +1025,10 @@ fn run(cli: Cli) -> Result<(), String> {
                         .map_err(|_| format!("--sizes: '{x}' is not a count"))
                 })
                 .collect::<Result<_, _>>()?;
-            for r in engine::bench_cmd::sweep(&n, spp, size, &output)? {
+            for r in engine::bench_cmd::sweep(&n, &offs, &geoms, spp, size, &output)? {
                 println!(
-                    "n {:4}  sweep {:9.1} ms  rmse {:.5}  (reference stderr {:.5})",
-                    r.0, r.1, r.2, r.3
+                    "n {:4}  {:8} offset {:4}  sweep {:9.1} ms  rmse {:.5}  (reference stderr {:.5})",
+                    r.n, r.geometry, r.offset, r.ms, r.rmse, r.reference_stderr
                 );
             }
             eprintln!(

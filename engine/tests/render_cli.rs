@@ -429,7 +429,17 @@ fn bench_tubes_and_bench_sweep_write_their_tables_and_charts() {
     let s = dir.path().join("s");
     let out = umbra()
         .args([
-            "bench", "sweep", "--sizes", "16,24", "--spp", "16", "--size", "32", "-o",
+            "bench",
+            "sweep",
+            "--sizes",
+            "16,24",
+            "--offsets",
+            "0,1.5",
+            "--spp",
+            "16",
+            "--size",
+            "32",
+            "-o",
         ])
         .arg(&s)
         .output()
@@ -438,11 +448,11 @@ fn bench_tubes_and_bench_sweep_write_their_tables_and_charts() {
     let csv = std::fs::read_to_string(s.join("sweep.csv")).unwrap();
     assert_eq!(
         csv.lines().next().unwrap(),
-        "n,sweep_ms,rmse,reference_stderr"
+        "n,offset,geometry,sweep_ms,rmse,reference_stderr"
     );
-    assert_eq!(csv.lines().count(), 3, "{csv}");
+    assert_eq!(csv.lines().count(), 5, "{csv}");
     for l in csv.lines().skip(1) {
-        let rmse: f64 = l.split(',').nth(2).unwrap().parse().unwrap();
+        let rmse: f64 = l.split(',').nth(4).unwrap().parse().unwrap();
         assert!(rmse.is_finite() && rmse > 0.0 && rmse < 0.5, "{csv}");
     }
     assert!(std::fs::metadata(s.join("sweep.png")).unwrap().len() > 1000);
