@@ -62,6 +62,10 @@ pub struct Row {
     /// RMSE of the vicinity AOV on surfaces against the geometry-only cone visibility within
     /// l_vicinity.
     pub rmse_vicinity: f64,
+    /// The renderer's volumetric AOV and the reference's (NaN where undefined), for
+    /// frame-to-frame comparisons.
+    pub aov_volumetric: Vec<f64>,
+    pub ref_volumetric: Vec<f64>,
 }
 
 /// The scene key a sweep key sets.
@@ -579,6 +583,16 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
                 rmse_volumetric,
                 rmse_surface,
                 rmse_vicinity,
+                aov_volumetric: (0..w * h)
+                    .map(|i| {
+                        if out.image[i][3] > 0.05 {
+                            out.aov[i].volumetric as f64
+                        } else {
+                            f64::NAN
+                        }
+                    })
+                    .collect(),
+                ref_volumetric: ref_vol.clone(),
             });
         }
     }
@@ -694,7 +708,8 @@ fn write_grid(path: &Path, n: usize, f: impl Fn(glam::DVec3) -> f64 + Sync) -> R
 /// `umbra bench stability -o <dir>`: scenes built to make the methods fail - volumes, tubes,
 /// and occlusion sweeping on isosurfaces (against Monte Carlo AO, `method` = `sweep`, time =
 /// the sweep's) - each measured against its reference; `<dir>/stability.csv` with a verdict per row
-/// ([`verdict`]). Returns the rows with their case names.
+/// ([`verdict`]), and `<dir>/flicker.csv`: the occlusion AOV's frame-to-frame change while the
+/// camera turns, against the reference's. Returns the rows with their case names.
 pub fn stability(
     out: &Path,
     spp: u32,
@@ -860,6 +875,39 @@ pub fn stability(
             all_rows.push((c.name.to_string(), c.what.to_string(), r));
         }
     }
+    // Frame-to-frame flicker of the occlusion AOV while the camera turns: the mean change of
+    // the volumetric AOV between consecutive steps, against the reference's own change (the
+    // scene does move); <out>/flicker.csv.
+    let turning: Vec<&Row> = all_rows
+        .iter()
+        .filter(|r| r.0 == "rotation")
+        .map(|r| &r.2)
+        .collect();
+    let mut flicker = Vec::new();
+    let _ = writeln!(flicker, "from,to,aov_change,reference_change,excess");
+    for pair in turning.windows(2) {
+        let change = |a: &[f64], b: &[f64]| {
+            let d: Vec<f64> = a
+                .iter()
+                .zip(b)
+                .filter(|(x, y)| x.is_finite() && y.is_finite())
+                .map(|(x, y)| (x - y).abs())
+                .collect();
+            d.iter().sum::<f64>() / d.len().max(1) as f64
+        };
+        let g = change(&pair[0].aov_volumetric, &pair[1].aov_volumetric);
+        let r = change(&pair[0].ref_volumetric, &pair[1].ref_volumetric);
+        let _ = writeln!(
+            flicker,
+            "{},{},{:.6},{:.6},{:.6}",
+            pair[0].values.join(" "),
+            pair[1].values.join(" "),
+            g,
+            r,
+            g - r
+        );
+    }
+    volume::write_atomic(&out.join("flicker.csv"), &flicker).map_err(|e| e.to_string())?;
     // Occlusion sweeping's failure modes on isosurfaces: walls at an angle to the grid (the
     // paper's diagonal artifacts) and sharp edges (its glow), against Monte Carlo AO.
     let boxed = |angle: f64, round: f64| {
@@ -910,6 +958,8 @@ pub fn stability(
                 rmse_volumetric: f64::NAN,
                 rmse_surface: f64::NAN,
                 rmse_vicinity: f64::NAN,
+                aov_volumetric: vec![],
+                ref_volumetric: vec![],
             },
         ));
     }

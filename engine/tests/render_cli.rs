@@ -385,6 +385,13 @@ fn bench_stability_measures_every_case_with_a_verdict() {
     assert!(rows
         .iter()
         .all(|r| ["ok", "degraded", "fails"].contains(&r[9])));
+    // Three steps of turning, each with the AOV's change and the reference's.
+    let flicker = std::fs::read_to_string(out_dir.join("flicker.csv")).unwrap();
+    assert_eq!(flicker.lines().count(), 4, "{flicker}");
+    for l in flicker.lines().skip(1) {
+        let g: f64 = l.split(',').nth(2).unwrap().parse().unwrap();
+        assert!(g.is_finite() && (0.0..0.2).contains(&g), "{flicker}");
+    }
     // A sheet thinner than the slice distance is where slicing breaks: much worse at 2 units
     // than at 0.1.
     let rmse = |m: &str, set: &str| -> f64 {
