@@ -1302,7 +1302,16 @@ pub fn sweep(
 /// mean, and `stderr`), the tubes as one world-space mesh `<dir>/tubes.ply`, and
 /// `<dir>/camera.json` (eye, target, up, vertical field of view, width, height). Perspective
 /// cameras only; the volume is left out.
-pub fn ao(scene_path: &Path, overrides: &[String], spp: u32, out: &Path) -> Result<f64, String> {
+pub fn ao(
+    scene_path: &Path,
+    overrides: &[String],
+    spp: u32,
+    max_distance: Option<f64>,
+    out: &Path,
+) -> Result<f64, String> {
+    if max_distance.is_some_and(|d| !(d > 0.0 && d.is_finite())) {
+        return Err("--max-distance: must be a positive number".into());
+    }
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let mut s = scene::load(scene_path, overrides)?;
     s.volume = None;
@@ -1319,7 +1328,8 @@ pub fn ao(scene_path: &Path, overrides: &[String], spp: u32, out: &Path) -> Resu
     };
     let ts = crate::reference_tubes::TubeScene::new(&m.meshes, &render_cmd::tube_clip(&s));
     let (w, h) = (v.width as usize, v.height as usize);
-    let (mean, se) = crate::reference_tubes::hemisphere_ao(&ts, &v.camera, w, h, spp, 0x5eed);
+    let (mean, se) =
+        crate::reference_tubes::hemisphere_ao(&ts, &v.camera, w, h, spp, 0x5eed, max_distance);
     {
         use exr::prelude::*;
         let ch = |name: &str, x: &[f64]| {

@@ -20,6 +20,9 @@ enum BenchCommand {
         scene: PathBuf,
         #[arg(long, default_value_t = 1024)]
         spp: u32,
+        /// Only tubes this near occlude (world units; default: any distance).
+        #[arg(long)]
+        max_distance: Option<f64>,
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
         #[arg(short, long)]
@@ -947,11 +950,12 @@ fn run(cli: Cli) -> Result<(), String> {
                 BenchCommand::Ao {
                     scene,
                     spp,
+                    max_distance,
                     set,
                     output,
                 },
         } => {
-            let mean = engine::bench_cmd::ao(&scene, &set, spp, &output)?;
+            let mean = engine::bench_cmd::ao(&scene, &set, spp, max_distance, &output)?;
             println!("mean ambient occlusion (open fraction) {mean:.5}");
             eprintln!(
                 "wrote {0}/ao.exr, {0}/tubes.ply, {0}/camera.json",

@@ -187,8 +187,10 @@ impl TubeScene {
 /// ray about the surface normal (facing the viewer) that counts as open when it meets no tube;
 /// a pixel that misses every tube sees open sky (1). This is what a path tracer computes for a
 /// white diffuse surface under a constant white environment with one bounce (Mitsuba's `path`
-/// integrator with `max_depth` 2), the cross-check of `bench/mitsuba_ao.py`. Returns the mean
+/// integrator with `max_depth` 2), the cross-check of `bench/mitsuba_ao.py`. With
+/// `max_distance` only tubes that near occlude (the usual AO falloff radius). Returns the mean
 /// per pixel (rows top to bottom) and its standard error.
+#[allow(clippy::too_many_arguments)]
 pub fn hemisphere_ao(
     scene: &TubeScene,
     camera: &crate::camera::Camera,
@@ -196,6 +198,7 @@ pub fn hemisphere_ao(
     height: usize,
     spp: u32,
     seed: u64,
+    max_distance: Option<f64>,
 ) -> (Vec<f64>, Vec<f64>) {
     use rayon::prelude::*;
     let px: Vec<(f64, f64)> = (0..width * height)
@@ -235,7 +238,8 @@ pub fn hemisphere_ao(
                         let dir = t * (r * phi.cos())
                             + b * (r * phi.sin())
                             + nrm * (1.0 - u1).max(0.0).sqrt();
-                        if scene.hits(p, dir, 0.0, f64::INFINITY).is_empty() {
+                        let reach = max_distance.unwrap_or(f64::INFINITY);
+                        if scene.hits(p, dir, 0.0, reach).is_empty() {
                             1.0
                         } else {
                             0.0

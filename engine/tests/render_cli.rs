@@ -503,4 +503,30 @@ fn bench_ao_writes_the_cross_check_inputs() {
     assert!(m.triangles() > 1000);
     let img = exr::prelude::read_first_flat_layer_from_file(out_dir.join("ao.exr")).unwrap();
     assert_eq!(img.layer_data.channel_data.list.len(), 2);
+    // A short reach leaves more open: the mean rises.
+    let out = umbra()
+        .args(["bench", "ao"])
+        .arg(root().join("bench/scenes/ao_tracks.toml"))
+        .args([
+            "--spp",
+            "16",
+            "--max-distance",
+            "0.5",
+            "--set",
+            "render.width=32",
+            "--set",
+            "render.height=32",
+            "-o",
+        ])
+        .arg(dir.path().join("ao_near"))
+        .output()
+        .unwrap();
+    ok(&out);
+    let near: f64 = String::from_utf8_lossy(&out.stdout)
+        .split_whitespace()
+        .last()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(near > mean, "{near} <= {mean}");
 }
