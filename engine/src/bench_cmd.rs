@@ -20,8 +20,8 @@
 //!   vicinity term against the geometry-only cone visibility within l_vicinity there. A
 //!   per-pixel error image per configuration: `<dir>/errors/<method>_<values>.png`
 //!   (|colour - reference|, largest channel, 0.25 white).
-//! * Not yet: FLIP; the vicinity-only reference; the paper's endless-column rule in the
-//!   reference (such scenes are refused).
+//! * The reference follows `render.geometry_shadow`: the tubes' real thickness, or the
+//!   paper's endless column behind them. Not yet: FLIP; scenes in isosurface mode (refused).
 
 use crate::reference::{self, RefSettings, RefVolume};
 use crate::render_cmd;
@@ -351,13 +351,7 @@ pub fn write_chart(dir: &Path, stem: &str, p: &Plot) -> Result<(), String> {
 
 /// Runs `umbra bench accuracy`; returns the rows written.
 pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
-    let base = scene::load(&a.scene, &a.overrides)?;
-    if !base.tubes.is_empty() && base.render.geometry_shadow == scene::GeometryShadow::Column {
-        return Err(format!(
-            "{}: the Monte Carlo reference models the tubes' real thickness only; set render.geometry_shadow = \"inside\"",
-            a.scene.display()
-        ));
-    }
+    scene::load(&a.scene, &a.overrides)?;
     let methods: Vec<Method> = a
         .methods
         .iter()
@@ -467,10 +461,14 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
                 let tube_scene =
                     crate::reference_tubes::TubeScene::new(&m.meshes, &render_cmd::tube_clip(&s));
                 let l = &s.light;
+                let column = (s.render.geometry_shadow == scene::GeometryShadow::Column
+                    && !tube_scene.is_empty())
+                .then(|| reference::ColumnMap::new(&tube_scene, &view, 4));
                 let tubes = (!tube_scene.is_empty()).then_some(reference::RefTubes {
                     scene: &tube_scene,
                     sigma: s.render.geometry_extinction,
                     light: [l.ambient, l.diffuse, l.specular, l.shininess],
+                    column: column.as_ref(),
                 });
                 let img = reference::render(
                     &RefVolume { vol, data, tf },

@@ -559,6 +559,7 @@ fn the_gpu_agrees_with_the_monte_carlo_reference_on_tubes_in_a_medium() {
             scene: &ts,
             sigma: s.geometry_extinction,
             light: s.light,
+            column: None,
         }),
         &v,
         &RefSettings {
@@ -587,4 +588,63 @@ fn the_gpu_agrees_with_the_monte_carlo_reference_on_tubes_in_a_medium() {
             t[2]
         );
     }
+}
+
+#[test]
+fn the_reference_follows_the_column_rule_as_the_gpu_does() {
+    use engine::reference::{self, ColumnMap, RefSettings, RefTubes, RefVolume};
+    use engine::reference_tubes::TubeScene;
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let scene = Scene::new(
+        Some((cube(|_| 1.0), medium(0.1))),
+        vec![tubes(&[[[-6.0, 0.0, 6.0], [6.0, 0.0, 6.0]]], 1.0)],
+    );
+    let v = view(cam);
+    let (vol, data, tf) = scene.vol.as_ref().unwrap();
+    let ts = TubeScene::new(&scene.meshes, &[]);
+    let cm = ColumnMap::new(&ts, &v, 4);
+    let mut s = settings(Method::Dos);
+    s.theta_deg = 60.0;
+    let reference = |column: Option<&ColumnMap>| {
+        reference::render(
+            &RefVolume { vol, data, tf },
+            Some(&RefTubes {
+                scene: &ts,
+                sigma: s.geometry_extinction,
+                light: s.light,
+                column,
+            }),
+            &v,
+            &RefSettings {
+                theta_deg: Some(60.0),
+                spp: 512,
+                seed: 3,
+                vicinity_range: None,
+            },
+        )
+    };
+    let (inside, column) = (reference(None), reference(Some(&cm)));
+    // Beside the tube (its silhouette at y = 1), mean volumetric occlusion along a line.
+    let line = |img: &reference::RefImage| {
+        (0..7)
+            .map(|i| img.volumetric[pixel(&cam, [-3.0 + i as f64, 1.8, 0.0])])
+            .sum::<f64>()
+            / 7.0
+    };
+    let (ri, rc) = (line(&inside), line(&column));
+    let mut sc = s.clone();
+    sc.column = true;
+    let gi = scene.render(&gpu, &v, &s);
+    let gc = scene.render(&gpu, &v, &sc);
+    let gline =
+        |o: &Output| mean_along(o, &cam, [-3.0, 1.8, 0.0], [3.0, 1.8, 0.0], |a| a.volumetric);
+    eprintln!(
+        "beside the tube: reference inside {ri:.3}, column {rc:.3}; gpu inside {:.3}, column {:.3}",
+        gline(&gi),
+        gline(&gc)
+    );
+    // Both renderers darken the volume more under the column rule.
+    assert!(rc < ri - 0.02, "reference: column {rc}, inside {ri}");
+    assert!(gline(&gc) < gline(&gi) - 0.02);
 }
