@@ -532,3 +532,32 @@ fn bench_ao_writes_the_cross_check_inputs() {
         .unwrap();
     assert!(near > mean, "{near} <= {mean}");
 }
+
+#[test]
+fn the_cfd_demo_traces_and_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("cfd.png");
+    let out = umbra()
+        .args(["demo", "cfd", "--width", "96", "--height", "72", "-o"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    ok(&out);
+    let img = image::open(&png).unwrap().to_rgb8();
+    // Streamline tubes in direction colours (saturated) over a pale volume.
+    let saturated = img
+        .pixels()
+        .filter(|p| {
+            let (mx, mn) = (*p.0.iter().max().unwrap(), *p.0.iter().min().unwrap());
+            mx as i32 - mn as i32 > 80
+        })
+        .count();
+    assert!(saturated > 40, "{saturated} saturated pixels");
+    let e = umbra()
+        .args(["demo", "nope", "-o"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(!e.status.success());
+    assert!(String::from_utf8_lossy(&e.stderr).contains("mni or cfd"));
+}
