@@ -249,8 +249,10 @@ fn world_to_index(vol: &Volume) -> DMat4 {
     vol.affine.inverse()
 }
 
-/// Trilinear sample of `data` (x fastest) at index-space `q`, `None` outside the grid.
-fn sample(data: &[f32], dims: [usize; 3], q: DVec3) -> Option<f64> {
+/// Trilinear sample of `data` (x fastest) at index-space `q`, `None` outside the grid. With
+/// data as [`prepare`] returns it, a sample next to a NaN voxel comes out below -1e30 (the
+/// shader's rule for a gap).
+pub fn sample(data: &[f32], dims: [usize; 3], q: DVec3) -> Option<f64> {
     let hi = DVec3::new(
         dims[0] as f64 - 1.0,
         dims[1] as f64 - 1.0,
@@ -272,6 +274,21 @@ fn sample(data: &[f32], dims: [usize; 3], q: DVec3) -> Option<f64> {
     let x01 = l(at(0, 0, 1), at(1, 0, 1), f.x);
     let x11 = l(at(0, 1, 1), at(1, 1, 1), f.x);
     Some(l(l(x00, x10, f.y), l(x01, x11, f.y), f.z))
+}
+
+/// The world-space gradient at index-space `q` as the shader takes it for Phong shading and
+/// 2-D transfer functions: central differences one voxel apart (one-sided at the border),
+/// halved, taken to world space by the transpose of `world_to_index`'s 3x3.
+pub fn gradient(data: &[f32], dims: [usize; 3], world_to_index: &DMat4, q: DVec3) -> DVec3 {
+    let hi = DVec3::new(
+        dims[0] as f64 - 1.0,
+        dims[1] as f64 - 1.0,
+        dims[2] as f64 - 1.0,
+    );
+    let at = |p: DVec3| sample(data, dims, p.clamp(DVec3::ZERO, hi)).unwrap_or(0.0);
+    let d = |e: DVec3| at((q + e).min(hi)) - at((q - e).max(DVec3::ZERO));
+    let gq = 0.5 * DVec3::new(d(DVec3::X), d(DVec3::Y), d(DVec3::Z));
+    glam::DMat3::from_mat4(*world_to_index).transpose() * gq
 }
 
 /// The field as the pass reads it: NaN and infinite samples (no data, e.g. outside a
@@ -338,7 +355,12 @@ pub fn reference(data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[
                 let Some(val) = sample(data, vol.dims, q).filter(|&v| v >= -1e30) else {
                     continue;
                 };
-                let (rgb, sigma) = tf.eval(val);
+                let g = if tf.rows.is_empty() {
+                    0.0
+                } else {
+                    gradient(data, vol.dims, &w2i, q).length()
+                };
+                let (rgb, sigma) = tf.eval2(val, g);
                 let al = 1.0 - (-sigma.max(0.0) * seg).exp();
                 for i in 0..3 {
                     c[i] += (1.0 - a) * al * rgb[i];

@@ -53,9 +53,6 @@ impl FxaaPass {
     }
 
     pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&self.pipe);
-        pass.set_bind_group(0, &self.bind, &[]);
-        pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+        crate::gpu::dispatch_image(enc, &self.pipe, &self.bind, self.size);
     }
 }

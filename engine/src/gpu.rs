@@ -23,6 +23,20 @@ pub enum GpuError {
     Check(String),
 }
 
+/// Records one compute pass that dispatches `pipe` with `bind` (group 0) over a `size` image
+/// in 8 x 8 workgroups: the screen-space passes' recording.
+pub fn dispatch_image(
+    enc: &mut wgpu::CommandEncoder,
+    pipe: &wgpu::ComputePipeline,
+    bind: &wgpu::BindGroup,
+    size: (u32, u32),
+) {
+    let mut pass = enc.begin_compute_pass(&Default::default());
+    pass.set_pipeline(pipe);
+    pass.set_bind_group(0, bind, &[]);
+    pass.dispatch_workgroups(size.0.div_ceil(8), size.1.div_ceil(8), 1);
+}
+
 /// A uniform block being written field by field (f32 and u32, 16-byte rows as WGSL lays out
 /// `vec4` and `mat4x4` members).
 #[derive(Default)]

@@ -161,42 +161,16 @@ impl Medium<'_> {
         }
         let q = (self.w2i * DVec4::from((p, 1.0))).truncate();
         let dims = self.v.vol.dims;
-        let hi = DVec3::new(
-            dims[0] as f64 - 1.0,
-            dims[1] as f64 - 1.0,
-            dims[2] as f64 - 1.0,
-        );
-        if q.cmplt(DVec3::ZERO).any() || q.cmpgt(hi).any() {
+        let Some(v) = crate::ea_pass::sample(self.v.data, dims, q).filter(|&v| v >= -1e30) else {
             return (0.0, [0.0; 3]);
-        }
-        let b = [0, 1, 2].map(|a| (q[a].floor() as usize).min(dims[a].max(2) - 2));
-        let f = q - DVec3::new(b[0] as f64, b[1] as f64, b[2] as f64);
-        let d = self.v.data;
-        let at = |i: usize, j: usize, k: usize| {
-            d[(b[0] + i).min(dims[0] - 1)
-                + dims[0] * ((b[1] + j).min(dims[1] - 1) + dims[1] * (b[2] + k).min(dims[2] - 1))]
-                as f64
         };
-        let c = [
-            at(0, 0, 0),
-            at(1, 0, 0),
-            at(0, 1, 0),
-            at(1, 1, 0),
-            at(0, 0, 1),
-            at(1, 0, 1),
-            at(0, 1, 1),
-            at(1, 1, 1),
-        ];
-        if c.iter().any(|&v| v < -1e30) {
-            return (0.0, [0.0; 3]);
-        }
-        let l = |a: f64, b: f64, t: f64| a + (b - a) * t;
-        let v = l(
-            l(l(c[0], c[1], f.x), l(c[2], c[3], f.x), f.y),
-            l(l(c[4], c[5], f.x), l(c[6], c[7], f.x), f.y),
-            f.z,
-        );
-        let (rgb, sigma) = self.v.tf.eval(v);
+        // A 2-D transfer function needs the gradient magnitude, taken as the shader takes it.
+        let g = if self.v.tf.rows.is_empty() {
+            0.0
+        } else {
+            crate::ea_pass::gradient(self.v.data, dims, &self.w2i, q).length()
+        };
+        let (rgb, sigma) = self.v.tf.eval2(v, g);
         (sigma.max(0.0), rgb)
     }
 

@@ -204,3 +204,34 @@ fn umbra_render_draws_the_ea_baseline_and_refuses_bad_settings() {
     let out = run(&[]);
     assert!(out.status.success());
 }
+
+#[test]
+fn a_two_dimensional_transfer_function_matches_the_cpu_reference() {
+    // Extinction only where the gradient magnitude is high (the blob's flanks), with the
+    // gradient taken by the shader and by ea_pass::gradient the same way.
+    let gpu = Gpu::new().expect("a GPU adapter");
+    let vol = blob();
+    let data = vol.select(None).unwrap().data;
+    let tf = Transfer {
+        points: vec![
+            (0.0, [0.0; 3], 0.0),
+            (1.0, [0.0; 3], 0.0),
+            (0.0, [1.0, 0.5, 0.2], 0.0),
+            (1.0, [1.0, 0.5, 0.2], 2.0),
+        ],
+        rows: vec![(0.0, 0), (0.1, 2)],
+    };
+    let cam = Camera::orbit(vol.bounds(), 40.0, 25.0, 2.5, Some(40.0));
+    let view = EaView::new(&vol, cam, 40, 32, None, None, [1.0; 3]).unwrap();
+    let g = render(&gpu, &data, &vol, &tf, &view);
+    let c = reference(&data, &vol, &tf, &view);
+    let worst = g
+        .iter()
+        .zip(&c)
+        .flat_map(|(a, b)| (0..4).map(move |k| (a[k] as f64 - b[k]).abs()))
+        .fold(0.0, f64::max);
+    assert!(worst < 2e-3, "GPU and CPU differ by {worst}");
+    // The function does something: the flanks are seen.
+    let alpha: f64 = c.iter().map(|p| p[3]).sum();
+    assert!(alpha > 1.0, "{alpha}");
+}
