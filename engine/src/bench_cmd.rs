@@ -114,29 +114,23 @@ fn luma(c: [f64; 3]) -> f64 {
 pub fn ssim(a: &[f64], b: &[f64], w: usize, h: usize) -> f64 {
     let r = 5i64;
     let g: Vec<f64> = (-r..=r).map(|i| (-(i * i) as f64 / 4.5).exp()).collect();
-    let blur = |x: &[f64]| -> Vec<f64> {
-        let mut tmp = vec![0.0; w * h];
+    // One 1-D pass of the normalised window along x (stride 1, length w) or y (stride w,
+    // length h), the window cut at the border.
+    let pass = |x: &[f64], along_x: bool| -> Vec<f64> {
         let mut out = vec![0.0; w * h];
         for y in 0..h {
             for xx in 0..w {
+                let (pos, len) = if along_x { (xx, w) } else { (y, h) };
                 let (mut s, mut n) = (0.0, 0.0);
                 for (k, gk) in g.iter().enumerate() {
-                    let xi = xx as i64 + k as i64 - r;
-                    if xi >= 0 && xi < w as i64 {
-                        s += gk * x[xi as usize + w * y];
-                        n += gk;
-                    }
-                }
-                tmp[xx + w * y] = s / n;
-            }
-        }
-        for y in 0..h {
-            for xx in 0..w {
-                let (mut s, mut n) = (0.0, 0.0);
-                for (k, gk) in g.iter().enumerate() {
-                    let yi = y as i64 + k as i64 - r;
-                    if yi >= 0 && yi < h as i64 {
-                        s += gk * tmp[xx + w * yi as usize];
+                    let i = pos as i64 + k as i64 - r;
+                    if i >= 0 && i < len as i64 {
+                        let idx = if along_x {
+                            i as usize + w * y
+                        } else {
+                            xx + w * i as usize
+                        };
+                        s += gk * x[idx];
                         n += gk;
                     }
                 }
@@ -145,6 +139,7 @@ pub fn ssim(a: &[f64], b: &[f64], w: usize, h: usize) -> f64 {
         }
         out
     };
+    let blur = |x: &[f64]| pass(&pass(x, true), false);
     let prod = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).collect::<Vec<_>>();
     let (ma, mb) = (blur(a), blur(b));
     let (saa, sbb, sab) = (blur(&prod(a, a)), blur(&prod(b, b)), blur(&prod(a, b)));
@@ -940,7 +935,8 @@ pub fn stability(
         progress(name);
         let affine = volume::synthetic::cube_affine([48, 48, 48], -10.0, 10.0);
         let vol = volume::synthetic::sample_scalar([48, 48, 48], affine, "v", boxed(angle, round));
-        let (ms, e, se) = iso_accuracy(&vol, spp as usize, 96, 30.0, Default::default())?;
+        let (ms, r) = iso_accuracy(&vol, spp as usize, 96, 30.0, &[Default::default()])?;
+        let (e, se) = r[0];
         all_rows.push((
             name.to_string(),
             what.to_string(),
@@ -1127,18 +1123,19 @@ pub fn tubes(
     Ok(rows)
 }
 
-/// Occlusion sweeping on the isosurface 0 of `vol` (inside where positive) with the ambient
-/// options `opts` against Monte Carlo AO (`spp` rays per pixel: cosine-weighted, or uniform
-/// over the sphere for scalar AO without the geometry term) on a `size x size` image from azimuth `azimuth`,
-/// elevation 35, distance 1.6: the sweep's milliseconds, the RMSE of the ambient term and the
-/// reference's mean standard error.
+/// Occlusion sweeping on the isosurface 0 of `vol` (inside where positive) with each of the
+/// ambient options `opts` against Monte Carlo AO (`spp` rays per pixel: cosine-weighted, or
+/// uniform over the sphere for scalar AO without the geometry term; each reference traced
+/// once) on a `size x size` image from azimuth `azimuth`, elevation 35, distance 1.6: the
+/// sweep's milliseconds, and per option the RMSE of the ambient term and the reference's mean
+/// standard error.
 pub fn iso_accuracy(
     vol: &volume::Volume,
     spp: usize,
     size: usize,
     azimuth: f64,
-    opts: volume::occlusion_shading::AmbientOptions,
-) -> Result<(f64, f64, f64), String> {
+    opts: &[volume::occlusion_shading::AmbientOptions],
+) -> Result<(f64, Vec<(f64, f64)>), String> {
     use crate::iso_reference::{render, rmse, AmbientSource, IsoSurface, OrbitCamera, Shading};
     use volume::occlusion_shading::{AmbientModel, GeometryTerm};
     let values = vol.select(None).map_err(|e| e.to_string())?.data;
@@ -1162,7 +1159,6 @@ pub fn iso_accuracy(
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let oct = oct.ok_or("octant fields missing")?;
     let surface = IsoSurface::new(vol.dims, vol.affine, &values, 0.0, true, &df.distance);
-    let model = AmbientModel::new(opts, &vol.affine);
     let cam = OrbitCamera {
         width: size,
         height: size,
@@ -1171,36 +1167,44 @@ pub fn iso_accuracy(
         distance: 1.6,
     };
     let shading = Shading::default();
-    let swept = render(
-        &surface,
-        vol.bounds(),
-        &cam,
-        &AmbientSource::Swept {
-            octants: &oct,
-            model: &model,
-        },
-        &shading,
-    );
-    let reference = render(
-        &surface,
-        vol.bounds(),
-        &cam,
-        &AmbientSource::Reference {
-            rays: spp,
-            // Scalar AO (no geometry term) is measured against uniform-sphere visibility.
-            uniform: opts.geometry == GeometryTerm::Constant,
-        },
-        &shading,
-    );
-    let hits: Vec<f32> = reference
-        .stderr
-        .iter()
-        .zip(&reference.ambient)
-        .filter(|(_, a)| a.is_finite())
-        .map(|(s, _)| *s)
-        .collect();
-    let se = hits.iter().map(|&v| v as f64).sum::<f64>() / hits.len().max(1) as f64;
-    Ok((ms, rmse(&swept, &reference), se))
+    // The references, cosine-weighted and uniform, as the options need them.
+    let mut refs: [Option<(crate::iso_reference::IsoImage, f64)>; 2] = [None, None];
+    let mut out = vec![];
+    for o in opts {
+        let uniform = o.geometry == GeometryTerm::Constant;
+        if refs[uniform as usize].is_none() {
+            let reference = render(
+                &surface,
+                vol.bounds(),
+                &cam,
+                &AmbientSource::Reference { rays: spp, uniform },
+                &shading,
+            );
+            let hits: Vec<f64> = reference
+                .stderr
+                .iter()
+                .zip(&reference.ambient)
+                .filter(|(_, a)| a.is_finite())
+                .map(|(s, _)| *s as f64)
+                .collect();
+            let se = hits.iter().sum::<f64>() / hits.len().max(1) as f64;
+            refs[uniform as usize] = Some((reference, se));
+        }
+        let (reference, se) = refs[uniform as usize].as_ref().unwrap();
+        let model = AmbientModel::new(*o, &vol.affine);
+        let swept = render(
+            &surface,
+            vol.bounds(),
+            &cam,
+            &AmbientSource::Swept {
+                octants: &oct,
+                model: &model,
+            },
+            &shading,
+        );
+        out.push((rmse(&swept, reference), *se));
+    }
+    Ok((ms, out))
 }
 
 /// One configuration of `bench sweep`.
@@ -1228,6 +1232,14 @@ pub fn sweep(
     size: usize,
     out: &Path,
 ) -> Result<Vec<SweepRow>, String> {
+    if let Some(o) = offsets.iter().find(|o| !(o.is_finite() && **o >= 0.0)) {
+        return Err(format!("--offsets: {o} is not a finite number >= 0"));
+    }
+    if spp == 0 || !(8..=2048).contains(&size) {
+        return Err(format!(
+            "--spp {spp} --size {size}: at least one ray per pixel, an image of 8 to 2048 pixels"
+        ));
+    }
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let mut rows = vec![];
     for &n in sizes {
@@ -1235,23 +1247,28 @@ pub fn sweep(
             return Err(format!("--sizes: {n} is not in 8..512"));
         }
         let vol = volume::synthetic::validation_scene(n);
-        for &geometry in geometries {
-            for &offset in offsets {
-                let opts = volume::occlusion_shading::AmbientOptions {
-                    geometry,
-                    offset,
-                    ..Default::default()
-                };
-                let (ms, rmse, se) = iso_accuracy(&vol, spp, size, 35.0, opts)?;
-                rows.push(SweepRow {
-                    n,
-                    offset,
-                    geometry: format!("{geometry:?}").to_lowercase(),
-                    ms,
-                    rmse,
-                    reference_stderr: se,
-                });
-            }
+        let opts: Vec<volume::occlusion_shading::AmbientOptions> = geometries
+            .iter()
+            .flat_map(|&geometry| {
+                offsets
+                    .iter()
+                    .map(move |&offset| volume::occlusion_shading::AmbientOptions {
+                        geometry,
+                        offset,
+                        ..Default::default()
+                    })
+            })
+            .collect();
+        let (ms, results) = iso_accuracy(&vol, spp, size, 35.0, &opts)?;
+        for (o, (rmse, se)) in opts.iter().zip(results) {
+            rows.push(SweepRow {
+                n,
+                offset: o.offset,
+                geometry: format!("{:?}", o.geometry).to_lowercase(),
+                ms,
+                rmse,
+                reference_stderr: se,
+            });
         }
     }
     let mut csv = Vec::new();

@@ -646,12 +646,9 @@ fn run(cli: Cli) -> Result<(), String> {
             json,
         } => {
             use volume::occlusion_shading::{AmbientOptions, GeometryTerm};
-            let geometry = match geometry.as_str() {
-                "cosine" => GeometryTerm::Cosine,
-                "none" => GeometryTerm::Constant,
-                "abs" => GeometryTerm::Absolute,
-                other => return Err(format!("--geometry {other}: use cosine, none or abs")),
-            };
+            let geometry: GeometryTerm = geometry
+                .parse()
+                .map_err(|e| format!("--geometry {geometry}: {e}"))?;
             if !(gamma.is_finite() && gamma > 0.0) {
                 return Err(format!("--gamma {gamma}: must be a positive number"));
             }
@@ -973,14 +970,7 @@ fn run(cli: Cli) -> Result<(), String> {
                     output,
                 },
         } => {
-            let t: Vec<f64> = tolerances
-                .split(',')
-                .map(|x| {
-                    x.trim()
-                        .parse::<f64>()
-                        .map_err(|_| format!("--tolerances: '{x}' is not a number"))
-                })
-                .collect::<Result<_, _>>()?;
+            let t: Vec<f64> = parse_list("--tolerances", &tolerances)?;
             for r in engine::bench_cmd::tubes(&input, &t, radius, runs, &output)? {
                 println!(
                     "tolerance {:8}  control points {:9}  triangles {:10}  max deviation {:.5}  {:.1} ms",
@@ -1004,31 +994,10 @@ fn run(cli: Cli) -> Result<(), String> {
                     output,
                 },
         } => {
-            let offs: Vec<f64> = offsets
-                .split(',')
-                .map(|x| {
-                    x.trim()
-                        .parse::<f64>()
-                        .map_err(|_| format!("--offsets: '{x}' is not a number"))
-                })
-                .collect::<Result<_, _>>()?;
-            let geoms = geometry
-                .split(',')
-                .map(|g| match g.trim() {
-                    "cosine" => Ok(volume::occlusion_shading::GeometryTerm::Cosine),
-                    "constant" | "none" => Ok(volume::occlusion_shading::GeometryTerm::Constant),
-                    "abs" => Ok(volume::occlusion_shading::GeometryTerm::Absolute),
-                    o => Err(format!("--geometry: '{o}' is not cosine, constant or abs")),
-                })
-                .collect::<Result<Vec<_>, _>>()?;
-            let n: Vec<usize> = sizes
-                .split(',')
-                .map(|x| {
-                    x.trim()
-                        .parse::<usize>()
-                        .map_err(|_| format!("--sizes: '{x}' is not a count"))
-                })
-                .collect::<Result<_, _>>()?;
+            let offs: Vec<f64> = parse_list("--offsets", &offsets)?;
+            let geoms: Vec<volume::occlusion_shading::GeometryTerm> =
+                parse_list("--geometry", &geometry)?;
+            let n: Vec<usize> = parse_list("--sizes", &sizes)?;
             for r in engine::bench_cmd::sweep(&n, &offs, &geoms, spp, size, &output)? {
                 println!(
                     "n {:4}  {:8} offset {:4}  sweep {:9.1} ms  rmse {:.5}  (reference stderr {:.5})",
@@ -1201,4 +1170,15 @@ fn summary(r: &engine::render_cmd::RenderReport) -> String {
             .join(", "),
         r.seconds
     )
+}
+
+/// A comma-separated list of values, or an error naming the flag and the value.
+fn parse_list<T: std::str::FromStr>(flag: &str, s: &str) -> Result<Vec<T>, String> {
+    s.split(',')
+        .map(|x| {
+            x.trim()
+                .parse::<T>()
+                .map_err(|_| format!("{flag}: '{}' is not valid here", x.trim()))
+        })
+        .collect()
 }

@@ -296,12 +296,7 @@ pub fn is_mesh(p: &Path) -> bool {
 fn mesh_set(i: usize, t: &scene::TubesSpec) -> Result<TubeMesh, String> {
     let mut m = tubes::mesh_io::read(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
     if let Some(a) = t.transform {
-        let rows = glam::DMat4::from_cols_array(&a).transpose();
-        if !a.iter().all(|v| v.is_finite()) || rows.determinant() == 0.0 {
-            return Err(format!(
-                "tubes[{i}].transform: 16 finite numbers of an invertible row-major 4x4 matrix"
-            ));
-        }
+        let rows = crate::tubes_cmd::transform_matrix(&a, &format!("tubes[{i}].transform"))?;
         let nm = glam::DMat3::from_mat4(rows).inverse().transpose();
         let origin = rows.transform_point3(m.origin);
         for p in &mut m.positions {
@@ -325,16 +320,68 @@ fn mesh_set(i: usize, t: &scene::TubesSpec) -> Result<TubeMesh, String> {
 /// Loads the scene's volume and builds its tube meshes.
 pub fn model(s: &Scene) -> Result<Model, String> {
     let mut notes = vec![];
-    let volume = match &s.volume {
-        None => None,
-        Some(vspec) => {
-            let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
-            let sel = vspec
-                .field
-                .as_deref()
-                .map(str::parse::<volume::FieldSelector>)
-                .transpose()
-                .map_err(|e| e.to_string())?;
+    // The volume, loaded once: drawn by its transfer function, or in isosurface mode as its
+    // isosurface.
+    let (mut volume, mut iso, mut iso_bounds) = (None, None, None);
+    if let Some(vspec) = &s.volume {
+        let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
+        let sel = vspec
+            .field
+            .as_deref()
+            .map(str::parse::<volume::FieldSelector>)
+            .transpose()
+            .map_err(|e| e.to_string())?;
+        if let Some(ispec) = &vspec.iso {
+            let inside = if ispec.inside == scene::IsoInside::Below {
+                volume::distance_sweep::Inside::Below
+            } else {
+                volume::distance_sweep::Inside::Above
+            };
+            let values = crate::sweep_cmd::scalar_field(
+                &vol,
+                sel.as_ref(),
+                ispec.value as f32,
+                inside,
+                &vspec.path,
+            )?;
+            let (sdf, octants) = crate::iso_cmd::iso_fields(
+                &vol,
+                &values,
+                ispec.value as f32,
+                inside,
+                ispec.fields.as_deref(),
+                None,
+                true,
+                None,
+            )?;
+            let octants = octants.ok_or("volume.iso: the octant fields are missing")?;
+            let surface = crate::iso_reference::IsoSurface::new(
+                vol.dims,
+                vol.affine,
+                &values,
+                ispec.value as f32,
+                inside == volume::distance_sweep::Inside::Above,
+                &sdf,
+            );
+            let g = surface.g.clone();
+            let sky: volume::occlusion_shading::Sky = ispec.sky.parse()?;
+            let opts = volume::occlusion_shading::AmbientOptions {
+                sky,
+                gamma: ispec.gamma,
+                offset: ispec.offset,
+                ..Default::default()
+            };
+            iso_bounds = Some(vol.bounds());
+            iso = Some(IsoModel {
+                dims: vol.dims,
+                affine: vol.affine,
+                g,
+                sdf,
+                octants,
+                model: volume::occlusion_shading::AmbientModel::new(opts, &vol.affine),
+                color: ispec.color.rgb()?,
+            });
+        } else {
             let field = vol.select(sel.as_ref()).map_err(|e| e.to_string())?;
             if field.components != 1 {
                 return Err(format!(
@@ -358,72 +405,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             }
             let tf = transfer(&vspec.transfer, [st.min, st.max])?;
             let data = ea_pass::prepare(&field.data);
-            Some((vol, data, tf))
+            volume = Some((vol, data, tf));
         }
-    };
-    // Isosurface mode: the volume becomes its isosurface (no direct volume rendering).
-    let mut iso = None;
-    let mut iso_bounds = None;
-    if let (Some(vspec), Some(ispec)) = (&s.volume, s.volume.as_ref().and_then(|v| v.iso.as_ref()))
-    {
-        let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
-        let sel = vspec
-            .field
-            .as_deref()
-            .map(str::parse::<volume::FieldSelector>)
-            .transpose()
-            .map_err(|e| e.to_string())?;
-        let inside = if ispec.inside == scene::IsoInside::Below {
-            volume::distance_sweep::Inside::Below
-        } else {
-            volume::distance_sweep::Inside::Above
-        };
-        let values = crate::sweep_cmd::scalar_field(
-            &vol,
-            sel.as_ref(),
-            ispec.value as f32,
-            inside,
-            &vspec.path,
-        )?;
-        let (sdf, octants) = crate::iso_cmd::iso_fields(
-            &vol,
-            &values,
-            ispec.value as f32,
-            inside,
-            ispec.fields.as_deref(),
-            None,
-            true,
-            None,
-        )?;
-        let octants = octants.ok_or("volume.iso: the octant fields are missing")?;
-        let surface = crate::iso_reference::IsoSurface::new(
-            vol.dims,
-            vol.affine,
-            &values,
-            ispec.value as f32,
-            inside == volume::distance_sweep::Inside::Above,
-            &sdf,
-        );
-        let g = surface.g.clone();
-        let sky: volume::occlusion_shading::Sky = ispec.sky.parse()?;
-        let opts = volume::occlusion_shading::AmbientOptions {
-            sky,
-            gamma: ispec.gamma,
-            offset: ispec.offset,
-            ..Default::default()
-        };
-        iso_bounds = Some(vol.bounds());
-        iso = Some(IsoModel {
-            dims: vol.dims,
-            affine: vol.affine,
-            g,
-            sdf,
-            octants,
-            model: volume::occlusion_shading::AmbientModel::new(opts, &vol.affine),
-            color: ispec.color.rgb()?,
-        });
     }
-    let volume = if iso.is_some() { None } else { volume };
     let mut meshes = vec![];
     for (i, t) in s.tubes.iter().enumerate() {
         if is_mesh(&t.path) {
@@ -432,13 +416,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         }
         let mut sl = tubes::load(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
         if let Some(m) = t.transform {
-            let rows = glam::DMat4::from_cols_array(&m).transpose();
-            if !m.iter().all(|v| v.is_finite()) || rows.determinant() == 0.0 {
-                return Err(format!(
-                    "tubes[{i}].transform: 16 finite numbers of an invertible row-major 4x4 matrix"
-                ));
-            }
-            sl.transform(&rows);
+            let key = format!("tubes[{i}].transform");
+            sl.transform(&crate::tubes_cmd::transform_matrix(&m, &key)?);
         }
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
         let args = crate::tubes_cmd::TubesArgs {

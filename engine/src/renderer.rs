@@ -180,10 +180,23 @@ pub fn render(
             "the viewport is {w} x {h}; width and height must be positive"
         )));
     }
-    let lim = gpu.device.limits().max_texture_dimension_2d;
+    let limits = gpu.device.limits();
+    let lim = limits.max_texture_dimension_2d;
     if w > lim || h > lim {
         return Err(GpuError::Operation(format!(
-            "{w} x {h} exceeds this adapter's largest 2-D texture ({lim})"
+            "render.width x render.height = {w} x {h} exceeds this adapter's largest 2-D texture ({lim})"
+        )));
+    }
+    // The largest per-pixel buffers hold 32 bytes a pixel (slice state, AOVs).
+    let bytes = w as u64 * h as u64 * 32;
+    let most = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    if bytes > most {
+        return Err(GpuError::Operation(format!(
+            "render.width x render.height = {w} x {h} needs {} MB buffers; this adapter binds at most {} MB",
+            bytes >> 20,
+            most >> 20
         )));
     }
     let occlusion = matches!(s.method, Method::Combined | Method::Dos);

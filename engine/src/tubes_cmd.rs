@@ -71,6 +71,18 @@ fn parse_hex(s: &str) -> Result<[f32; 3], String> {
     Ok([c(0)?, c(2)?, c(4)?])
 }
 
+/// A row-major 4x4 (as `--transform` and a tube set's `transform` give it) as a matrix, or an
+/// error naming `key` when it is not 16 finite numbers of an invertible matrix.
+pub fn transform_matrix(m: &[f64; 16], key: &str) -> Result<DMat4, String> {
+    let rows = DMat4::from_cols_array(m).transpose();
+    if !m.iter().all(|v| v.is_finite()) || rows.determinant() == 0.0 {
+        return Err(format!(
+            "{key}: 16 finite numbers of an invertible row-major 4x4 matrix"
+        ));
+    }
+    Ok(rows)
+}
+
 /// Runs `umbra tubes`.
 pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     let t0 = Instant::now();
@@ -91,13 +103,7 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     }
     let mut s = tubes::load(&a.input).map_err(|e| e.to_string())?;
     if let Some(m) = a.transform {
-        let rows = DMat4::from_cols_array(&m).transpose();
-        if !m.iter().all(|v| v.is_finite()) || rows.determinant() == 0.0 {
-            return Err(
-                "--transform: 16 finite numbers of an invertible row-major 4x4 matrix".into(),
-            );
-        }
-        s.transform(&rows);
+        s.transform(&transform_matrix(&m, "--transform")?);
     }
     let t_read = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();

@@ -159,6 +159,17 @@ fn bad_render_input_gets_clear_errors_and_no_image() {
     let scene = small_scene(dir.path(), "");
     for (extra, needle) in [
         (vec!["--width", "0"], "render.width"),
+        (
+            vec!["--width", "16000", "--height", "16000"],
+            "render.width",
+        ),
+        (
+            vec![
+                "--set",
+                "tubes.0.transform=[0,0,0,0, 0,0,0,0, 0,0,0,0, 0,0,0,1]",
+            ],
+            "tubes[0].transform",
+        ),
         (vec!["--method", "fancy"], "fancy"),
         (
             vec!["--set", "tubes.0.path=\"/nope/missing.trk\""],

@@ -71,6 +71,19 @@ impl std::str::FromStr for Sky {
     }
 }
 
+impl std::str::FromStr for GeometryTerm {
+    type Err = String;
+    /// `cosine`, `none` (or `constant`) and `abs`, as `umbra iso --geometry` names them.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "cosine" => Ok(GeometryTerm::Cosine),
+            "none" | "constant" => Ok(GeometryTerm::Constant),
+            "abs" => Ok(GeometryTerm::Absolute),
+            other => Err(format!("'{other}' is not cosine, none or abs")),
+        }
+    }
+}
+
 /// Shading options of the swept ambient term.
 #[derive(Clone, Copy, Debug)]
 pub struct AmbientOptions {
