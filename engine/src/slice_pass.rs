@@ -107,20 +107,6 @@ pub fn auto_cell(width: u32, height: u32, slices: u32, min: u32, budget: u64) ->
 /// Bytes of one slice's record (`struct Slice` of the shader).
 const SLICE_BYTES: u64 = 80;
 
-/// Shirley and Chiu's concentric map of `[-1, 1]^2` onto the unit disk (as the shader's).
-pub fn concentric(a: [f64; 2]) -> [f64; 2] {
-    use std::f64::consts::FRAC_PI_4;
-    if a == [0.0, 0.0] {
-        return a;
-    }
-    let (r, t) = if a[0].abs() > a[1].abs() {
-        (a[0], FRAC_PI_4 * a[1] / a[0])
-    } else {
-        (a[1], 2.0 * FRAC_PI_4 - FRAC_PI_4 * a[0] / a[1])
-    };
-    [r * t.cos(), r * t.sin()]
-}
-
 /// The occlusion blur of one slice, a uniform disk of radius `rpx` cells (x, y). On a grid a
 /// sub-cell blur cannot be sampled with bilinear taps without adding the interpolation's own
 /// diffusion (a tap at offset `o` spreads variance `|o| (1 - |o|)`, linear in `o`, where the
@@ -473,5 +459,51 @@ impl SlicePass {
         pass.set_pipeline(&self.march_pipe);
         pass.set_bind_group(1, &self.group1[0], &[0]);
         pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_blur_stencil_has_the_disks_variance_and_sums_to_one() {
+        for r in [0.0, 0.3, 1.0, 1.9] {
+            let (wide, w) = blur_stencil([r, 0.5 * r]);
+            assert!(!wide);
+            let sum: f64 = w.iter().flatten().sum();
+            assert!((sum - 1.0).abs() < 1e-12);
+            // Second moments: x^2 weights against r^2 / 4 (a uniform disk's, per axis).
+            let vx: f64 = (0..3)
+                .map(|y| {
+                    (0..3)
+                        .map(|x| w[y][x] * ((x as f64) - 1.0).powi(2))
+                        .sum::<f64>()
+                })
+                .sum();
+            let vy: f64 = (0..3)
+                .map(|y| {
+                    (0..3)
+                        .map(|x| w[y][x] * ((y as f64) - 1.0).powi(2))
+                        .sum::<f64>()
+                })
+                .sum();
+            assert!((vx - r * r / 4.0).abs() < 1e-12, "{r}: {vx}");
+            assert!((vy - r * r / 16.0).abs() < 1e-12, "{r}: {vy}");
+            assert!(w.iter().flatten().all(|&v| v >= 0.0));
+        }
+        assert!(
+            blur_stencil([2.5, 0.1]).0,
+            "beyond two cells the shader takes taps"
+        );
+    }
+
+    #[test]
+    fn the_cell_size_grows_until_the_light_volume_fits() {
+        // 512^2 x 512 slices of f32: 512 MB at cell 1, 128 MB at 2, 32 MB at 4.
+        assert_eq!(auto_cell(512, 512, 512, 1, 1 << 30), 1);
+        assert_eq!(auto_cell(512, 512, 512, 1, 128 << 20), 2);
+        assert_eq!(auto_cell(512, 512, 512, 2, 100 << 20), 4);
+        assert_eq!(auto_cell(512, 512, 512, 2, 1 << 30), 2);
     }
 }
