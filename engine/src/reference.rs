@@ -7,12 +7,19 @@
 //! unit, trilinear samples, NaN and clipped-away samples empty, nothing outside the grid) and
 //! `O(s)` the directional occlusion: the mean transmittance, through the volume, over
 //! directions distributed uniformly in the cone of half-angle theta around the direction
-//! towards the eye (the head light). For the `ea` method `O = 1`.
+//! towards the eye (the head light). For the `ea` method `O = 1`. This is the continuous model
+//! that Schott et al.'s slices discretise (Algorithms 2-4: the eye buffer is this integral as a
+//! Riemann sum over slices, the occlusion buffer this `O` as an incremental blur; eq. 9 the
+//! surfaces' shading), with the corrections of issue 5 (extinction per unit length, background
+//! last, occlusion inside the tubes' thickness).
 //!
-//! The estimator is unbiased for this nested integral at a sane cost: delta tracking along the
-//! eye ray against a global majorant (the transfer function's largest extinction) picks a
+//! The estimator is unbiased for this nested integral at a sane cost: delta (Woodcock) tracking
+//! (Woodcock et al., "Techniques used in the GEM code for Monte Carlo neutronics calculations in
+//! reactors and other systems of complex geometry", 1965) along the eye ray against a global
+//! majorant (the transfer function's largest extinction) picks a
 //! collision with probability `T sigma ds`; a real collision returns `c(s)` times one ratio-
-//! tracking estimate of the transmittance along one random cone direction (`prod (1 -
+//! tracking estimate (Novak, Selle and Jarosz, "Residual ratio tracking for estimating
+//! attenuation in participating media", ACM TOG 33(6), 2014) of the transmittance along one random cone direction (`prod (1 -
 //! sigma / majorant)` over tentative collisions until the ray leaves the grid); escaping the
 //! grid returns the background. Each pixel averages `spp` such paths and reports the standard
 //! error of its mean (per channel, the largest), so that error bars are honest. Random numbers
