@@ -1058,21 +1058,7 @@ pub fn tubes(
         if !(tol > 0.0 && tol.is_finite()) {
             return Err(format!("--tolerances: {tol} is not positive"));
         }
-        let args = crate::tubes_cmd::TubesArgs {
-            input: input.to_path_buf(),
-            output: PathBuf::new(),
-            radius,
-            sides: 8,
-            per_span: 1,
-            tolerance: tol,
-            chordal: None,
-            fit: tubes::bspline_fit::FitMethod::Iterative,
-            frame: tubes::tube_mesh::FrameMethod::Rmf,
-            radius_mode: tubes::tube_mesh::RadiusMode::Local,
-            color: "direction".into(),
-            caps: true,
-            transform: None,
-        };
+        let args = crate::tubes_cmd::TubesArgs::defaults(radius, 8, tol, "direction");
         let mut times = vec![];
         let mut stats = None;
         for _ in 0..runs.max(1) {

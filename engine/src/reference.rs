@@ -2,8 +2,8 @@
 //! (rayon, f64), for the same scene model the GPU renders, so that an error measures the
 //! method and not a model mismatch.
 //!
-//! The model: emission-absorption along the eye ray, `L = int_0^S T(0, s) sigma(s) c(s) O(s) ds
-//! + T(0, S) background`, with `sigma` and `c` from the transfer function (extinction per world
+//! The model: emission-absorption along the eye ray,
+//! `L = int_0^S T(0, s) sigma(s) c(s) O(s) ds + T(0, S) background`, with `sigma` and `c` from the transfer function (extinction per world
 //! unit, trilinear samples, NaN and clipped-away samples empty, nothing outside the grid) and
 //! `O(s)` the directional occlusion: the mean transmittance, through the volume, over
 //! directions distributed uniformly in the cone of half-angle theta around the direction

@@ -266,27 +266,8 @@ mod tests {
 
     /// A closed tube of radius r along x from -5 to 5 (caps on).
     fn tube(r: f64) -> TubeMesh {
-        let mut s = tubes::Streamlines::new();
-        let pts: Vec<glam::Vec3> = (0..=10)
-            .map(|i| glam::Vec3::new(i as f32 - 5.0, 0.0, 0.0))
-            .collect();
-        s.push(&pts);
-        let args = crate::tubes_cmd::TubesArgs {
-            input: Default::default(),
-            output: Default::default(),
-            radius: r,
-            sides: 64,
-            per_span: 1,
-            tolerance: 0.01,
-            chordal: None,
-            fit: tubes::bspline_fit::FitMethod::Iterative,
-            frame: tubes::tube_mesh::FrameMethod::Rmf,
-            radius_mode: tubes::tube_mesh::RadiusMode::Local,
-            color: "#ff0000".into(),
-            caps: true,
-            transform: None,
-        };
-        crate::tubes_cmd::build_mesh(&s, &args).unwrap().0
+        crate::tubes_cmd::straight_tubes(&[[[-5.0, 0.0, 0.0], [5.0, 0.0, 0.0]]], r, 64, "#ff0000")
+            .unwrap()
     }
 
     #[test]

@@ -420,21 +420,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             sl.transform(&crate::tubes_cmd::transform_matrix(&m, &key)?);
         }
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
-        let args = crate::tubes_cmd::TubesArgs {
-            input: t.path.clone(),
-            output: PathBuf::new(),
-            radius: t.radius,
-            sides: 8,
-            per_span: 1,
-            tolerance: t.tolerance,
-            chordal: None,
-            fit: tubes::bspline_fit::FitMethod::Iterative,
-            frame: tubes::tube_mesh::FrameMethod::Rmf,
-            radius_mode: tubes::tube_mesh::RadiusMode::Local,
-            color: t.color.clone(),
-            caps: true,
-            transform: None,
-        };
+        let args = crate::tubes_cmd::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
         let (mesh, _) = crate::tubes_cmd::build_mesh(&sl, &args)
             .map_err(|e| format!("tubes[{i}] ({}): {e}", t.path.display()))?;
         meshes.push(mesh);

@@ -12,7 +12,7 @@ use engine::gpu::Gpu;
 use engine::renderer::{self, Output, Settings};
 use engine::scene::{Combine, Method};
 use engine::slice_pass::VolumeInput;
-use glam::{DMat4, DVec3, DVec4, Vec3};
+use glam::{DMat4, DVec3, DVec4};
 use tubes::tube_mesh::TubeMesh;
 use volume::{Field, ScalarType, Space, Volume};
 
@@ -60,28 +60,7 @@ fn medium(sigma: f64) -> Transfer {
 
 /// Straight tubes of `radius` through the given end points, grey.
 fn tubes(lines: &[[[f32; 3]; 2]], radius: f64) -> TubeMesh {
-    let mut s = tubes::Streamlines::new();
-    for l in lines {
-        let (a, b) = (Vec3::from(l[0]), Vec3::from(l[1]));
-        let pts: Vec<Vec3> = (0..=20).map(|i| a + (b - a) * (i as f32 / 20.0)).collect();
-        s.push(&pts);
-    }
-    let args = engine::tubes_cmd::TubesArgs {
-        input: Default::default(),
-        output: Default::default(),
-        radius,
-        sides: 16,
-        per_span: 1,
-        tolerance: 0.01,
-        chordal: None,
-        fit: tubes::bspline_fit::FitMethod::Iterative,
-        frame: tubes::tube_mesh::FrameMethod::Rmf,
-        radius_mode: tubes::tube_mesh::RadiusMode::Local,
-        color: "#c0c0c0".into(),
-        caps: true,
-        transform: None,
-    };
-    engine::tubes_cmd::build_mesh(&s, &args).unwrap().0
+    engine::tubes_cmd::straight_tubes(lines, radius, 16, "#c0c0c0").unwrap()
 }
 
 /// Looking down -z from above, orthographic (24 units tall) or perspective (30 degrees).
