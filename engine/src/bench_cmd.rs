@@ -68,6 +68,17 @@ pub struct Row {
     pub ref_volumetric: Vec<f64>,
 }
 
+impl Row {
+    /// The measured columns shared by results.csv and stability.csv:
+    /// `ms,rmse,max_err,psnr,ssim,ref_stderr`.
+    fn measured(&self) -> String {
+        format!(
+            "{:.3},{:.6},{:.6},{:.3},{:.5},{:.6}",
+            self.ms, self.rmse, self.max_err, self.psnr, self.ssim, self.ref_stderr
+        )
+    }
+}
+
 /// The scene key a sweep key sets.
 pub fn sweep_key(k: &str) -> String {
     match k {
@@ -608,16 +619,11 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
     for r in &rows {
         let _ = writeln!(
             csv,
-            "{}{}{},{:.3},{:.6},{:.6},{:.3},{:.5},{:.6},{:.6},{:.6},{:.6}",
+            "{}{}{},{},{:.6},{:.6},{:.6}",
             r.method,
             if r.values.is_empty() { "" } else { "," },
             r.values.iter().map(quote).collect::<Vec<_>>().join(","),
-            r.ms,
-            r.rmse,
-            r.max_err,
-            r.psnr,
-            r.ssim,
-            r.ref_stderr,
+            r.measured(),
             r.rmse_volumetric,
             r.rmse_surface,
             r.rmse_vicinity
@@ -965,15 +971,10 @@ pub fn stability(
     for (name, _, r) in &all_rows {
         let _ = writeln!(
             csv,
-            "{name},{},{},{:.3},{:.6},{:.6},{:.3},{:.5},{:.6},{}",
+            "{name},{},{},{},{}",
             r.method,
             r.values.join(" "),
-            r.ms,
-            r.rmse,
-            r.max_err,
-            r.psnr,
-            r.ssim,
-            r.ref_stderr,
+            r.measured(),
             verdict(r.rmse)
         );
     }
