@@ -812,7 +812,7 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             eprintln!(
                 "wrote {}: {} tubes, {} triangles, {} control points for {} points, max deviation {:.4}, {:.2} s",
-                output.display(), s.streamlines_out, s.triangles, s.control_points, s.points_in, s.max_deviation, s.seconds.total
+                output.display(), s.stats.streamlines_out, s.stats.triangles, s.stats.control_points, s.stats.points_in, s.stats.max_deviation, s.seconds.total
             );
             Ok(())
         }

@@ -81,18 +81,9 @@ pub struct Seconds {
 /// The statistics `--stats-json` writes.
 #[derive(Clone, Debug, Serialize)]
 pub struct TubesSummary {
-    pub streamlines_in: usize,
-    pub streamlines_out: usize,
-    pub points_in: usize,
-    pub control_points: usize,
-    pub triangles: usize,
-    pub max_deviation: f64,
-    pub max_twist_deg: f64,
-    pub min_section_ratio: f64,
-    pub radius_clamps: usize,
-    pub splits: usize,
-    pub dropped_points: usize,
-    pub skipped_streamlines: usize,
+    /// The mesher's statistics, as top-level keys.
+    #[serde(flatten)]
+    pub stats: TubeStats,
     pub vertices: usize,
     pub seconds: Seconds,
     pub warnings: Vec<String>,
@@ -166,18 +157,7 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
         ));
     }
     Ok(TubesSummary {
-        streamlines_in: st.streamlines_in,
-        streamlines_out: st.streamlines_out,
-        points_in: st.points_in,
-        control_points: st.control_points,
-        triangles: st.triangles,
-        max_deviation: st.max_deviation,
-        max_twist_deg: st.max_twist_deg,
-        min_section_ratio: st.min_section_ratio,
-        radius_clamps: st.radius_clamps,
-        splits: st.splits,
-        dropped_points: st.dropped_points,
-        skipped_streamlines: st.skipped_streamlines,
+        stats: st,
         vertices: mesh.positions.len(),
         seconds: Seconds {
             read: t_read,

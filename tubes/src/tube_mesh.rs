@@ -95,7 +95,7 @@ impl TubeMesh {
 }
 
 /// What the mesher did (the keys of `umbra tubes --stats-json`).
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct TubeStats {
     pub streamlines_in: usize,
     pub streamlines_out: usize,
