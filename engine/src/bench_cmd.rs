@@ -187,56 +187,6 @@ pub fn metrics(img: &[[f64; 3]], reference: &[[f64; 3]], w: usize, h: usize) -> 
     ]
 }
 
-/// A cached reference: colour, standard error, volumetric, surface and vicinity occlusion.
-type Cached = (Vec<[f64; 3]>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
-
-fn read_reference(path: &Path) -> Option<Cached> {
-    let img = exr::prelude::read_first_flat_layer_from_file(path).ok()?;
-    let chan = |name: &str| -> Option<Vec<f64>> {
-        img.layer_data
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == name)
-            .map(|c| c.sample_data.values_as_f32().map(|v| v as f64).collect())
-    };
-    let (r, g, b, s) = (chan("R")?, chan("G")?, chan("B")?, chan("stderr")?);
-    let (v, o) = (chan("occlusion.volumetric")?, chan("occlusion.surface")?);
-    let vi = chan("occlusion.vicinity")?;
-    Some((
-        (0..r.len()).map(|i| [r[i], g[i], b[i]]).collect(),
-        s,
-        v,
-        o,
-        vi,
-    ))
-}
-
-fn write_reference(path: &Path, w: usize, h: usize, c: &Cached) -> Result<(), String> {
-    let (rgb, se) = (&c.0, &c.1);
-    use exr::prelude::*;
-    let ch = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
-    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
-    for (k, n) in ["R", "G", "B"].iter().enumerate() {
-        list.push(ch(n, rgb.iter().map(|p| p[k] as f32).collect()));
-    }
-    list.push(ch("stderr", se.iter().map(|&v| v as f32).collect()));
-    list.push(ch(
-        "occlusion.volumetric",
-        c.2.iter().map(|&v| v as f32).collect(),
-    ));
-    list.push(ch(
-        "occlusion.surface",
-        c.3.iter().map(|&v| v as f32).collect(),
-    ));
-    let img = Image::from_channels((w, h), AnyChannels::sort(list));
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    img.write()
-        .to_buffered(&mut bytes)
-        .map_err(|e| format!("{}: encoding EXR: {e}", path.display()))?;
-    volume::write_atomic(path, bytes.get_ref()).map_err(|e| e.to_string())
-}
-
 /// The Pareto front of (ms, rmse) points: indices of the points no other is at least as good
 /// on both and better on one, by increasing time.
 pub fn pareto(points: &[(f64, f64)]) -> Vec<usize> {
@@ -356,7 +306,15 @@ pub fn write_chart(dir: &Path, stem: &str, p: &Plot) -> Result<(), String> {
 }
 
 /// Runs `umbra bench accuracy`; returns the rows written.
-pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
+/// What `accuracy` measured, and how many references it traced or found in the cache.
+#[derive(Clone, Debug, Default)]
+pub struct AccuracyReport {
+    pub rows: Vec<Row>,
+    pub references_traced: usize,
+    pub references_cached: usize,
+}
+
+pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyReport, String> {
     scene::load(&a.scene, &a.overrides)?;
     let methods: Vec<Method> = a
         .methods
@@ -384,6 +342,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
             })
             .collect();
     }
+    let mut report = AccuracyReport::default();
     let mut rows = vec![];
     for combo in &combos {
         let mut over = a.overrides.clone();
@@ -430,33 +389,18 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
             }
         };
         let view = render_cmd::view(&s, &m)?;
-        // The reference for this combination's light model.
-        let mut key = serde_json::to_value(&s).map_err(|e| e.to_string())?;
-        if let Some(r) = key.get_mut("render").and_then(|r| r.as_object_mut()) {
-            for k in [
-                "method",
-                "slices",
-                "slice_distance",
-                "blur_samples",
-                "vicinity_samples",
-                "vicinity_distance",
-                "vicinity_bias",
-                "combine",
-                "occlusion_cell",
-                "occlusion_model",
-                "msaa",
-                "fxaa",
-            ] {
-                r.remove(k);
-            }
-        }
-        let hash = fnv(format!("{key}|spp={}", a.spp).as_bytes());
+        // The reference for this combination's light model: keyed by what it depends on
+        // (the scene but for how a method approximates it) and by the data itself.
+        let key = serde_json::to_string(&s.reference_key()).map_err(|e| e.to_string())?;
+        let hash = fnv(format!("{key}|data={:016x}|spp={}", m.data_hash(), a.spp).as_bytes());
         let rpath = a.out.join("reference").join(format!("{hash:016x}.exr"));
         let (w, h) = (view.width as usize, view.height as usize);
-        let (ref_rgb, ref_se, ref_vol, ref_surf, ref_vic) = match read_reference(&rpath)
-            .filter(|r| r.0.len() == w * h)
-        {
-            Some(r) => r,
+        let cached = reference::RefImage::read_exr(&rpath).filter(|r| r.rgb.len() == w * h);
+        let reference = match cached {
+            Some(r) => {
+                report.references_cached += 1;
+                r
+            }
             None => {
                 progress(&format!(
                     "reference {} ({w} x {h}, {} spp, cone {} degrees)",
@@ -487,17 +431,19 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
                         vicinity_range: Some(s.render.vicinity_distance),
                     },
                 );
-                let c = (
-                    img.rgb,
-                    img.stderr,
-                    img.volumetric,
-                    img.surface,
-                    img.vicinity,
-                );
-                write_reference(&rpath, w, h, &c)?;
-                c
+                img.write_exr(&rpath)?;
+                report.references_traced += 1;
+                img
             }
         };
+        let reference::RefImage {
+            rgb: ref_rgb,
+            stderr: ref_se,
+            volumetric: ref_vol,
+            surface: ref_surf,
+            vicinity: ref_vic,
+            ..
+        } = reference;
         let ref_stderr = ref_se.iter().sum::<f64>() / ref_se.len().max(1) as f64;
         for &method in &methods {
             let mut sm = s.clone();
@@ -673,7 +619,8 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<Vec<Row>, S
             )),
         },
     )?;
-    Ok(rows)
+    report.rows = rows;
+    Ok(report)
 }
 
 /// A stability case: a scene built to make methods fail, its sweeps and the methods run.
@@ -859,7 +806,8 @@ pub fn stability(
                 out: out.join(c.name),
             },
             &|m| progress(&format!("{}: {m}", c.name)),
-        )?;
+        )?
+        .rows;
         for mut r in rows {
             // A path as its file name.
             for v in &mut r.values {

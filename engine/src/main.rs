@@ -912,7 +912,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 .collect::<Result<Vec<_>, _>>()?;
             let bar = indicatif::ProgressBar::new_spinner();
             bar.enable_steady_tick(std::time::Duration::from_millis(200));
-            let rows = engine::bench_cmd::accuracy(
+            let report = engine::bench_cmd::accuracy(
                 &engine::bench_cmd::AccuracyArgs {
                     scene,
                     overrides,
@@ -925,7 +925,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 &|m| bar.set_message(m.to_string()),
             )?;
             bar.finish_and_clear();
-            for r in &rows {
+            for r in &report.rows {
                 println!(
                     "{:9} {:>16} {:9.1} ms  rmse {:.5}  psnr {:6.2}  ssim {:.4}",
                     r.method,
@@ -936,6 +936,10 @@ fn run(cli: Cli) -> Result<(), String> {
                     r.ssim
                 );
             }
+            eprintln!(
+                "references: {} traced, {} from the cache",
+                report.references_traced, report.references_cached
+            );
             eprintln!(
                 "wrote {0}/results.csv, {0}/pareto.svg, {0}/pareto.png",
                 output.display()

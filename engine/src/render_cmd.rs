@@ -212,6 +212,35 @@ pub struct Model {
     pub notes: Vec<String>,
 }
 
+impl Model {
+    /// A 64-bit FNV-1a hash of the data the model holds: the volume's samples and grid (after
+    /// the transfer function's NaN mapping) and every mesh's vertices, normals, colours and
+    /// indices. Keys caches of results that depend on the data, not on file names.
+    pub fn data_hash(&self) -> u64 {
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut eat = |bytes: &[u8]| {
+            for b in bytes {
+                h ^= *b as u64;
+                h = h.wrapping_mul(0x0100_0000_01b3);
+            }
+        };
+        if let Some((v, data, _)) = &self.volume {
+            eat(bytemuck::cast_slice(&v.dims.map(|d| d as u64)));
+            eat(bytemuck::cast_slice(&v.affine.to_cols_array()));
+            eat(bytemuck::cast_slice(data));
+        }
+        for m in &self.meshes {
+            eat(bytemuck::cast_slice(&m.origin.to_array()));
+            for p in m.positions.iter().chain(&m.normals) {
+                eat(bytemuck::cast_slice(&p.to_array()));
+            }
+            eat(m.colors.as_flattened());
+            eat(bytemuck::cast_slice(&m.indices));
+        }
+        h
+    }
+}
+
 fn mesh_bounds(m: &TubeMesh) -> Option<[DVec3; 2]> {
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);

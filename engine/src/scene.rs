@@ -338,6 +338,99 @@ impl Default for RenderSpec {
     }
 }
 
+/// What the ground truth of `[render]` depends on: the light model a method approximates.
+/// With the image size, the camera, the light, the background and the data, it determines the
+/// Monte Carlo reference ([`Scene::reference_key`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LightModel {
+    pub width: u32,
+    pub height: u32,
+    pub theta: f64,
+    pub geometry_extinction: f64,
+    pub geometry_shadow: GeometryShadow,
+    pub vicinity_distance: f64,
+}
+
+/// How a method approximates the light model: what a method may change without changing the
+/// reference image.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Approximation {
+    pub method: Method,
+    pub slices: Option<u32>,
+    pub slice_distance: Option<f64>,
+    pub blur_samples: u32,
+    pub vicinity_samples: u32,
+    pub vicinity_bias: Option<f64>,
+    pub combine: Combine,
+    pub occlusion_cell: Option<u32>,
+    pub occlusion_model: OcclusionModel,
+    pub msaa: u32,
+    pub fxaa: bool,
+}
+
+impl RenderSpec {
+    /// The keys of `[render]` split into the light model and its approximation. The
+    /// destructuring names every field, so a new key does not compile until it is put on one
+    /// side: the reference cache has no list of keys to keep up to date.
+    pub fn split(&self) -> (LightModel, Approximation) {
+        let RenderSpec {
+            method,
+            width,
+            height,
+            slices,
+            slice_distance,
+            theta,
+            blur_samples,
+            vicinity_samples,
+            vicinity_distance,
+            vicinity_bias,
+            geometry_extinction,
+            geometry_shadow,
+            combine,
+            occlusion_cell,
+            occlusion_model,
+            msaa,
+            fxaa,
+        } = self.clone();
+        (
+            LightModel {
+                width,
+                height,
+                theta,
+                geometry_extinction,
+                geometry_shadow,
+                vicinity_distance,
+            },
+            Approximation {
+                method,
+                slices,
+                slice_distance,
+                blur_samples,
+                vicinity_samples,
+                vicinity_bias,
+                combine,
+                occlusion_cell,
+                occlusion_model,
+                msaa,
+                fxaa,
+            },
+        )
+    }
+}
+
+/// What a Monte Carlo reference image depends on: the whole scene but for how a method
+/// approximates it (see [`RenderSpec::split`]); serialised and hashed for the cache.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ReferenceKey<'a> {
+    pub camera: &'a CameraSpec,
+    pub background: &'a Color,
+    pub volume: &'a Option<VolumeSpec>,
+    pub tubes: &'a [TubesSpec],
+    pub clip: &'a [ClipSpec],
+    pub light: &'a LightSpec,
+    pub model: LightModel,
+}
+
 /// A scene file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -355,6 +448,30 @@ pub struct Scene {
     pub light: LightSpec,
     #[serde(default)]
     pub render: RenderSpec,
+}
+
+impl Scene {
+    /// The parts of the scene its ground truth depends on.
+    pub fn reference_key(&self) -> ReferenceKey<'_> {
+        let Scene {
+            camera,
+            background,
+            volume,
+            tubes,
+            clip,
+            light,
+            render,
+        } = self;
+        ReferenceKey {
+            camera,
+            background,
+            volume,
+            tubes,
+            clip,
+            light,
+            model: render.split().0,
+        }
+    }
 }
 
 fn default_background() -> Color {
@@ -643,6 +760,47 @@ mod tests {
         assert_eq!(s.render.method, Method::Combined);
         assert!(s.volume.as_ref().unwrap().path.starts_with("/d"));
         assert_eq!(s.clip.len(), 1);
+    }
+
+    #[test]
+    fn the_reference_key_changes_with_the_light_model_only() {
+        let key = |o: &[&str]| {
+            let s = parse(
+                "",
+                "s",
+                Path::new("."),
+                &o.iter().map(|x| x.to_string()).collect::<Vec<_>>(),
+            )
+            .unwrap();
+            serde_json::to_string(&s.reference_key()).unwrap()
+        };
+        let base = key(&[]);
+        for approx in [
+            "render.method=ea",
+            "render.slices=64",
+            "render.blur_samples=5",
+            "render.vicinity_samples=8",
+            "render.vicinity_bias=0.3",
+            "render.combine=product",
+            "render.occlusion_cell=4",
+            "render.occlusion_model=cone",
+            "render.msaa=1",
+            "render.fxaa=false",
+        ] {
+            assert_eq!(key(&[approx]), base, "{approx}");
+        }
+        for model in [
+            "render.vicinity_distance=3.0",
+            "render.theta=30",
+            "render.geometry_extinction=2",
+            "render.geometry_shadow=column",
+            "render.width=64",
+            "light.ambient=0.5",
+            "camera.azimuth=10",
+            "background=[0, 0, 0]",
+        ] {
+            assert_ne!(key(&[model]), base, "{model}");
+        }
     }
 
     #[test]

@@ -350,8 +350,45 @@ fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
     assert_eq!(refs(), 1);
     let out = run();
     ok(&out);
-    assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"));
+    // The second run with the same scene traces no reference: the cache hits.
+    assert!(
+        err.contains("references: 0 traced, 2 from the cache"),
+        "{err}"
+    );
     assert_eq!(refs(), 1);
+    // A key the reference depends on (vicinity_distance) misses the cache.
+    let out = umbra()
+        .args(["bench", "accuracy"])
+        .arg(&s)
+        .args([
+            "--sweep",
+            "cone=30",
+            "--methods",
+            "ea",
+            "--reference-spp",
+            "32",
+            "--frames",
+            "1",
+            "--set",
+            "render.width=40",
+            "--set",
+            "render.height=40",
+            "--set",
+            "render.vicinity_distance=3.5",
+            "-o",
+        ])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("references: 1 traced, 0 from the cache"),
+        "{err}"
+    );
+    assert_eq!(refs(), 2);
     // The paper's endless-column rule is in the reference too: a scene with tubes and that rule
     // is measured.
     std::fs::write(
