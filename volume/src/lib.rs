@@ -32,6 +32,7 @@ pub mod plot3d;
 pub mod slc;
 pub mod synthetic;
 pub mod vti;
+pub(crate) mod vtk_common;
 pub mod vtk_legacy;
 
 pub use error::{Result, VolumeError};

@@ -246,7 +246,7 @@ pub fn read(path: &Path) -> Result<Volume> {
         }
     }
     let mut fields = Vec::new();
-    crate::vtk_legacy::push_field(&mut fields, "data".into(), channels, ty, data);
+    crate::vtk_common::push_field(&mut fields, "data".into(), channels, ty, data);
     Ok(Volume {
         format: "metaimage".into(),
         dims,

@@ -12,6 +12,7 @@
 
 use crate::cfd_grid::{Cell, CfdGrid, Geometry, GridArray};
 use crate::io_util::{self, checked_count};
+use crate::vtk_common;
 use crate::{Result, ScalarType, Space, Volume, VolumeError};
 use glam::{DMat3, DMat4, DVec3};
 use quick_xml::events::Event;
@@ -778,7 +779,7 @@ pub fn read(path: &Path) -> Result<Volume> {
         if Some(&name) == doc.scalars.as_ref() {
             default_field = fields.len();
         }
-        crate::vtk_legacy::push_field(&mut fields, name, comps, ty, data);
+        vtk_common::push_field(&mut fields, name, comps, ty, data);
     }
     Ok(Volume {
         format: "vti".into(),
@@ -956,82 +957,5 @@ fn unstructured_cells(
     let conn = get_cells("connectivity")?;
     let offsets = get_cells("offsets")?;
     let types = get_cells("types")?;
-    cells_from_vtk(path, conn, offsets, types)
-}
-
-/// Converts VTK cell arrays - connectivity, the end offset of each cell, and VTK cell types -
-/// into tetrahedra and hexahedra, with each output cell's source cell index (see
-/// [`read_grid`] for the cell types).
-pub(crate) fn cells_from_vtk(
-    path: &Path,
-    conn: &[f32],
-    offsets: &[f32],
-    types: &[f32],
-) -> Result<(Vec<Cell>, Vec<usize>)> {
-    if offsets.len() != types.len() {
-        return Err(VolumeError::format(
-            path,
-            "Cells offsets",
-            format!("{} offsets for {} types", offsets.len(), types.len()),
-        ));
-    }
-    let mut cells = Vec::with_capacity(types.len());
-    let mut origin = Vec::with_capacity(types.len());
-    let mut start = 0usize;
-    for (ci, (&off, &ty)) in offsets.iter().zip(types.iter()).enumerate() {
-        let end = off as usize;
-        if off < 0.0 || end < start || end > conn.len() {
-            return Err(VolumeError::format(
-                path,
-                "Cells offsets",
-                format!(
-                    "cell {ci}: offset {off} after {start} (connectivity has {})",
-                    conn.len()
-                ),
-            ));
-        }
-        let ids: Vec<u32> = conn[start..end].iter().map(|&v| v as u32).collect();
-        start = end;
-        let need = match ty as u32 {
-            10 | 24 => 4,
-            11 | 12 | 25 => 8,
-            13 => 6,
-            14 => 5,
-            t => {
-                return Err(VolumeError::format(
-                    path,
-                    "Cells types",
-                    format!("cell {ci} has VTK type {t}; umbra resamples tetrahedra, hexahedra, voxels, wedges and pyramids"),
-                ))
-            }
-        };
-        let quadratic = matches!(ty as u32, 24 | 25);
-        if ids.len() < need || (!quadratic && ids.len() != need) {
-            return Err(VolumeError::format(
-                path,
-                "Cells connectivity",
-                format!("cell {ci} (type {ty}) has {} ids", ids.len()),
-            ));
-        }
-        let i = &ids;
-        let mut push = |c: Cell| {
-            cells.push(c);
-            origin.push(ci);
-        };
-        match ty as u32 {
-            10 | 24 => push(Cell::Tet([i[0], i[1], i[2], i[3]])),
-            12 | 25 => push(Cell::Hex([i[0], i[1], i[2], i[3], i[4], i[5], i[6], i[7]])),
-            11 => push(Cell::Hex([i[0], i[1], i[3], i[2], i[4], i[5], i[7], i[6]])),
-            13 => {
-                push(Cell::Tet([i[0], i[1], i[2], i[3]]));
-                push(Cell::Tet([i[1], i[2], i[3], i[4]]));
-                push(Cell::Tet([i[2], i[3], i[4], i[5]]));
-            }
-            _ => {
-                push(Cell::Tet([i[0], i[1], i[2], i[4]]));
-                push(Cell::Tet([i[0], i[2], i[3], i[4]]));
-            }
-        }
-    }
-    Ok((cells, origin))
+    vtk_common::cells_from_vtk(path, conn, offsets, types)
 }

@@ -10,10 +10,12 @@
 //! (`space: file`); `POINTS` (curvilinear) or `X/Y/Z_COORDINATES` (rectilinear) for grids, and
 //! for unstructured grids `POINTS`, `CELLS` (classic: each cell's id count then its ids; VTK
 //! 5.1: `OFFSETS` and `CONNECTIVITY` arrays) and `CELL_TYPES`, converted as `.vtu` cells are
-//! ([`crate::vti::read_grid`]). Polydata are refused with an error that says so.
+//! (by the cell conversion the two readers share, `vtk_common`). Polydata are refused with an
+//! error that says so.
 
 use crate::cfd_grid::{CfdGrid, Geometry, GridArray};
 use crate::io_util::{self, checked_count, Cursor};
+use crate::vtk_common;
 use crate::{Field, Result, ScalarType, Space, Volume, VolumeError};
 use glam::{DMat4, DVec3, DVec4};
 use std::path::Path;
@@ -599,7 +601,7 @@ pub fn read(path: &Path) -> Result<Volume> {
     let mut fields: Vec<Field> = Vec::new();
     let mut active: Option<usize> = None;
     for a in arrays.into_iter().filter(|a| !a.on_cells) {
-        push_field(&mut fields, a.name, a.comps, a.ty, a.data);
+        vtk_common::push_field(&mut fields, a.name, a.comps, a.ty, a.data);
         if a.scalars && active.is_none() {
             active = Some(fields.len() - 1);
         }
@@ -626,33 +628,6 @@ pub fn read(path: &Path) -> Result<Volume> {
         default_field: active.unwrap_or(0),
         warnings: vec![],
     })
-}
-
-/// Adds an array as a field: 1 and 3 components as they are, others split per component.
-pub(crate) fn push_field(
-    fields: &mut Vec<Field>,
-    name: String,
-    comps: usize,
-    ty: ScalarType,
-    data: Vec<f32>,
-) {
-    if comps == 1 || comps == 3 {
-        fields.push(Field {
-            name,
-            components: comps,
-            stored: ty,
-            data,
-        });
-    } else {
-        for c in 0..comps {
-            fields.push(Field {
-                name: format!("{name}[{c}]"),
-                components: 1,
-                stored: ty,
-                data: data.iter().skip(c).step_by(comps).copied().collect(),
-            });
-        }
-    }
 }
 
 /// Reads a legacy STRUCTURED_GRID or RECTILINEAR_GRID file as a CFD grid.
@@ -685,7 +660,7 @@ pub fn read_grid(path: &Path) -> Result<CfdGrid> {
                     "more than 2^24 points in an unstructured grid",
                 ));
             }
-            let (cells, origin) = crate::vti::cells_from_vtk(path, conn, ends, types)?;
+            let (cells, origin) = vtk_common::cells_from_vtk(path, conn, ends, types)?;
             cell_origin = Some(origin);
             Geometry::Unstructured {
                 points: p
