@@ -1,6 +1,6 @@
 //! The data in datasets/ read as documented in datasets/LICENSES.md (no ../shared needed).
 
-use umbra_tests::root;
+use test_support::root;
 use volume::Space;
 
 #[test]

@@ -2,7 +2,7 @@
 //! spacing, origin where given, type). Skips with a message when ../shared is absent.
 
 use glam::DVec3;
-use umbra_tests::{close, shared_or_skip};
+use test_support::{close, shared_or_skip};
 use volume::{FieldSelector, Space};
 
 struct Case {

@@ -3,7 +3,7 @@
 //! dimensions that disagree with the data, broken gzip/zlib streams and absurd dimensions.
 
 use std::path::{Path, PathBuf};
-use umbra_tests::fixtures;
+use test_support::fixtures;
 use volume::Volume;
 
 /// Fixture files (main file, companion data file if detached).

@@ -100,7 +100,7 @@ fn abc_flow_agrees_with_a_high_accuracy_integration() {
 #[test]
 fn dti_fibres_run_left_right_through_the_corpus_callosum() {
     let Some(data) =
-        umbra_tests::shared_or_skip("dti_fibres_run_left_right_through_the_corpus_callosum")
+        test_support::shared_or_skip("dti_fibres_run_left_right_through_the_corpus_callosum")
     else {
         return;
     };

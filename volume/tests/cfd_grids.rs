@@ -8,7 +8,7 @@
 
 use glam::DVec3;
 use std::path::Path;
-use umbra_tests::shared_or_skip;
+use test_support::shared_or_skip;
 use volume::cfd_grid::{CfdGrid, Geometry, GridArray};
 
 fn linear(p: DVec3) -> f64 {
@@ -333,7 +333,7 @@ fn truncated_and_mismatched_legacy_grids_are_refused() {
 
 #[test]
 fn legacy_unstructured_grids_in_both_layouts_match_the_xml_grid() {
-    let dir = umbra_tests::fixtures().join("grids");
+    let dir = test_support::fixtures().join("grids");
     let load = |n: &str| volume::load_grid(&dir.join(n), None).unwrap().0;
     let xml = load("fire_part.vtu");
     let dims = [24, 8, 4];

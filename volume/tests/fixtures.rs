@@ -3,7 +3,7 @@
 //! frame, value range, non-finite count and voxel probes must agree.
 
 use serde_json::Value;
-use umbra_tests::{close, fixtures};
+use test_support::{close, fixtures};
 use volume::FieldSelector;
 
 fn expected() -> serde_json::Map<String, Value> {

@@ -3,8 +3,8 @@
 
 use glam::Vec3;
 use std::path::{Path, PathBuf};
+use test_support::fixtures;
 use tubes::Streamlines;
-use umbra_tests::fixtures;
 
 fn dir() -> PathBuf {
     fixtures().join("tracts")

@@ -6,7 +6,7 @@
 
 use glam::{DMat4, DVec4};
 use std::path::Path;
-use umbra_tests::{close, fixtures, shared_data};
+use test_support::{close, fixtures, shared_data};
 use volume::{nifti, nrrd, synthetic, Field, ScalarType, Space, Volume};
 
 fn same_bits(a: &[f32], b: &[f32]) -> bool {

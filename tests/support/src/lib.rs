@@ -1,0 +1,42 @@
+//! Helpers for umbra's integration tests (`volume/tests/`, `tubes/tests/`, and the cross-crate
+//! tests in `tests/tests/`).
+
+use std::path::PathBuf;
+
+/// The workspace root (this crate lives in `tests/support/`, two levels below it).
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .and_then(|p| p.parent())
+        .unwrap()
+        .to_path_buf()
+}
+
+/// Reader fixtures written by `tests/fixtures/make_fixtures.py` with reference libraries.
+pub fn fixtures() -> PathBuf {
+    root().join("tests").join("fixtures")
+}
+
+/// `../shared/data` beside the checkout (or `$UMBRA_SHARED_DATA`), when present.
+pub fn shared_data() -> Option<PathBuf> {
+    if let Ok(p) = std::env::var("UMBRA_SHARED_DATA") {
+        let p = PathBuf::from(p);
+        return p.is_dir().then_some(p);
+    }
+    let p = root().parent()?.join("shared").join("data");
+    p.is_dir().then_some(p)
+}
+
+/// Returns the shared data folder, or prints why a test skips and returns `None`.
+pub fn shared_or_skip(test: &str) -> Option<PathBuf> {
+    let p = shared_data();
+    if p.is_none() {
+        eprintln!("SKIP {test}: ../shared/data is absent (set UMBRA_SHARED_DATA to run it)");
+    }
+    p
+}
+
+/// Relative closeness with an absolute floor.
+pub fn close(a: f64, b: f64, rel: f64, abs: f64) -> bool {
+    (a - b).abs() <= abs.max(rel * a.abs().max(b.abs()))
+}
