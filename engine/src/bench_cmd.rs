@@ -445,12 +445,19 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
             ..
         } = reference;
         let ref_stderr = ref_se.iter().sum::<f64>() / ref_se.len().max(1) as f64;
+        // One upload per combination (its settings may change the data); every method's
+        // frames reuse it and the pipelines the device has compiled.
+        let up = render_cmd::upload(&gpu, &m)?;
         for &method in &methods {
             let mut sm = s.clone();
             sm.render.method = method;
             let name = format!("{method:?}").to_lowercase();
             progress(&format!("{name} {}", combo.join(" ")));
-            let (out, _) = render_cmd::render_scene(&gpu, &sm, &m, a.frames.max(1))?;
+            let opts = crate::renderer::DrawOptions {
+                frames: a.frames.max(1),
+                pass_timings: false,
+            };
+            let (out, _) = up.draw(&sm, &m, opts)?;
             let img: Vec<[f64; 3]> = out
                 .image
                 .iter()

@@ -73,6 +73,8 @@ pub fn run(
         overrides: overrides.to_vec(),
         frames,
         aov: false,
+        pass_timings: false,
+        cameras: Default::default(),
     };
     match which {
         "mni" => {
@@ -83,7 +85,7 @@ pub fn run(
                     scene.display()
                 ));
             }
-            render_cmd::run(&args(scene))
+            render_cmd::run(&args(scene), &mut |_, _| {})
         }
         "cfd" => {
             let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
@@ -106,7 +108,7 @@ pub fn run(
             })?;
             let scene = dir.path().join("cfd.toml");
             std::fs::write(&scene, cfd_scene(&data, &tracts)).map_err(|e| e.to_string())?;
-            render_cmd::run(&args(scene))
+            render_cmd::run(&args(scene), &mut |_, _| {})
         }
         other => Err(format!("umbra demo {other}: choose mni or cfd")),
     }

@@ -32,10 +32,53 @@ pub const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 /// Bytes per vertex: position (3 f32), normal (3 f32), colour (4 unorm8).
 const STRIDE: u64 = 28;
 
-struct MeshBuffers {
+/// A tube mesh on the GPU: vertices (position, normal, colour; [`STRIDE`] bytes each) and
+/// triangle indices, uploaded once and drawn in every frame.
+#[derive(Clone)]
+pub struct GpuMesh {
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
     count: u32,
+    /// The mesh's f64 origin (its positions are f32 relative to it).
+    origin: DVec3,
+}
+
+impl GpuMesh {
+    /// Uploads `m` (`None` when it has no triangles).
+    pub fn upload(gpu: &Gpu, m: &TubeMesh) -> Option<GpuMesh> {
+        if m.indices.is_empty() {
+            return None;
+        }
+        let mut v = Vec::with_capacity(m.positions.len() * STRIDE as usize);
+        for i in 0..m.positions.len() {
+            let n = m.normals.get(i).copied().unwrap_or(glam::Vec3::Z);
+            let c = m.colors.get(i).copied().unwrap_or([200, 200, 200]);
+            for x in m.positions[i].to_array().into_iter().chain(n.to_array()) {
+                v.extend(x.to_le_bytes());
+            }
+            v.extend([c[0], c[1], c[2], 255]);
+        }
+        Some(GpuMesh {
+            vertices: gpu.buffer("tube vertices", &v, wgpu::BufferUsages::VERTEX),
+            indices: gpu.buffer(
+                "tube indices",
+                bytemuck::cast_slice(&m.indices),
+                wgpu::BufferUsages::INDEX,
+            ),
+            count: m.indices.len() as u32,
+            origin: m.origin,
+        })
+    }
+
+    /// Triangles of the mesh.
+    pub fn triangles(&self) -> u64 {
+        self.count as u64 / 3
+    }
+}
+
+/// A mesh's draw in one frame: its buffers and the bind group of its per-view uniform.
+struct MeshDraw {
+    mesh: GpuMesh,
     bind: wgpu::BindGroup,
 }
 
@@ -55,7 +98,7 @@ pub struct GBuffer {
     /// Multisampled only: the single-sample depth.
     depth_pipe: Option<wgpu::RenderPipeline>,
     back_pipe: wgpu::RenderPipeline,
-    meshes: Vec<MeshBuffers>,
+    meshes: Vec<MeshDraw>,
 }
 
 /// The sample count for `requested` that colour, normal and depth targets all support, and a
@@ -98,108 +141,110 @@ fn target_ms(
     h: u32,
     samples: u32,
 ) -> wgpu::TextureView {
-    gpu.device
-        .create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: samples,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        })
-        .create_view(&Default::default())
+    let key = format!("target {label} {format:?} {w}x{h}x{samples}");
+    gpu.cached(key, || {
+        gpu.device
+            .create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: samples,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+            .create_view(&Default::default())
+    })
 }
 
 impl GBuffer {
-    /// Uploads `meshes` and prepares the passes for `camera` at `width x height` with
-    /// `samples` samples per pixel (a count [`sample_count`] returned).
+    /// Prepares the passes drawing `meshes` (uploaded) for `camera` at `width x height` with
+    /// `samples` samples per pixel (a count [`sample_count`] returned). The targets are
+    /// pooled per size (every pass clears what it draws into), the pipelines made once per
+    /// sample count.
     pub fn new(
         gpu: &Gpu,
         camera: &Camera,
         width: u32,
         height: u32,
-        meshes: &[TubeMesh],
+        meshes: &[GpuMesh],
         clip: &[([f64; 3], f64)],
         samples: u32,
     ) -> GBuffer {
-        let device = &gpu.device;
-        let module = gpu.shader("gbuffer.wgsl", SHADER);
-        let layout = gpu.layout(
-            "gbuffer",
-            wgpu::ShaderStages::VERTEX_FRAGMENT,
-            &[Slot::Uniform],
-        );
-        let pl = gpu.pipeline_layout("gbuffer", &[&layout]);
-        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4];
-        let vbl = [Some(wgpu::VertexBufferLayout {
-            array_stride: STRIDE,
-            step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &attributes,
-        })];
-        let pipeline = |entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&pl),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs"),
-                    compilation_options: Default::default(),
-                    buffers: &vbl,
-                },
-                primitive: wgpu::PrimitiveState::default(),
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: wgpu::TextureFormat::Depth32Float,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: wgpu::MultisampleState {
-                    count,
-                    ..Default::default()
-                },
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let t = |f| Some(wgpu::ColorTargetState::from(f));
         let ms = samples > 1;
-        let front_pipe = if ms {
-            pipeline("fs_surface", &[t(COLOR), t(NORMAL)], samples)
-        } else {
-            pipeline("fs_front", &[t(COLOR), t(NORMAL), t(DEPTH)], 1)
-        };
-        let depth_pipe = ms.then(|| pipeline("fs_depth", &[t(DEPTH)], 1));
-        let back_pipe = pipeline("fs_back", &[t(DEPTH)], 1);
+        let (layout, front_pipe, depth_pipe, back_pipe) =
+            gpu.cached(format!("gbuffer pipelines {samples}"), || {
+                let device = &gpu.device;
+                let module = gpu.shader("gbuffer.wgsl", SHADER);
+                let layout = gpu.layout(
+                    "gbuffer",
+                    wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    &[Slot::Uniform],
+                );
+                let pl = gpu.pipeline_layout("gbuffer", &[&layout]);
+                let attributes =
+                    wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4];
+                let vbl = [Some(wgpu::VertexBufferLayout {
+                    array_stride: STRIDE,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &attributes,
+                })];
+                let pipeline =
+                    |entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| {
+                        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                            label: Some(entry),
+                            layout: Some(&pl),
+                            vertex: wgpu::VertexState {
+                                module: &module,
+                                entry_point: Some("vs"),
+                                compilation_options: Default::default(),
+                                buffers: &vbl,
+                            },
+                            primitive: wgpu::PrimitiveState::default(),
+                            depth_stencil: Some(wgpu::DepthStencilState {
+                                format: wgpu::TextureFormat::Depth32Float,
+                                depth_write_enabled: Some(true),
+                                depth_compare: Some(wgpu::CompareFunction::Less),
+                                stencil: Default::default(),
+                                bias: Default::default(),
+                            }),
+                            multisample: wgpu::MultisampleState {
+                                count,
+                                ..Default::default()
+                            },
+                            fragment: Some(wgpu::FragmentState {
+                                module: &module,
+                                entry_point: Some(entry),
+                                compilation_options: Default::default(),
+                                targets,
+                            }),
+                            multiview_mask: None,
+                            cache: None,
+                        })
+                    };
+                let t = |f| Some(wgpu::ColorTargetState::from(f));
+                let front_pipe = if ms {
+                    pipeline("fs_surface", &[t(COLOR), t(NORMAL)], samples)
+                } else {
+                    pipeline("fs_front", &[t(COLOR), t(NORMAL), t(DEPTH)], 1)
+                };
+                let depth_pipe = ms.then(|| pipeline("fs_depth", &[t(DEPTH)], 1));
+                let back_pipe = pipeline("fs_back", &[t(DEPTH)], 1);
+                (layout, front_pipe, depth_pipe, back_pipe)
+            });
         let aspect = width as f64 / height.max(1) as f64;
         let vp_rel = camera.view_projection(aspect) * DMat4::from_translation(camera.eye);
         let f = camera.forward();
         let e = camera.eye;
         let meshes = meshes
             .iter()
-            .filter(|m| !m.indices.is_empty())
             .map(|m| {
-                let mut v = Vec::with_capacity(m.positions.len() * STRIDE as usize);
-                for i in 0..m.positions.len() {
-                    let n = m.normals.get(i).copied().unwrap_or(glam::Vec3::Z);
-                    let c = m.colors.get(i).copied().unwrap_or([200, 200, 200]);
-                    for x in m.positions[i].to_array().into_iter().chain(n.to_array()) {
-                        v.extend(x.to_le_bytes());
-                    }
-                    v.extend([c[0], c[1], c[2], 255]);
-                }
                 let offset: DVec3 = m.origin - e;
                 let mut u = Uniform::default();
                 u.mat(vp_rel)
@@ -212,14 +257,8 @@ impl GBuffer {
                 }
                 u.u32x4([clip.len().min(8) as u32, 0, 0, 0]);
                 let params = gpu.buffer("gbuffer params", &u.0, wgpu::BufferUsages::UNIFORM);
-                MeshBuffers {
-                    vertices: gpu.buffer("tube vertices", &v, wgpu::BufferUsages::VERTEX),
-                    indices: gpu.buffer(
-                        "tube indices",
-                        bytemuck::cast_slice(&m.indices),
-                        wgpu::BufferUsages::INDEX,
-                    ),
-                    count: m.indices.len() as u32,
+                MeshDraw {
+                    mesh: m.clone(),
                     bind: gpu.bind("gbuffer", &layout, &[params.as_entire_binding()]),
                 }
             })
@@ -252,7 +291,7 @@ impl GBuffer {
 
     /// Triangles drawn per pass.
     pub fn triangles(&self) -> u64 {
-        self.meshes.iter().map(|m| m.count as u64 / 3).sum()
+        self.meshes.iter().map(|m| m.mesh.triangles()).sum()
     }
 
     /// Records both passes (they also clear the targets when there are no meshes).
@@ -302,8 +341,8 @@ impl GBuffer {
                 multiview_mask: None,
             });
             pass.set_pipeline(pipe);
-            for m in &self.meshes {
-                pass.set_bind_group(0, &m.bind, &[]);
+            for MeshDraw { mesh: m, bind } in &self.meshes {
+                pass.set_bind_group(0, bind, &[]);
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..m.count, 0, 0..1);

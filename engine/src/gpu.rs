@@ -4,7 +4,11 @@
 //! a GPU, Mesa's lavapipe (Debian package `mesa-vulkan-drivers`) provides a software Vulkan
 //! device, which is what CI uses. `UMBRA_ADAPTER=<substring>` picks an adapter by name.
 
+use std::any::Any;
+use std::collections::HashMap;
 use std::fmt;
+use std::hash::{Hash, Hasher};
+use std::sync::Arc;
 
 /// Errors of the GPU layer.
 #[derive(Debug, thiserror::Error)]
@@ -85,11 +89,35 @@ pub enum Slot {
     StorageTexture(wgpu::TextureFormat),
 }
 
-/// An adapter with its device and queue.
+/// An adapter with its device and queue, and the pool of what is made once per device.
+///
+/// The pool (re_renderer's resource pools, in small): shader modules, bind group layouts,
+/// pipeline layouts and pipelines are created once per description and handed out again
+/// (wgpu handles are reference-counted clones), so a second frame compiles nothing; scratch
+/// buffers ([`Gpu::scratch`]) are kept per label and size, so frames of one image size reuse
+/// them. Frames are recorded and waited for one at a time, which is what makes sharing the
+/// scratch buffers safe.
 pub struct Gpu {
     pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
+    pool: Pool,
+}
+
+/// What [`Gpu::cached`] keeps: any clonable value by a key naming its description.
+#[derive(Default)]
+struct Pool {
+    items: std::sync::Mutex<HashMap<String, Arc<dyn Any + Send + Sync>>>,
+    /// How many values were made (not found) so far.
+    made: std::sync::atomic::AtomicUsize,
+}
+
+/// A 64-bit hash of a hashable description (std's SipHash with fixed keys: stable in a
+/// process, which is all a pool key needs).
+fn key_hash<T: Hash + ?Sized>(t: &T) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    t.hash(&mut h);
+    h.finish()
 }
 
 /// What `umbra info --gpu` prints.
@@ -237,6 +265,7 @@ impl Gpu {
             adapter,
             device,
             queue,
+            pool: Pool::default(),
         })
     }
 
@@ -265,6 +294,39 @@ impl Gpu {
                 wgpu::TextureFormat::Depth32Float,
             ),
         }
+    }
+
+    /// The value kept under `key`, made by `make` the first time it is asked for.
+    pub fn cached<T: Clone + Send + Sync + 'static>(
+        &self,
+        key: String,
+        make: impl FnOnce() -> T,
+    ) -> T {
+        if let Some(v) = self.pool_get::<T>(&key) {
+            return v;
+        }
+        // Made outside the lock: `make` may itself ask the pool.
+        let v = make();
+        self.pool
+            .made
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.pool
+            .items
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(key, Arc::new(v.clone()));
+        v
+    }
+
+    fn pool_get<T: Clone + 'static>(&self, key: &str) -> Option<T> {
+        let items = self.pool.items.lock().unwrap_or_else(|e| e.into_inner());
+        items.get(key).and_then(|v| v.downcast_ref::<T>()).cloned()
+    }
+
+    /// How many pooled objects (modules, layouts, pipelines, scratch buffers) were created so
+    /// far: constant across frames that compile and allocate nothing new.
+    pub fn pool_made(&self) -> usize {
+        self.pool.made.load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// Waits for all submitted work.
@@ -318,6 +380,16 @@ impl Gpu {
 
     /// A bind group layout whose binding `i` is `slots[i]`, visible to `stages`.
     pub fn layout(
+        &self,
+        label: &str,
+        stages: wgpu::ShaderStages,
+        slots: &[Slot],
+    ) -> wgpu::BindGroupLayout {
+        let key = format!("layout {label} {stages:?} {slots:?}");
+        self.cached(key, || self.make_layout(label, stages, slots))
+    }
+
+    fn make_layout(
         &self,
         label: &str,
         stages: wgpu::ShaderStages,
@@ -404,13 +476,16 @@ impl Gpu {
         label: &str,
         layouts: &[&wgpu::BindGroupLayout],
     ) -> wgpu::PipelineLayout {
-        let l: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
-        self.device
-            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(label),
-                bind_group_layouts: &l,
-                immediate_size: 0,
-            })
+        let key = format!("pipeline layout {label} {:x}", key_hash(layouts));
+        self.cached(key, || {
+            let l: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
+            self.device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(label),
+                    bind_group_layouts: &l,
+                    immediate_size: 0,
+                })
+        })
     }
 
     /// A compute pipeline for `entry` of `module` with an explicit layout.
@@ -433,18 +508,25 @@ impl Gpu {
         label: &str,
         constants: &[(&str, f64)],
     ) -> wgpu::ComputePipeline {
-        self.device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(label),
-                layout: Some(layout),
-                module,
-                entry_point: Some(entry),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants,
-                    ..Default::default()
-                },
-                cache: None,
-            })
+        let bits: Vec<(&str, u64)> = constants.iter().map(|(k, v)| (*k, v.to_bits())).collect();
+        let key = format!(
+            "compute {label} {entry} {:x}",
+            key_hash(&(module, layout, bits))
+        );
+        self.cached(key, || {
+            self.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(label),
+                    layout: Some(layout),
+                    module,
+                    entry_point: Some(entry),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants,
+                        ..Default::default()
+                    },
+                    cache: None,
+                })
+        })
     }
 
     /// A buffer holding `bytes` with `usage`.
@@ -458,8 +540,42 @@ impl Gpu {
             })
     }
 
-    /// An uninitialised storage buffer of `size` bytes (at least 16).
+    /// A storage buffer of `size` bytes (at least 16) that a pass writes in full before it is
+    /// read in every frame: one per label is pooled and handed out again while the size
+    /// stays the same (a new size replaces it), so its contents are whatever the last frame
+    /// left.
     pub fn scratch(&self, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
+        let key = format!("scratch {label} {extra:?}");
+        self.sized(key, size.max(16), || self.zeroed(label, size, extra))
+    }
+
+    /// The buffer pooled under `key` while its size is `size`; else a new one from `make`
+    /// (of that size), which replaces it in the pool.
+    pub fn sized(
+        &self,
+        key: String,
+        size: u64,
+        make: impl FnOnce() -> wgpu::Buffer,
+    ) -> wgpu::Buffer {
+        if let Some(b) = self.pool_get::<wgpu::Buffer>(&key) {
+            if b.size() == size {
+                return b;
+            }
+        }
+        let b = make();
+        self.pool
+            .made
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.pool
+            .items
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(key, Arc::new(b.clone()));
+        b
+    }
+
+    /// A new storage buffer of `size` bytes (at least 16), zero-filled (not pooled).
+    pub fn zeroed(&self, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
         self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: size.max(16),
@@ -468,13 +584,17 @@ impl Gpu {
         })
     }
 
-    /// A WGSL module; compile errors come back through the caller's error scope.
+    /// A WGSL module, compiled once per label and source; compile errors come back through
+    /// the caller's error scope.
     pub fn shader(&self, label: &str, source: &str) -> wgpu::ShaderModule {
-        self.device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            })
+        let key = format!("shader {label} {:x}", key_hash(source));
+        self.cached(key, || {
+            self.device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(label),
+                    source: wgpu::ShaderSource::Wgsl(source.into()),
+                })
+        })
     }
 
     /// Copies a buffer (which must have `MAP_READ`) back to the host.

@@ -39,6 +39,42 @@ pub struct IsoInput<'a> {
     pub color: [f64; 3],
 }
 
+/// An isosurface's fields on the GPU (classified samples, distance, packed octants) with what
+/// the shading needs of its model, uploaded once.
+#[derive(Clone)]
+pub struct GpuIso {
+    g: wgpu::Buffer,
+    sdf: wgpu::Buffer,
+    octants: wgpu::Buffer,
+    dims: [usize; 3],
+    affine: DMat4,
+    model: AmbientModel,
+    color: [f64; 3],
+}
+
+impl GpuIso {
+    /// Uploads `i`'s fields (the octants packed four to a `u32`).
+    pub fn upload(gpu: &Gpu, i: &IsoInput) -> GpuIso {
+        let storage = wgpu::BufferUsages::STORAGE;
+        let nvox = i.dims[0] * i.dims[1] * i.dims[2];
+        let mut packed = vec![0u32; 2 * nvox];
+        for s in 0..8 {
+            for (v, &b) in i.octants.octants[s].iter().enumerate() {
+                packed[2 * v + s / 4] |= (b as u32) << (8 * (s % 4));
+            }
+        }
+        GpuIso {
+            g: gpu.buffer("iso g", bytemuck::cast_slice(i.g), storage),
+            sdf: gpu.buffer("iso sdf", bytemuck::cast_slice(i.sdf), storage),
+            octants: gpu.buffer("iso octants", bytemuck::cast_slice(&packed), storage),
+            dims: i.dims,
+            affine: i.affine,
+            model: i.model.clone(),
+            color: i.color,
+        }
+    }
+}
+
 pub struct IsoPass {
     pipe: wgpu::ComputePipeline,
     bind: wgpu::BindGroup,
@@ -61,14 +97,14 @@ impl IsoPass {
         camera: &Camera,
         width: u32,
         height: u32,
-        iso: Option<&IsoInput>,
+        iso: Option<&GpuIso>,
         light: [f64; 4],
         clip: &[([f64; 3], f64)],
     ) -> IsoPass {
         let n = width as u64 * height as u64;
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-        let output = gpu.scratch("iso output", n * 16, copy);
-        let ambient = gpu.scratch("iso ambient", n * 4, copy);
+        let output = gpu.zeroed("iso output", n * 16, copy);
+        let ambient = gpu.zeroed("iso ambient", n * 4, copy);
         let module = gpu.shader("iso_pass.wgsl", SHADER);
         let layout = gpu.layout(
             "iso",
@@ -133,19 +169,7 @@ impl IsoPass {
                     let (n, o) = clip.get(c).copied().unwrap_or(([0.0; 3], 0.0));
                     u.vec4([n[0], n[1], n[2], o]);
                 }
-                let nvox = i.dims[0] * i.dims[1] * i.dims[2];
-                let mut packed = vec![0u32; 2 * nvox];
-                for s in 0..8 {
-                    for (v, &b) in i.octants.octants[s].iter().enumerate() {
-                        packed[2 * v + s / 4] |= (b as u32) << (8 * (s % 4));
-                    }
-                }
-                (
-                    u.0,
-                    gpu.buffer("iso g", bytemuck::cast_slice(i.g), storage),
-                    gpu.buffer("iso sdf", bytemuck::cast_slice(i.sdf), storage),
-                    gpu.buffer("iso octants", bytemuck::cast_slice(&packed), storage),
-                )
+                (u.0, i.g.clone(), i.sdf.clone(), i.octants.clone())
             }
             None => {
                 let mut u = Uniform::default();

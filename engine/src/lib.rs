@@ -7,6 +7,7 @@
 
 pub mod bench_cmd;
 pub mod camera;
+pub mod camera_path;
 pub mod composite;
 pub mod convert;
 pub mod demo;

@@ -353,12 +353,23 @@ enum Command {
         /// combined, dos, vicinity, ea or phong (render.method).
         #[arg(long)]
         method: Option<String>,
-        /// Frames timed; total_ms is their median.
-        #[arg(long, default_value_t = 3)]
+        /// Render each image this many times, every pass re-run (total_ms is the median);
+        /// more than 1 also times each pass.
+        #[arg(long, default_value_t = 1)]
         frames: u32,
-        /// Write the timings (total_ms, passes) as JSON to this file.
+        /// Write the timings (total_ms, passes, each frame's) as JSON to this file; also times
+        /// each pass.
         #[arg(long)]
         timings_json: Option<PathBuf>,
+        /// Render a turntable of N frames: frame k at camera.azimuth + k 360/N (a look-at
+        /// camera turns its eye about the target around up). The output name's run of #
+        /// becomes k, zero-padded.
+        #[arg(long, value_name = "N", conflicts_with = "camera_path")]
+        orbit: Option<u32>,
+        /// Render the keyframed cameras of this TOML file (see the README, "Turntables and
+        /// camera paths"); the output name needs a run of # as with --orbit.
+        #[arg(long, value_name = "FILE")]
+        camera_path: Option<PathBuf>,
         /// Add the AOV channels to the EXR: volumetric, partial, vicinity and combined
         /// occlusion, linear depth (Z).
         #[arg(long)]
@@ -848,18 +859,53 @@ fn run(cli: Cli) -> Result<(), String> {
             method,
             frames,
             timings_json,
+            orbit,
+            camera_path,
             aov,
             set,
             json,
         } => {
             let overrides = size_method_overrides(width, height, method, set);
-            let r = engine::render_cmd::run(&engine::render_cmd::RenderArgs {
-                scene,
-                output: output.clone(),
-                overrides,
-                frames,
-                aov,
-            })?;
+            let cameras = match (orbit, camera_path) {
+                (Some(n), _) => engine::render_cmd::Cameras::Orbit(n),
+                (None, Some(p)) => engine::render_cmd::Cameras::Path(p),
+                (None, None) => engine::render_cmd::Cameras::Single,
+            };
+            let sequence = cameras != engine::render_cmd::Cameras::Single;
+            let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
+            let bar = indicatif::ProgressBar::hidden();
+            let r = engine::render_cmd::run(
+                &engine::render_cmd::RenderArgs {
+                    scene,
+                    output: output.clone(),
+                    overrides,
+                    frames,
+                    aov,
+                    pass_timings: timings_json.is_some() || frames > 1,
+                    cameras,
+                },
+                &mut |f, n| {
+                    if !sequence {
+                        return;
+                    }
+                    if terminal {
+                        if bar.is_hidden() {
+                            bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+                            bar.set_length(n as u64);
+                        }
+                        bar.set_message(f.path.display().to_string());
+                        bar.inc(1);
+                    } else {
+                        eprintln!(
+                            "frame {}/{n} {} {:.1} ms",
+                            f.index + 1,
+                            f.path.display(),
+                            f.total_ms
+                        );
+                    }
+                },
+            )?;
+            bar.finish_and_clear();
             for n in &r.notes {
                 eprintln!("note: {n}");
             }
@@ -874,6 +920,16 @@ fn run(cli: Cli) -> Result<(), String> {
                     "slices": r.slices,
                     "triangles": r.triangles,
                     "adapter": r.adapter,
+                    "setup_seconds": r.setup_seconds,
+                    "seconds": r.seconds,
+                    "sequence": r.sequence.iter().map(|f| serde_json::json!({
+                        "index": f.index,
+                        "path": f.path,
+                        "total_ms": f.total_ms,
+                        "frames_ms": f.frames_ms,
+                        "passes": f.passes,
+                        "slices": f.slices,
+                    })).collect::<Vec<_>>(),
                 });
                 let text = serde_json::to_string_pretty(&j).map_err(|e| e.to_string())?;
                 volume::write_atomic(&t, text.as_bytes()).map_err(|e| e.to_string())?;
@@ -886,7 +942,16 @@ fn run(cli: Cli) -> Result<(), String> {
             } else {
                 println!("{}", summary(&r));
             }
-            eprintln!("wrote {}", output.display());
+            if r.sequence.is_empty() {
+                eprintln!("wrote {}", output.display());
+            } else {
+                eprintln!(
+                    "wrote {} frames ({} ... {})",
+                    r.sequence.len(),
+                    r.sequence[0].path.display(),
+                    r.sequence[r.sequence.len() - 1].path.display()
+                );
+            }
             Ok(())
         }
         Command::Bench {

@@ -4,8 +4,9 @@
 //! the image (PNG 8-bit sRGB, or EXR linear float RGBA with optional AOV channels).
 
 use crate::camera::{Camera, Projection};
+use crate::camera_path::{frame_path, CameraPath, Sequence};
 use crate::ea_pass::{self, EaView, Transfer};
-use crate::renderer::{self, Aov, Settings, Timings};
+use crate::renderer::{self, Aov, DrawOptions, GpuScene, Renderer, Settings, Timings};
 use crate::scene::{self, ProjectionKind, Scene, TransferSpec};
 use crate::slice_pass::VolumeInput;
 use glam::DVec3;
@@ -29,7 +30,38 @@ pub struct RenderReport {
     pub frames_ms: Vec<f64>,
     /// Wall time of the whole command: loading, meshing, rendering, writing.
     pub seconds: f64,
+    /// Wall time before the first frame: loading, meshing, opening the GPU, uploading.
+    pub setup_seconds: f64,
     pub notes: Vec<String>,
+    /// Each frame of a turntable or camera path (empty for one image).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sequence: Vec<FrameReport>,
+}
+
+/// One frame of a sequence.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FrameReport {
+    pub index: usize,
+    pub path: PathBuf,
+    /// The frame's `[camera]`.
+    pub camera: scene::CameraSpec,
+    pub slices: u32,
+    /// Median of the frame's repeats (`--frames`), ms.
+    pub total_ms: f64,
+    pub frames_ms: Vec<f64>,
+    pub passes: std::collections::BTreeMap<String, f64>,
+}
+
+/// Which cameras `umbra render` renders.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Cameras {
+    /// The scene's camera.
+    #[default]
+    Single,
+    /// A turntable of this many frames.
+    Orbit(u32),
+    /// A camera path file.
+    Path(PathBuf),
 }
 
 /// What `umbra render` is asked to do.
@@ -43,6 +75,9 @@ pub struct RenderArgs {
     pub frames: u32,
     /// Write the AOV channels (EXR output only).
     pub aov: bool,
+    /// Time each pass alone once more.
+    pub pass_timings: bool,
+    pub cameras: Cameras,
 }
 
 /// Fraction of the value range below which the presets are transparent.
@@ -615,14 +650,41 @@ pub fn render_scene(
     m: &Model,
     frames: u32,
 ) -> Result<(renderer::Output, EaView), String> {
-    let v = view(s, m)?;
+    let up = upload(gpu, m)?;
+    let (mut out, v) = up.draw(
+        s,
+        m,
+        DrawOptions {
+            frames,
+            pass_timings: true,
+        },
+    )?;
+    let mut notes = up.notes.clone();
+    notes.append(&mut out.notes);
+    out.notes = notes;
+    Ok((out, v))
+}
+
+/// A scene's model on the GPU ([`upload`]): frames at any camera, settings or size cost only
+/// their passes.
+pub struct Uploaded<'g> {
+    pub renderer: Renderer<'g>,
+    pub scene: GpuScene,
+    /// What the upload changed (a volume downsampled to fit the adapter).
+    pub notes: Vec<String>,
+}
+
+/// Uploads a model once: the volume (downsampled when the adapter cannot bind it, with a
+/// note), its transfer function, the tube meshes and the isosurface's fields.
+pub fn upload<'g>(gpu: &'g crate::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, String> {
     let limit = gpu.device.limits().max_storage_buffer_binding_size;
     let fitted = m
         .volume
         .as_ref()
         .and_then(|(vol, data, _)| fit_volume(vol, data, limit));
+    let mut notes = vec![];
     if let Some((_, _, note)) = &fitted {
-        eprintln!("note: {note}");
+        notes.push(note.clone());
     }
     let vi = m.volume.as_ref().map(|(vol, data, tf)| match &fitted {
         Some((fv, fd, _)) => VolumeInput {
@@ -651,18 +713,33 @@ pub fn render_scene(
         model: &i.model,
         color: i.color,
     });
-    let out = renderer::render(
-        gpu,
-        vi.as_ref(),
-        &m.meshes,
-        &tube_clip(s),
-        iso.as_ref(),
-        &v,
-        &settings(s),
-        frames,
-    )
-    .map_err(|e| e.to_string())?;
-    Ok((out, v))
+    let renderer = Renderer::new(gpu);
+    let scene = renderer
+        .upload(vi.as_ref(), &m.meshes, iso.as_ref())
+        .map_err(|e| e.to_string())?;
+    Ok(Uploaded {
+        renderer,
+        scene,
+        notes,
+    })
+}
+
+impl Uploaded<'_> {
+    /// One frame of scene `s` (its camera, clipping planes, settings and size; its data must
+    /// be the uploaded model `m`'s).
+    pub fn draw(
+        &self,
+        s: &Scene,
+        m: &Model,
+        opts: DrawOptions,
+    ) -> Result<(renderer::Output, EaView), String> {
+        let v = view(s, m)?;
+        let out = self
+            .renderer
+            .draw(&self.scene, &v, &tube_clip(s), &settings(s), opts)
+            .map_err(|e| e.to_string())?;
+        Ok((out, v))
+    }
 }
 
 /// Writes linear RGBA and AOVs as EXR (channels R, G, B, A, and with `aov`
@@ -703,8 +780,33 @@ pub fn write_exr(
     Ok(())
 }
 
-/// Runs `umbra render`.
-pub fn run(a: &RenderArgs) -> Result<RenderReport, String> {
+/// Writes one frame: PNG (8-bit sRGB) or EXR (linear RGBA, with `aov` the AOV channels),
+/// atomically, creating missing folders.
+fn write_image(
+    path: &Path,
+    exr: bool,
+    aov: bool,
+    out: &renderer::Output,
+    v: &EaView,
+) -> Result<(), String> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    let (w, h) = (v.width as usize, v.height as usize);
+    if exr {
+        write_exr(path, w, h, &out.image, aov.then_some(&out.aov[..]))
+    } else {
+        let rgb: Vec<[f32; 3]> = out.image.iter().map(|c| [c[0], c[1], c[2]]).collect();
+        crate::iso_reference::write_rgb_png(path, w, h, &rgb)
+    }
+}
+
+/// Runs `umbra render`: one frame, or a turntable or camera path (one upload, a frame per
+/// camera, each written as it is done; `progress` hears of each).
+pub fn run(
+    a: &RenderArgs,
+    progress: &mut dyn FnMut(&FrameReport, usize),
+) -> Result<RenderReport, String> {
     let t0 = Instant::now();
     let path = &a.scene;
     let s = scene::load(path, &a.overrides)?;
@@ -725,28 +827,79 @@ pub fn run(a: &RenderArgs) -> Result<RenderReport, String> {
     };
     if a.aov && !exr {
         return Err(format!(
-            "--aov: AOV channels are written to EXR only; {} is a PNG",
+            "{}: AOV channels are written to EXR only; this output is a PNG",
             a.output.display()
         ));
     }
+    let sequence = match &a.cameras {
+        Cameras::Single => None,
+        Cameras::Orbit(0) => return Err("a turntable needs at least one frame".into()),
+        Cameras::Orbit(n) if *n > crate::camera_path::MAX_FRAMES => {
+            return Err(format!(
+                "a turntable of {n} frames: at most {}",
+                crate::camera_path::MAX_FRAMES
+            ))
+        }
+        Cameras::Orbit(n) => Some(Sequence::Orbit(*n)),
+        Cameras::Path(p) => Some(Sequence::Path(CameraPath::load(p)?)),
+    };
+    if sequence.is_some() {
+        frame_path(&a.output, 0)?;
+    }
     let m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
     let gpu = crate::gpu::Gpu::new().map_err(|e| e.to_string())?;
-    let (out, v) = render_scene(&gpu, &s, &m, a.frames.max(1))
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    let (w, h) = (v.width as usize, v.height as usize);
-    if exr {
-        write_exr(&a.output, w, h, &out.image, a.aov.then_some(&out.aov[..]))?;
-    } else {
-        let rgb: Vec<[f32; 3]> = out.image.iter().map(|c| [c[0], c[1], c[2]]).collect();
-        crate::iso_reference::write_rgb_png(&a.output, w, h, &rgb)?;
+    let up = upload(&gpu, &m).map_err(|e| format!("{}: {e}", path.display()))?;
+    let opts = DrawOptions {
+        frames: a.frames.max(1),
+        pass_timings: a.pass_timings,
+    };
+    let mut notes = m.notes.clone();
+    notes.extend(up.notes.iter().cloned());
+    let cameras = match &sequence {
+        None => vec![s.camera.clone()],
+        Some(q) => {
+            let c = (m.bounds[0] + m.bounds[1]) * 0.5;
+            q.cameras(&s, c.to_array())
+        }
+    };
+    let setup_seconds = t0.elapsed().as_secs_f64();
+    let mut frames: Vec<FrameReport> = Vec::with_capacity(cameras.len());
+    let mut last = None;
+    for (k, cam) in cameras.iter().enumerate() {
+        let mut sk = s.clone();
+        sk.camera = cam.clone();
+        let (out, v) = up
+            .draw(&sk, &m, opts)
+            .map_err(|e| format!("{}: frame {k}: {e}", path.display()))?;
+        let file = match &sequence {
+            None => a.output.clone(),
+            Some(_) => frame_path(&a.output, k)?,
+        };
+        write_image(&file, exr, a.aov, &out, &v)?;
+        if k == 0 {
+            notes.extend(out.notes.iter().cloned());
+        }
+        let f = FrameReport {
+            index: k,
+            path: file,
+            camera: cam.clone(),
+            slices: v.slices,
+            total_ms: out.timings.total_ms,
+            frames_ms: out.timings.frames_ms.clone(),
+            passes: out.timings.passes.clone(),
+        };
+        progress(&f, cameras.len());
+        frames.push(f);
+        last = Some((out, v));
     }
-    let mut notes = m.notes;
-    notes.extend(out.notes.iter().cloned());
+    let (out, v) = last.ok_or("no frame was rendered")?;
     let Timings {
         total_ms,
         frames_ms,
         passes,
     } = out.timings;
+    let mut totals: Vec<f64> = frames.iter().map(|f| f.total_ms).collect();
+    totals.sort_by(f64::total_cmp);
     Ok(RenderReport {
         method: format!("{:?}", s.render.method).to_lowercase(),
         width: v.width,
@@ -755,11 +908,17 @@ pub fn run(a: &RenderArgs) -> Result<RenderReport, String> {
         slice_distance: v.dz,
         triangles: out.triangles,
         adapter: gpu.report().name,
-        total_ms,
+        total_ms: if sequence.is_some() {
+            totals[totals.len() / 2]
+        } else {
+            total_ms
+        },
         passes,
         frames_ms,
+        setup_seconds,
         seconds: t0.elapsed().as_secs_f64(),
         notes,
+        sequence: if sequence.is_some() { frames } else { vec![] },
     })
 }
 

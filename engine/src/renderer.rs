@@ -23,11 +23,11 @@ use crate::camera::Camera;
 use crate::composite::{CompositePass, CompositeSettings};
 use crate::ea_pass::EaView;
 use crate::fxaa::FxaaPass;
-use crate::gbuffer::GBuffer;
+use crate::gbuffer::{GBuffer, GpuMesh};
 use crate::gpu::{Gpu, GpuError};
-use crate::iso_pass::{IsoInput, IsoPass};
+use crate::iso_pass::{GpuIso, IsoInput, IsoPass};
 use crate::scene::{Combine, Method};
-use crate::slice_pass::{SlicePass, SliceSettings, VolumeInput};
+use crate::slice_pass::{GpuVolume, SlicePass, SliceSettings, VolumeInput};
 use crate::vicinity::{VicinityPass, VicinitySettings};
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -121,6 +121,7 @@ struct Frame {
     vicinity: Option<VicinityPass>,
     composite: CompositePass,
     fxaa: Option<FxaaPass>,
+    size: (u32, u32),
 }
 
 impl Frame {
@@ -160,21 +161,138 @@ fn submit_and_wait(gpu: &Gpu, record: &dyn Fn(&mut wgpu::CommandEncoder)) -> Res
     Ok(t.elapsed().as_secs_f64() * 1e3)
 }
 
-/// Renders `frames` frames (at least 1) of the model seen through `view` (whose clipping
-/// planes cut the volume; `tube_clip` cuts the tubes), with the isosurface `iso` when given,
-/// and reads the last one back.
-#[allow(clippy::too_many_arguments)]
-pub fn render(
-    gpu: &Gpu,
-    volume: Option<&VolumeInput>,
-    meshes: &[TubeMesh],
-    tube_clip: &[([f64; 3], f64)],
-    iso: Option<&IsoInput>,
-    view: &EaView,
-    s: &Settings,
-    frames: u32,
-) -> Result<Output, GpuError> {
-    let (w, h) = (view.width, view.height);
+/// A scene on the GPU: the volume (samples, transfer function, brick occupancy), the tube
+/// meshes and the isosurface's fields, uploaded once by [`Renderer::upload`] and drawn by
+/// every [`Renderer::draw`].
+pub struct GpuScene {
+    volume: Option<GpuVolume>,
+    meshes: Vec<GpuMesh>,
+    iso: Option<GpuIso>,
+}
+
+impl GpuScene {
+    /// Triangles drawn per G-buffer pass.
+    pub fn triangles(&self) -> u64 {
+        self.meshes.iter().map(GpuMesh::triangles).sum()
+    }
+}
+
+/// What a draw measures besides the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DrawOptions {
+    /// Whole frames rendered (at least 1), every pass re-run in each; `total_ms` is their
+    /// median.
+    pub frames: u32,
+    /// Time each pass alone once more (submitted and waited for on its own).
+    pub pass_timings: bool,
+}
+
+impl Default for DrawOptions {
+    fn default() -> Self {
+        DrawOptions {
+            frames: 1,
+            pass_timings: false,
+        }
+    }
+}
+
+/// The long-lived renderer (re_renderer's split): pipelines are compiled once per device and
+/// variant (the GPU context's pool), a scene is uploaded once ([`Renderer::upload`]), and
+/// [`Renderer::draw`] records one frame of it for a view and settings, reusing the frame's
+/// buffers and targets while the image size stays the same. A new camera, clipping planes or
+/// settings re-run the passes only; nothing is compiled or uploaded again.
+pub struct Renderer<'g> {
+    gpu: &'g Gpu,
+}
+
+impl<'g> Renderer<'g> {
+    pub fn new(gpu: &'g Gpu) -> Renderer<'g> {
+        Renderer { gpu }
+    }
+
+    pub fn gpu(&self) -> &'g Gpu {
+        self.gpu
+    }
+
+    /// Uploads a volume (as the slices read it), tube meshes and an isosurface.
+    pub fn upload(
+        &self,
+        volume: Option<&VolumeInput>,
+        meshes: &[TubeMesh],
+        iso: Option<&IsoInput>,
+    ) -> Result<GpuScene, GpuError> {
+        let gpu = self.gpu;
+        Ok(GpuScene {
+            volume: volume.map(|v| GpuVolume::upload(gpu, v)).transpose()?,
+            meshes: meshes
+                .iter()
+                .filter_map(|m| GpuMesh::upload(gpu, m))
+                .collect(),
+            iso: iso.map(|i| GpuIso::upload(gpu, i)),
+        })
+    }
+
+    /// Renders `scene` seen through `view` (whose clipping planes cut the volume; `tube_clip`
+    /// cuts the tubes) with settings `s`, and reads the last frame back.
+    pub fn draw(
+        &self,
+        scene: &GpuScene,
+        view: &EaView,
+        tube_clip: &[([f64; 3], f64)],
+        s: &Settings,
+        opts: DrawOptions,
+    ) -> Result<Output, GpuError> {
+        let gpu = self.gpu;
+        let (w, h) = (view.width, view.height);
+        check_size(gpu, w, h)?;
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let (frame, msaa_note) = Frame::new(gpu, scene, view, tube_clip, s)?;
+        let passes = frame.passes();
+        let whole = |enc: &mut wgpu::CommandEncoder| {
+            for (_, p) in &passes {
+                p(enc);
+            }
+        };
+        let mut frames_ms = Vec::new();
+        for _ in 0..opts.frames.max(1) {
+            frames_ms.push(submit_and_wait(gpu, &whole)?);
+        }
+        let mut per_pass = BTreeMap::new();
+        if opts.pass_timings {
+            for (name, p) in &passes {
+                per_pass.insert(name.to_string(), submit_and_wait(gpu, p.as_ref())?);
+            }
+        }
+        if let Some(e) = pollster::block_on(oom.pop()) {
+            return Err(GpuError::Operation(format!(
+                "the GPU ran out of memory rendering {w} x {h}: {e}"
+            )));
+        }
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Operation(format!(
+                "validation error in a render pass: {e}"
+            )));
+        }
+        let (image, aov) = frame.read_back(gpu)?;
+        let mut sorted = frames_ms.clone();
+        sorted.sort_by(f64::total_cmp);
+        Ok(Output {
+            notes: msaa_note.into_iter().collect(),
+            image,
+            aov,
+            timings: Timings {
+                total_ms: sorted[sorted.len() / 2],
+                frames_ms,
+                passes: per_pass,
+            },
+            triangles: frame.gbuf.triangles(),
+        })
+    }
+}
+
+/// Refuses image sizes the adapter cannot hold.
+fn check_size(gpu: &Gpu, w: u32, h: u32) -> Result<(), GpuError> {
     if w == 0 || h == 0 {
         return Err(GpuError::Operation(format!(
             "the viewport is {w} x {h}; width and height must be positive"
@@ -199,132 +317,153 @@ pub fn render(
             most >> 20
         )));
     }
-    let occlusion = matches!(s.method, Method::Combined | Method::Dos);
-    let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-    let cam: &Camera = &view.camera;
-    let (samples, msaa_note) = crate::gbuffer::sample_count(gpu, s.msaa);
-    let gbuf = GBuffer::new(gpu, cam, w, h, meshes, tube_clip, samples);
-    let slices = SlicePass::new(
-        gpu,
-        volume,
-        view,
-        &gbuf,
-        &SliceSettings {
-            occlusion,
-            cell: s.occlusion_cell,
-            cone: s.cone,
-            phong: s.method == Method::Phong,
-            column: s.column,
-            theta_deg: s.theta_deg,
-            blur_samples: s.blur_samples,
-            geometry_extinction: s.geometry_extinction,
-            light: s.light,
-        },
-    )?;
-    let use_vicinity = matches!(s.method, Method::Combined | Method::Vicinity);
-    let vicinity = VicinityPass::new(
-        gpu,
-        cam,
-        w,
-        h,
-        &gbuf,
-        &VicinitySettings {
-            samples: s.vicinity_samples,
-            distance: s.vicinity_distance,
-            theta_deg: s.theta_deg,
-            bias: s.vicinity_bias,
-        },
-    );
-    let iso_pass = IsoPass::new(gpu, cam, w, h, iso, s.light, &view.clip);
-    let composite = CompositePass::new(
-        gpu,
-        cam,
-        w,
-        h,
-        &gbuf,
-        &slices.eye,
-        &slices.state,
-        &vicinity.output,
-        &iso_pass,
-        &CompositeSettings {
-            partial: occlusion,
-            vicinity: use_vicinity,
-            combine: s.combine,
-            light: s.light,
-            background: view.background,
-        },
-    );
-    let fxaa = s.fxaa.then(|| FxaaPass::new(gpu, w, h, &composite.image));
-    let frame = Frame {
-        iso: iso_pass,
-        gbuf,
-        slices,
-        vicinity: use_vicinity.then_some(vicinity),
-        composite,
-        fxaa,
-    };
-    let passes = frame.passes();
-    let whole = |enc: &mut wgpu::CommandEncoder| {
-        for (_, p) in &passes {
-            p(enc);
-        }
-    };
-    let mut frames_ms = Vec::new();
-    for _ in 0..frames.max(1) {
-        frames_ms.push(submit_and_wait(gpu, &whole)?);
+    Ok(())
+}
+
+impl Frame {
+    /// One frame's passes for a scene, a view and settings (their uniforms and bind groups;
+    /// pipelines, targets and scratch buffers come from the pool), and a note when the MSAA
+    /// count was lowered.
+    fn new(
+        gpu: &Gpu,
+        scene: &GpuScene,
+        view: &EaView,
+        tube_clip: &[([f64; 3], f64)],
+        s: &Settings,
+    ) -> Result<(Frame, Option<String>), GpuError> {
+        let (w, h) = (view.width, view.height);
+        let occlusion = matches!(s.method, Method::Combined | Method::Dos);
+        let cam: &Camera = &view.camera;
+        let (samples, msaa_note) = crate::gbuffer::sample_count(gpu, s.msaa);
+        let gbuf = GBuffer::new(gpu, cam, w, h, &scene.meshes, tube_clip, samples);
+        let slices = SlicePass::new(
+            gpu,
+            scene.volume.as_ref(),
+            view,
+            &gbuf,
+            &SliceSettings {
+                occlusion,
+                cell: s.occlusion_cell,
+                cone: s.cone,
+                phong: s.method == Method::Phong,
+                column: s.column,
+                theta_deg: s.theta_deg,
+                blur_samples: s.blur_samples,
+                geometry_extinction: s.geometry_extinction,
+                light: s.light,
+            },
+        )?;
+        let use_vicinity = matches!(s.method, Method::Combined | Method::Vicinity);
+        let vicinity = VicinityPass::new(
+            gpu,
+            cam,
+            w,
+            h,
+            &gbuf,
+            &VicinitySettings {
+                samples: s.vicinity_samples,
+                distance: s.vicinity_distance,
+                theta_deg: s.theta_deg,
+                bias: s.vicinity_bias,
+            },
+        );
+        let iso_pass = IsoPass::new(gpu, cam, w, h, scene.iso.as_ref(), s.light, &view.clip);
+        let composite = CompositePass::new(
+            gpu,
+            cam,
+            w,
+            h,
+            &gbuf,
+            &slices.eye,
+            &slices.state,
+            &vicinity.output,
+            &iso_pass,
+            &CompositeSettings {
+                partial: occlusion,
+                vicinity: use_vicinity,
+                combine: s.combine,
+                light: s.light,
+                background: view.background,
+            },
+        );
+        let fxaa = s.fxaa.then(|| FxaaPass::new(gpu, w, h, &composite.image));
+        Ok((
+            Frame {
+                iso: iso_pass,
+                gbuf,
+                slices,
+                vicinity: use_vicinity.then_some(vicinity),
+                composite,
+                fxaa,
+                size: (w, h),
+            },
+            msaa_note,
+        ))
     }
-    let mut per_pass = BTreeMap::new();
-    for (name, p) in &passes {
-        per_pass.insert(name.to_string(), submit_and_wait(gpu, p.as_ref())?);
-    }
-    if let Some(e) = pollster::block_on(oom.pop()) {
-        return Err(GpuError::Operation(format!(
-            "the GPU ran out of memory rendering {w} x {h}: {e}"
-        )));
-    }
-    if let Some(e) = pollster::block_on(scope.pop()) {
-        return Err(GpuError::Operation(format!(
-            "validation error in a render pass: {e}"
-        )));
-    }
-    let n = w as u64 * h as u64;
-    let (_, image_rb) = gpu.output_buffers("image", n * 16);
-    let (_, aov_rb) = gpu.output_buffers("aov", n * 32);
-    let mut enc = gpu.device.create_command_encoder(&Default::default());
-    enc.copy_buffer_to_buffer(frame.final_image(), 0, &image_rb, 0, n * 16);
-    enc.copy_buffer_to_buffer(&frame.composite.aov, 0, &aov_rb, 0, n * 32);
-    gpu.queue.submit([enc.finish()]);
-    let f32s = |b: Vec<u8>| -> Vec<f32> {
-        b.chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-            .collect()
-    };
-    let img = f32s(gpu.read_buffer(&image_rb)?);
-    let aov = f32s(gpu.read_buffer(&aov_rb)?);
-    let mut sorted = frames_ms.clone();
-    sorted.sort_by(f64::total_cmp);
-    Ok(Output {
-        notes: msaa_note.into_iter().collect(),
-        image: img
-            .chunks_exact(4)
-            .map(|c| [c[0], c[1], c[2], c[3]])
-            .collect(),
-        aov: aov
-            .chunks_exact(8)
-            .map(|c| Aov {
-                volumetric: c[0],
-                partial: c[1],
-                vicinity: c[2],
-                combined: c[3],
-                depth: c[4],
+
+    /// Copies the final image and the AOVs back to the host.
+    fn read_back(&self, gpu: &Gpu) -> Result<(Vec<[f32; 4]>, Vec<Aov>), GpuError> {
+        let n = self.size.0 as u64 * self.size.1 as u64;
+        let readback = |label: &str, size: u64| {
+            gpu.sized(format!("readback {label}"), size, || {
+                gpu.output_buffers(label, size).1
             })
-            .collect(),
-        timings: Timings {
-            total_ms: sorted[sorted.len() / 2],
-            frames_ms,
-            passes: per_pass,
+        };
+        let image_rb = readback("image", n * 16);
+        let aov_rb = readback("aov", n * 32);
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(self.final_image(), 0, &image_rb, 0, n * 16);
+        enc.copy_buffer_to_buffer(&self.composite.aov, 0, &aov_rb, 0, n * 32);
+        gpu.queue.submit([enc.finish()]);
+        let f32s = |b: Vec<u8>| -> Vec<f32> {
+            b.chunks_exact(4)
+                .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+                .collect()
+        };
+        let img = f32s(gpu.read_buffer(&image_rb)?);
+        let aov = f32s(gpu.read_buffer(&aov_rb)?);
+        Ok((
+            img.chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect(),
+            aov.chunks_exact(8)
+                .map(|c| Aov {
+                    volumetric: c[0],
+                    partial: c[1],
+                    vicinity: c[2],
+                    combined: c[3],
+                    depth: c[4],
+                })
+                .collect(),
+        ))
+    }
+}
+
+/// Renders `frames` frames (at least 1) of the model seen through `view` (whose clipping
+/// planes cut the volume; `tube_clip` cuts the tubes), with the isosurface `iso` when given,
+/// and reads the last one back: [`Renderer::upload`] then [`Renderer::draw`] with per-pass
+/// timings.
+#[allow(clippy::too_many_arguments)]
+pub fn render(
+    gpu: &Gpu,
+    volume: Option<&VolumeInput>,
+    meshes: &[TubeMesh],
+    tube_clip: &[([f64; 3], f64)],
+    iso: Option<&IsoInput>,
+    view: &EaView,
+    s: &Settings,
+    frames: u32,
+) -> Result<Output, GpuError> {
+    let r = Renderer::new(gpu);
+    let scene = r.upload(volume, meshes, iso)?;
+    r.draw(
+        &scene,
+        view,
+        tube_clip,
+        s,
+        DrawOptions {
+            frames,
+            pass_timings: true,
         },
-        triangles: frame.gbuf.triangles(),
-    })
+    )
 }

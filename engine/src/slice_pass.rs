@@ -134,6 +134,105 @@ pub fn blur_stencil(rpx: [f64; 2]) -> (bool, [[f64; 3]; 3]) {
     (false, w)
 }
 
+/// A volume on the GPU: its samples, its transfer function (1-D points, then the 2-D rows'
+/// ranges) and the brick occupancy of [`occupancy`], uploaded once and read by every frame.
+#[derive(Clone)]
+pub struct GpuVolume {
+    field: wgpu::Buffer,
+    tf: wgpu::Buffer,
+    occ: wgpu::Buffer,
+    dims: [usize; 3],
+    world_to_index: glam::DMat4,
+    bricks: [usize; 3],
+    tf_points: u32,
+    tf_rows: u32,
+}
+
+impl GpuVolume {
+    /// Uploads `vi`; an error when its samples exceed the adapter's storage binding limit.
+    pub fn upload(gpu: &Gpu, vi: &VolumeInput) -> Result<GpuVolume, GpuError> {
+        let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
+        if vi.data.len() * 4 > limit {
+            return Err(GpuError::Operation(format!(
+                "the volume has {} samples; this adapter binds at most {} bytes ({} samples)",
+                vi.data.len(),
+                limit,
+                limit / 4
+            )));
+        }
+        let mut tfb: Vec<f32> = Vec::with_capacity(8 * vi.tf.points.len().max(1));
+        for (val, rgb, sigma) in &vi.tf.points {
+            tfb.extend([
+                *val as f32,
+                rgb[0] as f32,
+                rgb[1] as f32,
+                rgb[2] as f32,
+                *sigma as f32,
+                0.0,
+                0.0,
+                0.0,
+            ]);
+        }
+        let rows = vi.tf.row_slices();
+        let mut first = 0usize;
+        for (r, p) in vi.tf.rows.iter().zip(&rows) {
+            tfb.extend([r.0 as f32, first as f32, (first + p.len()) as f32, 0.0]);
+            first += p.len();
+        }
+        let (bricks, occ) = occupancy(vi.data, vi.vol.dims, vi.tf);
+        Ok(Self::make(
+            gpu,
+            vi.data,
+            &tfb,
+            &occ,
+            vi.vol.dims,
+            vi.vol.affine.inverse(),
+            bricks,
+            (vi.tf.points.len() as u32, vi.tf.rows.len() as u32),
+        ))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn make(
+        gpu: &Gpu,
+        field: &[f32],
+        tf: &[f32],
+        occ: &[u32],
+        dims: [usize; 3],
+        world_to_index: glam::DMat4,
+        bricks: [usize; 3],
+        (tf_points, tf_rows): (u32, u32),
+    ) -> GpuVolume {
+        let storage = wgpu::BufferUsages::STORAGE;
+        GpuVolume {
+            field: gpu.buffer("slice field", bytemuck::cast_slice(field), storage),
+            tf: gpu.buffer("slice transfer", bytemuck::cast_slice(tf), storage),
+            occ: gpu.buffer("slice occupancy", bytemuck::cast_slice(occ), storage),
+            dims,
+            world_to_index,
+            bricks,
+            tf_points,
+            tf_rows,
+        }
+    }
+
+    /// The stand-in the passes bind when a scene has no volume (never sampled).
+    fn none(gpu: &Gpu) -> GpuVolume {
+        gpu.cached("no volume".into(), || {
+            Self::make(
+                gpu,
+                &[0.0; 8],
+                &[0.0; 8],
+                &[0],
+                [2, 2, 2],
+                glam::DMat4::IDENTITY,
+                [1, 1, 1],
+                (0, 0),
+            )
+        })
+    }
+}
+
 pub struct SlicePass {
     light_pipe: wgpu::ComputePipeline,
     march_pipe: wgpu::ComputePipeline,
@@ -154,7 +253,7 @@ pub struct SlicePass {
 impl SlicePass {
     pub fn new(
         gpu: &Gpu,
-        volume: Option<&VolumeInput>,
+        volume: Option<&GpuVolume>,
         v: &EaView,
         gbuf: &GBuffer,
         s: &SliceSettings,
@@ -167,18 +266,8 @@ impl SlicePass {
             )));
         }
         let limit = device.limits().max_storage_buffer_binding_size as usize;
-        if let Some(vi) = volume {
-            if vi.data.len() * 4 > limit {
-                return Err(GpuError::Operation(format!(
-                    "the volume has {} samples; this adapter binds at most {} bytes ({} samples)",
-                    vi.data.len(),
-                    limit,
-                    limit / 4
-                )));
-            }
-        }
         let module = gpu.shader("slice_pass.wgsl", SHADER);
-        let tf2d = volume.is_some_and(|vi| !vi.tf.rows.is_empty());
+        let tf2d = volume.is_some_and(|vi| vi.tf_rows > 0);
         let l0 = gpu.layout(
             "slice group 0",
             wgpu::ShaderStages::COMPUTE,
@@ -249,46 +338,9 @@ impl SlicePass {
                 limit >> 20
             )));
         }
-        let (w2i, dims, field, tfb, nb, occ) = match volume {
-            Some(vi) => {
-                let mut tfb: Vec<f32> = Vec::with_capacity(8 * vi.tf.points.len().max(1));
-                for (val, rgb, sigma) in &vi.tf.points {
-                    tfb.extend([
-                        *val as f32,
-                        rgb[0] as f32,
-                        rgb[1] as f32,
-                        rgb[2] as f32,
-                        *sigma as f32,
-                        0.0,
-                        0.0,
-                        0.0,
-                    ]);
-                }
-                let rows = vi.tf.row_slices();
-                let mut first = 0usize;
-                for (r, p) in vi.tf.rows.iter().zip(&rows) {
-                    tfb.extend([r.0 as f32, first as f32, (first + p.len()) as f32, 0.0]);
-                    first += p.len();
-                }
-                let (nb, occ) = occupancy(vi.data, vi.vol.dims, vi.tf);
-                (
-                    vi.vol.affine.inverse(),
-                    vi.vol.dims,
-                    vi.data.to_vec(),
-                    tfb,
-                    nb,
-                    occ,
-                )
-            }
-            None => (
-                glam::DMat4::IDENTITY,
-                [2, 2, 2],
-                vec![0.0; 8],
-                vec![0.0; 8],
-                [1, 1, 1],
-                vec![0],
-            ),
-        };
+        let has_volume = volume.is_some();
+        let vol = volume.cloned().unwrap_or_else(|| GpuVolume::none(gpu));
+        let (w2i, dims, nb) = (vol.world_to_index, vol.dims, vol.bricks);
         let mut u = Uniform::default();
         u.mat(v.camera.view_projection(aspect).inverse())
             .mat(w2i)
@@ -301,12 +353,7 @@ impl SlicePass {
                 s.theta_deg.to_radians().tan(),
                 s.geometry_extinction,
             ])
-            .u32x4([
-                v.slices,
-                volume.map_or(0, |vi| vi.tf.points.len() as u32),
-                v.width,
-                v.height,
-            ])
+            .u32x4([v.slices, vol.tf_points, v.width, v.height])
             .u32x4([nb[0] as u32, nb[1] as u32, nb[2] as u32, BRICK as u32]);
         for i in 0..MAX_CLIP {
             let (n, o) = v.clip.get(i).copied().unwrap_or(([0.0; 3], 0.0));
@@ -316,7 +363,7 @@ impl SlicePass {
         u.u32x4([
             v.clip.len() as u32,
             mode,
-            volume.is_some() as u32,
+            has_volume as u32,
             s.blur_samples.max(1),
         ])
         .vec4([
@@ -326,17 +373,8 @@ impl SlicePass {
             0.0,
         ])
         .vec4(s.light)
-        .u32x4([
-            cells.0,
-            cells.1,
-            cell,
-            volume.map_or(0, |vi| vi.tf.rows.len() as u32),
-        ]);
-        let storage = wgpu::BufferUsages::STORAGE;
+        .u32x4([cells.0, cells.1, cell, vol.tf_rows]);
         let params = gpu.buffer("slice params", &u.0, wgpu::BufferUsages::UNIFORM);
-        let field = gpu.buffer("slice field", bytemuck::cast_slice(&field), storage);
-        let tf = gpu.buffer("slice transfer", bytemuck::cast_slice(&tfb), storage);
-        let occ = gpu.buffer("slice occupancy", bytemuck::cast_slice(&occ), storage);
         let n = v.width as u64 * v.height as u64;
         let eye = gpu.scratch("eye buffer", n * 16, wgpu::BufferUsages::COPY_SRC);
         let state = gpu.scratch("slice state", n * 32, wgpu::BufferUsages::COPY_SRC);
@@ -352,9 +390,9 @@ impl SlicePass {
             &l0,
             &[
                 params.as_entire_binding(),
-                field.as_entire_binding(),
-                tf.as_entire_binding(),
-                occ.as_entire_binding(),
+                vol.field.as_entire_binding(),
+                vol.tf.as_entire_binding(),
+                vol.occ.as_entire_binding(),
                 eye.as_entire_binding(),
                 state.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&gbuf.front),

@@ -627,3 +627,44 @@ fn the_reference_follows_the_column_rule_as_the_gpu_does() {
     assert!(rc < ri - 0.02, "reference: column {rc}, inside {ri}");
     assert!(gline(&gc) < gline(&gi) - 0.02);
 }
+
+#[test]
+fn a_long_lived_renderer_draws_new_cameras_without_compiling_or_uploading() {
+    let gpu = gpu();
+    let s = Scene::new(
+        Some((cube(|p| (p.length() < 8.0) as u8 as f32), medium(0.2))),
+        vec![tubes(&[[[-9.0, 0.0, 4.0], [9.0, 0.0, 4.0]]], 1.0)],
+    );
+    let (vol, data, tf) = s.vol.as_ref().unwrap();
+    let r = renderer::Renderer::new(&gpu);
+    let scene = r
+        .upload(Some(&VolumeInput { vol, data, tf }), &s.meshes, None)
+        .unwrap();
+    let opts = renderer::DrawOptions::default();
+    let cams = [top_camera(true), top_camera(false)];
+    let first: Vec<Output> = cams
+        .iter()
+        .map(|c| {
+            r.draw(&scene, &view(*c), &[], &settings(Method::Combined), opts)
+                .unwrap()
+        })
+        .collect();
+    let made = gpu.pool_made();
+    // Later frames at either camera compile, allocate and upload nothing new, and give the
+    // same images as the first ones (nothing left over from the frame before).
+    for (c, want) in cams.iter().zip(&first).rev() {
+        let again = r
+            .draw(&scene, &view(*c), &[], &settings(Method::Combined), opts)
+            .unwrap();
+        assert_eq!(gpu.pool_made(), made, "a frame made new pooled objects");
+        assert_eq!(again.image, want.image);
+        assert!(
+            again.timings.passes.is_empty(),
+            "per-pass timing only when asked"
+        );
+    }
+    // The same image as the one-shot path (a new upload).
+    let fresh = s.render(&gpu, &view(cams[1]), &settings(Method::Combined));
+    assert_eq!(fresh.image, first[1].image);
+    assert!(!fresh.timings.passes.is_empty());
+}

@@ -609,3 +609,152 @@ fn the_cfd_demo_traces_and_renders() {
     assert!(!e.status.success());
     assert!(String::from_utf8_lossy(&e.stderr).contains("mni or cfd"));
 }
+
+/// The largest difference of two PNGs' 8-bit channels.
+fn max_diff(a: &Path, b: &Path) -> i32 {
+    let (a, b) = (
+        image::open(a).unwrap().to_rgb8(),
+        image::open(b).unwrap().to_rgb8(),
+    );
+    assert_eq!(a.dimensions(), b.dimensions());
+    a.pixels()
+        .zip(b.pixels())
+        .flat_map(|(p, q)| (0..3).map(move |k| (p.0[k] as i32 - q.0[k] as i32).abs()))
+        .max()
+        .unwrap()
+}
+
+/// One `umbra render` of `scene` with `--set` overrides, to `png`.
+fn single(scene: &Path, png: &Path, set: &[String]) {
+    let mut c = umbra();
+    c.arg("render").arg(scene).arg("-o").arg(png);
+    for s in set {
+        c.args(["--set", s]);
+    }
+    ok(&c.output().unwrap());
+}
+
+#[test]
+fn a_turntable_renders_the_frames_single_renders_give() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = small_scene(dir.path(), "");
+    let pattern = dir.path().join("new/folder/f_##.png");
+    let timings = dir.path().join("t.json");
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "4", "-o"])
+        .arg(&pattern)
+        .arg("--timings-json")
+        .arg(&timings)
+        .output()
+        .unwrap();
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    // Not a terminal: a plain progress line per frame.
+    assert_eq!(err.matches("frame ").count(), 4, "{err}");
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&timings).unwrap()).unwrap();
+    let seq = t["sequence"].as_array().unwrap();
+    assert_eq!(seq.len(), 4);
+    assert!(seq.iter().all(|f| f["total_ms"].as_f64().unwrap() > 0.0));
+    for k in 0..4 {
+        let frame = dir.path().join(format!("new/folder/f_{k:02}.png"));
+        assert!(frame.exists(), "{}", frame.display());
+        // Orbit camera (the default): azimuth 30 + 90 k.
+        if k % 2 == 1 {
+            let one = dir.path().join(format!("one_{k}.png"));
+            single(&s, &one, &[format!("camera.azimuth={}", 30 + 90 * k)]);
+            assert!(max_diff(&frame, &one) <= 1, "frame {k}");
+        }
+    }
+    // Frames differ from each other (the camera turns).
+    assert!(
+        max_diff(
+            &dir.path().join("new/folder/f_00.png"),
+            &dir.path().join("new/folder/f_02.png")
+        ) > 16
+    );
+}
+
+#[test]
+fn a_look_at_turntable_turns_the_eye_about_the_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = small_scene(
+        dir.path(),
+        "[camera]\neye = [40.0, -250.0, 60.0]\ntarget = [40.0, 0.0, 60.0]\nup = [0.0, 0.0, 1.0]\n",
+    );
+    let pattern = dir.path().join("f_#.png");
+    ok(&umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "4", "-o"])
+        .arg(&pattern)
+        .output()
+        .unwrap());
+    // A quarter turn clockwise seen from +z: the eye moves from -y to -x of the target.
+    let one = dir.path().join("one.png");
+    single(&s, &one, &["camera.eye=[-210.0, 0.0, 60.0]".into()]);
+    assert!(max_diff(&dir.path().join("f_1.png"), &one) <= 1);
+}
+
+#[test]
+fn a_camera_path_interpolates_its_keys_in_one_process() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = small_scene(dir.path(), "");
+    let path = dir.path().join("path.toml");
+    std::fs::write(
+        &path,
+        "frames = 3\n[[key]]\ntime = 0.0\nazimuth = 0.0\nelevation = 10.0\n\
+         [[key]]\ntime = 2.0\nazimuth = 180.0\nelevation = 30.0\n",
+    )
+    .unwrap();
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("--camera-path")
+        .arg(&path)
+        .arg("-o")
+        .arg(dir.path().join("p_###.png"))
+        .output()
+        .unwrap();
+    ok(&out);
+    let one = dir.path().join("one.png");
+    single(
+        &s,
+        &one,
+        &["camera.azimuth=90".into(), "camera.elevation=20".into()],
+    );
+    assert!(max_diff(&dir.path().join("p_001.png"), &one) <= 1);
+    assert!(dir.path().join("p_002.png").exists() && !dir.path().join("p_003.png").exists());
+    // Bad paths and names are refused naming the file and the key.
+    std::fs::write(
+        &path,
+        "frames = 3\n[[key]]\ntime = 1.0\n[[key]]\ntime = 0.5\n",
+    )
+    .unwrap();
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("--camera-path")
+        .arg(&path)
+        .arg("-o")
+        .arg(dir.path().join("p_###.png"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("path.toml") && err.contains("key[1].time"),
+        "{err}"
+    );
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "3", "-o"])
+        .arg(dir.path().join("plain.png"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("run of #"));
+}

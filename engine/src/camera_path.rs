@@ -1,0 +1,393 @@
+//! Frame sequences of one scene: turntables (`--orbit N`) and keyframed camera paths
+//! (`--camera-path FILE`). Each frame is the scene with its `[camera]` replaced, so a frame
+//! is exactly the image a single render with those camera keys gives.
+//!
+//! Turntable: frame `k` of `n` turns the camera by `k 360 / n` degrees. An orbit camera (no
+//! `camera.eye`) renders at `camera.azimuth + k 360 / n`; a look-at camera turns its `eye`
+//! about `target` around `up` by the same angle, in the sense in which the azimuth grows
+//! (clockwise seen from the tip of `up`).
+//!
+//! Camera path file (TOML; unknown keys are errors naming key and line):
+//!
+//! ```toml
+//! frames = 120              # frames in all, first key to last; or
+//! # fps = 30                # frames per second of `time`: floor((t_last - t_first) fps) + 1
+//! interpolation = "linear"  # or "catmull-rom" (through every key, C1)
+//! [[key]]
+//! time = 0.0                # seconds, increasing
+//! azimuth = 30.0            # orbit keys: azimuth, elevation, distance (each defaults to
+//! elevation = 20.0          #   the scene's camera value)
+//! [[key]]
+//! time = 4.0
+//! azimuth = 390.0           # angles are not wrapped: 30 -> 390 is one full turn
+//! ```
+//!
+//! Look-at keys give `eye` (and optionally `target`, `up`; default the scene camera's, or the
+//! scene's centre for `target`); all keys of a path are of one kind. `fov_y` may be keyed in
+//! either kind. Values are interpolated per component between the keys around each frame's
+//! time; `up` is normalised after interpolation.
+
+use crate::scene::{CameraSpec, Scene};
+use serde::Deserialize;
+use std::path::Path;
+
+/// How values between keys are found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Interpolation {
+    #[default]
+    Linear,
+    CatmullRom,
+}
+
+/// One key of a camera path.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Key {
+    pub time: f64,
+    pub azimuth: Option<f64>,
+    pub elevation: Option<f64>,
+    pub distance: Option<f64>,
+    pub eye: Option<[f64; 3]>,
+    pub target: Option<[f64; 3]>,
+    pub up: Option<[f64; 3]>,
+    pub fov_y: Option<f64>,
+}
+
+/// A camera path file.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraPath {
+    pub frames: Option<u32>,
+    pub fps: Option<f64>,
+    #[serde(default)]
+    pub interpolation: Interpolation,
+    pub key: Vec<Key>,
+}
+
+/// The most frames a sequence may have.
+pub const MAX_FRAMES: u32 = 100_000;
+
+/// Value at `t` of the samples `(t_i, v_i)` (times increasing, at least one).
+fn interpolate(keys: &[(f64, f64)], t: f64, how: Interpolation) -> f64 {
+    let n = keys.len();
+    if n == 1 || t <= keys[0].0 {
+        return keys[0].1;
+    }
+    if t >= keys[n - 1].0 {
+        return keys[n - 1].1;
+    }
+    let i = keys.iter().rposition(|k| k.0 <= t).unwrap_or(0).min(n - 2);
+    let (t0, p1) = keys[i];
+    let (t1, p2) = keys[i + 1];
+    let u = (t - t0) / (t1 - t0);
+    match how {
+        Interpolation::Linear => p1 + (p2 - p1) * u,
+        Interpolation::CatmullRom => {
+            // Tangents by finite differences over time (non-uniform keys), ends clamped.
+            let m = |j: usize| -> f64 {
+                let (a, b) = (j.saturating_sub(1), (j + 1).min(n - 1));
+                if a == b {
+                    0.0
+                } else {
+                    (keys[b].1 - keys[a].1) / (keys[b].0 - keys[a].0)
+                }
+            };
+            let h = t1 - t0;
+            let (m1, m2) = (m(i) * h, m(i + 1) * h);
+            let (u2, u3) = (u * u, u * u * u);
+            (2.0 * u3 - 3.0 * u2 + 1.0) * p1
+                + (u3 - 2.0 * u2 + u) * m1
+                + (-2.0 * u3 + 3.0 * u2) * p2
+                + (u3 - u2) * m2
+        }
+    }
+}
+
+impl CameraPath {
+    /// Reads and checks a camera path file.
+    pub fn load(path: &Path) -> Result<CameraPath, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        Self::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    /// Parses and checks a camera path.
+    pub fn parse(text: &str) -> Result<CameraPath, String> {
+        let p: CameraPath = toml::from_str(text).map_err(|e| e.to_string())?;
+        if p.key.is_empty() {
+            return Err("key: a camera path needs at least one [[key]]".into());
+        }
+        for (i, k) in p.key.iter().enumerate() {
+            let orbit = k.azimuth.is_some() || k.elevation.is_some() || k.distance.is_some();
+            let look = k.eye.is_some() || k.target.is_some() || k.up.is_some();
+            if orbit && look {
+                return Err(format!(
+                    "key[{i}]: give orbit angles (azimuth, elevation, distance) or eye/target/up, not both"
+                ));
+            }
+            let values = [k.time]
+                .into_iter()
+                .chain(k.azimuth)
+                .chain(k.elevation)
+                .chain(k.distance)
+                .chain(k.fov_y)
+                .chain(k.eye.into_iter().flatten())
+                .chain(k.target.into_iter().flatten())
+                .chain(k.up.into_iter().flatten());
+            if values.into_iter().any(|v| !v.is_finite()) {
+                return Err(format!("key[{i}]: every value must be finite"));
+            }
+            if i > 0 && k.time <= p.key[i - 1].time {
+                return Err(format!(
+                    "key[{i}].time: {} is not after key[{}].time = {}",
+                    k.time,
+                    i - 1,
+                    p.key[i - 1].time
+                ));
+            }
+        }
+        let first_look = p.key[0].eye.is_some();
+        if let Some(i) = p.key.iter().position(|k| k.eye.is_some() != first_look) {
+            return Err(format!(
+                "key[{i}]: all keys must be of one kind ({} like key[0])",
+                if first_look {
+                    "with an eye"
+                } else {
+                    "orbit angles, no eye"
+                }
+            ));
+        }
+        match (p.frames, p.fps) {
+            (Some(_), Some(_)) => return Err("frames and fps: give one, not both".into()),
+            (None, None) => return Err("frames or fps: give one".into()),
+            (Some(n), None) if n == 0 || n > MAX_FRAMES => {
+                return Err(format!("frames: {n} is not 1 to {MAX_FRAMES}"))
+            }
+            (None, Some(f)) if !(f.is_finite() && f > 0.0) => {
+                return Err(format!("fps: {f} must be positive"))
+            }
+            _ => {}
+        }
+        if p.frame_times().len() as u64 > MAX_FRAMES as u64 {
+            return Err(format!("fps: more than {MAX_FRAMES} frames"));
+        }
+        Ok(p)
+    }
+
+    /// The time of every frame.
+    pub fn frame_times(&self) -> Vec<f64> {
+        let (t0, t1) = (self.key[0].time, self.key[self.key.len() - 1].time);
+        match (self.frames, self.fps) {
+            (Some(1), _) => vec![t0],
+            (Some(n), _) => (0..n)
+                .map(|k| t0 + (t1 - t0) * k as f64 / (n - 1) as f64)
+                .collect(),
+            (None, Some(f)) => {
+                let n = (((t1 - t0) * f).floor() as u64).min(MAX_FRAMES as u64) + 1;
+                (0..n).map(|k| t0 + k as f64 / f).collect()
+            }
+            (None, None) => vec![t0],
+        }
+    }
+
+    /// The scene's camera at time `t`.
+    pub fn camera_at(&self, base: &CameraSpec, t: f64) -> CameraSpec {
+        let how = self.interpolation;
+        let series = |get: &dyn Fn(&Key) -> Option<f64>| -> Option<f64> {
+            let pts: Vec<(f64, f64)> = self
+                .key
+                .iter()
+                .filter_map(|k| get(k).map(|v| (k.time, v)))
+                .collect();
+            (!pts.is_empty()).then(|| interpolate(&pts, t, how))
+        };
+        let vec3 = |get: &dyn Fn(&Key) -> Option<[f64; 3]>| -> Option<[f64; 3]> {
+            let c = |j: usize| series(&|k: &Key| get(k).map(|v| v[j]));
+            Some([c(0)?, c(1)?, c(2)?])
+        };
+        let mut c = base.clone();
+        if let Some(f) = series(&|k| k.fov_y) {
+            c.fov_y = f;
+        }
+        if self.key[0].eye.is_some() {
+            c.eye = vec3(&|k| k.eye);
+            if let Some(tg) = vec3(&|k| k.target) {
+                c.target = Some(tg);
+            }
+            if let Some(u) = vec3(&|k| k.up) {
+                let l = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+                if l > 0.0 {
+                    c.up = u.map(|x| x / l);
+                }
+            }
+        } else {
+            c.eye = None;
+            c.azimuth = series(&|k| k.azimuth).unwrap_or(base.azimuth);
+            c.elevation = series(&|k| k.elevation).unwrap_or(base.elevation);
+            c.distance = series(&|k| k.distance).unwrap_or(base.distance);
+        }
+        c
+    }
+}
+
+/// The camera of turntable frame `k` of `n` for `base` (see the module doc); `centre` is the
+/// scene's centre, the default target of a look-at camera.
+pub fn orbit_camera(base: &CameraSpec, centre: [f64; 3], k: u32, n: u32) -> CameraSpec {
+    let angle = 360.0 * k as f64 / n.max(1) as f64;
+    let mut c = base.clone();
+    match base.eye {
+        None => c.azimuth = base.azimuth + angle,
+        Some(eye) => {
+            let target = glam::DVec3::from(base.target.unwrap_or(centre));
+            let up = glam::DVec3::from(base.up).normalize_or(glam::DVec3::Z);
+            let q = glam::DQuat::from_axis_angle(up, -angle.to_radians());
+            let e = target + q * (glam::DVec3::from(eye) - target);
+            c.eye = Some(e.to_array());
+        }
+    }
+    c
+}
+
+/// The cameras of a sequence for `scene`: a turntable of `n` frames or a camera path.
+pub enum Sequence {
+    Orbit(u32),
+    Path(CameraPath),
+}
+
+impl Sequence {
+    /// The `[camera]` of every frame.
+    pub fn cameras(&self, scene: &Scene, centre: [f64; 3]) -> Vec<CameraSpec> {
+        match self {
+            Sequence::Orbit(n) => (0..*n)
+                .map(|k| orbit_camera(&scene.camera, centre, k, *n))
+                .collect(),
+            Sequence::Path(p) => p
+                .frame_times()
+                .into_iter()
+                .map(|t| p.camera_at(&scene.camera, t))
+                .collect(),
+        }
+    }
+}
+
+/// The output path of frame `k`: the last run of `#` in the file name replaced by `k`,
+/// zero-padded to the run's length (longer when `k` needs more digits).
+pub fn frame_path(pattern: &Path, k: usize) -> Result<std::path::PathBuf, String> {
+    let name = pattern
+        .file_name()
+        .and_then(|n| n.to_str())
+        .ok_or_else(|| format!("{}: the output needs a file name", pattern.display()))?;
+    let end = name.rfind('#').ok_or_else(|| {
+        format!(
+            "{}: a sequence's output name needs a run of # for the frame number (e.g. frame_####.png)",
+            pattern.display()
+        )
+    })? + 1;
+    let start = name[..end].trim_end_matches('#').len();
+    let digits = end - start;
+    let file = format!("{}{k:0digits$}{}", &name[..start], &name[end..]);
+    Ok(pattern.with_file_name(file))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_names_replace_the_last_run_of_hashes() {
+        let p = Path::new("out/frame_####.png");
+        assert_eq!(frame_path(p, 7).unwrap(), Path::new("out/frame_0007.png"));
+        assert_eq!(
+            frame_path(p, 12345).unwrap(),
+            Path::new("out/frame_12345.png")
+        );
+        assert_eq!(
+            frame_path(Path::new("a#b_##.exr"), 3).unwrap(),
+            Path::new("a#b_03.exr")
+        );
+        assert!(frame_path(Path::new("out/frame.png"), 0)
+            .unwrap_err()
+            .contains("run of #"));
+    }
+
+    #[test]
+    fn a_turntable_turns_the_azimuth_or_the_eye_by_equal_steps() {
+        let base = CameraSpec::default();
+        let c = orbit_camera(&base, [0.0; 3], 3, 8);
+        assert!((c.azimuth - (base.azimuth + 135.0)).abs() < 1e-12);
+        // A look-at camera on the -y axis looking at the origin, z up: a quarter turn brings
+        // it to -x (as the azimuth's 0 -> 90 degrees does for an orbit camera).
+        let look = CameraSpec {
+            eye: Some([0.0, -5.0, 1.0]),
+            target: Some([0.0, 0.0, 0.0]),
+            ..CameraSpec::default()
+        };
+        let e = orbit_camera(&look, [9.0; 3], 1, 4).eye.unwrap();
+        assert!((e[0] + 5.0).abs() < 1e-12 && e[1].abs() < 1e-12 && (e[2] - 1.0).abs() < 1e-12);
+        let orbit = crate::camera::Camera::orbit(
+            [glam::DVec3::splat(-1.0), glam::DVec3::splat(1.0)],
+            90.0,
+            0.0,
+            3.0,
+            Some(35.0),
+        );
+        assert!(orbit.eye.x < -1.0 && orbit.eye.y.abs() < 1e-9);
+    }
+
+    #[test]
+    fn paths_interpolate_between_keys_and_hit_them() {
+        let p = CameraPath::parse(
+            "frames = 5\n[[key]]\ntime = 0\nazimuth = 0\n[[key]]\ntime = 1\nazimuth = 90\nelevation = 10\n[[key]]\ntime = 2\nazimuth = 360\n",
+        )
+        .unwrap();
+        assert_eq!(p.frame_times(), vec![0.0, 0.5, 1.0, 1.5, 2.0]);
+        let base = CameraSpec::default();
+        let az: Vec<f64> = p
+            .frame_times()
+            .iter()
+            .map(|&t| p.camera_at(&base, t).azimuth)
+            .collect();
+        assert_eq!(az, vec![0.0, 45.0, 90.0, 225.0, 360.0]);
+        // A value keyed once holds everywhere.
+        assert_eq!(p.camera_at(&base, 0.2).elevation, 10.0);
+        // Catmull-Rom passes through the keys and is smooth between.
+        let c = CameraPath {
+            interpolation: Interpolation::CatmullRom,
+            ..p.clone()
+        };
+        for (t, want) in [(0.0, 0.0), (1.0, 90.0), (2.0, 360.0)] {
+            assert!((c.camera_at(&base, t).azimuth - want).abs() < 1e-9);
+        }
+        let mid = c.camera_at(&base, 1.5).azimuth;
+        assert!(mid > 90.0 && mid < 360.0, "{mid}");
+        // fps: floor(2 * 2) + 1 = 5 frames, 0.5 s apart.
+        let f = CameraPath::parse("fps = 2\n[[key]]\ntime = 0\n[[key]]\ntime = 2\n").unwrap();
+        assert_eq!(f.frame_times(), vec![0.0, 0.5, 1.0, 1.5, 2.0]);
+    }
+
+    #[test]
+    fn bad_paths_are_refused_naming_the_key() {
+        let bad = |t: &str, want: &str| {
+            let e = CameraPath::parse(t).unwrap_err();
+            assert!(e.contains(want), "{t}: {e}");
+        };
+        bad("frames = 2\n", "key");
+        bad(
+            "frames = 2\n[[key]]\ntime = 1\n[[key]]\ntime = 1\n",
+            "key[1].time",
+        );
+        bad(
+            "frames = 2\n[[key]]\ntime = 0\neye = [1, 2, 3]\nazimuth = 3\n",
+            "key[0]",
+        );
+        bad(
+            "frames = 2\n[[key]]\ntime = 0\neye = [1, 2, 3]\n[[key]]\ntime = 1\nazimuth = 3\n",
+            "key[1]",
+        );
+        bad("[[key]]\ntime = 0\n", "frames or fps");
+        bad("frames = 0\n[[key]]\ntime = 0\n", "frames");
+        bad("frames = 2\n[[key]]\ntime = 0\nzoom = 2\n", "zoom");
+        bad("fps = 1e9\n[[key]]\ntime = 0\n[[key]]\ntime = 1\n", "fps");
+        bad("frames = 2\n[[key]]\ntime = nan\n", "finite");
+    }
+}
