@@ -7,18 +7,21 @@ struct Params {
     background: vec4<f32>,
     // ambient, diffuse, specular, shininess
     light: vec4<f32>,
-    // width, height, occlusion terms used (1 partial, 2 vicinity), combine (0 min, 1 product)
+    // width, height, surface terms (layers of `terms` folded), combine (0 min, 1 product)
     mode: vec4<u32>,
 };
 
 @group(0) @binding(0) var<uniform> C: Params;
 @group(0) @binding(1) var<storage, read> eye_buf: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> state: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> vicinity: array<f32>;
+// The surface terms' layers (layer t of pixel i at t * width * height + i), written by the
+// passes of the method's terms; composite leaves in each the value it used (1 where no tube
+// surface is nearest), which is that term's AOV.
+@group(0) @binding(3) var<storage, read_write> terms: array<f32>;
 @group(0) @binding(6) var front_depth: texture_2d<f32>;
 // Linear RGBA: colour, and alpha = coverage (1 where a surface is, else the volume's opacity).
 @group(0) @binding(7) var<storage, read_write> image: array<vec4<f32>>;
-// AOVs per pixel: (volumetric, partial, vicinity, combined), (linear depth, 0, 0, 0).
+// AOVs per pixel: (volumetric, combined, linear depth, 0).
 @group(0) @binding(8) var<storage, read_write> aov: array<vec4<f32>>;
 // The isosurface (iso_pass): shaded colour and linear depth (0: none), and its ambient term.
 @group(0) @binding(9) var<storage, read> iso_out: array<vec4<f32>>;
@@ -37,8 +40,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let s1 = state[2u * idx + 1u];
     let z = textureLoad(front_depth, vec2<i32>(id.xy), 0).r;
     let volumetric = select(1.0, s0.z / s0.w, s0.w > 1e-6);
-    var partial = 1.0;
-    var vic = 1.0;
+    let n = w * h;
     var combined = 1.0;
     var under = C.background.rgb;
     var coverage = e.a;
@@ -49,21 +51,22 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         under = iso.rgb;
         coverage = 1.0;
         image[idx] = vec4<f32>(under * (1.0 - e.a) + e.rgb, coverage);
-        aov[2u * idx] = vec4<f32>(volumetric, 1.0, 1.0, combined);
-        aov[2u * idx + 1u] = vec4<f32>(iso.w, 0.0, 0.0, 0.0);
+        for (var t = 0u; t < C.mode.z; t = t + 1u) {
+            terms[t * n + idx] = 1.0;
+        }
+        aov[idx] = vec4<f32>(volumetric, combined, iso.w, 0.0);
         return;
     }
     // The surface, shaded per sample (each with its own normal) and averaged; samples no
     // surface covers show the background. The occlusion terms are per pixel.
-    if (z > 0.0) {
-        if ((C.mode.z & 1u) != 0u) {
-            partial = s0.y;
+    for (var t = 0u; t < C.mode.z; t = t + 1u) {
+        var v = 1.0;
+        if (z > 0.0) {
+            v = terms[t * n + idx];
+            // eq. 7 (min) or eq. 8 (product), over every term of the method
+            combined = select(min(combined, v), combined * v, C.mode.w == 1u);
         }
-        if ((C.mode.z & 2u) != 0u) {
-            vic = vicinity[idx];
-        }
-        // eq. 7 (min) or eq. 8 (product)
-        combined = select(min(partial, vic), partial * vic, C.mode.w == 1u);
+        terms[t * n + idx] = v;
     }
     // The head light: from the eye along the pixel's ray.
     let ndc = vec2<f32>(
@@ -102,6 +105,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (s1.x > 0.0 && (z <= 0.0 || s1.x < z)) {
         depth = s1.x;
     }
-    aov[2u * idx] = vec4<f32>(volumetric, partial, vic, combined);
-    aov[2u * idx + 1u] = vec4<f32>(depth, 0.0, 0.0, 0.0);
+    aov[idx] = vec4<f32>(volumetric, combined, depth, 0.0);
 }

@@ -50,7 +50,11 @@ struct Params {
     light: vec4<f32>,
     // cells per axis (x, y), cell edge in pixels, 2-D transfer function rows (0: 1-D)
     cells: vec4<u32>,
+    // the layer of `terms` the partial occlusion goes to (NO_LAYER: none), unused x 3
+    layers: vec4<u32>,
 };
+
+const NO_LAYER: u32 = 0xffffffffu;
 
 // Per slice (a dynamic offset into a storage buffer): the index, whether the blur needs the
 // tap loop (radius above one cell), the radius in cells, and otherwise the blur as a 3x3
@@ -83,6 +87,8 @@ struct Slice {
 // Per cell: (nearest front depth of its pixels or 0, farthest back depth, 1 / cos of the
 // cell's ray, unused).
 @group(0) @binding(9) var<storage, read_write> cell_state: array<vec4<f32>>;
+// The surface terms' layers (see composite.wgsl): `march` writes the partial occlusion.
+@group(0) @binding(10) var<storage, read_write> terms: array<f32>;
 @group(1) @binding(0) var<storage, read> S: Slice;
 // Light leaving the previous slice towards the next (L_{k-1} = O_{k-1} (1 - alpha_{k-1})),
 // and the same for this slice, per cell.
@@ -577,4 +583,7 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     state[2u * idx] = vec4<f32>(1.0, partial, acc.x, acc.y);
     state[2u * idx + 1u] = vec4<f32>(half, 0.0, 0.0, 0.0);
+    if (P.layers.x != NO_LAYER) {
+        terms[P.layers.x * P.counts.z * P.counts.w + idx] = partial;
+    }
 }

@@ -7,7 +7,7 @@ struct Params {
     proj: vec4<f32>,
     // bias, range (l_vicinity), sample count, unused
     test: vec4<f32>,
-    // width, height, unused, unused
+    // width, height, the layer of `terms` this pass writes, unused
     size: vec4<u32>,
 };
 
@@ -15,7 +15,8 @@ struct Params {
 @group(0) @binding(1) var front_depth: texture_2d<f32>;
 // Poisson-disk offsets in the unit disk (xy), N of them.
 @group(0) @binding(2) var<storage, read> disk: array<vec2<f32>>;
-@group(0) @binding(3) var<storage, read_write> vicinity: array<f32>;
+// The surface terms' layers; this pass writes layer V.size.z.
+@group(0) @binding(3) var<storage, read_write> terms: array<f32>;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -24,9 +25,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= w || id.y >= h) {
         return;
     }
+    let out = V.size.z * w * h + id.x + w * id.y;
     let z = textureLoad(front_depth, vec2<i32>(id.xy), 0).r;
     if (z <= 0.0) {
-        vicinity[id.x + w * id.y] = 1.0;
+        terms[out] = 1.0;
         return;
     }
     // Texture-space radius R_t = 0.5 (P00, P11) r / |z| (eq. 4-5 corrected), in pixels here.
@@ -54,5 +56,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             hits = hits + 1.0;
         }
     }
-    vicinity[id.x + w * id.y] = select(1.0, 1.0 - hits / valid, valid > 0.0);
+    terms[out] = select(1.0, 1.0 - hits / valid, valid > 0.0);
 }

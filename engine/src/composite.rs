@@ -1,8 +1,9 @@
 //! Final compositing and shading (Schott et al., section 3.2.6, Algorithm 6, eq. 7-10), as a
 //! compute pass. Shader: `shaders/composite.wgsl`.
 //!
-//! Where a surface is: `combined = min(partial, vicinity)` (eq. 7) or their product (eq. 8),
-//! the terms a method does not compute being 1; the surface is shaded by the head light,
+//! Where a surface is: `combined` is the min (eq. 7) or the product (eq. 8) of the method's
+//! surface terms (partial and vicinity occlusion in the paper; any layers the method table
+//! names), 1 without terms; the surface is shaded by the head light,
 //! `combined * colour * (ambient + diffuse (n.l)) + specular (r.v)^shininess` (eq. 9), and the
 //! volume in front of it is composited over it, `surface (1 - alpha_v) + volume_rgb` (eq. 10).
 //! Elsewhere the background takes the surface's place, composited last ("under" blending;
@@ -12,18 +13,18 @@
 //! the volume becomes half opaque if that is nearer). Where the isosurface of `iso_pass` is
 //! nearer than the tubes it is the surface, already shaded, its ambient term the combined AOV.
 
-use crate::camera::Camera;
 use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, Slot, Uniform};
-use crate::scene::Combine;
+use crate::method::Combine;
+use occlusion::camera::Camera;
 
 const SHADER: &str = include_str!("../../shaders/composite.wgsl");
 
-/// Which occlusion terms shade the surfaces, and how they combine.
+/// How the surface terms combine, and the light and background.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CompositeSettings {
-    pub partial: bool,
-    pub vicinity: bool,
+    /// How many layers of the surface terms to fold (the method's terms).
+    pub terms: u32,
     pub combine: Combine,
     /// ambient, diffuse, specular, shininess
     pub light: [f64; 4],
@@ -48,7 +49,7 @@ impl CompositePass {
         gbuf: &GBuffer,
         eye: &wgpu::Buffer,
         state: &wgpu::Buffer,
-        vicinity: &wgpu::Buffer,
+        terms: &wgpu::Buffer,
         iso: &crate::iso_pass::IsoPass,
         s: &CompositeSettings,
     ) -> CompositePass {
@@ -78,7 +79,7 @@ impl CompositePass {
                 Slot::Uniform,
                 Slot::Storage,
                 Slot::Storage,
-                Slot::Storage,
+                Slot::StorageRw,
                 if gbuf.samples > 1 {
                     Slot::MultisampledTexture
                 } else {
@@ -107,13 +108,13 @@ impl CompositePass {
             .u32x4([
                 width,
                 height,
-                s.partial as u32 | (s.vicinity as u32) << 1,
+                s.terms,
                 (s.combine == Combine::Product) as u32,
             ]);
         let params = gpu.buffer("composite params", &u.0, wgpu::BufferUsages::UNIFORM);
         let n = width as u64 * height as u64;
         let image = gpu.scratch("image", n * 16, wgpu::BufferUsages::COPY_SRC);
-        let aov = gpu.scratch("aov", n * 32, wgpu::BufferUsages::COPY_SRC);
+        let aov = gpu.scratch("aov", n * 16, wgpu::BufferUsages::COPY_SRC);
         let bind = gpu.bind(
             "composite",
             &layout,
@@ -121,7 +122,7 @@ impl CompositePass {
                 params.as_entire_binding(),
                 eye.as_entire_binding(),
                 state.as_entire_binding(),
-                vicinity.as_entire_binding(),
+                terms.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&gbuf.color),
                 wgpu::BindingResource::TextureView(&gbuf.normal),
                 wgpu::BindingResource::TextureView(&gbuf.front),

@@ -18,9 +18,9 @@
 //! it is lit) and averages; the linear depths stay single-sampled (a third pass writes the
 //! nearest surface's), as the slices and the vicinity term need one precise depth per pixel.
 
-use crate::camera::Camera;
 use crate::gpu::{Gpu, Slot, Uniform};
 use glam::{DMat4, DVec3};
+use occlusion::camera::Camera;
 use tubes::tube_mesh::TubeMesh;
 
 const SHADER: &str = include_str!("../../shaders/gbuffer.wgsl");

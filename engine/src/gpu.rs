@@ -41,6 +41,14 @@ pub fn dispatch_image(
     pass.dispatch_workgroups(size.0.div_ceil(8), size.1.div_ceil(8), 1);
 }
 
+/// One layer of a frame's surface terms (one f32 per pixel; layer `index` of pixel `i` at
+/// `index * width * height + i` of `terms`), which a surface-term pass writes.
+#[derive(Clone, Copy)]
+pub struct Layer<'a> {
+    pub terms: &'a wgpu::Buffer,
+    pub index: u32,
+}
+
 /// A uniform block being written field by field (f32 and u32, 16-byte rows as WGSL lays out
 /// `vec4` and `mat4x4` members).
 #[derive(Default)]

@@ -17,9 +17,9 @@
 //! solid meets the cut face (normal: the plane's; unoccluded, as it faces the removed half,
 //! which the swept fields of the uncut volume do not know is empty).
 
-use crate::camera::Camera;
 use crate::gpu::{Gpu, Slot, Uniform};
 use glam::{DMat3, DMat4};
+use occlusion::camera::Camera;
 use volume::distance_sweep::SWEEP_DIRECTIONS;
 use volume::occlusion_shading::{AmbientModel, GeometryTerm};
 use volume::occlusion_sweep::OctantFields;

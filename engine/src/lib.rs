@@ -1,34 +1,20 @@
-//! umbra's engine: the GPU context, the CLI's library functions, and the renderer
-//! (`renderer`: the passes `gbuffer`, `slice_pass`, `vicinity`, `composite`, `fxaa`, each with
-//! its WGSL file of the same name in `shaders/`).
+//! umbra's renderer: the headless GPU context ([`gpu`]), the long-lived [`renderer`] (upload a
+//! scene once, draw frames), the method table ([`method`]) and the passes, each one Rust
+//! module with its WGSL file of the same name in `shaders/`: [`gbuffer`], [`slice_pass`]
+//! (`light` and `march`), [`vicinity`], [`iso_pass`], [`composite`], [`fxaa`].
 //!
-//! The `umbra` binary (src/main.rs) only parses arguments and calls into this library, so that
-//! tests exercise the same code the command line runs.
+//! It takes typed inputs (`occlusion::emission_absorption::EaView`, `VolumeInput`,
+//! `tubes::tube_mesh::TubeMesh`) and returns images; scene files, image files and the command
+//! line live in the `scene` and `umbra` crates. The maths the passes implement is in the
+//! `occlusion` crate, beside its CPU twins.
 
-pub mod bench_cmd;
-pub mod camera;
-pub mod camera_path;
 pub mod composite;
-pub mod convert;
-pub mod demo;
-pub mod ea_pass;
 pub mod fxaa;
 pub mod gbuffer;
 pub mod gpu;
-pub mod info;
-pub mod iso_cmd;
 pub mod iso_pass;
-pub mod iso_reference;
-pub mod reference;
-pub mod reference_tubes;
-pub mod render_cmd;
+pub mod method;
 pub mod renderer;
-pub mod resample_cmd;
-pub mod scene;
 pub mod slice_pass;
 pub mod smoke;
-pub mod sweep_cmd;
-pub mod synth;
-pub mod trace_cmd;
-pub mod tubes_cmd;
 pub mod vicinity;

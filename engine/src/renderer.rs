@@ -4,31 +4,27 @@
 //! vicinity occlusion, compositing and FXAA (compute) - with per-pass timings.
 //!
 //! Data flows one way: the model (a volume with its transfer function, tube meshes) and the
-//! view come in; an image and its AOVs come out. Methods (`render.method`):
-//!
-//! | method     | volume shading            | surface occlusion          | dispatches per frame |
-//! |------------|---------------------------|----------------------------|----------------------|
-//! | `combined` | occlusion buffer (DOS)    | partial and vicinity       | one per slice        |
-//! | `dos`      | occlusion buffer (DOS)    | partial                    | one per slice        |
-//! | `vicinity` | emission-absorption       | vicinity                   | one                  |
-//! | `ea`       | emission-absorption       | none                       | one                  |
-//! | `phong`    | Phong, gradient normals   | none                       | one                  |
+//! view come in; an image and its AOVs come out. Which passes a frame runs comes from the
+//! method's row of [`crate::method::METHODS`]: its volume shading picks the `light`/`march`
+//! variants, and each of its surface terms writes one layer of the frame's surface terms
+//! (partial occlusion from `march`, the surface-AO slot from its pass), which composite folds
+//! by min or product without knowing who wrote them.
 //!
 //! Timings: `total_ms` is the median over frames of one frame's submit-to-completion time
 //! (everything recorded in one command buffer, then waited for); the per-pass figures come
 //! from one more frame in which each pass is submitted and waited for on its own (fences;
 //! timestamp queries are not used yet), so they include a submission's overhead each.
 
-use crate::camera::Camera;
 use crate::composite::{CompositePass, CompositeSettings};
-use crate::ea_pass::EaView;
 use crate::fxaa::FxaaPass;
 use crate::gbuffer::{GBuffer, GpuMesh};
 use crate::gpu::{Gpu, GpuError};
 use crate::iso_pass::{GpuIso, IsoInput, IsoPass};
-use crate::scene::{Combine, Method};
+use crate::method::{Combine, Method, SurfaceAo, Term, VolumeShading, MAX_TERMS};
 use crate::slice_pass::{GpuVolume, SlicePass, SliceSettings, VolumeInput};
 use crate::vicinity::{VicinityPass, VicinitySettings};
+use occlusion::camera::Camera;
+use occlusion::emission_absorption::EaView;
 use std::collections::BTreeMap;
 use std::time::Instant;
 use tubes::tube_mesh::TubeMesh;
@@ -56,6 +52,8 @@ pub struct Settings {
     pub cone: bool,
     /// G-buffer samples per pixel (lowered to what the adapter supports, with a note).
     pub msaa: u32,
+    /// What fills the methods' surface-AO slot.
+    pub surface_ao: SurfaceAo,
 }
 
 impl Default for Settings {
@@ -75,6 +73,7 @@ impl Default for Settings {
             occlusion_cell: None,
             cone: false,
             msaa: 4,
+            surface_ao: SurfaceAo::Vicinity,
         }
     }
 }
@@ -107,8 +106,38 @@ pub struct Output {
     pub notes: Vec<String>,
     pub image: Vec<[f32; 4]>,
     pub aov: Vec<Aov>,
+    /// Each surface term the frame folded, by name (`partial`, `vicinity`), with its layer
+    /// (the value composite used; 1 where no tube surface is nearest).
+    pub terms: Vec<(&'static str, Vec<f32>)>,
     pub timings: Timings,
     pub triangles: u64,
+}
+
+impl Output {
+    /// The AOV channels by name, in order: `occlusion.volumetric`, `occlusion.<term>` for every
+    /// surface term of [`crate::method::TERM_NAMES`] (the frame's layer where its method ran
+    /// the term, else 1), `occlusion.combined`, `Z` (linear depth).
+    pub fn aov_channels(&self) -> Vec<(String, Vec<f32>)> {
+        let mut c = vec![(
+            "occlusion.volumetric".to_string(),
+            self.aov.iter().map(|a| a.volumetric).collect(),
+        )];
+        for name in crate::method::TERM_NAMES {
+            let layer = self
+                .terms
+                .iter()
+                .find(|(t, _)| t == name)
+                .map(|(_, v)| v.clone())
+                .unwrap_or_else(|| vec![1.0; self.aov.len()]);
+            c.push((format!("occlusion.{name}"), layer));
+        }
+        c.push((
+            "occlusion.combined".into(),
+            self.aov.iter().map(|a| a.combined).collect(),
+        ));
+        c.push(("Z".into(), self.aov.iter().map(|a| a.depth).collect()));
+        c
+    }
 }
 
 /// A pass's recording into a command encoder, with its name.
@@ -118,7 +147,11 @@ struct Frame {
     iso: IsoPass,
     gbuf: GBuffer,
     slices: SlicePass,
-    vicinity: Option<VicinityPass>,
+    /// The passes of the surface terms that have one, with their names.
+    term_passes: Vec<(&'static str, VicinityPass)>,
+    /// The names of the frame's surface-term layers, in layer order.
+    layer_names: Vec<&'static str>,
+    terms: wgpu::Buffer,
     composite: CompositePass,
     fxaa: Option<FxaaPass>,
     size: (u32, u32),
@@ -134,8 +167,8 @@ impl Frame {
         if self.iso.active() {
             p.push(("iso", Box::new(|e| self.iso.record(e))));
         }
-        if let Some(v) = &self.vicinity {
-            p.push(("vicinity", Box::new(move |e| v.record(e))));
+        for (name, t) in &self.term_passes {
+            p.push((name, Box::new(move |e| t.record(e))));
         }
         p.push(("composite", Box::new(|e| self.composite.record(e))));
         if let Some(f) = &self.fxaa {
@@ -274,13 +307,14 @@ impl<'g> Renderer<'g> {
                 "validation error in a render pass: {e}"
             )));
         }
-        let (image, aov) = frame.read_back(gpu)?;
+        let (image, aov, terms) = frame.read_back(gpu)?;
         let mut sorted = frames_ms.clone();
         sorted.sort_by(f64::total_cmp);
         Ok(Output {
             notes: msaa_note.into_iter().collect(),
             image,
             aov,
+            terms,
             timings: Timings {
                 total_ms: sorted[sorted.len() / 2],
                 frames_ms,
@@ -332,41 +366,78 @@ impl Frame {
         s: &Settings,
     ) -> Result<(Frame, Option<String>), GpuError> {
         let (w, h) = (view.width, view.height);
-        let occlusion = matches!(s.method, Method::Combined | Method::Dos);
+        let desc = s.method.desc();
+        let occlusion = desc.volume == VolumeShading::Occlusion;
         let cam: &Camera = &view.camera;
         let (samples, msaa_note) = crate::gbuffer::sample_count(gpu, s.msaa);
         let gbuf = GBuffer::new(gpu, cam, w, h, &scene.meshes, tube_clip, samples);
+        // The layers of the method's terms, in the table's order; a slot left empty
+        // (`surface_ao = none`) has none.
+        let layer_names: Vec<&'static str> = desc
+            .terms
+            .iter()
+            .filter_map(|t| match t {
+                Term::Partial => Some("partial"),
+                Term::SurfaceAo => match s.surface_ao {
+                    SurfaceAo::Vicinity => Some("vicinity"),
+                    SurfaceAo::None => None,
+                },
+            })
+            .collect();
+        let layer = |name: &str| {
+            layer_names
+                .iter()
+                .position(|n| *n == name)
+                .map(|i| i as u32)
+        };
+        let n = w as u64 * h as u64;
+        let terms = gpu.scratch(
+            "surface terms",
+            n * 4 * MAX_TERMS as u64,
+            wgpu::BufferUsages::COPY_SRC,
+        );
         let slices = SlicePass::new(
             gpu,
             scene.volume.as_ref(),
             view,
             &gbuf,
+            &terms,
             &SliceSettings {
                 occlusion,
                 cell: s.occlusion_cell,
                 cone: s.cone,
-                phong: s.method == Method::Phong,
+                phong: desc.volume == VolumeShading::Phong,
                 column: s.column,
                 theta_deg: s.theta_deg,
                 blur_samples: s.blur_samples,
                 geometry_extinction: s.geometry_extinction,
                 light: s.light,
+                partial_layer: layer("partial"),
             },
         )?;
-        let use_vicinity = matches!(s.method, Method::Combined | Method::Vicinity);
-        let vicinity = VicinityPass::new(
-            gpu,
-            cam,
-            w,
-            h,
-            &gbuf,
-            &VicinitySettings {
-                samples: s.vicinity_samples,
-                distance: s.vicinity_distance,
-                theta_deg: s.theta_deg,
-                bias: s.vicinity_bias,
-            },
-        );
+        let term_passes: Vec<(&'static str, VicinityPass)> = layer("vicinity")
+            .map(|l| {
+                let v = VicinityPass::new(
+                    gpu,
+                    cam,
+                    w,
+                    h,
+                    &gbuf,
+                    crate::gpu::Layer {
+                        terms: &terms,
+                        index: l,
+                    },
+                    &VicinitySettings {
+                        samples: s.vicinity_samples,
+                        distance: s.vicinity_distance,
+                        theta_deg: s.theta_deg,
+                        bias: s.vicinity_bias,
+                    },
+                );
+                ("vicinity", v)
+            })
+            .into_iter()
+            .collect();
         let iso_pass = IsoPass::new(gpu, cam, w, h, scene.iso.as_ref(), s.light, &view.clip);
         let composite = CompositePass::new(
             gpu,
@@ -376,11 +447,10 @@ impl Frame {
             &gbuf,
             &slices.eye,
             &slices.state,
-            &vicinity.output,
+            &terms,
             &iso_pass,
             &CompositeSettings {
-                partial: occlusion,
-                vicinity: use_vicinity,
+                terms: layer_names.len() as u32,
                 combine: s.combine,
                 light: s.light,
                 background: view.background,
@@ -392,7 +462,9 @@ impl Frame {
                 iso: iso_pass,
                 gbuf,
                 slices,
-                vicinity: use_vicinity.then_some(vicinity),
+                term_passes,
+                layer_names,
+                terms,
                 composite,
                 fxaa,
                 size: (w, h),
@@ -401,19 +473,28 @@ impl Frame {
         ))
     }
 
-    /// Copies the final image and the AOVs back to the host.
-    fn read_back(&self, gpu: &Gpu) -> Result<(Vec<[f32; 4]>, Vec<Aov>), GpuError> {
+    /// Copies the final image, the AOVs and the surface terms' layers back to the host.
+    #[allow(clippy::type_complexity)]
+    fn read_back(
+        &self,
+        gpu: &Gpu,
+    ) -> Result<(Vec<[f32; 4]>, Vec<Aov>, Vec<(&'static str, Vec<f32>)>), GpuError> {
         let n = self.size.0 as u64 * self.size.1 as u64;
         let readback = |label: &str, size: u64| {
             gpu.sized(format!("readback {label}"), size, || {
                 gpu.output_buffers(label, size).1
             })
         };
+        let layers = self.layer_names.len() as u64;
         let image_rb = readback("image", n * 16);
-        let aov_rb = readback("aov", n * 32);
+        let aov_rb = readback("aov", n * 16);
+        let terms_rb = readback("surface terms", (n * 4 * layers).max(16));
         let mut enc = gpu.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(self.final_image(), 0, &image_rb, 0, n * 16);
-        enc.copy_buffer_to_buffer(&self.composite.aov, 0, &aov_rb, 0, n * 32);
+        enc.copy_buffer_to_buffer(&self.composite.aov, 0, &aov_rb, 0, n * 16);
+        if layers > 0 {
+            enc.copy_buffer_to_buffer(&self.terms, 0, &terms_rb, 0, n * 4 * layers);
+        }
         gpu.queue.submit([enc.finish()]);
         let f32s = |b: Vec<u8>| -> Vec<f32> {
             b.chunks_exact(4)
@@ -422,19 +503,36 @@ impl Frame {
         };
         let img = f32s(gpu.read_buffer(&image_rb)?);
         let aov = f32s(gpu.read_buffer(&aov_rb)?);
+        let all = f32s(gpu.read_buffer(&terms_rb)?);
+        let terms: Vec<(&'static str, Vec<f32>)> = self
+            .layer_names
+            .iter()
+            .enumerate()
+            .map(|(t, name)| (*name, all[t * n as usize..(t + 1) * n as usize].to_vec()))
+            .collect();
+        let layer = |name: &str, i: usize| {
+            terms
+                .iter()
+                .find(|(t, _)| *t == name)
+                .map_or(1.0, |(_, v)| v[i])
+        };
+        let aov = aov
+            .chunks_exact(4)
+            .enumerate()
+            .map(|(i, c)| Aov {
+                volumetric: c[0],
+                partial: layer("partial", i),
+                vicinity: layer("vicinity", i),
+                combined: c[1],
+                depth: c[2],
+            })
+            .collect();
         Ok((
             img.chunks_exact(4)
                 .map(|c| [c[0], c[1], c[2], c[3]])
                 .collect(),
-            aov.chunks_exact(8)
-                .map(|c| Aov {
-                    volumetric: c[0],
-                    partial: c[1],
-                    vicinity: c[2],
-                    combined: c[3],
-                    depth: c[4],
-                })
-                .collect(),
+            aov,
+            terms,
         ))
     }
 }

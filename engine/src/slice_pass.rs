@@ -3,61 +3,13 @@
 //! surfaces (Algorithm 4, eq. 1-3), as compute dispatches. Shader: `shaders/slice_pass.wgsl`;
 //! the slices' placement is [`EaView`]'s.
 //!
-//! The model (issue 5 states the intended maths where the paper's pseudo-code errs):
-//! * Slice k is the plane at view depth `z_k = z0 + (k + 1/2) d`, standing for the slab
-//!   `[z0 + k d, z0 + (k + 1) d]`. The transfer function gives extinction sigma per world
-//!   unit; a slab's opacity along a ray is `1 - exp(-sigma d / cos phi)`.
-//! * The light is the head light: a cone of half-angle theta around the direction towards the
-//!   eye. `O_k(x)`, the light arriving at slice k at x (`O_0 = 1`), is gathered from the light
-//!   leaving slice k - 1, `L_{k-1} = O_{k-1} (1 - alpha_{k-1})`, averaged over the disk the
-//!   cone cuts from slice k - 1: radius `d tan(theta)` in world units, projected as
-//!   `0.5 (P00, P11) r / z_{k-1}` in texture units (orthographic: without the division; see
-//!   `camera::texture_radius`), sampled with `n x n` taps (`blur_samples`) mapped
-//!   concentrically onto the disk, bilinear ([`blur_stencil`]). This is the paper's incremental
-//!   blur ("ComputeDOS", after Schott et al. 2009): each slice blurs the previous one.
-//! * Geometry into volume (Alg. 3): where slice k lies inside a tube (`front <= z_k <= back`),
-//!   the tube's extinction `geometry_extinction` adds to the volume's for the light leaving
-//!   the slice. The paper, with the front depth only, replaces the opacity of every sample
-//!   behind a surface (an endless shadow column; its test `f_depth < geom_depth` is a typo for
-//!   "behind") - kept as `geometry_shadow = "column"`.
-//! * Eye buffer (Alg. 2): volume colour `c alpha O_k` composited front to back (`dos`,
-//!   `combined`; `ea` and `vicinity` leave `O` out, `phong` shades `c` with the gradient), the
-//!   sampling distance clipped where the ray meets the nearest surface of the G-buffer.
-//! * Partial occlusion (Alg. 4, eq. 1-3): a surface at depth `z_s` between `z_{k-1}` and `z_k`
-//!   receives `lerp(O_{k-1}, O_k, (z_s - z_{k-1}) / d)`. Algorithm 1's order of updates with
-//!   Algorithm 3's buffer swap reverses these weights if copied literally.
-//!
-//! The cone-following model (`render.occlusion_model = "cone"`; issue 5 item 5). The paper's
-//! incremental blur is a random walk: a blur of radius `r` (uniform disk, variance `r^2 / 4`
-//! per axis) per slice spreads a shadow after a distance `L` to a standard deviation of
-//! `tan(theta) sqrt(L d) / 2`, where the cone it models puts it on a disk of radius
-//! `L tan(theta)` (deviation `L tan(theta) / 2`); the result depends on the slice count and
-//! never reaches the cone. Here each cell also carries the shadow-weighted age `D` of its
-//! shadow (how far behind its occluders it lies; the buffers hold `L` and `(1 - L) D`), and
-//! the step's radius is chosen so the variances add up to the cone's:
-//! `r^2 = tan^2(theta) ((D + d)^2 - D^2)`, i.e. `r = d tan(theta) sqrt(1 + 2 D / d)` - the
-//! paper's radius at `D = 0`; after `n` steps from a point occluder the variance is
-//! `(n d tan(theta))^2 / 4`, the cone's at `L = n d`, whatever `d` is. Ages mix linearly where
-//! shadows of different occluders overlap (an approximation), and the taps (`n x n`, at least
-//! `blur_samples`, up to 9 per axis) grow with the radius in cells.
-//!
-//! Departure from the paper, for speed (issue 5, "beat the paper's design"): the occlusion
-//! buffer lives on cells of `s x s` pixels (`render.occlusion_cell`), one dispatch per slice
-//! (the `light` entry; the dispatch is the barrier the blur needs), and stores every slice's
-//! `O_k` in a light volume (cells x slices). The eye buffer is then one dispatch (`march`): all
-//! slices of a pixel in one invocation, with `O` read bilinearly from the light volume, rays
-//! clipped to the grid's box and to the surface, empty 8^3 bricks skipped (exact, see
-//! `ea_pass::occupancy`), early termination at opacity 0.999 - none of which the
-//! slice-by-slice eye buffer can do. A cell's transmittance through the tubes is the mean over
-//! its pixels (coverage), its volume sample the one on its centre ray. A surface reads its
-//! partial occlusion at the nearest surface depth of the cells around it, so that a tube does
-//! not shadow itself through the cell it shares with its own silhouette; occluders nearer than
-//! that within a cell are left to the vicinity term. With `s = 1` the light is the paper's
-//! per-pixel buffer (the tubes exactly as in the model above).
+//! The model, its errata and the cone-following variant are stated in `occlusion::combined`
+//! (the paper's equation index); this module is the GPU side of Algorithms 2-4.
 
-use crate::ea_pass::{occupancy, EaView, Transfer, BRICK, MAX_CLIP};
 use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, GpuError, Slot, Uniform};
+use occlusion::combined::{auto_cell, blur_stencil};
+use occlusion::emission_absorption::{occupancy, EaView, Transfer, BRICK, MAX_CLIP};
 use volume::Volume;
 
 const SHADER: &str = include_str!("../../shaders/slice_pass.wgsl");
@@ -80,6 +32,8 @@ pub struct SliceSettings {
     pub geometry_extinction: f64,
     /// ambient, diffuse, specular, shininess
     pub light: [f64; 4],
+    /// The layer of the surface terms the partial occlusion goes to (`march`), if any.
+    pub partial_layer: Option<u32>,
 }
 
 /// A volume as the pass reads it.
@@ -90,49 +44,8 @@ pub struct VolumeInput<'a> {
     pub tf: &'a Transfer,
 }
 
-/// Cell edge in pixels when the scene does not fix it: the smallest power of two (at least
-/// `min`) whose light volume (`cells x slices` f32) fits in `budget` bytes.
-pub fn auto_cell(width: u32, height: u32, slices: u32, min: u32, budget: u64) -> u32 {
-    let mut s = min.max(1);
-    while s < 64 {
-        let cells = width.div_ceil(s) as u64 * height.div_ceil(s) as u64;
-        if cells * slices as u64 * 4 <= budget {
-            break;
-        }
-        s *= 2;
-    }
-    s
-}
-
 /// Bytes of one slice's record (`struct Slice` of the shader).
 const SLICE_BYTES: u64 = 80;
-
-/// The occlusion blur of one slice, a uniform disk of radius `rpx` cells (x, y). On a grid a
-/// sub-cell blur cannot be sampled with bilinear taps without adding the interpolation's own
-/// diffusion (a tap at offset `o` spreads variance `|o| (1 - |o|)`, linear in `o`, where the
-/// disk adds `r^2 / 4`): repeated every slice, that diffusion would dominate and make the
-/// spread depend on the cell size instead of the cone. Up to a radius of two cells the blur
-/// is therefore the 3x3 stencil with the disk's variance per axis, `v = r^2 / 4`: the outer
-/// product of `[v/2, 1 - v, v/2]` in x and y (rows y = -1, 0, 1), returned with `false`; the
-/// same for every cell of the slice. Beyond, `true`: the shader takes `n x n` bilinear taps
-/// mapped concentrically onto the disk (`n` = `blur_samples`).
-pub fn blur_stencil(rpx: [f64; 2]) -> (bool, [[f64; 3]; 3]) {
-    let mut w = [[0.0; 3]; 3];
-    if rpx[0] > 2.0 || rpx[1] > 2.0 {
-        return (true, w);
-    }
-    let k = |r: f64| {
-        let v = r * r / 4.0;
-        [v / 2.0, 1.0 - v, v / 2.0]
-    };
-    let (kx, ky) = (k(rpx[0]), k(rpx[1]));
-    for (y, row) in w.iter_mut().enumerate() {
-        for (x, c) in row.iter_mut().enumerate() {
-            *c = ky[y] * kx[x];
-        }
-    }
-    (false, w)
-}
 
 /// A volume on the GPU: its samples, its transfer function (1-D points, then the 2-D rows'
 /// ranges) and the brick occupancy of [`occupancy`], uploaded once and read by every frame.
@@ -256,6 +169,7 @@ impl SlicePass {
         volume: Option<&GpuVolume>,
         v: &EaView,
         gbuf: &GBuffer,
+        terms: &wgpu::Buffer,
         s: &SliceSettings,
     ) -> Result<SlicePass, GpuError> {
         let device = &gpu.device;
@@ -280,6 +194,7 @@ impl SlicePass {
                 Slot::StorageRw,
                 Slot::UnfilterableTexture,
                 Slot::UnfilterableTexture,
+                Slot::StorageRw,
                 Slot::StorageRw,
                 Slot::StorageRw,
             ],
@@ -315,7 +230,7 @@ impl SlicePass {
         let proj = v.camera.projection_matrix(aspect);
         let persp = matches!(
             v.camera.projection,
-            crate::camera::Projection::Perspective { .. }
+            occlusion::camera::Projection::Perspective { .. }
         );
         let e = v.camera.eye;
         let f = v.camera.forward();
@@ -373,7 +288,8 @@ impl SlicePass {
             0.0,
         ])
         .vec4(s.light)
-        .u32x4([cells.0, cells.1, cell, vol.tf_rows]);
+        .u32x4([cells.0, cells.1, cell, vol.tf_rows])
+        .u32x4([s.partial_layer.unwrap_or(u32::MAX), 0, 0, 0]);
         let params = gpu.buffer("slice params", &u.0, wgpu::BufferUsages::UNIFORM);
         let n = v.width as u64 * v.height as u64;
         let eye = gpu.scratch("eye buffer", n * 16, wgpu::BufferUsages::COPY_SRC);
@@ -399,6 +315,7 @@ impl SlicePass {
                 wgpu::BindingResource::TextureView(&gbuf.back),
                 light.as_entire_binding(),
                 cell_state.as_entire_binding(),
+                terms.as_entire_binding(),
             ],
         );
         // Slice indices, one per dynamic-offset row.
@@ -497,51 +414,5 @@ impl SlicePass {
         pass.set_pipeline(&self.march_pipe);
         pass.set_bind_group(1, &self.group1[0], &[0]);
         pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_blur_stencil_has_the_disks_variance_and_sums_to_one() {
-        for r in [0.0, 0.3, 1.0, 1.9] {
-            let (wide, w) = blur_stencil([r, 0.5 * r]);
-            assert!(!wide);
-            let sum: f64 = w.iter().flatten().sum();
-            assert!((sum - 1.0).abs() < 1e-12);
-            // Second moments: x^2 weights against r^2 / 4 (a uniform disk's, per axis).
-            let vx: f64 = (0..3)
-                .map(|y| {
-                    (0..3)
-                        .map(|x| w[y][x] * ((x as f64) - 1.0).powi(2))
-                        .sum::<f64>()
-                })
-                .sum();
-            let vy: f64 = (0..3)
-                .map(|y| {
-                    (0..3)
-                        .map(|x| w[y][x] * ((y as f64) - 1.0).powi(2))
-                        .sum::<f64>()
-                })
-                .sum();
-            assert!((vx - r * r / 4.0).abs() < 1e-12, "{r}: {vx}");
-            assert!((vy - r * r / 16.0).abs() < 1e-12, "{r}: {vy}");
-            assert!(w.iter().flatten().all(|&v| v >= 0.0));
-        }
-        assert!(
-            blur_stencil([2.5, 0.1]).0,
-            "beyond two cells the shader takes taps"
-        );
-    }
-
-    #[test]
-    fn the_cell_size_grows_until_the_light_volume_fits() {
-        // 512^2 x 512 slices of f32: 512 MB at cell 1, 128 MB at 2, 32 MB at 4.
-        assert_eq!(auto_cell(512, 512, 512, 1, 1 << 30), 1);
-        assert_eq!(auto_cell(512, 512, 512, 1, 128 << 20), 2);
-        assert_eq!(auto_cell(512, 512, 512, 2, 100 << 20), 4);
-        assert_eq!(auto_cell(512, 512, 512, 2, 1 << 30), 2);
     }
 }

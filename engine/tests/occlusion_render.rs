@@ -6,13 +6,13 @@
 //! vicinity occlusion than an isolated one; min and product combine as eq. 7 and 8;
 //! orthographic and perspective cameras agree; clipping planes remove what they should.
 
-use engine::camera::{Camera, Projection};
-use engine::ea_pass::{EaView, Transfer};
 use engine::gpu::Gpu;
+use engine::method::{Combine, Method};
 use engine::renderer::{self, Output, Settings};
-use engine::scene::{Combine, Method};
 use engine::slice_pass::VolumeInput;
 use glam::{DMat4, DVec3, DVec4};
+use occlusion::camera::{Camera, Projection};
+use occlusion::emission_absorption::{EaView, Transfer};
 use tubes::tube_mesh::TubeMesh;
 use volume::{Field, ScalarType, Space, Volume};
 
@@ -60,7 +60,7 @@ fn medium(sigma: f64) -> Transfer {
 
 /// Straight tubes of `radius` through the given end points, grey.
 fn tubes(lines: &[[[f32; 3]; 2]], radius: f64) -> TubeMesh {
-    engine::tubes_cmd::straight_tubes(lines, radius, 16, "#c0c0c0").unwrap()
+    tubes::tube_mesh::straight_tubes(lines, radius, 16, [192.0 / 255.0; 3])
 }
 
 /// Looking down -z from above, orthographic (24 units tall) or perspective (30 degrees).
@@ -90,7 +90,7 @@ impl Scene {
     fn new(vol: Option<(Volume, Transfer)>, meshes: Vec<TubeMesh>) -> Scene {
         Scene {
             vol: vol.map(|(v, t)| {
-                let d = engine::ea_pass::prepare(&v.select(None).unwrap().data);
+                let d = occlusion::emission_absorption::prepare(&v.select(None).unwrap().data);
                 (v, d, t)
             }),
             meshes,
@@ -404,6 +404,50 @@ fn min_and_product_combine_as_equations_7_and_8() {
 }
 
 #[test]
+fn the_method_table_decides_the_terms_composite_folds() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let (meshes, _, _) = groove();
+    let scene = Scene::new(Some((cube(|_| 1.0), medium(0.05))), meshes);
+    let v = view(cam);
+    let mut s = settings(Method::Combined);
+    s.theta_deg = 45.0;
+    let combined = scene.render(&gpu, &v, &s);
+    let names = |o: &Output| o.terms.iter().map(|t| t.0).collect::<Vec<_>>();
+    assert_eq!(names(&combined), ["partial", "vicinity"]);
+    // An empty surface-AO slot leaves combined with the partial term only: dos's image.
+    s.surface_ao = engine::method::SurfaceAo::None;
+    let no_ao = scene.render(&gpu, &v, &s);
+    assert_eq!(names(&no_ao), ["partial"]);
+    s.method = Method::Dos;
+    s.surface_ao = engine::method::SurfaceAo::Vicinity;
+    let dos = scene.render(&gpu, &v, &s);
+    assert_eq!(names(&dos), ["partial"]);
+    assert_eq!(no_ao.image, dos.image);
+    assert_ne!(combined.image, dos.image);
+    // Terms a method does not run read 1 in the AOVs, and ea folds none.
+    s.method = Method::Ea;
+    let ea = scene.render(&gpu, &v, &s);
+    assert!(ea.terms.is_empty());
+    assert!(ea
+        .aov
+        .iter()
+        .all(|a| a.partial == 1.0 && a.vicinity == 1.0 && a.combined == 1.0));
+    assert!(dos.aov.iter().all(|a| a.vicinity == 1.0));
+    let channels: Vec<String> = dos.aov_channels().into_iter().map(|c| c.0).collect();
+    assert_eq!(
+        channels,
+        [
+            "occlusion.volumetric",
+            "occlusion.partial",
+            "occlusion.vicinity",
+            "occlusion.combined",
+            "Z"
+        ]
+    );
+}
+
+#[test]
 fn clipping_planes_remove_the_volume_and_optionally_the_tubes() {
     let gpu = gpu();
     let cam = top_camera(false);
@@ -521,8 +565,8 @@ fn a_two_dimensional_transfer_function_shows_boundaries_only() {
 
 #[test]
 fn the_gpu_agrees_with_the_monte_carlo_reference_on_tubes_in_a_medium() {
-    use engine::reference::{self, RefSettings, RefTubes, RefVolume};
-    use engine::reference_tubes::TubeScene;
+    use occlusion::reference::{self, RefSettings, RefTubes, RefVolume};
+    use occlusion::reference_tubes::TubeScene;
     let gpu = gpu();
     let (scene, tops) = depth_scene();
     let cam = top_camera(false);
@@ -571,8 +615,8 @@ fn the_gpu_agrees_with_the_monte_carlo_reference_on_tubes_in_a_medium() {
 
 #[test]
 fn the_reference_follows_the_column_rule_as_the_gpu_does() {
-    use engine::reference::{self, ColumnMap, RefSettings, RefTubes, RefVolume};
-    use engine::reference_tubes::TubeScene;
+    use occlusion::reference::{self, ColumnMap, RefSettings, RefTubes, RefVolume};
+    use occlusion::reference_tubes::TubeScene;
     let gpu = gpu();
     let cam = top_camera(false);
     let scene = Scene::new(

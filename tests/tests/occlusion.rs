@@ -1,10 +1,10 @@
 //! Occlusion sweeping on the validation scene: orderings that a faithful implementation of the
 //! paper must show, the Monte Carlo comparison with a stated bound, and the flat-face correction.
 
-use engine::iso_reference::{
+use glam::DVec3;
+use occlusion::isosurface::{
     ambient_at, render, rmse, AmbientSource, IsoSurface, OrbitCamera, Shading,
 };
-use glam::DVec3;
 use volume::distance_sweep::DistanceOptions;
 use volume::occlusion_shading::{AmbientModel, AmbientOptions, GeometryTerm, Sky};
 use volume::occlusion_sweep::{sky_direction_world, sweep_fields, OcclusionOptions, OctantFields};

@@ -77,6 +77,50 @@ pub struct TubeOptions<'a> {
     pub color: ColorMode<'a>,
 }
 
+impl TubeOptions<'_> {
+    /// The mesher's defaults, as `umbra tubes` and the scene's tube sets have them: iterative
+    /// fit to `tolerance` (100 iterations at most), rotation-minimising frames, local radius,
+    /// caps, one ring per span and one more per 15 degrees of turn, coloured by direction.
+    pub fn defaults(radius: f64, sides: usize, tolerance: f64) -> TubeOptions<'static> {
+        TubeOptions {
+            radius,
+            sides,
+            per_span: 1,
+            chordal: None,
+            max_turn_deg: 15.0,
+            frame: FrameMethod::Rmf,
+            radius_mode: RadiusMode::Local,
+            fit: FitOptions {
+                epsilon: tolerance,
+                method: crate::bspline_fit::FitMethod::Iterative,
+                max_iterations: 100,
+            },
+            caps: true,
+            color: ColorMode::Direction,
+        }
+    }
+}
+
+/// Tubes along straight segments (each sampled at 21 points), meshed with
+/// [`TubeOptions::defaults`] at a tolerance of 0.01 in one colour (linear RGB in [0, 1]): the
+/// synthetic tube sets of tests and benchmarks.
+pub fn straight_tubes(
+    lines: &[[[f32; 3]; 2]],
+    radius: f64,
+    sides: usize,
+    rgb: [f32; 3],
+) -> TubeMesh {
+    let mut s = crate::Streamlines::new();
+    for l in lines {
+        let (a, b) = (Vec3::from(l[0]), Vec3::from(l[1]));
+        let pts: Vec<Vec3> = (0..=20).map(|i| a + (b - a) * (i as f32 / 20.0)).collect();
+        s.push(&pts);
+    }
+    let mut o = TubeOptions::defaults(radius, sides, 0.01);
+    o.color = ColorMode::Constant(rgb);
+    build(&s, &o).0
+}
+
 /// An indexed triangle mesh. Positions are relative to `origin` (kept in f64 so that tubes far
 /// from the world origin, 1e6 say, keep their shape in f32).
 #[derive(Clone, Debug, Default)]

@@ -53,23 +53,6 @@ impl TubesArgs {
     }
 }
 
-/// Tubes along straight segments (each sampled at 21 points), meshed with the defaults: the
-/// synthetic tube sets of tests and benchmarks.
-pub fn straight_tubes(
-    lines: &[[[f32; 3]; 2]],
-    radius: f64,
-    sides: usize,
-    color: &str,
-) -> Result<TubeMesh, String> {
-    let mut s = tubes::Streamlines::new();
-    for l in lines {
-        let (a, b) = (glam::Vec3::from(l[0]), glam::Vec3::from(l[1]));
-        let pts: Vec<glam::Vec3> = (0..=20).map(|i| a + (b - a) * (i as f32 / 20.0)).collect();
-        s.push(&pts);
-    }
-    Ok(build_mesh(&s, &TubesArgs::defaults(radius, sides, 0.01, color))?.0)
-}
-
 #[derive(Clone, Debug, Serialize)]
 pub struct Seconds {
     pub read: f64,

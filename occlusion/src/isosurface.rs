@@ -23,6 +23,7 @@
 //!   azimuth 90 along +x, elevation 90 looks down from +z; the distance is in multiples of the
 //!   bounding-sphere radius and the vertical field of view just fits that sphere.
 
+use crate::rng::SplitMix64;
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use rayon::prelude::*;
 use volume::occlusion_shading::{sample_octants, AmbientModel};
@@ -282,22 +283,6 @@ fn basis(n: DVec3) -> (DVec3, DVec3) {
     (t, n.cross(t))
 }
 
-/// A small deterministic generator (SplitMix64) for per-pixel Monte Carlo seeds.
-pub struct SplitMix64(pub u64);
-
-impl SplitMix64 {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    pub fn next_f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// The orbit camera of `umbra iso`.
 #[derive(Clone, Copy, Debug)]
 pub struct OrbitCamera {
@@ -494,51 +479,4 @@ pub fn rmse(a: &IsoImage, b: &IsoImage) -> f64 {
     } else {
         (s / n as f64).sqrt()
     }
-}
-
-/// Encodes linear [0, 1] values as 8-bit sRGB.
-pub fn srgb8(v: f32) -> u8 {
-    let v = v.clamp(0.0, 1.0);
-    let s = if v <= 0.003_130_8 {
-        12.92 * v
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0 + 0.5) as u8
-}
-
-/// Writes the colour of an image as an 8-bit sRGB PNG through a temporary file.
-pub fn write_png(path: &std::path::Path, img: &IsoImage) -> Result<(), String> {
-    write_rgb_png(path, img.width, img.height, &img.color)
-}
-
-/// Writes linear RGB pixels (rows top to bottom) as an 8-bit sRGB PNG through a temporary file.
-pub fn write_rgb_png(
-    path: &std::path::Path,
-    width: usize,
-    height: usize,
-    color: &[[f32; 3]],
-) -> Result<(), String> {
-    if color.len() != width * height {
-        return Err(format!(
-            "{}: {} pixels for a {width} x {height} image",
-            path.display(),
-            color.len()
-        ));
-    }
-    let mut buf = image::RgbImage::new(width as u32, height as u32);
-    for (i, c) in color.iter().enumerate() {
-        buf.put_pixel(
-            (i % width) as u32,
-            (i / width) as u32,
-            image::Rgb([srgb8(c[0]), srgb8(c[1]), srgb8(c[2])]),
-        );
-    }
-    let mut bytes = Vec::new();
-    buf.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| format!("{}: encoding PNG: {e}", path.display()))?;
-    volume::write_atomic(path, &bytes).map_err(|e| e.to_string())
 }

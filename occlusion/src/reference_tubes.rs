@@ -204,7 +204,7 @@ pub fn hemisphere_ao(
     let px: Vec<(f64, f64)> = (0..width * height)
         .into_par_iter()
         .map(|i| {
-            let mut rng = crate::iso_reference::SplitMix64(
+            let mut rng = crate::rng::SplitMix64(
                 seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x0A0A,
             );
             let n = spp.max(1);
@@ -266,8 +266,12 @@ mod tests {
 
     /// A closed tube of radius r along x from -5 to 5 (caps on).
     fn tube(r: f64) -> TubeMesh {
-        crate::tubes_cmd::straight_tubes(&[[[-5.0, 0.0, 0.0], [5.0, 0.0, 0.0]]], r, 64, "#ff0000")
-            .unwrap()
+        tubes::tube_mesh::straight_tubes(
+            &[[[-5.0, 0.0, 0.0], [5.0, 0.0, 0.0]]],
+            r,
+            64,
+            [1.0, 0.0, 0.0],
+        )
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! Scene files (TOML): what `umbra render` (issue 5) draws and how. This module reads and checks
+//! Scene files (TOML): what `umbra render` draws and how. This module reads and checks
 //! them; `umbra scene <file> [--set KEY=VALUE ...]` prints the resolved scene as JSON.
 //!
 //! Every key, its unit and default is documented in the README ("Scene files") and in the
@@ -11,6 +11,7 @@
 //! d has opacity `1 - exp(-sigma d)`, so images do not change with the slice count); angles in
 //! degrees; colours as `[r, g, b]` in [0, 1] or `"#rrggbb"`.
 
+pub use engine::method::{Combine, GeometryShadow, Method, OcclusionModel, SurfaceAo};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -239,45 +240,8 @@ impl Default for LightSpec {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    Combined,
-    Dos,
-    Vicinity,
-    Ea,
-    Phong,
-}
-
-/// How tubes shadow the volume behind them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum GeometryShadow {
-    /// Only where a slice sample lies inside a tube (between its front and back faces).
-    Inside,
-    /// Every sample behind a surface (the paper's rule: an endless shadow column).
-    Column,
-}
-
-/// How the volumetric occlusion buffer spreads shadows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum OcclusionModel {
-    /// The paper's constant blur per slice (a random walk: depends on the slice count).
-    Paper,
-    /// A blur that grows with the shadow's distance from its occluders (follows the cone).
-    Cone,
-}
-
 /// Default vicinity depth bias as a fraction of `vicinity_distance`.
 pub const VICINITY_BIAS: f64 = 0.05;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Combine {
-    Min,
-    Product,
-}
 
 /// `[render]`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -312,6 +276,8 @@ pub struct RenderSpec {
     /// MSAA samples (lowered to what the adapter supports, with a warning).
     pub msaa: u32,
     pub fxaa: bool,
+    /// What fills a method's surface-AO slot: `vicinity` (Schott et al.) or `none`.
+    pub surface_ao: SurfaceAo,
 }
 
 impl Default for RenderSpec {
@@ -334,6 +300,7 @@ impl Default for RenderSpec {
             occlusion_model: OcclusionModel::Paper,
             msaa: 4,
             fxaa: true,
+            surface_ao: SurfaceAo::Vicinity,
         }
     }
 }
@@ -366,6 +333,7 @@ pub struct Approximation {
     pub occlusion_model: OcclusionModel,
     pub msaa: u32,
     pub fxaa: bool,
+    pub surface_ao: SurfaceAo,
 }
 
 impl RenderSpec {
@@ -391,6 +359,7 @@ impl RenderSpec {
             occlusion_model,
             msaa,
             fxaa,
+            surface_ao,
         } = self.clone();
         (
             LightModel {
@@ -413,6 +382,7 @@ impl RenderSpec {
                 occlusion_model,
                 msaa,
                 fxaa,
+                surface_ao,
             },
         )
     }
@@ -786,6 +756,7 @@ mod tests {
             "render.occlusion_model=cone",
             "render.msaa=1",
             "render.fxaa=false",
+            "render.surface_ao=none",
         ] {
             assert_eq!(key(&[approx]), base, "{approx}");
         }

@@ -1,84 +1,16 @@
-//! `umbra render <scene.toml> -o image.png|image.exr`: reads a scene, builds its model (the
-//! volume's field and transfer function, a tube mesh per tube set), fits the camera and the
-//! slices to the volume and the tubes together, renders with `renderer::render` and writes
-//! the image (PNG 8-bit sRGB, or EXR linear float RGBA with optional AOV channels).
+//! A scene compiled into the renderer's inputs: its model (the volume's field and transfer
+//! function, a tube mesh per tube set, the isosurface's fields), the camera and the slices
+//! fitted to the volume and the tubes together, the renderer's settings; [`upload`] puts the
+//! model on the GPU once and [`Uploaded::draw`] renders a frame of it.
 
-use crate::camera::{Camera, Projection};
-use crate::camera_path::{frame_path, CameraPath, Sequence};
-use crate::ea_pass::{self, EaView, Transfer};
-use crate::renderer::{self, Aov, DrawOptions, GpuScene, Renderer, Settings, Timings};
-use crate::scene::{self, ProjectionKind, Scene, TransferSpec};
-use crate::slice_pass::VolumeInput;
+use crate::spec::{self, ProjectionKind, Scene, TransferSpec};
+use engine::renderer::{self, DrawOptions, GpuScene, Renderer, Settings};
+use engine::slice_pass::VolumeInput;
 use glam::DVec3;
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use occlusion::camera::{Camera, Projection};
+use occlusion::emission_absorption::{self, EaView, Transfer};
+use std::path::Path;
 use tubes::tube_mesh::TubeMesh;
-
-/// What `render` did.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct RenderReport {
-    pub method: String,
-    pub width: u32,
-    pub height: u32,
-    pub slices: u32,
-    pub slice_distance: f64,
-    pub triangles: u64,
-    pub adapter: String,
-    /// Median frame time and per-pass times (see `renderer::Timings`).
-    pub total_ms: f64,
-    pub passes: std::collections::BTreeMap<String, f64>,
-    pub frames_ms: Vec<f64>,
-    /// Wall time of the whole command: loading, meshing, rendering, writing.
-    pub seconds: f64,
-    /// Wall time before the first frame: loading, meshing, opening the GPU, uploading.
-    pub setup_seconds: f64,
-    pub notes: Vec<String>,
-    /// Each frame of a turntable or camera path (empty for one image).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub sequence: Vec<FrameReport>,
-}
-
-/// One frame of a sequence.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct FrameReport {
-    pub index: usize,
-    pub path: PathBuf,
-    /// The frame's `[camera]`.
-    pub camera: scene::CameraSpec,
-    pub slices: u32,
-    /// Median of the frame's repeats (`--frames`), ms.
-    pub total_ms: f64,
-    pub frames_ms: Vec<f64>,
-    pub passes: std::collections::BTreeMap<String, f64>,
-}
-
-/// Which cameras `umbra render` renders.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub enum Cameras {
-    /// The scene's camera.
-    #[default]
-    Single,
-    /// A turntable of this many frames.
-    Orbit(u32),
-    /// A camera path file.
-    Path(PathBuf),
-}
-
-/// What `umbra render` is asked to do.
-#[derive(Clone, Debug, Default)]
-pub struct RenderArgs {
-    pub scene: PathBuf,
-    pub output: PathBuf,
-    /// `--set KEY=VALUE` overrides (`--width`, `--height` and `--method` become these too).
-    pub overrides: Vec<String>,
-    /// Frames timed (the median is `total_ms`); at least 1.
-    pub frames: u32,
-    /// Write the AOV channels (EXR output only).
-    pub aov: bool,
-    /// Time each pass alone once more.
-    pub pass_timings: bool,
-    pub cameras: Cameras,
-}
 
 /// Fraction of the value range below which the presets are transparent.
 pub const PRESET_CUTOFF: f64 = 0.1;
@@ -357,10 +289,10 @@ pub fn is_mesh(p: &Path) -> bool {
 /// A mesh file as a tube set: read (`tubes::mesh_io::read`), moved by the set's transform
 /// (normals by its inverse transpose), coloured by the set's colour when it is one (else the
 /// file's vertex colours, else grey); radius and tolerance do not apply.
-fn mesh_set(i: usize, t: &scene::TubesSpec) -> Result<TubeMesh, String> {
+fn mesh_set(i: usize, t: &spec::TubesSpec) -> Result<TubeMesh, String> {
     let mut m = tubes::mesh_io::read(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
     if let Some(a) = t.transform {
-        let rows = crate::tubes_cmd::transform_matrix(&a, &format!("tubes[{i}].transform"))?;
+        let rows = crate::tube_sets::transform_matrix(&a, &format!("tubes[{i}].transform"))?;
         let nm = glam::DMat3::from_mat4(rows).inverse().transpose();
         let origin = rows.transform_point3(m.origin);
         for p in &mut m.positions {
@@ -372,7 +304,7 @@ fn mesh_set(i: usize, t: &scene::TubesSpec) -> Result<TubeMesh, String> {
         m.origin = origin;
     }
     if t.color.starts_with('#') {
-        let c = scene::Color::Hex(t.color.clone())
+        let c = spec::Color::Hex(t.color.clone())
             .rgb()
             .map_err(|e| format!("tubes[{i}].color: {e}"))?;
         let c = c.map(|v| (v * 255.0).round() as u8);
@@ -396,19 +328,19 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             .transpose()
             .map_err(|e| e.to_string())?;
         if let Some(ispec) = &vspec.iso {
-            let inside = if ispec.inside == scene::IsoInside::Below {
+            let inside = if ispec.inside == spec::IsoInside::Below {
                 volume::distance_sweep::Inside::Below
             } else {
                 volume::distance_sweep::Inside::Above
             };
-            let values = crate::sweep_cmd::scalar_field(
+            let values = crate::fields::scalar_field(
                 &vol,
                 sel.as_ref(),
                 ispec.value as f32,
                 inside,
                 &vspec.path,
             )?;
-            let (sdf, octants) = crate::iso_cmd::iso_fields(
+            let (sdf, octants) = crate::fields::iso_fields(
                 &vol,
                 &values,
                 ispec.value as f32,
@@ -419,7 +351,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 None,
             )?;
             let octants = octants.ok_or("volume.iso: the octant fields are missing")?;
-            let surface = crate::iso_reference::IsoSurface::new(
+            let surface = occlusion::isosurface::IsoSurface::new(
                 vol.dims,
                 vol.affine,
                 &values,
@@ -468,7 +400,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 ));
             }
             let tf = transfer(&vspec.transfer, [st.min, st.max])?;
-            let data = ea_pass::prepare(&field.data);
+            let data = emission_absorption::prepare(&field.data);
             volume = Some((vol, data, tf));
         }
     }
@@ -481,11 +413,11 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         let mut sl = tubes::load(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
         if let Some(m) = t.transform {
             let key = format!("tubes[{i}].transform");
-            sl.transform(&crate::tubes_cmd::transform_matrix(&m, &key)?);
+            sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);
         }
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
-        let args = crate::tubes_cmd::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
-        let (mesh, _) = crate::tubes_cmd::build_mesh(&sl, &args)
+        let args = crate::tube_sets::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
+        let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
             .map_err(|e| format!("tubes[{i}] ({}): {e}", t.path.display()))?;
         meshes.push(mesh);
     }
@@ -537,15 +469,16 @@ pub fn settings(s: &Scene) -> Settings {
         vicinity_distance: r.vicinity_distance,
         vicinity_bias: r
             .vicinity_bias
-            .unwrap_or(scene::VICINITY_BIAS * r.vicinity_distance),
+            .unwrap_or(spec::VICINITY_BIAS * r.vicinity_distance),
         geometry_extinction: r.geometry_extinction,
-        column: r.geometry_shadow == scene::GeometryShadow::Column,
+        column: r.geometry_shadow == spec::GeometryShadow::Column,
         combine: r.combine,
         fxaa: r.fxaa,
         light: [l.ambient, l.diffuse, l.specular, l.shininess],
         occlusion_cell: r.occlusion_cell,
-        cone: r.occlusion_model == scene::OcclusionModel::Cone,
+        cone: r.occlusion_model == spec::OcclusionModel::Cone,
         msaa: r.msaa,
+        surface_ao: r.surface_ao,
     }
 }
 
@@ -645,7 +578,7 @@ pub fn fit_volume(
 /// the adapter's storage binding limit is downsampled first ([`fit_volume`], with a note on
 /// standard error).
 pub fn render_scene(
-    gpu: &crate::gpu::Gpu,
+    gpu: &engine::gpu::Gpu,
     s: &Scene,
     m: &Model,
     frames: u32,
@@ -676,7 +609,7 @@ pub struct Uploaded<'g> {
 
 /// Uploads a model once: the volume (downsampled when the adapter cannot bind it, with a
 /// note), its transfer function, the tube meshes and the isosurface's fields.
-pub fn upload<'g>(gpu: &'g crate::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, String> {
+pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, String> {
     let limit = gpu.device.limits().max_storage_buffer_binding_size;
     let fitted = m
         .volume
@@ -704,7 +637,7 @@ pub fn upload<'g>(gpu: &'g crate::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, S
             ));
         }
     }
-    let iso = m.iso.as_ref().map(|i| crate::iso_pass::IsoInput {
+    let iso = m.iso.as_ref().map(|i| engine::iso_pass::IsoInput {
         dims: i.dims,
         affine: i.affine,
         g: &i.g,
@@ -740,186 +673,6 @@ impl Uploaded<'_> {
             .map_err(|e| e.to_string())?;
         Ok((out, v))
     }
-}
-
-/// Writes linear RGBA and AOVs as EXR (channels R, G, B, A, and with `aov`
-/// `occlusion.volumetric`, `occlusion.partial`, `occlusion.vicinity`, `occlusion.combined`,
-/// `Z`), through a temporary file renamed into place.
-pub fn write_exr(
-    path: &Path,
-    w: usize,
-    h: usize,
-    image: &[[f32; 4]],
-    aov: Option<&[Aov]>,
-) -> Result<(), String> {
-    use exr::prelude::*;
-    let ch = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
-    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
-    for (k, n) in ["R", "G", "B", "A"].iter().enumerate() {
-        list.push(ch(n, image.iter().map(|p| p[k]).collect()));
-    }
-    if let Some(a) = aov {
-        type Channel = (&'static str, fn(&Aov) -> f32);
-        let get: [Channel; 5] = [
-            ("occlusion.volumetric", |a| a.volumetric),
-            ("occlusion.partial", |a| a.partial),
-            ("occlusion.vicinity", |a| a.vicinity),
-            ("occlusion.combined", |a| a.combined),
-            ("Z", |a| a.depth),
-        ];
-        for (n, f) in get {
-            list.push(ch(n, a.iter().map(f).collect()));
-        }
-    }
-    let img = Image::from_channels((w, h), AnyChannels::sort(list));
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    img.write()
-        .to_buffered(&mut bytes)
-        .map_err(|e| format!("{}: encoding EXR: {e}", path.display()))?;
-    volume::write_atomic(path, bytes.get_ref()).map_err(|e| e.to_string())?;
-    Ok(())
-}
-
-/// Writes one frame: PNG (8-bit sRGB) or EXR (linear RGBA, with `aov` the AOV channels),
-/// atomically, creating missing folders.
-fn write_image(
-    path: &Path,
-    exr: bool,
-    aov: bool,
-    out: &renderer::Output,
-    v: &EaView,
-) -> Result<(), String> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    }
-    let (w, h) = (v.width as usize, v.height as usize);
-    if exr {
-        write_exr(path, w, h, &out.image, aov.then_some(&out.aov[..]))
-    } else {
-        let rgb: Vec<[f32; 3]> = out.image.iter().map(|c| [c[0], c[1], c[2]]).collect();
-        crate::iso_reference::write_rgb_png(path, w, h, &rgb)
-    }
-}
-
-/// Runs `umbra render`: one frame, or a turntable or camera path (one upload, a frame per
-/// camera, each written as it is done; `progress` hears of each).
-pub fn run(
-    a: &RenderArgs,
-    progress: &mut dyn FnMut(&FrameReport, usize),
-) -> Result<RenderReport, String> {
-    let t0 = Instant::now();
-    let path = &a.scene;
-    let s = scene::load(path, &a.overrides)?;
-    let ext = a
-        .output
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let exr = match ext.as_deref() {
-        Some("png") => false,
-        Some("exr") => true,
-        _ => {
-            return Err(format!(
-                "{}: the output must end in .png or .exr",
-                a.output.display()
-            ))
-        }
-    };
-    if a.aov && !exr {
-        return Err(format!(
-            "{}: AOV channels are written to EXR only; this output is a PNG",
-            a.output.display()
-        ));
-    }
-    let sequence = match &a.cameras {
-        Cameras::Single => None,
-        Cameras::Orbit(0) => return Err("a turntable needs at least one frame".into()),
-        Cameras::Orbit(n) if *n > crate::camera_path::MAX_FRAMES => {
-            return Err(format!(
-                "a turntable of {n} frames: at most {}",
-                crate::camera_path::MAX_FRAMES
-            ))
-        }
-        Cameras::Orbit(n) => Some(Sequence::Orbit(*n)),
-        Cameras::Path(p) => Some(Sequence::Path(CameraPath::load(p)?)),
-    };
-    if sequence.is_some() {
-        frame_path(&a.output, 0)?;
-    }
-    let m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
-    let gpu = crate::gpu::Gpu::new().map_err(|e| e.to_string())?;
-    let up = upload(&gpu, &m).map_err(|e| format!("{}: {e}", path.display()))?;
-    let opts = DrawOptions {
-        frames: a.frames.max(1),
-        pass_timings: a.pass_timings,
-    };
-    let mut notes = m.notes.clone();
-    notes.extend(up.notes.iter().cloned());
-    let cameras = match &sequence {
-        None => vec![s.camera.clone()],
-        Some(q) => {
-            let c = (m.bounds[0] + m.bounds[1]) * 0.5;
-            q.cameras(&s, c.to_array())
-        }
-    };
-    let setup_seconds = t0.elapsed().as_secs_f64();
-    let mut frames: Vec<FrameReport> = Vec::with_capacity(cameras.len());
-    let mut last = None;
-    for (k, cam) in cameras.iter().enumerate() {
-        let mut sk = s.clone();
-        sk.camera = cam.clone();
-        let (out, v) = up
-            .draw(&sk, &m, opts)
-            .map_err(|e| format!("{}: frame {k}: {e}", path.display()))?;
-        let file = match &sequence {
-            None => a.output.clone(),
-            Some(_) => frame_path(&a.output, k)?,
-        };
-        write_image(&file, exr, a.aov, &out, &v)?;
-        if k == 0 {
-            notes.extend(out.notes.iter().cloned());
-        }
-        let f = FrameReport {
-            index: k,
-            path: file,
-            camera: cam.clone(),
-            slices: v.slices,
-            total_ms: out.timings.total_ms,
-            frames_ms: out.timings.frames_ms.clone(),
-            passes: out.timings.passes.clone(),
-        };
-        progress(&f, cameras.len());
-        frames.push(f);
-        last = Some((out, v));
-    }
-    let (out, v) = last.ok_or("no frame was rendered")?;
-    let Timings {
-        total_ms,
-        frames_ms,
-        passes,
-    } = out.timings;
-    let mut totals: Vec<f64> = frames.iter().map(|f| f.total_ms).collect();
-    totals.sort_by(f64::total_cmp);
-    Ok(RenderReport {
-        method: format!("{:?}", s.render.method).to_lowercase(),
-        width: v.width,
-        height: v.height,
-        slices: v.slices,
-        slice_distance: v.dz,
-        triangles: out.triangles,
-        adapter: gpu.report().name,
-        total_ms: if sequence.is_some() {
-            totals[totals.len() / 2]
-        } else {
-            total_ms
-        },
-        passes,
-        frames_ms,
-        setup_seconds,
-        seconds: t0.elapsed().as_secs_f64(),
-        notes,
-        sequence: if sequence.is_some() { frames } else { vec![] },
-    })
 }
 
 #[cfg(test)]

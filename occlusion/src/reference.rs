@@ -34,8 +34,8 @@
 //! extinction acts wherever a point lies behind the nearest tube surface seen from the eye
 //! (the map's grid is several times finer than the image), estimated by delta tracking.
 
-use crate::ea_pass::{EaView, Transfer};
-use crate::iso_reference::SplitMix64;
+use crate::emission_absorption::{EaView, Transfer};
+use crate::rng::SplitMix64;
 use glam::{DMat4, DVec3, DVec4};
 use rayon::prelude::*;
 use volume::Volume;
@@ -149,74 +149,6 @@ pub struct RefImage {
     pub vicinity: Vec<f64>,
 }
 
-/// The EXR channels of a cached reference, in [`RefImage`]'s field order after R, G, B.
-const REF_CHANNELS: [&str; 4] = [
-    "stderr",
-    "occlusion.volumetric",
-    "occlusion.surface",
-    "occlusion.vicinity",
-];
-
-impl RefImage {
-    /// Writes every field as a 32-bit float channel (R, G, B, then [`REF_CHANNELS`]) of one
-    /// EXR, atomically.
-    pub fn write_exr(&self, path: &std::path::Path) -> Result<(), String> {
-        use exr::prelude::*;
-        let ch = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
-        let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
-        let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
-        for (k, n) in ["R", "G", "B"].iter().enumerate() {
-            list.push(ch(n, self.rgb.iter().map(|p| p[k] as f32).collect()));
-        }
-        let planes = [
-            &self.stderr,
-            &self.volumetric,
-            &self.surface,
-            &self.vicinity,
-        ];
-        for (name, plane) in REF_CHANNELS.iter().zip(planes) {
-            list.push(ch(name, f32s(plane)));
-        }
-        let img = Image::from_channels((self.width, self.height), AnyChannels::sort(list));
-        let mut bytes = std::io::Cursor::new(Vec::new());
-        img.write()
-            .to_buffered(&mut bytes)
-            .map_err(|e| format!("{}: encoding EXR: {e}", path.display()))?;
-        volume::write_atomic(path, bytes.get_ref()).map_err(|e| e.to_string())
-    }
-
-    /// Reads what [`RefImage::write_exr`] wrote; `None` when the file is absent, unreadable or
-    /// lacks a channel.
-    pub fn read_exr(path: &std::path::Path) -> Option<RefImage> {
-        let img = exr::prelude::read_first_flat_layer_from_file(path).ok()?;
-        let size = img.layer_data.size;
-        let chan = |name: &str| -> Option<Vec<f64>> {
-            img.layer_data
-                .channel_data
-                .list
-                .iter()
-                .find(|c| c.name.to_string() == name)
-                .map(|c| c.sample_data.values_as_f32().map(|v| v as f64).collect())
-        };
-        let (r, g, b) = (chan("R")?, chan("G")?, chan("B")?);
-        let [stderr, volumetric, surface, vicinity] = [
-            chan(REF_CHANNELS[0])?,
-            chan(REF_CHANNELS[1])?,
-            chan(REF_CHANNELS[2])?,
-            chan(REF_CHANNELS[3])?,
-        ];
-        Some(RefImage {
-            width: size.0,
-            height: size.1,
-            rgb: (0..r.len()).map(|i| [r[i], g[i], b[i]]).collect(),
-            stderr,
-            volumetric,
-            surface,
-            vicinity,
-        })
-    }
-}
-
 struct Medium<'a> {
     v: &'a RefVolume<'a>,
     w2i: DMat4,
@@ -236,14 +168,16 @@ impl Medium<'_> {
         }
         let q = (self.w2i * DVec4::from((p, 1.0))).truncate();
         let dims = self.v.vol.dims;
-        let Some(v) = crate::ea_pass::sample(self.v.data, dims, q).filter(|&v| v >= -1e30) else {
+        let Some(v) =
+            crate::emission_absorption::sample(self.v.data, dims, q).filter(|&v| v >= -1e30)
+        else {
             return (0.0, [0.0; 3]);
         };
         // A 2-D transfer function needs the gradient magnitude, taken as the shader takes it.
         let g = if self.v.tf.rows.is_empty() {
             0.0
         } else {
-            crate::ea_pass::gradient(self.v.data, dims, &self.w2i, q).length()
+            crate::emission_absorption::gradient(self.v.data, dims, &self.w2i, q).length()
         };
         let (rgb, sigma) = self.v.tf.eval2(v, g);
         (sigma.max(0.0), rgb)
@@ -510,7 +444,7 @@ mod tests {
         // a cone of half-angle theta, the light at depth x is the cone mean of
         // exp(-s x / cos), so the pixel is int_0^L s e^{-s x} E[e^{-s x / cos}] dx.
         let vol = slab();
-        let data = crate::ea_pass::prepare(&vol.select(None).unwrap().data);
+        let data = crate::emission_absorption::prepare(&vol.select(None).unwrap().data);
         let s = 0.1;
         let tf = Transfer {
             points: vec![(0.0, [1.0; 3], s), (2.0, [1.0; 3], s)],

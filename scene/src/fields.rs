@@ -1,5 +1,6 @@
-//! `umbra sweep`: signed distance and eight octant occlusion fields of an isosurface, written
-//! as NRRD (see `volume::distance_sweep` and `volume::occlusion_sweep` for the methods).
+//! The swept fields of an isosurface (signed distance and the eight octant occlusion fields,
+//! Singh et al.; see `volume::distance_sweep` and `volume::occlusion_sweep`): computed, written
+//! as NRRD and read back - the library of `umbra sweep` and of scenes in isosurface mode.
 
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -22,7 +23,6 @@ pub struct SweepArgs {
     pub init: InitMethod,
     pub tolerance: f32,
     pub subsurface_alpha: Option<f32>,
-    pub progress: bool,
 }
 
 /// Seconds per stage (`compute` covers initialisation, distance and octant sweeps, no I/O).
@@ -185,21 +185,9 @@ pub fn read_octants(path: &Path, dims: [usize; 3]) -> Result<OctantFields, Strin
     Ok(OctantFields { dims, octants })
 }
 
-/// Runs `umbra sweep`.
-pub fn run(args: &SweepArgs) -> Result<SweepSummary, String> {
+/// Runs `umbra sweep`; `stage` hears the name of each stage as it starts.
+pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, String> {
     let t0 = Instant::now();
-    let bar = if args.progress {
-        let b = indicatif::ProgressBar::new_spinner();
-        b.enable_steady_tick(std::time::Duration::from_millis(120));
-        Some(b)
-    } else {
-        None
-    };
-    let stage = |m: &str| {
-        if let Some(b) = &bar {
-            b.set_message(m.to_string());
-        }
-    };
     stage("reading");
     let vol = volume::load(&args.input).map_err(|e| e.to_string())?;
     let values = scalar_field(
@@ -254,9 +242,6 @@ pub fn run(args: &SweepArgs) -> Result<SweepSummary, String> {
         _ => None,
     };
     let t_write = t2.elapsed().as_secs_f64();
-    if let Some(b) = bar {
-        b.finish_and_clear();
-    }
     Ok(SweepSummary {
         dims: vol.dims,
         iterations: df.iterations,
@@ -274,4 +259,59 @@ pub fn run(args: &SweepArgs) -> Result<SweepSummary, String> {
         octants: oct_path,
         warnings,
     })
+}
+
+/// The distance field and (when `need_octants`) the eight octant visibilities of an
+/// isosurface: read from `fields` (the octants from `octants` or beside it) when given, else
+/// swept in memory.
+#[allow(clippy::too_many_arguments)]
+pub fn iso_fields(
+    vol: &volume::Volume,
+    values: &[f32],
+    iso: f32,
+    inside: Inside,
+    fields: Option<&std::path::Path>,
+    octants: Option<&std::path::Path>,
+    need_octants: bool,
+    subsurface_alpha: Option<f32>,
+) -> Result<(Vec<f32>, Option<volume::occlusion_sweep::OctantFields>), String> {
+    match fields {
+        Some(p) => {
+            let d = volume::load(p).map_err(|e| e.to_string())?;
+            if d.dims != vol.dims || d.fields[0].components != 1 {
+                return Err(format!(
+                    "{}: distance grid {:?} does not match the volume's {:?}",
+                    p.display(),
+                    d.dims,
+                    vol.dims
+                ));
+            }
+            let oct = if need_octants {
+                let op = octants
+                    .map(|o| o.to_path_buf())
+                    .unwrap_or_else(|| default_octants_path(p));
+                Some(read_octants(&op, vol.dims)?)
+            } else {
+                None
+            };
+            Ok((d.fields[0].data.clone(), oct))
+        }
+        None => {
+            let sp = vol.spacing();
+            let dopts = DistanceOptions {
+                iso,
+                inside,
+                ..Default::default()
+            };
+            let (df, oct) = sweep_fields(
+                values,
+                vol.dims,
+                [sp[0] as f32, sp[1] as f32, sp[2] as f32],
+                &dopts,
+                &OcclusionOptions { subsurface_alpha },
+                true,
+            );
+            Ok((df.distance, oct))
+        }
+    }
 }

@@ -27,7 +27,7 @@
 //! either kind. Values are interpolated per component between the keys around each frame's
 //! time; `up` is normalised after interpolation.
 
-use crate::scene::{CameraSpec, Scene};
+use crate::spec::{CameraSpec, Scene};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -324,7 +324,7 @@ mod tests {
         };
         let e = orbit_camera(&look, [9.0; 3], 1, 4).eye.unwrap();
         assert!((e[0] + 5.0).abs() < 1e-12 && e[1].abs() < 1e-12 && (e[2] - 1.0).abs() < 1e-12);
-        let orbit = crate::camera::Camera::orbit(
+        let orbit = occlusion::camera::Camera::orbit(
             [glam::DVec3::splat(-1.0), glam::DVec3::splat(1.0)],
             90.0,
             0.0,

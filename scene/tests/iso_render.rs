@@ -2,11 +2,11 @@
 //! the same rays, surface, normal and swept ambient term, on lavapipe; and tubes in the same
 //! image.
 
-use engine::iso_reference::{ambient_at, AmbientSource, IsoSurface};
-use engine::render_cmd::{model, render_scene};
 use glam::DVec3;
+use occlusion::isosurface::{ambient_at, AmbientSource, IsoSurface};
+use scene::compile::{model, render_scene};
 
-fn scene(dir: &std::path::Path, extra: &str) -> engine::scene::Scene {
+fn scene(dir: &std::path::Path, extra: &str) -> scene::spec::Scene {
     let vol = volume::synthetic::validation_scene(40);
     let path = dir.join("v.nrrd");
     volume::nrrd::write(
@@ -22,7 +22,7 @@ fn scene(dir: &std::path::Path, extra: &str) -> engine::scene::Scene {
          [render]\nwidth = 72\nheight = 60\nfxaa = false\n",
         path.display()
     );
-    engine::scene::parse(&text, "iso.toml", dir, &[]).unwrap()
+    scene::spec::parse(&text, "iso.toml", dir, &[]).unwrap()
 }
 
 #[test]

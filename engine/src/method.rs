@@ -1,0 +1,196 @@
+//! The render methods and the enumerations their settings take (the scene files' `render.method`,
+//! `render.combine`, `render.geometry_shadow`, `render.occlusion_model` deserialise into
+//! these).
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    Combined,
+    Dos,
+    Vicinity,
+    Ea,
+    Phong,
+}
+
+/// How tubes shadow the volume behind them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GeometryShadow {
+    /// Only where a slice sample lies inside a tube (between its front and back faces).
+    Inside,
+    /// Every sample behind a surface (the paper's rule: an endless shadow column).
+    Column,
+}
+
+/// How the volumetric occlusion buffer spreads shadows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OcclusionModel {
+    /// The paper's constant blur per slice (a random walk: depends on the slice count).
+    Paper,
+    /// A blur that grows with the shadow's distance from its occluders (follows the cone).
+    Cone,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Combine {
+    Min,
+    Product,
+}
+
+/// `render.surface_ao`: which screen-space ambient occlusion of the surfaces fills a method's
+/// surface-AO slot (the next line papers add LineAO here).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum SurfaceAo {
+    /// Schott et al.'s vicinity occlusion (Alg. 5, eq. 4-6; `vicinity.rs`).
+    #[default]
+    Vicinity,
+    /// No surface AO: the slot is left out.
+    None,
+}
+
+/// How a method shades the volume (the `march` entry of `slice_pass`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VolumeShading {
+    /// Emission-absorption coloured by the volumetric occlusion buffer (the `light` pass, one
+    /// dispatch per slice; Schott et al. Alg. 2-3).
+    Occlusion,
+    /// Emission-absorption without occlusion.
+    EmissionAbsorption,
+    /// Phong shading with on-the-fly gradients under the head light.
+    Phong,
+}
+
+/// One occlusion term of the surfaces: a layer of one value per pixel that composite folds
+/// with the others by min (eq. 7) or product (eq. 8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Term {
+    /// The volume's partial occlusion of the surfaces (Alg. 4, eq. 1-3), written by the
+    /// `march` pass; needs [`VolumeShading::Occlusion`].
+    Partial,
+    /// The slot `render.surface_ao` fills ([`SurfaceAo`]).
+    SurfaceAo,
+}
+
+/// A row of the method table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MethodDesc {
+    pub method: Method,
+    /// The name scene files and the command line use (`render.method`).
+    pub name: &'static str,
+    pub volume: VolumeShading,
+    /// The surface terms, in the order composite folds them.
+    pub terms: &'static [Term],
+    /// One line for tables and help.
+    pub summary: &'static str,
+}
+
+/// The method table: every render method, its volume model and its surface terms. Adding a
+/// method is one row here (and its enum variant above); a new surface term is one pass module,
+/// its WGSL file and a [`SurfaceAo`] choice.
+pub const METHODS: &[MethodDesc] = &[
+    MethodDesc {
+        method: Method::Combined,
+        name: "combined",
+        volume: VolumeShading::Occlusion,
+        terms: &[Term::Partial, Term::SurfaceAo],
+        summary:
+            "volume by its occlusion buffer; surfaces by partial and surface AO (min or product)",
+    },
+    MethodDesc {
+        method: Method::Dos,
+        name: "dos",
+        volume: VolumeShading::Occlusion,
+        terms: &[Term::Partial],
+        summary: "volume by its occlusion buffer; surfaces by partial occlusion",
+    },
+    MethodDesc {
+        method: Method::Vicinity,
+        name: "vicinity",
+        volume: VolumeShading::EmissionAbsorption,
+        terms: &[Term::SurfaceAo],
+        summary: "emission-absorption volume; surfaces by surface AO",
+    },
+    MethodDesc {
+        method: Method::Ea,
+        name: "ea",
+        volume: VolumeShading::EmissionAbsorption,
+        terms: &[],
+        summary: "emission-absorption volume; Phong surfaces",
+    },
+    MethodDesc {
+        method: Method::Phong,
+        name: "phong",
+        volume: VolumeShading::Phong,
+        terms: &[],
+        summary: "Phong volume with gradient normals; Phong surfaces",
+    },
+];
+
+/// The most surface terms a frame folds.
+pub const MAX_TERMS: usize = 4;
+
+/// The names of every surface-term layer a frame can have, in AOV order (`occlusion.<name>`).
+pub const TERM_NAMES: &[&str] = &["partial", "vicinity"];
+
+impl Method {
+    /// The method's row of [`METHODS`].
+    pub fn desc(self) -> &'static MethodDesc {
+        METHODS
+            .iter()
+            .find(|d| d.method == self)
+            .expect("every method has a row in METHODS")
+    }
+
+    /// The method named `name` (as scene files spell it), or the list of names.
+    pub fn from_name(name: &str) -> Result<Method, String> {
+        METHODS
+            .iter()
+            .find(|d| d.name == name)
+            .map(|d| d.method)
+            .ok_or_else(|| {
+                format!(
+                    "'{name}' is not one of {}",
+                    METHODS
+                        .iter()
+                        .map(|d| d.name)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_method_has_one_row_named_as_serde_names_it() {
+        for m in [
+            Method::Combined,
+            Method::Dos,
+            Method::Vicinity,
+            Method::Ea,
+            Method::Phong,
+        ] {
+            let d = m.desc();
+            assert_eq!(METHODS.iter().filter(|r| r.method == m).count(), 1);
+            let serde_name = serde_json::to_value(m).unwrap();
+            assert_eq!(serde_name, d.name);
+            assert_eq!(Method::from_name(d.name).unwrap(), m);
+            // The partial term reads the occlusion buffer.
+            if d.terms.contains(&Term::Partial) {
+                assert_eq!(d.volume, VolumeShading::Occlusion);
+            }
+            assert!(d.terms.len() <= MAX_TERMS);
+        }
+        assert!(Method::from_name("lineao")
+            .unwrap_err()
+            .contains("combined, dos"));
+    }
+}

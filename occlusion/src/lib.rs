@@ -1,0 +1,19 @@
+//! umbra's papers on the CPU, without a GPU: one module per paper or concern, each opening
+//! with what it implements, the pure functions the renderer's passes are built on, the CPU
+//! twins of those passes, and the Monte Carlo ground truths every method is measured against.
+//!
+//! | paper | module | its equation index |
+//! |---|---|---|
+//! | Schott et al. 2012, combined surface and volumetric occlusion | [`combined`] (+ [`emission_absorption`], [`reference`], [`reference_tubes`]) | [`combined`] |
+//! | Singh, Yuksel & House 2009, fast occlusion sweeping | `volume::distance_sweep`, `volume::occlusion_sweep`, `volume::occlusion_shading` (+ [`isosurface`]) | [`isosurface`] |
+//! | the projection conventions and the paper's texture-radius erratum | [`camera`] | [`camera`] |
+//!
+//! Nothing here imports `wgpu`: the `engine` crate depends on this one, never the reverse.
+
+pub mod camera;
+pub mod combined;
+pub mod emission_absorption;
+pub mod isosurface;
+pub mod reference;
+pub mod reference_tubes;
+pub mod rng;

@@ -1,0 +1,165 @@
+//! Image files: 8-bit sRGB PNG, linear float EXR with the renderer's AOV channels, and the
+//! Monte Carlo reference's EXR (one reader and one writer). Every file is written to a
+//! temporary file in its folder and renamed into place.
+
+use occlusion::reference::RefImage;
+use std::path::Path;
+
+/// Encodes linear [0, 1] values as 8-bit sRGB.
+pub fn srgb8(v: f32) -> u8 {
+    let v = v.clamp(0.0, 1.0);
+    let s = if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// Writes the colour of an image as an 8-bit sRGB PNG through a temporary file.
+pub fn write_png(
+    path: &std::path::Path,
+    img: &occlusion::isosurface::IsoImage,
+) -> Result<(), String> {
+    write_rgb_png(path, img.width, img.height, &img.color)
+}
+
+/// Writes linear RGB pixels (rows top to bottom) as an 8-bit sRGB PNG through a temporary file.
+pub fn write_rgb_png(
+    path: &std::path::Path,
+    width: usize,
+    height: usize,
+    color: &[[f32; 3]],
+) -> Result<(), String> {
+    if color.len() != width * height {
+        return Err(format!(
+            "{}: {} pixels for a {width} x {height} image",
+            path.display(),
+            color.len()
+        ));
+    }
+    let mut buf = image::RgbImage::new(width as u32, height as u32);
+    for (i, c) in color.iter().enumerate() {
+        buf.put_pixel(
+            (i % width) as u32,
+            (i / width) as u32,
+            image::Rgb([srgb8(c[0]), srgb8(c[1]), srgb8(c[2])]),
+        );
+    }
+    let mut bytes = Vec::new();
+    buf.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| format!("{}: encoding PNG: {e}", path.display()))?;
+    volume::write_atomic(path, &bytes).map_err(|e| e.to_string())
+}
+
+/// Writes linear RGBA as EXR (channels R, G, B, A) with any further named channels (the
+/// renderer's AOVs, `engine::renderer::Output::aov_channels`), through a temporary file renamed
+/// into place.
+pub fn write_exr(
+    path: &Path,
+    w: usize,
+    h: usize,
+    image: &[[f32; 4]],
+    channels: &[(String, Vec<f32>)],
+) -> Result<(), String> {
+    use exr::prelude::*;
+    let ch = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    for (k, n) in ["R", "G", "B", "A"].iter().enumerate() {
+        list.push(ch(n, image.iter().map(|p| p[k]).collect()));
+    }
+    for (n, v) in channels {
+        if v.len() != w * h {
+            return Err(format!(
+                "{}: channel {n} has {} values for {w} x {h} pixels",
+                path.display(),
+                v.len()
+            ));
+        }
+        list.push(ch(n, v.clone()));
+    }
+    let img = Image::from_channels((w, h), AnyChannels::sort(list));
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| format!("{}: encoding EXR: {e}", path.display()))?;
+    volume::write_atomic(path, bytes.get_ref()).map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// The EXR channels of a cached reference, in [`RefImage`]'s field order after R, G, B.
+const REF_CHANNELS: [&str; 4] = [
+    "stderr",
+    "occlusion.volumetric",
+    "occlusion.surface",
+    "occlusion.vicinity",
+];
+
+/// A Monte Carlo reference image in one EXR: every field of [`RefImage`] a channel.
+pub trait RefImageExr: Sized {
+    fn write_exr(&self, path: &std::path::Path) -> Result<(), String>;
+    fn read_exr(path: &std::path::Path) -> Option<Self>;
+}
+
+impl RefImageExr for RefImage {
+    /// Writes every field as a 32-bit float channel (R, G, B, then [`REF_CHANNELS`]) of one
+    /// EXR, atomically.
+    fn write_exr(&self, path: &std::path::Path) -> Result<(), String> {
+        use exr::prelude::*;
+        let ch = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
+        let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+        let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+        for (k, n) in ["R", "G", "B"].iter().enumerate() {
+            list.push(ch(n, self.rgb.iter().map(|p| p[k] as f32).collect()));
+        }
+        let planes = [
+            &self.stderr,
+            &self.volumetric,
+            &self.surface,
+            &self.vicinity,
+        ];
+        for (name, plane) in REF_CHANNELS.iter().zip(planes) {
+            list.push(ch(name, f32s(plane)));
+        }
+        let img = Image::from_channels((self.width, self.height), AnyChannels::sort(list));
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        img.write()
+            .to_buffered(&mut bytes)
+            .map_err(|e| format!("{}: encoding EXR: {e}", path.display()))?;
+        volume::write_atomic(path, bytes.get_ref()).map_err(|e| e.to_string())
+    }
+
+    /// Reads what [`RefImage::write_exr`] wrote; `None` when the file is absent, unreadable or
+    /// lacks a channel.
+    fn read_exr(path: &std::path::Path) -> Option<RefImage> {
+        let img = exr::prelude::read_first_flat_layer_from_file(path).ok()?;
+        let size = img.layer_data.size;
+        let chan = |name: &str| -> Option<Vec<f64>> {
+            img.layer_data
+                .channel_data
+                .list
+                .iter()
+                .find(|c| c.name.to_string() == name)
+                .map(|c| c.sample_data.values_as_f32().map(|v| v as f64).collect())
+        };
+        let (r, g, b) = (chan("R")?, chan("G")?, chan("B")?);
+        let [stderr, volumetric, surface, vicinity] = [
+            chan(REF_CHANNELS[0])?,
+            chan(REF_CHANNELS[1])?,
+            chan(REF_CHANNELS[2])?,
+            chan(REF_CHANNELS[3])?,
+        ];
+        Some(RefImage {
+            width: size.0,
+            height: size.1,
+            rgb: (0..r.len()).map(|i| [r[i], g[i], b[i]]).collect(),
+            stderr,
+            volumetric,
+            surface,
+            vicinity,
+        })
+    }
+}

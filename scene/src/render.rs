@@ -1,0 +1,221 @@
+//! Rendering a scene to image files, the library behind `umbra render`: one image, or a
+//! turntable or camera path in one process (one upload, a frame per camera, each frame written
+//! atomically as it is done).
+
+use crate::camera_path::{frame_path, CameraPath, Sequence};
+use crate::compile::{model, upload};
+use crate::image_io::write_exr;
+use crate::spec;
+use engine::renderer::{self, DrawOptions, Timings};
+use occlusion::emission_absorption::EaView;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What `render` did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderReport {
+    pub method: String,
+    pub width: u32,
+    pub height: u32,
+    pub slices: u32,
+    pub slice_distance: f64,
+    pub triangles: u64,
+    pub adapter: String,
+    /// Median frame time and per-pass times (see `renderer::Timings`).
+    pub total_ms: f64,
+    pub passes: std::collections::BTreeMap<String, f64>,
+    pub frames_ms: Vec<f64>,
+    /// Wall time of the whole command: loading, meshing, rendering, writing.
+    pub seconds: f64,
+    /// Wall time before the first frame: loading, meshing, opening the GPU, uploading.
+    pub setup_seconds: f64,
+    pub notes: Vec<String>,
+    /// Each frame of a turntable or camera path (empty for one image).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sequence: Vec<FrameReport>,
+}
+
+/// One frame of a sequence.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FrameReport {
+    pub index: usize,
+    pub path: PathBuf,
+    /// The frame's `[camera]`.
+    pub camera: spec::CameraSpec,
+    pub slices: u32,
+    /// Median of the frame's repeats (`--frames`), ms.
+    pub total_ms: f64,
+    pub frames_ms: Vec<f64>,
+    pub passes: std::collections::BTreeMap<String, f64>,
+}
+
+/// Which cameras `umbra render` renders.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Cameras {
+    /// The scene's camera.
+    #[default]
+    Single,
+    /// A turntable of this many frames.
+    Orbit(u32),
+    /// A camera path file.
+    Path(PathBuf),
+}
+
+/// What `umbra render` is asked to do.
+#[derive(Clone, Debug, Default)]
+pub struct RenderArgs {
+    pub scene: PathBuf,
+    pub output: PathBuf,
+    /// `--set KEY=VALUE` overrides (`--width`, `--height` and `--method` become these too).
+    pub overrides: Vec<String>,
+    /// Frames timed (the median is `total_ms`); at least 1.
+    pub frames: u32,
+    /// Write the AOV channels (EXR output only).
+    pub aov: bool,
+    /// Time each pass alone once more.
+    pub pass_timings: bool,
+    pub cameras: Cameras,
+}
+
+/// Writes one frame: PNG (8-bit sRGB) or EXR (linear RGBA, with `aov` the AOV channels),
+/// atomically, creating missing folders.
+fn write_image(
+    path: &Path,
+    exr: bool,
+    aov: bool,
+    out: &renderer::Output,
+    v: &EaView,
+) -> Result<(), String> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    let (w, h) = (v.width as usize, v.height as usize);
+    if exr {
+        let channels = if aov { out.aov_channels() } else { vec![] };
+        write_exr(path, w, h, &out.image, &channels)
+    } else {
+        let rgb: Vec<[f32; 3]> = out.image.iter().map(|c| [c[0], c[1], c[2]]).collect();
+        crate::image_io::write_rgb_png(path, w, h, &rgb)
+    }
+}
+
+/// Runs `umbra render`: one frame, or a turntable or camera path (one upload, a frame per
+/// camera, each written as it is done; `progress` hears of each).
+pub fn run(
+    a: &RenderArgs,
+    progress: &mut dyn FnMut(&FrameReport, usize),
+) -> Result<RenderReport, String> {
+    let t0 = Instant::now();
+    let path = &a.scene;
+    let s = spec::load(path, &a.overrides)?;
+    let ext = a
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let exr = match ext.as_deref() {
+        Some("png") => false,
+        Some("exr") => true,
+        _ => {
+            return Err(format!(
+                "{}: the output must end in .png or .exr",
+                a.output.display()
+            ))
+        }
+    };
+    if a.aov && !exr {
+        return Err(format!(
+            "{}: AOV channels are written to EXR only; this output is a PNG",
+            a.output.display()
+        ));
+    }
+    let sequence = match &a.cameras {
+        Cameras::Single => None,
+        Cameras::Orbit(0) => return Err("a turntable needs at least one frame".into()),
+        Cameras::Orbit(n) if *n > crate::camera_path::MAX_FRAMES => {
+            return Err(format!(
+                "a turntable of {n} frames: at most {}",
+                crate::camera_path::MAX_FRAMES
+            ))
+        }
+        Cameras::Orbit(n) => Some(Sequence::Orbit(*n)),
+        Cameras::Path(p) => Some(Sequence::Path(CameraPath::load(p)?)),
+    };
+    if sequence.is_some() {
+        frame_path(&a.output, 0)?;
+    }
+    let m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
+    let gpu = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
+    let up = upload(&gpu, &m).map_err(|e| format!("{}: {e}", path.display()))?;
+    let opts = DrawOptions {
+        frames: a.frames.max(1),
+        pass_timings: a.pass_timings,
+    };
+    let mut notes = m.notes.clone();
+    notes.extend(up.notes.iter().cloned());
+    let cameras = match &sequence {
+        None => vec![s.camera.clone()],
+        Some(q) => {
+            let c = (m.bounds[0] + m.bounds[1]) * 0.5;
+            q.cameras(&s, c.to_array())
+        }
+    };
+    let setup_seconds = t0.elapsed().as_secs_f64();
+    let mut frames: Vec<FrameReport> = Vec::with_capacity(cameras.len());
+    let mut last = None;
+    for (k, cam) in cameras.iter().enumerate() {
+        let mut sk = s.clone();
+        sk.camera = cam.clone();
+        let (out, v) = up
+            .draw(&sk, &m, opts)
+            .map_err(|e| format!("{}: frame {k}: {e}", path.display()))?;
+        let file = match &sequence {
+            None => a.output.clone(),
+            Some(_) => frame_path(&a.output, k)?,
+        };
+        write_image(&file, exr, a.aov, &out, &v)?;
+        if k == 0 {
+            notes.extend(out.notes.iter().cloned());
+        }
+        let f = FrameReport {
+            index: k,
+            path: file,
+            camera: cam.clone(),
+            slices: v.slices,
+            total_ms: out.timings.total_ms,
+            frames_ms: out.timings.frames_ms.clone(),
+            passes: out.timings.passes.clone(),
+        };
+        progress(&f, cameras.len());
+        frames.push(f);
+        last = Some((out, v));
+    }
+    let (out, v) = last.ok_or("no frame was rendered")?;
+    let Timings {
+        total_ms,
+        frames_ms,
+        passes,
+    } = out.timings;
+    let mut totals: Vec<f64> = frames.iter().map(|f| f.total_ms).collect();
+    totals.sort_by(f64::total_cmp);
+    Ok(RenderReport {
+        method: format!("{:?}", s.render.method).to_lowercase(),
+        width: v.width,
+        height: v.height,
+        slices: v.slices,
+        slice_distance: v.dz,
+        triangles: out.triangles,
+        adapter: gpu.report().name,
+        total_ms: if sequence.is_some() {
+            totals[totals.len() / 2]
+        } else {
+            total_ms
+        },
+        passes,
+        frames_ms,
+        setup_seconds,
+        seconds: t0.elapsed().as_secs_f64(),
+        notes,
+        sequence: if sequence.is_some() { frames } else { vec![] },
+    })
+}
