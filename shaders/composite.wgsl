@@ -1,14 +1,18 @@
 // Final compositing and shading (Schott et al., Algorithm 6, eq. 7-10) as a compute pass.
-// Rust side: engine/src/composite.rs, which prepends the G-buffer's colour and normal bindings
-// (4, 5; single or multisampled), `g_col`, `g_nrm` and `SAMPLES`.
+// Rust side: engine/src/composite.rs, which prepends the prelude and the G-buffer's colour and
+// normal bindings (4, 5; single or multisampled), `g_col`, `g_nrm` and `SAMPLES`.
 
+// Keep in sync with `composite::CompositeParams`.
 struct Params {
-    inv_view_proj: mat4x4<f32>,
+    frame: Frame,
+    // linear RGB (xyz, 1)
     background: vec4<f32>,
-    // ambient, diffuse, specular, shininess
-    light: vec4<f32>,
-    // width, height, surface terms (layers of `terms` folded), combine (0 min, 1 product)
-    mode: vec4<u32>,
+    light: Light,
+    // surface terms: the layers of `terms` folded
+    n_terms: u32,
+    // 0: min (eq. 7), 1: product (eq. 8)
+    product: u32,
+    pad: vec2<u32>,
 };
 
 @group(0) @binding(0) var<uniform> C: Params;
@@ -29,8 +33,8 @@ struct Params {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = C.mode.x;
-    let h = C.mode.y;
+    let w = C.frame.size.x;
+    let h = C.frame.size.y;
     if (id.x >= w || id.y >= h) {
         return;
     }
@@ -51,7 +55,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         under = iso.rgb;
         coverage = 1.0;
         image[idx] = vec4<f32>(under * (1.0 - e.a) + e.rgb, coverage);
-        for (var t = 0u; t < C.mode.z; t = t + 1u) {
+        for (var t = 0u; t < C.n_terms; t = t + 1u) {
             terms[t * n + idx] = 1.0;
         }
         aov[idx] = vec4<f32>(volumetric, combined, iso.w, 0.0);
@@ -59,23 +63,17 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     // The surface, shaded per sample (each with its own normal) and averaged; samples no
     // surface covers show the background. The occlusion terms are per pixel.
-    for (var t = 0u; t < C.mode.z; t = t + 1u) {
+    for (var t = 0u; t < C.n_terms; t = t + 1u) {
         var v = 1.0;
         if (z > 0.0) {
             v = terms[t * n + idx];
             // eq. 7 (min) or eq. 8 (product), over every term of the method
-            combined = select(min(combined, v), combined * v, C.mode.w == 1u);
+            combined = select(min(combined, v), combined * v, C.product == 1u);
         }
         terms[t * n + idx] = v;
     }
     // The head light: from the eye along the pixel's ray.
-    let ndc = vec2<f32>(
-        2.0 * (f32(id.x) + 0.5) / f32(w) - 1.0,
-        1.0 - 2.0 * (f32(id.y) + 0.5) / f32(h),
-    );
-    let a4 = C.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
-    let b4 = C.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
-    let to_eye = -normalize(b4.xyz / b4.w - a4.xyz / a4.w);
+    let to_eye = -pixel_ray(C.frame, vec2<f32>(id.xy) + vec2<f32>(0.5)).d;
     var sum = vec3<f32>(0.0);
     var covered = 0.0;
     for (var s = 0; s < SAMPLES; s = s + 1) {
@@ -89,9 +87,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         // Head light: the reflection of the light about n makes angle 2 acos(n.l) with the
         // view direction; cos of it is 2 (n.l)^2 - 1.
         let rv = max(2.0 * nl * nl - 1.0, 0.0);
-        let spec = C.light.z * pow(rv, C.light.w);
+        let spec = C.light.specular * pow(rv, C.light.shininess);
         // eq. 9
-        sum = sum + combined * c.rgb * (C.light.x + C.light.y * nl) + vec3<f32>(spec);
+        sum = sum + combined * c.rgb * (C.light.ambient + C.light.diffuse * nl) + vec3<f32>(spec);
         covered = covered + 1.0;
     }
     if (covered > 0.0) {

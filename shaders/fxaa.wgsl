@@ -1,9 +1,11 @@
 // FXAA on the final image (Lottes' FXAA 3.11, the compact "PC console" variant) as a compute
 // pass over a linear RGBA buffer. Rust side: engine/src/fxaa.rs.
 
+// Keep in sync with `fxaa::FxaaParams`.
 struct Params {
-    // width, height, unused, unused
-    size: vec4<u32>,
+    width: u32,
+    height: u32,
+    pad: vec2<u32>,
 };
 
 @group(0) @binding(0) var<uniform> F: Params;
@@ -11,8 +13,8 @@ struct Params {
 @group(0) @binding(2) var<storage, read_write> dst: array<vec4<f32>>;
 
 fn texel(p: vec2<i32>) -> vec4<f32> {
-    let q = clamp(p, vec2<i32>(0), vec2<i32>(i32(F.size.x) - 1, i32(F.size.y) - 1));
-    return src[u32(q.x) + F.size.x * u32(q.y)];
+    let q = clamp(p, vec2<i32>(0), vec2<i32>(i32(F.width) - 1, i32(F.height) - 1));
+    return src[u32(q.x) + F.width * u32(q.y)];
 }
 
 // Bilinear fetch at a continuous pixel position (texel centres at half-integers).
@@ -32,7 +34,7 @@ fn luma(c: vec4<f32>) -> f32 {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= F.size.x || id.y >= F.size.y) {
+    if (id.x >= F.width || id.y >= F.height) {
         return;
     }
     let p = vec2<i32>(id.xy);
@@ -45,7 +47,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let l_se = luma(fetch(centre + vec2<f32>(0.5, 0.5)));
     let l_min = min(l_m, min(min(l_nw, l_ne), min(l_sw, l_se)));
     let l_max = max(l_m, max(max(l_nw, l_ne), max(l_sw, l_se)));
-    let idx = id.x + F.size.x * id.y;
+    let idx = id.x + F.width * id.y;
     // Low contrast: no edge (FXAA's edge threshold 1/8, minimum 1/32).
     if (l_max - l_min < max(1.0 / 32.0, l_max / 8.0)) {
         dst[idx] = m;

@@ -4,14 +4,20 @@
 // Rust side: engine/src/gbuffer.rs. Positions are relative to the mesh origin; `offset`
 // (origin - eye) makes them camera-relative, so large world coordinates keep f32 precision.
 
+// Keep in sync with `gbuffer::GBufferParams`.
 struct Params {
     // projection * view * translate(eye): camera-relative position to clip space
     view_proj_rel: mat4x4<f32>,
+    // the mesh's origin - eye (xyz, 0)
     offset: vec4<f32>,
     forward: vec4<f32>,
     eye: vec4<f32>,
+    // clipping planes (normal, offset), keeping normal . p <= offset
     clip: array<vec4<f32>, 8>,
-    n_clip: vec4<u32>,
+    n_clip: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 };
 
 @group(0) @binding(0) var<uniform> G: Params;
@@ -42,7 +48,7 @@ fn vs(v: VIn) -> VOut {
 
 fn clipped(rel: vec3<f32>) -> bool {
     let p = rel + G.eye.xyz;
-    for (var c = 0u; c < G.n_clip.x; c = c + 1u) {
+    for (var c = 0u; c < G.n_clip; c = c + 1u) {
         if (dot(G.clip[c].xyz, p) > G.clip[c].w) {
             return true;
         }

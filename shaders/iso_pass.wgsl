@@ -1,30 +1,35 @@
 // Isosurface ray marching with swept occlusion (Singh, Yuksel and House, section 3): sphere
 // tracing with the distance field of `umbra sweep`, the eight octant visibilities and the
-// analytic G_s(N) for the ambient term. The GPU twin of engine/src/iso_reference.rs (`umbra
+// analytic G_s(N) for the ambient term. The GPU twin of occlusion/src/isosurface.rs (`umbra
 // iso`); Rust side: engine/src/iso_pass.rs.
 
+// Keep in sync with `iso_pass::IsoParams`.
 struct Params {
-    inv_view_proj: mat4x4<f32>,
+    frame: Frame,
     world_to_index: mat4x4<f32>,
     // world normal from an index-space gradient: A^-T (upper 3x3)
     normal_to_world: mat4x4<f32>,
     // world normal to the octants' index frame: R^T (upper 3x3)
     normal_to_index: mat4x4<f32>,
-    eye: vec4<f32>,
-    forward: vec4<f32>,
-    // nx, ny, nz, geometry term (0 cosine, 1 constant, 2 absolute)
-    dims: vec4<u32>,
-    // h_min, lookup offset c, gamma, normalisation
-    model: vec4<f32>,
+    dims: vec3<u32>,
+    // geometry term: 0 cosine, 1 constant, 2 absolute
+    geometry: u32,
+    // smallest spacing, lookup offset c (in h_min), gamma, normalisation
+    h_min: f32,
+    offset: f32,
+    gamma: f32,
+    norm: f32,
+    // octant weights, four to a row
     weights: array<vec4<f32>, 2>,
     // sweep directions sigma_s (xyz)
     sweeps: array<vec4<f32>, 8>,
-    // surface colour
+    // surface colour (rgb, 1)
     color: vec4<f32>,
-    // ambient, diffuse, specular, shininess
-    light: vec4<f32>,
-    // width, height, clipping planes, unused
-    size: vec4<u32>,
+    light: Light,
+    n_clip: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
     // clipping planes (normal, offset), keeping normal . p <= offset
     clip: array<vec4<f32>, 8>,
 };
@@ -45,7 +50,7 @@ fn idx(i: vec3<u32>) -> u32 {
 }
 
 fn hi() -> vec3<f32> {
-    return vec3<f32>(P.dims.xyz) - vec3<f32>(1.0);
+    return vec3<f32>(P.dims) - vec3<f32>(1.0);
 }
 
 // The classified field with the space beyond the grid outside (a virtual sample mirrors the
@@ -58,25 +63,23 @@ fn g_sample(c: vec3<f32>) -> f32 {
 
 fn g_at(p: vec3<f32>) -> f32 {
     let b = floor(p);
-    let f = p - b;
-    let x00 = mix(g_sample(b), g_sample(b + vec3<f32>(1.0, 0.0, 0.0)), f.x);
-    let x10 = mix(g_sample(b + vec3<f32>(0.0, 1.0, 0.0)), g_sample(b + vec3<f32>(1.0, 1.0, 0.0)), f.x);
-    let x01 = mix(g_sample(b + vec3<f32>(0.0, 0.0, 1.0)), g_sample(b + vec3<f32>(1.0, 0.0, 1.0)), f.x);
-    let x11 = mix(g_sample(b + vec3<f32>(0.0, 1.0, 1.0)), g_sample(b + vec3<f32>(1.0, 1.0, 1.0)), f.x);
-    return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
+    var v: array<f32, 8>;
+    for (var c = 0u; c < 8u; c = c + 1u) {
+        v[c] = g_sample(b + vec3<f32>(cell_corner(c)));
+    }
+    return trilinear_mix(v, p - b);
 }
 
 // Trilinear distance (world units), positions clamped to the grid.
 fn sdf_at(q: vec3<f32>) -> f32 {
     let p = clamp(q, vec3<f32>(0.0), hi());
-    let b = min(vec3<u32>(floor(p)), max(P.dims.xyz, vec3<u32>(2u)) - vec3<u32>(2u));
-    let f = p - vec3<f32>(b);
-    let o = vec3<u32>(min(vec3<u32>(1u), P.dims.xyz - vec3<u32>(1u)));
-    let x00 = mix(sdf[idx(b)], sdf[idx(b + vec3<u32>(o.x, 0u, 0u))], f.x);
-    let x10 = mix(sdf[idx(b + vec3<u32>(0u, o.y, 0u))], sdf[idx(b + vec3<u32>(o.x, o.y, 0u))], f.x);
-    let x01 = mix(sdf[idx(b + vec3<u32>(0u, 0u, o.z))], sdf[idx(b + vec3<u32>(o.x, 0u, o.z))], f.x);
-    let x11 = mix(sdf[idx(b + vec3<u32>(0u, o.y, o.z))], sdf[idx(b + vec3<u32>(o.x, o.y, o.z))], f.x);
-    return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
+    let b = min(vec3<u32>(floor(p)), max(P.dims, vec3<u32>(2u)) - vec3<u32>(2u));
+    let o = vec3<u32>(min(vec3<u32>(1u), P.dims - vec3<u32>(1u)));
+    var v: array<f32, 8>;
+    for (var c = 0u; c < 8u; c = c + 1u) {
+        v[c] = sdf[idx(b + cell_corner(c) * o)];
+    }
+    return trilinear_mix(v, p - vec3<f32>(b));
 }
 
 fn octant(i: u32, s: u32) -> f32 {
@@ -172,35 +175,30 @@ fn ambient(v: array<f32, 8>, n_world: vec3<f32>) -> f32 {
             continue;
         }
         var g = 1.0;
-        if (P.dims.w == 0u) {
+        if (P.geometry == 0u) {
             g = geometry_term(s, n);
-        } else if (P.dims.w == 2u) {
+        } else if (P.geometry == 2u) {
             g = geometry_term(s, n) + geometry_term(s, -n);
         }
         raw = raw + w * v[s] * g;
     }
-    let a = clamp(raw / P.model.w, 0.0, 1.0);
-    return select(pow(a, 1.0 / P.model.z), a, P.model.z == 1.0);
+    let a = clamp(raw / P.norm, 0.0, 1.0);
+    return select(pow(a, 1.0 / P.gamma), a, P.gamma == 1.0);
 }
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = P.size.x;
-    let h = P.size.y;
+    let w = P.frame.size.x;
+    let h = P.frame.size.y;
     if (id.x >= w || id.y >= h) {
         return;
     }
     let pix = id.x + w * id.y;
     iso_out[pix] = vec4<f32>(0.0);
     iso_ambient[pix] = -1.0;
-    let ndc = vec2<f32>(
-        2.0 * (f32(id.x) + 0.5) / f32(w) - 1.0,
-        1.0 - 2.0 * (f32(id.y) + 0.5) / f32(h),
-    );
-    let a4 = P.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
-    let b4 = P.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
-    let o = a4.xyz / a4.w;
-    let d = normalize(b4.xyz / b4.w - o);
+    let ray = pixel_ray(P.frame, vec2<f32>(id.xy) + vec2<f32>(0.5));
+    let o = ray.o;
+    let d = ray.d;
     let oi = (P.world_to_index * vec4<f32>(o, 1.0)).xyz;
     let di = (P.world_to_index * vec4<f32>(d, 0.0)).xyz;
     // Slab test against the grid box grown by one voxel, in index space.
@@ -228,7 +226,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     // Clipping planes: the kept half-spaces bound the ray; a ray that enters one inside the
     // solid meets the cut face there.
     var cut = -1;
-    for (var c = 0u; c < P.size.z; c = c + 1u) {
+    for (var c = 0u; c < P.n_clip; c = c + 1u) {
         let g0 = dot(P.clip[c].xyz, o) - P.clip[c].w;
         let g1 = dot(P.clip[c].xyz, d);
         if (abs(g1) < 1e-30) {
@@ -245,7 +243,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (t0 > t1) {
         return;
     }
-    let h_min = P.model.x;
+    let h_min = P.h_min;
     var t = t0;
     var hit = -1.0;
     if (g_at(oi + di * t) >= 0.0) {
@@ -301,7 +299,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (dot(n, d) > 0.0) {
         n = -n;
     }
-    let look = p + n * (P.model.y * h_min);
+    let look = p + n * (P.offset * h_min);
     var am = ambient(sample_octants((P.world_to_index * vec4<f32>(look, 1.0)).xyz), n);
     if (cut >= 0 && hit == t0) {
         // The swept fields describe the uncut volume, in which a cut face lies inside the
@@ -311,7 +309,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     // Shaded as the tubes are (eq. 9): A colour (ambient + diffuse (n.l)) + specular.
     let nl = max(dot(n, -d), 0.0);
     let rv = max(2.0 * nl * nl - 1.0, 0.0);
-    let rgb = am * P.color.rgb * (P.light.x + P.light.y * nl) + vec3<f32>(P.light.z * pow(rv, P.light.w));
-    iso_out[pix] = vec4<f32>(rgb, dot(p - P.eye.xyz, P.forward.xyz));
+    let rgb = am * P.color.rgb * (P.light.ambient + P.light.diffuse * nl) + vec3<f32>(P.light.specular * pow(rv, P.light.shininess));
+    iso_out[pix] = vec4<f32>(rgb, dot(p - P.frame.eye.xyz, P.frame.forward.xyz));
     iso_ambient[pix] = am;
 }

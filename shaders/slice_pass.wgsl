@@ -28,30 +28,41 @@ override CONE: bool = false;
 // the gradient magnitude (ea_pass::Transfer). A constant, so 1-D functions skip the gradient.
 override TF2D: bool = false;
 
+// Keep in sync with `slice_pass::SliceParams`.
 struct Params {
-    inv_view_proj: mat4x4<f32>,
+    frame: Frame,
     world_to_index: mat4x4<f32>,
-    eye: vec4<f32>,
-    forward: vec4<f32>,
-    dims: vec4<u32>,
-    // z0, d, tan(theta), geometry extinction per world unit
-    slicing: vec4<f32>,
-    // n_slices, n_tf, width, height
-    counts: vec4<u32>,
-    // bricks per axis (x, y, z), brick edge in voxels
-    bricks: vec4<u32>,
+    // grid samples per axis; transfer-function points (1-D)
+    dims: vec3<u32>,
+    n_tf: u32,
+    // empty-space bricks per axis; a brick's edge in voxels
+    bricks: vec3<u32>,
+    brick: u32,
+    // the slab's front depth, the slice spacing, tan(theta), the tubes' extinction per unit
+    z0: f32,
+    dz: f32,
+    tan_theta: f32,
+    geometry_extinction: f32,
+    // clipping planes (normal, offset), keeping normal . p <= offset
     clip: array<vec4<f32>, 8>,
-    // n_clip, mode bits (1 light volume, 2 Phong volume, 4 endless shadow columns),
-    // has_volume, blur samples per axis
-    flags: vec4<u32>,
-    // P00, P11, perspective (1) or orthographic (0), unused
-    proj: vec4<f32>,
-    // ambient, diffuse, specular, shininess
-    light: vec4<f32>,
-    // cells per axis (x, y), cell edge in pixels, 2-D transfer function rows (0: 1-D)
-    cells: vec4<u32>,
-    // the layer of `terms` the partial occlusion goes to (NO_LAYER: none), unused x 3
-    layers: vec4<u32>,
+    n_clip: u32,
+    n_slices: u32,
+    // 1: the light volume (occlusion buffer) shades the volume
+    occlusion: u32,
+    // 1: the paper's endless shadow column behind surfaces
+    column: u32,
+    has_volume: u32,
+    // blur taps per axis (n x n)
+    blur_samples: u32,
+    // 2-D transfer-function rows (0: 1-D)
+    tf_rows: u32,
+    // the layer of `terms` the partial occlusion goes to (NO_LAYER: none)
+    partial_layer: u32,
+    light: Light,
+    // occlusion-buffer cells per axis; a cell's edge in pixels
+    cells: vec2<u32>,
+    cell: u32,
+    pad: u32,
 };
 
 const NO_LAYER: u32 = 0xffffffffu;
@@ -60,11 +71,11 @@ const NO_LAYER: u32 = 0xffffffffu;
 // tap loop (radius above one cell), the radius in cells, and otherwise the blur as a 3x3
 // stencil (rows y = -1, 0, 1 in xyz of w[0..3]) - the n x n bilinear taps summed on the CPU,
 // the same for every cell of the slice.
+// Keep in sync with `slice_pass::SliceRow`.
 struct Slice {
     k: u32,
     wide: u32,
-    pad0: u32,
-    pad1: u32,
+    pad: vec2<u32>,
     rpx: vec4<f32>,
     w: array<vec4<f32>, 3>,
 };
@@ -96,13 +107,13 @@ struct Slice {
 @group(1) @binding(2) var<storage, read_write> occ_out: array<f32>;
 
 fn occ_texel(p: vec2<i32>) -> f32 {
-    let q = clamp(p, vec2<i32>(0), vec2<i32>(P.cells.xy) - vec2<i32>(1));
+    let q = clamp(p, vec2<i32>(0), vec2<i32>(P.cells) - vec2<i32>(1));
     return occ_in[2u * (u32(q.x) + P.cells.x * u32(q.y))];
 }
 
 // Both channels of a cell (light, shadow-weighted age).
 fn occ_texel2(p: vec2<i32>) -> vec2<f32> {
-    let q = clamp(p, vec2<i32>(0), vec2<i32>(P.cells.xy) - vec2<i32>(1));
+    let q = clamp(p, vec2<i32>(0), vec2<i32>(P.cells) - vec2<i32>(1));
     let i = 2u * (u32(q.x) + P.cells.x * u32(q.y));
     return vec2<f32>(occ_in[i], occ_in[i + 1u]);
 }
@@ -129,11 +140,11 @@ fn occ_bilinear(t: vec2<f32>) -> f32 {
 
 // O of slice k (clamped to the slices) at a continuous pixel position, bilinear over cells.
 fn light_at(px: vec2<f32>, k: u32) -> f32 {
-    let kk = min(k, P.counts.x - 1u);
-    let c = px / f32(P.cells.z) - vec2<f32>(0.5);
+    let kk = min(k, P.n_slices - 1u);
+    let c = px / f32(P.cell) - vec2<f32>(0.5);
     let b = vec2<i32>(floor(c));
     let f = c - floor(c);
-    let hi = vec2<i32>(P.cells.xy) - vec2<i32>(1);
+    let hi = vec2<i32>(P.cells) - vec2<i32>(1);
     let base = P.cells.x * P.cells.y * kk;
     var v: array<f32, 4>;
     for (var i = 0; i < 4; i = i + 1) {
@@ -149,13 +160,12 @@ fn voxel(i: vec3<u32>) -> f32 {
 
 // Trilinear sample at index-space position q (inside the grid).
 fn trilinear(q: vec3<f32>) -> f32 {
-    let b = min(vec3<u32>(floor(q)), max(P.dims.xyz, vec3<u32>(2u)) - vec3<u32>(2u));
-    let f = q - vec3<f32>(b);
-    let x00 = mix(voxel(b), voxel(b + vec3<u32>(1u, 0u, 0u)), f.x);
-    let x10 = mix(voxel(b + vec3<u32>(0u, 1u, 0u)), voxel(b + vec3<u32>(1u, 1u, 0u)), f.x);
-    let x01 = mix(voxel(b + vec3<u32>(0u, 0u, 1u)), voxel(b + vec3<u32>(1u, 0u, 1u)), f.x);
-    let x11 = mix(voxel(b + vec3<u32>(0u, 1u, 1u)), voxel(b + vec3<u32>(1u, 1u, 1u)), f.x);
-    return mix(mix(x00, x10, f.y), mix(x01, x11, f.y), f.z);
+    let b = min(vec3<u32>(floor(q)), max(P.dims, vec3<u32>(2u)) - vec3<u32>(2u));
+    var v: array<f32, 8>;
+    for (var c = 0u; c < 8u; c = c + 1u) {
+        v[c] = voxel(b + cell_corner(c));
+    }
+    return trilinear_mix(v, q - vec3<f32>(b));
 }
 
 // Colour (rgb) and extinction (a) at value v of the 1-D function in points [first, end).
@@ -184,8 +194,8 @@ fn transfer_row(v: f32, first: u32, end: u32) -> vec4<f32> {
 // Colour (rgb) and extinction (a) at value v and gradient magnitude g. The rows of a 2-D
 // function follow the points in `tf`: (gradient, first point, end point, 0) each.
 fn transfer(v: f32, g: f32) -> vec4<f32> {
-    let n = P.counts.y;
-    let nr = P.cells.w;
+    let n = P.n_tf;
+    let nr = P.tf_rows;
     if (!TF2D || nr == 0u) {
         return transfer_row(v, 0u, n);
     }
@@ -213,58 +223,38 @@ fn transfer(v: f32, g: f32) -> vec4<f32> {
 fn box_slices(r: Ray, front: f32) -> vec2<u32> {
     let qo = (P.world_to_index * vec4<f32>(r.o, 1.0)).xyz;
     let qd = (P.world_to_index * vec4<f32>(r.d, 0.0)).xyz;
-    let hi = vec3<f32>(P.dims.xyz) - vec3<f32>(1.0);
+    let hi = vec3<f32>(P.dims) - vec3<f32>(1.0);
     let inv = 1.0 / select(qd, vec3<f32>(1e-30), abs(qd) < vec3<f32>(1e-30));
     let t0 = (vec3<f32>(0.0) - qo) * inv;
     let t1 = (hi - qo) * inv;
     let s_in = max(max(min(t0.x, t1.x), min(t0.y, t1.y)), min(t0.z, t1.z));
     let s_out = min(min(max(t0.x, t1.x), max(t0.y, t1.y)), max(t0.z, t1.z));
-    if (s_out < s_in || P.flags.z == 0u) {
+    if (s_out < s_in || P.has_volume == 0u) {
         return vec2<u32>(0u);
     }
-    let k_in = (s_in * r.cosine + r.o_depth - P.slicing.x) / P.slicing.y - 0.5;
-    var k_out = (s_out * r.cosine + r.o_depth - P.slicing.x) / P.slicing.y - 0.5;
+    let k_in = (s_in * r.cosine + r.o_depth - P.z0) / P.dz - 0.5;
+    var k_out = (s_out * r.cosine + r.o_depth - P.z0) / P.dz - 0.5;
     if (front > 0.0) {
-        k_out = min(k_out, (front - P.slicing.x) / P.slicing.y);
+        k_out = min(k_out, (front - P.z0) / P.dz);
     }
-    let n = f32(P.counts.x);
+    let n = f32(P.n_slices);
     return vec2<u32>(u32(clamp(floor(k_in), 0.0, n)), u32(clamp(ceil(k_out) + 1.0, 0.0, n)));
 }
 
-struct Ray {
-    o: vec3<f32>,
-    d: vec3<f32>,
-    cosine: f32,
-    o_depth: f32,
-};
 
 // The ray through a continuous pixel position (y down), as Camera::ray.
-fn ray_at(px: vec2<f32>) -> Ray {
-    let ndc = vec2<f32>(
-        2.0 * px.x / f32(P.counts.z) - 1.0,
-        1.0 - 2.0 * px.y / f32(P.counts.w),
-    );
-    let a4 = P.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
-    let b4 = P.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
-    var r: Ray;
-    r.o = a4.xyz / a4.w;
-    r.d = normalize(b4.xyz / b4.w - r.o);
-    r.cosine = dot(r.d, P.forward.xyz);
-    r.o_depth = dot(r.o - P.eye.xyz, P.forward.xyz);
-    return r;
-}
 
 // The part of slice k's slab [z0 + k d, z0 + (k + 1) d] (view depths) the ray keeps: in front
 // of the surface at depth `front` (when > 0) and on the kept side of every clipping plane
 // (n . p <= offset; along the ray n . p is affine in depth). Empty when y <= x. Clipping the
 // slab rather than dropping samples keeps cut faces free of slice steps.
 fn slab_interval(r: Ray, k: u32, front: f32) -> vec2<f32> {
-    var a = P.slicing.x + f32(k) * P.slicing.y;
-    var b = a + P.slicing.y;
+    var a = P.z0 + f32(k) * P.dz;
+    var b = a + P.dz;
     if (front > 0.0) {
         b = min(b, front);
     }
-    for (var c = 0u; c < P.flags.x; c = c + 1u) {
+    for (var c = 0u; c < P.n_clip; c = c + 1u) {
         let n = P.clip[c].xyz;
         let g1 = dot(n, r.d) / r.cosine;
         let g0 = dot(n, r.o) - P.clip[c].w - g1 * r.o_depth;
@@ -285,7 +275,7 @@ fn slab_interval(r: Ray, k: u32, front: f32) -> vec2<f32> {
 // extinction outside the grid, in an empty brick, next to a NaN voxel, or behind the eye.
 // `grad` receives the world-space gradient when the Phong volume asks for it.
 fn volume_sample(r: Ray, depth: f32, grad: ptr<function, vec3<f32>>) -> vec4<f32> {
-    if (P.flags.z == 0u) {
+    if (P.has_volume == 0u) {
         return vec4<f32>(0.0);
     }
     let s = (depth - r.o_depth) / r.cosine;
@@ -294,11 +284,11 @@ fn volume_sample(r: Ray, depth: f32, grad: ptr<function, vec3<f32>>) -> vec4<f32
     }
     let p = r.o + r.d * s;
     let q = (P.world_to_index * vec4<f32>(p, 1.0)).xyz;
-    let hi = vec3<f32>(P.dims.xyz) - vec3<f32>(1.0);
+    let hi = vec3<f32>(P.dims) - vec3<f32>(1.0);
     if (any(q < vec3<f32>(0.0)) || any(q > hi)) {
         return vec4<f32>(0.0);
     }
-    let br = min(vec3<u32>(q) / P.bricks.w, P.bricks.xyz - vec3<u32>(1u));
+    let br = min(vec3<u32>(q) / P.brick, P.bricks - vec3<u32>(1u));
     if (occupied[br.x + P.bricks.x * (br.y + P.bricks.y * br.z)] == 0u) {
         return vec4<f32>(0.0);
     }
@@ -336,8 +326,8 @@ fn shade_volume(c: vec3<f32>, grad: vec3<f32>, view_dir: vec3<f32>) -> vec3<f32>
     }
     let n = grad / g;
     let nl = abs(dot(n, view_dir));
-    let spec = P.light.z * pow(nl, P.light.w);
-    return c * (P.light.x + P.light.y * nl) + vec3<f32>(spec);
+    let spec = P.light.specular * pow(nl, P.light.shininess);
+    return c * (P.light.ambient + P.light.diffuse * nl) + vec3<f32>(spec);
 }
 
 // Adds a sample to the eye buffer value `e` (Alg. 2) over the depth interval `iv` of its slab
@@ -386,11 +376,11 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let ci = id.x + cw * id.y;
     let k = S.k;
-    let d = P.slicing.y;
-    let z_k = P.slicing.x + (f32(k) + 0.5) * d;
-    let s = P.cells.z;
+    let d = P.dz;
+    let z_k = P.z0 + (f32(k) + 0.5) * d;
+    let s = P.cell;
     let centre = (vec2<f32>(id.xy) + vec2<f32>(0.5)) * f32(s);
-    let r = ray_at(centre);
+    let r = pixel_ray(P.frame, centre);
     // Per-cell constants at the first slice: the depth range of the tubes over its pixels.
     var cs: vec4<f32>;
     if (k == 0u) {
@@ -398,7 +388,7 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
         var hi = 0.0;
         for (var j = 0u; j < s; j = j + 1u) {
             for (var i = 0u; i < s; i = i + 1u) {
-                let p = vec2<i32>(min(id.xy * s + vec2<u32>(i, j), vec2<u32>(P.counts.z, P.counts.w) - vec2<u32>(1u)));
+                let p = vec2<i32>(min(id.xy * s + vec2<u32>(i, j), vec2<u32>(P.frame.size.x, P.frame.size.y) - vec2<u32>(1u)));
                 let f = textureLoad(front_depth, p, 0).r;
                 if (f > 0.0) {
                     lo = min(lo, f);
@@ -436,7 +426,7 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
                 }
             }
         } else {
-            let n = clamp(u32(ceil(max(rc.x, rc.y))), P.flags.w, 9u);
+            let n = clamp(u32(ceil(max(rc.x, rc.y))), P.blur_samples, 9u);
             let c = vec2<f32>(id.xy) + vec2<f32>(0.5);
             for (var i = 0u; i < n; i = i + 1u) {
                 for (var j = 0u; j < n; j = j + 1u) {
@@ -464,7 +454,7 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
             occl = sum;
         } else {
             let c = vec2<f32>(id.xy) + vec2<f32>(0.5);
-            let n = P.flags.w;
+            let n = P.blur_samples;
             var sum = 0.0;
             for (var i = 0u; i < n; i = i + 1u) {
                 for (var j = 0u; j < n; j = j + 1u) {
@@ -491,12 +481,12 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
         let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
         t = exp(-max(c.a, 0.0) * (iv.y - iv.x) * cs.z);
     }
-    let column = (P.flags.y & 4u) != 0u;
+    let column = P.column != 0u;
     if (cs.x > 0.0 && z_k >= cs.x && (column || z_k <= cs.y)) {
         var inside = 0.0;
         for (var j = 0u; j < s; j = j + 1u) {
             for (var i = 0u; i < s; i = i + 1u) {
-                let p = vec2<i32>(min(id.xy * s + vec2<u32>(i, j), vec2<u32>(P.counts.z, P.counts.w) - vec2<u32>(1u)));
+                let p = vec2<i32>(min(id.xy * s + vec2<u32>(i, j), vec2<u32>(P.frame.size.x, P.frame.size.y) - vec2<u32>(1u)));
                 let f = textureLoad(front_depth, p, 0).r;
                 if (f > 0.0 && z_k >= f && (column || z_k <= textureLoad(back_depth, p, 0).r)) {
                     inside = inside + 1.0;
@@ -504,7 +494,7 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         }
         let cov = inside / f32(s * s);
-        t = t * (1.0 - cov * (1.0 - exp(-P.slicing.w * seg)));
+        t = t * (1.0 - cov * (1.0 - exp(-P.geometry_extinction * seg)));
     }
     let leave = occl * t;
     occ_out[2u * ci] = leave;
@@ -516,16 +506,16 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
 
 @compute @workgroup_size(8, 8, 1)
 fn march(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = P.counts.z;
-    let h = P.counts.w;
+    let w = P.frame.size.x;
+    let h = P.frame.size.y;
     if (id.x >= w || id.y >= h) {
         return;
     }
     let idx = id.x + w * id.y;
     let px = vec2<f32>(id.xy) + vec2<f32>(0.5);
-    let r = ray_at(px);
+    let r = pixel_ray(P.frame, px);
     let front = textureLoad(front_depth, vec2<i32>(id.xy), 0).r;
-    let lit = (P.flags.y & 1u) != 0u;
+    let lit = P.occlusion != 0u;
     var e = vec4<f32>(0.0);
     var acc = vec2<f32>(0.0);
     var half = 0.0;
@@ -556,23 +546,23 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     // nearer than that within the cell are the vicinity term's.
     var partial = 1.0;
     if (lit && front > 0.0) {
-        let c = px / f32(P.cells.z) - vec2<f32>(0.5);
+        let c = px / f32(P.cell) - vec2<f32>(0.5);
         let b = vec2<i32>(floor(c));
         var z = front;
         for (var i = 0; i < 4; i = i + 1) {
-            let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), vec2<i32>(P.cells.xy) - vec2<i32>(1));
+            let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), vec2<i32>(P.cells) - vec2<i32>(1));
             let m = cell_state[u32(q.x) + P.cells.x * u32(q.y)].x;
             if (m > 0.0) {
                 z = min(z, m);
             }
         }
-        let kf = (z - P.slicing.x) / P.slicing.y - 0.5;
+        let kf = (z - P.z0) / P.dz - 0.5;
         if (kf >= 0.0) {
             let k1 = u32(floor(kf)) + 1u;
             let ratio = min(kf - floor(kf), 1.0);
             let o0 = light_at(px, k1 - 1u);
             var o1 = o0;
-            if (k1 < P.counts.x) {
+            if (k1 < P.n_slices) {
                 o1 = light_at(px, k1);
             }
             partial = mix(o0, o1, ratio);
@@ -583,7 +573,7 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     state[2u * idx] = vec4<f32>(1.0, partial, acc.x, acc.y);
     state[2u * idx + 1u] = vec4<f32>(half, 0.0, 0.0, 0.0);
-    if (P.layers.x != NO_LAYER) {
-        terms[P.layers.x * P.counts.z * P.counts.w + idx] = partial;
+    if (P.partial_layer != NO_LAYER) {
+        terms[P.partial_layer * P.frame.size.x * P.frame.size.y + idx] = partial;
     }
 }

@@ -14,8 +14,9 @@
 //! nearer than the tubes it is the surface, already shaded, its ambient term the combined AOV.
 
 use crate::gbuffer::GBuffer;
-use crate::gpu::{Gpu, Slot, Uniform};
+use crate::gpu::{Gpu, Slot};
 use crate::method::Combine;
+use crate::prelude::{vec4, with_prelude, FrameUniform, LightUniform};
 use occlusion::camera::Camera;
 
 const SHADER: &str = include_str!("../../shaders/composite.wgsl");
@@ -29,6 +30,42 @@ pub struct CompositeSettings {
     /// ambient, diffuse, specular, shininess
     pub light: [f64; 4],
     pub background: [f64; 3],
+}
+
+/// The G-buffer's colour and normal bindings (4, 5), single or multisampled, behind the same
+/// helpers `g_col`, `g_nrm` and the constant `SAMPLES`: what the pass puts before its WGSL.
+fn gbuffer_bindings(samples: u32) -> String {
+    if samples > 1 {
+        format!(
+            "const SAMPLES: i32 = {samples};\n\
+             @group(0) @binding(4) var g_color: texture_multisampled_2d<f32>;\n\
+             @group(0) @binding(5) var g_normal: texture_multisampled_2d<f32>;\n\
+             fn g_col(p: vec2<i32>, s: i32) -> vec4<f32> {{ return textureLoad(g_color, p, s); }}\n\
+             fn g_nrm(p: vec2<i32>, s: i32) -> vec4<f32> {{ return textureLoad(g_normal, p, s); }}\n"
+        )
+    } else {
+        "const SAMPLES: i32 = 1;\n\
+         @group(0) @binding(4) var g_color: texture_2d<f32>;\n\
+         @group(0) @binding(5) var g_normal: texture_2d<f32>;\n\
+         fn g_col(p: vec2<i32>, s: i32) -> vec4<f32> { return textureLoad(g_color, p, 0); }\n\
+         fn g_nrm(p: vec2<i32>, s: i32) -> vec4<f32> { return textureLoad(g_normal, p, 0); }\n"
+            .to_string()
+    }
+}
+
+/// The pass's uniform. Keep in sync with `struct Params` in `shaders/composite.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct CompositeParams {
+    pub frame: FrameUniform,
+    /// Linear RGB (xyz, 1).
+    pub background: [f32; 4],
+    pub light: LightUniform,
+    /// The layers of the surface terms folded.
+    pub n_terms: u32,
+    /// 0: min (eq. 7), 1: product (eq. 8).
+    pub product: u32,
+    pub pad: [u32; 2],
 }
 
 pub struct CompositePass {
@@ -53,25 +90,11 @@ impl CompositePass {
         iso: &crate::iso_pass::IsoPass,
         s: &CompositeSettings,
     ) -> CompositePass {
-        // The G-buffer's colour and normal, single or multisampled, behind the same helpers.
-        let prelude = if gbuf.samples > 1 {
-            format!(
-                "const SAMPLES: i32 = {};\n\
-                 @group(0) @binding(4) var g_color: texture_multisampled_2d<f32>;\n\
-                 @group(0) @binding(5) var g_normal: texture_multisampled_2d<f32>;\n\
-                 fn g_col(p: vec2<i32>, s: i32) -> vec4<f32> {{ return textureLoad(g_color, p, s); }}\n\
-                 fn g_nrm(p: vec2<i32>, s: i32) -> vec4<f32> {{ return textureLoad(g_normal, p, s); }}\n",
-                gbuf.samples
-            )
-        } else {
-            "const SAMPLES: i32 = 1;\n\
-             @group(0) @binding(4) var g_color: texture_2d<f32>;\n\
-             @group(0) @binding(5) var g_normal: texture_2d<f32>;\n\
-             fn g_col(p: vec2<i32>, s: i32) -> vec4<f32> { return textureLoad(g_color, p, 0); }\n\
-             fn g_nrm(p: vec2<i32>, s: i32) -> vec4<f32> { return textureLoad(g_normal, p, 0); }\n"
-                .to_string()
-        };
-        let module = gpu.shader("composite.wgsl", &format!("{prelude}{SHADER}"));
+        let prelude = gbuffer_bindings(gbuf.samples);
+        let module = gpu.shader(
+            "composite.wgsl",
+            &with_prelude(&format!("{prelude}{SHADER}")),
+        );
         let layout = gpu.layout(
             "composite",
             wgpu::ShaderStages::COMPUTE,
@@ -99,19 +122,20 @@ impl CompositePass {
         );
         let pl = gpu.pipeline_layout("composite", &[&layout]);
         let pipe = gpu.compute_pipeline_with(&module, "main", &pl, "composite");
-        let aspect = width as f64 / height.max(1) as f64;
         let b = s.background;
-        let mut u = Uniform::default();
-        u.mat(camera.view_projection(aspect).inverse())
-            .vec4([b[0], b[1], b[2], 1.0])
-            .vec4(s.light)
-            .u32x4([
-                width,
-                height,
-                s.terms,
-                (s.combine == Combine::Product) as u32,
-            ]);
-        let params = gpu.buffer("composite params", &u.0, wgpu::BufferUsages::UNIFORM);
+        let params = CompositeParams {
+            frame: FrameUniform::new(camera, width, height),
+            background: vec4([b[0], b[1], b[2], 1.0]),
+            light: s.light.into(),
+            n_terms: s.terms,
+            product: (s.combine == Combine::Product) as u32,
+            pad: [0; 2],
+        };
+        let params = gpu.buffer(
+            "composite params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+        );
         let n = width as u64 * height as u64;
         let image = gpu.scratch("image", n * 16, wgpu::BufferUsages::COPY_SRC);
         let aov = gpu.scratch("aov", n * 16, wgpu::BufferUsages::COPY_SRC);
@@ -143,5 +167,28 @@ impl CompositePass {
 
     pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
         crate::gpu::dispatch_image(enc, &self.pipe, &self.bind, self.size);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_uniform_matches_its_wgsl_struct() {
+        // As the pass assembles it, single-sampled and multisampled.
+        for samples in [1, 4] {
+            let src = format!("{}{}", super::gbuffer_bindings(samples), super::SHADER);
+            crate::prelude::assert_layout!(
+                &src,
+                "Params",
+                super::CompositeParams {
+                    frame,
+                    background,
+                    light,
+                    n_terms,
+                    product,
+                    pad,
+                }
+            );
+        }
     }
 }

@@ -6,9 +6,19 @@
 //! differences picks two or four bilinear taps along the edge, the wider blend rejected when
 //! it leaves the local luma range.
 
-use crate::gpu::{Gpu, Slot, Uniform};
+use crate::gpu::{Gpu, Slot};
+use crate::prelude::with_prelude;
 
 const SHADER: &str = include_str!("../../shaders/fxaa.wgsl");
+
+/// The pass's uniform. Keep in sync with `struct Params` in `shaders/fxaa.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct FxaaParams {
+    pub width: u32,
+    pub height: u32,
+    pub pad: [u32; 2],
+}
 
 pub struct FxaaPass {
     pipe: wgpu::ComputePipeline,
@@ -19,7 +29,7 @@ pub struct FxaaPass {
 
 impl FxaaPass {
     pub fn new(gpu: &Gpu, width: u32, height: u32, input: &wgpu::Buffer) -> FxaaPass {
-        let module = gpu.shader("fxaa.wgsl", SHADER);
+        let module = gpu.shader("fxaa.wgsl", &with_prelude(SHADER));
         let layout = gpu.layout(
             "fxaa",
             wgpu::ShaderStages::COMPUTE,
@@ -27,9 +37,16 @@ impl FxaaPass {
         );
         let pl = gpu.pipeline_layout("fxaa", &[&layout]);
         let pipe = gpu.compute_pipeline_with(&module, "main", &pl, "fxaa");
-        let mut u = Uniform::default();
-        u.u32x4([width, height, 0, 0]);
-        let params = gpu.buffer("fxaa params", &u.0, wgpu::BufferUsages::UNIFORM);
+        let params = FxaaParams {
+            width,
+            height,
+            pad: [0; 2],
+        };
+        let params = gpu.buffer(
+            "fxaa params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+        );
         let output = gpu.scratch(
             "fxaa image",
             width as u64 * height as u64 * 16,
@@ -54,5 +71,17 @@ impl FxaaPass {
 
     pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
         crate::gpu::dispatch_image(enc, &self.pipe, &self.bind, self.size);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_uniform_matches_its_wgsl_struct() {
+        crate::prelude::assert_layout!(
+            super::SHADER,
+            "Params",
+            super::FxaaParams { width, height, pad }
+        );
     }
 }

@@ -18,7 +18,8 @@
 //! it is lit) and averages; the linear depths stay single-sampled (a third pass writes the
 //! nearest surface's), as the slices and the vicinity term need one precise depth per pixel.
 
-use crate::gpu::{Gpu, Slot, Uniform};
+use crate::gpu::{Gpu, Slot};
+use crate::prelude::{clip_planes, mat4, vec4, with_prelude};
 use glam::{DMat4, DVec3};
 use occlusion::camera::Camera;
 use tubes::tube_mesh::TubeMesh;
@@ -31,6 +32,23 @@ pub const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 
 /// Bytes per vertex: position (3 f32), normal (3 f32), colour (4 unorm8).
 const STRIDE: u64 = 28;
+
+/// A mesh's uniform. Keep in sync with `struct Params` in `shaders/gbuffer.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GBufferParams {
+    /// `projection * view * translate(eye)`: camera-relative position to clip space.
+    pub view_proj_rel: [[f32; 4]; 4],
+    /// The mesh's origin - eye (xyz, 0).
+    pub offset: [f32; 4],
+    pub forward: [f32; 4],
+    pub eye: [f32; 4],
+    pub clip: [[f32; 4]; 8],
+    pub n_clip: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
+}
 
 /// A tube mesh on the GPU: vertices (position, normal, colour; [`STRIDE`] bytes each) and
 /// triangle indices, uploaded once and drawn in every frame.
@@ -181,7 +199,7 @@ impl GBuffer {
         let (layout, front_pipe, depth_pipe, back_pipe) =
             gpu.cached(format!("gbuffer pipelines {samples}"), || {
                 let device = &gpu.device;
-                let module = gpu.shader("gbuffer.wgsl", SHADER);
+                let module = gpu.shader("gbuffer.wgsl", &with_prelude(SHADER));
                 let layout = gpu.layout(
                     "gbuffer",
                     wgpu::ShaderStages::VERTEX_FRAGMENT,
@@ -246,17 +264,22 @@ impl GBuffer {
             .iter()
             .map(|m| {
                 let offset: DVec3 = m.origin - e;
-                let mut u = Uniform::default();
-                u.mat(vp_rel)
-                    .vec4([offset.x, offset.y, offset.z, 0.0])
-                    .vec4([f.x, f.y, f.z, 0.0])
-                    .vec4([e.x, e.y, e.z, 1.0]);
-                for i in 0..8 {
-                    let (n, o) = clip.get(i).copied().unwrap_or(([0.0; 3], 0.0));
-                    u.vec4([n[0], n[1], n[2], o]);
-                }
-                u.u32x4([clip.len().min(8) as u32, 0, 0, 0]);
-                let params = gpu.buffer("gbuffer params", &u.0, wgpu::BufferUsages::UNIFORM);
+                let params = GBufferParams {
+                    view_proj_rel: mat4(vp_rel),
+                    offset: vec4([offset.x, offset.y, offset.z, 0.0]),
+                    forward: vec4([f.x, f.y, f.z, 0.0]),
+                    eye: vec4([e.x, e.y, e.z, 1.0]),
+                    clip: clip_planes(clip),
+                    n_clip: clip.len().min(8) as u32,
+                    pad0: 0,
+                    pad1: 0,
+                    pad2: 0,
+                };
+                let params = gpu.buffer(
+                    "gbuffer params",
+                    bytemuck::bytes_of(&params),
+                    wgpu::BufferUsages::UNIFORM,
+                );
                 MeshDraw {
                     mesh: m.clone(),
                     bind: gpu.bind("gbuffer", &layout, &[params.as_entire_binding()]),
@@ -348,5 +371,27 @@ impl GBuffer {
                 pass.draw_indexed(0..m.count, 0, 0..1);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_uniform_matches_its_wgsl_struct() {
+        crate::prelude::assert_layout!(
+            super::SHADER,
+            "Params",
+            super::GBufferParams {
+                view_proj_rel,
+                offset,
+                forward,
+                eye,
+                clip,
+                n_clip,
+                pad0,
+                pad1,
+                pad2,
+            }
+        );
     }
 }

@@ -49,32 +49,6 @@ pub struct Layer<'a> {
     pub index: u32,
 }
 
-/// A uniform block being written field by field (f32 and u32, 16-byte rows as WGSL lays out
-/// `vec4` and `mat4x4` members).
-#[derive(Default)]
-pub struct Uniform(pub Vec<u8>);
-
-impl Uniform {
-    pub fn mat(&mut self, m: glam::DMat4) -> &mut Self {
-        for v in m.to_cols_array() {
-            self.0.extend((v as f32).to_le_bytes());
-        }
-        self
-    }
-    pub fn vec4(&mut self, v: [f64; 4]) -> &mut Self {
-        for x in v {
-            self.0.extend((x as f32).to_le_bytes());
-        }
-        self
-    }
-    pub fn u32x4(&mut self, v: [u32; 4]) -> &mut Self {
-        for x in v {
-            self.0.extend(x.to_le_bytes());
-        }
-        self
-    }
-}
-
 /// What binding `i` of a layout made by [`Gpu::layout`] holds.
 #[derive(Clone, Copy, Debug)]
 pub enum Slot {

@@ -17,7 +17,9 @@
 //! solid meets the cut face (normal: the plane's; unoccluded, as it faces the removed half,
 //! which the swept fields of the uncut volume do not know is empty).
 
-use crate::gpu::{Gpu, Slot, Uniform};
+use crate::gpu::{Gpu, Slot};
+use crate::prelude::{clip_planes, mat4, vec4, with_prelude, FrameUniform, LightUniform};
+use bytemuck::Zeroable;
 use glam::{DMat3, DMat4};
 use occlusion::camera::Camera;
 use volume::distance_sweep::SWEEP_DIRECTIONS;
@@ -75,6 +77,38 @@ impl GpuIso {
     }
 }
 
+/// The pass's uniform. Keep in sync with `struct Params` in `shaders/iso_pass.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct IsoParams {
+    pub frame: FrameUniform,
+    pub world_to_index: [[f32; 4]; 4],
+    /// World normal from an index-space gradient: `A^-T` (upper 3x3).
+    pub normal_to_world: [[f32; 4]; 4],
+    /// World normal to the octants' index frame: `R^T` (upper 3x3).
+    pub normal_to_index: [[f32; 4]; 4],
+    pub dims: [u32; 3],
+    /// The geometry term: 0 cosine, 1 constant, 2 absolute.
+    pub geometry: u32,
+    /// The smallest spacing, the lookup offset c (in `h_min`), gamma, the normalisation.
+    pub h_min: f32,
+    pub offset: f32,
+    pub gamma: f32,
+    pub norm: f32,
+    /// The octant weights, four to a row.
+    pub weights: [[f32; 4]; 2],
+    /// The sweep directions (xyz, 0).
+    pub sweeps: [[f32; 4]; 8],
+    /// The surface colour (rgb, 1).
+    pub color: [f32; 4],
+    pub light: LightUniform,
+    pub n_clip: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
+    pub clip: [[f32; 4]; 8],
+}
+
 pub struct IsoPass {
     pipe: wgpu::ComputePipeline,
     bind: wgpu::BindGroup,
@@ -105,7 +139,7 @@ impl IsoPass {
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let output = gpu.zeroed("iso output", n * 16, copy);
         let ambient = gpu.zeroed("iso ambient", n * 4, copy);
-        let module = gpu.shader("iso_pass.wgsl", SHADER);
+        let module = gpu.shader("iso_pass.wgsl", &with_prelude(SHADER));
         let layout = gpu.layout(
             "iso",
             wgpu::ShaderStages::COMPUTE,
@@ -120,7 +154,6 @@ impl IsoPass {
         );
         let pl = gpu.pipeline_layout("iso", &[&layout]);
         let pipe = gpu.compute_pipeline_with(&module, "main", &pl, "iso");
-        let aspect = width as f64 / height.max(1) as f64;
         let storage = wgpu::BufferUsages::STORAGE;
         let (u, g, sdf, oct) = match iso {
             Some(i) => {
@@ -130,60 +163,55 @@ impl IsoPass {
                     .length()
                     .min(a3.y_axis.length())
                     .min(a3.z_axis.length());
-                let e = camera.eye;
-                let f = camera.forward();
                 let w = i.model.weights();
                 let geometry = match i.model.options.geometry {
                     GeometryTerm::Cosine => 0,
                     GeometryTerm::Constant => 1,
                     GeometryTerm::Absolute => 2,
                 };
-                let mut u = Uniform::default();
-                u.mat(camera.view_projection(aspect).inverse())
-                    .mat(i.affine.inverse())
-                    .mat(mat3(a3.inverse().transpose()))
-                    .mat(mat3(i.model.to_index()))
-                    .vec4([e.x, e.y, e.z, 1.0])
-                    .vec4([f.x, f.y, f.z, 0.0])
-                    .u32x4([
-                        i.dims[0] as u32,
-                        i.dims[1] as u32,
-                        i.dims[2] as u32,
-                        geometry,
-                    ])
-                    .vec4([
-                        h_min,
-                        i.model.options.offset,
-                        i.model.options.gamma,
-                        i.model.norm(),
-                    ])
-                    .vec4([w[0], w[1], w[2], w[3]])
-                    .vec4([w[4], w[5], w[6], w[7]]);
-                for d in SWEEP_DIRECTIONS {
-                    u.vec4([d[0] as f64, d[1] as f64, d[2] as f64, 0.0]);
-                }
-                u.vec4([i.color[0], i.color[1], i.color[2], 1.0])
-                    .vec4(light)
-                    .u32x4([width, height, clip.len().min(8) as u32, 0]);
-                for c in 0..8 {
-                    let (n, o) = clip.get(c).copied().unwrap_or(([0.0; 3], 0.0));
-                    u.vec4([n[0], n[1], n[2], o]);
-                }
-                (u.0, i.g.clone(), i.sdf.clone(), i.octants.clone())
+                let c = i.color;
+                let u = IsoParams {
+                    frame: FrameUniform::new(camera, width, height),
+                    world_to_index: mat4(i.affine.inverse()),
+                    normal_to_world: mat4(mat3(a3.inverse().transpose())),
+                    normal_to_index: mat4(mat3(i.model.to_index())),
+                    dims: i.dims.map(|d| d as u32),
+                    geometry,
+                    h_min: h_min as f32,
+                    offset: i.model.options.offset as f32,
+                    gamma: i.model.options.gamma as f32,
+                    norm: i.model.norm() as f32,
+                    weights: [
+                        vec4([w[0], w[1], w[2], w[3]]),
+                        vec4([w[4], w[5], w[6], w[7]]),
+                    ],
+                    sweeps: SWEEP_DIRECTIONS.map(|d| [d[0] as f32, d[1] as f32, d[2] as f32, 0.0]),
+                    color: vec4([c[0], c[1], c[2], 1.0]),
+                    light: light.into(),
+                    n_clip: clip.len().min(8) as u32,
+                    pad0: 0,
+                    pad1: 0,
+                    pad2: 0,
+                    clip: clip_planes(clip),
+                };
+                (u, i.g.clone(), i.sdf.clone(), i.octants.clone())
             }
             None => {
-                let mut u = Uniform::default();
-                u.0.resize(16 * 4 * 4 + 16 * (4 + 2 + 8 + 3 + 8), 0);
+                let u = IsoParams::zeroed();
                 let z = [0u8; 16];
                 (
-                    u.0,
+                    u,
                     gpu.buffer("iso g", &z, storage),
                     gpu.buffer("iso sdf", &z, storage),
                     gpu.buffer("iso octants", &z, storage),
                 )
             }
         };
-        let params = gpu.buffer("iso params", &u, wgpu::BufferUsages::UNIFORM);
+        let params = gpu.buffer(
+            "iso params",
+            bytemuck::bytes_of(&u),
+            wgpu::BufferUsages::UNIFORM,
+        );
         let bind = gpu.bind(
             "iso",
             &layout,
@@ -217,5 +245,37 @@ impl IsoPass {
             return;
         }
         crate::gpu::dispatch_image(enc, &self.pipe, &self.bind, self.size);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_uniform_matches_its_wgsl_struct() {
+        crate::prelude::assert_layout!(
+            super::SHADER,
+            "Params",
+            super::IsoParams {
+                frame,
+                world_to_index,
+                normal_to_world,
+                normal_to_index,
+                dims,
+                geometry,
+                h_min,
+                offset,
+                gamma,
+                norm,
+                weights,
+                sweeps,
+                color,
+                light,
+                n_clip,
+                pad0,
+                pad1,
+                pad2,
+                clip,
+            }
+        );
     }
 }

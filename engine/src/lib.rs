@@ -14,6 +14,7 @@ pub mod gbuffer;
 pub mod gpu;
 pub mod iso_pass;
 pub mod method;
+pub mod prelude;
 pub mod renderer;
 pub mod slice_pass;
 pub mod smoke;

@@ -7,7 +7,8 @@
 //! (the paper's equation index); this module is the GPU side of Algorithms 2-4.
 
 use crate::gbuffer::GBuffer;
-use crate::gpu::{Gpu, GpuError, Slot, Uniform};
+use crate::gpu::{Gpu, GpuError, Slot};
+use crate::prelude::{clip_planes, mat4, with_prelude, FrameUniform, LightUniform};
 use occlusion::combined::{auto_cell, blur_stencil};
 use occlusion::emission_absorption::{occupancy, EaView, Transfer, BRICK, MAX_CLIP};
 use volume::Volume;
@@ -44,8 +45,69 @@ pub struct VolumeInput<'a> {
     pub tf: &'a Transfer,
 }
 
-/// Bytes of one slice's record (`struct Slice` of the shader).
-const SLICE_BYTES: u64 = 80;
+/// The pass's uniform. Keep in sync with `struct Params` in `shaders/slice_pass.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SliceParams {
+    pub frame: FrameUniform,
+    pub world_to_index: [[f32; 4]; 4],
+    /// Grid samples per axis.
+    pub dims: [u32; 3],
+    /// Transfer-function points (1-D).
+    pub n_tf: u32,
+    /// Empty-space bricks per axis.
+    pub bricks: [u32; 3],
+    /// A brick's edge in voxels.
+    pub brick: u32,
+    /// The slab's front depth and the slice spacing, world units.
+    pub z0: f32,
+    pub dz: f32,
+    pub tan_theta: f32,
+    /// The tubes' extinction per world unit.
+    pub geometry_extinction: f32,
+    pub clip: [[f32; 4]; 8],
+    pub n_clip: u32,
+    pub n_slices: u32,
+    /// 1: the light volume shades the volume.
+    pub occlusion: u32,
+    /// 1: the paper's endless shadow column behind surfaces.
+    pub column: u32,
+    pub has_volume: u32,
+    /// Blur taps per axis (n x n).
+    pub blur_samples: u32,
+    /// 2-D transfer-function rows (0: 1-D).
+    pub tf_rows: u32,
+    /// The layer of the surface terms the partial occlusion goes to ([`NO_LAYER`]: none).
+    pub partial_layer: u32,
+    pub light: LightUniform,
+    /// Occlusion-buffer cells per axis.
+    pub cells: [u32; 2],
+    /// A cell's edge in pixels.
+    pub cell: u32,
+    pub pad: u32,
+}
+
+/// No layer (`SliceParams::partial_layer`).
+pub const NO_LAYER: u32 = u32::MAX;
+
+/// One slice's record, at a dynamic offset. Keep in sync with `struct Slice` in
+/// `shaders/slice_pass.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SliceRow {
+    /// The slice index.
+    pub k: u32,
+    /// 1: the blur needs the tap loop (radius above two cells).
+    pub wide: u32,
+    pub pad: [u32; 2],
+    /// The blur radius in cells (x, y; unused, unused).
+    pub rpx: [f32; 4],
+    /// The blur as a 3x3 stencil, rows y = -1, 0, 1 (xyz of each).
+    pub w: [[f32; 4]; 3],
+}
+
+/// Bytes of one slice's record.
+const SLICE_BYTES: u64 = std::mem::size_of::<SliceRow>() as u64;
 
 /// A volume on the GPU: its samples, its transfer function (1-D points, then the 2-D rows'
 /// ranges) and the brick occupancy of [`occupancy`], uploaded once and read by every frame.
@@ -180,7 +242,7 @@ impl SlicePass {
             )));
         }
         let limit = device.limits().max_storage_buffer_binding_size as usize;
-        let module = gpu.shader("slice_pass.wgsl", SHADER);
+        let module = gpu.shader("slice_pass.wgsl", &with_prelude(SHADER));
         let tf2d = volume.is_some_and(|vi| vi.tf_rows > 0);
         let l0 = gpu.layout(
             "slice group 0",
@@ -232,8 +294,6 @@ impl SlicePass {
             v.camera.projection,
             occlusion::camera::Projection::Perspective { .. }
         );
-        let e = v.camera.eye;
-        let f = v.camera.forward();
         let budget = (limit as u64).min(1 << 30);
         let cell = match s.cell {
             Some(c) => c.max(1),
@@ -256,41 +316,37 @@ impl SlicePass {
         let has_volume = volume.is_some();
         let vol = volume.cloned().unwrap_or_else(|| GpuVolume::none(gpu));
         let (w2i, dims, nb) = (vol.world_to_index, vol.dims, vol.bricks);
-        let mut u = Uniform::default();
-        u.mat(v.camera.view_projection(aspect).inverse())
-            .mat(w2i)
-            .vec4([e.x, e.y, e.z, 1.0])
-            .vec4([f.x, f.y, f.z, 0.0])
-            .u32x4([dims[0] as u32, dims[1] as u32, dims[2] as u32, 0])
-            .vec4([
-                v.z0,
-                v.dz,
-                s.theta_deg.to_radians().tan(),
-                s.geometry_extinction,
-            ])
-            .u32x4([v.slices, vol.tf_points, v.width, v.height])
-            .u32x4([nb[0] as u32, nb[1] as u32, nb[2] as u32, BRICK as u32]);
-        for i in 0..MAX_CLIP {
-            let (n, o) = v.clip.get(i).copied().unwrap_or(([0.0; 3], 0.0));
-            u.vec4([n[0], n[1], n[2], o]);
-        }
-        let mode = s.occlusion as u32 | (s.phong as u32) << 1 | (s.column as u32) << 2;
-        u.u32x4([
-            v.clip.len() as u32,
-            mode,
-            has_volume as u32,
-            s.blur_samples.max(1),
-        ])
-        .vec4([
-            proj.x_axis.x,
-            proj.y_axis.y,
-            if persp { 1.0 } else { 0.0 },
-            0.0,
-        ])
-        .vec4(s.light)
-        .u32x4([cells.0, cells.1, cell, vol.tf_rows])
-        .u32x4([s.partial_layer.unwrap_or(u32::MAX), 0, 0, 0]);
-        let params = gpu.buffer("slice params", &u.0, wgpu::BufferUsages::UNIFORM);
+        let u32x3 = |d: [usize; 3]| d.map(|x| x as u32);
+        let params = SliceParams {
+            frame: FrameUniform::new(&v.camera, v.width, v.height),
+            world_to_index: mat4(w2i),
+            dims: u32x3(dims),
+            n_tf: vol.tf_points,
+            bricks: u32x3(nb),
+            brick: BRICK as u32,
+            z0: v.z0 as f32,
+            dz: v.dz as f32,
+            tan_theta: s.theta_deg.to_radians().tan() as f32,
+            geometry_extinction: s.geometry_extinction as f32,
+            clip: clip_planes(&v.clip),
+            n_clip: v.clip.len() as u32,
+            n_slices: v.slices,
+            occlusion: s.occlusion as u32,
+            column: s.column as u32,
+            has_volume: has_volume as u32,
+            blur_samples: s.blur_samples.max(1),
+            tf_rows: vol.tf_rows,
+            partial_layer: s.partial_layer.unwrap_or(NO_LAYER),
+            light: s.light.into(),
+            cells: [cells.0, cells.1],
+            cell,
+            pad: 0,
+        };
+        let params = gpu.buffer(
+            "slice params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+        );
         let n = v.width as u64 * v.height as u64;
         let eye = gpu.scratch("eye buffer", n * 16, wgpu::BufferUsages::COPY_SRC);
         let state = gpu.scratch("slice state", n * 32, wgpu::BufferUsages::COPY_SRC);
@@ -336,14 +392,16 @@ impl SlicePass {
                 scale * proj.y_axis.y * v.height as f64,
             ];
             let (wide, w) = blur_stencil(rpx);
-            let mut u = Uniform::default();
-            u.u32x4([k, wide as u32, 0, 0])
-                .vec4([rpx[0], rpx[1], 0.0, 0.0]);
-            for row in w {
-                u.vec4([row[0], row[1], row[2], 0.0]);
-            }
+            let row = SliceRow {
+                k,
+                wide: wide as u32,
+                pad: [0; 2],
+                rpx: [rpx[0] as f32, rpx[1] as f32, 0.0, 0.0],
+                w: w.map(|r| [r[0] as f32, r[1] as f32, r[2] as f32, 0.0]),
+            };
+            let bytes = bytemuck::bytes_of(&row);
             let at = (k * stride) as usize;
-            kb[at..at + u.0.len()].copy_from_slice(&u.0);
+            kb[at..at + bytes.len()].copy_from_slice(bytes);
         }
         let kbuf = gpu.buffer("slice index", &kb, wgpu::BufferUsages::STORAGE);
         let a = gpu.scratch("occlusion a", ncell * 8, wgpu::BufferUsages::empty());
@@ -414,5 +472,54 @@ impl SlicePass {
         pass.set_pipeline(&self.march_pipe);
         pass.set_bind_group(1, &self.group1[0], &[0]);
         pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_uniforms_match_their_wgsl_structs() {
+        crate::prelude::assert_layout!(
+            SHADER,
+            "Params",
+            SliceParams {
+                frame,
+                world_to_index,
+                dims,
+                n_tf,
+                bricks,
+                brick,
+                z0,
+                dz,
+                tan_theta,
+                geometry_extinction,
+                clip,
+                n_clip,
+                n_slices,
+                occlusion,
+                column,
+                has_volume,
+                blur_samples,
+                tf_rows,
+                partial_layer,
+                light,
+                cells,
+                cell,
+                pad,
+            }
+        );
+        crate::prelude::assert_layout!(
+            SHADER,
+            "Slice",
+            SliceRow {
+                k,
+                wide,
+                pad,
+                rpx,
+                w
+            }
+        );
     }
 }

@@ -17,7 +17,8 @@
 //! is written into its layer of the frame's surface terms (see `renderer`).
 
 use crate::gbuffer::GBuffer;
-use crate::gpu::{Gpu, Layer, Slot, Uniform};
+use crate::gpu::{Gpu, Layer, Slot};
+use crate::prelude::with_prelude;
 use occlusion::camera::{Camera, Projection};
 use occlusion::combined::poisson_disk;
 
@@ -32,6 +33,28 @@ pub struct VicinitySettings {
     pub theta_deg: f64,
     /// Depth bias, world units.
     pub bias: f64,
+}
+
+/// The pass's uniform. Keep in sync with `struct Params` in `shaders/vicinity.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct VicinityParams {
+    /// The projection's P00 and P11.
+    pub p00: f32,
+    pub p11: f32,
+    /// 1: perspective, 0: orthographic.
+    pub perspective: u32,
+    /// `l_vicinity tan(theta)`, world units.
+    pub radius: f32,
+    /// The depth bias and the reach `l_vicinity`, world units.
+    pub bias: f32,
+    pub range: f32,
+    pub samples: u32,
+    /// The layer of the surface terms this pass writes.
+    pub layer: u32,
+    pub width: u32,
+    pub height: u32,
+    pub pad: [u32; 2],
 }
 
 pub struct VicinityPass {
@@ -50,7 +73,7 @@ impl VicinityPass {
         layer: Layer,
         s: &VicinitySettings,
     ) -> VicinityPass {
-        let module = gpu.shader("vicinity.wgsl", SHADER);
+        let module = gpu.shader("vicinity.wgsl", &with_prelude(SHADER));
         let layout = gpu.layout(
             "vicinity",
             wgpu::ShaderStages::COMPUTE,
@@ -66,11 +89,24 @@ impl VicinityPass {
         let p = camera.projection_matrix(width as f64 / height.max(1) as f64);
         let persp = matches!(camera.projection, Projection::Perspective { .. });
         let r = s.distance * s.theta_deg.to_radians().tan();
-        let mut u = Uniform::default();
-        u.vec4([p.x_axis.x, p.y_axis.y, if persp { 1.0 } else { 0.0 }, r])
-            .vec4([s.bias, s.distance, s.samples as f64, 0.0])
-            .u32x4([width, height, layer.index, 0]);
-        let params = gpu.buffer("vicinity params", &u.0, wgpu::BufferUsages::UNIFORM);
+        let params = VicinityParams {
+            p00: p.x_axis.x as f32,
+            p11: p.y_axis.y as f32,
+            perspective: persp as u32,
+            radius: r as f32,
+            bias: s.bias as f32,
+            range: s.distance as f32,
+            samples: s.samples,
+            layer: layer.index,
+            width,
+            height,
+            pad: [0; 2],
+        };
+        let params = gpu.buffer(
+            "vicinity params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+        );
         let disk = poisson_disk(s.samples.max(1) as usize);
         let disk = gpu.buffer(
             "vicinity disk",
@@ -96,5 +132,29 @@ impl VicinityPass {
 
     pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
         crate::gpu::dispatch_image(enc, &self.pipe, &self.bind, self.size);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_uniform_matches_its_wgsl_struct() {
+        crate::prelude::assert_layout!(
+            super::SHADER,
+            "Params",
+            super::VicinityParams {
+                p00,
+                p11,
+                perspective,
+                radius,
+                bias,
+                range,
+                samples,
+                layer,
+                width,
+                height,
+                pad,
+            }
+        );
     }
 }
