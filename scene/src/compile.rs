@@ -339,7 +339,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 ispec.value as f32,
                 inside,
                 &vspec.path,
-            )?;
+            )
+            .map_err(|e| format!("volume.iso.value: {e}"))?;
             let (sdf, octants) = crate::fields::iso_fields(
                 &vol,
                 &values,
@@ -378,7 +379,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 color: ispec.color.rgb()?,
             });
         } else {
-            let field = vol.select(sel.as_ref()).map_err(|e| e.to_string())?;
+            let field = vol
+                .select(sel.as_ref())
+                .map_err(|e| format!("volume.field: {e}"))?;
             if field.components != 1 {
                 return Err(format!(
                     "volume.field: '{}' has {} components; choose NAME:magnitude or NAME:x|y|z",
@@ -418,7 +421,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
         let args = crate::tube_sets::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
         let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
-            .map_err(|e| format!("tubes[{i}] ({}): {e}", t.path.display()))?;
+            .map_err(|e| format!("tubes[{i}].color ({}): {e}", t.path.display()))?;
         meshes.push(mesh);
     }
     let mut boxes: Vec<[DVec3; 2]> = meshes.iter().filter_map(mesh_bounds).collect();

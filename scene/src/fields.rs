@@ -80,7 +80,7 @@ pub fn scalar_field(
         .map_err(|e| format!("{}: {e}", path.display()))?;
     if f.components != 1 {
         return Err(format!(
-            "{}: field '{}' has {} components; an isosurface needs a scalar (use --field {}:magnitude)",
+            "{}: field '{}' has {} components; an isosurface needs a scalar (select {}:magnitude)",
             path.display(),
             f.name,
             f.components,
@@ -88,9 +88,7 @@ pub fn scalar_field(
         ));
     }
     if !iso.is_finite() {
-        return Err(format!(
-            "--iso {iso}: the iso level must be a finite number"
-        ));
+        return Err(format!("iso level {iso}: must be a finite number"));
     }
     let st = f.stats();
     if st.min.is_nan() {
@@ -107,7 +105,7 @@ pub fn scalar_field(
     };
     if no_surface {
         return Err(format!(
-            "{}: --iso {iso} is outside the range of field '{}' ([{}, {}]): every sample lies on one side, so there is no surface",
+            "{}: the iso level {iso} is outside the range of field '{}' ([{}, {}]): every sample lies on one side, so there is no surface",
             path.display(),
             f.name,
             st.min,

@@ -452,7 +452,7 @@ fn default_background() -> Color {
 fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
     let parts: Vec<&str> = key.split('.').collect();
     if parts.iter().any(|p| p.is_empty()) {
-        return Err(format!("--set {key}: empty key component"));
+        return Err(format!("override {key}: empty key component"));
     }
     // The value as TOML, else as a string.
     let v: toml::Value = format!("v = {value}")
@@ -476,19 +476,19 @@ fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
                 let idx: usize = parts
                     .get(i + 1)
                     .and_then(|s| s.parse().ok())
-                    .ok_or_else(|| format!("--set {key}: '{p}' is a list; give an index"))?;
+                    .ok_or_else(|| format!("override {key}: '{p}' is a list; give an index"))?;
                 // The index is consumed here: continue from the element with the rest.
                 let rest = parts[i + 2..].join(".");
                 let n = a.len();
                 let el = a
                     .get_mut(idx)
-                    .ok_or_else(|| format!("--set {key}: '{p}' has {n} entries"))?;
+                    .ok_or_else(|| format!("override {key}: '{p}' has {n} entries"))?;
                 return match el {
                     toml::Value::Table(tt) if !rest.is_empty() => set(tt, &rest, value),
-                    _ => Err(format!("--set {key}: cannot set inside '{p}.{idx}'")),
+                    _ => Err(format!("override {key}: cannot set inside '{p}.{idx}'")),
                 };
             }
-            _ => return Err(format!("--set {key}: '{p}' is not a table")),
+            _ => return Err(format!("override {key}: '{p}' is not a table")),
         };
     }
     Ok(())
@@ -503,12 +503,12 @@ pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result
         for o in overrides {
             let (k, v) = o
                 .split_once('=')
-                .ok_or_else(|| format!("--set {o}: expected KEY=VALUE"))?;
+                .ok_or_else(|| format!("override {o}: expected KEY=VALUE"))?;
             set(&mut table, k.trim(), v.trim())?;
         }
         scene = toml::Value::Table(table)
             .try_into()
-            .map_err(|e| format!("{name} with --set: {e}"))?;
+            .map_err(|e| format!("{name} with overrides: {e}"))?;
     }
     validate(&mut scene, dir)?;
     Ok(scene)

@@ -75,12 +75,12 @@ pub struct TubesSummary {
 fn parse_hex(s: &str) -> Result<[f32; 3], String> {
     let h = s.trim_start_matches('#');
     if h.len() != 6 {
-        return Err(format!("--color {s}: expected #rrggbb"));
+        return Err(format!("colour {s}: expected #rrggbb"));
     }
     let c = |i: usize| {
         u8::from_str_radix(&h[i..i + 2], 16)
             .map(|v| v as f32 / 255.0)
-            .map_err(|_| format!("--color {s}: not hexadecimal"))
+            .map_err(|_| format!("colour {s}: not hexadecimal"))
     };
     Ok([c(0)?, c(2)?, c(4)?])
 }
@@ -101,23 +101,23 @@ pub fn transform_matrix(m: &[f64; 16], key: &str) -> Result<DMat4, String> {
 pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     let t0 = Instant::now();
     if !(a.radius.is_finite() && a.radius > 0.0) {
-        return Err(format!("--radius {}: must be a positive number", a.radius));
+        return Err(format!("radius {}: must be a positive number", a.radius));
     }
     if !(a.tolerance.is_finite() && a.tolerance > 0.0) {
         return Err(format!(
-            "--tolerance {}: must be a positive number",
+            "tolerance {}: must be a positive number",
             a.tolerance
         ));
     }
     if !(3..=256).contains(&a.sides) || !(1..=64).contains(&a.per_span) {
         return Err(format!(
-            "--sides {} (3 to 256) or --per-span {} (1 to 64) out of range",
+            "sides {} (3 to 256) or rings per span {} (1 to 64) out of range",
             a.sides, a.per_span
         ));
     }
     let mut s = tubes::load(&a.input).map_err(|e| e.to_string())?;
     if let Some(m) = a.transform {
-        s.transform(&transform_matrix(&m, "--transform")?);
+        s.transform(&transform_matrix(&m, "transform")?);
     }
     let t_read = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
@@ -166,7 +166,7 @@ pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, Tu
         if !s.point_attributes.iter().any(|x| x.name == name) {
             let have: Vec<&str> = s.point_attributes.iter().map(|x| x.name.as_str()).collect();
             return Err(format!(
-                "--color scalar:{name}: the tractogram has no per-point '{name}' (it has: {})",
+                "colour scalar:{name}: the tractogram has no per-point '{name}' (it has: {})",
                 if have.is_empty() {
                     "none".to_string()
                 } else {
@@ -179,7 +179,7 @@ pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, Tu
         let v = volume::load(std::path::Path::new(path)).map_err(|e| e.to_string())?;
         let f = v.select(None).map_err(|e| e.to_string())?;
         if f.components != 1 {
-            return Err(format!("--color volume:{path}: needs a scalar volume"));
+            return Err(format!("colour volume:{path}: needs a scalar volume"));
         }
         let st = f.stats();
         vol_field = (v, f);
@@ -196,7 +196,7 @@ pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, Tu
         ColorMode::Field(&sampler, [st.min, st.max])
     } else {
         return Err(format!(
-            "--color {}: use direction, scalar:NAME, volume:PATH or #rrggbb",
+            "colour {}: use direction, scalar:NAME, volume:PATH or #rrggbb",
             a.color
         ));
     };

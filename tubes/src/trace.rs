@@ -116,14 +116,14 @@ impl<'a> GridField<'a> {
                     .find(|f| f.name == sel.name)
                     .ok_or_else(|| {
                         format!(
-                            "--field {}: no such field (fields: {})",
+                            "field {}: no such field (fields: {})",
                             sel.name,
                             v.field_names().join(", ")
                         )
                     })?;
                 if f.components != 3 {
                     return Err(format!(
-                        "--field {}: has {} components, tracing needs 3",
+                        "field {}: has {} components, tracing needs 3",
                         sel.name, f.components
                     ));
                 }

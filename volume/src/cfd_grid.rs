@@ -554,7 +554,7 @@ impl CfdGrid {
         let find = |n: &str| {
             self.arrays.iter().find(|a| a.name == n).ok_or_else(|| {
                 VolumeError::Invalid(format!(
-                    "--field {n}: no such array; the grid has: {}",
+                    "field {n}: no such array; the grid has: {}",
                     self.names().join(", ")
                 ))
             })
@@ -567,7 +567,7 @@ impl CfdGrid {
                 .any(|a| a.components != 1 || a.on_cells != arrays[0].on_cells)
             {
                 return Err(VolumeError::Invalid(format!(
-                    "--field {sel}: three scalar arrays on the same entities are needed"
+                    "field {sel}: three scalar arrays on the same entities are needed"
                 )));
             }
             return Ok((arrays, FieldPart::Whole));
@@ -576,7 +576,7 @@ impl CfdGrid {
         let a = find(&s.name)?;
         if s.part != FieldPart::Whole && a.components != 3 {
             return Err(VolumeError::Invalid(format!(
-                "--field {sel}: '{}' has {} components",
+                "field {sel}: '{}' has {} components",
                 a.name, a.components
             )));
         }
@@ -588,7 +588,7 @@ impl CfdGrid {
     pub fn resample(&self, sel: &str, dims: [usize; 3]) -> Result<Volume> {
         if dims.iter().any(|&d| !(1..=2048).contains(&d)) || dims[0] * dims[1] * dims[2] > 1 << 28 {
             return Err(VolumeError::Invalid(format!(
-                "--dims {dims:?}: each 1 to 2048, at most 2^28 samples"
+                "grid size {dims:?}: each 1 to 2048, at most 2^28 samples"
             )));
         }
         let (arrays, part) = self.pick(sel)?;
@@ -601,7 +601,7 @@ impl CfdGrid {
         };
         if out_comps != 1 && out_comps != 3 {
             return Err(VolumeError::Invalid(format!(
-                "--field {sel}: {out_comps} components; select one with NAME:x or NAME:magnitude"
+                "field {sel}: {out_comps} components; select one with NAME:x or NAME:magnitude"
             )));
         }
         let [lo, hi] = self.bounds();

@@ -217,7 +217,7 @@ impl std::str::FromStr for FieldSelector {
                     "2" | "z" => FieldPart::Component(2),
                     other => {
                         return Err(VolumeError::Invalid(format!(
-                            "--field {s}: unknown suffix ':{other}' (use :magnitude, :x, :y or :z)"
+                            "field {s}: unknown suffix ':{other}' (use :magnitude, :x, :y or :z)"
                         )))
                     }
                 };
@@ -225,9 +225,7 @@ impl std::str::FromStr for FieldSelector {
             }
         };
         if name.is_empty() {
-            return Err(VolumeError::Invalid(format!(
-                "--field {s}: empty field name"
-            )));
+            return Err(VolumeError::Invalid(format!("field {s}: empty field name")));
         }
         Ok(FieldSelector {
             name: name.to_string(),
@@ -335,7 +333,7 @@ impl Volume {
             .find(|f| f.name == sel.name)
             .ok_or_else(|| {
                 VolumeError::Invalid(format!(
-                    "--field {}: no such field; this file has: {}",
+                    "field {}: no such field; this file has: {}",
                     sel.name,
                     self.field_names().join(", ")
                 ))
@@ -344,7 +342,7 @@ impl Volume {
             FieldPart::Whole => Ok(field.clone()),
             FieldPart::Magnitude | FieldPart::Component(_) if field.components != 3 => {
                 Err(VolumeError::Invalid(format!(
-                    "--field {}: ':magnitude' and components need a 3-component field, '{}' has {}",
+                    "field {}: ':magnitude' and components need a 3-component field, '{}' has {}",
                     sel.name, field.name, field.components
                 )))
             }
@@ -467,7 +465,7 @@ pub fn load_grid(path: &Path, q: Option<&Path>) -> Result<(cfd_grid::CfdGrid, Ve
     let ext = name.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
     if q.is_some() && matches!(ext, "vtr" | "vts" | "vtu" | "vtk") {
         return Err(VolumeError::Invalid(format!(
-            "{}: --q is for PLOT3D grids; VTK files carry their own arrays",
+            "{}: a PLOT3D solution file is for PLOT3D grids; VTK files carry their own arrays",
             path.display()
         )));
     }
