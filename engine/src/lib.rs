@@ -18,4 +18,5 @@ pub mod prelude;
 pub mod renderer;
 pub mod slice_pass;
 pub mod smoke;
+pub mod terms;
 pub mod vicinity;

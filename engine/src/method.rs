@@ -165,6 +165,55 @@ impl Method {
     }
 }
 
+/// Everything about how a frame is shaded.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    pub method: Method,
+    pub theta_deg: f64,
+    pub blur_samples: u32,
+    pub vicinity_samples: u32,
+    pub vicinity_distance: f64,
+    /// Vicinity depth bias, world units.
+    pub vicinity_bias: f64,
+    pub geometry_extinction: f64,
+    /// The paper's endless shadow column behind surfaces.
+    pub column: bool,
+    pub combine: Combine,
+    pub fxaa: bool,
+    /// ambient, diffuse, specular, shininess
+    pub light: [f64; 4],
+    /// Occlusion buffer cell edge in pixels (None: chosen, see `slice_pass::auto_cell`).
+    pub occlusion_cell: Option<u32>,
+    /// The cone-following occlusion model instead of the paper's.
+    pub cone: bool,
+    /// G-buffer samples per pixel (lowered to what the adapter supports, with a note).
+    pub msaa: u32,
+    /// What fills the methods' surface-AO slot.
+    pub surface_ao: SurfaceAo,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            method: Method::Combined,
+            theta_deg: 25.0,
+            blur_samples: 3,
+            vicinity_samples: 32,
+            vicinity_distance: 2.0,
+            vicinity_bias: 0.1,
+            geometry_extinction: 10.0,
+            column: false,
+            combine: Combine::Min,
+            fxaa: true,
+            light: [0.3, 0.7, 0.3, 32.0],
+            occlusion_cell: None,
+            cone: false,
+            msaa: 4,
+            surface_ao: SurfaceAo::Vicinity,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -20,63 +20,16 @@ use crate::fxaa::FxaaPass;
 use crate::gbuffer::{GBuffer, GpuMesh};
 use crate::gpu::{Gpu, GpuError};
 use crate::iso_pass::{GpuIso, IsoInput, IsoPass};
-use crate::method::{Combine, Method, SurfaceAo, Term, VolumeShading, MAX_TERMS};
+use crate::method::{Term, VolumeShading, MAX_TERMS};
 use crate::slice_pass::{GpuVolume, SlicePass, SliceSettings, VolumeInput};
-use crate::vicinity::{VicinityPass, VicinitySettings};
+use crate::terms::{TermInputs, TermPass, SURFACE_AO};
 use occlusion::camera::Camera;
 use occlusion::emission_absorption::EaView;
 use std::collections::BTreeMap;
 use std::time::Instant;
 use tubes::tube_mesh::TubeMesh;
 
-/// Everything about how a frame is shaded.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Settings {
-    pub method: Method,
-    pub theta_deg: f64,
-    pub blur_samples: u32,
-    pub vicinity_samples: u32,
-    pub vicinity_distance: f64,
-    /// Vicinity depth bias, world units.
-    pub vicinity_bias: f64,
-    pub geometry_extinction: f64,
-    /// The paper's endless shadow column behind surfaces.
-    pub column: bool,
-    pub combine: Combine,
-    pub fxaa: bool,
-    /// ambient, diffuse, specular, shininess
-    pub light: [f64; 4],
-    /// Occlusion buffer cell edge in pixels (None: chosen, see `slice_pass::auto_cell`).
-    pub occlusion_cell: Option<u32>,
-    /// The cone-following occlusion model instead of the paper's.
-    pub cone: bool,
-    /// G-buffer samples per pixel (lowered to what the adapter supports, with a note).
-    pub msaa: u32,
-    /// What fills the methods' surface-AO slot.
-    pub surface_ao: SurfaceAo,
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Settings {
-            method: Method::Combined,
-            theta_deg: 25.0,
-            blur_samples: 3,
-            vicinity_samples: 32,
-            vicinity_distance: 2.0,
-            vicinity_bias: 0.1,
-            geometry_extinction: 10.0,
-            column: false,
-            combine: Combine::Min,
-            fxaa: true,
-            light: [0.3, 0.7, 0.3, 32.0],
-            occlusion_cell: None,
-            cone: false,
-            msaa: 4,
-            surface_ao: SurfaceAo::Vicinity,
-        }
-    }
-}
+pub use crate::method::Settings;
 
 /// Per-pixel occlusion and depth outputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -148,7 +101,7 @@ struct Frame {
     gbuf: GBuffer,
     slices: SlicePass,
     /// The passes of the surface terms that have one, with their names.
-    term_passes: Vec<(&'static str, VicinityPass)>,
+    term_passes: Vec<(&'static str, Box<dyn TermPass>)>,
     /// The names of the frame's surface-term layers, in layer order.
     layer_names: Vec<&'static str>,
     terms: wgpu::Buffer,
@@ -378,10 +331,11 @@ impl Frame {
             .iter()
             .filter_map(|t| match t {
                 Term::Partial => Some("partial"),
-                Term::SurfaceAo => match s.surface_ao {
-                    SurfaceAo::Vicinity => Some("vicinity"),
-                    SurfaceAo::None => None,
-                },
+                Term::SurfaceAo => SURFACE_AO
+                    .iter()
+                    .find(|d| d.choice == s.surface_ao)
+                    .filter(|d| d.build.is_some())
+                    .map(|d| d.name),
             })
             .collect();
         let layer = |name: &str| {
@@ -415,28 +369,25 @@ impl Frame {
                 partial_layer: layer("partial"),
             },
         )?;
-        let term_passes: Vec<(&'static str, VicinityPass)> = layer("vicinity")
-            .map(|l| {
-                let v = VicinityPass::new(
+        // The surface-AO slot's pass, from the term registry.
+        let term_passes: Vec<(&'static str, Box<dyn TermPass>)> = SURFACE_AO
+            .iter()
+            .filter(|d| d.choice == s.surface_ao)
+            .filter_map(|d| Some((d.name, d.build?, layer(d.name)?)))
+            .map(|(name, build, l)| {
+                let inputs = TermInputs {
                     gpu,
-                    cam,
-                    w,
-                    h,
-                    &gbuf,
-                    crate::gpu::Layer {
+                    camera: cam,
+                    size: (w, h),
+                    gbuf: &gbuf,
+                    layer: crate::gpu::Layer {
                         terms: &terms,
                         index: l,
                     },
-                    &VicinitySettings {
-                        samples: s.vicinity_samples,
-                        distance: s.vicinity_distance,
-                        theta_deg: s.theta_deg,
-                        bias: s.vicinity_bias,
-                    },
-                );
-                ("vicinity", v)
+                    settings: s,
+                };
+                (name, build(&inputs))
             })
-            .into_iter()
             .collect();
         let iso_pass = IsoPass::new(gpu, cam, w, h, scene.iso.as_ref(), s.light, &view.clip);
         let composite = CompositePass::new(

@@ -1,0 +1,91 @@
+//! The surface terms' registry: which pass fills a method's surface-AO slot for each choice of
+//! `render.surface_ao`. A new screen-space AO (the line papers' LineAO) is its pass module and
+//! WGSL file, one [`SurfaceAo`] variant and one row here; composite, the scene code, the CLI
+//! and the bench stay as they are.
+
+use crate::gbuffer::GBuffer;
+use crate::gpu::{Gpu, Layer};
+use crate::method::{Settings, SurfaceAo};
+use crate::vicinity::{VicinityPass, VicinitySettings};
+use occlusion::camera::Camera;
+
+/// What a surface-term pass is built from: the frame's view, its G-buffer, the layer it
+/// writes and the frame's settings.
+pub struct TermInputs<'a> {
+    pub gpu: &'a Gpu,
+    pub camera: &'a Camera,
+    pub size: (u32, u32),
+    pub gbuf: &'a GBuffer,
+    pub layer: Layer<'a>,
+    pub settings: &'a Settings,
+}
+
+/// A pass that writes one layer of the surface terms.
+pub trait TermPass {
+    fn record(&self, enc: &mut wgpu::CommandEncoder);
+}
+
+/// Builds a surface-term pass.
+pub type BuildTerm = fn(&TermInputs) -> Box<dyn TermPass>;
+
+/// A row of the registry.
+pub struct SurfaceAoDesc {
+    pub choice: SurfaceAo,
+    /// The layer's name: its AOV channel is `occlusion.<name>`, its pass timing `<name>`.
+    pub name: &'static str,
+    /// The pass (`None`: the slot stays empty).
+    pub build: Option<BuildTerm>,
+}
+
+/// Every choice of `render.surface_ao`.
+pub const SURFACE_AO: &[SurfaceAoDesc] = &[
+    SurfaceAoDesc {
+        choice: SurfaceAo::Vicinity,
+        name: "vicinity",
+        build: Some(vicinity),
+    },
+    SurfaceAoDesc {
+        choice: SurfaceAo::None,
+        name: "none",
+        build: None,
+    },
+];
+
+fn vicinity(t: &TermInputs) -> Box<dyn TermPass> {
+    let s = t.settings;
+    Box::new(VicinityPass::new(
+        t.gpu,
+        t.camera,
+        t.size.0,
+        t.size.1,
+        t.gbuf,
+        t.layer,
+        &VicinitySettings {
+            samples: s.vicinity_samples,
+            distance: s.vicinity_distance,
+            theta_deg: s.theta_deg,
+            bias: s.vicinity_bias,
+        },
+    ))
+}
+
+impl TermPass for VicinityPass {
+    fn record(&self, enc: &mut wgpu::CommandEncoder) {
+        VicinityPass::record(self, enc)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_surface_ao_choice_has_one_row_and_its_layer_a_name() {
+        for c in [SurfaceAo::Vicinity, SurfaceAo::None] {
+            assert_eq!(SURFACE_AO.iter().filter(|d| d.choice == c).count(), 1);
+        }
+        for d in SURFACE_AO.iter().filter(|d| d.build.is_some()) {
+            assert!(crate::method::TERM_NAMES.contains(&d.name), "{}", d.name);
+        }
+    }
+}
