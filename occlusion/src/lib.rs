@@ -4,8 +4,8 @@
 //!
 //! | paper | module | its equation index |
 //! |---|---|---|
-//! | Schott et al. 2012, combined surface and volumetric occlusion | [`combined`] (+ [`emission_absorption`], [`reference`], [`reference_tubes`]) | [`combined`] |
-//! | Singh, Yuksel & House 2009, fast occlusion sweeping | `volume::distance_sweep`, `volume::occlusion_sweep`, `volume::occlusion_shading` (+ [`isosurface`]) | [`isosurface`] |
+//! | Schott et al. 2012, combined surface and volumetric occlusion | [`combined`] (+ [`emission_absorption`], [`reference`](mod@reference), [`reference_tubes`]) | [`combined`] |
+//! | Singh, Yuksel & House 2009, fast occlusion sweeping | [`sweeping`] (the fields, re-exported from `volume`) + [`isosurface`] | [`sweeping`] |
 //! | the projection conventions and the paper's texture-radius erratum | [`camera`] | [`camera`] |
 //!
 //! Nothing here imports `wgpu`: the `engine` crate depends on this one, never the reverse.
@@ -17,3 +17,4 @@ pub mod isosurface;
 pub mod reference;
 pub mod reference_tubes;
 pub mod rng;
+pub mod sweeping;
