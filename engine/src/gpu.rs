@@ -228,6 +228,12 @@ impl Gpu {
         if adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
             features |= wgpu::Features::TIMESTAMP_QUERY;
         }
+        // Timestamps between passes of one command buffer (per-pass GPU times of a frame).
+        let between =
+            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+        if adapter.features().contains(between) {
+            features |= between;
+        }
         let limits = wgpu::Limits { ..adapter.limits() };
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
@@ -309,6 +315,13 @@ impl Gpu {
     /// far: constant across frames that compile and allocate nothing new.
     pub fn pool_made(&self) -> usize {
         self.pool.made.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Whether timestamps can be written between the passes of a command buffer.
+    pub fn has_pass_timestamps(&self) -> bool {
+        self.device.features().contains(
+            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS,
+        )
     }
 
     /// Waits for all submitted work.

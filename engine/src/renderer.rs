@@ -11,9 +11,10 @@
 //! by min or product without knowing who wrote them.
 //!
 //! Timings: `total_ms` is the median over frames of one frame's submit-to-completion time
-//! (everything recorded in one command buffer, then waited for); the per-pass figures come
-//! from one more frame in which each pass is submitted and waited for on its own (fences;
-//! timestamp queries are not used yet), so they include a submission's overhead each.
+//! (everything recorded in one command buffer, then waited for). Per-pass times, when asked
+//! for, come from one more frame: GPU timestamps written between its passes where the adapter
+//! can (`PassClock::Timestamps`), else each pass submitted and waited for on its own
+//! (`PassClock::Fences`, which adds a submission's overhead to each).
 
 use crate::composite::{CompositePass, CompositeSettings};
 use crate::fxaa::FxaaPass;
@@ -49,8 +50,64 @@ pub struct Timings {
     pub total_ms: f64,
     /// Each frame's time, in order.
     pub frames_ms: Vec<f64>,
-    /// Per pass, each submitted and waited for alone.
+    /// Per pass, ms (empty unless asked for): see `pass_clock`.
     pub passes: BTreeMap<String, f64>,
+    /// How `passes` was measured.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pass_clock: Option<PassClock>,
+}
+
+/// How per-pass times are measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PassClock {
+    /// GPU timestamps written between the passes of one more whole frame (one submission).
+    Timestamps,
+    /// Each pass submitted alone and waited for (includes a submission's overhead each), where
+    /// the adapter has no timestamps between passes.
+    Fences,
+}
+
+/// One more whole frame with a GPU timestamp before each pass and after the last; each pass's
+/// time is the difference of its two, ms.
+fn timestamped(gpu: &Gpu, passes: &[Recorder<'_>]) -> Result<BTreeMap<String, f64>, GpuError> {
+    let n = passes.len() as u32 + 1;
+    let set = gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+        label: Some("pass timestamps"),
+        ty: wgpu::QueryType::Timestamp,
+        count: n,
+    });
+    let bytes = n as u64 * wgpu::QUERY_SIZE as u64;
+    let resolve = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("pass timestamps resolve"),
+        size: bytes,
+        usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let (_, readback) = gpu.output_buffers("pass timestamps", bytes);
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    for (i, (_, p)) in passes.iter().enumerate() {
+        enc.write_timestamp(&set, i as u32);
+        p(&mut enc);
+    }
+    enc.write_timestamp(&set, n - 1);
+    enc.resolve_query_set(&set, 0..n, &resolve, 0);
+    enc.copy_buffer_to_buffer(&resolve, 0, &readback, 0, bytes);
+    gpu.queue.submit([enc.finish()]);
+    let ticks: Vec<u64> = gpu
+        .read_buffer(&readback)?
+        .chunks_exact(8)
+        .map(|c| u64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    let ns = gpu.queue.get_timestamp_period() as f64;
+    Ok(passes
+        .iter()
+        .enumerate()
+        .map(|(i, (name, _))| {
+            let d = ticks[i + 1].saturating_sub(ticks[i]) as f64 * ns * 1e-6;
+            (name.to_string(), d)
+        })
+        .collect())
 }
 
 /// A rendered frame: linear RGBA (alpha: coverage) and AOVs, rows top to bottom.
@@ -245,9 +302,16 @@ impl<'g> Renderer<'g> {
             frames_ms.push(submit_and_wait(gpu, &whole)?);
         }
         let mut per_pass = BTreeMap::new();
+        let mut pass_clock = None;
         if opts.pass_timings {
-            for (name, p) in &passes {
-                per_pass.insert(name.to_string(), submit_and_wait(gpu, p.as_ref())?);
+            if gpu.has_pass_timestamps() {
+                per_pass = timestamped(gpu, &passes)?;
+                pass_clock = Some(PassClock::Timestamps);
+            } else {
+                for (name, p) in &passes {
+                    per_pass.insert(name.to_string(), submit_and_wait(gpu, p.as_ref())?);
+                }
+                pass_clock = Some(PassClock::Fences);
             }
         }
         if let Some(e) = pollster::block_on(oom.pop()) {
@@ -272,6 +336,7 @@ impl<'g> Renderer<'g> {
                 total_ms: sorted[sorted.len() / 2],
                 frames_ms,
                 passes: per_pass,
+                pass_clock,
             },
             triangles: frame.gbuf.triangles(),
         })

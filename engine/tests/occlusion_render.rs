@@ -710,5 +710,22 @@ fn a_long_lived_renderer_draws_new_cameras_without_compiling_or_uploading() {
     // The same image as the one-shot path (a new upload).
     let fresh = s.render(&gpu, &view(cams[1]), &settings(Method::Combined));
     assert_eq!(fresh.image, first[1].image);
-    assert!(!fresh.timings.passes.is_empty());
+    // Per-pass times, by GPU timestamps where the adapter has them (lavapipe does).
+    let names: Vec<&String> = fresh.timings.passes.keys().collect();
+    assert_eq!(
+        names,
+        ["composite", "gbuffer", "light", "march", "vicinity"],
+        "the passes of combined without FXAA"
+    );
+    assert!(fresh
+        .timings
+        .passes
+        .values()
+        .all(|ms| ms.is_finite() && *ms >= 0.0));
+    let want = if gpu.has_pass_timestamps() {
+        renderer::PassClock::Timestamps
+    } else {
+        renderer::PassClock::Fences
+    };
+    assert_eq!(fresh.timings.pass_clock, Some(want));
 }

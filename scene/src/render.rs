@@ -24,6 +24,9 @@ pub struct RenderReport {
     /// Median frame time and per-pass times (see `renderer::Timings`).
     pub total_ms: f64,
     pub passes: std::collections::BTreeMap<String, f64>,
+    /// How `passes` was measured (absent when it was not).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pass_clock: Option<renderer::PassClock>,
     pub frames_ms: Vec<f64>,
     /// Wall time of the whole command: loading, meshing, rendering, writing.
     pub seconds: f64,
@@ -195,6 +198,7 @@ pub fn run(
         total_ms,
         frames_ms,
         passes,
+        pass_clock,
     } = out.timings;
     let mut totals: Vec<f64> = frames.iter().map(|f| f.total_ms).collect();
     totals.sort_by(f64::total_cmp);
@@ -212,6 +216,7 @@ pub fn run(
             total_ms
         },
         passes,
+        pass_clock,
         frames_ms,
         setup_seconds,
         seconds: t0.elapsed().as_secs_f64(),
