@@ -1,0 +1,111 @@
+//! Stream-tube benchmark of docs/benchmarks.md: 10,000 smooth random polylines of 200 points in
+//! a 100^3 box (deterministic), the whole pipeline (fit + reduce + RMF + mesh, `compute` of
+//! `umbra tubes`, no I/O) at radius 0.2, 8 sides, tolerance 0.02, median of `repeat` runs.
+//! `cargo run --release -p umbra --example tubes_bench -- [lines] [repeat] [out.tck]`
+//! writes the polylines to `out.tck` for the VTK peer (bench/peers_tubes.py).
+use glam::DVec3;
+use std::time::Instant;
+use tubes::bspline_fit::{FitMethod, FitOptions};
+use tubes::tube_mesh::{build, ColorMode, FrameMethod, RadiusMode, TubeOptions};
+use tubes::Streamlines;
+
+fn polylines(n: usize, points: usize) -> Streamlines {
+    let mut seed = 0x2545F4914F6CDD1Du64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut s = Streamlines::new();
+    for _ in 0..n {
+        let mut p = DVec3::new(
+            10.0 + 80.0 * rnd(),
+            10.0 + 80.0 * rnd(),
+            10.0 + 80.0 * rnd(),
+        );
+        let mut d = DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+        let mut line = Vec::with_capacity(points);
+        // Smooth: the turning rate (an angular velocity) drifts slowly, so curvature varies
+        // smoothly along the line (radius of curvature mostly 5 to 50).
+        let mut w = DVec3::ZERO;
+        for _ in 0..points {
+            line.push(p.as_vec3());
+            w = w * 0.97 + DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * 0.02;
+            d = (d + w.cross(d)).normalize();
+            // Near the walls, steer gently back towards the centre (no reflections: a kink
+            // would be a corner for every method).
+            let centre = DVec3::splat(50.0) - p;
+            if p.min_element() < 15.0 || p.max_element() > 85.0 {
+                d = (d + centre.normalize() * 0.03).normalize();
+            }
+            p += d * 0.5;
+        }
+        s.push(&line);
+    }
+    s
+}
+
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    let n: usize = a.get(1).and_then(|s| s.parse().ok()).unwrap_or(10_000);
+    let repeat: usize = a.get(2).and_then(|s| s.parse().ok()).unwrap_or(3);
+    let s = polylines(n, 200);
+    if let Some(out) = a.get(3) {
+        tubes::save(std::path::Path::new(out), &s).unwrap();
+    }
+    let opts = TubeOptions {
+        radius: 0.2,
+        sides: 8,
+        per_span: 1,
+        chordal: None,
+        max_turn_deg: 15.0,
+        frame: FrameMethod::Rmf,
+        radius_mode: RadiusMode::Local,
+        fit: FitOptions {
+            epsilon: 0.02,
+            method: FitMethod::Iterative,
+            max_iterations: 100,
+        },
+        caps: false,
+        color: ColorMode::Direction,
+    };
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..repeat {
+        let t = Instant::now();
+        let (mesh, st) = build(&s, &opts);
+        times.push(t.elapsed().as_secs_f64());
+        last = Some((mesh.positions.len(), st));
+    }
+    times.sort_by(|a, b| a.total_cmp(b));
+    if std::env::var("FIT_ONLY").is_ok() {
+        use rayon::prelude::*;
+        let t = Instant::now();
+        let total: usize = (0..s.len())
+            .into_par_iter()
+            .map(|i| {
+                let pts: Vec<DVec3> = s.line(i).iter().map(|p| p.as_dvec3()).collect();
+                tubes::bspline_fit::fit(&pts, &opts.fit).curve.control.len()
+            })
+            .sum();
+        eprintln!(
+            "fit only: {:.3} s ({total} control points)",
+            t.elapsed().as_secs_f64()
+        );
+    }
+    let (verts, st) = last.unwrap();
+    println!(
+        "{{\"lines\": {n}, \"points\": {}, \"compute_s\": {:.3}, \"triangles\": {}, \"vertices\": {verts}, \"control_points\": {}, \"max_deviation\": {:.5}, \"max_twist_deg\": {:.3}, \"min_section_ratio\": {:.4}, \"radius_clamps\": {}, \"splits\": {}, \"threads\": {}}}",
+        st.points_in,
+        times[times.len() / 2],
+        st.triangles,
+        st.control_points,
+        st.max_deviation,
+        st.max_twist_deg,
+        st.min_section_ratio,
+        st.radius_clamps,
+        st.splits,
+        rayon::current_num_threads()
+    );
+}

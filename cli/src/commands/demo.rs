@@ -1,0 +1,151 @@
+//! `umbra demo [mni|cfd]`: the bundled scenes rendered by the combined method.
+//!
+//! * `mni` (default): `datasets/scenes/demo.toml` - the MNI ICBM 2009a T1 template cut open at
+//!   the mid-sagittal plane with three HCP1065 bundles (registered: they lie in the white
+//!   matter).
+//! * `cfd`: the VTK carotid flow (`datasets/vtk/carotid.vtk`): streamlines traced from a plane
+//!   of seeds at the inlet (RK4, `umbra trace`), as tubes over the speed field.
+//!
+//! The datasets are found at `UMBRA_DATASETS`, else the source tree's `datasets/` (where
+//! `cargo run` builds from), else `./datasets`.
+
+use super::render::{size_method_overrides, summary};
+use super::trace::{trace_to_file, TraceArgs};
+use crate::output::out;
+use scene::render::{RenderArgs, RenderReport};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// mni or cfd.
+    #[arg(default_value = "mni")]
+    which: String,
+    /// Output image (.png or .exr).
+    #[arg(short, long, default_value = "demo.png")]
+    output: PathBuf,
+    #[arg(long)]
+    width: Option<u32>,
+    #[arg(long)]
+    height: Option<u32>,
+    /// combined, dos, vicinity, ea or phong.
+    #[arg(long, value_enum, hide_possible_values = true)]
+    method: Option<super::Method>,
+    /// Frames timed; total_ms is their median.
+    #[arg(long, default_value_t = 1)]
+    frames: u32,
+    /// Override a scene key by its dotted path (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+}
+
+pub fn run(a: Args) -> Result<(), String> {
+    let overrides = size_method_overrides(a.width, a.height, a.method, a.set);
+    let r = render_demo(&a.which, &a.output, &overrides, a.frames)?;
+    for n in &r.notes {
+        eprintln!("note: {n}");
+    }
+    out(summary(&r))?;
+    eprintln!("wrote {}", a.output.display());
+    Ok(())
+}
+
+/// The bundled datasets directory.
+pub fn datasets() -> PathBuf {
+    if let Ok(d) = std::env::var("UMBRA_DATASETS") {
+        return PathBuf::from(d);
+    }
+    let built = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets");
+    if built.join("scenes/demo.toml").exists() {
+        return built;
+    }
+    PathBuf::from("datasets")
+}
+
+/// The CFD demo's scene, with its streamlines at `tracts`.
+fn cfd_scene(data: &Path, tracts: &Path) -> String {
+    format!(
+        r#"# umbra demo cfd: carotid artery flow (VTKData), streamlines from the inlet over the speed.
+background = [1.0, 1.0, 1.0]
+[camera]
+azimuth = 20.0
+elevation = 35.0
+distance = 2.0
+[volume]
+path = "{}"
+field = "scalars"
+[volume.transfer]
+points = [
+  {{ value = 150.0, color = [0.2, 0.05, 0.0], extinction = 0.0 }},
+  {{ value = 300.0, color = [0.9, 0.4, 0.1], extinction = 0.04 }},
+  {{ value = 580.0, color = [1.0, 0.95, 0.7], extinction = 0.3 }},
+]
+[[tubes]]
+path = "{}"
+radius = 0.25
+color = "direction"
+[render]
+width = 1024
+height = 768
+theta = 40.0
+vicinity_distance = 1.5
+combine = "product"
+"#,
+        data.join("vtk/carotid.vtk").display(),
+        tracts.display()
+    )
+}
+
+/// Renders demo `which` (`mni` or `cfd`) to `output`.
+pub fn render_demo(
+    which: &str,
+    output: &Path,
+    overrides: &[String],
+    frames: u32,
+) -> Result<RenderReport, String> {
+    let data = datasets();
+    let args = |scene: PathBuf| RenderArgs {
+        scene,
+        output: output.to_path_buf(),
+        overrides: overrides.to_vec(),
+        frames,
+        aov: false,
+        pass_timings: false,
+        cameras: Default::default(),
+    };
+    match which {
+        "mni" => {
+            let scene = data.join("scenes/demo.toml");
+            if !scene.exists() {
+                return Err(format!(
+                    "{}: the demo scene is missing (set UMBRA_DATASETS to umbra's datasets/)",
+                    scene.display()
+                ));
+            }
+            scene::render::run(&args(scene), &mut |_, _| {})
+        }
+        "cfd" => {
+            let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
+            let tracts = dir.path().join("carotid.tck");
+            trace_to_file(&TraceArgs {
+                input: data.join("vtk/carotid.vtk"),
+                output: tracts.clone(),
+                field: Some("vectors".into()),
+                seeds: "plane:z=3:60".into(),
+                step: None,
+                integrator: tubes::trace::Integrator::Rk4,
+                tolerance: 1e-3,
+                max_length: None,
+                min_speed: 1.0,
+                mask: None,
+                threshold: 0.2,
+                max_angle: 60.0,
+                eigen: false,
+                one_way: false,
+            })?;
+            let scene = dir.path().join("cfd.toml");
+            std::fs::write(&scene, cfd_scene(&data, &tracts)).map_err(|e| e.to_string())?;
+            scene::render::run(&args(scene), &mut |_, _| {})
+        }
+        other => Err(format!("umbra demo {other}: choose mni or cfd")),
+    }
+}

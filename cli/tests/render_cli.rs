@@ -1,0 +1,760 @@
+//! `umbra render` and `umbra demo` end to end on lavapipe: the demo against its reference
+//! image, EXR output with AOV channels, `--timings-json`, and clear errors for bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
+}
+
+fn umbra() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_umbra"))
+}
+
+fn ok(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn the_demo_matches_its_reference_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("demo.png");
+    let out = umbra()
+        .args(["demo", "--width", "160", "--height", "120", "-o"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    ok(&out);
+    let got = image::open(&png).unwrap().to_rgb8();
+    let want = image::open(root().join("tests/fixtures/render/demo_160x120.png"))
+        .unwrap()
+        .to_rgb8();
+    assert_eq!(got.dimensions(), want.dimensions());
+    let mut diffs: Vec<i32> = got
+        .pixels()
+        .zip(want.pixels())
+        .flat_map(|(a, b)| (0..3).map(move |k| (a.0[k] as i32 - b.0[k] as i32).abs()))
+        .collect();
+    let mean = diffs.iter().sum::<i32>() as f64 / diffs.len() as f64;
+    diffs.sort();
+    let p99 = diffs[diffs.len() * 99 / 100];
+    assert!(
+        mean < 1.5 && p99 <= 16,
+        "mean {mean:.3}/255, 99th percentile {p99}/255"
+    );
+}
+
+/// A small scene: the bundled CT head with the dipy tractogram moved into it.
+fn small_scene(dir: &Path, extra: &str) -> PathBuf {
+    let s = dir.join("s.toml");
+    std::fs::write(
+        &s,
+        format!(
+            "[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n\
+             [[tubes]]\npath = \"{}\"\nradius = 1.0\n\
+             transform = [1, 0, 0, 10, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n\
+             [render]\nwidth = 64\nheight = 48\nslices = 64\n{extra}",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display(),
+            root()
+                .join("tests/fixtures/tracts/dipy/tracks300.trk")
+                .display()
+        ),
+    )
+    .unwrap();
+    s
+}
+
+#[test]
+fn render_writes_exr_with_aovs_and_timings() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_scene(dir.path(), "");
+    let exr = dir.path().join("out.exr");
+    let timings = dir.path().join("t.json");
+    let out = umbra()
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(&exr)
+        .args([
+            "--aov",
+            "--frames",
+            "2",
+            "--method",
+            "combined",
+            "--timings-json",
+        ])
+        .arg(&timings)
+        .output()
+        .unwrap();
+    ok(&out);
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&timings).unwrap()).unwrap();
+    assert!(t["total_ms"].as_f64().unwrap() > 0.0);
+    for pass in ["gbuffer", "light", "march", "vicinity", "composite", "fxaa"] {
+        assert!(t["passes"][pass].as_f64().unwrap() >= 0.0, "{pass}: {t}");
+    }
+    assert_eq!(t["frames_ms"].as_array().unwrap().len(), 2);
+    let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
+    let chan = |name: &str| -> Vec<f32> {
+        let c = img
+            .layer_data
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .unwrap_or_else(|| panic!("no channel {name}"));
+        c.sample_data.values_as_f32().collect()
+    };
+    let (a, z) = (chan("A"), chan("Z"));
+    let (p, v, c) = (
+        chan("occlusion.partial"),
+        chan("occlusion.vicinity"),
+        chan("occlusion.combined"),
+    );
+    assert_eq!(a.len(), 64 * 48);
+    // The default combine is min (eq. 7); surfaces are where the depth is set and mostly
+    // covered (MSAA makes edge pixels partly so).
+    let mut surfaces = 0;
+    for i in 0..a.len() {
+        assert!((c[i] - p[i].min(v[i])).abs() < 1e-6);
+        if a[i] > 0.5 && z[i] > 0.0 {
+            surfaces += 1;
+        }
+    }
+    assert!(surfaces > 5, "{surfaces} surface pixels");
+    assert!(chan("R").iter().all(|x| x.is_finite()));
+    // --aov needs EXR.
+    let out = umbra()
+        .arg("render")
+        .arg(&scene)
+        .args(["-o", "x.png", "--aov"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("EXR"));
+}
+
+#[test]
+fn bad_render_input_gets_clear_errors_and_no_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("o.png");
+    let run = |scene: &Path, extra: &[&str]| {
+        umbra()
+            .arg("render")
+            .arg(scene)
+            .arg("-o")
+            .arg(&png)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let scene = small_scene(dir.path(), "");
+    for (extra, needle) in [
+        (vec!["--width", "0"], "render.width"),
+        (
+            vec!["--width", "16000", "--height", "16000"],
+            "render.width",
+        ),
+        (
+            vec![
+                "--set",
+                "tubes.0.transform=[0,0,0,0, 0,0,0,0, 0,0,0,0, 0,0,0,1]",
+            ],
+            "tubes[0].transform",
+        ),
+        (vec!["--method", "fancy"], "fancy"),
+        (
+            vec!["--set", "tubes.0.path=\"/nope/missing.trk\""],
+            "missing.trk",
+        ),
+        (
+            vec!["--set", "render.occlusion_cell=0"],
+            "render.occlusion_cell",
+        ),
+        (
+            vec!["--set", "render.geometry_extinction=-1"],
+            "render.geometry_extinction",
+        ),
+        (
+            vec!["--set", "clip=[{normal = [0, 0, 0], offset = 1}]"],
+            "clip[0].normal",
+        ),
+    ] {
+        let out = run(&scene, &extra);
+        assert!(!out.status.success(), "{extra:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{extra:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!png.exists());
+    }
+    // NaN voxels render as gaps, with a note.
+    let nan = dir.path().join("nan.nrrd");
+    std::fs::write(
+        &nan,
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n1 nan 1 1 inf 1 1 1\n",
+    )
+    .unwrap();
+    let s2 = dir.path().join("nan.toml");
+    std::fs::write(
+        &s2,
+        format!(
+            "[volume]\npath = \"{}\"\n[render]\nwidth = 32\nheight = 32\nmethod = \"dos\"\n",
+            nan.display()
+        ),
+    )
+    .unwrap();
+    let out = run(&s2, &[]);
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("NaN or infinite"), "{err}");
+    assert!(png.exists());
+}
+
+#[test]
+fn mesh_files_are_tube_sets_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("t.ply");
+    let out = umbra()
+        .arg("tubes")
+        .arg(root().join("tests/fixtures/tracts/dipy/tracks300.trk"))
+        .arg("-o")
+        .arg(&ply)
+        .args(["--radius", "1.0"])
+        .output()
+        .unwrap();
+    ok(&out);
+    let s = dir.path().join("m.toml");
+    std::fs::write(
+        &s,
+        format!(
+            "background = [1.0, 1.0, 1.0]\n[[tubes]]\npath = \"{}\"\ncolor = \"#00ff00\"\n\
+             [render]\nwidth = 64\nheight = 48\nmethod = \"vicinity\"\n",
+            ply.display()
+        ),
+    )
+    .unwrap();
+    let png = dir.path().join("m.png");
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("-o")
+        .arg(&png)
+        .output()
+        .unwrap();
+    ok(&out);
+    let img = image::open(&png).unwrap().to_rgb8();
+    let green = img
+        .pixels()
+        .filter(|p| p.0[1] > 60 && p.0[1] as i32 > 2 * p.0[0] as i32)
+        .count();
+    assert!(green > 50, "{green} green pixels");
+    // A broken mesh is a named error.
+    std::fs::write(
+        &ply,
+        "ply\nformat ascii 1.0\nelement vertex 1\nend_header\n",
+    )
+    .unwrap();
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("-o")
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("tubes[0]") && err.contains("t.ply"), "{err}");
+}
+
+#[test]
+fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = dir.path().join("a.toml");
+    std::fs::write(
+        &s,
+        format!(
+            "[camera]\nazimuth = 120.0\nelevation = 15.0\n[volume]\npath = \"{}\"\n\
+             [volume.transfer]\npreset = \"bone\"\nextinction = 0.1\n",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    let out_dir = dir.path().join("bench");
+    let run = || {
+        umbra()
+            .args(["bench", "accuracy"])
+            .arg(&s)
+            .args([
+                "--sweep",
+                "slices=48,96",
+                "--sweep",
+                "cone=30",
+                "--methods",
+                "dos,ea",
+                "--reference-spp",
+                "32",
+                "--frames",
+                "1",
+                "--set",
+                "render.width=40",
+                "--set",
+                "render.height=40",
+                "-o",
+            ])
+            .arg(&out_dir)
+            .output()
+            .unwrap()
+    };
+    ok(&run());
+    let csv = std::fs::read_to_string(out_dir.join("results.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(
+        lines[0],
+        "method,slices,cone,ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface,rmse_vicinity"
+    );
+    assert_eq!(lines.len(), 5, "{csv}");
+    let rmse = |m: &str, sl: &str| -> f64 {
+        let l = lines
+            .iter()
+            .find(|l| l.starts_with(&format!("{m},{sl},")))
+            .unwrap();
+        l.split(',').nth(4).unwrap().parse().unwrap()
+    };
+    // Directional occlusion is the light model of the reference; leaving it out (ea) costs.
+    for sl in ["48", "96"] {
+        assert!(rmse("dos", sl) < 0.7 * rmse("ea", sl), "{csv}");
+    }
+    assert!(out_dir.join("errors/dos_48_30.png").exists());
+    for f in ["pareto.svg", "pareto.png"] {
+        assert!(
+            std::fs::metadata(out_dir.join(f)).unwrap().len() > 1000,
+            "{f}"
+        );
+    }
+    let svg = std::fs::read_to_string(out_dir.join("pareto.svg")).unwrap();
+    assert!(svg.contains("Pareto front") && svg.contains("dos"));
+    // One cone angle: one cached reference, reused by a second run.
+    let refs = || {
+        std::fs::read_dir(out_dir.join("reference"))
+            .unwrap()
+            .count()
+    };
+    assert_eq!(refs(), 1);
+    let out = run();
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"));
+    // The second run with the same scene traces no reference: the cache hits.
+    assert!(
+        err.contains("references: 0 traced, 2 from the cache"),
+        "{err}"
+    );
+    assert_eq!(refs(), 1);
+    // A key the reference depends on (vicinity_distance) misses the cache.
+    let out = umbra()
+        .args(["bench", "accuracy"])
+        .arg(&s)
+        .args([
+            "--sweep",
+            "cone=30",
+            "--methods",
+            "ea",
+            "--reference-spp",
+            "32",
+            "--frames",
+            "1",
+            "--set",
+            "render.width=40",
+            "--set",
+            "render.height=40",
+            "--set",
+            "render.vicinity_distance=3.5",
+            "-o",
+        ])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("references: 1 traced, 0 from the cache"),
+        "{err}"
+    );
+    assert_eq!(refs(), 2);
+    // The paper's endless-column rule is in the reference too: a scene with tubes and that rule
+    // is measured.
+    std::fs::write(
+        &s,
+        format!(
+            "[volume]\npath = \"{}\"\n[[tubes]]\npath = \"{}\"\n[render]\ngeometry_shadow = \"column\"\n",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display(),
+            root().join("tests/fixtures/tracts/dipy/tracks300.trk").display()
+        ),
+    )
+    .unwrap();
+    let out = run();
+    ok(&out);
+    let csv = std::fs::read_to_string(out_dir.join("results.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 5, "{csv}");
+}
+
+#[test]
+fn bench_stability_measures_every_case_with_a_verdict() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("stab");
+    let out = umbra()
+        .args(["bench", "stability", "--reference-spp", "64", "-o"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    ok(&out);
+    let csv = std::fs::read_to_string(out_dir.join("stability.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    for case in [
+        "thin-sheet",
+        "grazing",
+        "few-slices",
+        "cone-extremes",
+        "zoom",
+        "rotation",
+    ] {
+        assert!(rows.iter().any(|r| r[0] == case), "{case} missing:\n{csv}");
+    }
+    assert!(rows
+        .iter()
+        .all(|r| ["ok", "degraded", "fails"].contains(&r[9])));
+    // Three steps of turning, each with the AOV's change and the reference's.
+    let flicker = std::fs::read_to_string(out_dir.join("flicker.csv")).unwrap();
+    assert_eq!(flicker.lines().count(), 4, "{flicker}");
+    for l in flicker.lines().skip(1) {
+        let g: f64 = l.split(',').nth(2).unwrap().parse().unwrap();
+        assert!(g.is_finite() && (0.0..0.2).contains(&g), "{flicker}");
+    }
+    // A sheet thinner than the slice distance is where slicing breaks: much worse at 2 units
+    // than at 0.1.
+    let rmse = |m: &str, set: &str| -> f64 {
+        rows.iter()
+            .find(|r| r[0] == "thin-sheet" && r[1] == m && r[2] == set)
+            .unwrap()[4]
+            .parse()
+            .unwrap()
+    };
+    assert!(rmse("dos", "2.0") > 2.0 * rmse("dos", "0.1"), "{csv}");
+}
+
+#[test]
+fn bench_tubes_and_bench_sweep_write_their_tables_and_charts() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = dir.path().join("t");
+    let out = umbra()
+        .args(["bench", "tubes"])
+        .arg(root().join("tests/fixtures/tracts/dipy/tracks300.trk"))
+        .args(["--tolerances", "0.01,0.1,0.5", "--runs", "1", "-o"])
+        .arg(&t)
+        .output()
+        .unwrap();
+    ok(&out);
+    let csv = std::fs::read_to_string(t.join("tubes.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 3, "{csv}");
+    for r in &rows {
+        // The largest deviation stays within the tolerance (exact maximum, branch and bound).
+        assert!(r[3] <= r[0] * 1.001, "{csv}");
+    }
+    // A looser tolerance never costs more control points or triangles.
+    assert!(
+        rows[2][1] <= rows[0][1] && rows[2][2] <= rows[0][2],
+        "{csv}"
+    );
+    assert!(std::fs::metadata(t.join("tubes.svg")).unwrap().len() > 1000);
+    let s = dir.path().join("s");
+    let out = umbra()
+        .args([
+            "bench",
+            "sweep",
+            "--sizes",
+            "16,24",
+            "--offsets",
+            "0,1.5",
+            "--spp",
+            "16",
+            "--size",
+            "32",
+            "-o",
+        ])
+        .arg(&s)
+        .output()
+        .unwrap();
+    ok(&out);
+    let csv = std::fs::read_to_string(s.join("sweep.csv")).unwrap();
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "n,offset,geometry,sweep_ms,rmse,reference_stderr"
+    );
+    assert_eq!(csv.lines().count(), 5, "{csv}");
+    for l in csv.lines().skip(1) {
+        let rmse: f64 = l.split(',').nth(4).unwrap().parse().unwrap();
+        assert!(rmse.is_finite() && rmse > 0.0 && rmse < 0.5, "{csv}");
+    }
+    assert!(std::fs::metadata(s.join("sweep.png")).unwrap().len() > 1000);
+}
+
+#[test]
+fn bench_ao_writes_the_cross_check_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("ao");
+    let out = umbra()
+        .args(["bench", "ao"])
+        .arg(root().join("bench/scenes/ao_tracks.toml"))
+        .args([
+            "--spp",
+            "16",
+            "--set",
+            "render.width=32",
+            "--set",
+            "render.height=32",
+            "-o",
+        ])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    ok(&out);
+    let mean: f64 = String::from_utf8_lossy(&out.stdout)
+        .split_whitespace()
+        .last()
+        .unwrap()
+        .parse()
+        .unwrap();
+    // Tubes cover part of the image and occlude each other: open, but not entirely.
+    assert!(mean > 0.5 && mean < 0.999, "{mean}");
+    let cam: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("camera.json")).unwrap())
+            .unwrap();
+    assert_eq!(cam["width"], 32);
+    assert!(cam["fov_y"].as_f64().unwrap() > 0.0);
+    // The PLY is the tubes' mesh in world coordinates: it reads back.
+    let m = tubes::mesh_io::read(&out_dir.join("tubes.ply")).unwrap();
+    assert!(m.triangles() > 1000);
+    let img = exr::prelude::read_first_flat_layer_from_file(out_dir.join("ao.exr")).unwrap();
+    assert_eq!(img.layer_data.channel_data.list.len(), 2);
+    // A short reach leaves more open: the mean rises.
+    let out = umbra()
+        .args(["bench", "ao"])
+        .arg(root().join("bench/scenes/ao_tracks.toml"))
+        .args([
+            "--spp",
+            "16",
+            "--max-distance",
+            "0.5",
+            "--set",
+            "render.width=32",
+            "--set",
+            "render.height=32",
+            "-o",
+        ])
+        .arg(dir.path().join("ao_near"))
+        .output()
+        .unwrap();
+    ok(&out);
+    let near: f64 = String::from_utf8_lossy(&out.stdout)
+        .split_whitespace()
+        .last()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(near > mean, "{near} <= {mean}");
+}
+
+#[test]
+fn the_cfd_demo_traces_and_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("cfd.png");
+    let out = umbra()
+        .args(["demo", "cfd", "--width", "96", "--height", "72", "-o"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    ok(&out);
+    let img = image::open(&png).unwrap().to_rgb8();
+    // Streamline tubes in direction colours (saturated) over a pale volume.
+    let saturated = img
+        .pixels()
+        .filter(|p| {
+            let (mx, mn) = (*p.0.iter().max().unwrap(), *p.0.iter().min().unwrap());
+            mx as i32 - mn as i32 > 80
+        })
+        .count();
+    assert!(saturated > 40, "{saturated} saturated pixels");
+    let e = umbra()
+        .args(["demo", "nope", "-o"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(!e.status.success());
+    assert!(String::from_utf8_lossy(&e.stderr).contains("mni or cfd"));
+}
+
+/// The largest difference of two PNGs' 8-bit channels.
+fn max_diff(a: &Path, b: &Path) -> i32 {
+    let (a, b) = (
+        image::open(a).unwrap().to_rgb8(),
+        image::open(b).unwrap().to_rgb8(),
+    );
+    assert_eq!(a.dimensions(), b.dimensions());
+    a.pixels()
+        .zip(b.pixels())
+        .flat_map(|(p, q)| (0..3).map(move |k| (p.0[k] as i32 - q.0[k] as i32).abs()))
+        .max()
+        .unwrap()
+}
+
+/// One `umbra render` of `scene` with `--set` overrides, to `png`.
+fn single(scene: &Path, png: &Path, set: &[String]) {
+    let mut c = umbra();
+    c.arg("render").arg(scene).arg("-o").arg(png);
+    for s in set {
+        c.args(["--set", s]);
+    }
+    ok(&c.output().unwrap());
+}
+
+#[test]
+fn a_turntable_renders_the_frames_single_renders_give() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = small_scene(dir.path(), "");
+    let pattern = dir.path().join("new/folder/f_##.png");
+    let timings = dir.path().join("t.json");
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "4", "-o"])
+        .arg(&pattern)
+        .arg("--timings-json")
+        .arg(&timings)
+        .output()
+        .unwrap();
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    // Not a terminal: a plain progress line per frame.
+    assert_eq!(err.matches("frame ").count(), 4, "{err}");
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&timings).unwrap()).unwrap();
+    let seq = t["sequence"].as_array().unwrap();
+    assert_eq!(seq.len(), 4);
+    assert!(seq.iter().all(|f| f["total_ms"].as_f64().unwrap() > 0.0));
+    for k in 0..4 {
+        let frame = dir.path().join(format!("new/folder/f_{k:02}.png"));
+        assert!(frame.exists(), "{}", frame.display());
+        // Orbit camera (the default): azimuth 30 + 90 k.
+        if k % 2 == 1 {
+            let one = dir.path().join(format!("one_{k}.png"));
+            single(&s, &one, &[format!("camera.azimuth={}", 30 + 90 * k)]);
+            assert!(max_diff(&frame, &one) <= 1, "frame {k}");
+        }
+    }
+    // Frames differ from each other (the camera turns).
+    assert!(
+        max_diff(
+            &dir.path().join("new/folder/f_00.png"),
+            &dir.path().join("new/folder/f_02.png")
+        ) > 16
+    );
+}
+
+#[test]
+fn a_look_at_turntable_turns_the_eye_about_the_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = small_scene(
+        dir.path(),
+        "[camera]\neye = [40.0, -250.0, 60.0]\ntarget = [40.0, 0.0, 60.0]\nup = [0.0, 0.0, 1.0]\n",
+    );
+    let pattern = dir.path().join("f_#.png");
+    ok(&umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "4", "-o"])
+        .arg(&pattern)
+        .output()
+        .unwrap());
+    // A quarter turn clockwise seen from +z: the eye moves from -y to -x of the target.
+    let one = dir.path().join("one.png");
+    single(&s, &one, &["camera.eye=[-210.0, 0.0, 60.0]".into()]);
+    assert!(max_diff(&dir.path().join("f_1.png"), &one) <= 1);
+}
+
+#[test]
+fn a_camera_path_interpolates_its_keys_in_one_process() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = small_scene(dir.path(), "");
+    let path = dir.path().join("path.toml");
+    std::fs::write(
+        &path,
+        "frames = 3\n[[key]]\ntime = 0.0\nazimuth = 0.0\nelevation = 10.0\n\
+         [[key]]\ntime = 2.0\nazimuth = 180.0\nelevation = 30.0\n",
+    )
+    .unwrap();
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("--camera-path")
+        .arg(&path)
+        .arg("-o")
+        .arg(dir.path().join("p_###.png"))
+        .output()
+        .unwrap();
+    ok(&out);
+    let one = dir.path().join("one.png");
+    single(
+        &s,
+        &one,
+        &["camera.azimuth=90".into(), "camera.elevation=20".into()],
+    );
+    assert!(max_diff(&dir.path().join("p_001.png"), &one) <= 1);
+    assert!(dir.path().join("p_002.png").exists() && !dir.path().join("p_003.png").exists());
+    // Bad paths and names are refused naming the file and the key.
+    std::fs::write(
+        &path,
+        "frames = 3\n[[key]]\ntime = 1.0\n[[key]]\ntime = 0.5\n",
+    )
+    .unwrap();
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("--camera-path")
+        .arg(&path)
+        .arg("-o")
+        .arg(dir.path().join("p_###.png"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("path.toml") && err.contains("key[1].time"),
+        "{err}"
+    );
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "3", "-o"])
+        .arg(dir.path().join("plain.png"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("run of #"));
+}
