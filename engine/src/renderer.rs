@@ -451,9 +451,11 @@ impl Frame {
                     },
                     settings: s,
                 };
-                (name, build(&inputs))
+                build(&inputs)
+                    .map(|p| (name, p))
+                    .map_err(|e| GpuError::Operation(format!("{name} settings: {e}")))
             })
-            .collect();
+            .collect::<Result<_, _>>()?;
         let iso_pass = IsoPass::new(gpu, cam, w, h, scene.iso.as_ref(), s.light, &view.clip);
         let composite = CompositePass::new(
             gpu,

@@ -8,6 +8,7 @@
 
 use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, GpuError, Slot};
+use crate::method::{require, SettingError};
 use crate::prelude::{clip_planes, mat4, with_prelude, FrameUniform, LightUniform};
 use occlusion::combined::{auto_cell, blur_stencil};
 use occlusion::emission_absorption::{occupancy, EaView, Transfer, BRICK, MAX_CLIP};
@@ -35,6 +36,30 @@ pub struct SliceSettings {
     pub light: [f64; 4],
     /// The layer of the surface terms the partial occlusion goes to (`march`), if any.
     pub partial_layer: Option<u32>,
+}
+
+impl SliceSettings {
+    /// Checks the settings; an error names the field.
+    pub fn check(&self) -> Result<(), SettingError> {
+        require(
+            self.theta_deg > 0.0 && self.theta_deg < 90.0,
+            "theta_deg",
+            || format!("{} is not in (0, 90) degrees", self.theta_deg),
+        )?;
+        require((1..=9).contains(&self.blur_samples), "blur_samples", || {
+            format!("{} is not in 1..9", self.blur_samples)
+        })?;
+        require(
+            self.cell.is_none_or(|c| (1..=16).contains(&c)),
+            "cell",
+            || "must be 1 to 16 pixels".into(),
+        )?;
+        require(
+            self.geometry_extinction >= 0.0 && self.geometry_extinction.is_finite(),
+            "geometry_extinction",
+            || format!("{} must be finite and >= 0", self.geometry_extinction),
+        )
+    }
 }
 
 /// A volume as the pass reads it.
@@ -235,6 +260,8 @@ impl SlicePass {
         s: &SliceSettings,
     ) -> Result<SlicePass, GpuError> {
         let device = &gpu.device;
+        s.check()
+            .map_err(|e| GpuError::Operation(format!("slice settings: {e}")))?;
         if v.clip.len() > MAX_CLIP {
             return Err(GpuError::Operation(format!(
                 "{} clipping planes; at most {MAX_CLIP}",
@@ -478,6 +505,52 @@ impl SlicePass {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_settings_check_names_the_field() {
+        let ok = SliceSettings {
+            occlusion: true,
+            cell: None,
+            cone: false,
+            phong: false,
+            column: false,
+            theta_deg: 25.0,
+            blur_samples: 3,
+            geometry_extinction: 10.0,
+            light: [0.3, 0.7, 0.3, 32.0],
+            partial_layer: None,
+        };
+        assert!(ok.check().is_ok());
+        let field = |s: SliceSettings| s.check().unwrap_err().field;
+        assert_eq!(
+            field(SliceSettings {
+                theta_deg: 90.0,
+                ..ok
+            }),
+            "theta_deg"
+        );
+        assert_eq!(
+            field(SliceSettings {
+                blur_samples: 0,
+                ..ok
+            }),
+            "blur_samples"
+        );
+        assert_eq!(
+            field(SliceSettings {
+                cell: Some(17),
+                ..ok
+            }),
+            "cell"
+        );
+        assert_eq!(
+            field(SliceSettings {
+                geometry_extinction: f64::INFINITY,
+                ..ok
+            }),
+            "geometry_extinction"
+        );
+    }
 
     #[test]
     fn the_uniforms_match_their_wgsl_structs() {

@@ -5,7 +5,7 @@
 
 use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, Layer};
-use crate::method::{Settings, SurfaceAo};
+use crate::method::{SettingError, Settings, SurfaceAo};
 use crate::vicinity::{VicinityPass, VicinitySettings};
 use occlusion::camera::Camera;
 
@@ -26,14 +26,14 @@ pub trait TermPass {
 }
 
 /// Builds a surface-term pass.
-pub type BuildTerm = fn(&TermInputs) -> Box<dyn TermPass>;
+pub type BuildTerm = fn(&TermInputs) -> Result<Box<dyn TermPass>, SettingError>;
 
 /// A row of the registry.
 pub struct SurfaceAoDesc {
     pub choice: SurfaceAo,
     /// The layer's name: its AOV channel is `occlusion.<name>`, its pass timing `<name>`.
     pub name: &'static str,
-    /// The pass (`None`: the slot stays empty).
+    /// Checks its settings and builds the pass (`None`: the slot stays empty).
     pub build: Option<BuildTerm>,
 }
 
@@ -51,22 +51,18 @@ pub const SURFACE_AO: &[SurfaceAoDesc] = &[
     },
 ];
 
-fn vicinity(t: &TermInputs) -> Box<dyn TermPass> {
+fn vicinity(t: &TermInputs) -> Result<Box<dyn TermPass>, SettingError> {
     let s = t.settings;
-    Box::new(VicinityPass::new(
-        t.gpu,
-        t.camera,
-        t.size.0,
-        t.size.1,
-        t.gbuf,
-        t.layer,
-        &VicinitySettings {
-            samples: s.vicinity_samples,
-            distance: s.vicinity_distance,
-            theta_deg: s.theta_deg,
-            bias: s.vicinity_bias,
-        },
-    ))
+    let v = VicinitySettings {
+        samples: s.vicinity_samples,
+        distance: s.vicinity_distance,
+        theta_deg: s.theta_deg,
+        bias: s.vicinity_bias,
+    };
+    v.check()?;
+    Ok(Box::new(VicinityPass::new(
+        t.gpu, t.camera, t.size.0, t.size.1, t.gbuf, t.layer, &v,
+    )))
 }
 
 impl TermPass for VicinityPass {

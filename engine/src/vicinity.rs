@@ -18,6 +18,7 @@
 
 use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, Layer, Slot};
+use crate::method::{require, SettingError};
 use crate::prelude::with_prelude;
 use occlusion::camera::{Camera, Projection};
 use occlusion::combined::poisson_disk;
@@ -33,6 +34,26 @@ pub struct VicinitySettings {
     pub theta_deg: f64,
     /// Depth bias, world units.
     pub bias: f64,
+}
+
+impl VicinitySettings {
+    /// The most samples (the Poisson disk's sets are tuned up to this many).
+    pub const MAX_SAMPLES: u32 = 118;
+
+    /// Checks the settings; an error names the field.
+    pub fn check(&self) -> Result<(), SettingError> {
+        require(self.samples <= Self::MAX_SAMPLES, "samples", || {
+            format!("{} exceeds {}", self.samples, Self::MAX_SAMPLES)
+        })?;
+        require(
+            self.distance > 0.0 && self.distance.is_finite(),
+            "distance",
+            || format!("{} is not positive", self.distance),
+        )?;
+        require(self.bias >= 0.0 && self.bias.is_finite(), "bias", || {
+            "must be finite and >= 0".into()
+        })
+    }
 }
 
 /// The pass's uniform. Keep in sync with `struct Params` in `shaders/vicinity.wgsl`.
@@ -137,6 +158,30 @@ impl VicinityPass {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_settings_check_names_the_field() {
+        let ok = super::VicinitySettings {
+            samples: 32,
+            distance: 2.0,
+            theta_deg: 25.0,
+            bias: 0.1,
+        };
+        assert!(ok.check().is_ok());
+        let field = |s: super::VicinitySettings| s.check().unwrap_err().field;
+        assert_eq!(
+            field(super::VicinitySettings { samples: 119, ..ok }),
+            "samples"
+        );
+        assert_eq!(
+            field(super::VicinitySettings {
+                distance: f64::NAN,
+                ..ok
+            }),
+            "distance"
+        );
+        assert_eq!(field(super::VicinitySettings { bias: -1.0, ..ok }), "bias");
+    }
+
     #[test]
     fn the_uniform_matches_its_wgsl_struct() {
         crate::prelude::assert_layout!(

@@ -670,43 +670,41 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
     if r.slices.is_some_and(|n| n > 16384) {
         return bad("render.slices", "at most 16384".into());
     }
-    if !(r.theta > 0.0 && r.theta < 90.0) {
-        return bad(
-            "render.theta",
-            format!("{} is not in (0, 90) degrees", r.theta),
-        );
+    // The passes check their own settings; the scene names the keys they came from.
+    let slices = engine::slice_pass::SliceSettings {
+        occlusion: true,
+        cell: r.occlusion_cell,
+        cone: r.occlusion_model == OcclusionModel::Cone,
+        phong: false,
+        column: r.geometry_shadow == GeometryShadow::Column,
+        theta_deg: r.theta,
+        blur_samples: r.blur_samples,
+        geometry_extinction: r.geometry_extinction,
+        light: [0.0; 4],
+        partial_layer: None,
+    };
+    if let Err(e) = slices.check() {
+        let key = match e.field {
+            "theta_deg" => "render.theta",
+            "blur_samples" => "render.blur_samples",
+            "cell" => "render.occlusion_cell",
+            _ => "render.geometry_extinction",
+        };
+        return bad(key, e.problem);
     }
-    if r.vicinity_samples > 118 {
-        return bad(
-            "render.vicinity_samples",
-            format!("{} exceeds 118", r.vicinity_samples),
-        );
-    }
-    if !(r.vicinity_distance > 0.0 && r.vicinity_distance.is_finite()) {
-        return bad(
-            "render.vicinity_distance",
-            format!("{} is not positive", r.vicinity_distance),
-        );
-    }
-    if r.vicinity_bias
-        .is_some_and(|b| !(b >= 0.0 && b.is_finite()))
-    {
-        return bad("render.vicinity_bias", "must be finite and >= 0".into());
-    }
-    if !(r.geometry_extinction >= 0.0 && r.geometry_extinction.is_finite()) {
-        return bad(
-            "render.geometry_extinction",
-            format!("{} must be finite and >= 0", r.geometry_extinction),
-        );
-    }
-    if !(1..=9).contains(&r.blur_samples) {
-        return bad(
-            "render.blur_samples",
-            format!("{} is not in 1..9", r.blur_samples),
-        );
-    }
-    if r.occlusion_cell.is_some_and(|c| !(1..=16).contains(&c)) {
-        return bad("render.occlusion_cell", "must be 1 to 16 pixels".into());
+    let vicinity = engine::vicinity::VicinitySettings {
+        samples: r.vicinity_samples,
+        distance: r.vicinity_distance,
+        theta_deg: r.theta,
+        bias: r.vicinity_bias.unwrap_or(0.0),
+    };
+    if let Err(e) = vicinity.check() {
+        let key = match e.field {
+            "samples" => "render.vicinity_samples",
+            "distance" => "render.vicinity_distance",
+            _ => "render.vicinity_bias",
+        };
+        return bad(key, e.problem);
     }
     if ![1, 2, 4, 8].contains(&r.msaa) {
         return bad("render.msaa", format!("{} is not 1, 2, 4 or 8", r.msaa));
