@@ -102,6 +102,11 @@ fn render_writes_exr_with_aovs_and_timings() {
         assert!(t["passes"][pass].as_f64().unwrap() >= 0.0, "{pass}: {t}");
     }
     assert_eq!(t["frames_ms"].as_array().unwrap().len(), 2);
+    // How the passes were timed: GPU timestamps where the adapter has them, else fences.
+    assert!(
+        ["timestamps", "fences"].contains(&t["pass_clock"].as_str().unwrap()),
+        "{t}"
+    );
     let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
     let chan = |name: &str| -> Vec<f32> {
         let c = img

@@ -106,6 +106,7 @@ fn timings(r: &RenderReport) -> serde_json::Value {
     serde_json::json!({
         "total_ms": r.total_ms,
         "passes": r.passes,
+        "pass_clock": r.pass_clock,
         "frames_ms": r.frames_ms,
         "method": r.method,
         "width": r.width,
