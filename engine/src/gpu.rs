@@ -294,7 +294,11 @@ impl Gpu {
             return v;
         }
         // Made outside the lock: `make` may itself ask the pool.
-        let v = make();
+        self.pool_put(key, make())
+    }
+
+    /// Keeps `v` under `key` (replacing what was there), counts it as made, and returns it.
+    fn pool_put<T: Clone + Send + Sync + 'static>(&self, key: String, v: T) -> T {
         self.pool
             .made
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -557,16 +561,7 @@ impl Gpu {
                 return b;
             }
         }
-        let b = make();
-        self.pool
-            .made
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        self.pool
-            .items
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert(key, Arc::new(b.clone()));
-        b
+        self.pool_put(key, make())
     }
 
     /// A new storage buffer of `size` bytes (at least 16), zero-filled (not pooled).

@@ -25,7 +25,7 @@ pub struct SweepArgs {
     pub subsurface_alpha: Option<f32>,
 }
 
-/// Seconds per stage (`compute` covers initialisation, distance and octant sweeps, no I/O).
+/// Seconds per stage of a command (reading, computing without I/O, writing, in all).
 #[derive(Clone, Debug, Serialize)]
 pub struct Seconds {
     pub read: f64,

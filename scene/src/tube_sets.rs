@@ -53,13 +53,8 @@ impl TubesArgs {
     }
 }
 
-#[derive(Clone, Debug, Serialize)]
-pub struct Seconds {
-    pub read: f64,
-    pub compute: f64,
-    pub write: f64,
-    pub total: f64,
-}
+/// Seconds per stage (`compute`: fitting and meshing, no I/O).
+pub use crate::fields::Seconds;
 
 /// The statistics `--stats-json` writes.
 #[derive(Clone, Debug, Serialize)]
