@@ -275,6 +275,15 @@ impl<'g> Renderer<'g> {
         })
     }
 
+    /// Gives an uploaded scene's volume a new transfer function (`volume` is the volume as
+    /// uploaded, with the new function): the samples stay on the GPU, only the function and
+    /// the brick occupancy are uploaded. Does nothing for a scene without a volume.
+    pub fn set_transfer(&self, scene: &mut GpuScene, volume: &VolumeInput) {
+        if let Some(v) = scene.volume.as_mut() {
+            v.set_transfer(self.gpu, volume);
+        }
+    }
+
     /// Renders `scene` seen through `view` (whose clipping planes cut the volume; `tube_clip`
     /// cuts the tubes) with settings `s`, and reads the last frame back.
     pub fn draw(

@@ -148,6 +148,31 @@ pub struct GpuVolume {
     tf_rows: u32,
 }
 
+/// A transfer function as the shader reads it: each point `(value, r, g, b, extinction, 0, 0,
+/// 0)`, then per 2-D row `(gradient, first point, end point, 0)`.
+fn transfer_floats(tf: &Transfer) -> Vec<f32> {
+    let mut out: Vec<f32> = Vec::with_capacity(8 * tf.points.len().max(1));
+    for (val, rgb, sigma) in &tf.points {
+        out.extend([
+            *val as f32,
+            rgb[0] as f32,
+            rgb[1] as f32,
+            rgb[2] as f32,
+            *sigma as f32,
+            0.0,
+            0.0,
+            0.0,
+        ]);
+    }
+    let rows = tf.row_slices();
+    let mut first = 0usize;
+    for (r, p) in tf.rows.iter().zip(&rows) {
+        out.extend([r.0 as f32, first as f32, (first + p.len()) as f32, 0.0]);
+        first += p.len();
+    }
+    out
+}
+
 impl GpuVolume {
     /// Uploads `vi`; an error when its samples exceed the adapter's storage binding limit.
     pub fn upload(gpu: &Gpu, vi: &VolumeInput) -> Result<GpuVolume, GpuError> {
@@ -160,25 +185,7 @@ impl GpuVolume {
                 limit / 4
             )));
         }
-        let mut tfb: Vec<f32> = Vec::with_capacity(8 * vi.tf.points.len().max(1));
-        for (val, rgb, sigma) in &vi.tf.points {
-            tfb.extend([
-                *val as f32,
-                rgb[0] as f32,
-                rgb[1] as f32,
-                rgb[2] as f32,
-                *sigma as f32,
-                0.0,
-                0.0,
-                0.0,
-            ]);
-        }
-        let rows = vi.tf.row_slices();
-        let mut first = 0usize;
-        for (r, p) in vi.tf.rows.iter().zip(&rows) {
-            tfb.extend([r.0 as f32, first as f32, (first + p.len()) as f32, 0.0]);
-            first += p.len();
-        }
+        let tfb = transfer_floats(vi.tf);
         let (bricks, occ) = occupancy(vi.data, vi.vol.dims, vi.tf);
         Ok(Self::make(
             gpu,
@@ -190,6 +197,23 @@ impl GpuVolume {
             bricks,
             (vi.tf.points.len() as u32, vi.tf.rows.len() as u32),
         ))
+    }
+
+    /// Replaces the transfer function (and the brick occupancy, which depends on it) of an
+    /// uploaded volume, keeping its samples on the GPU: `vi` is the volume as uploaded with its
+    /// new transfer function.
+    pub fn set_transfer(&mut self, gpu: &Gpu, vi: &VolumeInput) {
+        let storage = wgpu::BufferUsages::STORAGE;
+        let (bricks, occ) = occupancy(vi.data, vi.vol.dims, vi.tf);
+        self.tf = gpu.buffer(
+            "slice transfer",
+            bytemuck::cast_slice(&transfer_floats(vi.tf)),
+            storage,
+        );
+        self.occ = gpu.buffer("slice occupancy", bytemuck::cast_slice(&occ), storage);
+        self.bricks = bricks;
+        self.tf_points = vi.tf.points.len() as u32;
+        self.tf_rows = vi.tf.rows.len() as u32;
     }
 
     #[allow(clippy::too_many_arguments)]

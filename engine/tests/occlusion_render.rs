@@ -707,6 +707,49 @@ fn a_long_lived_renderer_draws_new_cameras_without_compiling_or_uploading() {
             "per-pass timing only when asked"
         );
     }
+    // A new transfer function keeps the samples on the GPU and gives the image a fresh
+    // upload with that function gives.
+    let mut scene = scene;
+    let denser = medium(0.6);
+    r.set_transfer(
+        &mut scene,
+        &VolumeInput {
+            vol,
+            data,
+            tf: &denser,
+        },
+    );
+    let swapped = r
+        .draw(
+            &scene,
+            &view(cams[0]),
+            &[],
+            &settings(Method::Combined),
+            opts,
+        )
+        .unwrap();
+    let fresh_tf = r
+        .upload(
+            Some(&VolumeInput {
+                vol,
+                data,
+                tf: &denser,
+            }),
+            &s.meshes,
+            None,
+        )
+        .unwrap();
+    let want = r
+        .draw(
+            &fresh_tf,
+            &view(cams[0]),
+            &[],
+            &settings(Method::Combined),
+            opts,
+        )
+        .unwrap();
+    assert_eq!(swapped.image, want.image);
+    assert_ne!(swapped.image, first[0].image);
     // The same image as the one-shot path (a new upload).
     let fresh = s.render(&gpu, &view(cams[1]), &settings(Method::Combined));
     assert_eq!(fresh.image, first[1].image);
