@@ -70,7 +70,7 @@ print(f"machine: {os.cpu_count()} cores, {cpu}; adapter: {adapter}; {platform.sy
 print(f"scene: {a.scene}, {a.size}, {a.slices} slices, median of {a.frames} frames, "
       f"best of {a.rounds} rounds{', --set ' + ' '.join(a.set) if a.set else ''}\n")
 ea = min(results[("ea", None)]) if ("ea", None) in results else None
-print("| method | cell | total ms (best round median) | round medians | x E/A | passes (ms, each submitted alone) |")
+print("| method | cell | total ms (best round median) | round medians | x E/A | passes (ms, by GPU timestamps where the adapter has them: the report's pass_clock) |")
 print("|---|---|---|---|---|---|")
 for c in configs:
     if not results[c]:
