@@ -6,6 +6,7 @@
 //! |---|---|---|
 //! | Schott et al. 2012, combined surface and volumetric occlusion | [`combined`] (+ [`emission_absorption`], [`reference`](mod@reference), [`reference_tubes`]) | [`combined`] |
 //! | Singh, Yuksel & House 2009, fast occlusion sweeping | [`sweeping`] (the fields, re-exported from `volume`) + [`isosurface`] | [`sweeping`] |
+//! | Eichelbaum, Hlawitschka & Scheuermann 2013, LineAO (screen-space AO of dense lines and tubes) | [`line_ao`] | [`line_ao`] |
 //! | the projection conventions and the paper's texture-radius erratum | [`camera`] | [`camera`] |
 //!
 //! Nothing here imports `wgpu`: the `engine` crate depends on this one, never the reverse.
@@ -14,6 +15,7 @@ pub mod camera;
 pub mod combined;
 pub mod emission_absorption;
 pub mod isosurface;
+pub mod line_ao;
 pub mod reference;
 pub mod reference_tubes;
 pub mod rng;
