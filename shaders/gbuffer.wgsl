@@ -33,6 +33,10 @@ struct VOut {
     @location(0) normal: vec3<f32>,
     @location(1) color: vec3<f32>,
     @location(2) rel: vec3<f32>,
+    // Cylinder-profile lines: the side vector times the position across the width (-1..1),
+    // and the half width in world units; zero for tubes and flat lines.
+    @location(3) bend: vec3<f32>,
+    @location(4) bulge: f32,
 };
 
 @vertex
@@ -43,6 +47,95 @@ fn vs(v: VIn) -> VOut {
     o.normal = v.normal;
     o.color = v.color.rgb;
     o.rel = rel;
+    o.bend = vec3<f32>(0.0);
+    o.bulge = 0.0;
+    return o;
+}
+
+// Line sets (Rust: gbuffer::GpuLines): screen-facing strips built here from the points (vertex
+// pulling, six vertices per segment instance, nothing duplicated on the CPU). Keep in sync with
+// `gbuffer::LineParams`.
+struct LineParams {
+    // half the line's width: pixels, or world units when `world` is 1
+    half_width: f32,
+    world: u32,
+    cylinder: u32,
+    // the projection's P11: a world unit at linear depth w spans 0.5 P11 height / w pixels
+    p11: f32,
+    viewport: vec2<f32>,
+    pad: vec2<f32>,
+};
+
+@group(1) @binding(0) var<uniform> LP: LineParams;
+// Positions relative to the set's origin, xyz per point.
+@group(1) @binding(1) var<storage, read> line_points: array<f32>;
+// RGBA8 per point.
+@group(1) @binding(2) var<storage, read> line_colors: array<u32>;
+// The first point of each segment.
+@group(1) @binding(3) var<storage, read> line_segments: array<u32>;
+
+fn line_point(i: u32) -> vec3<f32> {
+    return vec3<f32>(line_points[3u * i], line_points[3u * i + 1u], line_points[3u * i + 2u]);
+}
+
+@vertex
+fn vs_line(@builtin(vertex_index) vi: u32, @builtin(instance_index) seg: u32) -> VOut {
+    let i = line_segments[seg];
+    let a = line_point(i) + G.offset.xyz;
+    let b = line_point(i + 1u) + G.offset.xyz;
+    // The corner: which end (0: a, 1: b) and which side of the strip, two triangles.
+    let ends = array<u32, 6>(0u, 1u, 0u, 0u, 1u, 1u);
+    let sides = array<f32, 6>(-1.0, -1.0, 1.0, 1.0, -1.0, 1.0);
+    let end = ends[vi];
+    let side = sides[vi];
+    let p = select(a, b, end == 1u);
+    var c = G.view_proj_rel * vec4<f32>(p, 1.0);
+    // The tangent; a segment between equal points takes any direction (no NaN).
+    let ab = b - a;
+    var t = vec3<f32>(1.0, 0.0, 0.0);
+    if (dot(ab, ab) > 1e-24) {
+        t = normalize(ab);
+    }
+    // The tangent on screen at this end (the derivative of the projection along t, in pixels;
+    // defined wherever the end is in front of the eye, whatever the other end does).
+    let tc = G.view_proj_rel * vec4<f32>(t, 0.0);
+    var d = (tc.xy * c.w - c.xy * tc.w) * LP.viewport;
+    if (dot(d, d) < 1e-24) {
+        // Along the view ray: the strip faces the viewer in any direction.
+        d = vec2<f32>(1.0, 0.0);
+    }
+    d = normalize(d);
+    let n = vec2<f32>(-d.y, d.x);
+    let px_per_world = 0.5 * LP.p11 * LP.viewport.y / max(c.w, 1e-6);
+    var hw = LP.half_width;
+    if (LP.world != 0u) {
+        hw = LP.half_width * px_per_world;
+    }
+    // At least one pixel wide.
+    hw = max(hw, 0.5);
+    // Square caps: each end reaches half a width beyond its point, so consecutive segments
+    // overlap at their joint (watertight at any angle).
+    let along = select(-1.0, 1.0, end == 1u);
+    let off = n * (side * hw) + d * (along * hw);
+    c = vec4<f32>(c.xy + off * 2.0 / LP.viewport * c.w, c.z, c.w);
+    var o: VOut;
+    o.clip = c;
+    o.rel = p;
+    o.color = unpack4x8unorm(line_colors[select(i, i + 1u, end == 1u)]).rgb;
+    // The view-facing normal (T x C) x T of illuminated lines, C towards the eye.
+    let to_eye = -normalize(p);
+    let s = cross(t, to_eye);
+    var normal = to_eye;
+    if (dot(s, s) > 1e-12) {
+        normal = normalize(cross(s, t));
+    }
+    o.normal = normal;
+    o.bend = vec3<f32>(0.0);
+    o.bulge = 0.0;
+    if (LP.cylinder != 0u && dot(s, s) > 1e-12) {
+        o.bend = normalize(s) * side;
+        o.bulge = hw / px_per_world;
+    }
     return o;
 }
 
@@ -73,14 +166,23 @@ fn front_values(v: VOut) -> FrontOut {
     }
     var o: FrontOut;
     o.color = vec4<f32>(v.color, 1.0);
-    var n = normalize(v.normal);
+    // A cylinder-profile line bends its normal across the width and bulges towards the eye.
+    let u2 = min(dot(v.bend, v.bend), 1.0);
+    let cap = sqrt(1.0 - u2);
+    var n = normalize(v.normal * cap + v.bend);
     // Two-sided: the normal faces the viewer (cut-open tubes show their inside).
     if (dot(n, v.rel) > 0.0) {
         n = -n;
     }
     o.normal = vec4<f32>(n, 1.0);
-    o.depth = vec4<f32>(dot(v.rel, G.forward.xyz), 0.0, 0.0, 1.0);
+    o.depth = vec4<f32>(surface_depth(v), 0.0, 0.0, 1.0);
     return o;
+}
+
+// The linear depth of the surface at this fragment (a cylinder line's bulge taken off).
+fn surface_depth(v: VOut) -> f32 {
+    let u2 = min(dot(v.bend, v.bend), 1.0);
+    return dot(v.rel, G.forward.xyz) - v.bulge * sqrt(1.0 - u2);
 }
 
 // Multisampled G-buffer: colour and normal per sample (for per-sample shading).
@@ -104,7 +206,7 @@ fn fs_depth(v: VOut) -> @location(0) vec4<f32> {
     if (clipped(v.rel)) {
         discard;
     }
-    return vec4<f32>(dot(v.rel, G.forward.xyz), 0.0, 0.0, 1.0);
+    return vec4<f32>(surface_depth(v), 0.0, 0.0, 1.0);
 }
 
 @fragment

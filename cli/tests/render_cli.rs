@@ -763,3 +763,62 @@ fn a_camera_path_interpolates_its_keys_in_one_process() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("run of #"));
 }
+
+#[test]
+fn a_scene_of_lines_only_renders_and_bad_lines_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = dir.path().join("l.toml");
+    // A scene of one line set with the given keys besides its path.
+    let write = |keys: &str| {
+        std::fs::write(
+            &s,
+            format!(
+                "background = [0.0, 0.0, 0.0]\n[[lines]]\npath = \"{}\"\n{keys}\n\
+                 [render]\nmethod = \"illuminated\"\nwidth = 96\nheight = 72\n",
+                root()
+                    .join("tests/fixtures/tracts/dipy/tracks300.trk")
+                    .display()
+            ),
+        )
+        .unwrap();
+    };
+    write("width = 3.0\nprofile = \"cylinder\"");
+    let png = dir.path().join("l.png");
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("-o")
+        .arg(&png)
+        .arg("--json")
+        .output()
+        .unwrap();
+    ok(&out);
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(r["triangles"].as_u64().unwrap() > 1000, "{r}");
+    let img = image::open(&png).unwrap().to_rgb8();
+    let lit = img.pixels().filter(|p| p.0.iter().any(|&c| c > 40)).count();
+    assert!(lit > 96 * 72 / 50, "{lit} lit pixels");
+    for (keys, named) in [
+        ("width_unit = \"world\"\nwidth = -1.0", "lines[0].width"),
+        ("width = 300.0", "lines[0].width"),
+        ("color = \"#12\"", "lines[0].color"),
+        ("radius = 1.0", "radius"),
+        ("profile = \"round\"", "profile"),
+    ] {
+        write(keys);
+        let out = umbra()
+            .arg("render")
+            .arg(&s)
+            .arg("-o")
+            .arg(dir.path().join("bad.png"))
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{keys}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(named) && !err.contains("panicked"),
+            "{keys}: {err}"
+        );
+        assert!(!dir.path().join("bad.png").exists());
+    }
+}

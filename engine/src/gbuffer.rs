@@ -22,6 +22,7 @@ use crate::gpu::{Gpu, Slot};
 use crate::prelude::{clip_planes, mat4, vec4, with_prelude};
 use glam::{DMat4, DVec3};
 use occlusion::camera::Camera;
+use tubes::lines::{LineSet, LineWidth};
 use tubes::tube_mesh::TubeMesh;
 
 const SHADER: &str = include_str!("../../shaders/gbuffer.wgsl");
@@ -94,6 +95,69 @@ impl GpuMesh {
     }
 }
 
+/// A line set on the GPU: positions (xyz f32 relative to the origin), RGBA8 colours and the
+/// first point of each segment - 16 bytes a point and 4 a segment; the strips are built in
+/// the vertex shader (`gbuffer.wgsl::vs_line`).
+#[derive(Clone)]
+pub struct GpuLines {
+    points: wgpu::Buffer,
+    colors: wgpu::Buffer,
+    segments: wgpu::Buffer,
+    count: u32,
+    origin: DVec3,
+    width: LineWidth,
+    cylinder: bool,
+}
+
+impl GpuLines {
+    /// Uploads `l` (`None` when it has no segment).
+    pub fn upload(gpu: &Gpu, l: &LineSet) -> Option<GpuLines> {
+        if l.segments.is_empty() {
+            return None;
+        }
+        let storage = wgpu::BufferUsages::STORAGE;
+        let xyz: Vec<f32> = l.positions.iter().flat_map(|p| p.to_array()).collect();
+        Some(GpuLines {
+            points: gpu.buffer("line points", bytemuck::cast_slice(&xyz), storage),
+            colors: gpu.buffer("line colours", bytemuck::cast_slice(&l.colors), storage),
+            segments: gpu.buffer("line segments", bytemuck::cast_slice(&l.segments), storage),
+            count: l.segments.len() as u32,
+            origin: l.origin,
+            width: l.width,
+            cylinder: l.cylinder,
+        })
+    }
+
+    /// Segments drawn per pass.
+    pub fn segments(&self) -> u64 {
+        self.count as u64
+    }
+}
+
+/// A line set's per-view uniform. Keep in sync with `struct LineParams` in
+/// `shaders/gbuffer.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct LineParams {
+    /// Half the line's width: pixels, or world units when `world` is 1.
+    pub half_width: f32,
+    pub world: u32,
+    pub cylinder: u32,
+    /// The projection's P11.
+    pub p11: f32,
+    /// Width and height in pixels.
+    pub viewport: [f32; 2],
+    pub pad: [f32; 2],
+}
+
+/// A line set's draw in one frame: the bind groups of its view (group 0, as a mesh's) and of
+/// its data with its line uniform (group 1).
+struct LineDraw {
+    view: wgpu::BindGroup,
+    data: wgpu::BindGroup,
+    segments: u32,
+}
+
 /// A mesh's draw in one frame: its buffers and the bind group of its per-view uniform.
 struct MeshDraw {
     mesh: GpuMesh,
@@ -111,12 +175,105 @@ pub struct GBuffer {
     depth_front: wgpu::TextureView,
     depth_back: wgpu::TextureView,
     depth_ms: Option<wgpu::TextureView>,
-    /// Single sample: colour, normal and depth; multisampled: colour and normal.
-    front_pipe: wgpu::RenderPipeline,
-    /// Multisampled only: the single-sample depth.
-    depth_pipe: Option<wgpu::RenderPipeline>,
-    back_pipe: wgpu::RenderPipeline,
+    pipes: Pipelines,
     meshes: Vec<MeshDraw>,
+    lines: Vec<LineDraw>,
+}
+
+/// A pass's pipeline for meshes and for lines.
+#[derive(Clone)]
+struct PipelinePair {
+    mesh: wgpu::RenderPipeline,
+    line: wgpu::RenderPipeline,
+}
+
+/// The G-buffer's pipelines for one sample count, made once per device.
+#[derive(Clone)]
+struct Pipelines {
+    layout: wgpu::BindGroupLayout,
+    line_layout: wgpu::BindGroupLayout,
+    /// Single sample: colour, normal and depth; multisampled: colour and normal.
+    front: PipelinePair,
+    /// Multisampled only: the single-sample depth.
+    depth: Option<PipelinePair>,
+    back: PipelinePair,
+}
+
+impl Pipelines {
+    fn new(gpu: &Gpu, samples: u32) -> Pipelines {
+        let device = &gpu.device;
+        let ms = samples > 1;
+        let module = gpu.shader("gbuffer.wgsl", &with_prelude(SHADER));
+        let layout = gpu.layout(
+            "gbuffer",
+            wgpu::ShaderStages::VERTEX_FRAGMENT,
+            &[Slot::Uniform],
+        );
+        let line_layout = gpu.layout(
+            "gbuffer lines",
+            wgpu::ShaderStages::VERTEX,
+            &[Slot::Uniform, Slot::Storage, Slot::Storage, Slot::Storage],
+        );
+        let pl = gpu.pipeline_layout("gbuffer", &[&layout]);
+        let pl_lines = gpu.pipeline_layout("gbuffer lines", &[&layout, &line_layout]);
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4];
+        let vbl = [Some(wgpu::VertexBufferLayout {
+            array_stride: STRIDE,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &attributes,
+        })];
+        let pipeline =
+            |lines: bool, entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(entry),
+                    layout: Some(if lines { &pl_lines } else { &pl }),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some(if lines { "vs_line" } else { "vs" }),
+                        compilation_options: Default::default(),
+                        buffers: if lines { &[] } else { &vbl },
+                    },
+                    primitive: wgpu::PrimitiveState::default(),
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: wgpu::TextureFormat::Depth32Float,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Less),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                    multisample: wgpu::MultisampleState {
+                        count,
+                        ..Default::default()
+                    },
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        targets,
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+        let pair =
+            |entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| PipelinePair {
+                mesh: pipeline(false, entry, targets, count),
+                line: pipeline(true, entry, targets, count),
+            };
+        let t = |f| Some(wgpu::ColorTargetState::from(f));
+        let front = if ms {
+            pair("fs_surface", &[t(COLOR), t(NORMAL)], samples)
+        } else {
+            pair("fs_front", &[t(COLOR), t(NORMAL), t(DEPTH)], 1)
+        };
+        Pipelines {
+            front,
+            depth: ms.then(|| pair("fs_depth", &[t(DEPTH)], 1)),
+            back: pair("fs_back", &[t(DEPTH)], 1),
+            layout,
+            line_layout,
+        }
+    }
 }
 
 /// The sample count for `requested` that colour, normal and depth targets all support, and a
@@ -186,103 +343,88 @@ impl GBuffer {
     /// `samples` samples per pixel (a count [`sample_count`] returned). The targets are
     /// pooled per size (every pass clears what it draws into), the pipelines made once per
     /// sample count.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         gpu: &Gpu,
         camera: &Camera,
         width: u32,
         height: u32,
         meshes: &[GpuMesh],
+        lines: &[GpuLines],
         clip: &[([f64; 3], f64)],
         samples: u32,
     ) -> GBuffer {
         let ms = samples > 1;
-        let (layout, front_pipe, depth_pipe, back_pipe) =
-            gpu.cached(format!("gbuffer pipelines {samples}"), || {
-                let device = &gpu.device;
-                let module = gpu.shader("gbuffer.wgsl", &with_prelude(SHADER));
-                let layout = gpu.layout(
-                    "gbuffer",
-                    wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    &[Slot::Uniform],
-                );
-                let pl = gpu.pipeline_layout("gbuffer", &[&layout]);
-                let attributes =
-                    wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4];
-                let vbl = [Some(wgpu::VertexBufferLayout {
-                    array_stride: STRIDE,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &attributes,
-                })];
-                let pipeline =
-                    |entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| {
-                        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                            label: Some(entry),
-                            layout: Some(&pl),
-                            vertex: wgpu::VertexState {
-                                module: &module,
-                                entry_point: Some("vs"),
-                                compilation_options: Default::default(),
-                                buffers: &vbl,
-                            },
-                            primitive: wgpu::PrimitiveState::default(),
-                            depth_stencil: Some(wgpu::DepthStencilState {
-                                format: wgpu::TextureFormat::Depth32Float,
-                                depth_write_enabled: Some(true),
-                                depth_compare: Some(wgpu::CompareFunction::Less),
-                                stencil: Default::default(),
-                                bias: Default::default(),
-                            }),
-                            multisample: wgpu::MultisampleState {
-                                count,
-                                ..Default::default()
-                            },
-                            fragment: Some(wgpu::FragmentState {
-                                module: &module,
-                                entry_point: Some(entry),
-                                compilation_options: Default::default(),
-                                targets,
-                            }),
-                            multiview_mask: None,
-                            cache: None,
-                        })
-                    };
-                let t = |f| Some(wgpu::ColorTargetState::from(f));
-                let front_pipe = if ms {
-                    pipeline("fs_surface", &[t(COLOR), t(NORMAL)], samples)
-                } else {
-                    pipeline("fs_front", &[t(COLOR), t(NORMAL), t(DEPTH)], 1)
-                };
-                let depth_pipe = ms.then(|| pipeline("fs_depth", &[t(DEPTH)], 1));
-                let back_pipe = pipeline("fs_back", &[t(DEPTH)], 1);
-                (layout, front_pipe, depth_pipe, back_pipe)
-            });
+        let pipes = gpu.cached(format!("gbuffer pipelines {samples}"), || {
+            Pipelines::new(gpu, samples)
+        });
+        let layout = pipes.layout.clone();
         let aspect = width as f64 / height.max(1) as f64;
         let vp_rel = camera.view_projection(aspect) * DMat4::from_translation(camera.eye);
         let f = camera.forward();
         let e = camera.eye;
+        // The view of a set whose positions are relative to `origin`.
+        let view = |origin: DVec3| {
+            let offset: DVec3 = origin - e;
+            let params = GBufferParams {
+                view_proj_rel: mat4(vp_rel),
+                offset: vec4([offset.x, offset.y, offset.z, 0.0]),
+                forward: vec4([f.x, f.y, f.z, 0.0]),
+                eye: vec4([e.x, e.y, e.z, 1.0]),
+                clip: clip_planes(clip),
+                n_clip: clip.len().min(8) as u32,
+                pad0: 0,
+                pad1: 0,
+                pad2: 0,
+            };
+            let params = gpu.buffer(
+                "gbuffer params",
+                bytemuck::bytes_of(&params),
+                wgpu::BufferUsages::UNIFORM,
+            );
+            gpu.bind("gbuffer", &layout, &[params.as_entire_binding()])
+        };
         let meshes = meshes
             .iter()
-            .map(|m| {
-                let offset: DVec3 = m.origin - e;
-                let params = GBufferParams {
-                    view_proj_rel: mat4(vp_rel),
-                    offset: vec4([offset.x, offset.y, offset.z, 0.0]),
-                    forward: vec4([f.x, f.y, f.z, 0.0]),
-                    eye: vec4([e.x, e.y, e.z, 1.0]),
-                    clip: clip_planes(clip),
-                    n_clip: clip.len().min(8) as u32,
-                    pad0: 0,
-                    pad1: 0,
-                    pad2: 0,
+            .map(|m| MeshDraw {
+                mesh: m.clone(),
+                bind: view(m.origin),
+            })
+            .collect();
+        let p11 = camera.projection_matrix(aspect).y_axis.y as f32;
+        let lines = lines
+            .iter()
+            .map(|l| {
+                let (half_width, world) = match l.width {
+                    LineWidth::Pixels(w) => (0.5 * w as f32, 0),
+                    LineWidth::World(w) => (0.5 * w as f32, 1),
+                };
+                let params = LineParams {
+                    half_width,
+                    world,
+                    cylinder: l.cylinder as u32,
+                    p11,
+                    viewport: [width as f32, height as f32],
+                    pad: [0.0; 2],
                 };
                 let params = gpu.buffer(
-                    "gbuffer params",
+                    "line params",
                     bytemuck::bytes_of(&params),
                     wgpu::BufferUsages::UNIFORM,
                 );
-                MeshDraw {
-                    mesh: m.clone(),
-                    bind: gpu.bind("gbuffer", &layout, &[params.as_entire_binding()]),
+                LineDraw {
+                    view: view(l.origin),
+                    data: gpu.bind(
+                        "gbuffer lines",
+                        &pipes.line_layout,
+                        &[
+                            params.as_entire_binding(),
+                            l.points.as_entire_binding(),
+                            l.colors.as_entire_binding(),
+                            l.segments.as_entire_binding(),
+                        ],
+                    ),
+                    segments: l.count,
                 }
             })
             .collect();
@@ -301,20 +443,24 @@ impl GBuffer {
                     samples,
                 )
             }),
-            depth_pipe,
             front: target(gpu, "gbuffer front depth", DEPTH, width, height),
             back: target(gpu, "gbuffer back depth", DEPTH, width, height),
             depth_front: depth("gbuffer z front"),
             depth_back: depth("gbuffer z back"),
-            front_pipe,
-            back_pipe,
+            pipes,
             meshes,
+            lines,
         }
     }
 
-    /// Triangles drawn per pass.
+    /// Triangles drawn per pass (two per line segment).
     pub fn triangles(&self) -> u64 {
-        self.meshes.iter().map(|m| m.mesh.triangles()).sum()
+        self.meshes.iter().map(|m| m.mesh.triangles()).sum::<u64>()
+            + self
+                .lines
+                .iter()
+                .map(|l| 2 * l.segments as u64)
+                .sum::<u64>()
     }
 
     /// Records both passes (they also clear the targets when there are no meshes).
@@ -330,23 +476,20 @@ impl GBuffer {
                 },
             })
         };
-        let mut passes: Vec<(&wgpu::RenderPipeline, Vec<_>, &wgpu::TextureView)> = vec![];
-        match (&self.depth_pipe, &self.depth_ms) {
+        let p = &self.pipes;
+        let mut passes: Vec<(&PipelinePair, Vec<_>, &wgpu::TextureView)> = vec![];
+        match (&p.depth, &self.depth_ms) {
             (Some(dp), Some(dms)) => {
-                passes.push((
-                    &self.front_pipe,
-                    vec![clear(&self.color), clear(&self.normal)],
-                    dms,
-                ));
+                passes.push((&p.front, vec![clear(&self.color), clear(&self.normal)], dms));
                 passes.push((dp, vec![clear(&self.front)], &self.depth_front));
             }
             _ => passes.push((
-                &self.front_pipe,
+                &p.front,
                 vec![clear(&self.color), clear(&self.normal), clear(&self.front)],
                 &self.depth_front,
             )),
         }
-        passes.push((&self.back_pipe, vec![clear(&self.back)], &self.depth_back));
+        passes.push((&p.back, vec![clear(&self.back)], &self.depth_back));
         for (pipe, targets, depth) in passes {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("gbuffer"),
@@ -363,12 +506,22 @@ impl GBuffer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(pipe);
+            if !self.meshes.is_empty() {
+                pass.set_pipeline(&pipe.mesh);
+            }
             for MeshDraw { mesh: m, bind } in &self.meshes {
                 pass.set_bind_group(0, bind, &[]);
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..m.count, 0, 0..1);
+            }
+            if !self.lines.is_empty() {
+                pass.set_pipeline(&pipe.line);
+            }
+            for l in &self.lines {
+                pass.set_bind_group(0, &l.view, &[]);
+                pass.set_bind_group(1, &l.data, &[]);
+                pass.draw(0..6, 0..l.segments);
             }
         }
     }
@@ -377,7 +530,19 @@ impl GBuffer {
 #[cfg(test)]
 mod tests {
     #[test]
-    fn the_uniform_matches_its_wgsl_struct() {
+    fn the_uniforms_match_their_wgsl_structs() {
+        crate::prelude::assert_layout!(
+            super::SHADER,
+            "LineParams",
+            super::LineParams {
+                half_width,
+                world,
+                cylinder,
+                p11,
+                viewport,
+                pad,
+            }
+        );
         crate::prelude::assert_layout!(
             super::SHADER,
             "Params",

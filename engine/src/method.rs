@@ -12,6 +12,7 @@ pub enum Method {
     Vicinity,
     Ea,
     Phong,
+    Illuminated,
 }
 
 /// How tubes shadow the volume behind them.
@@ -121,6 +122,13 @@ pub const METHODS: &[MethodDesc] = &[
         volume: VolumeShading::EmissionAbsorption,
         terms: &[],
         summary: "emission-absorption volume; Phong surfaces",
+    },
+    MethodDesc {
+        method: Method::Illuminated,
+        name: "illuminated",
+        volume: VolumeShading::EmissionAbsorption,
+        terms: &[],
+        summary: "illuminated lines and Phong tubes, no occlusion; emission-absorption volume",
     },
     MethodDesc {
         method: Method::Phong,
@@ -255,6 +263,7 @@ mod tests {
             Method::Vicinity,
             Method::Ea,
             Method::Phong,
+            Method::Illuminated,
         ] {
             let d = m.desc();
             assert_eq!(METHODS.iter().filter(|r| r.method == m).count(), 1);

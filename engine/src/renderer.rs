@@ -18,7 +18,7 @@
 
 use crate::composite::{CompositePass, CompositeSettings};
 use crate::fxaa::FxaaPass;
-use crate::gbuffer::{GBuffer, GpuMesh};
+use crate::gbuffer::{GBuffer, GpuLines, GpuMesh};
 use crate::gpu::{Gpu, GpuError};
 use crate::iso_pass::{GpuIso, IsoInput, IsoPass};
 use crate::method::{Term, VolumeShading, MAX_TERMS};
@@ -28,6 +28,7 @@ use occlusion::camera::Camera;
 use occlusion::emission_absorption::EaView;
 use std::collections::BTreeMap;
 use std::time::Instant;
+use tubes::lines::LineSet;
 use tubes::tube_mesh::TubeMesh;
 
 pub use crate::method::Settings;
@@ -210,13 +211,15 @@ fn submit_and_wait(gpu: &Gpu, record: &dyn Fn(&mut wgpu::CommandEncoder)) -> Res
 pub struct GpuScene {
     volume: Option<GpuVolume>,
     meshes: Vec<GpuMesh>,
+    lines: Vec<GpuLines>,
     iso: Option<GpuIso>,
 }
 
 impl GpuScene {
-    /// Triangles drawn per G-buffer pass.
+    /// Triangles drawn per G-buffer pass (two per line segment).
     pub fn triangles(&self) -> u64 {
-        self.meshes.iter().map(GpuMesh::triangles).sum()
+        self.meshes.iter().map(GpuMesh::triangles).sum::<u64>()
+            + self.lines.iter().map(|l| 2 * l.segments()).sum::<u64>()
     }
 }
 
@@ -257,11 +260,12 @@ impl<'g> Renderer<'g> {
         self.gpu
     }
 
-    /// Uploads a volume (as the slices read it), tube meshes and an isosurface.
+    /// Uploads a volume (as the slices read it), tube meshes, line sets and an isosurface.
     pub fn upload(
         &self,
         volume: Option<&VolumeInput>,
         meshes: &[TubeMesh],
+        lines: &[LineSet],
         iso: Option<&IsoInput>,
     ) -> Result<GpuScene, GpuError> {
         let gpu = self.gpu;
@@ -270,6 +274,10 @@ impl<'g> Renderer<'g> {
             meshes: meshes
                 .iter()
                 .filter_map(|m| GpuMesh::upload(gpu, m))
+                .collect(),
+            lines: lines
+                .iter()
+                .filter_map(|l| GpuLines::upload(gpu, l))
                 .collect(),
             iso: iso.map(|i| GpuIso::upload(gpu, i)),
         })
@@ -397,7 +405,16 @@ impl Frame {
         let occlusion = desc.volume == VolumeShading::Occlusion;
         let cam: &Camera = &view.camera;
         let (samples, msaa_note) = crate::gbuffer::sample_count(gpu, s.msaa);
-        let gbuf = GBuffer::new(gpu, cam, w, h, &scene.meshes, tube_clip, samples);
+        let gbuf = GBuffer::new(
+            gpu,
+            cam,
+            w,
+            h,
+            &scene.meshes,
+            &scene.lines,
+            tube_clip,
+            samples,
+        );
         // The layers of the method's terms, in the table's order; a slot left empty
         // (`surface_ao = none`) has none.
         let layer_names: Vec<&'static str> = desc
@@ -580,7 +597,7 @@ pub fn render(
     frames: u32,
 ) -> Result<Output, GpuError> {
     let r = Renderer::new(gpu);
-    let scene = r.upload(volume, meshes, iso)?;
+    let scene = r.upload(volume, meshes, &[], iso)?;
     r.draw(
         &scene,
         view,

@@ -682,7 +682,7 @@ fn a_long_lived_renderer_draws_new_cameras_without_compiling_or_uploading() {
     let (vol, data, tf) = s.vol.as_ref().unwrap();
     let r = renderer::Renderer::new(&gpu);
     let scene = r
-        .upload(Some(&VolumeInput { vol, data, tf }), &s.meshes, None)
+        .upload(Some(&VolumeInput { vol, data, tf }), &s.meshes, &[], None)
         .unwrap();
     let opts = renderer::DrawOptions::default();
     let cams = [top_camera(true), top_camera(false)];
@@ -736,6 +736,7 @@ fn a_long_lived_renderer_draws_new_cameras_without_compiling_or_uploading() {
                 tf: &denser,
             }),
             &s.meshes,
+            &[],
             None,
         )
         .unwrap();

@@ -10,6 +10,7 @@ use glam::DVec3;
 use occlusion::camera::{Camera, Projection};
 use occlusion::emission_absorption::{self, EaView, Transfer};
 use std::path::Path;
+use tubes::lines::{LineSet, LineWidth};
 use tubes::tube_mesh::TubeMesh;
 
 /// Fraction of the value range below which the presets are transparent.
@@ -173,6 +174,8 @@ pub struct Model {
     pub volume: Option<(volume::Volume, Vec<f32>, Transfer)>,
     pub iso: Option<IsoModel>,
     pub meshes: Vec<TubeMesh>,
+    /// One line set per `[[lines]]`.
+    pub lines: Vec<LineSet>,
     pub bounds: [DVec3; 2],
     /// Twice the default slice distance (`EaView::span` halves it): see [`slice_distance`].
     pub spacing: f64,
@@ -195,6 +198,15 @@ impl Model {
             eat(bytemuck::cast_slice(&v.dims.map(|d| d as u64)));
             eat(bytemuck::cast_slice(&v.affine.to_cols_array()));
             eat(bytemuck::cast_slice(data));
+        }
+        for l in &self.lines {
+            eat(bytemuck::cast_slice(&l.origin.to_array()));
+            for p in &l.positions {
+                eat(bytemuck::cast_slice(&p.to_array()));
+            }
+            eat(l.colors.as_flattened());
+            eat(bytemuck::cast_slice(&l.segments));
+            eat(format!("{:?} {}", l.width, l.cylinder).as_bytes());
         }
         for m in &self.meshes {
             eat(bytemuck::cast_slice(&m.origin.to_array()));
@@ -424,7 +436,12 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             .map_err(|e| format!("tubes[{i}].color ({}): {e}", t.path.display()))?;
         meshes.push(mesh);
     }
+    let mut lines = vec![];
+    for (i, l) in s.lines.iter().enumerate() {
+        lines.push(line_set(i, l)?);
+    }
     let mut boxes: Vec<[DVec3; 2]> = meshes.iter().filter_map(mesh_bounds).collect();
+    boxes.extend(lines.iter().filter_map(LineSet::bounds));
     if let Some((v, _, _)) = &volume {
         boxes.push(v.bounds());
     }
@@ -432,7 +449,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         boxes.push(b);
     }
     let Some(first) = boxes.first().copied() else {
-        return Err("the scene has neither a [volume] nor [[tubes]] with geometry".into());
+        return Err("the scene has no [volume] and no [[tubes]] or [[lines]] with geometry".into());
     };
     let bounds = boxes
         .iter()
@@ -454,10 +471,27 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         volume,
         iso,
         meshes,
+        lines,
         bounds,
         spacing,
         notes,
     })
+}
+
+/// The line set of `[[lines]]` number `i`: the tractogram read, transformed and coloured.
+fn line_set(i: usize, l: &spec::LinesSpec) -> Result<LineSet, String> {
+    let mut sl = tubes::load(&l.path).map_err(|e| format!("lines[{i}]: {e}"))?;
+    if let Some(m) = l.transform {
+        let key = format!("lines[{i}].transform");
+        sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);
+    }
+    let width = match l.width_unit {
+        spec::WidthUnit::Pixels => LineWidth::Pixels(l.width),
+        spec::WidthUnit::World => LineWidth::World(l.width),
+    };
+    let cylinder = l.profile == spec::LineProfile::Cylinder;
+    crate::tube_sets::with_color_mode(&sl, &l.color, |c| LineSet::new(&sl, c, width, cylinder))
+        .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))
 }
 
 /// The renderer's settings from a scene.
@@ -651,7 +685,7 @@ pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, 
     });
     let renderer = Renderer::new(gpu);
     let scene = renderer
-        .upload(vi.as_ref(), &m.meshes, iso.as_ref())
+        .upload(vi.as_ref(), &m.meshes, &m.lines, iso.as_ref())
         .map_err(|e| e.to_string())?;
     Ok(Uploaded {
         renderer,

@@ -147,17 +147,21 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     })
 }
 
-/// The tube mesh of `s` with the options of `a` (its paths are not used): the colour source
-/// resolved (a volume is loaded for `volume:PATH`), then `tubes::tube_mesh::build`.
-pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, TubeStats), String> {
-    // Colour source.
+/// Calls `f` with the colour mode of the colour source `color` for the streamlines `s`
+/// (`direction`, `scalar:NAME`, `volume:PATH` - the volume loaded and sampled at the points -
+/// or `#rrggbb`); errors say what is wrong with the source.
+pub fn with_color_mode<R>(
+    s: &tubes::Streamlines,
+    color: &str,
+    f: impl FnOnce(&ColorMode) -> R,
+) -> Result<R, String> {
     let vol_field;
     let sampler;
-    let color = if a.color == "direction" {
+    let mode = if color == "direction" {
         ColorMode::Direction
-    } else if a.color.starts_with('#') {
-        ColorMode::Constant(parse_hex(&a.color)?)
-    } else if let Some(name) = a.color.strip_prefix("scalar:") {
+    } else if color.starts_with('#') {
+        ColorMode::Constant(parse_hex(color)?)
+    } else if let Some(name) = color.strip_prefix("scalar:") {
         if !s.point_attributes.iter().any(|x| x.name == name) {
             let have: Vec<&str> = s.point_attributes.iter().map(|x| x.name.as_str()).collect();
             return Err(format!(
@@ -170,14 +174,14 @@ pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, Tu
             ));
         }
         ColorMode::Scalar(name.to_string())
-    } else if let Some(path) = a.color.strip_prefix("volume:") {
+    } else if let Some(path) = color.strip_prefix("volume:") {
         let v = volume::load(std::path::Path::new(path)).map_err(|e| e.to_string())?;
-        let f = v.select(None).map_err(|e| e.to_string())?;
-        if f.components != 1 {
+        let fl = v.select(None).map_err(|e| e.to_string())?;
+        if fl.components != 1 {
             return Err(format!("colour volume:{path}: needs a scalar volume"));
         }
-        let st = f.stats();
-        vol_field = (v, f);
+        let st = fl.stats();
+        vol_field = (v, fl);
         let inv = vol_field.0.affine.inverse();
         sampler = move |p: DVec3| -> f64 {
             let (v, f) = &vol_field;
@@ -191,25 +195,32 @@ pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, Tu
         ColorMode::Field(&sampler, [st.min, st.max])
     } else {
         return Err(format!(
-            "colour {}: use direction, scalar:NAME, volume:PATH or #rrggbb",
-            a.color
+            "colour {color}: use direction, scalar:NAME, volume:PATH or #rrggbb"
         ));
     };
-    let opts = TubeOptions {
-        radius: a.radius,
-        sides: a.sides,
-        per_span: a.per_span,
-        chordal: a.chordal,
-        max_turn_deg: 15.0,
-        frame: a.frame,
-        radius_mode: a.radius_mode,
-        fit: FitOptions {
-            epsilon: a.tolerance,
-            method: a.fit,
-            max_iterations: 100,
-        },
-        caps: a.caps,
-        color,
-    };
-    Ok(build(s, &opts))
+    Ok(f(&mode))
+}
+
+/// The tube mesh of `s` with the options of `a` (its paths are not used): the colour source
+/// resolved ([`with_color_mode`]), then `tubes::tube_mesh::build`.
+pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, TubeStats), String> {
+    with_color_mode(s, &a.color, |color| {
+        let opts = TubeOptions {
+            radius: a.radius,
+            sides: a.sides,
+            per_span: a.per_span,
+            chordal: a.chordal,
+            max_turn_deg: 15.0,
+            frame: a.frame,
+            radius_mode: a.radius_mode,
+            fit: FitOptions {
+                epsilon: a.tolerance,
+                method: a.fit,
+                max_iterations: 100,
+            },
+            caps: a.caps,
+            color: color.clone(),
+        };
+        build(s, &opts)
+    })
 }

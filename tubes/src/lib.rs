@@ -7,6 +7,7 @@
 
 pub mod bspline_fit;
 pub mod error;
+pub mod lines;
 pub mod mesh_io;
 pub mod tck;
 pub mod trace;

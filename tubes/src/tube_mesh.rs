@@ -51,6 +51,7 @@ pub enum RadiusMode {
 }
 
 /// How vertices are coloured.
+#[derive(Clone)]
 pub enum ColorMode<'a> {
     /// Absolute unit tangent as RGB (the usual directionally encoded colour).
     Direction,

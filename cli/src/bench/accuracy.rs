@@ -231,6 +231,12 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
                 a.scene.display()
             ));
         }
+        if !m.lines.is_empty() {
+            return Err(format!(
+                "{}: the Monte Carlo reference does not model [[lines]] yet",
+                a.scene.display()
+            ));
+        }
         // Without a volume the reference sees an empty one (all transparent).
         let empty;
         let (vol, data, tf) = match m.volume.as_ref() {

@@ -27,7 +27,7 @@ pub struct Args {
     width: Option<u32>,
     #[arg(long)]
     height: Option<u32>,
-    /// combined, dos, vicinity, ea or phong.
+    /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated.
     #[arg(long, value_enum, hide_possible_values = true)]
     method: Option<super::Method>,
     /// Frames timed; total_ms is their median.

@@ -20,7 +20,7 @@ pub struct Args {
     /// Image height (render.height).
     #[arg(long)]
     height: Option<u32>,
-    /// combined, dos, vicinity, ea or phong (render.method).
+    /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated.
     #[arg(long, value_enum, hide_possible_values = true)]
     method: Option<super::Method>,
     /// Render each image this many times, every pass re-run (total_ms is the median);

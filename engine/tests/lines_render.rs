@@ -1,0 +1,289 @@
+//! Line sets in the G-buffer on whatever adapter this machine has (lavapipe in CI): strips of
+//! the asked width in pixels and in world units, watertight joints, no NaN for degenerate
+//! segments, clip planes, the view-facing normal of illuminated lines and the cylinder
+//! profile, and lines beside tubes in one depth test.
+
+use engine::gpu::Gpu;
+use engine::method::{Method, Settings};
+use engine::renderer::{DrawOptions, Output, Renderer};
+use glam::{DVec3, Vec3};
+use occlusion::camera::{Camera, Projection};
+use occlusion::emission_absorption::EaView;
+use tubes::lines::{LineSet, LineWidth};
+use tubes::tube_mesh::ColorMode;
+
+const W: u32 = 64;
+const H: u32 = 64;
+
+fn gpu() -> Gpu {
+    Gpu::new().expect("a GPU adapter (CI installs mesa-vulkan-drivers for lavapipe)")
+}
+
+/// Looking down -z at [-12, 12]^2, orthographic (24 units tall: 8/3 pixels a unit) or
+/// perspective.
+fn top_camera(perspective: bool) -> Camera {
+    let bounds = [DVec3::splat(-12.0), DVec3::splat(12.0)];
+    let projection = if perspective {
+        Projection::Perspective { fov_y_deg: 30.0 }
+    } else {
+        Projection::Orthographic { height: 24.0 }
+    };
+    let eye = DVec3::new(0.0, 0.0, if perspective { 46.0 } else { 40.0 });
+    Camera::look_at(eye, DVec3::ZERO, DVec3::Y, projection, bounds).unwrap()
+}
+
+fn view(cam: Camera) -> EaView {
+    let bounds = [DVec3::splat(-12.0), DVec3::splat(12.0)];
+    EaView::span(bounds, 1.0, cam, W, H, None, Some(0.5), [0.0, 0.0, 0.0]).unwrap()
+}
+
+fn lines(polylines: &[Vec<[f32; 3]>], width: LineWidth, cylinder: bool) -> LineSet {
+    let mut s = tubes::Streamlines::new();
+    for p in polylines {
+        let pts: Vec<Vec3> = p.iter().map(|q| Vec3::from(*q)).collect();
+        s.push(&pts);
+    }
+    LineSet::new(&s, &ColorMode::Constant([1.0; 3]), width, cylinder)
+}
+
+fn settings() -> Settings {
+    Settings {
+        method: Method::Illuminated,
+        fxaa: false,
+        msaa: 1,
+        ..Default::default()
+    }
+}
+
+fn render(gpu: &Gpu, sets: &[LineSet], cam: Camera, clip: &[([f64; 3], f64)]) -> Output {
+    let r = Renderer::new(gpu);
+    let scene = r.upload(None, &[], sets, None).unwrap();
+    r.draw(
+        &scene,
+        &view(cam),
+        clip,
+        &settings(),
+        DrawOptions::default(),
+    )
+    .unwrap()
+}
+
+/// Covered pixels (a surface: linear depth above 0) in column `x`.
+fn column_coverage(o: &Output, x: usize) -> usize {
+    (0..H as usize)
+        .filter(|&y| o.aov[x + W as usize * y].depth > 0.0)
+        .count()
+}
+
+#[test]
+fn strips_are_as_wide_as_asked_in_pixels_and_in_world_units() {
+    let gpu = gpu();
+    // A horizontal line through y = 0 (the boundary between pixel rows 31 and 32).
+    let line = vec![[-20.0, 0.0, 0.0], [20.0, 0.0, 0.0]];
+    for (w, want) in [(1.0, 1), (4.0, 4), (9.0, 9)] {
+        let o = render(
+            &gpu,
+            &[lines(
+                std::slice::from_ref(&line),
+                LineWidth::Pixels(w),
+                false,
+            )],
+            top_camera(false),
+            &[],
+        );
+        let got = column_coverage(&o, 20);
+        assert!((got as i64 - want as i64).abs() <= 1, "{w} px: {got} rows");
+    }
+    // 3 world units at 8/3 pixels a unit: 8 pixels, under both projections' scale.
+    let o = render(
+        &gpu,
+        &[lines(
+            std::slice::from_ref(&line),
+            LineWidth::World(3.0),
+            false,
+        )],
+        top_camera(false),
+        &[],
+    );
+    let got = column_coverage(&o, 20);
+    assert!((7..=9).contains(&got), "world width: {got} rows");
+    // Under perspective a world width thins with distance, a pixel width does not.
+    let near = vec![[-20.0, -4.0, 8.0], [20.0, -4.0, 8.0]];
+    let far = vec![[-20.0, 4.0, -8.0], [20.0, 4.0, -8.0]];
+    let o = render(
+        &gpu,
+        &[lines(
+            &[near.clone(), far.clone()],
+            LineWidth::World(2.0),
+            false,
+        )],
+        top_camera(true),
+        &[],
+    );
+    let rows: Vec<usize> = (0..H as usize)
+        .filter(|&y| o.aov[20 + W as usize * y].depth > 0.0)
+        .collect();
+    let (top, bottom): (Vec<usize>, Vec<usize>) = rows.iter().partition(|&&y| y < H as usize / 2);
+    assert!(
+        bottom.len() > top.len(),
+        "near {} rows, far {}",
+        bottom.len(),
+        top.len()
+    );
+    let o = render(
+        &gpu,
+        &[lines(&[near, far], LineWidth::Pixels(4.0), false)],
+        top_camera(true),
+        &[],
+    );
+    let covered = column_coverage(&o, 20);
+    assert!(
+        (6..=10).contains(&covered),
+        "two 4-pixel lines: {covered} rows"
+    );
+}
+
+#[test]
+fn joints_are_watertight_and_degenerate_segments_give_no_nan() {
+    let gpu = gpu();
+    // A zigzag with sharp turns, a repeated point, and a segment along the view ray.
+    let zigzag = vec![
+        [-10.0, -8.0, 0.0],
+        [-6.0, 8.0, 0.0],
+        [-2.0, -8.0, 0.0],
+        [-2.0, -8.0, 0.0],
+        [2.0, 8.0, 0.0],
+        [2.0, 8.0, 6.0],
+        [6.0, -8.0, 6.0],
+        [10.0, 8.0, 6.0],
+    ];
+    let set = lines(std::slice::from_ref(&zigzag), LineWidth::Pixels(3.0), false);
+    let cam = top_camera(false);
+    let o = render(&gpu, std::slice::from_ref(&set), cam, &[]);
+    assert!(o.image.iter().flatten().all(|v| v.is_finite()));
+    assert!(o.aov.iter().all(|a| a.depth.is_finite()));
+    // Every point along every segment, and around every joint, is covered.
+    for seg in zigzag.windows(2) {
+        let (a, b) = (
+            DVec3::from(seg[0].map(f64::from)),
+            DVec3::from(seg[1].map(f64::from)),
+        );
+        for k in 0..=40 {
+            let p = a + (b - a) * (k as f64 / 40.0);
+            let (x, y, _) = cam.to_pixel(p, W as usize, H as usize).unwrap();
+            let i = x as usize + W as usize * y as usize;
+            assert!(o.aov[i].depth > 0.0, "a gap at {p} (pixel {x}, {y})");
+        }
+    }
+    // The segment along the view ray still covers its pixel.
+    let (x, y, _) = cam
+        .to_pixel(DVec3::new(2.0, 8.0, 3.0), W as usize, H as usize)
+        .unwrap();
+    assert!(o.aov[x as usize + W as usize * y as usize].depth > 0.0);
+}
+
+#[test]
+fn illuminated_lines_face_the_eye_and_cylinders_turn_away_at_their_edges() {
+    let gpu = gpu();
+    let line = vec![[-20.0, 0.0, 0.0], [20.0, 0.0, 0.0]];
+    let flat = render(
+        &gpu,
+        &[lines(
+            std::slice::from_ref(&line),
+            LineWidth::Pixels(9.0),
+            false,
+        )],
+        top_camera(false),
+        &[],
+    );
+    // White under the head light with the view-facing normal: ambient + diffuse + specular
+    // = 0.3 + 0.7 + 0.3, the same across the width.
+    let at = |o: &Output, y: usize| o.image[20 + W as usize * y][0];
+    for y in 28..=35 {
+        assert!(
+            (at(&flat, y) - 1.3).abs() < 1e-3,
+            "row {y}: {}",
+            at(&flat, y)
+        );
+    }
+    let cyl = render(
+        &gpu,
+        &[lines(&[line], LineWidth::Pixels(9.0), true)],
+        top_camera(false),
+        &[],
+    );
+    // The pseudo-tube: bright in the middle, darker at the edges, and nearer in the middle.
+    let rows: Vec<usize> = (0..H as usize)
+        .filter(|&y| cyl.aov[20 + W as usize * y].depth > 0.0)
+        .collect();
+    let (edge, mid) = (rows[0], rows[rows.len() / 2]);
+    assert!(
+        at(&cyl, mid) > at(&cyl, edge) + 0.1,
+        "{} vs {}",
+        at(&cyl, mid),
+        at(&cyl, edge)
+    );
+    let depth = |y: usize| cyl.aov[20 + W as usize * y].depth;
+    assert!(
+        depth(mid) < depth(edge),
+        "{} vs {}",
+        depth(mid),
+        depth(edge)
+    );
+    assert!(cyl.image.iter().flatten().all(|v| v.is_finite()));
+}
+
+#[test]
+fn clip_planes_cut_lines_and_lines_share_the_depth_test_with_tubes() {
+    let gpu = gpu();
+    let line = vec![[-20.0, 0.0, 2.0], [20.0, 0.0, 2.0]];
+    let set = lines(&[line], LineWidth::Pixels(3.0), false);
+    let cam = top_camera(false);
+    // Keep x <= 0.
+    let o = render(
+        &gpu,
+        std::slice::from_ref(&set),
+        cam,
+        &[([1.0, 0.0, 0.0], 0.0)],
+    );
+    assert!(column_coverage(&o, 10) >= 2);
+    assert_eq!(column_coverage(&o, 54), 0);
+    // A tube above the line (nearer the eye) hides it where they cross; the line, nearer than a
+    // tube below it, shows.
+    let above = tubes::tube_mesh::straight_tubes(
+        &[[[0.0, -20.0, 6.0], [0.0, 20.0, 6.0]]],
+        1.0,
+        16,
+        [1.0, 0.0, 0.0],
+    );
+    let below = tubes::tube_mesh::straight_tubes(
+        &[[[-20.0, 0.0, -6.0], [20.0, 0.0, -6.0]]],
+        3.0,
+        16,
+        [0.0, 0.0, 1.0],
+    );
+    let r = Renderer::new(&gpu);
+    let scene = r
+        .upload(None, &[above, below], std::slice::from_ref(&set), None)
+        .unwrap();
+    let o = r
+        .draw(&scene, &view(cam), &[], &settings(), DrawOptions::default())
+        .unwrap();
+    let px = |p: [f64; 3]| {
+        let (x, y, _) = cam
+            .to_pixel(DVec3::from(p), W as usize, H as usize)
+            .unwrap();
+        o.image[x as usize + W as usize * y as usize]
+    };
+    let crossing = px([0.0, 0.0, 2.0]);
+    assert!(
+        crossing[0] > crossing[1] && crossing[0] > crossing[2],
+        "the red tube: {crossing:?}"
+    );
+    let beside = px([8.0, 0.0, 2.0]);
+    assert!(
+        beside[1] > 0.5 && beside[2] > 0.5,
+        "the white line over the blue tube: {beside:?}"
+    );
+    assert_eq!(o.triangles, scene.triangles());
+}

@@ -1,0 +1,178 @@
+//! Line sets: streamlines drawn as lines (screen-facing strips the renderer builds on the GPU
+//! from the points), the cheap path for 10^5-10^6 streamlines. The model holds each point once
+//! (f32 position relative to an f64 origin, an RGBA8 colour) and one index per segment: 20
+//! bytes a point, with no vertex duplicated on the CPU.
+
+use crate::tube_mesh::{colormap, ColorMode};
+use crate::Streamlines;
+use glam::{DVec3, Vec3};
+
+/// How wide a line set's lines are drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LineWidth {
+    /// Constant on screen (LineAO's lines), at least one pixel.
+    Pixels(f64),
+    /// Constant in the world (shrinks with distance), at least one pixel.
+    World(f64),
+}
+
+/// Lines as the renderer draws them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LineSet {
+    /// The points' origin (their positions are f32 relative to it, for precision far from the
+    /// world origin).
+    pub origin: DVec3,
+    pub positions: Vec<Vec3>,
+    /// RGBA8 per point (alpha 255).
+    pub colors: Vec<[u8; 4]>,
+    /// The first point of each segment (a segment joins points `i` and `i + 1` of one line).
+    pub segments: Vec<u32>,
+    pub width: LineWidth,
+    /// Shade and depth across the width as a cylinder (pseudo-tubes) instead of a flat strip.
+    pub cylinder: bool,
+}
+
+fn rgba(c: [f32; 3]) -> [u8; 4] {
+    let b = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+    [b(c[0]), b(c[1]), b(c[2]), 255]
+}
+
+impl LineSet {
+    /// The lines of `s` coloured by `color` (direction: the absolute unit tangent by central
+    /// differences; a per-point attribute through the colour map over its finite range; a
+    /// field of world position; a constant). Lines of one point have no segment; a segment
+    /// between two equal points is kept (the renderer gives it a pixel, without NaN).
+    pub fn new(s: &Streamlines, color: &ColorMode, width: LineWidth, cylinder: bool) -> LineSet {
+        let origin = s
+            .bounds()
+            .map(|[lo, hi]| ((lo + hi) * 0.5).as_dvec3())
+            .unwrap_or(DVec3::ZERO);
+        let scalar = match color {
+            ColorMode::Scalar(name) => s.point_attributes.iter().find(|a| &a.name == name),
+            _ => None,
+        };
+        let range = scalar.map(|a| {
+            a.values
+                .iter()
+                .step_by(a.components.max(1))
+                .filter(|v| v.is_finite())
+                .fold([f64::INFINITY, f64::NEG_INFINITY], |[l, h], &x| {
+                    [l.min(x as f64), h.max(x as f64)]
+                })
+        });
+        let mut positions = Vec::with_capacity(s.points.len());
+        let mut colors = Vec::with_capacity(s.points.len());
+        let mut segments = Vec::with_capacity(s.points.len());
+        for i in 0..s.len() {
+            let first = s.offsets[i];
+            let line = s.line(i);
+            for (k, p) in line.iter().enumerate() {
+                let world = p.as_dvec3();
+                positions.push((world - origin).as_vec3());
+                let c = match color {
+                    ColorMode::Direction => {
+                        let a = line[k.saturating_sub(1)];
+                        let b = line[(k + 1).min(line.len() - 1)];
+                        let t = (b - a).normalize_or_zero();
+                        [t.x.abs(), t.y.abs(), t.z.abs()]
+                    }
+                    ColorMode::Constant(c) => *c,
+                    ColorMode::Scalar(_) => {
+                        let [lo, hi] = range.unwrap_or([0.0, 1.0]);
+                        let v = scalar
+                            .map(|a| a.values[(first + k) * a.components] as f64)
+                            .unwrap_or(0.0);
+                        colormap((v - lo) / (hi - lo).max(1e-300))
+                    }
+                    ColorMode::Field(f, [lo, hi]) => {
+                        colormap((f(world) - lo) / (hi - lo).max(1e-300))
+                    }
+                };
+                colors.push(rgba(c));
+                if k + 1 < line.len() {
+                    segments.push((first + k) as u32);
+                }
+            }
+        }
+        LineSet {
+            origin,
+            positions,
+            colors,
+            segments,
+            width,
+            cylinder,
+        }
+    }
+
+    /// World bounds of the points.
+    pub fn bounds(&self) -> Option<[DVec3; 2]> {
+        let first = self.origin + self.positions.first()?.as_dvec3();
+        Some(self.positions.iter().fold([first, first], |[lo, hi], p| {
+            let q = self.origin + p.as_dvec3();
+            [lo.min(q), hi.max(q)]
+        }))
+    }
+
+    /// Bytes the renderer keeps for the set: a position, a colour and a segment index per point.
+    pub fn gpu_bytes(&self) -> usize {
+        self.positions.len() * 16 + self.segments.len() * 4
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_lines() -> Streamlines {
+        let mut s = Streamlines::new();
+        s.push(&[Vec3::ZERO, Vec3::X, Vec3::new(2.0, 0.0, 0.0)]);
+        s.push(&[Vec3::new(0.0, 5.0, 0.0)]);
+        s.push(&[Vec3::Y, Vec3::Y, Vec3::new(0.0, 1.0, 3.0)]);
+        s
+    }
+
+    #[test]
+    fn segments_join_the_points_of_each_line_only() {
+        let l = LineSet::new(
+            &two_lines(),
+            &ColorMode::Direction,
+            LineWidth::Pixels(2.0),
+            false,
+        );
+        assert_eq!(l.positions.len(), 7);
+        // Line 0: segments from points 0 and 1; line 1 (one point): none; line 2: 4 and 5.
+        assert_eq!(l.segments, vec![0, 1, 4, 5]);
+        // Direction colour: along x for line 0, along z at the end of line 2; the repeated
+        // point's tangent is taken across it, never NaN.
+        assert_eq!(l.colors[1], [255, 0, 0, 255]);
+        assert_eq!(l.colors[6], [0, 0, 255, 255]);
+        assert!(l.colors.iter().all(|c| c[3] == 255));
+        // Positions are relative to the centre of the bounds, and come back exactly.
+        let [lo, hi] = l.bounds().unwrap();
+        assert_eq!(lo, DVec3::ZERO);
+        assert_eq!(hi, DVec3::new(2.0, 5.0, 3.0));
+        assert!(l.gpu_bytes() <= 40 * l.positions.len());
+    }
+
+    #[test]
+    fn scalar_colours_span_the_attribute_range() {
+        let mut s = two_lines();
+        s.point_attributes.push(crate::Attribute {
+            name: "fa".into(),
+            components: 1,
+            values: vec![0.0, 0.5, 1.0, 0.0, f32::NAN, 0.25, 1.0],
+        });
+        let l = LineSet::new(
+            &s,
+            &ColorMode::Scalar("fa".into()),
+            LineWidth::World(0.1),
+            true,
+        );
+        let want = |v: f64| rgba(colormap(v));
+        assert_eq!(l.colors[0], want(0.0));
+        assert_eq!(l.colors[2], want(1.0));
+        assert_eq!(l.colors[1], want(0.5));
+        // A NaN value takes the colour map's NaN colour (its low end), not a panic.
+        assert_eq!(l.colors[4], want(f64::NAN));
+    }
+}
