@@ -222,34 +222,7 @@ impl Default for Settings {
     }
 }
 
-/// A pass's setting out of range: which field of its settings type, and why.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SettingError {
-    pub field: &'static str,
-    pub problem: String,
-}
-
-impl std::fmt::Display for SettingError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}: {}", self.field, self.problem)
-    }
-}
-
-/// `Err` naming `field` when `ok` is false.
-pub fn require(
-    ok: bool,
-    field: &'static str,
-    problem: impl FnOnce() -> String,
-) -> Result<(), SettingError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(SettingError {
-            field,
-            problem: problem(),
-        })
-    }
-}
+pub use occlusion::settings::{require, SettingError};
 
 #[cfg(test)]
 mod tests {

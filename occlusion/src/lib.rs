@@ -19,4 +19,5 @@ pub mod line_ao;
 pub mod reference;
 pub mod reference_tubes;
 pub mod rng;
+pub mod settings;
 pub mod sweeping;

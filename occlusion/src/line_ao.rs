@@ -178,36 +178,8 @@ impl Default for LineAoSettings {
     }
 }
 
-/// A setting out of range: which field of [`LineAoSettings`], and why (the shape of
-/// `engine::method::SettingError`, which this crate cannot depend on).
-#[derive(Clone, Debug, PartialEq)]
-pub struct SettingError {
-    pub field: &'static str,
-    pub problem: String,
-}
-
-impl std::fmt::Display for SettingError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}: {}", self.field, self.problem)
-    }
-}
-
-impl std::error::Error for SettingError {}
-
-fn require(
-    ok: bool,
-    field: &'static str,
-    problem: impl FnOnce() -> String,
-) -> Result<(), SettingError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(SettingError {
-            field,
-            problem: problem(),
-        })
-    }
-}
+use crate::settings::require;
+pub use crate::settings::SettingError;
 
 impl LineAoSettings {
     /// The first setting out of range, by its field's name.

@@ -495,6 +495,22 @@ impl Scene {
     }
 }
 
+/// Checks a tube or line set's colour source: `direction`, `scalar:NAME`, `volume:PATH` or
+/// `#rrggbb`.
+fn check_color_source(c: &str) -> Result<(), String> {
+    let ok = c == "direction"
+        || c.starts_with("scalar:")
+        || c.starts_with("volume:")
+        || Color::Hex(c.to_string()).rgb().is_ok();
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "'{c}' is not direction, scalar:NAME, volume:PATH or #rrggbb"
+        ))
+    }
+}
+
 fn default_background() -> Color {
     Color::Rgb([1.0, 1.0, 1.0])
 }
@@ -685,17 +701,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 format!("{} is not positive", t.tolerance),
             );
         }
-        let c = t.color.as_str();
-        let ok = c == "direction"
-            || c.starts_with("scalar:")
-            || c.starts_with("volume:")
-            || Color::Hex(c.to_string()).rgb().is_ok();
-        if !ok {
-            return bad(
-                &format!("tubes[{i}].color"),
-                format!("'{c}' is not direction, scalar:NAME, volume:PATH or #rrggbb"),
-            );
-        }
+        check_color_source(&t.color).map_err(|why| format!("scene key tubes[{i}].color: {why}"))?;
     }
     for (i, l) in s.lines.iter_mut().enumerate() {
         if l.path.is_relative() {
@@ -713,17 +719,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 format!("{} pixels: at most 256", l.width),
             );
         }
-        let c = l.color.as_str();
-        let ok = c == "direction"
-            || c.starts_with("scalar:")
-            || c.starts_with("volume:")
-            || Color::Hex(c.to_string()).rgb().is_ok();
-        if !ok {
-            return bad(
-                &format!("lines[{i}].color"),
-                format!("'{c}' is not direction, scalar:NAME, volume:PATH or #rrggbb"),
-            );
-        }
+        check_color_source(&l.color).map_err(|why| format!("scene key lines[{i}].color: {why}"))?;
     }
     for (i, c) in s.clip.iter().enumerate() {
         if glam::DVec3::from(c.normal).length() < 1e-12 {
