@@ -147,7 +147,10 @@ pub struct LineParams {
     pub p11: f32,
     /// Width and height in pixels.
     pub viewport: [f32; 2],
-    pub pad: [f32; 2],
+    /// 1: perspective, 0: orthographic.
+    pub perspective: u32,
+    /// The nearest clip-space w a strip's end may have: segments are cut there.
+    pub min_w: f32,
 }
 
 /// A line set's draw in one frame: the bind groups of its view (group 0, as a mesh's) and of
@@ -316,8 +319,9 @@ fn target_ms(
     h: u32,
     samples: u32,
 ) -> wgpu::TextureView {
-    let key = format!("target {label} {format:?} {w}x{h}x{samples}");
-    gpu.cached(key, || {
+    // One target per label and format, replaced when the size or the sample count changes.
+    let key = format!("target {label} {format:?}");
+    gpu.sized_entry(key, (w, h, samples), || {
         gpu.device
             .create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
@@ -392,6 +396,13 @@ impl GBuffer {
             })
             .collect();
         let p11 = camera.projection_matrix(aspect).y_axis.y as f32;
+        let persp = matches!(
+            camera.projection,
+            occlusion::camera::Projection::Perspective { .. }
+        );
+        // Clip-space w is the view depth under perspective (1 under orthographic projection):
+        // strips end no nearer than half the near plane.
+        let min_w = if persp { 0.5 * camera.near as f32 } else { 0.0 };
         let lines = lines
             .iter()
             .map(|l| {
@@ -405,7 +416,8 @@ impl GBuffer {
                     cylinder: l.cylinder as u32,
                     p11,
                     viewport: [width as f32, height as f32],
-                    pad: [0.0; 2],
+                    perspective: persp as u32,
+                    min_w,
                 };
                 let params = gpu.buffer(
                     "line params",
@@ -540,7 +552,8 @@ mod tests {
                 cylinder,
                 p11,
                 viewport,
-                pad,
+                perspective,
+                min_w,
             }
         );
         crate::prelude::assert_layout!(

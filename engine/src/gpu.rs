@@ -78,7 +78,8 @@ pub enum Slot {
 /// (wgpu handles are reference-counted clones), so a second frame compiles nothing; scratch
 /// buffers ([`Gpu::scratch`]) are kept per label and size, so frames of one image size reuse
 /// them. Frames are recorded and waited for one at a time, which is what makes sharing the
-/// scratch buffers safe.
+/// scratch buffers safe: draw from one thread at a time (two threads drawing on one `Gpu`
+/// would share the frame's buffers).
 pub struct Gpu {
     pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
@@ -548,6 +549,22 @@ impl Gpu {
         self.sized(key, size.max(16), || self.zeroed(label, size, extra))
     }
 
+    /// The value pooled under `key` while its description `desc` (a size, a sample count) is
+    /// the same; else a new one from `make`, which replaces it in the pool (the old one is
+    /// released when its last user drops it).
+    pub fn sized_entry<D, T>(&self, key: String, desc: D, make: impl FnOnce() -> T) -> T
+    where
+        D: PartialEq + Clone + Send + Sync + 'static,
+        T: Clone + Send + Sync + 'static,
+    {
+        if let Some((d, v)) = self.pool_get::<(D, T)>(&key) {
+            if d == desc {
+                return v;
+            }
+        }
+        self.pool_put(key, (desc, make())).1
+    }
+
     /// The buffer pooled under `key` while its size is `size`; else a new one from `make`
     /// (of that size), which replaces it in the pool.
     pub fn sized(
@@ -598,11 +615,9 @@ impl Gpu {
         rx.recv()
             .map_err(|_| GpuError::Operation("buffer mapping callback never ran".into()))?
             .map_err(|e| GpuError::Operation(format!("mapping a buffer: {e}")))?;
-        let data = slice
-            .get_mapped_range()
-            .map_err(|e| GpuError::Operation(format!("reading a mapped buffer: {e:?}")))?
-            .to_vec();
+        let data = slice.get_mapped_range().map(|r| r.to_vec());
+        // Unmapped whatever happened: a pooled buffer left mapped would fail every later copy.
         buffer.unmap();
-        Ok(data)
+        data.map_err(|e| GpuError::Operation(format!("reading a mapped buffer: {e:?}")))
     }
 }

@@ -285,10 +285,12 @@ impl<'g> Renderer<'g> {
 
     /// Gives an uploaded scene's volume a new transfer function (`volume` is the volume as
     /// uploaded, with the new function): the samples stay on the GPU, only the function and
-    /// the brick occupancy are uploaded. Does nothing for a scene without a volume.
-    pub fn set_transfer(&self, scene: &mut GpuScene, volume: &VolumeInput) {
-        if let Some(v) = scene.volume.as_mut() {
-            v.set_transfer(self.gpu, volume);
+    /// the brick occupancy are uploaded. Does nothing for a scene without a volume; an error
+    /// when `volume` is not the grid that was uploaded.
+    pub fn set_transfer(&self, scene: &mut GpuScene, volume: &VolumeInput) -> Result<(), GpuError> {
+        match scene.volume.as_mut() {
+            Some(v) => v.set_transfer(self.gpu, volume),
+            None => Ok(()),
         }
     }
 

@@ -202,7 +202,14 @@ impl GpuVolume {
     /// Replaces the transfer function (and the brick occupancy, which depends on it) of an
     /// uploaded volume, keeping its samples on the GPU: `vi` is the volume as uploaded with its
     /// new transfer function.
-    pub fn set_transfer(&mut self, gpu: &Gpu, vi: &VolumeInput) {
+    pub fn set_transfer(&mut self, gpu: &Gpu, vi: &VolumeInput) -> Result<(), GpuError> {
+        if vi.vol.dims != self.dims || vi.data.len() != vi.vol.dims.iter().product::<usize>() {
+            return Err(GpuError::Operation(format!(
+                "a new transfer function for a {:?} volume; the uploaded one is {:?} (pass the \
+                 volume as uploaded, after any downsampling)",
+                vi.vol.dims, self.dims
+            )));
+        }
         let storage = wgpu::BufferUsages::STORAGE;
         let (bricks, occ) = occupancy(vi.data, vi.vol.dims, vi.tf);
         self.tf = gpu.buffer(
@@ -214,6 +221,7 @@ impl GpuVolume {
         self.bricks = bricks;
         self.tf_points = vi.tf.points.len() as u32;
         self.tf_rows = vi.tf.rows.len() as u32;
+        Ok(())
     }
 
     #[allow(clippy::too_many_arguments)]

@@ -287,3 +287,43 @@ fn clip_planes_cut_lines_and_lines_share_the_depth_test_with_tubes() {
     );
     assert_eq!(o.triangles, scene.triangles());
 }
+
+#[test]
+fn lines_off_centre_and_lines_through_the_eye_plane_are_drawn_right() {
+    let gpu = gpu();
+    // Orthographic: the eye is a direction, so a line off the image centre faces it as fully
+    // as one through the centre (same shade, 1.3).
+    let off = vec![[-20.0, 8.0, 0.0], [20.0, 8.0, 0.0]];
+    let cam = top_camera(false);
+    let o = render(
+        &gpu,
+        &[lines(
+            std::slice::from_ref(&off),
+            LineWidth::Pixels(5.0),
+            false,
+        )],
+        cam,
+        &[],
+    );
+    let (x, y, _) = cam
+        .to_pixel(DVec3::new(-9.0, 8.0, 0.0), W as usize, H as usize)
+        .unwrap();
+    let v = o.image[x as usize + W as usize * y as usize][0];
+    assert!((v - 1.3).abs() < 1e-3, "{v}");
+    // Perspective, a world-width line from behind the eye to in front of it: cut at the
+    // near side, not widened into a wedge over the image.
+    let through = vec![[3.0, 0.0, 90.0], [3.0, 0.0, -10.0]];
+    let o = render(
+        &gpu,
+        &[lines(&[through], LineWidth::World(0.5), false)],
+        top_camera(true),
+        &[],
+    );
+    assert!(o.image.iter().flatten().all(|v| v.is_finite()));
+    let covered = o.aov.iter().filter(|a| a.depth > 0.0).count();
+    assert!(
+        covered > 0 && covered < (W * H / 4) as usize,
+        "{covered} of {} pixels",
+        W * H
+    );
+}

@@ -718,7 +718,8 @@ fn a_long_lived_renderer_draws_new_cameras_without_compiling_or_uploading() {
             data,
             tf: &denser,
         },
-    );
+    )
+    .unwrap();
     let swapped = r
         .draw(
             &scene,

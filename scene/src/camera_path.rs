@@ -120,6 +120,7 @@ impl CameraPath {
         for (i, k) in p.key.iter().enumerate() {
             let orbit = k.azimuth.is_some() || k.elevation.is_some() || k.distance.is_some();
             let look = k.eye.is_some() || k.target.is_some() || k.up.is_some();
+
             if orbit && look {
                 return Err(format!(
                     "key[{i}]: give orbit angles (azimuth, elevation, distance) or eye/target/up, not both"
@@ -146,14 +147,20 @@ impl CameraPath {
                 ));
             }
         }
-        let first_look = p.key[0].eye.is_some();
-        if let Some(i) = p.key.iter().position(|k| k.eye.is_some() != first_look) {
+        // A key is a look-at key when it gives eye, target or up; the first look-at key gives
+        // the eye (later ones may retarget alone), and every key is of the first one's kind.
+        let look = |k: &Key| k.eye.is_some() || k.target.is_some() || k.up.is_some();
+        let first_look = look(&p.key[0]);
+        if first_look && p.key[0].eye.is_none() {
+            return Err("key[0]: a look-at path starts with an eye".into());
+        }
+        if let Some(i) = p.key.iter().position(|k| look(k) != first_look) {
             return Err(format!(
                 "key[{i}]: all keys must be of one kind ({} like key[0])",
                 if first_look {
-                    "with an eye"
+                    "eye, target or up"
                 } else {
-                    "orbit angles, no eye"
+                    "orbit angles, no eye, target or up"
                 }
             ));
         }
@@ -210,6 +217,7 @@ impl CameraPath {
             c.fov_y = f;
         }
         if self.key[0].eye.is_some() {
+            // Look-at: each of eye, target and up interpolated over the keys that give it.
             c.eye = vec3(&|k| k.eye);
             if let Some(tg) = vec3(&|k| k.target) {
                 c.target = Some(tg);
@@ -360,6 +368,14 @@ mod tests {
         }
         let mid = c.camera_at(&base, 1.5).azimuth;
         assert!(mid > 90.0 && mid < 360.0, "{mid}");
+        // A look-at key may retarget alone: the eye holds, the target moves.
+        let r = CameraPath::parse(
+            "frames = 3\n[[key]]\ntime = 0\neye = [0, -10, 0]\ntarget = [0, 0, 0]\n[[key]]\ntime = 2\ntarget = [2, 0, 0]\n",
+        )
+        .unwrap();
+        let mid = r.camera_at(&base, 1.0);
+        assert_eq!(mid.eye, Some([0.0, -10.0, 0.0]));
+        assert_eq!(mid.target, Some([1.0, 0.0, 0.0]));
         // fps: floor(2 * 2) + 1 = 5 frames, 0.5 s apart.
         let f = CameraPath::parse("fps = 2\n[[key]]\ntime = 0\n[[key]]\ntime = 2\n").unwrap();
         assert_eq!(f.frame_times(), vec![0.0, 0.5, 1.0, 1.5, 2.0]);
@@ -383,6 +399,10 @@ mod tests {
         bad(
             "frames = 2\n[[key]]\ntime = 0\neye = [1, 2, 3]\n[[key]]\ntime = 1\nazimuth = 3\n",
             "key[1]",
+        );
+        bad(
+            "frames = 2\n[[key]]\ntime = 0\ntarget = [1, 2, 3]\n",
+            "key[0]: a look-at path starts with an eye",
         );
         bad("[[key]]\ntime = 0\n", "frames or fps");
         bad("frames = 0\n[[key]]\ntime = 0\n", "frames");

@@ -438,7 +438,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     }
     let mut lines = vec![];
     for (i, l) in s.lines.iter().enumerate() {
-        lines.push(line_set(i, l)?);
+        lines.push(line_set(i, l, &mut notes)?);
     }
     let mut boxes: Vec<[DVec3; 2]> = meshes.iter().filter_map(mesh_bounds).collect();
     boxes.extend(lines.iter().filter_map(LineSet::bounds));
@@ -478,8 +478,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     })
 }
 
-/// The line set of `[[lines]]` number `i`: the tractogram read, transformed and coloured.
-fn line_set(i: usize, l: &spec::LinesSpec) -> Result<LineSet, String> {
+/// The line set of `[[lines]]` number `i`: the tractogram read (its reader's warnings added to
+/// `notes`), transformed and coloured.
+fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<LineSet, String> {
     let mut sl = tubes::load(&l.path).map_err(|e| format!("lines[{i}]: {e}"))?;
     if let Some(m) = l.transform {
         let key = format!("lines[{i}].transform");
@@ -490,6 +491,7 @@ fn line_set(i: usize, l: &spec::LinesSpec) -> Result<LineSet, String> {
         spec::WidthUnit::World => LineWidth::World(l.width),
     };
     let cylinder = l.profile == spec::LineProfile::Cylinder;
+    notes.extend(sl.warnings.iter().map(|w| format!("lines[{i}]: {w}")));
     crate::tube_sets::with_color_mode(&sl, &l.color, |c| LineSet::new(&sl, c, width, cylinder))
         .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))
 }

@@ -69,7 +69,7 @@ pub struct TubesSummary {
 
 fn parse_hex(s: &str) -> Result<[f32; 3], String> {
     let h = s.trim_start_matches('#');
-    if h.len() != 6 {
+    if h.len() != 6 || !h.is_ascii() {
         return Err(format!("colour {s}: expected #rrggbb"));
     }
     let c = |i: usize| {

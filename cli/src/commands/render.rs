@@ -150,8 +150,19 @@ pub fn size_method_overrides(
 
 /// One line about a render.
 pub fn summary(r: &RenderReport) -> String {
+    // Per-pass times only when they were measured (--timings-json, --frames above 1).
+    let passes = if r.passes.is_empty() {
+        String::new()
+    } else {
+        let list: Vec<String> = r
+            .passes
+            .iter()
+            .map(|(k, v)| format!("{k} {v:.1}"))
+            .collect();
+        format!(" ({})", list.join(", "))
+    };
     format!(
-        "{}: {} x {}, {} slices {:.4} apart, {} triangles, on {}: {:.1} ms per frame ({}), {:.2} s in all",
+        "{}: {} x {}, {} slices {:.4} apart, {} triangles, on {}: {:.1} ms per frame{passes}, {:.2} s in all",
         r.method,
         r.width,
         r.height,
@@ -160,11 +171,6 @@ pub fn summary(r: &RenderReport) -> String {
         r.triangles,
         r.adapter,
         r.total_ms,
-        r.passes
-            .iter()
-            .map(|(k, v)| format!("{k} {v:.1}"))
-            .collect::<Vec<_>>()
-            .join(", "),
         r.seconds
     )
 }
