@@ -53,7 +53,7 @@ fn vs(v: VIn) -> VOut {
 }
 
 // Line sets (Rust: gbuffer::GpuLines): screen-facing strips built here from the points (vertex
-// pulling, six vertices per segment instance, nothing duplicated on the CPU). Keep in sync with
+// pulling, six vertices per segment, nothing duplicated on the CPU). Keep in sync with
 // `gbuffer::LineParams`.
 struct LineParams {
     // half the line's width: pixels, or world units when `world` is 1
@@ -63,7 +63,10 @@ struct LineParams {
     // the projection's P11: a world unit at linear depth w spans 0.5 P11 height / w pixels
     p11: f32,
     viewport: vec2<f32>,
-    pad: vec2<f32>,
+    // 1: perspective (the eye is a point), 0: orthographic (the eye is a direction)
+    perspective: u32,
+    // the nearest clip-space w a strip's end may have (segments are cut there)
+    min_w: f32,
 };
 
 @group(1) @binding(0) var<uniform> LP: LineParams;
@@ -79,10 +82,24 @@ fn line_point(i: u32) -> vec3<f32> {
 }
 
 @vertex
-fn vs_line(@builtin(vertex_index) vi: u32, @builtin(instance_index) seg: u32) -> VOut {
-    let i = line_segments[seg];
-    let a = line_point(i) + G.offset.xyz;
-    let b = line_point(i + 1u) + G.offset.xyz;
+fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
+    // Six vertices per segment, in one non-instanced draw.
+    let vi = index % 6u;
+    let i = line_segments[index / 6u];
+    var a = line_point(i) + G.offset.xyz;
+    var b = line_point(i + 1u) + G.offset.xyz;
+    // Cut the segment where it crosses behind the eye (w below min_w), so that a strip is never
+    // widened from a point behind the camera; a segment wholly behind is dropped.
+    let wa = (G.view_proj_rel * vec4<f32>(a, 1.0)).w;
+    let wb = (G.view_proj_rel * vec4<f32>(b, 1.0)).w;
+    var behind = false;
+    if (wa < LP.min_w && wb < LP.min_w) {
+        behind = true;
+    } else if (wa < LP.min_w) {
+        a = mix(a, b, (LP.min_w - wa) / (wb - wa));
+    } else if (wb < LP.min_w) {
+        b = mix(b, a, (LP.min_w - wb) / (wa - wb));
+    }
     // The corner: which end (0: a, 1: b) and which side of the strip, two triangles.
     let ends = array<u32, 6>(0u, 1u, 0u, 0u, 1u, 1u);
     let sides = array<f32, 6>(-1.0, -1.0, 1.0, 1.0, -1.0, 1.0);
@@ -118,12 +135,20 @@ fn vs_line(@builtin(vertex_index) vi: u32, @builtin(instance_index) seg: u32) ->
     let along = select(-1.0, 1.0, end == 1u);
     let off = n * (side * hw) + d * (along * hw);
     c = vec4<f32>(c.xy + off * 2.0 / LP.viewport * c.w, c.z, c.w);
+    if (behind) {
+        // Outside every clip volume: the triangle is dropped.
+        c = vec4<f32>(0.0, 0.0, -1.0, 1.0);
+    }
     var o: VOut;
     o.clip = c;
     o.rel = p;
     o.color = unpack4x8unorm(line_colors[select(i, i + 1u, end == 1u)]).rgb;
-    // The view-facing normal (T x C) x T of illuminated lines, C towards the eye.
-    let to_eye = -normalize(p);
+    // The view-facing normal (T x C) x T of illuminated lines, C towards the eye (a point
+    // under perspective, a direction under orthographic projection).
+    var to_eye = -G.forward.xyz;
+    if (LP.perspective != 0u) {
+        to_eye = -normalize(p);
+    }
     let s = cross(t, to_eye);
     var normal = to_eye;
     if (dot(s, s) > 1e-12) {

@@ -502,7 +502,9 @@ impl GBuffer {
             )),
         }
         passes.push((&p.back, vec![clear(&self.back)], &self.depth_back));
-        for (pipe, targets, depth) in passes {
+        let n_passes = passes.len();
+        for (k, (pipe, targets, depth)) in passes.into_iter().enumerate() {
+            let back = k + 1 == n_passes;
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("gbuffer"),
                 color_attachments: &targets,
@@ -527,13 +529,15 @@ impl GBuffer {
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..m.count, 0, 0..1);
             }
-            if !self.lines.is_empty() {
+            // Lines have no back faces: the back-depth pass leaves them out.
+            let lines: &[LineDraw] = if back { &[] } else { &self.lines };
+            if !lines.is_empty() {
                 pass.set_pipeline(&pipe.line);
             }
-            for l in &self.lines {
+            for l in lines {
                 pass.set_bind_group(0, &l.view, &[]);
                 pass.set_bind_group(1, &l.data, &[]);
-                pass.draw(0..6, 0..l.segments);
+                pass.draw(0..l.segments.saturating_mul(6), 0..1);
             }
         }
     }
