@@ -13,8 +13,9 @@
 //! Timings: `total_ms` is the median over frames of one frame's submit-to-completion time
 //! (everything recorded in one command buffer, then waited for). Per-pass times, when asked
 //! for, come from one more frame: GPU timestamps written between its passes where the adapter
-//! can (`PassClock::Timestamps`), else each pass submitted and waited for on its own
-//! (`PassClock::Fences`, which adds a submission's overhead to each).
+//! can and is not a CPU adapter (`PassClock::Timestamps`; see `Gpu::has_pass_timestamps`),
+//! else each pass submitted and waited for on its own (`PassClock::Fences`, which adds a
+//! submission's overhead to each).
 
 use crate::composite::{CompositePass, CompositeSettings};
 use crate::fxaa::FxaaPass;
