@@ -3,34 +3,19 @@
 //! segments, clip planes, the view-facing normal of illuminated lines and the cylinder
 //! profile, and lines beside tubes in one depth test.
 
+mod common;
+use common::{gpu, top_camera};
 use engine::gpu::Gpu;
 use engine::method::{Method, Settings};
 use engine::renderer::{DrawOptions, Output, Renderer};
 use glam::{DVec3, Vec3};
-use occlusion::camera::{Camera, Projection};
+use occlusion::camera::Camera;
 use occlusion::emission_absorption::EaView;
 use tubes::lines::{LineSet, LineWidth};
 use tubes::tube_mesh::ColorMode;
 
 const W: u32 = 64;
 const H: u32 = 64;
-
-fn gpu() -> Gpu {
-    Gpu::new().expect("a GPU adapter (CI installs mesa-vulkan-drivers for lavapipe)")
-}
-
-/// Looking down -z at [-12, 12]^2, orthographic (24 units tall: 8/3 pixels a unit) or
-/// perspective.
-fn top_camera(perspective: bool) -> Camera {
-    let bounds = [DVec3::splat(-12.0), DVec3::splat(12.0)];
-    let projection = if perspective {
-        Projection::Perspective { fov_y_deg: 30.0 }
-    } else {
-        Projection::Orthographic { height: 24.0 }
-    };
-    let eye = DVec3::new(0.0, 0.0, if perspective { 46.0 } else { 40.0 });
-    Camera::look_at(eye, DVec3::ZERO, DVec3::Y, projection, bounds).unwrap()
-}
 
 fn view(cam: Camera) -> EaView {
     let bounds = [DVec3::splat(-12.0), DVec3::splat(12.0)];

@@ -6,12 +6,14 @@
 //! vicinity occlusion than an isolated one; min and product combine as eq. 7 and 8;
 //! orthographic and perspective cameras agree; clipping planes remove what they should.
 
+mod common;
+use common::{gpu, top_camera};
 use engine::gpu::Gpu;
 use engine::method::{Combine, Method};
 use engine::renderer::{self, Output, Settings};
 use engine::slice_pass::VolumeInput;
 use glam::{DMat4, DVec3, DVec4};
-use occlusion::camera::{Camera, Projection};
+use occlusion::camera::Camera;
 use occlusion::emission_absorption::{EaView, Transfer};
 use tubes::tube_mesh::TubeMesh;
 use volume::{Field, ScalarType, Space, Volume};
@@ -63,18 +65,6 @@ fn tubes(lines: &[[[f32; 3]; 2]], radius: f64) -> TubeMesh {
     tubes::tube_mesh::straight_tubes(lines, radius, 16, [192.0 / 255.0; 3])
 }
 
-/// Looking down -z from above, orthographic (24 units tall) or perspective (30 degrees).
-fn top_camera(perspective: bool) -> Camera {
-    let bounds = [DVec3::splat(-12.0), DVec3::splat(12.0)];
-    let projection = if perspective {
-        Projection::Perspective { fov_y_deg: 30.0 }
-    } else {
-        Projection::Orthographic { height: 24.0 }
-    };
-    let eye = DVec3::new(0.0, 0.0, if perspective { 46.0 } else { 40.0 });
-    Camera::look_at(eye, DVec3::ZERO, DVec3::Y, projection, bounds).unwrap()
-}
-
 fn view(cam: Camera) -> EaView {
     let bounds = [DVec3::splat(-12.0), DVec3::splat(12.0)];
     EaView::span(bounds, 1.0, cam, W, H, None, Some(0.25), [1.0, 1.0, 1.0]).unwrap()
@@ -123,10 +113,6 @@ fn settings(method: Method) -> Settings {
         fxaa: false,
         ..Default::default()
     }
-}
-
-fn gpu() -> Gpu {
-    Gpu::new().expect("a GPU adapter (CI installs mesa-vulkan-drivers for lavapipe)")
 }
 
 /// Pixel index of a world point.
