@@ -52,7 +52,8 @@ fn vs(v: VIn) -> VOut {
     return o;
 }
 
-// Line sets (Rust: gbuffer::GpuLines): screen-facing strips built here from the points (vertex
+// Line sets (Rust: gbuffer::GpuLines; the maths and its CPU twin: occlusion::illuminated_lines,
+// after Zöckler et al. 1996 and Mallo et al. 2005): screen-facing strips built here from the points (vertex
 // pulling, six vertices per segment, nothing duplicated on the CPU). Keep in sync with
 // `gbuffer::LineParams`.
 struct LineParams {

@@ -7,6 +7,7 @@
 //! | Schott et al. 2012, combined surface and volumetric occlusion | [`combined`] (+ [`emission_absorption`], [`reference`](mod@reference), [`reference_tubes`]) | [`combined`] |
 //! | Singh, Yuksel & House 2009, fast occlusion sweeping | [`sweeping`] (the fields, re-exported from `volume`) + [`isosurface`] | [`sweeping`] |
 //! | Eichelbaum, Hlawitschka & Scheuermann 2013, LineAO (screen-space AO of dense lines and tubes) | [`line_ao`] | [`line_ao`] |
+//! | Zöckler et al. 1996, illuminated lines; Mallo et al. 2005, pseudo-tubes (how line sets are shaded and sized) | [`illuminated_lines`] | [`illuminated_lines`] |
 //! | the projection conventions and the paper's texture-radius erratum | [`camera`] | [`camera`] |
 //!
 //! Nothing here imports `wgpu`: the `engine` crate depends on this one, never the reverse.
@@ -14,6 +15,7 @@
 pub mod camera;
 pub mod combined;
 pub mod emission_absorption;
+pub mod illuminated_lines;
 pub mod isosurface;
 pub mod line_ao;
 pub mod reference;
