@@ -187,13 +187,8 @@ impl Model {
     /// the transfer function's NaN mapping) and every mesh's vertices, normals, colours and
     /// indices. Keys caches of results that depend on the data, not on file names.
     pub fn data_hash(&self) -> u64 {
-        let mut h = 0xcbf2_9ce4_8422_2325u64;
-        let mut eat = |bytes: &[u8]| {
-            for b in bytes {
-                h ^= *b as u64;
-                h = h.wrapping_mul(0x0100_0000_01b3);
-            }
-        };
+        let mut h = crate::hash::Fnv1a::default();
+        let mut eat = |bytes: &[u8]| h.eat(bytes);
         if let Some((v, data, _)) = &self.volume {
             eat(bytemuck::cast_slice(&v.dims.map(|d| d as u64)));
             eat(bytemuck::cast_slice(&v.affine.to_cols_array()));
@@ -216,7 +211,7 @@ impl Model {
             eat(m.colors.as_flattened());
             eat(bytemuck::cast_slice(&m.indices));
         }
-        h
+        h.finish()
     }
 }
 

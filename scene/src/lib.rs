@@ -8,6 +8,7 @@
 pub mod camera_path;
 pub mod compile;
 pub mod fields;
+pub mod hash;
 pub mod image_io;
 pub mod render;
 pub mod spec;

@@ -1,15 +1,9 @@
 //! Image metrics of the benchmarks: RMSE, largest error, PSNR and SSIM against a reference,
-//! the Pareto front of (time, error) points, and FNV-1a (the reference cache's key).
+//! the Pareto front of (time, error) points, and the reference cache's key (FNV-1a, from
+//! `scene::hash`).
 
 /// FNV-1a, 64 bits: the reference cache's key.
-pub fn fnv(bytes: &[u8]) -> u64 {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
-    for b in bytes {
-        h ^= *b as u64;
-        h = h.wrapping_mul(0x0100_0000_01b3);
-    }
-    h
-}
+pub use scene::hash::fnv1a as fnv;
 
 /// Luminance of linear RGB.
 fn luma(c: [f64; 3]) -> f64 {
