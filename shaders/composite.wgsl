@@ -12,7 +12,9 @@ struct Params {
     n_terms: u32,
     // 0: min (eq. 7), 1: product (eq. 8)
     product: u32,
-    pad: vec2<u32>,
+    // 1: LineAO's paper shading, combined c + specular (Eichelbaum et al. §3.3)
+    paper_shading: u32,
+    pad: u32,
 };
 
 @group(0) @binding(0) var<uniform> C: Params;
@@ -88,8 +90,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         // view direction; cos of it is 2 (n.l)^2 - 1.
         let rv = max(2.0 * nl * nl - 1.0, 0.0);
         let spec = C.light.specular * pow(rv, C.light.shininess);
-        // eq. 9
-        sum = sum + combined * c.rgb * (C.light.ambient + C.light.diffuse * nl) + vec3<f32>(spec);
+        // eq. 9, or LineAO's paper shading (the AO in place of ambient and diffuse)
+        var lit = C.light.ambient + C.light.diffuse * nl;
+        if (C.paper_shading != 0u) {
+            lit = 1.0;
+        }
+        sum = sum + combined * c.rgb * lit + vec3<f32>(spec);
         covered = covered + 1.0;
     }
     if (covered > 0.0) {

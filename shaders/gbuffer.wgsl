@@ -15,7 +15,8 @@ struct Params {
     // clipping planes (normal, offset), keeping normal . p <= offset
     clip: array<vec4<f32>, 8>,
     n_clip: u32,
-    pad0: u32,
+    // LineAO's width code of the mesh's pixels (see `width_code` in VOut)
+    width_code: f32,
     pad1: u32,
     pad2: u32,
 };
@@ -37,6 +38,11 @@ struct VOut {
     // and the half width in world units; zero for tubes and flat lines.
     @location(3) bend: vec3<f32>,
     @location(4) bulge: f32,
+    // The width LineAO's r0 follows (the ND target's alpha): a width in pixels (> 0), minus a
+    // world diameter (< 0: tubes, world-width lines), or 0 when unknown.
+    @location(5) width_code: f32,
+    // Lines: the world radius they stand for in the volume's shadow (0: none); tubes: 0.
+    @location(6) proxy: f32,
 };
 
 @vertex
@@ -49,6 +55,8 @@ fn vs(v: VIn) -> VOut {
     o.rel = rel;
     o.bend = vec3<f32>(0.0);
     o.bulge = 0.0;
+    o.width_code = G.width_code;
+    o.proxy = 0.0;
     return o;
 }
 
@@ -68,6 +76,11 @@ struct LineParams {
     perspective: u32,
     // the nearest clip-space w a strip's end may have (segments are cut there)
     min_w: f32,
+    // the world radius the lines stand for in the volume's shadow (0: none)
+    proxy_radius: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 };
 
 @group(1) @binding(0) var<uniform> LP: LineParams;
@@ -158,6 +171,8 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     o.normal = normal;
     o.bend = vec3<f32>(0.0);
     o.bulge = 0.0;
+    o.width_code = select(2.0 * LP.half_width, -2.0 * LP.half_width, LP.world != 0u);
+    o.proxy = LP.proxy_radius;
     if (LP.cylinder != 0u && dot(s, s) > 1e-12) {
         o.bend = normalize(s) * side;
         o.bulge = hw / px_per_world;
@@ -235,10 +250,33 @@ fn fs_depth(v: VOut) -> @location(0) vec4<f32> {
     return vec4<f32>(surface_depth(v), 0.0, 0.0, 1.0);
 }
 
+// LineAO's normal-depth map (single sample, drawn with the guard band): the nearest
+// surface's linear depth, and its world normal facing the viewer with the width code in alpha.
+struct NdOut {
+    @location(0) depth: vec4<f32>,
+    @location(1) normal: vec4<f32>,
+};
+
+@fragment
+fn fs_nd(v: VOut) -> NdOut {
+    let f = front_values(v);
+    var o: NdOut;
+    o.depth = f.depth;
+    o.normal = vec4<f32>(f.normal.xyz, v.width_code);
+    return o;
+}
+
 @fragment
 fn fs_back(v: VOut) -> @location(0) vec4<f32> {
+    if (clipped(v.rel)) {
+        discard;
+    }
+    if (v.proxy > 0.0) {
+        // A line standing for a tube of radius `proxy`: its far side, a diameter behind.
+        return vec4<f32>(surface_depth(v) + 2.0 * v.proxy, 0.0, 0.0, 1.0);
+    }
     // Back faces by their normal (the mesh's winding is not relied on).
-    if (clipped(v.rel) || dot(v.normal, v.rel) < 0.0) {
+    if (dot(v.normal, v.rel) < 0.0) {
         discard;
     }
     return vec4<f32>(dot(v.rel, G.forward.xyz), 0.0, 0.0, 1.0);

@@ -30,6 +30,9 @@ pub struct CompositeSettings {
     /// ambient, diffuse, specular, shininess
     pub light: [f64; 4],
     pub background: [f64; 3],
+    /// LineAO's paper shading (§3.3): surfaces `combined c + specular`, no ambient and
+    /// diffuse terms.
+    pub paper_shading: bool,
 }
 
 /// The G-buffer's colour and normal bindings (4, 5), single or multisampled, behind the same
@@ -65,7 +68,9 @@ pub struct CompositeParams {
     pub n_terms: u32,
     /// 0: min (eq. 7), 1: product (eq. 8).
     pub product: u32,
-    pub pad: [u32; 2],
+    /// 1: LineAO's paper shading.
+    pub paper_shading: u32,
+    pub pad: u32,
 }
 
 pub struct CompositePass {
@@ -129,7 +134,8 @@ impl CompositePass {
             light: s.light.into(),
             n_terms: s.terms,
             product: (s.combine == Combine::Product) as u32,
-            pad: [0; 2],
+            paper_shading: s.paper_shading as u32,
+            pad: 0,
         };
         let params = gpu.buffer(
             "composite params",
@@ -186,6 +192,7 @@ mod tests {
                     light,
                     n_terms,
                     product,
+                    paper_shading,
                     pad,
                 }
             );

@@ -46,7 +46,8 @@ pub struct GBufferParams {
     pub eye: [f32; 4],
     pub clip: [[f32; 4]; 8],
     pub n_clip: u32,
-    pub pad0: u32,
+    /// LineAO's width code of the mesh's pixels: minus the tubes' diameter, 0 when unknown.
+    pub width_code: f32,
     pub pad1: u32,
     pub pad2: u32,
 }
@@ -60,6 +61,8 @@ pub struct GpuMesh {
     count: u32,
     /// The mesh's f64 origin (its positions are f32 relative to it).
     origin: DVec3,
+    /// The tubes' nominal diameter, world units (0: unknown).
+    diameter: f32,
 }
 
 impl GpuMesh {
@@ -86,12 +89,18 @@ impl GpuMesh {
             ),
             count: m.indices.len() as u32,
             origin: m.origin,
+            diameter: (2.0 * m.radius.max(0.0)) as f32,
         })
     }
 
     /// Triangles of the mesh.
     pub fn triangles(&self) -> u64 {
         self.count as u64 / 3
+    }
+
+    /// The tubes' nominal diameter, world units (0: unknown).
+    pub fn diameter(&self) -> f32 {
+        self.diameter
     }
 }
 
@@ -107,6 +116,7 @@ pub struct GpuLines {
     origin: DVec3,
     width: LineWidth,
     cylinder: bool,
+    proxy_radius: f32,
 }
 
 impl GpuLines {
@@ -125,12 +135,18 @@ impl GpuLines {
             origin: l.origin,
             width: l.width,
             cylinder: l.cylinder,
+            proxy_radius: l.proxy_radius.max(0.0),
         })
     }
 
     /// Segments drawn per pass.
     pub fn segments(&self) -> u64 {
         self.count as u64
+    }
+
+    /// The set's line width.
+    pub fn width(&self) -> LineWidth {
+        self.width
     }
 }
 
@@ -151,6 +167,11 @@ pub struct LineParams {
     pub perspective: u32,
     /// The nearest clip-space w a strip's end may have: segments are cut there.
     pub min_w: f32,
+    /// The world radius the lines stand for in the volume's shadow (0: none).
+    pub proxy_radius: f32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
 }
 
 /// A line set's draw in one frame: the bind groups of its view (group 0, as a mesh's) and of
@@ -159,12 +180,35 @@ struct LineDraw {
     view: wgpu::BindGroup,
     data: wgpu::BindGroup,
     segments: u32,
+    /// The set stands for tubes in the volume's shadow: drawn in the back-depth pass too.
+    proxy: bool,
 }
 
 /// A mesh's draw in one frame: its buffers and the bind group of its per-view uniform.
 struct MeshDraw {
     mesh: GpuMesh,
     bind: wgpu::BindGroup,
+}
+
+/// LineAO's normal-depth map (Eichelbaum et al. §3.2): the nearest surface's linear view depth
+/// (`r32float`, 0: none) and its world normal facing the viewer with the width code in alpha
+/// (`rgba16float`: a width in pixels > 0, minus a world diameter < 0, 0 unknown), single
+/// sampled, rendered `guard` pixels beyond the viewport on every side (§3.4's guard band):
+/// viewport pixel (x, y) is texel (x + guard, y + guard). The band is drawn with the view's
+/// projection widened to the larger image at the same pixel scale (clip x and y scaled by
+/// `W / (W + 2g)` and `H / (H + 2g)`), so the interior is the viewport's raster; the G-buffer's
+/// front depth is then copied from it, so the slices, the terms and the composite see one
+/// depth.
+pub struct NdMap {
+    pub depth: wgpu::TextureView,
+    pub normal: wgpu::TextureView,
+    pub guard: u32,
+    /// The map's size: the viewport plus twice the band.
+    pub size: (u32, u32),
+    depth_tex: wgpu::Texture,
+    z: wgpu::TextureView,
+    meshes: Vec<wgpu::BindGroup>,
+    lines: Vec<(wgpu::BindGroup, wgpu::BindGroup)>,
 }
 
 /// The G-buffer's textures and the recorded draw of every mesh.
@@ -175,6 +219,10 @@ pub struct GBuffer {
     pub front: wgpu::TextureView,
     pub back: wgpu::TextureView,
     pub samples: u32,
+    /// LineAO's normal-depth map, when a frame's terms need it.
+    pub nd: Option<NdMap>,
+    front_tex: wgpu::Texture,
+    size: (u32, u32),
     depth_front: wgpu::TextureView,
     depth_back: wgpu::TextureView,
     depth_ms: Option<wgpu::TextureView>,
@@ -199,6 +247,8 @@ struct Pipelines {
     front: PipelinePair,
     /// Multisampled only: the single-sample depth.
     depth: Option<PipelinePair>,
+    /// LineAO's normal-depth map (single sample).
+    nd: PipelinePair,
     back: PipelinePair,
 }
 
@@ -272,6 +322,7 @@ impl Pipelines {
         Pipelines {
             front,
             depth: ms.then(|| pair("fs_depth", &[t(DEPTH)], 1)),
+            nd: pair("fs_nd", &[t(DEPTH), t(NORMAL)], 1),
             back: pair("fs_back", &[t(DEPTH)], 1),
             layout,
             line_layout,
@@ -307,7 +358,7 @@ fn target(
     format: wgpu::TextureFormat,
     w: u32,
     h: u32,
-) -> wgpu::TextureView {
+) -> (wgpu::Texture, wgpu::TextureView) {
     target_ms(gpu, label, format, w, h, 1)
 }
 
@@ -318,33 +369,47 @@ fn target_ms(
     w: u32,
     h: u32,
     samples: u32,
-) -> wgpu::TextureView {
+) -> (wgpu::Texture, wgpu::TextureView) {
     // One target per label and format, replaced when the size or the sample count changes.
     let key = format!("target {label} {format:?}");
     gpu.sized_entry(key, (w, h, samples), || {
-        gpu.device
-            .create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: samples,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            })
-            .create_view(&Default::default())
+        let mut usage =
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+        if samples == 1 {
+            // The front depth is copied from LineAO's guard-banded map.
+            usage |= wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::COPY_DST;
+        }
+        let t = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: samples,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        });
+        let v = t.create_view(&Default::default());
+        (t, v)
     })
 }
 
+/// `clip` scaled so that a `w x h` viewport becomes the interior of a `(w + 2g) x (h + 2g)`
+/// image at the same pixel scale: pixel (x, y) moves to (x + g, y + g).
+pub fn guard_band(clip: DMat4, w: u32, h: u32, g: u32) -> DMat4 {
+    let sx = w as f64 / (w + 2 * g) as f64;
+    let sy = h as f64 / (h + 2 * g) as f64;
+    DMat4::from_scale(DVec3::new(sx, sy, 1.0)) * clip
+}
+
 impl GBuffer {
-    /// Prepares the passes drawing `meshes` (uploaded) for `camera` at `width x height` with
-    /// `samples` samples per pixel (a count [`sample_count`] returned). The targets are
+    /// Prepares the passes drawing `meshes` and `lines` (uploaded) for `camera` at `width x
+    /// height` with `samples` samples per pixel (a count [`sample_count`] returned), and
+    /// LineAO's normal-depth map with a band of `nd_guard` pixels when given. The targets are
     /// pooled per size (every pass clears what it draws into), the pipelines made once per
     /// sample count.
     #[allow(clippy::too_many_arguments)]
@@ -357,6 +422,7 @@ impl GBuffer {
         lines: &[GpuLines],
         clip: &[([f64; 3], f64)],
         samples: u32,
+        nd_guard: Option<u32>,
     ) -> GBuffer {
         let ms = samples > 1;
         let pipes = gpu.cached(format!("gbuffer pipelines {samples}"), || {
@@ -367,17 +433,17 @@ impl GBuffer {
         let vp_rel = camera.view_projection(aspect) * DMat4::from_translation(camera.eye);
         let f = camera.forward();
         let e = camera.eye;
-        // The view of a set whose positions are relative to `origin`.
-        let view = |origin: DVec3| {
+        // The view of a set whose positions are relative to `origin`, through `vp`.
+        let view = |vp: DMat4, origin: DVec3, width_code: f32| {
             let offset: DVec3 = origin - e;
             let params = GBufferParams {
-                view_proj_rel: mat4(vp_rel),
+                view_proj_rel: mat4(vp),
                 offset: vec4([offset.x, offset.y, offset.z, 0.0]),
                 forward: vec4([f.x, f.y, f.z, 0.0]),
                 eye: vec4([e.x, e.y, e.z, 1.0]),
                 clip: clip_planes(clip),
                 n_clip: clip.len().min(8) as u32,
-                pad0: 0,
+                width_code,
                 pad1: 0,
                 pad2: 0,
             };
@@ -388,13 +454,7 @@ impl GBuffer {
             );
             gpu.bind("gbuffer", &layout, &[params.as_entire_binding()])
         };
-        let meshes = meshes
-            .iter()
-            .map(|m| MeshDraw {
-                mesh: m.clone(),
-                bind: view(m.origin),
-            })
-            .collect();
+        let code = |m: &GpuMesh| -m.diameter;
         let p11 = camera.projection_matrix(aspect).y_axis.y as f32;
         let persp = matches!(
             camera.projection,
@@ -403,47 +463,88 @@ impl GBuffer {
         // Clip-space w is the view depth under perspective (1 under orthographic projection):
         // strips end no nearer than half the near plane.
         let min_w = if persp { 0.5 * camera.near as f32 } else { 0.0 };
-        let lines = lines
+        // A line set's data for a viewport of `vw x vh` whose P11 is `p11`.
+        let line_data = |l: &GpuLines, p11: f32, vw: u32, vh: u32| {
+            let (half_width, world) = match l.width {
+                LineWidth::Pixels(w) => (0.5 * w as f32, 0),
+                LineWidth::World(w) => (0.5 * w as f32, 1),
+            };
+            let params = LineParams {
+                half_width,
+                world,
+                cylinder: l.cylinder as u32,
+                p11,
+                viewport: [vw as f32, vh as f32],
+                perspective: persp as u32,
+                min_w,
+                proxy_radius: l.proxy_radius,
+                pad0: 0,
+                pad1: 0,
+                pad2: 0,
+            };
+            let params = gpu.buffer(
+                "line params",
+                bytemuck::bytes_of(&params),
+                wgpu::BufferUsages::UNIFORM,
+            );
+            gpu.bind(
+                "gbuffer lines",
+                &pipes.line_layout,
+                &[
+                    params.as_entire_binding(),
+                    l.points.as_entire_binding(),
+                    l.colors.as_entire_binding(),
+                    l.segments.as_entire_binding(),
+                ],
+            )
+        };
+        let mesh_draws = meshes
             .iter()
-            .map(|l| {
-                let (half_width, world) = match l.width {
-                    LineWidth::Pixels(w) => (0.5 * w as f32, 0),
-                    LineWidth::World(w) => (0.5 * w as f32, 1),
-                };
-                let params = LineParams {
-                    half_width,
-                    world,
-                    cylinder: l.cylinder as u32,
-                    p11,
-                    viewport: [width as f32, height as f32],
-                    perspective: persp as u32,
-                    min_w,
-                };
-                let params = gpu.buffer(
-                    "line params",
-                    bytemuck::bytes_of(&params),
-                    wgpu::BufferUsages::UNIFORM,
-                );
-                LineDraw {
-                    view: view(l.origin),
-                    data: gpu.bind(
-                        "gbuffer lines",
-                        &pipes.line_layout,
-                        &[
-                            params.as_entire_binding(),
-                            l.points.as_entire_binding(),
-                            l.colors.as_entire_binding(),
-                            l.segments.as_entire_binding(),
-                        ],
-                    ),
-                    segments: l.count,
-                }
+            .map(|m| MeshDraw {
+                mesh: m.clone(),
+                bind: view(vp_rel, m.origin, code(m)),
             })
             .collect();
-        let depth = |l| target(gpu, l, wgpu::TextureFormat::Depth32Float, width, height);
+        let line_draws = lines
+            .iter()
+            .map(|l| LineDraw {
+                view: view(vp_rel, l.origin, 0.0),
+                data: line_data(l, p11, width, height),
+                segments: l.count,
+                proxy: l.proxy_radius > 0.0,
+            })
+            .collect();
+        let nd = nd_guard.map(|g| {
+            let (nw, nh) = (width + 2 * g, height + 2 * g);
+            let vp = guard_band(vp_rel, width, height, g);
+            let p11g = p11 * height as f32 / nh as f32;
+            let (depth_tex, depth) = target(gpu, "lineao nd depth", DEPTH, nw, nh);
+            NdMap {
+                depth,
+                depth_tex,
+                normal: target(gpu, "lineao nd normal", NORMAL, nw, nh).1,
+                guard: g,
+                size: (nw, nh),
+                z: target(
+                    gpu,
+                    "lineao nd z",
+                    wgpu::TextureFormat::Depth32Float,
+                    nw,
+                    nh,
+                )
+                .1,
+                meshes: meshes.iter().map(|m| view(vp, m.origin, code(m))).collect(),
+                lines: lines
+                    .iter()
+                    .map(|l| (view(vp, l.origin, 0.0), line_data(l, p11g, nw, nh)))
+                    .collect(),
+            }
+        });
+        let depth = |l| target(gpu, l, wgpu::TextureFormat::Depth32Float, width, height).1;
+        let (front_tex, front) = target(gpu, "gbuffer front depth", DEPTH, width, height);
         GBuffer {
-            color: target_ms(gpu, "gbuffer colour", COLOR, width, height, samples),
-            normal: target_ms(gpu, "gbuffer normal", NORMAL, width, height, samples),
+            color: target_ms(gpu, "gbuffer colour", COLOR, width, height, samples).1,
+            normal: target_ms(gpu, "gbuffer normal", NORMAL, width, height, samples).1,
             samples,
             depth_ms: ms.then(|| {
                 target_ms(
@@ -454,14 +555,18 @@ impl GBuffer {
                     height,
                     samples,
                 )
+                .1
             }),
-            front: target(gpu, "gbuffer front depth", DEPTH, width, height),
-            back: target(gpu, "gbuffer back depth", DEPTH, width, height),
+            front,
+            front_tex,
+            size: (width, height),
+            back: target(gpu, "gbuffer back depth", DEPTH, width, height).1,
             depth_front: depth("gbuffer z front"),
             depth_back: depth("gbuffer z back"),
+            nd,
             pipes,
-            meshes,
-            lines,
+            meshes: mesh_draws,
+            lines: line_draws,
         }
     }
 
@@ -475,7 +580,10 @@ impl GBuffer {
                 .sum::<u64>()
     }
 
-    /// Records both passes (they also clear the targets when there are no meshes).
+    /// Records the passes (they also clear the targets when there is nothing to draw): the
+    /// surfaces' colour and normal (with their depth when single-sampled), the single-sample
+    /// depth (LineAO's guard-banded normal-depth map instead when there is one, its interior
+    /// then copied to the front depth), and the back depth.
     pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
         let clear = |view| {
             Some(wgpu::RenderPassColorAttachment {
@@ -489,55 +597,115 @@ impl GBuffer {
             })
         };
         let p = &self.pipes;
-        let mut passes: Vec<(&PipelinePair, Vec<_>, &wgpu::TextureView)> = vec![];
+        #[derive(PartialEq)]
+        enum Kind {
+            Surface,
+            Nd,
+            Back,
+        }
+        let mut passes: Vec<(Kind, &PipelinePair, Vec<_>, &wgpu::TextureView)> = vec![];
         match (&p.depth, &self.depth_ms) {
             (Some(dp), Some(dms)) => {
-                passes.push((&p.front, vec![clear(&self.color), clear(&self.normal)], dms));
-                passes.push((dp, vec![clear(&self.front)], &self.depth_front));
+                passes.push((
+                    Kind::Surface,
+                    &p.front,
+                    vec![clear(&self.color), clear(&self.normal)],
+                    dms,
+                ));
+                if self.nd.is_none() {
+                    passes.push((
+                        Kind::Surface,
+                        dp,
+                        vec![clear(&self.front)],
+                        &self.depth_front,
+                    ));
+                }
             }
             _ => passes.push((
+                Kind::Surface,
                 &p.front,
                 vec![clear(&self.color), clear(&self.normal), clear(&self.front)],
                 &self.depth_front,
             )),
         }
-        passes.push((&p.back, vec![clear(&self.back)], &self.depth_back));
-        let n_passes = passes.len();
-        for (k, (pipe, targets, depth)) in passes.into_iter().enumerate() {
-            let back = k + 1 == n_passes;
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("gbuffer"),
-                color_attachments: &targets,
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
+        if let Some(nd) = &self.nd {
+            passes.push((
+                Kind::Nd,
+                &p.nd,
+                vec![clear(&nd.depth), clear(&nd.normal)],
+                &nd.z,
+            ));
+        }
+        passes.push((
+            Kind::Back,
+            &p.back,
+            vec![clear(&self.back)],
+            &self.depth_back,
+        ));
+        for (kind, pipe, targets, depth) in passes {
+            {
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("gbuffer"),
+                    color_attachments: &targets,
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: depth,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Discard,
+                        }),
+                        stencil_ops: None,
                     }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            if !self.meshes.is_empty() {
-                pass.set_pipeline(&pipe.mesh);
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                let nd = self.nd.as_ref().filter(|_| kind == Kind::Nd);
+                if !self.meshes.is_empty() {
+                    pass.set_pipeline(&pipe.mesh);
+                }
+                for (k, MeshDraw { mesh: m, bind }) in self.meshes.iter().enumerate() {
+                    pass.set_bind_group(0, nd.map_or(bind, |n| &n.meshes[k]), &[]);
+                    pass.set_vertex_buffer(0, m.vertices.slice(..));
+                    pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..m.count, 0, 0..1);
+                }
+                // Lines have no back faces: the back-depth pass draws only those that stand
+                // for tubes in the volume's shadow.
+                let drawn = |l: &&LineDraw| kind != Kind::Back || l.proxy;
+                if self.lines.iter().any(|l| drawn(&l)) {
+                    pass.set_pipeline(&pipe.line);
+                }
+                for (k, l) in self.lines.iter().enumerate().filter(|(_, l)| drawn(l)) {
+                    let (v, d) = nd.map_or((&l.view, &l.data), |n| (&n.lines[k].0, &n.lines[k].1));
+                    pass.set_bind_group(0, v, &[]);
+                    pass.set_bind_group(1, d, &[]);
+                    pass.draw(0..l.segments.saturating_mul(6), 0..1);
+                }
             }
-            for MeshDraw { mesh: m, bind } in &self.meshes {
-                pass.set_bind_group(0, bind, &[]);
-                pass.set_vertex_buffer(0, m.vertices.slice(..));
-                pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..m.count, 0, 0..1);
-            }
-            // Lines have no back faces: the back-depth pass leaves them out.
-            let lines: &[LineDraw] = if back { &[] } else { &self.lines };
-            if !lines.is_empty() {
-                pass.set_pipeline(&pipe.line);
-            }
-            for l in lines {
-                pass.set_bind_group(0, &l.view, &[]);
-                pass.set_bind_group(1, &l.data, &[]);
-                pass.draw(0..l.segments.saturating_mul(6), 0..1);
+            if let (Kind::Nd, Some(nd)) = (&kind, &self.nd) {
+                enc.copy_texture_to_texture(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &nd.depth_tex,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: nd.guard,
+                            y: nd.guard,
+                            z: 0,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &self.front_tex,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d::ZERO,
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::Extent3d {
+                        width: self.size.0,
+                        height: self.size.1,
+                        depth_or_array_layers: 1,
+                    },
+                );
             }
         }
     }
@@ -558,6 +726,10 @@ mod tests {
                 viewport,
                 perspective,
                 min_w,
+                proxy_radius,
+                pad0,
+                pad1,
+                pad2,
             }
         );
         crate::prelude::assert_layout!(
@@ -570,7 +742,7 @@ mod tests {
                 eye,
                 clip,
                 n_clip,
-                pad0,
+                width_code,
                 pad1,
                 pad2,
             }

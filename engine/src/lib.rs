@@ -1,7 +1,7 @@
 //! umbra's renderer: the headless GPU context ([`gpu`]), the long-lived [`renderer`] (upload a
 //! scene once, draw frames), the method table ([`method`]) and the passes, each one Rust
 //! module with its WGSL file of the same name in `shaders/`: [`gbuffer`], [`slice_pass`]
-//! (`light` and `march`), [`vicinity`], [`iso_pass`], [`composite`], [`fxaa`].
+//! (`light` and `march`), [`vicinity`], [`line_ao`], [`iso_pass`], [`composite`], [`fxaa`].
 //!
 //! It takes typed inputs (`occlusion::emission_absorption::EaView`, `VolumeInput`,
 //! `tubes::tube_mesh::TubeMesh`) and returns images; scene files, image files and the command
@@ -13,6 +13,7 @@ pub mod fxaa;
 pub mod gbuffer;
 pub mod gpu;
 pub mod iso_pass;
+pub mod line_ao;
 pub mod method;
 pub mod prelude;
 pub mod renderer;

@@ -13,6 +13,8 @@ pub enum Method {
     Ea,
     Phong,
     Illuminated,
+    #[serde(rename = "lineao")]
+    LineAo,
 }
 
 /// How tubes shadow the volume behind them.
@@ -50,6 +52,9 @@ pub enum SurfaceAo {
     /// Schott et al.'s vicinity occlusion (Alg. 5, eq. 4-6; `vicinity.rs`).
     #[default]
     Vicinity,
+    /// Eichelbaum et al.'s LineAO (eq. 4-16; `line_ao.rs`), on lines and tubes.
+    #[serde(rename = "lineao")]
+    LineAo,
     /// No surface AO: the slot is left out.
     None,
 }
@@ -75,6 +80,8 @@ pub enum Term {
     Partial,
     /// The slot `render.surface_ao` fills ([`SurfaceAo`]).
     SurfaceAo,
+    /// A surface AO the method fixes, whatever `render.surface_ao` says.
+    Ao(SurfaceAo),
 }
 
 /// A row of the method table.
@@ -131,6 +138,13 @@ pub const METHODS: &[MethodDesc] = &[
         summary: "illuminated lines and Phong tubes, no occlusion; emission-absorption volume",
     },
     MethodDesc {
+        method: Method::LineAo,
+        name: "lineao",
+        volume: VolumeShading::EmissionAbsorption,
+        terms: &[Term::Ao(SurfaceAo::LineAo)],
+        summary: "emission-absorption volume; lines and tubes by LineAO (Eichelbaum et al.)",
+    },
+    MethodDesc {
         method: Method::Phong,
         name: "phong",
         volume: VolumeShading::Phong,
@@ -143,7 +157,7 @@ pub const METHODS: &[MethodDesc] = &[
 pub const MAX_TERMS: usize = 4;
 
 /// The names of every surface-term layer a frame can have, in AOV order (`occlusion.<name>`).
-pub const TERM_NAMES: &[&str] = &["partial", "vicinity"];
+pub const TERM_NAMES: &[&str] = &["partial", "vicinity", "lineao"];
 
 impl Method {
     /// The method's row of [`METHODS`].
@@ -198,6 +212,41 @@ pub struct Settings {
     pub msaa: u32,
     /// What fills the methods' surface-AO slot.
     pub surface_ao: SurfaceAo,
+    /// LineAO's parameters (used where a method's terms include it).
+    pub lineao: LineAo,
+}
+
+/// How LineAO darkens the surfaces it occludes (`render.lineao.shading`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LineAoShading {
+    /// umbra's head-light Phong with the AO as the occlusion factor (seed 002):
+    /// `(1 - AO) c (ambient + diffuse n.l) + specular`.
+    #[default]
+    Phong,
+    /// The paper's §3.3: `c (1 - AO) + specular` (the AO replaces ambient and diffuse).
+    Paper,
+}
+
+/// LineAO's settings: the kernel's (the CPU twin's struct; its line width and light material
+/// are set per pixel and from [`Settings::light`] by the pass) and the frame's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LineAo {
+    pub kernel: occlusion::line_ao::LineAoSettings,
+    /// The guard band's cap, pixels: the G-buffer's depth and normals are rendered this far
+    /// beyond the viewport at most (0: no band).
+    pub guard: u32,
+    pub shading: LineAoShading,
+}
+
+impl Default for LineAo {
+    fn default() -> Self {
+        LineAo {
+            kernel: Default::default(),
+            guard: 64,
+            shading: LineAoShading::Phong,
+        }
+    }
 }
 
 impl Default for Settings {
@@ -218,6 +267,7 @@ impl Default for Settings {
             cone: false,
             msaa: 4,
             surface_ao: SurfaceAo::Vicinity,
+            lineao: LineAo::default(),
         }
     }
 }
@@ -237,6 +287,7 @@ mod tests {
             Method::Ea,
             Method::Phong,
             Method::Illuminated,
+            Method::LineAo,
         ] {
             let d = m.desc();
             assert_eq!(METHODS.iter().filter(|r| r.method == m).count(), 1);
@@ -249,7 +300,7 @@ mod tests {
             }
             assert!(d.terms.len() <= MAX_TERMS);
         }
-        assert!(Method::from_name("lineao")
+        assert!(Method::from_name("ssao")
             .unwrap_err()
             .contains("combined, dos"));
     }

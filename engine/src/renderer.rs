@@ -22,9 +22,9 @@ use crate::fxaa::FxaaPass;
 use crate::gbuffer::{GBuffer, GpuLines, GpuMesh};
 use crate::gpu::{Gpu, GpuError};
 use crate::iso_pass::{GpuIso, IsoInput, IsoPass};
-use crate::method::{Term, VolumeShading, MAX_TERMS};
+use crate::method::{LineAoShading, SurfaceAo, Term, VolumeShading, MAX_TERMS};
 use crate::slice_pass::{GpuVolume, SlicePass, SliceSettings, VolumeInput};
-use crate::terms::{TermInputs, TermPass, SURFACE_AO};
+use crate::terms::{surface_ao, TermInputs, TermPass};
 use occlusion::camera::Camera;
 use occlusion::emission_absorption::EaView;
 use std::collections::BTreeMap;
@@ -121,6 +121,9 @@ pub struct Output {
     /// Each surface term the frame folded, by name (`partial`, `vicinity`), with its layer
     /// (the value composite used; 1 where no tube surface is nearest).
     pub terms: Vec<(&'static str, Vec<f32>)>,
+    /// The terms' further channels by their full AOV name (`occlusion.lineao.v`, ...), only for
+    /// the terms the frame ran.
+    pub term_channels: Vec<(String, Vec<f32>)>,
     pub timings: Timings,
     pub triangles: u64,
 }
@@ -128,7 +131,8 @@ pub struct Output {
 impl Output {
     /// The AOV channels by name, in order: `occlusion.volumetric`, `occlusion.<term>` for every
     /// surface term of [`crate::method::TERM_NAMES`] (the frame's layer where its method ran
-    /// the term, else 1), `occlusion.combined`, `Z` (linear depth).
+    /// the term, else 1), the channels of the terms the frame ran (`occlusion.lineao.v`,
+    /// `.g_depth`, `.g_light` where LineAO ran), `occlusion.combined`, `Z` (linear depth).
     pub fn aov_channels(&self) -> Vec<(String, Vec<f32>)> {
         let mut c = vec![(
             "occlusion.volumetric".to_string(),
@@ -143,6 +147,7 @@ impl Output {
                 .unwrap_or_else(|| vec![1.0; self.aov.len()]);
             c.push((format!("occlusion.{name}"), layer));
         }
+        c.extend(self.term_channels.iter().cloned());
         c.push((
             "occlusion.combined".into(),
             self.aov.iter().map(|a| a.combined).collect(),
@@ -344,7 +349,7 @@ impl<'g> Renderer<'g> {
                 "validation error in a render pass: {e}"
             )));
         }
-        let (image, aov, terms) = frame.read_back(gpu)?;
+        let (image, aov, terms, term_channels) = frame.read_back(gpu)?;
         let mut sorted = frames_ms.clone();
         sorted.sort_by(f64::total_cmp);
         Ok(Output {
@@ -352,6 +357,7 @@ impl<'g> Renderer<'g> {
             image,
             aov,
             terms,
+            term_channels,
             timings: Timings {
                 total_ms: sorted[sorted.len() / 2],
                 frames_ms,
@@ -408,6 +414,42 @@ impl Frame {
         let occlusion = desc.volume == VolumeShading::Occlusion;
         let cam: &Camera = &view.camera;
         let (samples, msaa_note) = crate::gbuffer::sample_count(gpu, s.msaa);
+        // The layers of the method's terms, in the table's order, with the surface AO that
+        // fills each (none for partial); a slot left empty (`surface_ao = none`) has none.
+        let layers: Vec<(&'static str, Option<SurfaceAo>)> = desc
+            .terms
+            .iter()
+            .filter_map(|t| match t {
+                Term::Partial => Some(("partial", None)),
+                Term::SurfaceAo | Term::Ao(_) => {
+                    let choice = match t {
+                        Term::Ao(c) => *c,
+                        _ => s.surface_ao,
+                    };
+                    let d = surface_ao(choice);
+                    d.build.map(|_| (d.name, Some(choice)))
+                }
+            })
+            .collect();
+        let layer_names: Vec<&'static str> = layers.iter().map(|(n, _)| *n).collect();
+        let needs_nd = layers
+            .iter()
+            .any(|(_, c)| c.is_some_and(|c| surface_ao(c).needs_nd));
+        let nd_guard = needs_nd.then(|| {
+            let mut widths = crate::line_ao::Widths::default();
+            for l in &scene.lines {
+                match l.width() {
+                    tubes::lines::LineWidth::Pixels(p) => {
+                        widths.pixels = widths.pixels.max(p as f32)
+                    }
+                    tubes::lines::LineWidth::World(x) => widths.world = widths.world.max(x as f32),
+                }
+            }
+            for m in &scene.meshes {
+                widths.world = widths.world.max(m.diameter());
+            }
+            crate::line_ao::guard_pixels(cam, h, widths, &s.lineao.kernel, s.lineao.guard)
+        });
         let gbuf = GBuffer::new(
             gpu,
             cam,
@@ -417,21 +459,8 @@ impl Frame {
             &scene.lines,
             tube_clip,
             samples,
+            nd_guard,
         );
-        // The layers of the method's terms, in the table's order; a slot left empty
-        // (`surface_ao = none`) has none.
-        let layer_names: Vec<&'static str> = desc
-            .terms
-            .iter()
-            .filter_map(|t| match t {
-                Term::Partial => Some("partial"),
-                Term::SurfaceAo => SURFACE_AO
-                    .iter()
-                    .find(|d| d.choice == s.surface_ao)
-                    .filter(|d| d.build.is_some())
-                    .map(|d| d.name),
-            })
-            .collect();
         let layer = |name: &str| {
             layer_names
                 .iter()
@@ -463,11 +492,11 @@ impl Frame {
                 partial_layer: layer("partial"),
             },
         )?;
-        // The surface-AO slot's pass, from the term registry.
-        let term_passes: Vec<(&'static str, Box<dyn TermPass>)> = SURFACE_AO
+        // The passes of the surface AO terms, from the term registry.
+        let term_passes: Vec<(&'static str, Box<dyn TermPass>)> = layers
             .iter()
-            .filter(|d| d.choice == s.surface_ao)
-            .filter_map(|d| Some((d.name, d.build?, layer(d.name)?)))
+            .enumerate()
+            .filter_map(|(l, (name, c))| Some((*name, surface_ao((*c)?).build?, l as u32)))
             .map(|(name, build, l)| {
                 let inputs = TermInputs {
                     gpu,
@@ -485,6 +514,8 @@ impl Frame {
                     .map_err(|e| GpuError::Operation(format!("{name} settings: {e}")))
             })
             .collect::<Result<_, _>>()?;
+        let paper_shading =
+            layer_names.contains(&"lineao") && s.lineao.shading == LineAoShading::Paper;
         let iso_pass = IsoPass::new(gpu, cam, w, h, scene.iso.as_ref(), s.light, &view.clip);
         let composite = CompositePass::new(
             gpu,
@@ -501,6 +532,7 @@ impl Frame {
                 combine: s.combine,
                 light: s.light,
                 background: view.background,
+                paper_shading,
             },
         );
         let fxaa = s.fxaa.then(|| FxaaPass::new(gpu, w, h, &composite.image));
@@ -525,7 +557,15 @@ impl Frame {
     fn read_back(
         &self,
         gpu: &Gpu,
-    ) -> Result<(Vec<[f32; 4]>, Vec<Aov>, Vec<(&'static str, Vec<f32>)>), GpuError> {
+    ) -> Result<
+        (
+            Vec<[f32; 4]>,
+            Vec<Aov>,
+            Vec<(&'static str, Vec<f32>)>,
+            Vec<(String, Vec<f32>)>,
+        ),
+        GpuError,
+    > {
         let n = self.size.0 as u64 * self.size.1 as u64;
         let readback = |label: &str, size: u64| {
             gpu.sized(format!("readback {label}"), size, || {
@@ -542,6 +582,17 @@ impl Frame {
         if layers > 0 {
             enc.copy_buffer_to_buffer(&self.terms, 0, &terms_rb, 0, n * 4 * layers);
         }
+        let channels: Vec<(&str, &wgpu::Buffer, &[&str], wgpu::Buffer)> = self
+            .term_passes
+            .iter()
+            .filter_map(|(name, p)| {
+                let (buf, names) = p.channels()?;
+                let bytes = n * 4 * names.len() as u64;
+                let rb = readback(&format!("{name} channels"), bytes);
+                enc.copy_buffer_to_buffer(buf, 0, &rb, 0, bytes);
+                Some((*name, buf, names, rb))
+            })
+            .collect();
         gpu.queue.submit([enc.finish()]);
         let f32s = |b: Vec<u8>| -> Vec<f32> {
             b.chunks_exact(4)
@@ -551,6 +602,16 @@ impl Frame {
         let img = f32s(gpu.read_buffer(&image_rb)?);
         let aov = f32s(gpu.read_buffer(&aov_rb)?);
         let all = f32s(gpu.read_buffer(&terms_rb)?);
+        let mut term_channels = vec![];
+        for (name, _, names, rb) in &channels {
+            let v = f32s(gpu.read_buffer(rb)?);
+            for (k, c) in names.iter().enumerate() {
+                term_channels.push((
+                    format!("occlusion.{name}.{c}"),
+                    v[k * n as usize..(k + 1) * n as usize].to_vec(),
+                ));
+            }
+        }
         let terms: Vec<(&'static str, Vec<f32>)> = self
             .layer_names
             .iter()
@@ -580,6 +641,7 @@ impl Frame {
                 .collect(),
             aov,
             terms,
+            term_channels,
         ))
     }
 }

@@ -5,6 +5,7 @@
 
 use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, Layer};
+use crate::line_ao::{LineAoPass, FACTORS};
 use crate::method::{SettingError, Settings, SurfaceAo};
 use crate::vicinity::{VicinityPass, VicinitySettings};
 use occlusion::camera::Camera;
@@ -23,6 +24,12 @@ pub struct TermInputs<'a> {
 /// A pass that writes one layer of the surface terms.
 pub trait TermPass {
     fn record(&self, enc: &mut wgpu::CommandEncoder);
+
+    /// More AOV channels the pass writes (`occlusion.<name>.<channel>`): a buffer of
+    /// `width * height` f32 per channel, one after the other, and the channels' names.
+    fn channels(&self) -> Option<(&wgpu::Buffer, &'static [&'static str])> {
+        None
+    }
 }
 
 /// Builds a surface-term pass.
@@ -35,6 +42,8 @@ pub struct SurfaceAoDesc {
     pub name: &'static str,
     /// Checks its settings and builds the pass (`None`: the slot stays empty).
     pub build: Option<BuildTerm>,
+    /// The pass reads LineAO's guard-banded normal-depth map (`gbuffer::NdMap`).
+    pub needs_nd: bool,
 }
 
 /// Every choice of `render.surface_ao`.
@@ -43,13 +52,53 @@ pub const SURFACE_AO: &[SurfaceAoDesc] = &[
         choice: SurfaceAo::Vicinity,
         name: "vicinity",
         build: Some(vicinity),
+        needs_nd: false,
+    },
+    SurfaceAoDesc {
+        choice: SurfaceAo::LineAo,
+        name: "lineao",
+        build: Some(line_ao),
+        needs_nd: true,
     },
     SurfaceAoDesc {
         choice: SurfaceAo::None,
         name: "none",
         build: None,
+        needs_nd: false,
     },
 ];
+
+/// The registry's row of `choice`.
+pub fn surface_ao(choice: SurfaceAo) -> &'static SurfaceAoDesc {
+    SURFACE_AO
+        .iter()
+        .find(|d| d.choice == choice)
+        .expect("every surface AO has a row in SURFACE_AO")
+}
+
+fn line_ao(t: &TermInputs) -> Result<Box<dyn TermPass>, SettingError> {
+    let s = &t.settings.lineao;
+    s.kernel.check()?;
+    Ok(Box::new(LineAoPass::new(
+        t.gpu,
+        t.camera,
+        t.size,
+        t.gbuf,
+        t.layer,
+        s,
+        t.settings.light,
+    )))
+}
+
+impl TermPass for LineAoPass {
+    fn record(&self, enc: &mut wgpu::CommandEncoder) {
+        LineAoPass::record(self, enc)
+    }
+
+    fn channels(&self) -> Option<(&wgpu::Buffer, &'static [&'static str])> {
+        Some((&self.factors, &FACTORS))
+    }
+}
 
 fn vicinity(t: &TermInputs) -> Result<Box<dyn TermPass>, SettingError> {
     let s = t.settings;
@@ -77,7 +126,7 @@ mod tests {
 
     #[test]
     fn every_surface_ao_choice_has_one_row_and_its_layer_a_name() {
-        for c in [SurfaceAo::Vicinity, SurfaceAo::None] {
+        for c in [SurfaceAo::Vicinity, SurfaceAo::LineAo, SurfaceAo::None] {
             assert_eq!(SURFACE_AO.iter().filter(|d| d.choice == c).count(), 1);
         }
         for d in SURFACE_AO.iter().filter(|d| d.build.is_some()) {

@@ -130,6 +130,16 @@ pub enum LineWidth {
     World(f32),
 }
 
+/// How the depth range of eq. 12 changes with the level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Falloff {
+    /// Eq. 11, `delta(l) = (1 - l / s_r)^2`: outer levels count only near occluders (Fig. 3b).
+    #[default]
+    Paper,
+    /// `delta(l) = 1` on every level: the whole scene depth occludes on each (Fig. 3a).
+    Constant,
+}
+
 /// LineAO's parameters (§3.2.3 and issue 11 item 3). `Default` is the paper's set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LineAoSettings {
@@ -158,6 +168,8 @@ pub struct LineAoSettings {
     pub light_shininess: f32,
     /// The seed of the per-pixel rotation (the scene's seed): 0.
     pub seed: u32,
+    /// The depth range per level (eq. 11 or constant).
+    pub falloff: Falloff,
 }
 
 impl Default for LineAoSettings {
@@ -174,6 +186,7 @@ impl Default for LineAoSettings {
             light_specular: 0.3,
             light_shininess: 32.0,
             seed: 0,
+            falloff: Falloff::Paper,
         }
     }
 }
@@ -206,7 +219,7 @@ impl LineAoSettings {
         require(finite_nonneg(self.radius_step), "radius_step", || {
             format!("{} is not a non-negative number", self.radius_step)
         })?;
-        let last = delta(self.levels - 1, self.levels);
+        let last = self.delta(self.levels - 1);
         require(
             finite_nonneg(self.delta0) && self.delta0 < last,
             "delta0",
@@ -232,6 +245,15 @@ impl LineAoSettings {
             format!("{} is not a positive exponent", self.light_shininess)
         })?;
         Ok(())
+    }
+
+    /// The depth range of level `l`: [`delta`] under [`Falloff::Paper`], 1 under
+    /// [`Falloff::Constant`].
+    pub fn delta(&self, l: u32) -> f32 {
+        match self.falloff {
+            Falloff::Paper => delta(l, self.levels),
+            Falloff::Constant => 1.0,
+        }
     }
 
     /// `r0` in pixels at zoom `z(P)` (pixels per world unit): `r0_widths` times the line's
@@ -604,7 +626,7 @@ pub fn line_ao(
         let n_p = lvl.unit_normal(pxj, pyj);
         let n = samples_on_level(s.samples, j);
         let r = level_radius(r0, s.radius_step, zoom, j);
-        let delta_l = delta(j, s.levels);
+        let delta_l = s.delta(j);
         let (mut valid, mut ao, mut lv, mut lgd, mut lgl) = (0u32, 0.0f32, 0.0, 0.0, 0.0);
         for i in 0..n {
             let omega = hemisphere_direction(sample_offset(i, n, j, rotation), n_p);
@@ -702,6 +724,15 @@ mod tests {
         }
         assert_eq!(delta(0, 1), 1.0, "s_r = 1 is fine as printed");
         assert!((delta(7, 8) - 1.0 / 64.0).abs() < 1e-7);
+        let constant = LineAoSettings {
+            falloff: Falloff::Constant,
+            ..Default::default()
+        };
+        assert_eq!(
+            (0..3).map(|l| constant.delta(l)).collect::<Vec<_>>(),
+            [1.0; 3]
+        );
+        assert_eq!(LineAoSettings::default().delta(2), delta(2, 3));
     }
 
     #[test]

@@ -487,8 +487,13 @@ fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<Li
     };
     let cylinder = l.profile == spec::LineProfile::Cylinder;
     notes.extend(sl.warnings.iter().map(|w| format!("lines[{i}]: {w}")));
-    crate::tube_sets::with_color_mode(&sl, &l.color, |c| LineSet::new(&sl, c, width, cylinder))
-        .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))
+    let proxy_radius = l.proxy_radius() as f32;
+    crate::tube_sets::with_color_mode(&sl, &l.color, |c| {
+        let mut set = LineSet::new(&sl, c, width, cylinder);
+        set.proxy_radius = proxy_radius;
+        set
+    })
+    .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))
 }
 
 /// The renderer's settings from a scene.
@@ -513,6 +518,9 @@ pub fn settings(s: &Scene) -> Settings {
         cone: r.occlusion_model == spec::OcclusionModel::Cone,
         msaa: r.msaa,
         surface_ao: r.surface_ao,
+        lineao: r
+            .lineao
+            .settings([l.ambient, l.diffuse, l.specular, l.shininess]),
     }
 }
 

@@ -11,7 +11,9 @@
 //! d has opacity `1 - exp(-sigma d)`, so images do not change with the slice count); angles in
 //! degrees; colours as `[r, g, b]` in [0, 1] or `"#rrggbb"`.
 
-pub use engine::method::{Combine, GeometryShadow, Method, OcclusionModel, SurfaceAo};
+pub use engine::method::{
+    Combine, GeometryShadow, LineAoShading, Method, OcclusionModel, SurfaceAo,
+};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -248,6 +250,101 @@ pub struct LinesSpec {
     pub width_unit: WidthUnit,
     #[serde(default)]
     pub profile: LineProfile,
+    /// The world radius the lines stand for where they shadow the volume (default: half the
+    /// width for `width_unit = "world"`, 0 - no shadow - for pixel widths).
+    pub proxy_radius: Option<f64>,
+}
+
+impl LinesSpec {
+    /// `proxy_radius` with its default.
+    pub fn proxy_radius(&self) -> f64 {
+        self.proxy_radius.unwrap_or(match self.width_unit {
+            WidthUnit::World => 0.5 * self.width,
+            WidthUnit::Pixels => 0.0,
+        })
+    }
+}
+
+/// `[render.lineao]`: LineAO's parameters (Eichelbaum et al. 2013, §3.2.3; the model and its
+/// departures from the paper: `occlusion::line_ao`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LineAoSpec {
+    /// `s_h`: samples of the first disc; level j takes `ceil(s_h / (j + 1))`.
+    pub samples: u32,
+    /// `s_r`: discs and pyramid levels, 1 to 8.
+    pub levels: u32,
+    /// `r0` in line widths (lines: their width on screen; tubes: `z(P)` times the diameter).
+    pub r0: f64,
+    /// Radius added per level, world units (projected by `z(P)`).
+    pub radius_step: f64,
+    /// `delta_0`: the least normalised depth difference that occludes.
+    pub delta0: f64,
+    /// `paper` (eq. 11) or `constant`.
+    pub falloff: Falloff,
+    /// `I_s`, the head light's intensity in `g_light` (eq. 14); 0 turns `g_light` off.
+    pub light_intensity: f64,
+    /// The guard band's cap in pixels (0: no band).
+    pub guard: u32,
+    /// `phong` (umbra's head light times the AO) or `paper` (colour times the AO).
+    pub shading: LineAoShading,
+    /// Seed of the per-pixel rotation of the samples.
+    pub seed: u32,
+}
+
+/// `render.lineao.falloff`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Falloff {
+    #[default]
+    Paper,
+    Constant,
+}
+
+impl Default for LineAoSpec {
+    fn default() -> Self {
+        LineAoSpec {
+            samples: 32,
+            levels: 3,
+            r0: 1.5,
+            radius_step: 1.0,
+            delta0: 1e-4,
+            falloff: Falloff::Paper,
+            light_intensity: 0.5,
+            guard: 64,
+            shading: LineAoShading::Phong,
+            seed: 0,
+        }
+    }
+}
+
+impl LineAoSpec {
+    /// The engine's settings, with the head light's material `light` (ambient, diffuse,
+    /// specular, shininess) for the BRDF of `g_light`.
+    pub fn settings(&self, light: [f64; 4]) -> engine::method::LineAo {
+        use occlusion::line_ao as la;
+        engine::method::LineAo {
+            kernel: la::LineAoSettings {
+                levels: self.levels,
+                samples: self.samples,
+                r0_widths: self.r0 as f32,
+                line_width: la::LineWidth::Pixels(2.0),
+                radius_step: self.radius_step as f32,
+                delta0: self.delta0 as f32,
+                light_intensity: self.light_intensity as f32,
+                light_diffuse: light[1] as f32,
+                light_specular: light[2] as f32,
+                light_shininess: light[3] as f32,
+                seed: self.seed,
+                falloff: match self.falloff {
+                    Falloff::Paper => la::Falloff::Paper,
+                    Falloff::Constant => la::Falloff::Constant,
+                },
+            },
+            guard: self.guard,
+            shading: self.shading,
+        }
+    }
 }
 
 fn default_line_width() -> f64 {
@@ -322,8 +419,10 @@ pub struct RenderSpec {
     /// MSAA samples (lowered to what the adapter supports, with a warning).
     pub msaa: u32,
     pub fxaa: bool,
-    /// What fills a method's surface-AO slot: `vicinity` (Schott et al.) or `none`.
+    /// What fills a method's surface-AO slot: `vicinity` (Schott et al.), `lineao`
+    /// (Eichelbaum et al.) or `none`.
     pub surface_ao: SurfaceAo,
+    pub lineao: LineAoSpec,
 }
 
 impl Default for RenderSpec {
@@ -347,6 +446,7 @@ impl Default for RenderSpec {
             msaa: 4,
             fxaa: true,
             surface_ao: SurfaceAo::Vicinity,
+            lineao: LineAoSpec::default(),
         }
     }
 }
@@ -380,6 +480,7 @@ pub struct Approximation {
     pub msaa: u32,
     pub fxaa: bool,
     pub surface_ao: SurfaceAo,
+    pub lineao: LineAoSpec,
 }
 
 impl RenderSpec {
@@ -406,6 +507,7 @@ impl RenderSpec {
             msaa,
             fxaa,
             surface_ao,
+            lineao,
         } = self.clone();
         (
             LightModel {
@@ -429,6 +531,7 @@ impl RenderSpec {
                 msaa,
                 fxaa,
                 surface_ao,
+                lineao,
             },
         )
     }
@@ -720,6 +823,12 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             );
         }
         check_color_source(&l.color).map_err(|why| format!("scene key lines[{i}].color: {why}"))?;
+        if l.proxy_radius.is_some_and(|r| !(r >= 0.0 && r.is_finite())) {
+            return bad(
+                &format!("lines[{i}].proxy_radius"),
+                format!("{:?} is not a radius >= 0", l.proxy_radius.unwrap()),
+            );
+        }
     }
     for (i, c) in s.clip.iter().enumerate() {
         if glam::DVec3::from(c.normal).length() < 1e-12 {
@@ -780,6 +889,19 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             _ => "render.vicinity_bias",
         };
         return bad(key, e.problem);
+    }
+    if let Err(e) = r.lineao.settings([0.3, 0.7, 0.3, 32.0]).kernel.check() {
+        let key = match e.field {
+            "r0_widths" => "r0",
+            f => f,
+        };
+        return bad(&format!("render.lineao.{key}"), e.problem);
+    }
+    if r.lineao.guard > 1024 {
+        return bad(
+            "render.lineao.guard",
+            format!("{} pixels: at most 1024", r.lineao.guard),
+        );
     }
     if ![1, 2, 4, 8].contains(&r.msaa) {
         return bad("render.msaa", format!("{} is not 1, 2, 4 or 8", r.msaa));

@@ -30,6 +30,8 @@ pub struct LineSet {
     pub width: LineWidth,
     /// Shade and depth across the width as a cylinder (pseudo-tubes) instead of a flat strip.
     pub cylinder: bool,
+    /// The world radius the lines stand for where they shadow the volume (0: they cast none).
+    pub proxy_radius: f32,
 }
 
 fn rgba(c: [f32; 3]) -> [u8; 4] {
@@ -101,6 +103,7 @@ impl LineSet {
             segments,
             width,
             cylinder,
+            proxy_radius: 0.0,
         }
     }
 

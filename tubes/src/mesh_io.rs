@@ -146,6 +146,7 @@ pub fn read(path: &Path) -> Result<TubeMesh> {
             vec![[200, 200, 200]; pos.len()]
         },
         indices,
+        radius: 0.0,
     })
 }
 
@@ -509,6 +510,7 @@ mod read_tests {
             normals: vec![glam::Vec3::Z; 4],
             colors: vec![[255, 0, 0], [0, 255, 0], [0, 0, 255], [10, 20, 30]],
             indices: vec![0, 1, 2, 1, 3, 2],
+            radius: 0.0,
         }
     }
 

@@ -131,6 +131,9 @@ pub struct TubeMesh {
     pub normals: Vec<Vec3>,
     pub colors: Vec<[u8; 3]>,
     pub indices: Vec<u32>,
+    /// The tubes' nominal radius, world units (the mesher's `TubeOptions::radius`; 0 when
+    /// unknown, as for meshes read from files): LineAO's `r0` of tubes (eq. 16).
+    pub radius: f64,
 }
 
 impl TubeMesh {
@@ -785,6 +788,7 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
         .collect();
     let mut mesh = TubeMesh {
         origin,
+        radius: o.radius,
         ..Default::default()
     };
     let mut stats = TubeStats {
