@@ -43,6 +43,8 @@ struct VOut {
     @location(5) width_code: f32,
     // Lines: the world radius they stand for in the volume's shadow (0: none); tubes: 0.
     @location(6) proxy: f32,
+    // Lines: the unit tangent (camera-relative world); tubes: zero.
+    @location(7) tangent: vec3<f32>,
 };
 
 @vertex
@@ -57,6 +59,7 @@ fn vs(v: VIn) -> VOut {
     o.bulge = 0.0;
     o.width_code = G.width_code;
     o.proxy = 0.0;
+    o.tangent = vec3<f32>(0.0);
     return o;
 }
 
@@ -173,6 +176,7 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     o.bulge = 0.0;
     o.width_code = select(2.0 * LP.half_width, -2.0 * LP.half_width, LP.world != 0u);
     o.proxy = LP.proxy_radius;
+    o.tangent = t;
     if (LP.cylinder != 0u && dot(s, s) > 1e-12) {
         o.bend = normalize(s) * side;
         o.bulge = hw / px_per_world;
@@ -257,12 +261,27 @@ struct NdOut {
     @location(1) normal: vec4<f32>,
 };
 
+// A line's normal here is its strip's (the surface whose depth this map holds): the
+// direction perpendicular to the tangent that faces along the viewing direction, bent across
+// the width for the cylinder profile. It differs from the lit normal, which faces the eye
+// point, by a pixel's angle off the view axis under perspective; LineAO's tangent plane needs
+// the one that agrees with the depth.
 @fragment
 fn fs_nd(v: VOut) -> NdOut {
     let f = front_values(v);
+    var n = f.normal.xyz;
+    let t = v.tangent;
+    if (dot(t, t) > 0.25) {
+        let c = -G.forward.xyz;
+        let g = c - dot(c, t) * t;
+        if (dot(g, g) > 1e-12) {
+            let u2 = min(dot(v.bend, v.bend), 1.0);
+            n = normalize(normalize(g) * sqrt(1.0 - u2) + v.bend);
+        }
+    }
     var o: NdOut;
     o.depth = f.depth;
-    o.normal = vec4<f32>(f.normal.xyz, v.width_code);
+    o.normal = vec4<f32>(n, v.width_code);
     return o;
 }
 

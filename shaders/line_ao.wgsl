@@ -36,7 +36,8 @@ struct Params {
     seed: u32,
     // 1: delta(l) = 1 on every level; 0: eq. 11
     constant_falloff: u32,
-    pad0: u32,
+    // 1: a sample is compared with P's tangent plane; 0: with P (eq. 8, the height field)
+    plane: u32,
     pad1: u32,
     pad2: u32,
     // level_angle(j) (occlusion::line_ao), 8 levels
@@ -65,6 +66,8 @@ struct Half {
 @group(0) @binding(5) var<storage, read_write> terms: array<f32>;
 // The factor channels: V, g_depth, g_light, each width * height (1 = open).
 @group(0) @binding(6) var<storage, read_write> factors: array<f32>;
+// Per pyramid texel, the mean depth of its surfaces alone (0: none): P's own depth on a level.
+@group(0) @binding(7) var<storage, read_write> cover: array<f32>;
 
 const TAU: f32 = 6.2831853;
 const GOLDEN_ANGLE: f32 = 2.399963;
@@ -108,11 +111,17 @@ fn nd_level0(@builtin(global_invocation_id) id: vec3<u32>) {
         }
     }
     nd[id.x + L.nd_width * id.y] = vec4<f32>(n, d);
+    cover[id.x + L.nd_width * id.y] = d;
 }
 
 // occlusion::line_ao::NormalDepth::far_depth: background counts as far.
 fn far_depth(t: vec4<f32>) -> f32 {
     return select(1.0, t.w, t.w > 0.0);
+}
+
+// occlusion::line_ao::NormalDepth::surface_depth: the surfaces' own depth, else far.
+fn surface_depth(t: vec4<f32>, c: f32) -> f32 {
+    return select(far_depth(t), c, c > 0.0);
 }
 
 // occlusion::line_ao::NormalDepth::half: the 2 x 2 mean, background as 1 (as far), the
@@ -129,28 +138,35 @@ fn nd_half(@builtin(global_invocation_id) id: vec3<u32>) {
     var count = 0.0;
     var covered = 0u;
     var n = vec3<f32>(0.0);
+    var cov = 0.0;
     for (var k = 0u; k < 4u; k = k + 1u) {
         let s = 2u * id.xy + vec2<u32>(k % 2u, k / 2u);
         if (s.x >= ss.x || s.y >= ss.y) {
             continue;
         }
-        let t = nd[level_offset(src) + s.x + ss.x * s.y];
+        let i = level_offset(src) + s.x + ss.x * s.y;
+        let t = nd[i];
         count = count + 1.0;
         sum = sum + far_depth(t);
         if (t.w > 0.0) {
             covered = covered + 1u;
             n = n + t.xyz;
+            cov = cov + surface_depth(t, cover[i]);
         }
     }
     var out = vec4<f32>(0.0, 0.0, 1.0, 0.0);
+    var out_cover = 0.0;
     if (covered > 0u) {
         var nn = vec3<f32>(0.0);
         if (dot(n, n) > 0.0) {
             nn = normalize(n);
         }
         out = vec4<f32>(nn, sum / count);
+        out_cover = cov / f32(covered);
     }
-    nd[level_offset(src + 1u) + id.x + ds.x * id.y] = out;
+    let o = level_offset(src + 1u) + id.x + ds.x * id.y;
+    nd[o] = out;
+    cover[o] = out_cover;
 }
 
 // occlusion::line_ao::pcg_hash
@@ -198,6 +214,15 @@ fn g_depth(dd: f32, delta_l: f32) -> f32 {
         return 1.0;
     }
     return 1.0 - smoothstep(0.0, 1.0, (dd - L.delta0) / (delta_l - L.delta0));
+}
+
+// occlusion::line_ao::plane_rise: P's tangent plane's rise towards the eye at an offset of
+// `o` pixels (view axes), in normalised depth
+fn plane_rise(n: vec3<f32>, o: vec2<f32>, zoom: f32) -> f32 {
+    if (!(zoom > 0.0)) {
+        return 0.0;
+    }
+    return -(n.x * o.x + n.y * o.y) / (zoom * max(n.z, 0.1) * (L.far - L.near));
 }
 
 // occlusion::line_ao::phong_brdf with the head light along +z (view space), eq. 14
@@ -261,8 +286,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let off = level_offset(j);
         let ls = level_size(j);
         let pj = pb >> vec2<u32>(j);
-        let tp = nd[off + pj.x + ls.x * pj.y];
-        let d_p = far_depth(tp);
+        let ip = off + pj.x + ls.x * pj.y;
+        let tp = nd[ip];
+        let d_p = surface_depth(tp, cover[ip]);
         let n_p = tp.xyz;
         let n = (L.samples + j) / (j + 1u);
         let r = r0 + f32(j) * L.radius_step * zoom;
@@ -281,7 +307,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             valid = valid + 1u;
             let qj = vec2<u32>(q) >> vec2<u32>(j);
             let tq = nd[off + qj.x + ls.x * qj.y];
-            let dd = d_p - far_depth(tq);
+            var dd = d_p - far_depth(tq);
+            if (L.plane != 0u) {
+                // Between the two texels' centres (level-0 pixels, view y up).
+                let texels = vec2<f32>(f32(qj.x) - f32(pj.x), f32(pj.y) - f32(qj.y));
+                dd = dd - plane_rise(n_p, texels * f32(1u << j), zoom);
+            }
             // eq. 8, strict (occlusion::line_ao::occludes)
             let occ = select(0.0, 1.0, tq.w > 0.0 && dd > L.delta0);
             let g_d = g_depth(dd, delta_l);

@@ -30,7 +30,7 @@ use crate::gpu::{Gpu, Layer, Slot};
 use crate::method::LineAo;
 use crate::prelude::with_prelude;
 use occlusion::camera::{Camera, Projection};
-use occlusion::line_ao::{level_angle, Falloff, LineAoSettings, MAX_LEVELS};
+use occlusion::line_ao::{level_angle, Falloff, LineAoSettings, Visibility, MAX_LEVELS};
 
 const SHADER: &str = include_str!("../../shaders/line_ao.wgsl");
 
@@ -65,7 +65,7 @@ pub struct LineAoParams {
     pub light_shininess: f32,
     pub seed: u32,
     pub constant_falloff: u32,
-    pub pad0: u32,
+    pub plane: u32,
     pub pad1: u32,
     pub pad2: u32,
     pub level_angle: [[f32; 4]; 2],
@@ -177,6 +177,7 @@ impl LineAoPass {
                 Slot::Uniform,
                 Slot::StorageRw,
                 Slot::StorageRw,
+                Slot::StorageRw,
             ],
         );
         let pl = gpu.pipeline_layout("lineao", &[&layout]);
@@ -223,7 +224,7 @@ impl LineAoPass {
             light_shininess: light[3] as f32,
             seed: k.seed,
             constant_falloff: (k.falloff == Falloff::Constant) as u32,
-            pad0: 0,
+            plane: (k.visibility == Visibility::Plane) as u32,
             pad1: 0,
             pad2: 0,
             level_angle: level_angle_a,
@@ -240,6 +241,11 @@ impl LineAoPass {
             "lineao pyramid",
             total as u64 * 16,
             wgpu::BufferUsages::COPY_SRC,
+        );
+        let cover = gpu.scratch(
+            "lineao cover",
+            total as u64 * 4,
+            wgpu::BufferUsages::empty(),
         );
         let factors = gpu.scratch(
             "lineao factors",
@@ -264,6 +270,7 @@ impl LineAoPass {
                         half.as_entire_binding(),
                         layer.terms.as_entire_binding(),
                         factors.as_entire_binding(),
+                        cover.as_entire_binding(),
                     ],
                 )
             })
@@ -325,7 +332,7 @@ mod tests {
                 light_shininess,
                 seed,
                 constant_falloff,
-                pad0,
+                plane,
                 pad1,
                 pad2,
                 level_angle,

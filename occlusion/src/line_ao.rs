@@ -140,6 +140,18 @@ pub enum Falloff {
     Constant,
 }
 
+/// What a sample is compared with (eq. 8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Visibility {
+    /// The surface seen at the sample occludes when it is nearer than P's tangent plane there
+    /// (by more than `delta_0`): a line or tube does not occlude itself where it runs into the
+    /// depth (see the module doc).
+    #[default]
+    Plane,
+    /// The paper's eq. 8: nearer than P itself (the depth map as a height field).
+    Height,
+}
+
 /// LineAO's parameters (§3.2.3 and issue 11 item 3). `Default` is the paper's set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LineAoSettings {
@@ -170,6 +182,12 @@ pub struct LineAoSettings {
     pub seed: u32,
     /// The depth range per level (eq. 11 or constant).
     pub falloff: Falloff,
+    /// P's tangent plane or the paper's height field.
+    pub visibility: Visibility,
+    /// The world length of one unit of normalised depth (the camera's `far - near`): how the
+    /// tangent plane's rise, in world units, becomes a normalised depth. Set by the pass from
+    /// the camera; 1 by default.
+    pub depth_range: f32,
 }
 
 impl Default for LineAoSettings {
@@ -187,6 +205,8 @@ impl Default for LineAoSettings {
             light_shininess: 32.0,
             seed: 0,
             falloff: Falloff::Paper,
+            visibility: Visibility::Plane,
+            depth_range: 1.0,
         }
     }
 }
@@ -243,6 +263,9 @@ impl LineAoSettings {
         })?;
         require(finite_pos(self.light_shininess), "light_shininess", || {
             format!("{} is not a positive exponent", self.light_shininess)
+        })?;
+        require(finite_pos(self.depth_range), "depth_range", || {
+            format!("{} is not a positive length", self.depth_range)
         })?;
         Ok(())
     }
@@ -363,6 +386,19 @@ pub fn phong_brdf(
     intensity * (diffuse * nl + specular * r.dot(v).max(0.0).powf(shininess))
 }
 
+/// How far P's tangent plane (unit view-space normal `n`, facing the viewer) rises towards the
+/// eye at the screen offset `offset_px` (view axes: x right, y up; pixels), in normalised depth:
+/// `-(n.x o.x + n.y o.y) / (zoom max(n.z, 0.1) depth_range)` with `o` in world units `offset /
+/// zoom`. The nearest a sample's surface may be without occluding is the plane's depth there,
+/// `d(P) - rise`. `n.z` is kept at least 0.1 so a silhouette's plane, nearly along the view ray,
+/// stays finite; `zoom` not positive gives 0 (no plane).
+pub fn plane_rise(n: Vec3, offset_px: Vec2, zoom: f32, depth_range: f32) -> f32 {
+    if !(zoom > 0.0 && zoom.is_finite()) {
+        return 0.0;
+    }
+    -(n.x * offset_px.x + n.y * offset_px.y) / (zoom * n.z.max(0.1) * depth_range)
+}
+
 /// Eq. 15: the light weight from the light `reflected` at P towards the sample (eq. 14, the
 /// sum of [`phong_brdf`] over the lights): `1 - min(reflected, 1)`, so directly lit parts are
 /// darkened less. In [0, 1] for non-negative light.
@@ -435,6 +471,9 @@ pub struct NormalDepth {
     pub height: u32,
     pub depth: Vec<f32>,
     pub normal: Vec<[f32; 3]>,
+    /// The mean depth of the surfaces alone (background left out; 0 where none): what P's own
+    /// depth is on a coarse level (level 0: the depth).
+    pub cover: Vec<f32>,
 }
 
 impl NormalDepth {
@@ -446,6 +485,7 @@ impl NormalDepth {
             height,
             depth: vec![0.0; n],
             normal: vec![[0.0; 3]; n],
+            cover: vec![0.0; n],
         }
     }
 
@@ -483,6 +523,18 @@ impl NormalDepth {
         let i = self.index(x, y);
         self.depth[i] = d;
         self.normal[i] = n;
+        self.cover[i] = d;
+    }
+
+    /// The surfaces' own depth at (x, y) ([`NormalDepth::cover`]), or the far depth where it
+    /// has none.
+    pub fn surface_depth(&self, x: u32, y: u32) -> f32 {
+        let c = self.cover[self.index(x, y)];
+        if c.is_finite() && c > 0.0 {
+            c
+        } else {
+            self.far_depth(x, y)
+        }
     }
 
     /// The next coarser level: `ceil(w / 2) x ceil(h / 2)`, each texel the 2 x 2 block below
@@ -495,6 +547,7 @@ impl NormalDepth {
         for y in 0..h {
             for x in 0..w {
                 let (mut sum, mut count, mut covered, mut n) = (0.0f32, 0u32, 0u32, Vec3::ZERO);
+                let mut cover = 0.0f32;
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
                     let (sx, sy) = (2 * x + dx, 2 * y + dy);
                     if sx >= self.width || sy >= self.height {
@@ -505,10 +558,13 @@ impl NormalDepth {
                     if self.is_surface(sx, sy) {
                         covered += 1;
                         n += self.unit_normal(sx, sy);
+                        cover += self.surface_depth(sx, sy);
                     }
                 }
                 if covered > 0 {
                     out.set(x, y, sum / count as f32, n.normalize_or_zero().into());
+                    let i = out.index(x, y);
+                    out.cover[i] = cover / covered as f32;
                 }
             }
         }
@@ -530,6 +586,11 @@ impl NormalDepth {
             self.normal.len(),
             self.depth.len(),
             "NormalDepth: normal and depth differ in length"
+        );
+        assert_eq!(
+            self.cover.len(),
+            self.depth.len(),
+            "NormalDepth: cover and depth differ in length"
         );
         let mut out = vec![self.clone()];
         for _ in 1..levels.max(1) {
@@ -622,7 +683,7 @@ pub fn line_ao(
     for (j, lvl) in levels.iter().enumerate().take(s_r) {
         let j = j as u32;
         let (pxj, pyj) = (px.0 >> j, px.1 >> j);
-        let d_p = lvl.far_depth(pxj, pyj);
+        let d_p = lvl.surface_depth(pxj, pyj);
         let n_p = lvl.unit_normal(pxj, pyj);
         let n = samples_on_level(s.samples, j);
         let r = level_radius(r0, s.radius_step, zoom, j);
@@ -637,7 +698,13 @@ pub fn line_ao(
             }
             valid += 1;
             let (qx, qy) = ((q.x as u32) >> j, (q.y as u32) >> j);
-            let dd = d_p - lvl.far_depth(qx, qy);
+            let mut dd = d_p - lvl.far_depth(qx, qy);
+            if s.visibility == Visibility::Plane {
+                // Between the two texels' centres, where their depths hold (level-0 pixels,
+                // view y up).
+                let texels = Vec2::new(qx as f32 - pxj as f32, pyj as f32 - qy as f32);
+                dd -= plane_rise(n_p, texels * (1u32 << j) as f32, zoom, s.depth_range);
+            }
             let occ = if occludes(lvl.is_surface(qx, qy), dd, s.delta0) {
                 1.0
             } else {
@@ -1051,10 +1118,53 @@ mod tests {
         for x in 0..128 {
             tilted.set(x, 64, 0.4, [0.0, 0.6, 0.8]);
         }
-        let t = line_ao(&tilted.pyramid(3), (64, 64), 8.0, &wide(0.5, 0.3));
+        let height = LineAoSettings {
+            visibility: Visibility::Height,
+            ..wide(0.5, 0.3)
+        };
+        let t = line_ao(&tilted.pyramid(3), (64, 64), 8.0, &height);
         assert_eq!(t.ao, 0.0);
         // A background pixel is not evaluated.
         assert_eq!(img[0], LineAoTerms::OPEN);
+    }
+
+    #[test]
+    fn a_line_running_into_the_depth_occludes_itself_only_as_a_height_field() {
+        // A horizontal line whose depth grows by 0.002 a pixel (in normalised depth, for a
+        // depth range of 100 world units and 8 px a world unit: a slope of 1.6 in depth per
+        // unit across), with the normal perpendicular to it: (T x C) x T.
+        let (zoom, range) = (8.0f32, 100.0f32);
+        let slope_world = 0.002 * range * zoom; // depth per world unit along x
+        let t = Vec3::new(1.0, 0.0, -slope_world).normalize();
+        let n = (t.cross(Vec3::Z)).cross(t).normalize();
+        let mut nd = NormalDepth::empty(128, 128);
+        for x in 0..128 {
+            for y in 63..66 {
+                nd.set(x, y, 0.3 + 0.002 * x as f32, n.into());
+            }
+        }
+        let levels = nd.pyramid(3);
+        let plane = LineAoSettings {
+            depth_range: range,
+            ..Default::default()
+        };
+        let height = LineAoSettings {
+            visibility: Visibility::Height,
+            ..plane
+        };
+        let open = line_ao(&levels, (64, 64), zoom, &plane);
+        let dark = line_ao(&levels, (64, 64), zoom, &height);
+        assert!(open.ao < 0.02, "plane {}", open.ao);
+        assert!(dark.ao > 0.1, "height field {}", dark.ao);
+        // The rise itself: half a unit of depth over a unit offset along a 45-degree normal.
+        let r = plane_rise(
+            Vec3::new(-1.0, 0.0, 1.0).normalize(),
+            Vec2::new(8.0, 0.0),
+            8.0,
+            2.0,
+        );
+        assert!((r - 0.5).abs() < 1e-6, "{r}");
+        assert_eq!(plane_rise(Vec3::Z, Vec2::new(3.0, 4.0), 0.0, 1.0), 0.0);
     }
 
     #[test]

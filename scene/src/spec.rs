@@ -282,6 +282,8 @@ pub struct LineAoSpec {
     pub delta0: f64,
     /// `paper` (eq. 11) or `constant`.
     pub falloff: Falloff,
+    /// `plane` (a sample occludes above P's tangent plane) or `height` (the paper's eq. 8).
+    pub visibility: AoVisibility,
     /// `I_s`, the head light's intensity in `g_light` (eq. 14); 0 turns `g_light` off.
     pub light_intensity: f64,
     /// The guard band's cap in pixels (0: no band).
@@ -301,6 +303,15 @@ pub enum Falloff {
     Constant,
 }
 
+/// `render.lineao.visibility`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum AoVisibility {
+    #[default]
+    Plane,
+    Height,
+}
+
 impl Default for LineAoSpec {
     fn default() -> Self {
         LineAoSpec {
@@ -310,6 +321,7 @@ impl Default for LineAoSpec {
             radius_step: 1.0,
             delta0: 1e-4,
             falloff: Falloff::Paper,
+            visibility: AoVisibility::Plane,
             light_intensity: 0.5,
             guard: 64,
             shading: LineAoShading::Phong,
@@ -340,6 +352,11 @@ impl LineAoSpec {
                     Falloff::Paper => la::Falloff::Paper,
                     Falloff::Constant => la::Falloff::Constant,
                 },
+                visibility: match self.visibility {
+                    AoVisibility::Plane => la::Visibility::Plane,
+                    AoVisibility::Height => la::Visibility::Height,
+                },
+                depth_range: 1.0,
             },
             guard: self.guard,
             shading: self.shading,
