@@ -760,3 +760,59 @@ fn a_long_lived_renderer_draws_new_cameras_without_compiling_or_uploading() {
     };
     assert_eq!(fresh.timings.pass_clock, Some(want));
 }
+
+#[test]
+fn lines_shadow_the_volume_through_their_proxy_radius_and_lineao_folds_with_partial() {
+    use engine::method::SurfaceAo;
+    use engine::renderer::{DrawOptions, Renderer};
+    use tubes::lines::{LineSet, LineWidth};
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let vol = cube(|_| 1.0);
+    let data = occlusion::emission_absorption::prepare(&vol.select(None).unwrap().data);
+    let tf = medium(0.1);
+    let input = VolumeInput {
+        vol: &vol,
+        data: &data,
+        tf: &tf,
+    };
+    // A 6-pixel line inside the medium (z = 6).
+    let mut st = tubes::Streamlines::new();
+    st.push(&[
+        glam::Vec3::new(-6.0, 0.0, 6.0),
+        glam::Vec3::new(6.0, 0.0, 6.0),
+    ]);
+    let set = LineSet::new(
+        &st,
+        &tubes::tube_mesh::ColorMode::Constant([0.75; 3]),
+        LineWidth::Pixels(6.0),
+        false,
+    );
+    let mut s = settings(Method::Combined);
+    s.theta_deg = 60.0;
+    s.surface_ao = SurfaceAo::LineAo;
+    let r = Renderer::new(&gpu);
+    let render = |proxy: f32| {
+        let mut l = set.clone();
+        l.proxy_radius = proxy;
+        let scene = r.upload(Some(&input), &[], &[l], None).unwrap();
+        r.draw(&scene, &view(cam), &[], &s, DrawOptions::default())
+            .unwrap()
+    };
+    let (none, proxy) = (render(0.0), render(1.0));
+    let beside =
+        |o: &Output| mean_along(o, &cam, [-3.0, 1.8, 0.0], [3.0, 1.8, 0.0], |a| a.volumetric);
+    assert!(
+        beside(&proxy) < beside(&none) - 0.02,
+        "beside the line: {} with a proxy radius of 1, {} without",
+        beside(&proxy),
+        beside(&none)
+    );
+    let names: Vec<&str> = proxy.terms.iter().map(|(n, _)| *n).collect();
+    assert_eq!(names, ["partial", "lineao"]);
+    // The line is in the medium: partial occlusion darkens it (1 - exp(-0.1 x 4) above it).
+    let partial = mean_along(&proxy, &cam, [-3.0, 0.0, 6.0], [3.0, 0.0, 6.0], |a| {
+        a.partial
+    });
+    assert!(partial < 0.9, "{partial}");
+}

@@ -8,16 +8,17 @@
 //!
 //! | paper | CPU (this module) | GPU (`engine`, `shaders/`) | checked by |
 //! |---|---|---|---|
-//! | §3.2 depth `d_l` and normal `n_l`: the ND map and its "Gaussian" pyramid (§3.4: mipmaps) | [`NormalDepth`], [`NormalDepth::pyramid`], [`normalised_depth`] | to come: `engine/src/line_ao.rs`, `shaders/line_ao.wgsl` | `the_pyramid_halves_with_ceil_and_averages_background_as_far`, `normalised_depth_is_linear_over_near_far_and_keeps_zero_for_background` |
-//! | §3.2 zoom `z(P)`: the screen radius of a unit world sphere at P | [`zoom_px`] | to come: as above | `zoom_is_the_projected_length_of_one_world_unit` |
-//! | eq. 7 samples `s_h / (j + 1)` on level j (ceil: the paper's 59) | [`samples_on_level`] | to come: as above | `sample_counts_are_32_16_11` |
-//! | eq. 7 radii `r0 + j z(P)`; §3.2.3 `r0 = 1.5 x` line width; eq. 16 `r0 = 1.5 z t_s` (tubes) | [`level_radius`], [`LineAoSettings::r0_pixels`], [`LineWidth`] | to come: as above | `radii_follow_eq_7_and_eq_16` |
-//! | §3.4 random vectors `R1` (per pixel), `R2` (per sample and level) | [`rotation_angle`], [`pcg_hash`], [`sample_offset`], [`hemisphere_direction`] | to come: as above | `the_rotation_is_a_fixed_function_of_pixel_and_seed`, `sample_offsets_fill_the_disc_and_differ_between_levels`, `hemisphere_directions_are_unit_and_face_the_normal` |
-//! | eq. 8 visibility (strict: `Δd > delta_0`) | [`occludes`] | to come: as above | `an_isolated_line_on_an_empty_background_is_not_occluded` |
-//! | eq. 10-13 `g_depth` (eq. 12 with `Δd_l`), `delta(l) = (1 - l / s_r)^2`, `h(x) = 3x^2 - 2x^3` | [`delta`], [`smoothstep_h`], [`g_depth`] | to come: as above | `delta_is_1_4_9ths_1_9th_for_three_levels`, `g_depth_follows_eq_12`, `a_pixel_behind_a_uniform_wall_gets_1_minus_h_per_level` |
-//! | eq. 14-15 `g_light = 1 - min(1, Σ BRDF(L_s, I_s, n_l(P), ω))` | [`phong_brdf`], [`g_light`] | to come: as above | `g_light_follows_eq_15_and_a_head_light_of_one_zeroes_it`, `a_pixel_behind_a_uniform_wall_gets_1_minus_h_per_level` |
-//! | eq. 4-7, 9: the level averages summed, clamped to [0, 1] | [`line_ao`], [`line_ao_image`], [`LineAoTerms`] | to come: as above | the wall, `an_isolated_line_on_an_empty_background_is_not_occluded`, `all_samples_off_screen_and_one_level_give_finite_values` |
-//! | §3.2.3 parameters | [`LineAoSettings`] (`Default`, `check`) | to come: `render.lineao.*` keys | `the_defaults_are_the_papers_and_check_names_the_field` |
+//! | §3.2 depth `d_l` and normal `n_l`: the ND map and its "Gaussian" pyramid (§3.4: mipmaps) | [`NormalDepth`], [`NormalDepth::pyramid`], [`normalised_depth`] | `shaders/gbuffer.wgsl::fs_nd` (the guard-banded map), `line_ao.wgsl::nd_level0`, `nd_half`, `normalised_depth` | `the_pyramid_halves_with_ceil_and_averages_background_as_far`, `normalised_depth_is_linear_over_near_far_and_keeps_zero_for_background` |
+//! | §3.2 zoom `z(P)`: the screen radius of a unit world sphere at P | [`zoom_px`] | `line_ao.wgsl::main` (`zoom_scale / z`) | `zoom_is_the_projected_length_of_one_world_unit` |
+//! | eq. 7 samples `s_h / (j + 1)` on level j (ceil: the paper's 59) | [`samples_on_level`] | `main` (`(s_h + j) / (j + 1)`) | `sample_counts_are_32_16_11` |
+//! | eq. 7 radii `r0 + j z(P)`; §3.2.3 `r0 = 1.5 x` line width; eq. 16 `r0 = 1.5 z t_s` (tubes) | [`level_radius`], [`LineAoSettings::r0_pixels`], [`LineWidth`] | `main` (the width code of `fs_nd`), `engine::line_ao::guard_pixels` | `radii_follow_eq_7_and_eq_16` |
+//! | §3.4 random vectors `R1` (per pixel), `R2` (per sample and level) | [`rotation_angle`], [`pcg_hash`], [`sample_offset`], [`hemisphere_direction`] | `rotation_angle`, `pcg_hash`, `sample_offset`, `hemisphere_direction` | `the_rotation_is_a_fixed_function_of_pixel_and_seed`, `sample_offsets_fill_the_disc_and_differ_between_levels`, `hemisphere_directions_are_unit_and_face_the_normal` |
+//! | GPU against CPU, pixel for pixel | | | `engine/tests/line_ao_render.rs::the_gpu_kernel_agrees_with_its_cpu_twin` |
+//! | eq. 8 visibility (strict: `Δd > delta_0`; tangent plane) | [`occludes`], [`plane_rise`], [`Visibility`] | `main`, `plane_rise` | `an_isolated_line_on_an_empty_background_is_not_occluded` |
+//! | eq. 10-13 `g_depth` (eq. 12 with `Δd_l`), `delta(l) = (1 - l / s_r)^2`, `h(x) = 3x^2 - 2x^3` | [`delta`], [`LineAoSettings::delta`], [`smoothstep_h`], [`g_depth`] | `delta`, `smoothstep`, `g_depth` | `delta_is_1_4_9ths_1_9th_for_three_levels`, `g_depth_follows_eq_12`, `a_pixel_behind_a_uniform_wall_gets_1_minus_h_per_level` |
+//! | eq. 14-15 `g_light = 1 - min(1, Σ BRDF(L_s, I_s, n_l(P), ω))` | [`phong_brdf`], [`g_light`] | `phong_brdf`, `main` | `g_light_follows_eq_15_and_a_head_light_of_one_zeroes_it`, `a_pixel_behind_a_uniform_wall_gets_1_minus_h_per_level` |
+//! | eq. 4-7, 9: the level averages summed, clamped to [0, 1] | [`line_ao`], [`line_ao_image`], [`LineAoTerms`] | `main` (layer and factor channels) | the wall, `an_isolated_line_on_an_empty_background_is_not_occluded`, `all_samples_off_screen_and_one_level_give_finite_values` |
+//! | §3.2.3 parameters | [`LineAoSettings`] (`Default`, `check`) | `render.lineao.*` keys (`scene::spec::LineAoSpec`), `engine::line_ao::LineAoParams` | `the_defaults_are_the_papers_and_check_names_the_field` |
 //!
 //! What the paper says, in short: around each line pixel P, `s_r` discs ("hemispheres") of
 //! radius `r0 + j z(P)` pixels, `j = 0 .. s_r - 1`, each sampled `s_h / (j + 1)` times on
@@ -47,6 +48,23 @@
 //!   occluder - including `Δd = 0`, so a flat line would occlude itself on every sample that
 //!   lands on it. Here a sample occludes only when `Δd > delta_0` (OpenWalnut's
 //!   `step(delta_0, Δd)`); `g_depth` is continuous there (`1 - h(0) = 1`).
+//! * **P's depth on a coarse level** (issue: "level j compared with level j"): the samples read
+//!   the pyramid's depth with background as far, as the paper; P itself reads the mean of its
+//!   block's *surfaces* ([`NormalDepth::cover`]). With the far-mean for P too, a block that
+//!   mixes P's line with background is farther than the all-line block beside it, and an
+//!   isolated line occludes itself on the coarse levels (measured on the GPU: visibility down
+//!   to 0.955 along a single line under perspective; with the surfaces' mean it is 1).
+//! * **Tangent plane** ([`Visibility::Plane`], the default; `render.lineao.visibility`): eq. 8
+//!   reads the depth map as a height field, so a line running into the depth is its own
+//!   occluder - half its samples along it are nearer than P by more than `delta_0` (1e-4 of the
+//!   scene depth is a slope of a few hundredths). Measured on the GPU: four sparse tilted lines
+//!   had a mean visibility of 0.75 under eq. 8, against an isolated tube's ray-traced AO of
+//!   about 1. Here a sample occludes when its surface is nearer than P's tangent plane at the
+//!   sample ([`plane_rise`], between the texels' centres where their depths hold), by more than
+//!   `delta_0`; `g_depth` takes that difference. P's normal is the strip's own for lines (the
+//!   G-buffer's normal-depth pass writes it; it faces along the view axis, where the lit normal
+//!   faces the eye point) and the surface's for tubes, whose convex sides then do not occlude
+//!   them either. [`Visibility::Height`] keeps the paper's rule.
 //! * **Eq. 12** (typo I1): its third case reads `Δd_l`, not `d_l` (seed 002 eq. 5 prints it so):
 //!   `g_depth = 1 - h((Δd - delta_0) / (delta(l) - delta_0))`. `check` requires
 //!   `delta_0 < delta(s_r - 1)` so the smoothstep's edges are never reversed (OpenWalnut's last

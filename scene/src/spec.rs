@@ -1020,6 +1020,44 @@ mod tests {
     }
 
     #[test]
+    fn lineao_keys_take_their_defaults_and_bad_values_name_their_key() {
+        let s = parse("", "s", Path::new("."), &[]).unwrap();
+        let k = s.render.lineao.settings([0.3, 0.7, 0.3, 32.0]);
+        assert_eq!(k.kernel.samples, 32);
+        assert_eq!(k.kernel.levels, 3);
+        assert_eq!(k.guard, 64);
+        assert_eq!(k.shading, LineAoShading::Phong);
+        let bad = |set: &str| parse("", "s", Path::new("."), &[set.into()]).unwrap_err();
+        for (set, key) in [
+            ("render.lineao.levels=0", "render.lineao.levels"),
+            ("render.lineao.levels=9", "render.lineao.levels"),
+            ("render.lineao.samples=0", "render.lineao.samples"),
+            ("render.lineao.r0=-1", "render.lineao.r0"),
+            ("render.lineao.delta0=0.5", "render.lineao.delta0"),
+            ("render.lineao.radius_step=-1", "render.lineao.radius_step"),
+            ("render.lineao.guard=5000", "render.lineao.guard"),
+        ] {
+            let e = bad(set);
+            assert!(e.contains(key), "{set}: {e}");
+        }
+        assert!(bad("render.lineao.falloff=cubic").contains("falloff"));
+        // A scene's lines: proxy radius defaults by unit, and a negative one is refused.
+        let l = |extra: &str| {
+            parse(
+                &format!("[[lines]]\npath = \"a.tck\"\n{extra}"),
+                "s",
+                Path::new("/d"),
+                &[],
+            )
+        };
+        assert_eq!(l("").unwrap().lines[0].proxy_radius(), 0.0);
+        let world = l("width = 0.6\nwidth_unit = \"world\"\n").unwrap();
+        assert!((world.lines[0].proxy_radius() - 0.3).abs() < 1e-12);
+        let e = l("proxy_radius = -1.0\n").unwrap_err();
+        assert!(e.contains("lines[0].proxy_radius"), "{e}");
+    }
+
+    #[test]
     fn defaults_fill_an_empty_scene() {
         let s = parse("", "empty", Path::new("."), &[]).unwrap();
         assert_eq!(s.render, RenderSpec::default());

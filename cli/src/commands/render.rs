@@ -40,8 +40,8 @@ pub struct Args {
     /// camera paths"); the output name needs a run of # as with --orbit.
     #[arg(long, value_name = "FILE")]
     camera_path: Option<PathBuf>,
-    /// Add the AOV channels to the EXR: volumetric, partial, vicinity and combined
-    /// occlusion, linear depth (Z).
+    /// Add the AOV channels to the EXR: volumetric, partial, vicinity, lineao (with its
+    /// factors .v, .g_depth, .g_light where it ran) and combined occlusion, linear depth (Z).
     #[arg(long)]
     aov: bool,
     /// Override a scene key by its dotted path (repeatable).
