@@ -111,7 +111,8 @@ pub fn guard_pixels(
     let zoom = if zoom.is_finite() { zoom } else { f32::MAX };
     let width = widths.pixels.max(widths.world * zoom).max(2.0);
     let r = s.r0_widths * width + (s.levels.max(1) - 1) as f32 * s.radius_step * zoom + 1.0;
-    if !(r < cap as f32) {
+    // A NaN radius takes the cap too.
+    if r.is_nan() || r >= cap as f32 {
         return cap;
     }
     (r.ceil() as u32).div_ceil(block) * block

@@ -142,13 +142,15 @@ fn the_gpu_kernel_agrees_with_its_cpu_twin() {
     let at = covered(&o);
     assert!(at.len() > 2000, "{} pixels", at.len());
     let gpu_v = layer(&o, "lineao");
-    let pairs: [(&str, Box<dyn Fn(usize) -> f32>); 4] = [
-        ("visibility", Box::new(|i| twin[i].visibility())),
-        ("v", Box::new(|i| 1.0 - twin[i].v)),
-        ("g_depth", Box::new(|i| twin[i].g_depth)),
-        ("g_light", Box::new(|i| twin[i].g_light)),
+    type Factor = fn(&occlusion::line_ao::LineAoTerms) -> f32;
+    let pairs: [(&str, Factor); 4] = [
+        ("visibility", |t| t.visibility()),
+        ("v", |t| 1.0 - t.v),
+        ("g_depth", |t| t.g_depth),
+        ("g_light", |t| t.g_light),
     ];
-    for (name, cpu) in pairs {
+    for (name, factor) in pairs {
+        let cpu = |i: usize| factor(&twin[i]);
         let got: &[f32] = if name == "visibility" {
             gpu_v
         } else {
