@@ -1,10 +1,17 @@
-//! `umbra demo [mni|cfd]`: the bundled scenes rendered by the combined method.
+//! `umbra demo [mni|cfd|lines]`: the bundled scenes.
 //!
 //! * `mni` (default): `datasets/scenes/demo.toml` - the MNI ICBM 2009a T1 template cut open at
 //!   the mid-sagittal plane with three HCP1065 bundles (registered: they lie in the white
-//!   matter).
+//!   matter), by the combined method.
 //! * `cfd`: the VTK carotid flow (`datasets/vtk/carotid.vtk`): streamlines traced from a plane
-//!   of seeds at the inlet (RK4, `umbra trace`), as tubes over the speed field.
+//!   of seeds at the inlet (RK4, `umbra trace`), as tubes over the speed field, by the combined
+//!   method.
+//! * `lines`: `datasets/scenes/demo_lines.toml` - all ten HCP1065 bundles (7.1M points,
+//!   registered as for `mni`) as lines in direction colours with LineAO (method `lineao`) over
+//!   the template, its right hemisphere cut away. 800 x 600: on lavapipe rasterising the lines
+//!   into the G-buffer takes nearly all of a frame whatever the image size, so a larger default
+//!   buys little time back; this one renders in about 40 s on two cores. The bundles are not
+//!   shipped (see [`find_bundle`]).
 //!
 //! The datasets are found at `UMBRA_DATASETS`, else the source tree's `datasets/` (where
 //! `cargo run` builds from), else `./datasets`.
@@ -17,7 +24,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// mni or cfd.
+    /// mni (the template with three bundles as tubes), cfd (carotid flow) or lines (all of
+    /// HCP1065 as lines with LineAO; needs the bundles, see `UMBRA_HCP1065`).
     #[arg(default_value = "mni")]
     which: String,
     /// Output image (.png or .exr).
@@ -27,7 +35,7 @@ pub struct Args {
     width: Option<u32>,
     #[arg(long)]
     height: Option<u32>,
-    /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated.
+    /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated, lineao.
     #[arg(long, value_enum, hide_possible_values = true)]
     method: Option<super::Method>,
     /// Frames timed; total_ms is their median.
@@ -95,7 +103,60 @@ combine = "product"
     )
 }
 
-/// Renders demo `which` (`mni` or `cfd`) to `output`.
+/// The environment variable naming a folder that holds the HCP1065 bundles (`AF_R.trk.gz`, ...).
+pub const HCP1065_ENV: &str = "UMBRA_HCP1065";
+
+/// Where the lines demo's bundle `name` (a file name) lies: `$UMBRA_HCP1065/name`, else a copy
+/// shipped in `datasets/tracts/hcp1065/`, else `written` - the scene's own path for it,
+/// `../shared/data/tracts/hcp1065/name` beside the repository. Made absolute. A bundle found in
+/// none of them is an error that names the file and every place looked.
+pub fn find_bundle(data: &Path, name: &str, written: &Path) -> Result<PathBuf, String> {
+    let mut places: Vec<PathBuf> = vec![];
+    if let Some(d) = std::env::var_os(HCP1065_ENV) {
+        places.push(PathBuf::from(d).join(name));
+    }
+    places.push(data.join("tracts/hcp1065").join(name));
+    places.push(written.to_path_buf());
+    if let Some(p) = places.iter().find(|p| p.is_file()) {
+        return p
+            .canonicalize()
+            .map_err(|e| format!("{}: {e}", p.display()));
+    }
+    let looked: Vec<String> = places.iter().map(|p| p.display().to_string()).collect();
+    Err(format!(
+        "umbra demo lines: the HCP1065 bundle {name} is missing; looked at {} (set {HCP1065_ENV} \
+         to a folder holding the ten HCP1065 .trk.gz bundles)",
+        looked.join(", ")
+    ))
+}
+
+/// The `--set` overrides that point each of the lines demo's line sets (`scene`, with the
+/// user's `overrides`) at its bundle as [`find_bundle`] finds it.
+fn bundle_overrides(
+    data: &Path,
+    scene: &Path,
+    overrides: &[String],
+) -> Result<Vec<String>, String> {
+    let s = scene::spec::load(scene, overrides)?;
+    let mut o = vec![];
+    for (i, l) in s.lines.iter().enumerate() {
+        let name = l
+            .path
+            .file_name()
+            .ok_or_else(|| format!("{}: lines[{i}].path names no file", scene.display()))?;
+        let found = find_bundle(data, &name.to_string_lossy(), &l.path)?;
+        let f = found.to_string_lossy();
+        // A TOML literal string where it can be one; the loader reads anything else as text.
+        o.push(if f.contains('\'') || f.contains('\n') {
+            format!("lines.{i}.path={f}")
+        } else {
+            format!("lines.{i}.path='{f}'")
+        });
+    }
+    Ok(o)
+}
+
+/// Renders demo `which` (`mni`, `cfd` or `lines`) to `output`.
 pub fn render_demo(
     which: &str,
     output: &Path,
@@ -146,6 +207,21 @@ pub fn render_demo(
             std::fs::write(&scene, cfd_scene(&data, &tracts)).map_err(|e| e.to_string())?;
             scene::render::run(&args(scene), &mut |_, _| {})
         }
-        other => Err(format!("umbra demo {other}: choose mni or cfd")),
+        "lines" => {
+            let scene = data.join("scenes/demo_lines.toml");
+            if !scene.exists() {
+                return Err(format!(
+                    "{}: the lines demo's scene is missing (set UMBRA_DATASETS to umbra's datasets/)",
+                    scene.display()
+                ));
+            }
+            // The bundles first, then the user's overrides (which may move a bundle too).
+            let mut o = bundle_overrides(&data, &scene, overrides)?;
+            o.extend(overrides.iter().cloned());
+            let mut a = args(scene);
+            a.overrides = o;
+            scene::render::run(&a, &mut |_, _| {})
+        }
+        other => Err(format!("umbra demo {other}: choose lines, mni or cfd")),
     }
 }
