@@ -8,10 +8,10 @@
 //!   method.
 //! * `lines`: `datasets/scenes/demo_lines.toml` - all ten HCP1065 bundles (7.1M points,
 //!   registered as for `mni`) as lines in direction colours with LineAO (method `lineao`) over
-//!   the template, its right hemisphere cut away. 800 x 600: on lavapipe rasterising the lines
-//!   into the G-buffer takes nearly all of a frame whatever the image size, so a larger default
-//!   buys little time back; this one renders in about 40 s on two cores. The bundles are not
-//!   shipped (see [`find_bundle`]).
+//!   the template, its right hemisphere cut away. 800 x 600, 41 s on lavapipe with two cores
+//!   (38.6 s a frame; 1024 x 768 takes 45 s a frame): rasterising the 14.2M line triangles
+//!   into the G-buffer is most of a frame at any size, so a smaller image would save little and
+//!   this one stays inside a minute. The bundles are not shipped (see [`find_bundle`]).
 //!
 //! The datasets are found at `UMBRA_DATASETS`, else the source tree's `datasets/` (where
 //! `cargo run` builds from), else `./datasets`.
