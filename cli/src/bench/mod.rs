@@ -1,9 +1,10 @@
 //! `umbra bench`: the benchmarks, one module each (`accuracy`, `stability`, `sweep`, `tubes`,
-//! `ao`), with the image metrics (`metrics`) and the charts (`chart`) they share.
+//! `ao`, `lineao`), with the image metrics (`metrics`) and the charts (`chart`) they share.
 
 mod accuracy;
 mod ao;
 mod chart;
+mod lineao;
 mod metrics;
 mod stability;
 mod sweep;
@@ -36,6 +37,11 @@ enum Command {
     /// Monte Carlo reference of the same light model (cached): <out>/results.csv,
     /// <out>/pareto.svg and .png. Images are 128 x 128 unless --set says otherwise.
     Accuracy(accuracy::Args),
+    /// LineAO against ray-traced ambient occlusion of the same lines as tubes (orthographic
+    /// views), beside Schott's vicinity and a CPU SSAO: isolated lines, a dense bundle, the
+    /// s_h sweep, the falloff, zoom, screen borders, real tracts. <out>/results.csv,
+    /// pareto.svg/.png, samples.svg/.png, zoom.csv, border.csv, images/.
+    Lineao(lineao::Args),
 }
 
 pub fn run(a: Args) -> Result<(), String> {
@@ -45,5 +51,6 @@ pub fn run(a: Args) -> Result<(), String> {
         Command::Sweep(a) => sweep::run(a),
         Command::Stability(a) => stability::run(a),
         Command::Accuracy(a) => accuracy::run(a),
+        Command::Lineao(a) => lineao::run(a),
     }
 }
