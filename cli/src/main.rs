@@ -41,8 +41,9 @@ enum Command {
     /// Benchmarks: `umbra bench accuracy` (every method against the Monte Carlo ground truth,
     /// error against time, results.csv and a Pareto chart).
     Bench(bench::Args),
-    /// Render a bundled demo scene by the combined method: `mni` (the MNI T1 template with
-    /// HCP1065 tracts; the default) or `cfd` (carotid flow with traced streamlines).
+    /// Render a demo scene: `mni` (the MNI T1 template with HCP1065 tracts as tubes, combined
+    /// method; the default), `cfd` (carotid flow with traced streamlines) or `lines` (all ten
+    /// HCP1065 bundles as lines with LineAO over the template).
     Demo(demo::Args),
     /// Check a scene file (TOML) and print it resolved, with defaults and --set overrides, as
     /// JSON (the renderer of issue 5 reads the same files).
