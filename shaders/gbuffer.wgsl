@@ -45,6 +45,8 @@ struct VOut {
     @location(6) proxy: f32,
     // Lines: the unit tangent (camera-relative world); tubes: zero.
     @location(7) tangent: vec3<f32>,
+    // Lines: the unit tangent on screen (pixels, view axes: x right, y up); tubes: zero.
+    @location(8) screen_t: vec2<f32>,
 };
 
 @vertex
@@ -60,6 +62,7 @@ fn vs(v: VIn) -> VOut {
     o.width_code = G.width_code;
     o.proxy = 0.0;
     o.tangent = vec3<f32>(0.0);
+    o.screen_t = vec2<f32>(0.0);
     return o;
 }
 
@@ -177,6 +180,7 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     o.width_code = select(2.0 * LP.half_width, -2.0 * LP.half_width, LP.world != 0u);
     o.proxy = LP.proxy_radius;
     o.tangent = t;
+    o.screen_t = d;
     if (LP.cylinder != 0u && dot(s, s) > 1e-12) {
         o.bend = normalize(s) * side;
         o.bulge = hw / px_per_world;
@@ -259,6 +263,9 @@ fn fs_depth(v: VOut) -> @location(0) vec4<f32> {
 struct NdOut {
     @location(0) depth: vec4<f32>,
     @location(1) normal: vec4<f32>,
+    // Lines' screen tangent for anisotropic LineAO (occlusion::line_ao::tangent_texel):
+    // (cos 2θ, sin 2θ, |t.x|, 1); zero for tubes.
+    @location(2) tangent: vec4<f32>,
 };
 
 // A line's normal here is its strip's (the surface whose depth this map holds): the
@@ -282,6 +289,11 @@ fn fs_nd(v: VOut) -> NdOut {
     var o: NdOut;
     o.depth = f.depth;
     o.normal = vec4<f32>(n, v.width_code);
+    o.tangent = vec4<f32>(0.0);
+    if (dot(v.screen_t, v.screen_t) > 1e-12) {
+        let st = normalize(v.screen_t);
+        o.tangent = vec4<f32>(st.x * st.x - st.y * st.y, 2.0 * st.x * st.y, abs(st.x), 1.0);
+    }
     return o;
 }
 

@@ -38,6 +38,12 @@ struct Params {
     constant_falloff: u32,
     // 1: a sample is compared with P's tangent plane; 0: with P (eq. 8, the height field)
     plane: u32,
+    // anisotropic LineAO (seed 002 eq. 10-12) and its alignment: 1 the paper's |t.x|, 0 the
+    // doubled-angle tangent; I and A0 of eq. 11
+    anisotropic: u32,
+    paper_alignment: u32,
+    intensity: f32,
+    floor: f32,
     pad1: u32,
     pad2: u32,
     // level_angle(j) (occlusion::line_ao), 8 levels
@@ -64,10 +70,13 @@ struct Half {
 @group(0) @binding(4) var<uniform> H: Half;
 // The surface terms' layers; this pass writes layer L.layer (the visibility 1 - LineAO).
 @group(0) @binding(5) var<storage, read_write> terms: array<f32>;
-// The factor channels: V, g_depth, g_light, each width * height (1 = open).
+// The factor channels: V, g_depth, g_light, g_align, each width * height (1 = open).
 @group(0) @binding(6) var<storage, read_write> factors: array<f32>;
 // Per pyramid texel, the mean depth of its surfaces alone (0: none): P's own depth on a level.
 @group(0) @binding(7) var<storage, read_write> cover: array<f32>;
+// The lines' screen tangents (gbuffer.wgsl::fs_nd) and their pyramid, texel for texel as `nd`.
+@group(0) @binding(8) var nd_tangent: texture_2d<f32>;
+@group(0) @binding(9) var<storage, read_write> tangents: array<vec4<f32>>;
 
 const TAU: f32 = 6.2831853;
 const GOLDEN_ANGLE: f32 = 2.399963;
@@ -112,6 +121,11 @@ fn nd_level0(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     nd[id.x + L.nd_width * id.y] = vec4<f32>(n, d);
     cover[id.x + L.nd_width * id.y] = d;
+    var t = vec4<f32>(0.0);
+    if (d > 0.0) {
+        t = textureLoad(nd_tangent, p, 0);
+    }
+    tangents[id.x + L.nd_width * id.y] = t;
 }
 
 // occlusion::line_ao::NormalDepth::far_depth: background counts as far.
@@ -139,6 +153,8 @@ fn nd_half(@builtin(global_invocation_id) id: vec3<u32>) {
     var covered = 0u;
     var n = vec3<f32>(0.0);
     var cov = 0.0;
+    var tan = vec3<f32>(0.0);
+    var lines = 0.0;
     for (var k = 0u; k < 4u; k = k + 1u) {
         let s = 2u * id.xy + vec2<u32>(k % 2u, k / 2u);
         if (s.x >= ss.x || s.y >= ss.y) {
@@ -152,6 +168,11 @@ fn nd_half(@builtin(global_invocation_id) id: vec3<u32>) {
             covered = covered + 1u;
             n = n + t.xyz;
             cov = cov + surface_depth(t, cover[i]);
+            let tt = tangents[i];
+            if (tt.w > 0.0) {
+                tan = tan + tt.xyz;
+                lines = lines + 1.0;
+            }
         }
     }
     var out = vec4<f32>(0.0, 0.0, 1.0, 0.0);
@@ -167,6 +188,11 @@ fn nd_half(@builtin(global_invocation_id) id: vec3<u32>) {
     let o = level_offset(src + 1u) + id.x + ds.x * id.y;
     nd[o] = out;
     cover[o] = out_cover;
+    var out_t = vec4<f32>(0.0);
+    if (lines > 0.0) {
+        out_t = vec4<f32>(tan / lines, 1.0);
+    }
+    tangents[o] = out_t;
 }
 
 // occlusion::line_ao::pcg_hash
@@ -225,6 +251,18 @@ fn plane_rise(n: vec3<f32>, o: vec2<f32>, zoom: f32) -> f32 {
     return -(n.x * o.x + n.y * o.y) / (zoom * max(n.z, 0.1) * (L.far - L.near));
 }
 
+// occlusion::line_ao::alignment_difference and g_align (eq. 10-11)
+fn g_align(p: vec4<f32>, q: vec4<f32>) -> f32 {
+    if (L.anisotropic == 0u || p.w <= 0.0 || q.w <= 0.0) {
+        return 1.0;
+    }
+    var x = abs(p.z - q.z);
+    if (L.paper_alignment == 0u) {
+        x = sqrt(max((1.0 - (p.x * q.x + p.y * q.y)) * 0.5, 0.0));
+    }
+    return max(L.floor, min(1.0, L.intensity * smoothstep(0.0, 1.0, x)));
+}
+
 // occlusion::line_ao::phong_brdf with the head light along +z (view space), eq. 14
 fn phong_brdf(n: vec3<f32>, v: vec3<f32>) -> f32 {
     let light = vec3<f32>(0.0, 0.0, 1.0);
@@ -255,6 +293,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         factors[out] = 1.0;
         factors[n_px + out] = 1.0;
         factors[2u * n_px + out] = 1.0;
+        factors[3u * n_px + out] = 1.0;
         return;
     }
     let z = textureLoad(nd_depth, vec2<i32>(pb), 0).r;
@@ -281,6 +320,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var v = 0.0;
     var gd = 0.0;
     var gl = 0.0;
+    var ga = 0.0;
     var counted = 0u;
     for (var j = 0u; j < L.levels; j = j + 1u) {
         let off = level_offset(j);
@@ -298,6 +338,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         var lv = 0.0;
         var lgd = 0.0;
         var lgl = 0.0;
+        var lga = 0.0;
+        let t_p = tangents[ip];
         for (var i = 0u; i < n; i = i + 1u) {
             let omega = hemisphere_direction(sample_offset(i, n, j, rotation), n_p);
             let q = centre + r * vec2<f32>(omega.x, -omega.y);
@@ -306,7 +348,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             }
             valid = valid + 1u;
             let qj = vec2<u32>(q) >> vec2<u32>(j);
-            let tq = nd[off + qj.x + ls.x * qj.y];
+            let iq = off + qj.x + ls.x * qj.y;
+            let tq = nd[iq];
             var dd = d_p - far_depth(tq);
             if (L.plane != 0u) {
                 // Between the two texels' centres (level-0 pixels, view y up).
@@ -317,10 +360,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             let occ = select(0.0, 1.0, tq.w > 0.0 && dd > L.delta0);
             let g_d = g_depth(dd, delta_l);
             let g_l = 1.0 - clamp(phong_brdf(n_p, omega), 0.0, 1.0);
-            ao = ao + occ * g_d * g_l;
+            let g_a = g_align(t_p, tangents[iq]);
+            ao = ao + occ * g_d * g_l * g_a;
             lv = lv + occ;
             lgd = lgd + g_d;
             lgl = lgl + g_l;
+            lga = lga + g_a;
         }
         if (valid > 0u) {
             let k = 1.0 / f32(valid);
@@ -328,6 +373,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             v = v + lv * k;
             gd = gd + lgd * k;
             gl = gl + lgl * k;
+            ga = ga + lga * k;
             counted = counted + 1u;
         }
     }
@@ -336,13 +382,16 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var fv = 0.0;
     var fgd = 1.0;
     var fgl = 1.0;
+    var fga = 1.0;
     if (counted > 0u) {
         let k = 1.0 / f32(counted);
         fv = v * k;
         fgd = gd * k;
         fgl = gl * k;
+        fga = ga * k;
     }
     factors[out] = 1.0 - fv;
     factors[n_px + out] = fgd;
     factors[2u * n_px + out] = fgl;
+    factors[3u * n_px + out] = fga;
 }

@@ -202,6 +202,8 @@ struct MeshDraw {
 pub struct NdMap {
     pub depth: wgpu::TextureView,
     pub normal: wgpu::TextureView,
+    /// Lines' screen tangents `(cos 2θ, sin 2θ, |t.x|, 1)` (`rgba16float`; zero elsewhere).
+    pub tangent: wgpu::TextureView,
     pub guard: u32,
     /// The map's size: the viewport plus twice the band.
     pub size: (u32, u32),
@@ -322,7 +324,7 @@ impl Pipelines {
         Pipelines {
             front,
             depth: ms.then(|| pair("fs_depth", &[t(DEPTH)], 1)),
-            nd: pair("fs_nd", &[t(DEPTH), t(NORMAL)], 1),
+            nd: pair("fs_nd", &[t(DEPTH), t(NORMAL), t(NORMAL)], 1),
             back: pair("fs_back", &[t(DEPTH)], 1),
             layout,
             line_layout,
@@ -523,6 +525,7 @@ impl GBuffer {
                 depth,
                 depth_tex,
                 normal: target(gpu, "lineao nd normal", NORMAL, nw, nh).1,
+                tangent: target(gpu, "lineao nd tangent", NORMAL, nw, nh).1,
                 guard: g,
                 size: (nw, nh),
                 z: target(
@@ -632,7 +635,7 @@ impl GBuffer {
             passes.push((
                 Kind::Nd,
                 &p.nd,
-                vec![clear(&nd.depth), clear(&nd.normal)],
+                vec![clear(&nd.depth), clear(&nd.normal), clear(&nd.tangent)],
                 &nd.z,
             ));
         }

@@ -30,12 +30,12 @@ use crate::gpu::{Gpu, Layer, Slot};
 use crate::method::LineAo;
 use crate::prelude::with_prelude;
 use occlusion::camera::{Camera, Projection};
-use occlusion::line_ao::{level_angle, Falloff, LineAoSettings, Visibility, MAX_LEVELS};
+use occlusion::line_ao::{level_angle, Alignment, Falloff, LineAoSettings, Visibility, MAX_LEVELS};
 
 const SHADER: &str = include_str!("../../shaders/line_ao.wgsl");
 
 /// The factor channels' names after `occlusion.lineao.` (the AOV `occlusion.lineao.v`, ...).
-pub const FACTORS: [&str; 3] = ["v", "g_depth", "g_light"];
+pub const FACTORS: [&str; 4] = ["v", "g_depth", "g_light", "g_align"];
 
 /// The pass's uniform. Keep in sync with `struct Params` in `shaders/line_ao.wgsl`.
 #[repr(C)]
@@ -66,6 +66,10 @@ pub struct LineAoParams {
     pub seed: u32,
     pub constant_falloff: u32,
     pub plane: u32,
+    pub anisotropic: u32,
+    pub paper_alignment: u32,
+    pub intensity: f32,
+    pub floor: f32,
     pub pad1: u32,
     pub pad2: u32,
     pub level_angle: [[f32; 4]; 2],
@@ -179,6 +183,8 @@ impl LineAoPass {
                 Slot::StorageRw,
                 Slot::StorageRw,
                 Slot::StorageRw,
+                Slot::UnfilterableTexture,
+                Slot::StorageRw,
             ],
         );
         let pl = gpu.pipeline_layout("lineao", &[&layout]);
@@ -226,6 +232,10 @@ impl LineAoPass {
             seed: k.seed,
             constant_falloff: (k.falloff == Falloff::Constant) as u32,
             plane: (k.visibility == Visibility::Plane) as u32,
+            anisotropic: k.anisotropic as u32,
+            paper_alignment: (k.alignment == Alignment::Paper) as u32,
+            intensity: k.intensity,
+            floor: k.floor,
             pad1: 0,
             pad2: 0,
             level_angle: level_angle_a,
@@ -246,6 +256,11 @@ impl LineAoPass {
         let cover = gpu.scratch(
             "lineao cover",
             total as u64 * 4,
+            wgpu::BufferUsages::empty(),
+        );
+        let tangents = gpu.scratch(
+            "lineao tangents",
+            total as u64 * 16,
             wgpu::BufferUsages::empty(),
         );
         let factors = gpu.scratch(
@@ -272,6 +287,8 @@ impl LineAoPass {
                         layer.terms.as_entire_binding(),
                         factors.as_entire_binding(),
                         cover.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(&nd.tangent),
+                        tangents.as_entire_binding(),
                     ],
                 )
             })
@@ -334,6 +351,10 @@ mod tests {
                 seed,
                 constant_falloff,
                 plane,
+                anisotropic,
+                paper_alignment,
+                intensity,
+                floor,
                 pad1,
                 pad2,
                 level_angle,

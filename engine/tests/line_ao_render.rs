@@ -112,10 +112,20 @@ fn an_isolated_line_on_an_empty_background_stays_open() {
 
 #[test]
 fn the_gpu_kernel_agrees_with_its_cpu_twin() {
+    twin_agrees(false);
+}
+
+#[test]
+fn the_gpu_kernel_agrees_with_its_cpu_twin_anisotropic() {
+    twin_agrees(true);
+}
+
+fn twin_agrees(anisotropic: bool) {
     let gpu = gpu();
     let cam = top_camera(false);
     // Guard band off: the twin runs on the viewport's own normal-depth map.
-    let s = settings(0);
+    let mut s = settings(0);
+    s.lineao.kernel.anisotropic = anisotropic;
     let o = render(&gpu, &[], &[lines(&grid(9, 0.0, 0.6), 2.0)], cam, &s);
     // The twin's input from the frame: orthographic flat lines in planes facing the eye have
     // the normal +z; the depth is the AOV's linear depth, normalised as the pass does.
@@ -126,6 +136,13 @@ fn the_gpu_kernel_agrees_with_its_cpu_twin() {
             if z > 0.0 {
                 let d = occlusion::line_ao::normalised_depth(z, cam.near as f32, cam.far as f32);
                 nd.set(x, y, d, [0.0, 0.0, 1.0]);
+                // The grid's far lines (z = 0, 40 from the eye) run along x, the near along y.
+                let t = if z > 39.7 {
+                    glam::Vec2::X
+                } else {
+                    glam::Vec2::Y
+                };
+                nd.set_tangent(x, y, t);
             }
         }
     }
@@ -143,11 +160,12 @@ fn the_gpu_kernel_agrees_with_its_cpu_twin() {
     assert!(at.len() > 2000, "{} pixels", at.len());
     let gpu_v = layer(&o, "lineao");
     type Factor = fn(&occlusion::line_ao::LineAoTerms) -> f32;
-    let pairs: [(&str, Factor); 4] = [
+    let pairs: [(&str, Factor); 5] = [
         ("visibility", |t| t.visibility()),
         ("v", |t| 1.0 - t.v),
         ("g_depth", |t| t.g_depth),
         ("g_light", |t| t.g_light),
+        ("g_align", |t| t.g_align),
     ];
     for (name, factor) in pairs {
         let cpu = |i: usize| factor(&twin[i]);
@@ -166,6 +184,78 @@ fn the_gpu_kernel_agrees_with_its_cpu_twin() {
     }
     // The crossings occlude: the grid is not open everywhere.
     assert!(mean(gpu_v, &at) < 0.97, "{}", mean(gpu_v, &at));
+}
+
+/// `n` parallel lines along `dir` (in the x-y plane) at depth 0 under `n` more at depth 0.8,
+/// along `dir` (parallel) or across it (crossing), 1.3 units apart.
+fn layers(dir: f32, crossing: bool) -> Vec<Vec<[f32; 3]>> {
+    let (c, s) = (dir.to_radians().cos(), dir.to_radians().sin());
+    let mut l = vec![];
+    for k in -7..=7 {
+        let o = k as f32 * 1.3;
+        let (a, b) = ([c, s], [-s, c]);
+        let line = |d: [f32; 2], n: [f32; 2], off: f32, z: f32| {
+            vec![
+                [-20.0 * d[0] + off * n[0], -20.0 * d[1] + off * n[1], z],
+                [20.0 * d[0] + off * n[0], 20.0 * d[1] + off * n[1], z],
+            ]
+        };
+        l.push(line(a, b, o, 0.0));
+        if crossing {
+            l.push(line(b, a, o + 0.4, 0.8));
+        } else {
+            l.push(line(a, b, o + 0.65, 0.8));
+        }
+    }
+    l
+}
+
+#[test]
+fn anisotropic_lineao_spares_parallel_lines_and_keeps_crossings_and_the_invariant_form_ignores_the_roll(
+) {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    // The mean occlusion (1 - visibility) over the far layer's pixels.
+    let occ = |dir: f32, crossing: bool, aniso: bool, paper: bool| {
+        let mut s = settings(64);
+        s.lineao.kernel.anisotropic = aniso;
+        if paper {
+            s.lineao.kernel.alignment = occlusion::line_ao::Alignment::Paper;
+        }
+        let o = render(&gpu, &[], &[lines(&layers(dir, crossing), 2.0)], cam, &s);
+        let far: Vec<usize> = covered(&o)
+            .into_iter()
+            .filter(|&i| o.aov[i].depth > 39.7)
+            .collect();
+        1.0 - mean(layer(&o, "lineao"), &far)
+    };
+    let (par_c, par_a) = (occ(0.0, false, false, false), occ(0.0, false, true, false));
+    let (cross_c, cross_a) = (occ(0.0, true, false, false), occ(0.0, true, true, false));
+    assert!(par_c > 0.05 && cross_c > 0.05, "classic {par_c} {cross_c}");
+    assert!(
+        par_a < 0.3 * par_c,
+        "parallel: {par_a} against classic {par_c}"
+    );
+    assert!(
+        (cross_a - cross_c).abs() < 0.15 * cross_c,
+        "crossing: {cross_a} against classic {cross_c}"
+    );
+    // A crossing of +45 and -45 degree lines: the invariant form sees perpendicular lines as
+    // the 0/90 crossing does; the paper's |t.x| sees them as parallel.
+    let inv45 = occ(45.0, true, true, false);
+    let paper45 = occ(45.0, true, true, true);
+    eprintln!(
+        "occlusion: parallel {par_c:.3} -> {par_a:.3}, crossing {cross_c:.3} -> {cross_a:.3}, \
+         +-45 crossing invariant {inv45:.3}, paper {paper45:.3}"
+    );
+    assert!(
+        (inv45 - cross_a).abs() < 0.2 * cross_a,
+        "invariant: {inv45} at 45 degrees, {cross_a} at 0"
+    );
+    assert!(
+        paper45 < 0.5 * inv45,
+        "paper at 45 degrees: {paper45}, invariant {inv45}"
+    );
 }
 
 #[test]

@@ -18,6 +18,7 @@
 //! | eq. 10-13 `g_depth` (eq. 12 with `Δd_l`), `delta(l) = (1 - l / s_r)^2`, `h(x) = 3x^2 - 2x^3` | [`delta`], [`LineAoSettings::delta`], [`smoothstep_h`], [`g_depth`] | `delta`, `smoothstep`, `g_depth` | `delta_is_1_4_9ths_1_9th_for_three_levels`, `g_depth_follows_eq_12`, `a_pixel_behind_a_uniform_wall_gets_1_minus_h_per_level` |
 //! | eq. 14-15 `g_light = 1 - min(1, Σ BRDF(L_s, I_s, n_l(P), ω))` | [`phong_brdf`], [`g_light`] | `phong_brdf`, `main` | `g_light_follows_eq_15_and_a_head_light_of_one_zeroes_it`, `a_pixel_behind_a_uniform_wall_gets_1_minus_h_per_level` |
 //! | eq. 4-7, 9: the level averages summed, clamped to [0, 1] | [`line_ao`], [`line_ao_image`], [`LineAoTerms`] | `main` (layer and factor channels) | the wall, `an_isolated_line_on_an_empty_background_is_not_occluded`, `all_samples_off_screen_and_one_level_give_finite_values` |
+//! | seed 002 (Köhler et al.) eq. 10-12: the angle map `α = |t.x|`, `g_align = max(A0, min(1, I h(Δ)))`, `g = g_depth g_light g_align`; the roll-invariant doubled-angle form | [`tangent_texel`], [`alignment_difference`], [`g_align`], [`Alignment`], [`NormalDepth::tangent`] | `gbuffer.wgsl::fs_nd` (the tangent target), `line_ao.wgsl::nd_half` (its pyramid), `g_align` | `g_align_follows_eq_11_and_the_invariant_difference_ignores_the_roll`, `a_parallel_bundle_gets_about_the_floor_times_the_classic_ao_and_a_crossing_the_same`, `engine/tests/line_ao_render.rs::anisotropic_lineao_spares_parallel_lines_and_keeps_crossings_and_the_invariant_form_ignores_the_roll` |
 //! | §3.2.3 parameters | [`LineAoSettings`] (`Default`, `check`) | `render.lineao.*` keys (`scene::spec::LineAoSpec`), `engine::line_ao::LineAoParams` | `the_defaults_are_the_papers_and_check_names_the_field` |
 //!
 //! What the paper says, in short: around each line pixel P, `s_r` discs ("hemispheres") of
@@ -123,6 +124,13 @@
 //!   `g_light` - averaged (not summed) over the levels, so each lies in [0, 1]; the AO is the
 //!   mean of their product per level, not the product of these means.
 //!
+//! * **Anisotropic LineAO** (seed 002 §4.2): the tangent is taken in pixels (seed 002's NDC
+//!   tangents are distorted by the aspect ratio), stored as [`tangent_texel`], and averaged on
+//!   the coarse levels over the texels covered by lines only (the paper mipmaps `|t.x|` with the
+//!   background as 0, "vertical"). Tubes have no tangent in the map: `g_align` is 1 wherever P or
+//!   the sample is not a line. The paper's `α = |t.x|` is kept as [`Alignment::Paper`]; the
+//!   default [`Alignment::Invariant`] uses `|sin Δθ|` of the doubled-angle vectors.
+//!
 //! Shading (`colour (1 - LineAO) + specular`, or seed 002's Phong `(1 - AO)`) belongs to the
 //! composite; this module ends at the AO.
 
@@ -170,6 +178,19 @@ pub enum Visibility {
     Height,
 }
 
+/// How anisotropic LineAO (Köhler et al., seed 002 §4.2) measures two lines' difference in
+/// direction on screen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Alignment {
+    /// `|sin Δθ|` from the doubled-angle tangents `(cos 2θ, sin 2θ)` (whose means are
+    /// meaningful: a crossing averages to 0): the same for every camera roll.
+    #[default]
+    Invariant,
+    /// The paper's eq. 10-11: `|α(P) - α(q)|` with `α = |t.x|`, which counts +45 and -45 degree
+    /// lines as parallel and changes with the roll.
+    Paper,
+}
+
 /// LineAO's parameters (§3.2.3 and issue 11 item 3). `Default` is the paper's set.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LineAoSettings {
@@ -202,6 +223,14 @@ pub struct LineAoSettings {
     pub falloff: Falloff,
     /// P's tangent plane or the paper's height field.
     pub visibility: Visibility,
+    /// Anisotropic LineAO (seed 002 eq. 10-12): samples on lines running the same way on
+    /// screen as P's count less, `g_align` ([`g_align`]).
+    pub anisotropic: bool,
+    pub alignment: Alignment,
+    /// `I` of eq. 11: 15.
+    pub intensity: f32,
+    /// `A0` of eq. 11, the least `g_align`: 0.1.
+    pub floor: f32,
     /// The world length of one unit of normalised depth (the camera's `far - near`): how the
     /// tangent plane's rise, in world units, becomes a normalised depth. Set by the pass from
     /// the camera; 1 by default.
@@ -224,6 +253,10 @@ impl Default for LineAoSettings {
             seed: 0,
             falloff: Falloff::Paper,
             visibility: Visibility::Plane,
+            anisotropic: false,
+            alignment: Alignment::Invariant,
+            intensity: 15.0,
+            floor: 0.1,
             depth_range: 1.0,
         }
     }
@@ -282,6 +315,14 @@ impl LineAoSettings {
         require(finite_pos(self.light_shininess), "light_shininess", || {
             format!("{} is not a positive exponent", self.light_shininess)
         })?;
+        require(finite_nonneg(self.intensity), "intensity", || {
+            format!("{} is not a non-negative number", self.intensity)
+        })?;
+        require(
+            finite_nonneg(self.floor) && self.floor <= 1.0,
+            "floor",
+            || format!("{} is not in [0, 1]", self.floor),
+        )?;
         require(finite_pos(self.depth_range), "depth_range", || {
             format!("{} is not a positive length", self.depth_range)
         })?;
@@ -417,6 +458,31 @@ pub fn plane_rise(n: Vec3, offset_px: Vec2, zoom: f32, depth_range: f32) -> f32 
     -(n.x * offset_px.x + n.y * offset_px.y) / (zoom * n.z.max(0.1) * depth_range)
 }
 
+/// A line's screen tangent as the pyramid stores it: `(cos 2θ, sin 2θ, |t.x|, 1)` for the unit
+/// tangent `t = (cos θ, sin θ)` in pixels (view axes; the sign of t does not matter).
+pub fn tangent_texel(t: Vec2) -> [f32; 4] {
+    let t = t.normalize_or_zero();
+    [t.x * t.x - t.y * t.y, 2.0 * t.x * t.y, t.x.abs(), 1.0]
+}
+
+/// The difference in screen direction of two tangent texels ([`tangent_texel`], or their
+/// pyramid means) that eq. 11's smoothstep takes: [`Alignment::Invariant`]: `|sin Δθ| =
+/// sqrt((1 - u_P . u_q) / 2)` of the doubled-angle vectors `u`; [`Alignment::Paper`]:
+/// `|α(P) - α(q)|` (eq. 10-11).
+pub fn alignment_difference(a: Alignment, p: [f32; 4], q: [f32; 4]) -> f32 {
+    match a {
+        Alignment::Invariant => ((1.0 - (p[0] * q[0] + p[1] * q[1])) * 0.5).max(0.0).sqrt(),
+        Alignment::Paper => (p[2] - q[2]).abs(),
+    }
+}
+
+/// Eq. 11: `g_align = max(A0, min(1, I h(x)))` for a direction difference `x`
+/// ([`alignment_difference`]): `A0` for nearly parallel lines (below `x ≈ 0.048` at `I = 15`,
+/// `A0 = 0.1`), 1 beyond `x ≈ 0.158`.
+pub fn g_align(x: f32, intensity: f32, floor: f32) -> f32 {
+    floor.max((intensity * smoothstep_h(x)).min(1.0))
+}
+
 /// Eq. 15: the light weight from the light `reflected` at P towards the sample (eq. 14, the
 /// sum of [`phong_brdf`] over the lights): `1 - min(reflected, 1)`, so directly lit parts are
 /// darkened less. In [0, 1] for non-negative light.
@@ -492,6 +558,9 @@ pub struct NormalDepth {
     /// The mean depth of the surfaces alone (background left out; 0 where none): what P's own
     /// depth is on a coarse level (level 0: the depth).
     pub cover: Vec<f32>,
+    /// Lines' screen tangents ([`tangent_texel`]; the mean over the lines of a coarse texel,
+    /// w = 1 where any), zero where no line is (tubes, background).
+    pub tangent: Vec<[f32; 4]>,
 }
 
 impl NormalDepth {
@@ -504,7 +573,14 @@ impl NormalDepth {
             depth: vec![0.0; n],
             normal: vec![[0.0; 3]; n],
             cover: vec![0.0; n],
+            tangent: vec![[0.0; 4]; n],
         }
+    }
+
+    /// Gives the surface at (x, y) a line's screen tangent `t` (pixels, view axes).
+    pub fn set_tangent(&mut self, x: u32, y: u32, t: Vec2) {
+        let i = self.index(x, y);
+        self.tangent[i] = tangent_texel(t);
     }
 
     fn index(&self, x: u32, y: u32) -> usize {
@@ -566,6 +642,7 @@ impl NormalDepth {
             for x in 0..w {
                 let (mut sum, mut count, mut covered, mut n) = (0.0f32, 0u32, 0u32, Vec3::ZERO);
                 let mut cover = 0.0f32;
+                let (mut tan, mut lines) = ([0.0f32; 4], 0u32);
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
                     let (sx, sy) = (2 * x + dx, 2 * y + dy);
                     if sx >= self.width || sy >= self.height {
@@ -577,12 +654,23 @@ impl NormalDepth {
                         covered += 1;
                         n += self.unit_normal(sx, sy);
                         cover += self.surface_depth(sx, sy);
+                        let t = self.tangent[self.index(sx, sy)];
+                        if t[3] > 0.0 {
+                            lines += 1;
+                            for k in 0..3 {
+                                tan[k] += t[k];
+                            }
+                        }
                     }
                 }
                 if covered > 0 {
                     out.set(x, y, sum / count as f32, n.normalize_or_zero().into());
                     let i = out.index(x, y);
                     out.cover[i] = cover / covered as f32;
+                    if lines > 0 {
+                        let k = 1.0 / lines as f32;
+                        out.tangent[i] = [tan[0] * k, tan[1] * k, tan[2] * k, 1.0];
+                    }
                 }
             }
         }
@@ -606,9 +694,9 @@ impl NormalDepth {
             "NormalDepth: normal and depth differ in length"
         );
         assert_eq!(
-            self.cover.len(),
-            self.depth.len(),
-            "NormalDepth: cover and depth differ in length"
+            (self.cover.len(), self.tangent.len()),
+            (self.depth.len(), self.depth.len()),
+            "NormalDepth: cover, tangent and depth differ in length"
         );
         let mut out = vec![self.clone()];
         for _ in 1..levels.max(1) {
@@ -635,6 +723,8 @@ pub struct LineAoTerms {
     pub g_depth: f32,
     /// `g_light` alone, likewise.
     pub g_light: f32,
+    /// `g_align` alone, likewise (1 unless anisotropic).
+    pub g_align: f32,
     /// How many samples of all levels fell on screen.
     pub on_screen: u32,
 }
@@ -648,6 +738,7 @@ impl LineAoTerms {
         v: 0.0,
         g_depth: 1.0,
         g_light: 1.0,
+        g_align: 1.0,
         on_screen: 0,
     };
 
@@ -698,6 +789,7 @@ pub fn line_ao(
     let light = Vec3::Z;
     let mut out = LineAoTerms::OPEN;
     let (mut sum, mut v, mut gd, mut gl, mut counted) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0u32);
+    let mut ga = 0.0f32;
     for (j, lvl) in levels.iter().enumerate().take(s_r) {
         let j = j as u32;
         let (pxj, pyj) = (px.0 >> j, px.1 >> j);
@@ -707,6 +799,8 @@ pub fn line_ao(
         let r = level_radius(r0, s.radius_step, zoom, j);
         let delta_l = s.delta(j);
         let (mut valid, mut ao, mut lv, mut lgd, mut lgl) = (0u32, 0.0f32, 0.0, 0.0, 0.0);
+        let mut lga = 0.0f32;
+        let t_p = lvl.tangent[lvl.index(pxj, pyj)];
         for i in 0..n {
             let omega = hemisphere_direction(sample_offset(i, n, j, rotation), n_p);
             let q = centre + r * Vec2::new(omega.x, -omega.y);
@@ -738,10 +832,22 @@ pub fn line_ao(
                 s.light_specular,
                 s.light_shininess,
             ));
-            ao += occ * g_d * g_l;
+            // Eq. 11-12, where both P and the sample are lines (tubes have no tangent here).
+            let t_q = lvl.tangent[lvl.index(qx, qy)];
+            let g_a = if s.anisotropic && t_p[3] > 0.0 && t_q[3] > 0.0 {
+                g_align(
+                    alignment_difference(s.alignment, t_p, t_q),
+                    s.intensity,
+                    s.floor,
+                )
+            } else {
+                1.0
+            };
+            ao += occ * g_d * g_l * g_a;
             lv += occ;
             lgd += g_d;
             lgl += g_l;
+            lga += g_a;
         }
         if valid > 0 {
             let k = 1.0 / valid as f32;
@@ -750,6 +856,7 @@ pub fn line_ao(
             v += lv * k;
             gd += lgd * k;
             gl += lgl * k;
+            ga += lga * k;
             counted += 1;
             out.on_screen += valid;
         }
@@ -760,6 +867,7 @@ pub fn line_ao(
         out.v = v * k;
         out.g_depth = gd * k;
         out.g_light = gl * k;
+        out.g_align = ga * k;
     }
     out
 }
@@ -1183,6 +1291,91 @@ mod tests {
         );
         assert!((r - 0.5).abs() < 1e-6, "{r}");
         assert_eq!(plane_rise(Vec3::Z, Vec2::new(3.0, 4.0), 0.0, 1.0), 0.0);
+    }
+
+    #[test]
+    fn g_align_follows_eq_11_and_the_invariant_difference_ignores_the_roll() {
+        // I = 15, A0 = 0.1: the floor below x = 0.0479, 1 above x = 0.1576 (notes §2.3).
+        assert_eq!(g_align(0.0, 15.0, 0.1), 0.1);
+        assert_eq!(g_align(0.047, 15.0, 0.1), 0.1);
+        assert!(g_align(0.05, 15.0, 0.1) > 0.1);
+        assert!(g_align(0.157, 15.0, 0.1) < 1.0);
+        assert_eq!(g_align(0.16, 15.0, 0.1), 1.0);
+        let dir = |deg: f32| {
+            let a = deg.to_radians();
+            tangent_texel(Vec2::new(a.cos(), a.sin()))
+        };
+        // Invariant: 20 degrees apart is |sin 20| wherever the pair points, and +45 / -45 are
+        // perpendicular (1); the paper's |t.x| difference changes with the roll and calls them 0.
+        for roll in [0.0f32, 30.0, 45.0, 90.0] {
+            let d = alignment_difference(Alignment::Invariant, dir(roll), dir(roll + 20.0));
+            assert!((d - 20f32.to_radians().sin()).abs() < 1e-5, "{roll}: {d}");
+        }
+        let inv = alignment_difference(Alignment::Invariant, dir(45.0), dir(-45.0));
+        assert!((inv - 1.0).abs() < 1e-6);
+        assert!(alignment_difference(Alignment::Paper, dir(45.0), dir(-45.0)) < 1e-6);
+        let flat = alignment_difference(Alignment::Paper, dir(0.0), dir(20.0));
+        let steep = alignment_difference(Alignment::Paper, dir(70.0), dir(90.0));
+        assert!(
+            steep > 4.0 * flat,
+            "paper: {flat} horizontal, {steep} vertical"
+        );
+        // A crossing of +45 and -45 averages to a doubled-angle vector of length 0.
+        let mean: Vec<f32> = (0..2)
+            .map(|k| 0.5 * (dir(45.0)[k] + dir(-45.0)[k]))
+            .collect();
+        assert!(mean.iter().all(|v| v.abs() < 1e-6));
+    }
+
+    #[test]
+    fn a_parallel_bundle_gets_about_the_floor_times_the_classic_ao_and_a_crossing_the_same() {
+        // Horizontal lines at depth 0.5 under a second layer 0.01 nearer: parallel (also
+        // horizontal) or crossing (vertical), every line one pixel in four.
+        let layered = |crossing: bool| {
+            let mut nd = NormalDepth::empty(128, 128);
+            for y in 0..128 {
+                for x in 0..128 {
+                    let (near, far) = if crossing {
+                        (x % 4 == 0, y % 4 == 2)
+                    } else {
+                        (y % 4 == 0, y % 4 == 2)
+                    };
+                    if near {
+                        nd.set(x, y, 0.49, [0.0, 0.0, 1.0]);
+                        let t = if crossing { Vec2::Y } else { Vec2::X };
+                        nd.set_tangent(x, y, t);
+                    } else if far {
+                        nd.set(x, y, 0.5, [0.0, 0.0, 1.0]);
+                        nd.set_tangent(x, y, Vec2::X);
+                    }
+                }
+            }
+            nd.pyramid(3)
+        };
+        let classic = LineAoSettings {
+            levels: 1,
+            ..Default::default()
+        };
+        let aniso = LineAoSettings {
+            anisotropic: true,
+            ..classic
+        };
+        for crossing in [false, true] {
+            let l = layered(crossing);
+            let (c, a) = (
+                line_ao(&l, (65, 66), 8.0, &classic),
+                line_ao(&l, (65, 66), 8.0, &aniso),
+            );
+            assert!(c.ao > 0.05, "{crossing}: classic {}", c.ao);
+            let ratio = a.ao / c.ao;
+            if crossing {
+                assert!((ratio - 1.0).abs() < 1e-6, "crossing: {ratio}");
+            } else {
+                assert!((ratio - 0.1).abs() < 1e-6, "parallel: {ratio}");
+                // Its mean over all samples: 0.1 on the lines, 1 on the background between.
+                assert!(a.g_align > 0.1 && a.g_align < 1.0, "{}", a.g_align);
+            }
+        }
     }
 
     #[test]

@@ -286,6 +286,14 @@ pub struct LineAoSpec {
     pub visibility: AoVisibility,
     /// `I_s`, the head light's intensity in `g_light` (eq. 14); 0 turns `g_light` off.
     pub light_intensity: f64,
+    /// Anisotropic LineAO (Köhler et al. eq. 10-12): lines running alongside P occlude less.
+    pub anisotropic: bool,
+    /// `invariant` (doubled-angle tangents) or `paper` (`|t.x|`, eq. 10).
+    pub alignment: AoAlignment,
+    /// `I` of eq. 11.
+    pub intensity: f64,
+    /// `A0` of eq. 11, the least alignment factor.
+    pub floor: f64,
     /// The guard band's cap in pixels (0: no band).
     pub guard: u32,
     /// `phong` (umbra's head light times the AO) or `paper` (colour times the AO).
@@ -301,6 +309,15 @@ pub enum Falloff {
     #[default]
     Paper,
     Constant,
+}
+
+/// `render.lineao.alignment`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum AoAlignment {
+    #[default]
+    Invariant,
+    Paper,
 }
 
 /// `render.lineao.visibility`.
@@ -323,6 +340,10 @@ impl Default for LineAoSpec {
             falloff: Falloff::Paper,
             visibility: AoVisibility::Plane,
             light_intensity: 0.5,
+            anisotropic: false,
+            alignment: AoAlignment::Invariant,
+            intensity: 15.0,
+            floor: 0.1,
             guard: 64,
             shading: LineAoShading::Phong,
             seed: 0,
@@ -356,6 +377,13 @@ impl LineAoSpec {
                     AoVisibility::Plane => la::Visibility::Plane,
                     AoVisibility::Height => la::Visibility::Height,
                 },
+                anisotropic: self.anisotropic,
+                alignment: match self.alignment {
+                    AoAlignment::Invariant => la::Alignment::Invariant,
+                    AoAlignment::Paper => la::Alignment::Paper,
+                },
+                intensity: self.intensity as f32,
+                floor: self.floor as f32,
                 depth_range: 1.0,
             },
             guard: self.guard,
@@ -1036,6 +1064,8 @@ mod tests {
             ("render.lineao.delta0=0.5", "render.lineao.delta0"),
             ("render.lineao.radius_step=-1", "render.lineao.radius_step"),
             ("render.lineao.guard=5000", "render.lineao.guard"),
+            ("render.lineao.floor=2", "render.lineao.floor"),
+            ("render.lineao.intensity=-1", "render.lineao.intensity"),
         ] {
             let e = bad(set);
             assert!(e.contains(key), "{set}: {e}");
