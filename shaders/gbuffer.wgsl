@@ -84,9 +84,15 @@ struct LineParams {
     min_w: f32,
     // the world radius the lines stand for in the volume's shadow (0: none)
     proxy_radius: f32,
+    // 1: only each line's tapered trail [now - back, now + forward] is drawn, full width
+    // within `start` of `now` and narrowing to `min_width` at the ends (tubes::lines::Trail)
+    trail: u32,
+    now: f32,
+    back: f32,
+    forward: f32,
+    start: f32,
+    min_width: f32,
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 };
 
 @group(1) @binding(0) var<uniform> LP: LineParams;
@@ -96,6 +102,30 @@ struct LineParams {
 @group(1) @binding(2) var<storage, read> line_colors: array<u32>;
 // The first point of each segment.
 @group(1) @binding(3) var<storage, read> line_segments: array<u32>;
+// A time per point (for trails).
+@group(1) @binding(4) var<storage, read> line_times: array<f32>;
+
+// tubes::lines::Trail::width_factor: 1 near the particle, min_width at the window's ends, 0
+// outside it (NaN too).
+fn trail_width(t: f32) -> f32 {
+    var d = LP.now - t;
+    var span = LP.back;
+    if (t >= LP.now) {
+        d = t - LP.now;
+        span = LP.forward;
+    }
+    if (!(d <= span)) {
+        return 0.0;
+    }
+    var u = 0.0;
+    if (span > 0.0) {
+        u = d / span;
+    }
+    if (u <= LP.start) {
+        return 1.0;
+    }
+    return 1.0 + (LP.min_width - 1.0) * (u - LP.start) / (1.0 - LP.start);
+}
 
 fn line_point(i: u32) -> vec3<f32> {
     return vec3<f32>(line_points[3u * i], line_points[3u * i + 1u], line_points[3u * i + 2u]);
@@ -108,11 +138,39 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     let i = line_segments[index / 6u];
     var a = line_point(i) + G.offset.xyz;
     var b = line_point(i + 1u) + G.offset.xyz;
+    // A trail: the part of the segment within the time window, its ends' width factors.
+    var taper = vec2<f32>(1.0);
+    var outside = false;
+    if (LP.trail != 0u) {
+        let ta = line_times[i];
+        let tb = line_times[i + 1u];
+        let lo = LP.now - LP.back;
+        let hi = LP.now + LP.forward;
+        if (!(max(ta, tb) >= lo && min(ta, tb) <= hi)) {
+            // Wholly outside the window (or a NaN time): not drawn.
+            outside = true;
+        } else {
+            var s0 = 0.0;
+            var s1 = 1.0;
+            if (tb != ta) {
+                let e0 = (lo - ta) / (tb - ta);
+                let e1 = (hi - ta) / (tb - ta);
+                s0 = clamp(min(e0, e1), 0.0, 1.0);
+                s1 = clamp(max(e0, e1), 0.0, 1.0);
+            }
+            let a0 = a;
+            a = mix(a0, b, s0);
+            b = mix(a0, b, s1);
+            taper = vec2<f32>(trail_width(mix(ta, tb, s0)), trail_width(mix(ta, tb, s1)));
+            // Rounding at the window's edge must not drop the end that lies on it.
+            taper = max(taper, vec2<f32>(min(LP.min_width, 1.0) * 0.999));
+        }
+    }
     // Cut the segment where it crosses behind the eye (w below min_w), so that a strip is never
     // widened from a point behind the camera; a segment wholly behind is dropped.
     let wa = (G.view_proj_rel * vec4<f32>(a, 1.0)).w;
     let wb = (G.view_proj_rel * vec4<f32>(b, 1.0)).w;
-    var behind = false;
+    var behind = outside;
     if (wa < LP.min_w && wb < LP.min_w) {
         behind = true;
     } else if (wa < LP.min_w) {
@@ -148,12 +206,23 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     if (LP.world != 0u) {
         hw = LP.half_width * px_per_world;
     }
+    hw = hw * select(taper.x, taper.y, end == 1u);
     // At least one pixel wide.
     hw = max(hw, 0.5);
     // Square caps: each end reaches half a width beyond its point, so consecutive segments
     // overlap at their joint (watertight at any angle).
     let along = select(-1.0, 1.0, end == 1u);
-    let off = n * (side * hw) + d * (along * hw);
+    var cap = hw;
+    if (LP.trail != 0u) {
+        // A tapered trail: a cap no longer than half the segment on screen, so that a wider
+        // point's cap does not cover its narrower neighbours (the taper would lag by half a
+        // width); dense trails bend little between points, so their joints stay closed.
+        let ca = G.view_proj_rel * vec4<f32>(a, 1.0);
+        let cb = G.view_proj_rel * vec4<f32>(b, 1.0);
+        let seg = (cb.xy / max(cb.w, 1e-6) - ca.xy / max(ca.w, 1e-6)) * 0.5 * LP.viewport;
+        cap = min(hw, 0.5 * length(seg) + 0.5);
+    }
+    let off = n * (side * hw) + d * (along * cap);
     c = vec4<f32>(c.xy + off * 2.0 / LP.viewport * c.w, c.z, c.w);
     if (behind) {
         // Outside every clip volume: the triangle is dropped.

@@ -117,6 +117,9 @@ pub struct GpuLines {
     width: LineWidth,
     cylinder: bool,
     proxy_radius: f32,
+    /// The points' times (one zero when the set has none).
+    times: wgpu::Buffer,
+    trail: Option<tubes::lines::Trail>,
 }
 
 impl GpuLines {
@@ -136,6 +139,12 @@ impl GpuLines {
             width: l.width,
             cylinder: l.cylinder,
             proxy_radius: l.proxy_radius.max(0.0),
+            times: if l.times.len() == l.positions.len() {
+                gpu.buffer("line times", bytemuck::cast_slice(&l.times), storage)
+            } else {
+                gpu.buffer("line times", &[0; 16], storage)
+            },
+            trail: l.trail.filter(|_| l.times.len() == l.positions.len()),
         })
     }
 
@@ -169,9 +178,15 @@ pub struct LineParams {
     pub min_w: f32,
     /// The world radius the lines stand for in the volume's shadow (0: none).
     pub proxy_radius: f32,
+    /// 1: draw the tapered trail `[now - back, now + forward]` of each line
+    /// (`tubes::lines::Trail`), by the points' times.
+    pub trail: u32,
+    pub now: f32,
+    pub back: f32,
+    pub forward: f32,
+    pub start: f32,
+    pub min_width: f32,
     pub pad0: u32,
-    pub pad1: u32,
-    pub pad2: u32,
 }
 
 /// A line set's draw in one frame: the bind groups of its view (group 0, as a mesh's) and of
@@ -267,7 +282,13 @@ impl Pipelines {
         let line_layout = gpu.layout(
             "gbuffer lines",
             wgpu::ShaderStages::VERTEX,
-            &[Slot::Uniform, Slot::Storage, Slot::Storage, Slot::Storage],
+            &[
+                Slot::Uniform,
+                Slot::Storage,
+                Slot::Storage,
+                Slot::Storage,
+                Slot::Storage,
+            ],
         );
         let pl = gpu.pipeline_layout("gbuffer", &[&layout]);
         let pl_lines = gpu.pipeline_layout("gbuffer lines", &[&layout, &line_layout]);
@@ -411,7 +432,8 @@ pub fn guard_band(clip: DMat4, w: u32, h: u32, g: u32) -> DMat4 {
 impl GBuffer {
     /// Prepares the passes drawing `meshes` and `lines` (uploaded) for `camera` at `width x
     /// height` with `samples` samples per pixel (a count [`sample_count`] returned), and
-    /// LineAO's normal-depth map with a band of `nd_guard` pixels when given. The targets are
+    /// LineAO's normal-depth map with a band of `nd_guard` pixels when given; `trail_now`
+    /// moves every line set's trail to that time. The targets are
     /// pooled per size (every pass clears what it draws into), the pipelines made once per
     /// sample count.
     #[allow(clippy::too_many_arguments)]
@@ -425,6 +447,7 @@ impl GBuffer {
         clip: &[([f64; 3], f64)],
         samples: u32,
         nd_guard: Option<u32>,
+        trail_now: Option<f32>,
     ) -> GBuffer {
         let ms = samples > 1;
         let pipes = gpu.cached(format!("gbuffer pipelines {samples}"), || {
@@ -471,6 +494,19 @@ impl GBuffer {
                 LineWidth::Pixels(w) => (0.5 * w as f32, 0),
                 LineWidth::World(w) => (0.5 * w as f32, 1),
             };
+            let trail = l.trail.map(|mut t| {
+                if let Some(now) = trail_now {
+                    t.now = now;
+                }
+                t
+            });
+            let t = trail.unwrap_or(tubes::lines::Trail {
+                now: 0.0,
+                back: 0.0,
+                forward: 0.0,
+                start: 0.0,
+                min_width: 1.0,
+            });
             let params = LineParams {
                 half_width,
                 world,
@@ -480,9 +516,13 @@ impl GBuffer {
                 perspective: persp as u32,
                 min_w,
                 proxy_radius: l.proxy_radius,
+                trail: trail.is_some() as u32,
+                now: t.now,
+                back: t.back,
+                forward: t.forward,
+                start: t.start,
+                min_width: t.min_width,
                 pad0: 0,
-                pad1: 0,
-                pad2: 0,
             };
             let params = gpu.buffer(
                 "line params",
@@ -497,6 +537,7 @@ impl GBuffer {
                     l.points.as_entire_binding(),
                     l.colors.as_entire_binding(),
                     l.segments.as_entire_binding(),
+                    l.times.as_entire_binding(),
                 ],
             )
         };
@@ -730,9 +771,13 @@ mod tests {
                 perspective,
                 min_w,
                 proxy_radius,
+                trail,
+                now,
+                back,
+                forward,
+                start,
+                min_width,
                 pad0,
-                pad1,
-                pad2,
             }
         );
         crate::prelude::assert_layout!(

@@ -214,6 +214,8 @@ pub struct Settings {
     pub surface_ao: SurfaceAo,
     /// LineAO's parameters (used where a method's terms include it).
     pub lineao: LineAo,
+    /// The time every line set's trail is drawn at, in place of its own `now` (animations).
+    pub trail_now: Option<f32>,
 }
 
 /// How LineAO darkens the surfaces it occludes (`render.lineao.shading`).
@@ -268,6 +270,7 @@ impl Default for Settings {
             msaa: 4,
             surface_ao: SurfaceAo::Vicinity,
             lineao: LineAo::default(),
+            trail_now: None,
         }
     }
 }

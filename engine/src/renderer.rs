@@ -460,6 +460,7 @@ impl Frame {
             tube_clip,
             samples,
             nd_guard,
+            s.trail_now,
         );
         let layer = |name: &str| {
             layer_names

@@ -312,3 +312,63 @@ fn lines_off_centre_and_lines_through_the_eye_plane_are_drawn_right() {
         W * H
     );
 }
+
+#[test]
+fn trails_keep_only_their_time_window_and_taper_towards_its_ends() {
+    let gpu = gpu();
+    // A line along x from -10 to 10 whose time is x + 10 (a point every quarter unit), 8
+    // pixels wide; the trail at time 10 (x = 0) reaching 6 back (x = -6) and 3 forward (x = 3).
+    let pts: Vec<[f32; 3]> = (0..=80)
+        .map(|k| [k as f32 * 0.25 - 10.0, 0.0, 0.0])
+        .collect();
+    let mut set = lines(&[pts], LineWidth::Pixels(8.0), false);
+    set.times = (0..=80).map(|k| k as f32 * 0.25).collect();
+    let trail = tubes::lines::Trail {
+        now: 10.0,
+        back: 6.0,
+        forward: 3.0,
+        start: 1.0 / 3.0,
+        min_width: 0.25,
+    };
+    set.trail = Some(trail);
+    let o = render(&gpu, std::slice::from_ref(&set), top_camera(false), &[]);
+    // Pixel column of world x (64 pixels over 24 units).
+    let col = |x: f64| ((x + 12.0) / 24.0 * W as f64) as usize;
+    let rows = |x: f64| column_coverage(&o, col(x)) as f64;
+    // Within 2 rows: the line is centred between two rows, so its coverage grows two rows at a
+    // time, and a trail's caps reach half a segment (a third of a pixel here) beyond a point.
+    let near = |x: f64, want: f64| {
+        let got = rows(x);
+        assert!(
+            (got - want).abs() <= 2.0,
+            "x = {x}: {got} rows, want {want}"
+        );
+    };
+    near(0.0, 8.0);
+    near(-1.5, 8.0);
+    // 4.5 back: u = 0.75, factor 1 - 0.75 (0.75 - 1/3) / (2/3) = 0.531.
+    near(-4.5, 8.0 * trail.width_factor(5.5) as f64);
+    near(2.5, 8.0 * trail.width_factor(12.5) as f64);
+    near(-5.75, 8.0 * trail.width_factor(4.25) as f64);
+    assert!(rows(-5.5) < 0.6 * rows(0.0), "{} {}", rows(-5.5), rows(0.0));
+    for x in [-8.5, -7.5, 4.5, 6.0, 9.0] {
+        assert_eq!(rows(x), 0.0, "x = {x} is outside the trail");
+    }
+    // Another time moves the trail: drawn at 16 (x = 6, from x = 0 to 9), x = -1 is then
+    // outside it.
+    let mut s = settings();
+    s.trail_now = Some(16.0);
+    let r = Renderer::new(&gpu);
+    let scene = r.upload(None, &[], &[set], None).unwrap();
+    let moved = r
+        .draw(
+            &scene,
+            &view(top_camera(false)),
+            &[],
+            &s,
+            DrawOptions::default(),
+        )
+        .unwrap();
+    assert!(column_coverage(&moved, col(6.0)) >= 7);
+    assert!(column_coverage(&moved, col(-1.0)) == 0);
+}

@@ -488,12 +488,43 @@ fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<Li
     let cylinder = l.profile == spec::LineProfile::Cylinder;
     notes.extend(sl.warnings.iter().map(|w| format!("lines[{i}]: {w}")));
     let proxy_radius = l.proxy_radius() as f32;
-    crate::tube_sets::with_color_mode(&sl, &l.color, |c| {
-        let mut set = LineSet::new(&sl, c, width, cylinder);
-        set.proxy_radius = proxy_radius;
-        set
-    })
-    .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))
+    let times = match &l.time {
+        None => vec![],
+        Some(t) => {
+            let name = t.strip_prefix("scalar:").unwrap_or(t);
+            let a = sl
+                .point_attributes
+                .iter()
+                .find(|a| a.name == name)
+                .ok_or_else(|| {
+                    let have: Vec<&str> =
+                        sl.point_attributes.iter().map(|a| a.name.as_str()).collect();
+                    format!(
+                        "lines[{i}].time ({}): the tractogram has no per-point '{name}' (it has: {})",
+                        l.path.display(),
+                        if have.is_empty() { "none".into() } else { have.join(", ") }
+                    )
+                })?;
+            a.values
+                .iter()
+                .step_by(a.components.max(1))
+                .copied()
+                .collect()
+        }
+    };
+    let mut set =
+        crate::tube_sets::with_color_mode(&sl, &l.color, |c| LineSet::new(&sl, c, width, cylinder))
+            .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))?;
+    set.proxy_radius = proxy_radius;
+    set.times = times;
+    set.trail = l.trail.as_ref().map(|t| tubes::lines::Trail {
+        now: t.now as f32,
+        back: t.back as f32,
+        forward: t.forward as f32,
+        start: t.start as f32,
+        min_width: t.min_width as f32,
+    });
+    Ok(set)
 }
 
 /// The renderer's settings from a scene.
@@ -521,6 +552,7 @@ pub fn settings(s: &Scene) -> Settings {
         lineao: r
             .lineao
             .settings([l.ambient, l.diffuse, l.specular, l.shininess]),
+        trail_now: None,
     }
 }
 

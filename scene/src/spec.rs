@@ -253,6 +253,36 @@ pub struct LinesSpec {
     /// The world radius the lines stand for where they shadow the volume (default: half the
     /// width for `width_unit = "world"`, 0 - no shadow - for pixel widths).
     pub proxy_radius: Option<f64>,
+    /// A per-point time attribute, `scalar:NAME` (for `trail`).
+    pub time: Option<String>,
+    /// Draw only each line's tapered trail around a time.
+    pub trail: Option<TrailSpec>,
+}
+
+/// `[[lines]] trail = { now, back, forward, start, min_width }` (Köhler et al. 2011, §4.1), in
+/// the time attribute's units.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrailSpec {
+    /// The particle's time.
+    pub now: f64,
+    /// How far back and forward in time the trail reaches.
+    pub back: f64,
+    pub forward: f64,
+    /// The fraction of the way to either end where the width starts to fall.
+    #[serde(default = "default_trail_start")]
+    pub start: f64,
+    /// The width at the trail's ends, as a fraction of `width`.
+    #[serde(default = "default_trail_min_width")]
+    pub min_width: f64,
+}
+
+fn default_trail_start() -> f64 {
+    1.0 / 3.0
+}
+
+fn default_trail_min_width() -> f64 {
+    0.25
 }
 
 impl LinesSpec {
@@ -868,6 +898,40 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             );
         }
         check_color_source(&l.color).map_err(|why| format!("scene key lines[{i}].color: {why}"))?;
+        if let Some(t) = &l.trail {
+            let key = |k: &str| format!("lines[{i}].trail.{k}");
+            if l.time.is_none() {
+                return bad(
+                    &format!("lines[{i}].trail"),
+                    "needs a time attribute: time = \"scalar:NAME\"".into(),
+                );
+            }
+            if !t.now.is_finite() {
+                return bad(&key("now"), format!("{} is not finite", t.now));
+            }
+            for (k, v) in [("back", t.back), ("forward", t.forward)] {
+                if !(v >= 0.0 && v.is_finite()) {
+                    return bad(&key(k), format!("{v} is not a duration >= 0"));
+                }
+            }
+            if !(0.0..1.0).contains(&t.start) {
+                return bad(&key("start"), format!("{} is not in [0, 1)", t.start));
+            }
+            if !(0.0..=1.0).contains(&t.min_width) {
+                return bad(
+                    &key("min_width"),
+                    format!("{} is not in [0, 1]", t.min_width),
+                );
+            }
+        }
+        if let Some(t) = &l.time {
+            if !t.starts_with("scalar:") || t.len() == "scalar:".len() {
+                return bad(
+                    &format!("lines[{i}].time"),
+                    format!("'{t}' is not scalar:NAME"),
+                );
+            }
+        }
         if l.proxy_radius.is_some_and(|r| !(r >= 0.0 && r.is_finite())) {
             return bad(
                 &format!("lines[{i}].proxy_radius"),
@@ -1085,6 +1149,30 @@ mod tests {
         assert!((world.lines[0].proxy_radius() - 0.3).abs() < 1e-12);
         let e = l("proxy_radius = -1.0\n").unwrap_err();
         assert!(e.contains("lines[0].proxy_radius"), "{e}");
+        // Trails: their defaults, and the keys a bad one names.
+        let t = l("time = \"scalar:time\"\ntrail = { now = 2.0, back = 1.0, forward = 0.5 }\n")
+            .unwrap();
+        let tr = t.lines[0].trail.as_ref().unwrap();
+        assert_eq!((tr.start, tr.min_width), (1.0 / 3.0, 0.25));
+        for (extra, key) in [
+            ("trail = { now = 2.0, back = 1.0, forward = 0.5 }\n", "lines[0].trail"),
+            ("time = \"speed\"\n", "lines[0].time"),
+            (
+                "time = \"scalar:t\"\ntrail = { now = 2.0, back = -1.0, forward = 0.5 }\n",
+                "lines[0].trail.back",
+            ),
+            (
+                "time = \"scalar:t\"\ntrail = { now = 2.0, back = 1.0, forward = 0.5, start = 1.0 }\n",
+                "lines[0].trail.start",
+            ),
+            (
+                "time = \"scalar:t\"\ntrail = { now = 2.0, back = 1.0, forward = 0.5, min_width = 2.0 }\n",
+                "lines[0].trail.min_width",
+            ),
+        ] {
+            let e = l(extra).unwrap_err();
+            assert!(e.contains(key), "{extra}: {e}");
+        }
     }
 
     #[test]

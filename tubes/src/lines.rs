@@ -32,6 +32,44 @@ pub struct LineSet {
     pub cylinder: bool,
     /// The world radius the lines stand for where they shadow the volume (0: they cast none).
     pub proxy_radius: f32,
+    /// A time per point (empty: none), for trails.
+    pub times: Vec<f32>,
+    /// The tapered trail drawn of each line around a time (needs `times`).
+    pub trail: Option<Trail>,
+}
+
+/// A tapered trail (Köhler et al. 2011, §4.1): of each line only the part whose time lies in
+/// `[now - back, now + forward]` is drawn, full width from the particle (`now`) out to the
+/// fraction `start` of the way to either end of the window, then narrowing linearly to
+/// `min_width` times the width at the ends (times in the attribute's units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Trail {
+    pub now: f32,
+    pub back: f32,
+    pub forward: f32,
+    pub start: f32,
+    pub min_width: f32,
+}
+
+impl Trail {
+    /// The width factor at time `t`: 1 within `start` of the particle, falling linearly to
+    /// `min_width` at the window's ends; 0 outside the window (not drawn). NaN gives 0.
+    pub fn width_factor(&self, t: f32) -> f32 {
+        let (d, span) = if t >= self.now {
+            (t - self.now, self.forward)
+        } else {
+            (self.now - t, self.back)
+        };
+        if !(d <= span) {
+            return 0.0;
+        }
+        let u = if span > 0.0 { d / span } else { 0.0 };
+        if u <= self.start {
+            1.0
+        } else {
+            1.0 + (self.min_width - 1.0) * (u - self.start) / (1.0 - self.start)
+        }
+    }
 }
 
 fn rgba(c: [f32; 3]) -> [u8; 4] {
@@ -104,6 +142,8 @@ impl LineSet {
             width,
             cylinder,
             proxy_radius: 0.0,
+            times: vec![],
+            trail: None,
         }
     }
 
@@ -177,5 +217,30 @@ mod tests {
         assert_eq!(l.colors[1], want(0.5));
         // A NaN value takes the colour map's NaN colour (its low end), not a panic.
         assert_eq!(l.colors[4], want(f64::NAN));
+    }
+}
+
+#[cfg(test)]
+mod trail_tests {
+    use super::Trail;
+
+    #[test]
+    fn the_trail_is_full_width_near_the_particle_and_tapers_to_min_width_at_its_ends() {
+        let t = Trail {
+            now: 5.0,
+            back: 3.0,
+            forward: 1.0,
+            start: 1.0 / 3.0,
+            min_width: 0.25,
+        };
+        assert_eq!(t.width_factor(5.0), 1.0);
+        assert_eq!(t.width_factor(4.0), 1.0); // a third of the way back
+        assert!((t.width_factor(2.0) - 0.25).abs() < 1e-6); // the back end
+        assert!((t.width_factor(6.0) - 0.25).abs() < 1e-6); // the front end
+                                                            // Halfway between the third and the end: halfway between 1 and 0.25.
+        assert!((t.width_factor(5.0 + 2.0 / 3.0) - 0.625).abs() < 1e-5);
+        assert_eq!(t.width_factor(1.9), 0.0);
+        assert_eq!(t.width_factor(6.1), 0.0);
+        assert_eq!(t.width_factor(f32::NAN), 0.0);
     }
 }
