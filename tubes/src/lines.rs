@@ -60,7 +60,8 @@ impl Trail {
         } else {
             (self.now - t, self.back)
         };
-        if !(d <= span) {
+        // Outside the window, or a NaN time.
+        if d.is_nan() || d > span {
             return 0.0;
         }
         let u = if span > 0.0 { d / span } else { 0.0 };
