@@ -388,6 +388,7 @@ struct Geometry<'g> {
 }
 
 /// What one frame gives: the visibility (NaN where `Z` is 0), `Z`, the time, the size.
+#[derive(Clone)]
 struct Frame {
     vis: Vec<f64>,
     z: Vec<f32>,
@@ -761,6 +762,7 @@ fn camera_at(x: f64, y: f64, h: f64) -> Vec<String> {
 }
 
 /// The settings the method rows of a case run with.
+#[derive(Clone)]
 struct Methods<'a> {
     geo: &'a Geometry<'a>,
     case: &'a str,
@@ -976,12 +978,12 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
         progress("samples");
         let samples = Methods {
             case: "samples",
-            ..dense_clone(&dense)
+            ..dense.clone()
         };
         let conv = samples.lineao(&["render.lineao.samples=1024"])?;
         for sh in [8u32, 16, 32, 64, 128, 256, 1024] {
             let f = if sh == 1024 {
-                conv.clone_frame()
+                conv.clone()
             } else {
                 samples.lineao(&[format!("render.lineao.samples={sh}").as_str()])?
             };
@@ -1002,7 +1004,7 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
         progress("falloff");
         let falloff = Methods {
             case: "falloff",
-            ..dense_clone(&dense)
+            ..dense.clone()
         };
         for f in ["paper", "constant"] {
             let fr = falloff.lineao(&[format!("render.lineao.falloff=\"{f}\"").as_str()])?;
@@ -1115,29 +1117,6 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
         )?;
     }
     Ok(rows)
-}
-
-/// A copy of `m`'s settings (the same geometry and view).
-fn dense_clone<'a>(m: &Methods<'a>) -> Methods<'a> {
-    Methods {
-        geo: m.geo,
-        case: m.case,
-        view: m.view.clone(),
-        frames: m.frames,
-        images: m.images.clone(),
-    }
-}
-
-impl Frame {
-    fn clone_frame(&self) -> Frame {
-        Frame {
-            vis: self.vis.clone(),
-            z: self.z.clone(),
-            ms: self.ms,
-            w: self.w,
-            h: self.h,
-        }
-    }
 }
 
 /// The zoom case: world-width lines at 1x, 2x, 4x, 8x; rows against each zoom's reference and
@@ -1514,15 +1493,9 @@ mod tests {
 
     #[test]
     fn a_pixel_width_line_is_a_tube_of_half_its_width_in_world_units_under_orthographic() {
-        let l = spec::LinesSpec {
-            path: "a.tck".into(),
-            color: "direction".into(),
-            transform: None,
-            width: 2.0,
-            width_unit: spec::WidthUnit::Pixels,
-            profile: spec::LineProfile::Flat,
-            proxy_radius: None,
-        };
+        // From its serialised form, so that new keys with defaults do not break the test.
+        let l: spec::LinesSpec =
+            serde_json::from_str(r#"{"path": "a.tck", "width": 2.0}"#).unwrap();
         let b = [DVec3::splat(-1.0), DVec3::splat(1.0)];
         let cam = Camera::look_at(
             DVec3::new(0.0, 0.0, 10.0),
