@@ -251,7 +251,9 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     o.tangent = t;
     o.screen_t = d;
     if (LP.cylinder != 0u && dot(s, s) > 1e-12) {
-        o.bend = normalize(s) * side;
+        // The side vector on screen: +side is offset along perp(d) = (-d.y, d.x), which is
+        // to_eye x t (t x to_eye points the other way).
+        o.bend = -normalize(s) * side;
         o.bulge = hw / px_per_world;
     }
     return o;

@@ -107,6 +107,20 @@ fn an_isolated_line_on_an_empty_background_stays_open() {
         // Background pixels are open too, and every value is finite.
         assert!(v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)));
         assert_eq!(channel(&o, "occlusion.lineao.v").len(), (W * H) as usize);
+        // The cylinder profile (depth bulging towards the eye, normal turning with it) is a
+        // convex surface: it does not occlude itself either.
+        let mut st = tubes::Streamlines::new();
+        st.push(&[Vec3::new(-8.0, 0.5, 0.0), Vec3::new(8.0, 2.5, 0.0)]);
+        let cyl = LineSet::new(
+            &st,
+            &ColorMode::Constant([1.0; 3]),
+            LineWidth::Pixels(10.0),
+            true,
+        );
+        let o = render(&gpu, &[], &[cyl], top_camera(perspective), &settings(64));
+        let at = covered(&o);
+        let m = mean(layer(&o, "lineao"), &at);
+        assert!(m > 0.99, "perspective {perspective}: cylinder profile {m}");
     }
 }
 
