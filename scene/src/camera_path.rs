@@ -260,6 +260,8 @@ pub fn orbit_camera(base: &CameraSpec, centre: [f64; 3], k: u32, n: u32) -> Came
 pub enum Sequence {
     Orbit(u32),
     Path(CameraPath),
+    /// The scene's camera, this many times (a trail animation).
+    Still(u32),
 }
 
 impl Sequence {
@@ -274,6 +276,7 @@ impl Sequence {
                 .into_iter()
                 .map(|t| p.camera_at(&scene.camera, t))
                 .collect(),
+            Sequence::Still(n) => vec![scene.camera.clone(); *n as usize],
         }
     }
 }

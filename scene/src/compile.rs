@@ -740,10 +740,23 @@ impl Uploaded<'_> {
         m: &Model,
         opts: DrawOptions,
     ) -> Result<(renderer::Output, EaView), String> {
+        self.draw_at(s, m, opts, None)
+    }
+
+    /// [`Uploaded::draw`] with every line set's trail drawn at time `trail_now` (when given).
+    pub fn draw_at(
+        &self,
+        s: &Scene,
+        m: &Model,
+        opts: DrawOptions,
+        trail_now: Option<f64>,
+    ) -> Result<(renderer::Output, EaView), String> {
         let v = view(s, m)?;
+        let mut st = settings(s);
+        st.trail_now = trail_now.map(|t| t as f32);
         let out = self
             .renderer
-            .draw(&self.scene, &v, &tube_clip(s), &settings(s), opts)
+            .draw(&self.scene, &v, &tube_clip(s), &st, opts)
             .map_err(|e| e.to_string())?;
         Ok((out, v))
     }

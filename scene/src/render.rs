@@ -46,6 +46,9 @@ pub struct FrameReport {
     /// The frame's `[camera]`.
     pub camera: spec::CameraSpec,
     pub slices: u32,
+    /// The trails' time (`--trail-range`), when animated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub now: Option<f64>,
     /// Median of the frame's repeats (`--frames`), ms.
     pub total_ms: f64,
     pub frames_ms: Vec<f64>,
@@ -78,6 +81,52 @@ pub struct RenderArgs {
     /// Time each pass alone once more.
     pub pass_timings: bool,
     pub cameras: Cameras,
+    /// Animate the lines' trails: `n` frames with `now` from `t0` to `t1` (inclusive).
+    pub trail_range: Option<TrailRange>,
+}
+
+/// `--trail-range T0:T1:N`: frame k of N draws every trail at `T0 + (T1 - T0) k / (N - 1)`
+/// (`T0` for one frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrailRange {
+    pub t0: f64,
+    pub t1: f64,
+    pub n: u32,
+}
+
+impl TrailRange {
+    /// Reads `T0:T1:N`.
+    pub fn parse(text: &str) -> Result<TrailRange, String> {
+        let bad = || format!("--trail-range {text}: expected T0:T1:N, e.g. 0:1:25");
+        let parts: Vec<&str> = text.split(':').collect();
+        let [a, b, n] = parts[..] else {
+            return Err(bad());
+        };
+        let (t0, t1): (f64, f64) = (
+            a.trim().parse().map_err(|_| bad())?,
+            b.trim().parse().map_err(|_| bad())?,
+        );
+        let n: u32 = n.trim().parse().map_err(|_| bad())?;
+        if !(t0.is_finite() && t1.is_finite()) {
+            return Err(format!("--trail-range {text}: the times must be finite"));
+        }
+        if n == 0 || n > crate::camera_path::MAX_FRAMES {
+            return Err(format!(
+                "--trail-range {text}: N must be 1 to {}",
+                crate::camera_path::MAX_FRAMES
+            ));
+        }
+        Ok(TrailRange { t0, t1, n })
+    }
+
+    /// The time of frame `k`.
+    pub fn time(&self, k: u32) -> f64 {
+        if self.n <= 1 {
+            self.t0
+        } else {
+            self.t0 + (self.t1 - self.t0) * k as f64 / (self.n - 1) as f64
+        }
+    }
 }
 
 /// Writes one frame: PNG (8-bit sRGB) or EXR (linear RGBA, with `aov` the AOV channels),
@@ -144,6 +193,24 @@ pub fn run(
         Cameras::Orbit(n) => Some(Sequence::Orbit(*n)),
         Cameras::Path(p) => Some(Sequence::Path(CameraPath::load(p)?)),
     };
+    if let Some(t) = &a.trail_range {
+        if !s.lines.iter().any(|l| l.trail.is_some()) {
+            return Err(format!(
+                "{}: --trail-range animates [[lines]] trails; the scene has none",
+                path.display()
+            ));
+        }
+        // An orbit or camera path runs alongside: as many cameras as times.
+        if let Cameras::Orbit(n) = a.cameras {
+            if n != t.n {
+                return Err(format!(
+                    "--orbit {n} with --trail-range of {} frames: give both the same count",
+                    t.n
+                ));
+            }
+        }
+    }
+    let sequence = sequence.or(a.trail_range.map(|t| Sequence::Still(t.n)));
     if sequence.is_some() {
         frame_path(&a.output, 0)?;
     }
@@ -163,14 +230,24 @@ pub fn run(
             q.cameras(&s, c.to_array())
         }
     };
+    if let Some(t) = &a.trail_range {
+        if cameras.len() != t.n as usize {
+            return Err(format!(
+                "the camera path has {} frames and --trail-range {}: give both the same count",
+                cameras.len(),
+                t.n
+            ));
+        }
+    }
     let setup_seconds = t0.elapsed().as_secs_f64();
     let mut frames: Vec<FrameReport> = Vec::with_capacity(cameras.len());
     let mut last = None;
     for (k, cam) in cameras.iter().enumerate() {
         let mut sk = s.clone();
         sk.camera = cam.clone();
+        let now = a.trail_range.map(|t| t.time(k as u32));
         let (out, v) = up
-            .draw(&sk, &m, opts)
+            .draw_at(&sk, &m, opts, now)
             .map_err(|e| format!("{}: frame {k}: {e}", path.display()))?;
         let file = match &sequence {
             None => a.output.clone(),
@@ -185,6 +262,7 @@ pub fn run(
             path: file,
             camera: cam.clone(),
             slices: v.slices,
+            now,
             total_ms: out.timings.total_ms,
             frames_ms: out.timings.frames_ms.clone(),
             passes: out.timings.passes.clone(),

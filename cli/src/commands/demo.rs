@@ -172,6 +172,7 @@ pub fn render_demo(
         aov: false,
         pass_timings: false,
         cameras: Default::default(),
+        trail_range: None,
     };
     match which {
         "mni" => {

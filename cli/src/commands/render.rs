@@ -20,7 +20,8 @@ pub struct Args {
     /// Image height (render.height).
     #[arg(long)]
     height: Option<u32>,
-    /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated.
+    /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated,
+    /// lineao.
     #[arg(long, value_enum, hide_possible_values = true)]
     method: Option<super::Method>,
     /// Render each image this many times, every pass re-run (total_ms is the median);
@@ -44,6 +45,11 @@ pub struct Args {
     /// factors .v, .g_depth, .g_light where it ran) and combined occlusion, linear depth (Z).
     #[arg(long)]
     aov: bool,
+    /// Animate the lines' trails ([[lines]] trail): N frames with the trails' time `now` from
+    /// T0 to T1 (inclusive), in one process; with --orbit (the same N) or --camera-path (as
+    /// many frames) the camera moves too. The output name needs a run of # as with --orbit.
+    #[arg(long, value_name = "T0:T1:N")]
+    trail_range: Option<String>,
     /// Override a scene key by its dotted path (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
@@ -58,7 +64,12 @@ pub fn run(a: Args) -> Result<(), String> {
         (None, Some(p)) => Cameras::Path(p),
         (None, None) => Cameras::Single,
     };
-    let sequence = cameras != Cameras::Single;
+    let trail_range = a
+        .trail_range
+        .as_deref()
+        .map(scene::render::TrailRange::parse)
+        .transpose()?;
+    let sequence = cameras != Cameras::Single || trail_range.is_some();
     let progress = Frames::new();
     let r = scene::render::run(
         &RenderArgs {
@@ -69,6 +80,7 @@ pub fn run(a: Args) -> Result<(), String> {
             aov: a.aov,
             pass_timings: a.timings_json.is_some() || a.frames > 1,
             cameras,
+            trail_range,
         },
         &mut |f, n| {
             if sequence {
