@@ -44,7 +44,8 @@ struct Params {
     paper_alignment: u32,
     intensity: f32,
     floor: f32,
-    pad1: u32,
+    // 1: the levels' mean (OpenWalnut's 1 / s_r), 0: their sum (eq. 7)
+    mean_levels: u32,
     pad2: u32,
     // level_angle(j) (occlusion::line_ao), 8 levels
     level_angle: array<vec4<f32>, 2>,
@@ -377,7 +378,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             counted = counted + 1u;
         }
     }
-    let line_ao = clamp(sum, 0.0, 1.0);
+    var total = sum;
+    if (L.mean_levels != 0u) {
+        total = sum / f32(max(L.levels, 1u));
+    }
+    let line_ao = clamp(total, 0.0, 1.0);
     terms[L.layer * n_px + out] = 1.0 - line_ao;
     var fv = 0.0;
     var fgd = 1.0;

@@ -30,7 +30,9 @@ use crate::gpu::{Gpu, Layer, Slot};
 use crate::method::LineAo;
 use crate::prelude::with_prelude;
 use occlusion::camera::{Camera, Projection};
-use occlusion::line_ao::{level_angle, Alignment, Falloff, LineAoSettings, Visibility, MAX_LEVELS};
+use occlusion::line_ao::{
+    level_angle, Alignment, Falloff, LevelsCombine, LineAoSettings, Visibility, MAX_LEVELS,
+};
 
 const SHADER: &str = include_str!("../../shaders/line_ao.wgsl");
 
@@ -70,7 +72,7 @@ pub struct LineAoParams {
     pub paper_alignment: u32,
     pub intensity: f32,
     pub floor: f32,
-    pub pad1: u32,
+    pub mean_levels: u32,
     pub pad2: u32,
     pub level_angle: [[f32; 4]; 2],
     pub level_offset: [[u32; 4]; 2],
@@ -236,7 +238,7 @@ impl LineAoPass {
             paper_alignment: (k.alignment == Alignment::Paper) as u32,
             intensity: k.intensity,
             floor: k.floor,
-            pad1: 0,
+            mean_levels: (k.levels_combine == LevelsCombine::Mean) as u32,
             pad2: 0,
             level_angle: level_angle_a,
             level_offset,
@@ -355,7 +357,7 @@ mod tests {
                 paper_alignment,
                 intensity,
                 floor,
-                pad1,
+                mean_levels,
                 pad2,
                 level_angle,
                 level_offset,

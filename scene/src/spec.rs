@@ -314,6 +314,8 @@ pub struct LineAoSpec {
     pub falloff: Falloff,
     /// `plane` (a sample occludes above P's tangent plane) or `height` (the paper's eq. 8).
     pub visibility: AoVisibility,
+    /// `sum` (eq. 7) or `mean` (OpenWalnut) of the levels' occlusion.
+    pub levels_combine: AoLevels,
     /// `I_s`, the head light's intensity in `g_light` (eq. 14); 0 turns `g_light` off.
     pub light_intensity: f64,
     /// Anisotropic LineAO (Köhler et al. eq. 10-12): lines running alongside P occlude less.
@@ -350,6 +352,15 @@ pub enum AoAlignment {
     Paper,
 }
 
+/// `render.lineao.levels_combine`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum AoLevels {
+    #[default]
+    Sum,
+    Mean,
+}
+
 /// `render.lineao.visibility`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -369,6 +380,7 @@ impl Default for LineAoSpec {
             delta0: 1e-4,
             falloff: Falloff::Paper,
             visibility: AoVisibility::Plane,
+            levels_combine: AoLevels::Sum,
             light_intensity: 0.5,
             anisotropic: false,
             alignment: AoAlignment::Invariant,
@@ -406,6 +418,10 @@ impl LineAoSpec {
                 visibility: match self.visibility {
                     AoVisibility::Plane => la::Visibility::Plane,
                     AoVisibility::Height => la::Visibility::Height,
+                },
+                levels_combine: match self.levels_combine {
+                    AoLevels::Sum => la::LevelsCombine::Sum,
+                    AoLevels::Mean => la::LevelsCombine::Mean,
                 },
                 anisotropic: self.anisotropic,
                 alignment: match self.alignment {
