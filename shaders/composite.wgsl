@@ -15,6 +15,11 @@ struct Params {
     // 1: LineAO's paper shading, combined c + specular (Eichelbaum et al. §3.3)
     paper_shading: u32,
     pad: u32,
+    // the colour of halo samples (gbuffer.wgsl: alpha 0.5): the background, or the
+    // illustrative method's halo colour (xyz, 1)
+    halo: vec4<f32>,
+    // the illustrative method's line colour (xyz) and w = 1 when the method is illustrative
+    line: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> C: Params;
@@ -82,6 +87,18 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let c = g_col(vec2<i32>(id.xy), s);
         if (c.a <= 0.0) {
             sum = sum + C.background.rgb;
+            continue;
+        }
+        if (c.a < 0.75) {
+            // A halo (Everts et al.): its colour, unlit and not occluded.
+            sum = sum + C.halo.rgb;
+            covered = covered + 1.0;
+            continue;
+        }
+        if (C.line.w > 0.5) {
+            // The illustrative method: unshaded cores.
+            sum = sum + C.line.rgb;
+            covered = covered + 1.0;
             continue;
         }
         let n = g_nrm(vec2<i32>(id.xy), s).xyz;

@@ -47,6 +47,9 @@ struct VOut {
     @location(7) tangent: vec3<f32>,
     // Lines: the unit tangent on screen (pixels, view axes: x right, y up); tubes: zero.
     @location(8) screen_t: vec2<f32>,
+    // Haloed lines: the position across the strip, -1 to 1 (|across| below the core's fraction
+    // is the line, beyond it the halo); zero otherwise.
+    @location(9) across: f32,
 };
 
 @vertex
@@ -63,6 +66,7 @@ fn vs(v: VIn) -> VOut {
     o.proxy = 0.0;
     o.tangent = vec3<f32>(0.0);
     o.screen_t = vec2<f32>(0.0);
+    o.across = 0.0;
     return o;
 }
 
@@ -93,6 +97,22 @@ struct LineParams {
     start: f32,
     min_width: f32,
     pad0: u32,
+    // Depth-dependent halos (Everts et al. 2009; Rust: tubes::lines::Halo): 0 none, 1 uniform
+    // (no displacement), 2 depth; 1: outline style (dark rims that are part of the line),
+    // 0: gap style (rims that hide what is behind them and are not a surface)
+    halo: u32,
+    halo_outline: u32,
+    // the strip's width over the line's (w_strip / w_line)
+    halo_width: f32,
+    // d_max in linear view depth (world units: d_max times the camera's far - near)
+    halo_depth: f32,
+    // f of eq. 3: 0 linear, 1 sqrt, 2 square
+    displacement: u32,
+    // depth cueing: the core's width falls to (1 - depth_cue) of itself at the far plane
+    depth_cue: f32,
+    // the camera's clipping range (linear depth to the depth attachment's)
+    near: f32,
+    far: f32,
 };
 
 @group(1) @binding(0) var<uniform> LP: LineParams;
@@ -207,6 +227,10 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
         hw = LP.half_width * px_per_world;
     }
     hw = hw * select(taper.x, taper.y, end == 1u);
+    if (LP.halo != 0u) {
+        // The strip: the line in its centre, the halo around it.
+        hw = hw * LP.halo_width;
+    }
     // At least one pixel wide.
     hw = max(hw, 0.5);
     // Square caps: each end reaches half a width beyond its point, so consecutive segments
@@ -250,7 +274,9 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     o.proxy = LP.proxy_radius;
     o.tangent = t;
     o.screen_t = d;
-    if (LP.cylinder != 0u && dot(s, s) > 1e-12) {
+    o.across = select(0.0, side, LP.halo != 0u);
+    // Haloed lines keep the flat profile.
+    if (LP.cylinder != 0u && LP.halo == 0u && dot(s, s) > 1e-12) {
         // The side vector on screen: +side is offset along perp(d) = (-d.y, d.x), which is
         // to_eye x t (t x to_eye points the other way).
         o.bend = -normalize(s) * side;
@@ -346,6 +372,10 @@ struct NdOut {
 // the one that agrees with the depth.
 @fragment
 fn fs_nd(v: VOut) -> NdOut {
+    return nd_values(v);
+}
+
+fn nd_values(v: VOut) -> NdOut {
     let f = front_values(v);
     var n = f.normal.xyz;
     let t = v.tangent;
@@ -370,6 +400,10 @@ fn fs_nd(v: VOut) -> NdOut {
 
 @fragment
 fn fs_back(v: VOut) -> @location(0) vec4<f32> {
+    return back_value(v);
+}
+
+fn back_value(v: VOut) -> vec4<f32> {
     if (clipped(v.rel)) {
         discard;
     }
@@ -382,4 +416,165 @@ fn fs_back(v: VOut) -> @location(0) vec4<f32> {
         discard;
     }
     return vec4<f32>(dot(v.rel, G.forward.xyz), 0.0, 0.0, 1.0);
+}
+
+// Depth-dependent halos (Everts et al. 2009, §3.3 eq. 2-3; the halo width against the depth gap,
+// Appendix A corrected: occlusion::halos). A haloed line's fragment is its core where
+// |across| is below the core's fraction of the strip, 1 / halo_width (narrowed by depth
+// cueing), else its rim, pushed back by halo_depth f(|across|) in linear depth and written to
+// the depth attachment through frag_depth.
+struct Halo {
+    rim: bool,
+    // the linear depth the fragment is drawn at
+    depth: f32,
+    // the depth attachment's value
+    frag: f32,
+};
+
+fn displacement(x: f32) -> f32 {
+    if (LP.displacement == 1u) {
+        return sqrt(x);
+    }
+    if (LP.displacement == 2u) {
+        return x * x;
+    }
+    return x;
+}
+
+// The depth attachment's value of a linear view depth (camera.rs conventions: 0 at near, 1 at
+// far).
+fn attachment_depth(z: f32) -> f32 {
+    if (LP.perspective != 0u) {
+        return LP.far / (LP.near - LP.far) * (LP.near - z) / max(z, 1e-12);
+    }
+    return (LP.near - z) / (LP.near - LP.far);
+}
+
+fn halo_at(v: VOut) -> Halo {
+    var h: Halo;
+    let z = surface_depth(v);
+    let a = abs(v.across);
+    var core = 1.0 / LP.halo_width;
+    if (LP.depth_cue > 0.0) {
+        let t = clamp((z - LP.near) / (LP.far - LP.near), 0.0, 1.0);
+        core = core * (1.0 - LP.depth_cue * t);
+    }
+    h.rim = a > core;
+    h.depth = z;
+    if (h.rim && LP.halo == 2u) {
+        h.depth = z + LP.halo_depth * displacement(min(a, 1.0));
+    }
+    h.frag = clamp(attachment_depth(h.depth), 0.0, 1.0);
+    return h;
+}
+
+// The colour of a halo sample in the G-buffer: alpha 0.5 marks it (composite paints it with
+// the halo colour, the background unless the method is illustrative); an outline rim is black
+// and a surface.
+const HALO_ALPHA: f32 = 0.5;
+
+struct FrontOutH {
+    @location(0) color: vec4<f32>,
+    @location(1) normal: vec4<f32>,
+    @location(2) depth: vec4<f32>,
+    @builtin(frag_depth) frag: f32,
+};
+
+fn rim_color(f: FrontOut) -> vec4<f32> {
+    if (LP.halo_outline != 0u) {
+        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    }
+    return vec4<f32>(0.0, 0.0, 0.0, HALO_ALPHA);
+}
+
+@fragment
+fn fs_front_h(v: VOut) -> FrontOutH {
+    return front_h_values(v);
+}
+
+fn front_h_values(v: VOut) -> FrontOutH {
+    let f = front_values(v);
+    let h = halo_at(v);
+    var o: FrontOutH;
+    o.color = f.color;
+    o.normal = f.normal;
+    o.depth = vec4<f32>(h.depth, 0.0, 0.0, 1.0);
+    o.frag = h.frag;
+    if (h.rim) {
+        o.color = rim_color(f);
+        if (LP.halo_outline == 0u) {
+            o.depth = vec4<f32>(0.0);
+        }
+    }
+    return o;
+}
+
+struct SurfaceOutH {
+    @location(0) color: vec4<f32>,
+    @location(1) normal: vec4<f32>,
+    @builtin(frag_depth) frag: f32,
+};
+
+@fragment
+fn fs_surface_h(v: VOut) -> SurfaceOutH {
+    let f = front_h_values(v);
+    var o: SurfaceOutH;
+    o.color = f.color;
+    o.normal = f.normal;
+    o.frag = f.frag;
+    return o;
+}
+
+struct DepthOutH {
+    @location(0) depth: vec4<f32>,
+    @builtin(frag_depth) frag: f32,
+};
+
+@fragment
+fn fs_depth_h(v: VOut) -> DepthOutH {
+    let f = front_h_values(v);
+    var o: DepthOutH;
+    o.depth = f.depth;
+    o.frag = f.frag;
+    return o;
+}
+
+struct NdOutH {
+    @location(0) depth: vec4<f32>,
+    @location(1) normal: vec4<f32>,
+    @location(2) tangent: vec4<f32>,
+    @builtin(frag_depth) frag: f32,
+};
+
+@fragment
+fn fs_nd_h(v: VOut) -> NdOutH {
+    let n = nd_values(v);
+    let f = front_h_values(v);
+    var o: NdOutH;
+    o.depth = f.depth;
+    o.normal = n.normal;
+    o.tangent = n.tangent;
+    if (f.depth.x <= 0.0) {
+        o.tangent = vec4<f32>(0.0);
+    }
+    o.frag = f.frag;
+    return o;
+}
+
+struct BackOutH {
+    @location(0) depth: vec4<f32>,
+    @builtin(frag_depth) frag: f32,
+};
+
+@fragment
+fn fs_back_h(v: VOut) -> BackOutH {
+    let h = halo_at(v);
+    if (h.rim && LP.halo_outline == 0u) {
+        // A gap is no surface: nothing is inside it.
+        discard;
+    }
+    var o: BackOutH;
+    o.depth = back_value(v);
+    o.frag = h.frag;
+    return o;
 }

@@ -33,6 +33,9 @@ pub struct CompositeSettings {
     /// LineAO's paper shading (§3.3): surfaces `combined c + specular`, no ambient and
     /// diffuse terms.
     pub paper_shading: bool,
+    /// The illustrative method's line and halo colours (linear RGB); `None`: shaded
+    /// surfaces, halos in the background's colour.
+    pub illustrative: Option<([f64; 3], [f64; 3])>,
 }
 
 /// The G-buffer's colour and normal bindings (4, 5), single or multisampled, behind the same
@@ -71,6 +74,10 @@ pub struct CompositeParams {
     /// 1: LineAO's paper shading.
     pub paper_shading: u32,
     pub pad: u32,
+    /// The colour of halo samples (xyz, 1).
+    pub halo: [f32; 4],
+    /// The illustrative line colour (xyz), w = 1 for the illustrative method.
+    pub line: [f32; 4],
 }
 
 pub struct CompositePass {
@@ -136,6 +143,14 @@ impl CompositePass {
             product: (s.combine == Combine::Product) as u32,
             paper_shading: s.paper_shading as u32,
             pad: 0,
+            halo: match s.illustrative {
+                Some((_, h)) => vec4([h[0], h[1], h[2], 1.0]),
+                None => vec4([b[0], b[1], b[2], 1.0]),
+            },
+            line: match s.illustrative {
+                Some((l, _)) => vec4([l[0], l[1], l[2], 1.0]),
+                None => [0.0; 4],
+            },
         };
         let params = gpu.buffer(
             "composite params",
@@ -194,6 +209,8 @@ mod tests {
                     product,
                     paper_shading,
                     pad,
+                    halo,
+                    line,
                 }
             );
         }

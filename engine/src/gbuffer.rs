@@ -120,6 +120,7 @@ pub struct GpuLines {
     /// The points' times (one zero when the set has none).
     times: wgpu::Buffer,
     trail: Option<tubes::lines::Trail>,
+    halo: Option<tubes::lines::Halo>,
 }
 
 impl GpuLines {
@@ -145,6 +146,7 @@ impl GpuLines {
                 gpu.buffer("line times", &[0; 16], storage)
             },
             trail: l.trail.filter(|_| l.times.len() == l.positions.len()),
+            halo: l.halo,
         })
     }
 
@@ -187,6 +189,18 @@ pub struct LineParams {
     pub start: f32,
     pub min_width: f32,
     pub pad0: u32,
+    /// Halos (`tubes::lines::Halo`): 0 none, 1 uniform, 2 depth-dependent.
+    pub halo: u32,
+    pub halo_outline: u32,
+    /// The strip's width over the line's.
+    pub halo_width: f32,
+    /// `d_max` in linear view depth, world units.
+    pub halo_depth: f32,
+    /// 0 linear, 1 sqrt, 2 square.
+    pub displacement: u32,
+    pub depth_cue: f32,
+    pub near: f32,
+    pub far: f32,
 }
 
 /// A line set's draw in one frame: the bind groups of its view (group 0, as a mesh's) and of
@@ -195,6 +209,7 @@ struct LineDraw {
     view: wgpu::BindGroup,
     data: wgpu::BindGroup,
     segments: u32,
+    halo: bool,
     /// The set stands for tubes in the volume's shadow: drawn in the back-depth pass too.
     proxy: bool,
 }
@@ -253,6 +268,8 @@ pub struct GBuffer {
 struct PipelinePair {
     mesh: wgpu::RenderPipeline,
     line: wgpu::RenderPipeline,
+    /// Haloed lines (the entry point with `_h`, which writes the depth attachment itself).
+    line_halo: wgpu::RenderPipeline,
 }
 
 /// The G-buffer's pipelines for one sample count, made once per device.
@@ -281,7 +298,8 @@ impl Pipelines {
         );
         let line_layout = gpu.layout(
             "gbuffer lines",
-            wgpu::ShaderStages::VERTEX,
+            // The halo entries read the line uniform in the fragment stage.
+            wgpu::ShaderStages::VERTEX_FRAGMENT,
             &[
                 Slot::Uniform,
                 Slot::Storage,
@@ -335,6 +353,7 @@ impl Pipelines {
             |entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| PipelinePair {
                 mesh: pipeline(false, entry, targets, count),
                 line: pipeline(true, entry, targets, count),
+                line_halo: pipeline(true, &format!("{entry}_h"), targets, count),
             };
         let t = |f| Some(wgpu::ColorTargetState::from(f));
         let front = if ms {
@@ -523,6 +542,20 @@ impl GBuffer {
                 start: t.start,
                 min_width: t.min_width,
                 pad0: 0,
+                halo: l.halo.map_or(0, |h| if h.uniform { 1 } else { 2 }),
+                halo_outline: l.halo.is_some_and(|h| h.outline) as u32,
+                halo_width: l.halo.map_or(1.0, |h| h.width.max(1.0)),
+                halo_depth: l
+                    .halo
+                    .map_or(0.0, |h| h.d_max * (camera.far - camera.near) as f32),
+                displacement: match l.halo.map(|h| h.displacement) {
+                    Some(tubes::lines::Displacement::Sqrt) => 1,
+                    Some(tubes::lines::Displacement::Square) => 2,
+                    _ => 0,
+                },
+                depth_cue: l.halo.map_or(0.0, |h| h.depth_cue),
+                near: camera.near as f32,
+                far: camera.far as f32,
             };
             let params = gpu.buffer(
                 "line params",
@@ -554,6 +587,7 @@ impl GBuffer {
                 view: view(vp_rel, l.origin, 0.0),
                 data: line_data(l, p11, width, height),
                 segments: l.count,
+                halo: l.halo.is_some(),
                 proxy: l.proxy_radius > 0.0,
             })
             .collect();
@@ -716,10 +750,8 @@ impl GBuffer {
                 // Lines have no back faces: the back-depth pass draws only those that stand
                 // for tubes in the volume's shadow.
                 let drawn = |l: &&LineDraw| kind != Kind::Back || l.proxy;
-                if self.lines.iter().any(|l| drawn(&l)) {
-                    pass.set_pipeline(&pipe.line);
-                }
                 for (k, l) in self.lines.iter().enumerate().filter(|(_, l)| drawn(l)) {
+                    pass.set_pipeline(if l.halo { &pipe.line_halo } else { &pipe.line });
                     let (v, d) = nd.map_or((&l.view, &l.data), |n| (&n.lines[k].0, &n.lines[k].1));
                     pass.set_bind_group(0, v, &[]);
                     pass.set_bind_group(1, d, &[]);
@@ -778,6 +810,14 @@ mod tests {
                 start,
                 min_width,
                 pad0,
+                halo,
+                halo_outline,
+                halo_width,
+                halo_depth,
+                displacement,
+                depth_cue,
+                near,
+                far,
             }
         );
         crate::prelude::assert_layout!(

@@ -15,6 +15,7 @@ pub enum Method {
     Illuminated,
     #[serde(rename = "lineao")]
     LineAo,
+    Illustrative,
 }
 
 /// How tubes shadow the volume behind them.
@@ -145,6 +146,13 @@ pub const METHODS: &[MethodDesc] = &[
         summary: "emission-absorption volume; lines and tubes by LineAO (Eichelbaum et al.)",
     },
     MethodDesc {
+        method: Method::Illustrative,
+        name: "illustrative",
+        volume: VolumeShading::EmissionAbsorption,
+        terms: &[],
+        summary: "unshaded line cores and halos in two colours (Everts et al.), no occlusion",
+    },
+    MethodDesc {
         method: Method::Phong,
         name: "phong",
         volume: VolumeShading::Phong,
@@ -216,6 +224,8 @@ pub struct Settings {
     pub lineao: LineAo,
     /// The time every line set's trail is drawn at, in place of its own `now` (animations).
     pub trail_now: Option<f32>,
+    /// The illustrative method's line and halo colours (linear RGB).
+    pub illustrative: ([f64; 3], [f64; 3]),
 }
 
 /// How LineAO darkens the surfaces it occludes (`render.lineao.shading`).
@@ -271,6 +281,7 @@ impl Default for Settings {
             surface_ao: SurfaceAo::Vicinity,
             lineao: LineAo::default(),
             trail_now: None,
+            illustrative: ([0.0; 3], [1.0; 3]),
         }
     }
 }
@@ -291,6 +302,7 @@ mod tests {
             Method::Phong,
             Method::Illuminated,
             Method::LineAo,
+            Method::Illustrative,
         ] {
             let d = m.desc();
             assert_eq!(METHODS.iter().filter(|r| r.method == m).count(), 1);

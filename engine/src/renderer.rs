@@ -534,6 +534,8 @@ impl Frame {
                 light: s.light,
                 background: view.background,
                 paper_shading,
+                illustrative: (s.method == crate::method::Method::Illustrative)
+                    .then_some(s.illustrative),
             },
         );
         let fxaa = s.fxaa.then(|| FxaaPass::new(gpu, w, h, &composite.image));

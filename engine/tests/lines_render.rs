@@ -372,3 +372,131 @@ fn trails_keep_only_their_time_window_and_taper_towards_its_ends() {
     assert!(column_coverage(&moved, col(6.0)) >= 7);
     assert!(column_coverage(&moved, col(-1.0)) == 0);
 }
+
+fn coloured(polylines: &[Vec<[f32; 3]>], width: f64, rgb: [f32; 3]) -> LineSet {
+    let mut s = tubes::Streamlines::new();
+    for p in polylines {
+        let pts: Vec<Vec3> = p.iter().map(|q| Vec3::from(*q)).collect();
+        s.push(&pts);
+    }
+    LineSet::new(
+        &s,
+        &ColorMode::Constant(rgb),
+        LineWidth::Pixels(width),
+        false,
+    )
+}
+
+fn halo(d_max: f32, f: tubes::lines::Displacement, uniform: bool) -> tubes::lines::Halo {
+    tubes::lines::Halo {
+        uniform,
+        outline: false,
+        width: 6.0,
+        d_max,
+        displacement: f,
+        depth_cue: 0.0,
+    }
+}
+
+#[test]
+fn a_halo_gap_follows_the_corrected_appendix_a() {
+    use occlusion::halos::{halo_gap, Displacement as D};
+    use tubes::lines::Displacement;
+    let gpu = gpu();
+    let cam = top_camera(false);
+    // d_max of 4 world units of linear depth.
+    let d_max = (4.0 / (cam.far - cam.near)) as f32;
+    // A 4-pixel blue line along x (strip 24 pixels) in front of a red one along y, dz behind.
+    let gap_at = |dz: f32, f: Displacement, uniform: bool| {
+        let mut front = coloured(
+            &[vec![[-20.0, 0.0, 2.0], [20.0, 0.0, 2.0]]],
+            4.0,
+            [0.0, 0.0, 1.0],
+        );
+        front.halo = Some(halo(d_max, f, uniform));
+        let back = coloured(
+            &[vec![[0.2, -20.0, 2.0 - dz], [0.2, 20.0, 2.0 - dz]]],
+            2.0,
+            [1.0, 0.0, 0.0],
+        );
+        let o = render(&gpu, &[front, back], cam, &[]);
+        let x = ((0.2 + 12.0) / 24.0 * W as f64) as usize;
+        let px = |y: usize| o.image[x + W as usize * y];
+        // Lit by the head light (with white specular): blue where blue leads, black where dark.
+        let blue: Vec<usize> = (0..H as usize)
+            .filter(|&y| px(y)[2] > px(y)[0] + 0.1)
+            .collect();
+        let (top, bottom) = (blue[0], *blue.last().unwrap());
+        let black = |y: usize| px(y)[0] + px(y)[2] < 0.1;
+        if std::env::var("HALO_DEBUG").is_ok() {
+            eprintln!(
+                "dz {dz}: {:?}",
+                (0..H as usize)
+                    .map(|y| format!("{:.2},{:.2}", px(y)[0], px(y)[2]))
+                    .collect::<Vec<_>>()
+            );
+        }
+        let up = (0..top).rev().take_while(|&y| black(y)).count();
+        let down = (bottom + 1..H as usize).take_while(|&y| black(y)).count();
+        (up + down) as f64 / 2.0
+    };
+    for (f, d) in [
+        (Displacement::Linear, D::Linear),
+        (Displacement::Sqrt, D::Sqrt),
+        (Displacement::Square, D::Square),
+    ] {
+        for dz in [0.5f32, 1.5, 2.5, 6.0] {
+            let want = halo_gap(dz as f64, 4.0, 24.0, 4.0, d);
+            let got = gap_at(dz, f, false);
+            assert!(
+                (got - want).abs() <= 1.0,
+                "{f:?}, dz {dz}: a gap of {got} pixels, the appendix says {want}"
+            );
+        }
+    }
+    // Uniform halos: the full rim (10 pixels a side) even for a line just behind.
+    let got = gap_at(0.3, Displacement::Linear, true);
+    assert!((got - 10.0).abs() <= 1.0, "uniform: {got}");
+}
+
+#[test]
+fn parallel_lines_at_one_depth_do_not_cut_each_other_and_1_bit_print_has_two_values() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let d_max = (4.0 / (cam.far - cam.near)) as f32;
+    let line = |y: f32, rgb| {
+        let mut l = coloured(&[vec![[-20.0, y, 0.0], [20.0, y, 0.0]]], 4.0, rgb);
+        l.halo = Some(halo(d_max, tubes::lines::Displacement::Linear, false));
+        l
+    };
+    let count = |o: &Output| o.image.iter().filter(|c| c[0] > c[2] + 0.1).count();
+    let alone = render(&gpu, &[line(2.5, [1.0, 0.0, 0.0])], cam, &[]);
+    let both = render(
+        &gpu,
+        &[line(0.0, [0.0, 0.0, 1.0]), line(2.5, [1.0, 0.0, 0.0])],
+        cam,
+        &[],
+    );
+    let (a, b) = (count(&alone), count(&both));
+    assert!(
+        a > 100 && (a as i64 - b as i64).abs() <= W as i64 / 8,
+        "{a} alone, {b} beside"
+    );
+    // The two-valued print form.
+    let v: std::collections::BTreeSet<u8> = both
+        .image
+        .iter()
+        .map(|c| scene_one_bit([c[0], c[1], c[2]]))
+        .collect();
+    assert_eq!(v.len(), 2);
+}
+
+/// `scene::image_io::one_bit` (the engine's tests do not depend on the scene crate).
+fn scene_one_bit(c: [f32; 3]) -> u8 {
+    let y = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    if y >= 0.214 {
+        255
+    } else {
+        0
+    }
+}

@@ -15,6 +15,7 @@
 pub mod camera;
 pub mod combined;
 pub mod emission_absorption;
+pub mod halos;
 pub mod illuminated_lines;
 pub mod isosurface;
 pub mod line_ao;

@@ -517,6 +517,7 @@ fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<Li
             .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))?;
     set.proxy_radius = proxy_radius;
     set.times = times;
+    set.halo = l.halo.as_ref().and_then(|h| h.halo());
     set.trail = l.trail.as_ref().map(|t| tubes::lines::Trail {
         now: t.now as f32,
         back: t.back as f32,
@@ -543,16 +544,21 @@ pub fn settings(s: &Scene) -> Settings {
         geometry_extinction: r.geometry_extinction,
         column: r.geometry_shadow == spec::GeometryShadow::Column,
         combine: r.combine,
-        fxaa: r.fxaa,
+        // A two-valued image has no use for smoothed edges.
+        fxaa: r.fxaa && r.bits != 1,
         light: [l.ambient, l.diffuse, l.specular, l.shininess],
         occlusion_cell: r.occlusion_cell,
         cone: r.occlusion_model == spec::OcclusionModel::Cone,
-        msaa: r.msaa,
+        msaa: if r.bits == 1 { 1 } else { r.msaa },
         surface_ao: r.surface_ao,
         lineao: r
             .lineao
             .settings([l.ambient, l.diffuse, l.specular, l.shininess]),
         trail_now: None,
+        illustrative: (
+            r.illustrative.line.rgb().unwrap_or([0.0; 3]),
+            r.illustrative.halo.rgb().unwrap_or([1.0; 3]),
+        ),
     }
 }
 

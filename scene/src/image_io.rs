@@ -24,6 +24,44 @@ pub fn write_png(
     write_rgb_png(path, img.width, img.height, &img.color)
 }
 
+/// The two-valued (print) form of a linear colour: white (255) where its sRGB-encoded
+/// luminance `Y = 0.2126 R + 0.7152 G + 0.0722 B` is at least half, else black (0).
+pub fn one_bit(c: [f32; 3]) -> u8 {
+    let y = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    if srgb8(y) >= 128 {
+        255
+    } else {
+        0
+    }
+}
+
+/// Writes linear RGB pixels as a greyscale PNG with exactly two values, 0 and 255 ([`one_bit`]),
+/// through a temporary file.
+pub fn write_bw_png(
+    path: &std::path::Path,
+    width: usize,
+    height: usize,
+    color: &[[f32; 3]],
+) -> Result<(), String> {
+    if color.len() != width * height {
+        return Err(format!(
+            "{}: {} pixels for a {width} x {height} image",
+            path.display(),
+            color.len()
+        ));
+    }
+    let buf = image::GrayImage::from_fn(width as u32, height as u32, |x, y| {
+        image::Luma([one_bit(color[x as usize + width * y as usize])])
+    });
+    let mut bytes = Vec::new();
+    buf.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| format!("{}: encoding PNG: {e}", path.display()))?;
+    volume::write_atomic(path, &bytes).map_err(|e| e.to_string())
+}
+
 /// Writes linear RGB pixels (rows top to bottom) as an 8-bit sRGB PNG through a temporary file.
 pub fn write_rgb_png(
     path: &std::path::Path,

@@ -135,6 +135,7 @@ fn write_image(
     path: &Path,
     exr: bool,
     aov: bool,
+    bits: u32,
     out: &renderer::Output,
     v: &EaView,
 ) -> Result<(), String> {
@@ -147,7 +148,11 @@ fn write_image(
         write_exr(path, w, h, &out.image, &channels)
     } else {
         let rgb: Vec<[f32; 3]> = out.image.iter().map(|c| [c[0], c[1], c[2]]).collect();
-        crate::image_io::write_rgb_png(path, w, h, &rgb)
+        if bits == 1 {
+            crate::image_io::write_bw_png(path, w, h, &rgb)
+        } else {
+            crate::image_io::write_rgb_png(path, w, h, &rgb)
+        }
     }
 }
 
@@ -175,6 +180,12 @@ pub fn run(
             ))
         }
     };
+    if s.render.bits == 1 && exr {
+        return Err(format!(
+            "{}: render.bits = 1 writes PNG; this output is an EXR",
+            a.output.display()
+        ));
+    }
     if a.aov && !exr {
         return Err(format!(
             "{}: AOV channels are written to EXR only; this output is a PNG",
@@ -253,7 +264,7 @@ pub fn run(
             None => a.output.clone(),
             Some(_) => frame_path(&a.output, k)?,
         };
-        write_image(&file, exr, a.aov, &out, &v)?;
+        write_image(&file, exr, a.aov, s.render.bits, &out, &v)?;
         if k == 0 {
             notes.extend(out.notes.iter().cloned());
         }

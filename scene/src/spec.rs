@@ -257,6 +257,102 @@ pub struct LinesSpec {
     pub time: Option<String>,
     /// Draw only each line's tapered trail around a time.
     pub trail: Option<TrailSpec>,
+    /// Depth-dependent halos (Everts et al. 2009).
+    pub halo: Option<HaloSpec>,
+}
+
+/// `[[lines]] halo = { mode, style, width, d_max, displacement, depth_cue }`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HaloSpec {
+    /// `none`, `uniform` (no displacement: every line its full rim) or `depth`.
+    pub mode: HaloMode,
+    /// `gap` (rims hide what is behind them and are no surface) or `outline` (dark rims that
+    /// belong to the line).
+    pub style: HaloStyle,
+    /// The strip's width over the line's (w_strip / w_line).
+    pub width: f64,
+    /// The rim's push back at the strip's edge, a fraction of the camera's near..far range.
+    pub d_max: f64,
+    /// `linear`, `sqrt` or `square`: eq. 3's f.
+    pub displacement: HaloDisplacement,
+    /// The core narrows to `1 - depth_cue` of its width at the far plane (0: off).
+    pub depth_cue: f64,
+}
+
+impl Default for HaloSpec {
+    fn default() -> Self {
+        HaloSpec {
+            mode: HaloMode::Depth,
+            style: HaloStyle::Gap,
+            width: 6.0,
+            d_max: 0.01,
+            displacement: HaloDisplacement::Linear,
+            depth_cue: 0.0,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum HaloMode {
+    None,
+    Uniform,
+    #[default]
+    Depth,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum HaloStyle {
+    #[default]
+    Gap,
+    Outline,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum HaloDisplacement {
+    #[default]
+    Linear,
+    Sqrt,
+    Square,
+}
+
+impl HaloSpec {
+    /// The line set's halo (`None` for `mode = "none"`).
+    pub fn halo(&self) -> Option<tubes::lines::Halo> {
+        use tubes::lines::{Displacement, Halo};
+        (self.mode != HaloMode::None).then(|| Halo {
+            uniform: self.mode == HaloMode::Uniform,
+            outline: self.style == HaloStyle::Outline,
+            width: self.width as f32,
+            d_max: self.d_max as f32,
+            displacement: match self.displacement {
+                HaloDisplacement::Linear => Displacement::Linear,
+                HaloDisplacement::Sqrt => Displacement::Sqrt,
+                HaloDisplacement::Square => Displacement::Square,
+            },
+            depth_cue: self.depth_cue as f32,
+        })
+    }
+}
+
+/// `[render.illustrative]`: the colours of the illustrative method.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IllustrativeSpec {
+    pub line: Color,
+    pub halo: Color,
+}
+
+impl Default for IllustrativeSpec {
+    fn default() -> Self {
+        IllustrativeSpec {
+            line: Color::Rgb([0.0; 3]),
+            halo: Color::Rgb([1.0; 3]),
+        }
+    }
 }
 
 /// `[[lines]] trail = { now, back, forward, start, min_width }` (Köhler et al. 2011, §4.1), in
@@ -514,6 +610,9 @@ pub struct RenderSpec {
     /// (Eichelbaum et al.) or `none`.
     pub surface_ao: SurfaceAo,
     pub lineao: LineAoSpec,
+    pub illustrative: IllustrativeSpec,
+    /// Bits per channel of a PNG: 8, or 1 (two values only, for print).
+    pub bits: u32,
 }
 
 impl Default for RenderSpec {
@@ -538,6 +637,8 @@ impl Default for RenderSpec {
             fxaa: true,
             surface_ao: SurfaceAo::Vicinity,
             lineao: LineAoSpec::default(),
+            illustrative: IllustrativeSpec::default(),
+            bits: 8,
         }
     }
 }
@@ -572,6 +673,8 @@ pub struct Approximation {
     pub fxaa: bool,
     pub surface_ao: SurfaceAo,
     pub lineao: LineAoSpec,
+    pub illustrative: IllustrativeSpec,
+    pub bits: u32,
 }
 
 impl RenderSpec {
@@ -599,6 +702,8 @@ impl RenderSpec {
             fxaa,
             surface_ao,
             lineao,
+            illustrative,
+            bits,
         } = self.clone();
         (
             LightModel {
@@ -623,6 +728,8 @@ impl RenderSpec {
                 fxaa,
                 surface_ao,
                 lineao,
+                illustrative,
+                bits,
             },
         )
     }
@@ -940,6 +1047,21 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 );
             }
         }
+        if let Some(h) = &l.halo {
+            let key = |k: &str| format!("lines[{i}].halo.{k}");
+            if !(h.width >= 1.0 && h.width <= 64.0) {
+                return bad(&key("width"), format!("{} is not in [1, 64]", h.width));
+            }
+            if !(0.0..=1.0).contains(&h.d_max) {
+                return bad(&key("d_max"), format!("{} is not in [0, 1]", h.d_max));
+            }
+            if !(0.0..=1.0).contains(&h.depth_cue) {
+                return bad(
+                    &key("depth_cue"),
+                    format!("{} is not in [0, 1]", h.depth_cue),
+                );
+            }
+        }
         if let Some(t) = &l.time {
             if !t.starts_with("scalar:") || t.len() == "scalar:".len() {
                 return bad(
@@ -1027,6 +1149,16 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             "render.lineao.guard",
             format!("{} pixels: at most 1024", r.lineao.guard),
         );
+    }
+    for (k, c) in [
+        ("line", &r.illustrative.line),
+        ("halo", &r.illustrative.halo),
+    ] {
+        c.rgb()
+            .or_else(|e| bad(&format!("render.illustrative.{k}"), e).map(|()| [0.0; 3]))?;
+    }
+    if ![1, 8].contains(&r.bits) {
+        return bad("render.bits", format!("{} is not 1 or 8", r.bits));
     }
     if ![1, 2, 4, 8].contains(&r.msaa) {
         return bad("render.msaa", format!("{} is not 1, 2, 4 or 8", r.msaa));

@@ -36,6 +36,34 @@ pub struct LineSet {
     pub times: Vec<f32>,
     /// The tapered trail drawn of each line around a time (needs `times`).
     pub trail: Option<Trail>,
+    /// Depth-dependent halos (Everts et al. 2009).
+    pub halo: Option<Halo>,
+}
+
+/// How a halo's rim is pushed back in depth (eq. 3's `f`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Displacement {
+    Linear,
+    Sqrt,
+    Square,
+}
+
+/// Depth-dependent halos (Everts et al. 2009, §3.3): each line drawn as a strip `width` times
+/// the line's width, its centre the line and the rest its halo, whose depth is pushed back by
+/// `d_max f(x)` (x from the strip's centre, 1 at its edge; `d_max` a fraction of the camera's
+/// clipping range) so that it hides lines behind it but not lines beside it at about its depth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Halo {
+    /// No displacement: every line gets its full rim (seed 004 Fig. 2c).
+    pub uniform: bool,
+    /// Dark rims that belong to the line (seed 002), instead of gaps (seed 004).
+    pub outline: bool,
+    /// The strip's width over the line's, > 1.
+    pub width: f32,
+    pub d_max: f32,
+    pub displacement: Displacement,
+    /// The core narrows with depth to `1 - depth_cue` of itself at the far plane.
+    pub depth_cue: f32,
 }
 
 /// A tapered trail (Köhler et al. 2011, §4.1): of each line only the part whose time lies in
@@ -145,6 +173,7 @@ impl LineSet {
             proxy_radius: 0.0,
             times: vec![],
             trail: None,
+            halo: None,
         }
     }
 
