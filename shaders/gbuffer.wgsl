@@ -113,6 +113,12 @@ struct LineParams {
     // the camera's clipping range (linear depth to the depth attachment's)
     near: f32,
     far: f32,
+    // end tapers: the taper's extent in u (0: none); attribute filter (1: on), its threshold
+    // and the attribute range over which cut ends narrow
+    taper_t: f32,
+    filter_on: u32,
+    filter_min: f32,
+    filter_taper: f32,
 };
 
 @group(1) @binding(0) var<uniform> LP: LineParams;
@@ -124,6 +130,8 @@ struct LineParams {
 @group(1) @binding(3) var<storage, read> line_segments: array<u32>;
 // A time per point (for trails).
 @group(1) @binding(4) var<storage, read> line_times: array<f32>;
+// Per point: the taper's u along its line, and the filter attribute.
+@group(1) @binding(5) var<storage, read> line_aux: array<vec2<f32>>;
 
 // tubes::lines::Trail::width_factor: 1 near the particle, min_width at the window's ends, 0
 // outside it (NaN too).
@@ -158,33 +166,69 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     let i = line_segments[index / 6u];
     var a = line_point(i) + G.offset.xyz;
     var b = line_point(i + 1u) + G.offset.xyz;
-    // A trail: the part of the segment within the time window, its ends' width factors.
-    var taper = vec2<f32>(1.0);
+    // Trails, attribute filters and end tapers: the part of the segment that is drawn
+    // (parameters s0..s1 along it) and its ends' width factors.
+    var s0 = 0.0;
+    var s1 = 1.0;
     var outside = false;
+    var ta = 0.0;
+    var tb = 0.0;
     if (LP.trail != 0u) {
-        let ta = line_times[i];
-        let tb = line_times[i + 1u];
+        ta = line_times[i];
+        tb = line_times[i + 1u];
         let lo = LP.now - LP.back;
         let hi = LP.now + LP.forward;
         if (!(max(ta, tb) >= lo && min(ta, tb) <= hi)) {
             // Wholly outside the window (or a NaN time): not drawn.
             outside = true;
-        } else {
-            var s0 = 0.0;
-            var s1 = 1.0;
-            if (tb != ta) {
-                let e0 = (lo - ta) / (tb - ta);
-                let e1 = (hi - ta) / (tb - ta);
-                s0 = clamp(min(e0, e1), 0.0, 1.0);
-                s1 = clamp(max(e0, e1), 0.0, 1.0);
-            }
-            let a0 = a;
-            a = mix(a0, b, s0);
-            b = mix(a0, b, s1);
-            taper = vec2<f32>(trail_width(mix(ta, tb, s0)), trail_width(mix(ta, tb, s1)));
-            // Rounding at the window's edge must not drop the end that lies on it.
-            taper = max(taper, vec2<f32>(min(LP.min_width, 1.0) * 0.999));
+        } else if (tb != ta) {
+            let e0 = (lo - ta) / (tb - ta);
+            let e1 = (hi - ta) / (tb - ta);
+            s0 = max(s0, clamp(min(e0, e1), 0.0, 1.0));
+            s1 = min(s1, clamp(max(e0, e1), 0.0, 1.0));
         }
+    }
+    var xa = vec2<f32>(0.0);
+    var xb = vec2<f32>(0.0);
+    if (LP.filter_on != 0u || LP.taper_t > 0.0) {
+        xa = line_aux[i];
+        xb = line_aux[i + 1u];
+    }
+    if (LP.filter_on != 0u) {
+        // Seed 004 §3.6: only where the attribute reaches filter_min.
+        if (!(max(xa.y, xb.y) >= LP.filter_min)) {
+            outside = true;
+        } else if (xa.y < LP.filter_min) {
+            s0 = max(s0, (LP.filter_min - xa.y) / (xb.y - xa.y));
+        } else if (xb.y < LP.filter_min) {
+            s1 = min(s1, (LP.filter_min - xa.y) / (xb.y - xa.y));
+        }
+    }
+    if (s0 > s1) {
+        outside = true;
+    }
+    let a0 = a;
+    a = mix(a0, b, s0);
+    b = mix(a0, b, s1);
+    var taper = vec2<f32>(1.0);
+    if (LP.trail != 0u) {
+        taper = vec2<f32>(trail_width(mix(ta, tb, s0)), trail_width(mix(ta, tb, s1)));
+        // Rounding at the window's edge must not drop the end that lies on it.
+        taper = max(taper, vec2<f32>(min(LP.min_width, 1.0) * 0.999));
+    }
+    if (LP.filter_on != 0u && LP.filter_taper > 0.0) {
+        // The cut ends narrow to a point over filter_taper of the attribute.
+        let fa = mix(xa.y, xb.y, s0);
+        let fb = mix(xa.y, xb.y, s1);
+        taper = taper * clamp((vec2<f32>(fa, fb) - LP.filter_min) / LP.filter_taper, vec2<f32>(0.0), vec2<f32>(1.0));
+    }
+    if (LP.taper_t > 0.0) {
+        // Seed 004 §3.4: the line's ends narrow to a point (u from the CPU, non-linear so
+        // that the taper spans the first and last vertices whatever the line's length).
+        let ua = mix(xa.x, xb.x, s0);
+        let ub = mix(xa.x, xb.x, s1);
+        let u = vec2<f32>(ua, ub);
+        taper = taper * clamp(min(u, vec2<f32>(1.0) - u) / LP.taper_t, vec2<f32>(0.0), vec2<f32>(1.0));
     }
     // Cut the segment where it crosses behind the eye (w below min_w), so that a strip is never
     // widened from a point behind the camera; a segment wholly behind is dropped.
@@ -237,10 +281,11 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     // overlap at their joint (watertight at any angle).
     let along = select(-1.0, 1.0, end == 1u);
     var cap = hw;
-    if (LP.trail != 0u) {
-        // A tapered trail: a cap no longer than half the segment on screen, so that a wider
-        // point's cap does not cover its narrower neighbours (the taper would lag by half a
-        // width); dense trails bend little between points, so their joints stay closed.
+    if (LP.trail != 0u || LP.taper_t > 0.0 || (LP.filter_on != 0u && LP.filter_taper > 0.0)) {
+        // A tapered line (trail, end taper, filtered cut): a cap no longer than half the
+        // segment on screen, so that a wider point's cap does not cover its narrower
+        // neighbours (the taper would lag by half a width); dense lines bend little between
+        // points, so their joints stay closed.
         let ca = G.view_proj_rel * vec4<f32>(a, 1.0);
         let cb = G.view_proj_rel * vec4<f32>(b, 1.0);
         let seg = (cb.xy / max(cb.w, 1e-6) - ca.xy / max(ca.w, 1e-6)) * 0.5 * LP.viewport;

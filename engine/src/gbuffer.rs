@@ -121,6 +121,10 @@ pub struct GpuLines {
     times: wgpu::Buffer,
     trail: Option<tubes::lines::Trail>,
     halo: Option<tubes::lines::Halo>,
+    /// Per point (taper u, filter attribute); one zero pair when neither is set.
+    aux: wgpu::Buffer,
+    taper_t: f32,
+    filter: Option<(f32, f32)>,
 }
 
 impl GpuLines {
@@ -147,6 +151,30 @@ impl GpuLines {
             },
             trail: l.trail.filter(|_| l.times.len() == l.positions.len()),
             halo: l.halo,
+            aux: {
+                let n = l.positions.len();
+                let (tu, fl) = (l.taper_u.len() == n, l.filter.len() == n);
+                if tu || fl {
+                    let v: Vec<f32> = (0..n)
+                        .flat_map(|i| {
+                            [
+                                if tu { l.taper_u[i] } else { 0.5 },
+                                if fl { l.filter[i] } else { 0.0 },
+                            ]
+                        })
+                        .collect();
+                    gpu.buffer("line aux", bytemuck::cast_slice(&v), storage)
+                } else {
+                    gpu.buffer("line aux", &[0; 16], storage)
+                }
+            },
+            taper_t: if l.taper_u.len() == l.positions.len() {
+                l.taper_t.max(0.0)
+            } else {
+                0.0
+            },
+            filter: (l.filter.len() == l.positions.len() && !l.filter.is_empty())
+                .then_some((l.filter_min, l.filter_taper.max(0.0))),
         })
     }
 
@@ -201,6 +229,12 @@ pub struct LineParams {
     pub depth_cue: f32,
     pub near: f32,
     pub far: f32,
+    /// The end taper's extent in u (0: none).
+    pub taper_t: f32,
+    /// 1: the attribute filter is on.
+    pub filter_on: u32,
+    pub filter_min: f32,
+    pub filter_taper: f32,
 }
 
 /// A line set's draw in one frame: the bind groups of its view (group 0, as a mesh's) and of
@@ -302,6 +336,7 @@ impl Pipelines {
             wgpu::ShaderStages::VERTEX_FRAGMENT,
             &[
                 Slot::Uniform,
+                Slot::Storage,
                 Slot::Storage,
                 Slot::Storage,
                 Slot::Storage,
@@ -556,6 +591,10 @@ impl GBuffer {
                 depth_cue: l.halo.map_or(0.0, |h| h.depth_cue),
                 near: camera.near as f32,
                 far: camera.far as f32,
+                taper_t: l.taper_t,
+                filter_on: l.filter.is_some() as u32,
+                filter_min: l.filter.map_or(0.0, |f| f.0),
+                filter_taper: l.filter.map_or(0.0, |f| f.1),
             };
             let params = gpu.buffer(
                 "line params",
@@ -571,6 +610,7 @@ impl GBuffer {
                     l.colors.as_entire_binding(),
                     l.segments.as_entire_binding(),
                     l.times.as_entire_binding(),
+                    l.aux.as_entire_binding(),
                 ],
             )
         };
@@ -818,6 +858,10 @@ mod tests {
                 depth_cue,
                 near,
                 far,
+                taper_t,
+                filter_on,
+                filter_min,
+                filter_taper,
             }
         );
         crate::prelude::assert_layout!(

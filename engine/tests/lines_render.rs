@@ -500,3 +500,40 @@ fn scene_one_bit(c: [f32; 3]) -> u8 {
         0
     }
 }
+
+#[test]
+fn end_tapers_and_attribute_filters_shape_the_strip() {
+    let gpu = gpu();
+    // A line along x from -10 to 10, a point every half unit, 8 pixels wide.
+    let pts: Vec<[f32; 3]> = (0..=40)
+        .map(|k| [k as f32 * 0.5 - 10.0, 0.0, 0.0])
+        .collect();
+    let col = |x: f64| ((x + 12.0) / 24.0 * W as f64) as usize;
+    let mut tapered = lines(std::slice::from_ref(&pts), LineWidth::Pixels(8.0), false);
+    tapered.taper_u = tubes::lines::taper_u(41, 2, 0.2);
+    tapered.taper_t = 0.2;
+    let o = render(&gpu, &[tapered], top_camera(false), &[]);
+    let rows = |o: &Output, x: f64| column_coverage(o, col(x));
+    // Full width inside; narrowing over the last two vertices (one unit) to the ends.
+    assert!(
+        rows(&o, 0.0) >= 7 && rows(&o, -8.0) >= 7,
+        "{}",
+        rows(&o, 0.0)
+    );
+    for x in [-9.6, 9.6] {
+        assert!(rows(&o, x) <= 6, "near the end: {}", rows(&o, x));
+    }
+    for x in [-9.9, 9.9] {
+        assert!(rows(&o, x) <= 4, "at the end: {}", rows(&o, x));
+    }
+    // A filter on an attribute equal to x: only x >= 0 is drawn, its cut end narrowing over
+    // 2 units of the attribute.
+    let mut filtered = lines(&[pts], LineWidth::Pixels(8.0), false);
+    filtered.filter = (0..=40).map(|k| k as f32 * 0.5 - 10.0).collect();
+    filtered.filter_min = 0.0;
+    filtered.filter_taper = 2.0;
+    let o = render(&gpu, &[filtered], top_camera(false), &[]);
+    assert_eq!(rows(&o, -1.0), 0, "below the threshold");
+    assert!(rows(&o, 0.2) <= 4, "the cut end: {}", rows(&o, 0.2));
+    assert!(rows(&o, 4.0) >= 7, "beyond the taper: {}", rows(&o, 4.0));
+}

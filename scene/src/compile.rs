@@ -518,6 +518,18 @@ fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<Li
     set.proxy_radius = proxy_radius;
     set.times = times;
     set.halo = l.halo.as_ref().and_then(|h| h.halo());
+    if let Some(t) = &l.taper {
+        set.taper_t = t.u as f32;
+        set.taper_u = (0..sl.len())
+            .flat_map(|k| tubes::lines::taper_u(sl.line(k).len(), t.vertices as usize, t.u as f32))
+            .collect();
+    }
+    if let Some(f) = &l.filter {
+        set.filter = crate::tube_sets::point_values(&sl, f)
+            .map_err(|e| format!("lines[{i}].filter ({}): {e}", l.path.display()))?;
+        set.filter_min = l.filter_min as f32;
+        set.filter_taper = l.filter_taper as f32;
+    }
     set.trail = l.trail.as_ref().map(|t| tubes::lines::Trail {
         now: t.now as f32,
         back: t.back as f32,

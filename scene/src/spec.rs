@@ -259,6 +259,35 @@ pub struct LinesSpec {
     pub trail: Option<TrailSpec>,
     /// Depth-dependent halos (Everts et al. 2009).
     pub halo: Option<HaloSpec>,
+    /// End tapers (Everts et al. §3.4).
+    pub taper: Option<TaperSpec>,
+    /// Draw only where an attribute (`scalar:NAME` or `volume:PATH`, sampled at the points)
+    /// is at least `filter_min` (Everts et al. §3.6).
+    pub filter: Option<String>,
+    #[serde(default)]
+    pub filter_min: f64,
+    /// The attribute range over which the cut ends narrow to a point (0: square cuts).
+    #[serde(default)]
+    pub filter_taper: f64,
+}
+
+/// `[[lines]] taper = { vertices = 2, u = 0.2 }`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TaperSpec {
+    /// The end vertices the taper spans.
+    pub vertices: u32,
+    /// Their share of the line's parameter u at each end.
+    pub u: f64,
+}
+
+impl Default for TaperSpec {
+    fn default() -> Self {
+        TaperSpec {
+            vertices: 2,
+            u: 0.2,
+        }
+    }
 }
 
 /// `[[lines]] halo = { mode, style, width, d_max, displacement, depth_cue }`.
@@ -1047,6 +1076,38 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 );
             }
         }
+        if let Some(t) = &l.taper {
+            if !(t.u > 0.0 && t.u <= 0.5) {
+                return bad(
+                    &format!("lines[{i}].taper.u"),
+                    format!("{} is not in (0, 0.5]", t.u),
+                );
+            }
+            if t.vertices == 0 || t.vertices > 1000 {
+                return bad(
+                    &format!("lines[{i}].taper.vertices"),
+                    format!("{} is not in 1..=1000", t.vertices),
+                );
+            }
+        }
+        if let Some(f) = &mut l.filter {
+            if let Some(p) = f.strip_prefix("volume:") {
+                if Path::new(p).is_relative() {
+                    *f = format!("volume:{}", dir.join(p).display());
+                }
+            } else if f.strip_prefix("scalar:").is_none_or(|n| n.is_empty()) {
+                return bad(
+                    &format!("lines[{i}].filter"),
+                    format!("'{f}' is not scalar:NAME or volume:PATH"),
+                );
+            }
+        }
+        if !(l.filter_min.is_finite() && l.filter_taper >= 0.0 && l.filter_taper.is_finite()) {
+            return bad(
+                &format!("lines[{i}].filter_min"),
+                "filter_min must be finite and filter_taper finite and >= 0".into(),
+            );
+        }
         if let Some(h) = &l.halo {
             let key = |k: &str| format!("lines[{i}].halo.{k}");
             if !(h.width >= 1.0 && h.width <= 64.0) {
@@ -1313,6 +1374,12 @@ mod tests {
                 "time = \"scalar:t\"\ntrail = { now = 2.0, back = 1.0, forward = 0.5, start = 1.0 }\n",
                 "lines[0].trail.start",
             ),
+            ("filter = \"speed\"\n", "lines[0].filter"),
+            ("filter = \"scalar:fa\"\nfilter_taper = -1.0\n", "lines[0].filter_min"),
+            ("taper = { u = 0.7 }\n", "lines[0].taper.u"),
+            ("taper = { vertices = 0 }\n", "lines[0].taper.vertices"),
+            ("halo = { width = 0.5 }\n", "lines[0].halo.width"),
+            ("halo = { d_max = 2.0 }\n", "lines[0].halo.d_max"),
             (
                 "time = \"scalar:t\"\ntrail = { now = 2.0, back = 1.0, forward = 0.5, min_width = 2.0 }\n",
                 "lines[0].trail.min_width",

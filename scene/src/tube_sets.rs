@@ -224,3 +224,52 @@ pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, Tu
         build(s, &opts)
     })
 }
+
+/// A value per point of `s` from `source`: `scalar:NAME` (a per-point attribute) or
+/// `volume:PATH` (a scalar volume sampled at the nearest voxel; NaN outside it).
+pub fn point_values(s: &tubes::Streamlines, source: &str) -> Result<Vec<f32>, String> {
+    if let Some(name) = source.strip_prefix("scalar:") {
+        let a = s
+            .point_attributes
+            .iter()
+            .find(|a| a.name == name)
+            .ok_or_else(|| {
+                let have: Vec<&str> = s.point_attributes.iter().map(|x| x.name.as_str()).collect();
+                format!(
+                    "{source}: the tractogram has no per-point '{name}' (it has: {})",
+                    if have.is_empty() {
+                        "none".to_string()
+                    } else {
+                        have.join(", ")
+                    }
+                )
+            })?;
+        return Ok(a
+            .values
+            .iter()
+            .step_by(a.components.max(1))
+            .copied()
+            .collect());
+    }
+    let Some(path) = source.strip_prefix("volume:") else {
+        return Err(format!("{source}: use scalar:NAME or volume:PATH"));
+    };
+    let v = volume::load(std::path::Path::new(path)).map_err(|e| e.to_string())?;
+    let f = v.select(None).map_err(|e| e.to_string())?;
+    if f.components != 1 {
+        return Err(format!("{source}: needs a scalar volume"));
+    }
+    let inv = v.affine.inverse();
+    let [nx, ny, nz] = v.dims;
+    Ok(s.points
+        .iter()
+        .map(|p| {
+            let q = inv.transform_point3(p.as_dvec3()).round();
+            if q.min_element() < 0.0 || q.x >= nx as f64 || q.y >= ny as f64 || q.z >= nz as f64 {
+                f32::NAN
+            } else {
+                f.data[v.index(q.x as usize, q.y as usize, q.z as usize)]
+            }
+        })
+        .collect())
+}

@@ -38,6 +38,41 @@ pub struct LineSet {
     pub trail: Option<Trail>,
     /// Depth-dependent halos (Everts et al. 2009).
     pub halo: Option<Halo>,
+    /// End tapers (seed 004 §3.4): each point's `u` along its line ([`taper_u`]; empty: none)
+    /// and the taper's extent `t` in u.
+    pub taper_u: Vec<f32>,
+    pub taper_t: f32,
+    /// An attribute filter (seed 004 §3.6): a value per point (empty: none); only where it is
+    /// at least `min` is drawn, the cut ends narrowing to a point over `taper` of it.
+    pub filter: Vec<f32>,
+    pub filter_min: f32,
+    pub filter_taper: f32,
+}
+
+/// Seed 004 §3.4's non-linear `u` along a line of `n` points: the first `vertices` points map
+/// evenly onto `[0, t]`, the last `vertices` onto `[1 - t, 1]`, those between evenly onto
+/// `[t, 1 - t]`, so the taper spans the same vertices whatever the line's length; a line too
+/// short for both (`n - 1 < 2 vertices`) gets `u` even over [0, 1]. The width mask is then
+/// `clamp(min(u, 1 - u) / t, 0, 1)`.
+pub fn taper_u(n: usize, vertices: usize, t: f32) -> Vec<f32> {
+    if n < 2 {
+        return vec![0.5; n];
+    }
+    let last = n - 1;
+    let v = vertices.max(1);
+    (0..n)
+        .map(|k| {
+            if last < 2 * v {
+                k as f32 / last as f32
+            } else if k <= v {
+                t * k as f32 / v as f32
+            } else if k >= last - v {
+                1.0 - t * (last - k) as f32 / v as f32
+            } else {
+                t + (1.0 - 2.0 * t) * (k - v) as f32 / (last - 2 * v) as f32
+            }
+        })
+        .collect()
 }
 
 /// How a halo's rim is pushed back in depth (eq. 3's `f`).
@@ -174,6 +209,11 @@ impl LineSet {
             times: vec![],
             trail: None,
             halo: None,
+            taper_u: vec![],
+            taper_t: 0.0,
+            filter: vec![],
+            filter_min: 0.0,
+            filter_taper: 0.0,
         }
     }
 
@@ -252,7 +292,19 @@ mod tests {
 
 #[cfg(test)]
 mod trail_tests {
-    use super::Trail;
+    use super::{taper_u, Trail};
+
+    #[test]
+    fn taper_u_spans_the_end_vertices_whatever_the_length() {
+        let u = taper_u(11, 2, 0.2);
+        assert_eq!(u[0], 0.0);
+        assert!((u[1] - 0.1).abs() < 1e-6 && (u[2] - 0.2).abs() < 1e-6);
+        assert!((u[8] - 0.8).abs() < 1e-6 && u[10] == 1.0);
+        assert!(u.windows(2).all(|w| w[1] > w[0]));
+        // A short line: even over [0, 1].
+        assert_eq!(taper_u(3, 2, 0.2), vec![0.0, 0.5, 1.0]);
+        assert_eq!(taper_u(1, 2, 0.2), vec![0.5]);
+    }
 
     #[test]
     fn the_trail_is_full_width_near_the_particle_and_tapers_to_min_width_at_its_ends() {
