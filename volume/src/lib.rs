@@ -17,6 +17,9 @@
 //!   nibabel reads it, NRRD and MetaImage in LPS with x and y negated. Otherwise it is the
 //!   file's own frame ([`Space::File`]).
 //! * Vector components are world directions (see each reader for the conversion it makes).
+//! * A time-varying field is a [`VolumeSeries`]: frames on one grid at equal time steps, linear in
+//!   time between them, periodic or clamped at the ends ([`series`]); NIfTI holds one as a 5-D
+//!   image, and [`load_series`] reads any other volume as a steady series of one frame.
 
 pub mod cfd_grid;
 pub mod distance_sweep;
@@ -29,6 +32,7 @@ pub mod nrrd;
 pub mod occlusion_shading;
 pub mod occlusion_sweep;
 pub mod plot3d;
+pub mod series;
 pub mod slc;
 pub mod synthetic;
 pub mod vti;
@@ -38,6 +42,7 @@ pub mod vtk_legacy;
 pub use error::{Result, VolumeError};
 use glam::{DMat4, DVec3, DVec4};
 pub use io_util::{gzip_bytes, write_atomic, Bytes};
+pub use series::VolumeSeries;
 use std::path::Path;
 
 /// The sample type a file stores.
@@ -431,6 +436,25 @@ pub fn load(path: &Path) -> Result<Volume> {
     vol.validate()
         .map_err(|e| VolumeError::format(path, "data", e.to_string()))?;
     Ok(vol)
+}
+
+/// Reads a volume as a time series: a NIfTI file with a time axis (5-D, intent VECTOR, `dim[4]`
+/// frames; see [`nifti::read_series`]) gives all its frames, any other volume a steady series
+/// of one frame ([`VolumeSeries::steady`]).
+pub fn load_series(path: &Path) -> Result<VolumeSeries> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    let ext = stem.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    if matches!(ext, "nii" | "hdr") {
+        let s = nifti::read_series(path)?;
+        s.validate()
+            .map_err(|e| VolumeError::format(path, "data", e.to_string()))?;
+        return Ok(s);
+    }
+    load(path).map(VolumeSeries::steady)
 }
 
 /// Whether a file is a CFD grid rather than a volume: `.vtr`, `.vts`, `.vtu`, or a legacy

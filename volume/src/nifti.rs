@@ -9,7 +9,11 @@
 //!   units in `xyzt_units` are reported, never rescaled (nibabel does not either);
 //! * `scl_slope`/`scl_inter` apply when the slope is finite and non-zero;
 //! * a vector field is a 4-D image whose 4th axis has 3 entries, or a 5-D image with
-//!   `intent_code` VECTOR (1007), `dim[4] == 1` and `dim[5] == 3`.
+//!   `intent_code` VECTOR (1007), `dim[4] == 1` and `dim[5] == 3`;
+//! * a time series of vector fields is a 5-D VECTOR image with `dim[4] > 1` frames: `pixdim[4]`
+//!   is the time step, `toffset` the first time, and `descrip` holding `periodic` makes it
+//!   periodic ([`read_series`], [`write_series`], [`crate::series`]); [`read`] gives its first
+//!   frame with a warning.
 //!
 //! # The frame of vector components
 //! FSL's `dtifit` (the common producer of `V1` images) writes eigenvectors along the voxel axes
@@ -21,7 +25,7 @@
 //! directions (to f32 rounding). The same convention applies to `intent VECTOR` files.
 
 use crate::io_util::{self, checked_count, take_samples};
-use crate::{Field, Result, ScalarType, Space, Volume, VolumeError};
+use crate::{Field, Result, ScalarType, Space, Volume, VolumeError, VolumeSeries};
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
 use std::path::{Path, PathBuf};
 
@@ -45,6 +49,9 @@ struct Header {
     srow: [[f64; 4]; 3],
     intent_code: i32,
     magic: [u8; 4],
+    toffset: f64,
+    /// The `descrip` text up to its first NUL.
+    descrip: String,
 }
 
 fn parse_header(path: &Path, b: &[u8]) -> Result<Header> {
@@ -98,6 +105,12 @@ fn parse_header(path: &Path, b: &[u8]) -> Result<Header> {
         srow: [[0.0; 4]; 3],
         intent_code: 0,
         magic: [0; 4],
+        toffset: 0.0,
+        descrip: String::new(),
+    };
+    let text = |b: &[u8]| {
+        let end = b.iter().position(|&c| c == 0).unwrap_or(b.len());
+        String::from_utf8_lossy(&b[..end]).trim().to_string()
     };
     if version == 1 {
         for i in 0..8 {
@@ -109,6 +122,8 @@ fn parse_header(path: &Path, b: &[u8]) -> Result<Header> {
         h.vox_offset = r.f32(108) as f64;
         h.scl_slope = r.f32(112) as f64;
         h.scl_inter = r.f32(116) as f64;
+        h.toffset = r.f32(136) as f64;
+        h.descrip = text(&b[148..228]);
         h.qform_code = r.i16(252) as i32;
         h.sform_code = r.i16(254) as i32;
         for i in 0..3 {
@@ -150,6 +165,8 @@ fn parse_header(path: &Path, b: &[u8]) -> Result<Header> {
         h.vox_offset = r.i64(168) as f64;
         h.scl_slope = r.f64(176);
         h.scl_inter = r.f64(184);
+        h.toffset = r.f64(216);
+        h.descrip = text(&b[240..320]);
         h.qform_code = r.i32(344);
         h.sform_code = r.i32(348);
         for i in 0..3 {
@@ -335,8 +352,35 @@ fn transform_vectors(data: &mut [f32], m: DMat3) {
     }
 }
 
-/// Reads a `.nii`, `.nii.gz` or `.hdr`/`.img` pair.
+/// Reads a `.nii`, `.nii.gz` or `.hdr`/`.img` pair. A time series of vector fields (5-D,
+/// `dim[4] > 1`: [`read_series`]) gives its first frame, with a warning.
 pub fn read(path: &Path) -> Result<Volume> {
+    let mut s = read_series(path)?;
+    let n = s.frames.len();
+    let mut v = s.frames.swap_remove(0);
+    if n > 1 {
+        v.warnings.push(format!(
+            "a time series of {n} vector fields (time step {}, first time {}{}): this is frame 0 \
+             only; `umbra trace --pathlines` reads them all",
+            s.dt,
+            s.t0,
+            if s.periodic { ", periodic" } else { "" }
+        ));
+    }
+    Ok(v)
+}
+
+/// Reads a NIfTI file as a time series ([`VolumeSeries`]).
+///
+/// A 5-D image with intent VECTOR (1007) and `dim[5] == 3` holds `dim[4]` vector fields:
+/// sample `(i, j, k, t, c)` at index `i + nx (j + ny (k + nz (t + nt c)))`, so each component
+/// is a block of frames. Frame `t` is at time `toffset + t pixdim[4]`; with `dim[4] > 1`
+/// `pixdim[4]` must be positive. The series is periodic (period `dim[4] pixdim[4]`) when the
+/// header's `descrip` holds the word `periodic` (any case), as umbra writes it
+/// ([`write_series`]), else clamped at its ends (see [`crate::series`]). Every other image
+/// (3-D scalar, 4-D with 3 components, 5-D VECTOR with `dim[4] == 1`) is a steady series of one
+/// frame.
+pub fn read_series(path: &Path) -> Result<VolumeSeries> {
     let raw = io_util::read_file(path)?;
     let gz = raw.starts_with(&[0x1f, 0x8b]);
     // Decode just enough of a gzip stream to see the header first.
@@ -377,28 +421,43 @@ pub fn read(path: &Path) -> Result<Volume> {
             ));
         }
     }
-    // Components: 3-D scalar, 4-D with dim4 == 3 (or 1), 5-D VECTOR with dim4 == 1, dim5 == 3.
+    // Components and frames: 3-D scalar, 4-D with dim4 == 3 (or 1), 5-D VECTOR with dim5 == 3
+    // and dim4 frames (1: steady).
     let extra: Vec<i64> = d[3..].to_vec();
-    let components = match extra.as_slice() {
-        [1, 1, 1, 1] => 1,
-        [3, 1, 1, 1] => 3,
-        [1, 3, 1, 1] if h.intent_code == INTENT_VECTOR => 3,
+    let (components, frames) = match extra.as_slice() {
+        [1, 1, 1, 1] => (1, 1),
+        [3, 1, 1, 1] => (3, 1),
+        [t, 3, 1, 1] if h.intent_code == INTENT_VECTOR => (3, *t as usize),
         _ => {
             return Err(VolumeError::format(
                 path,
                 "dim",
                 format!(
                     "{}-D image with dims {:?}: only 3-D scalars, 4-D with 3 components and 5-D VECTOR \
-                     (dim[4] = 1, dim[5] = 3) are volumes umbra renders",
+                     (dim[5] = 3; dim[4] = 1, or the number of time frames) are volumes umbra reads",
                     ndim,
                     &d[..nd]
                 ),
             ))
         }
     };
+    let dt = h.pixdim[4];
+    if frames > 1 && !(dt.is_finite() && dt > 0.0) {
+        return Err(VolumeError::format(
+            path,
+            "pixdim[4]",
+            format!("{dt} is not a positive time step, and dim[4] = {frames} time frames need one"),
+        ));
+    }
+    let t0 = if h.toffset.is_finite() {
+        h.toffset
+    } else {
+        0.0
+    };
     let count = checked_count(path, "dim", &d[..3])?;
     let total = count
         .checked_mul(components)
+        .and_then(|n| n.checked_mul(frames))
         .filter(|&n| n as u64 <= io_util::MAX_SAMPLES)
         .ok_or_else(|| VolumeError::format(path, "dim", "image too large"))?;
     let nbytes = total * ty.size();
@@ -476,18 +535,8 @@ pub fn read(path: &Path) -> Result<Volume> {
     }
     let dims = [d[0] as usize, d[1] as usize, d[2] as usize];
     let (affine, space) = affine_of(path, &h, dims)?;
-    if components == 3 {
-        // Component planes follow each other; interleave them per voxel.
-        let mut inter_data = vec![0f32; total];
-        for c in 0..3 {
-            for (i, &v) in data[c * count..(c + 1) * count].iter().enumerate() {
-                inter_data[3 * i + c] = v;
-            }
-        }
-        data = inter_data;
-        transform_vectors(&mut data, vector_to_world(&affine));
-    }
-    Ok(Volume {
+    let to_world = vector_to_world(&affine);
+    let frame = |data: Vec<f32>| Volume {
         format: format!("nifti{}", h.version),
         dims,
         affine,
@@ -499,6 +548,36 @@ pub fn read(path: &Path) -> Result<Volume> {
             data,
         }],
         default_field: 0,
+        warnings: vec![],
+    };
+    let volumes = if components == 3 {
+        // Component blocks (each of `frames` planes) follow each other; interleave the
+        // components per voxel, frame by frame.
+        (0..frames)
+            .map(|t| {
+                let mut inter_data = vec![0f32; 3 * count];
+                for c in 0..3 {
+                    let at = (c * frames + t) * count;
+                    for (i, &v) in data[at..at + count].iter().enumerate() {
+                        inter_data[3 * i + c] = v;
+                    }
+                }
+                transform_vectors(&mut inter_data, to_world);
+                frame(inter_data)
+            })
+            .collect()
+    } else {
+        vec![frame(std::mem::take(&mut data))]
+    };
+    let periodic = frames > 1
+        && h.descrip
+            .split(|c: char| !c.is_ascii_alphanumeric() && c != '-')
+            .any(|w| w.eq_ignore_ascii_case("periodic") || w.eq_ignore_ascii_case("time-periodic"));
+    Ok(VolumeSeries {
+        frames: volumes,
+        t0,
+        dt: if frames > 1 { dt } else { 1.0 },
+        periodic,
         warnings: vec![],
     })
 }
@@ -569,6 +648,58 @@ pub fn write(path: &Path, vol: &Volume, field: &Field) -> Result<()> {
             field.components
         )));
     }
+    write_frames(path, vol, &[field], None)
+}
+
+/// Writes a time series of vector fields as one NIfTI-1 file (`.nii`, `.nii.gz`): a 5-D image
+/// `(nx, ny, nz, T, 3)` with intent VECTOR, float32, `pixdim[4]` the time step, `toffset` the
+/// first time, `xyzt_units` millimetres and seconds, and `descrip` `umbra time-periodic` for a
+/// periodic series (what [`read_series`] reads back). The field written is each frame's
+/// default field, which must have 3 components. A series of one frame is written as [`write`]
+/// writes a steady vector field.
+pub fn write_series(path: &Path, s: &VolumeSeries) -> Result<()> {
+    s.validate()
+        .map_err(|e| VolumeError::Invalid(format!("{}: {e}", path.display())))?;
+    let fields: Vec<&Field> = s.frames.iter().map(|v| v.default()).collect();
+    if fields[0].components != 3 {
+        return Err(VolumeError::Invalid(format!(
+            "{}: field '{}' has {} components; a NIfTI time series holds 3-component vector fields",
+            path.display(),
+            fields[0].name,
+            fields[0].components
+        )));
+    }
+    if fields.len() > i16::MAX as usize {
+        return Err(VolumeError::Invalid(format!(
+            "{}: {} time frames exceed NIfTI-1's limit of 32767",
+            path.display(),
+            fields.len()
+        )));
+    }
+    let time = (fields.len() > 1).then_some(TimeAxis {
+        t0: s.t0,
+        dt: s.dt,
+        periodic: s.periodic,
+    });
+    write_frames(path, &s.frames[0], &fields, time)
+}
+
+/// The time axis of a series being written.
+struct TimeAxis {
+    t0: f64,
+    dt: f64,
+    periodic: bool,
+}
+
+/// Writes one scalar or vector field (`fields.len() == 1`) or a time series of vector fields
+/// on `vol`'s grid.
+fn write_frames(
+    path: &Path,
+    vol: &Volume,
+    fields: &[&Field],
+    time: Option<TimeAxis>,
+) -> Result<()> {
+    let field = fields[0];
     for (i, &d) in vol.dims.iter().enumerate() {
         if d > i16::MAX as usize {
             return Err(VolumeError::Invalid(format!(
@@ -594,7 +725,7 @@ pub fn write(path: &Path, vol: &Volume, field: &Field) -> Result<()> {
             vol.dims[0] as i16,
             vol.dims[1] as i16,
             vol.dims[2] as i16,
-            1,
+            fields.len() as i16,
             3,
             1,
             1,
@@ -622,15 +753,23 @@ pub fn write(path: &Path, vol: &Volume, field: &Field) -> Result<()> {
     let sp = vol.spacing();
     let q = qform_params(&vol.affine);
     let qfac = q.map(|q| q.1).unwrap_or(1.0);
-    let pix = [qfac, sp[0], sp[1], sp[2], 1.0, 1.0, 1.0, 1.0];
+    let dt = time.as_ref().map_or(1.0, |t| t.dt);
+    let pix = [qfac, sp[0], sp[1], sp[2], dt, 1.0, 1.0, 1.0];
     for (i, p) in pix.iter().enumerate() {
         put_f32(&mut h, 76 + 4 * i, *p);
     }
     put_f32(&mut h, 108, 352.0);
     put_f32(&mut h, 112, 1.0);
     put_f32(&mut h, 116, 0.0);
-    h[123] = 2; // xyzt_units: millimetres
-    let descrip = b"umbra";
+    // xyzt_units: millimetres, and seconds for a time series.
+    h[123] = if time.is_some() { 2 | 8 } else { 2 };
+    if let Some(t) = &time {
+        put_f32(&mut h, 136, t.t0);
+    }
+    let descrip: &[u8] = match &time {
+        Some(t) if t.periodic => b"umbra time-periodic",
+        _ => b"umbra",
+    };
     h[148..148 + descrip.len()].copy_from_slice(descrip);
     // sform: exact affine (code 2 = aligned anatomical; code 1 = scanner for file frames).
     let code: i16 = if vol.space == Space::Ras { 2 } else { 1 };
@@ -652,20 +791,23 @@ pub fn write(path: &Path, vol: &Volume, field: &Field) -> Result<()> {
         put_f32(&mut h, 276, t.z);
     }
     h[344..348].copy_from_slice(b"n+1\0");
-    // Data: planes per component.
+    // Data: planes per component, each a block of frames.
     let n = vol.voxel_count();
     let planar: Vec<f32> = if field.components == 3 {
         let inv = vector_to_world(&vol.affine).inverse();
-        let mut out = vec![0f32; 3 * n];
-        for (i, v) in field.data.chunks_exact(3).enumerate() {
-            let w = if v.iter().all(|x| x.is_finite()) {
-                let w = inv * DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
-                [w.x as f32, w.y as f32, w.z as f32]
-            } else {
-                [v[0], v[1], v[2]]
-            };
-            for c in 0..3 {
-                out[c * n + i] = w[c];
+        let frames = fields.len();
+        let mut out = vec![0f32; 3 * n * frames];
+        for (t, f) in fields.iter().enumerate() {
+            for (i, v) in f.data.chunks_exact(3).enumerate() {
+                let w = if v.iter().all(|x| x.is_finite()) {
+                    let w = inv * DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+                    [w.x as f32, w.y as f32, w.z as f32]
+                } else {
+                    [v[0], v[1], v[2]]
+                };
+                for c in 0..3 {
+                    out[(c * frames + t) * n + i] = w[c];
+                }
             }
         }
         out

@@ -14,11 +14,14 @@
 //! * [`VectorField`]s with known streamlines: [`RigidRotation`] (circles), [`AbcFlow`]
 //!   (Arnold-Beltrami-Childress, a steady Euler solution with chaotic streamlines) and
 //!   [`BurgersVortex`] (a tornado-like exact Navier-Stokes vortex with inflow and updraft).
+//! * [`UnsteadyField`]s, sampled into a [`VolumeSeries`] by [`sample_series`]: [`DoubleGyre3d`]
+//!   (Shadden et al.'s time-periodic double gyre with a roll in the y-z plane) and
+//!   [`LinearRamp`] (a uniform flow whose speed grows linearly in time: exact pathlines).
 //!
 //! Sampled scalar scenes store `-distance` so that the inside has values >= 0, matching the
 //! default `--inside above` of `umbra sweep` at iso 0.
 
-use crate::{Field, ScalarType, Space, Volume};
+use crate::{Field, ScalarType, Space, Volume, VolumeSeries};
 use glam::{DMat4, DVec3, DVec4};
 
 /// An analytic solid with an exact signed distance (negative inside), in world units.
@@ -326,7 +329,6 @@ impl VectorField for BurgersVortex {
     }
 }
 
-/// Samples a vector field on a grid as a 3-component volume.
 /// The rigid rotation about the z axis (omega 1) sampled on a 41 x 41 x 9 slab over
 /// [-1, 1]^2 x [-0.2, 0.2]: a linear field, so trilinear interpolation is exact and a tracer's
 /// error on it is the integrator's alone (streamlines are circles about the z axis).
@@ -362,6 +364,7 @@ pub fn reference_streamline_end(f: &dyn VectorField, seed: DVec3, length: f64, h
     p
 }
 
+/// Samples a vector field on a grid as a 3-component volume.
 pub fn sample_vector(
     field: &dyn VectorField,
     dims: [usize; 3],
@@ -375,6 +378,134 @@ pub fn sample_vector(
         })
         .collect();
     synthetic_volume(dims, affine, name, 3, data)
+}
+
+/// A time-dependent velocity field.
+pub trait UnsteadyField: Sync {
+    fn velocity(&self, p: DVec3, t: f64) -> DVec3;
+}
+
+/// The double gyre of Shadden, Lekien and Marsden (Physica D 212, 2005), extruded over
+/// `0 <= z <= 1` and given a w component by a steady roll in the y-z plane:
+///
+/// ```text
+/// a(t) = eps sin(omega t),  b(t) = 1 - 2 eps sin(omega t),  f(x, t) = a x^2 + b x
+/// u = -pi A sin(pi f) cos(pi y)
+/// v =  pi A cos(pi f) sin(pi y) (2 a x + b)  +  pi C sin(pi y) cos(pi z)
+/// w = -pi C cos(pi y) sin(pi z)
+/// ```
+///
+/// on `[0, 2] x [0, 1] x [0, 1]`. The first terms are the planar double gyre (stream function
+/// `A sin(pi f) sin(pi y)`), the `C` terms the roll (stream function `C sin(pi y) sin(pi z)` in
+/// the y-z plane); both are divergence-free and tangent to the box's faces, so particles stay
+/// inside. Shadden's parameters are `A = 0.1`, `eps = 0.25`, `omega = 2 pi / 10` (period 10);
+/// [`Default`] adds `C = 0.05`. With `C = 0` it is the planar double gyre at every z.
+#[derive(Clone, Copy, Debug)]
+pub struct DoubleGyre3d {
+    pub a: f64,
+    pub eps: f64,
+    pub omega: f64,
+    /// Amplitude of the y-z roll.
+    pub c: f64,
+}
+
+impl Default for DoubleGyre3d {
+    fn default() -> Self {
+        DoubleGyre3d {
+            a: 0.1,
+            eps: 0.25,
+            omega: 2.0 * std::f64::consts::PI / 10.0,
+            c: 0.05,
+        }
+    }
+}
+
+impl DoubleGyre3d {
+    /// The time after which the flow repeats, `2 pi / omega`.
+    pub fn period(&self) -> f64 {
+        2.0 * std::f64::consts::PI / self.omega
+    }
+}
+
+impl UnsteadyField for DoubleGyre3d {
+    fn velocity(&self, p: DVec3, t: f64) -> DVec3 {
+        use std::f64::consts::PI;
+        let s = (self.omega * t).sin();
+        let (a, b) = (self.eps * s, 1.0 - 2.0 * self.eps * s);
+        let f = a * p.x * p.x + b * p.x;
+        let dfdx = 2.0 * a * p.x + b;
+        let (sy, cy) = (PI * p.y).sin_cos();
+        let (sz, cz) = (PI * p.z).sin_cos();
+        DVec3::new(
+            -PI * self.a * (PI * f).sin() * cy,
+            PI * self.a * (PI * f).cos() * sy * dfdx + PI * self.c * sy * cz,
+            -PI * self.c * cy * sz,
+        )
+    }
+}
+
+/// A uniform flow along `direction` whose speed grows linearly in time: `u = rate t direction`.
+/// Its pathlines are known exactly, `x(t) = x0 + rate (t^2 - t0^2) / 2 direction`, and
+/// linear interpolation in space and time reproduces it exactly.
+#[derive(Clone, Copy, Debug)]
+pub struct LinearRamp {
+    pub rate: f64,
+    pub direction: DVec3,
+}
+
+impl UnsteadyField for LinearRamp {
+    fn velocity(&self, _p: DVec3, t: f64) -> DVec3 {
+        self.rate * t * self.direction
+    }
+}
+
+/// The affine of the double gyre's grid for `n` samples across y and z: spacing `1 / (n - 1)`,
+/// `2 (n - 1) + 1` samples across x, origin 0 (returns the dims too).
+pub fn double_gyre_grid(n: usize) -> ([usize; 3], DMat4) {
+    let n = n.max(2);
+    let h = 1.0 / (n - 1) as f64;
+    let dims = [2 * (n - 1) + 1, n, n];
+    let affine = DMat4::from_cols(
+        DVec4::new(h, 0.0, 0.0, 0.0),
+        DVec4::new(0.0, h, 0.0, 0.0),
+        DVec4::new(0.0, 0.0, h, 0.0),
+        DVec4::new(0.0, 0.0, 0.0, 1.0),
+    );
+    (dims, affine)
+}
+
+/// Samples an unsteady field at `frames` times `t0 + k dt` into a series (periodic when told:
+/// then `frames dt` should be the field's period).
+#[allow(clippy::too_many_arguments)]
+pub fn sample_series(
+    field: &dyn UnsteadyField,
+    dims: [usize; 3],
+    affine: DMat4,
+    name: &str,
+    frames: usize,
+    t0: f64,
+    dt: f64,
+    periodic: bool,
+) -> VolumeSeries {
+    let frames = (0..frames.max(1))
+        .map(|k| {
+            let t = t0 + k as f64 * dt;
+            let data = grid_points(dims, affine)
+                .flat_map(|p| {
+                    let v = field.velocity(p, t);
+                    [v.x as f32, v.y as f32, v.z as f32]
+                })
+                .collect();
+            synthetic_volume(dims, affine, name, 3, data)
+        })
+        .collect();
+    VolumeSeries {
+        frames,
+        t0,
+        dt,
+        periodic,
+        warnings: vec![],
+    }
 }
 
 #[cfg(test)]
@@ -502,6 +633,42 @@ mod tests {
             - b.velocity(p - DVec3::Z * h).z)
             / (2.0 * h);
         assert!(div.abs() < 1e-6);
+    }
+
+    #[test]
+    fn double_gyre_is_divergence_free_periodic_and_stays_in_its_box() {
+        let g = DoubleGyre3d::default();
+        assert!((g.period() - 10.0).abs() < 1e-12);
+        let h = 1e-5;
+        for &(x, y, z, t) in &[
+            (0.3, 0.2, 0.7, 0.0),
+            (1.4, 0.8, 0.1, 2.5),
+            (1.9, 0.5, 0.5, 7.3),
+        ] {
+            let p = DVec3::new(x, y, z);
+            let d = |e: DVec3, c: usize| {
+                (g.velocity(p + e * h, t)[c] - g.velocity(p - e * h, t)[c]) / (2.0 * h)
+            };
+            let div = d(DVec3::X, 0) + d(DVec3::Y, 1) + d(DVec3::Z, 2);
+            assert!(div.abs() < 1e-8, "div {div}");
+            assert!((g.velocity(p, t) - g.velocity(p, t + 10.0)).length() < 1e-12);
+            // Normal components vanish on the faces.
+            assert!(g.velocity(DVec3::new(0.0, y, z), t).x.abs() < 1e-12);
+            assert!(g.velocity(DVec3::new(2.0, y, z), t).x.abs() < 1e-12);
+            assert!(g.velocity(DVec3::new(x, 0.0, z), t).y.abs() < 1e-12);
+            assert!(g.velocity(DVec3::new(x, 1.0, z), t).y.abs() < 1e-12);
+            assert!(g.velocity(DVec3::new(x, y, 0.0), t).z.abs() < 1e-12);
+            assert!(g.velocity(DVec3::new(x, y, 1.0), t).z.abs() < 1e-12);
+        }
+        // At t = 0 the planar part is the steady double gyre: u = -pi A sin(pi x) cos(pi y).
+        let v = g.velocity(DVec3::new(0.5, 0.0, 0.5), 0.0);
+        assert!((v.x + std::f64::consts::PI * 0.1).abs() < 1e-12, "{v}");
+        let (dims, affine) = double_gyre_grid(5);
+        assert_eq!(dims, [9, 5, 5]);
+        let s = sample_series(&g, dims, affine, "velocity", 4, 0.0, 2.5, true);
+        s.validate().unwrap();
+        assert_eq!(s.span(), 10.0);
+        assert_eq!(s.frames[0].bounds()[1], DVec3::new(2.0, 1.0, 1.0));
     }
 
     #[test]
