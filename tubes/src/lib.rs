@@ -9,6 +9,7 @@ pub mod bspline_fit;
 pub mod error;
 pub mod lines;
 pub mod mesh_io;
+pub mod pathline;
 pub mod tck;
 pub mod trace;
 pub mod trk;
@@ -59,7 +60,9 @@ pub fn load(path: &Path) -> Result<Streamlines> {
     Ok(s)
 }
 
-/// Writes a tractogram by file name: `.trk` (TrackVis v2) or `.tck`, optionally `.gz`.
+/// Writes a tractogram by file name: `.trk` (TrackVis v2) or `.tck`, optionally `.gz`, or a
+/// `.trx` zip archive. Per-point and per-streamline attributes go to `.trk` scalars and
+/// properties and to `.trx` `dpv/` and `dps/`; `.tck` holds positions only and drops them.
 pub fn save(path: &Path, s: &Streamlines) -> Result<()> {
     let name = path
         .file_name()
@@ -70,9 +73,11 @@ pub fn save(path: &Path, s: &Streamlines) -> Result<()> {
         trk::write(path, s)
     } else if stem.ends_with(".tck") {
         tck::write(path, s)
+    } else if name.ends_with(".trx") {
+        trx::write(path, s)
     } else {
         Err(TubesError::Invalid(format!(
-            "{}: unknown tractogram format (use .trk or .tck)",
+            "{}: unknown tractogram format (use .trk, .tck or .trx)",
             path.display()
         )))
     }

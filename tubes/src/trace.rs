@@ -18,8 +18,18 @@
 //! on itself, at a stagnation point). From every seed the line is traced both ways and joined. For an
 //! eigenvector field the eight corner samples are oriented along the direction of travel before
 //! they are interpolated (neighbouring eigenvectors of opposite sign would otherwise cancel).
+//!
+//! Every point carries two attributes: `speed`, the field's magnitude `|v(x)|` there, and
+//! `time`, the integration time `t = t_seed + ∫ ds / |v|` along the line, integrated with the
+//! same stages as the position (RK4: `h/6 (1/s1 + 2/s2 + 2/s3 + 1/s4)` with the stages'
+//! speeds; Euler: `h / s1`; RK45: the fifth-order weights), negative of that before the seed, so
+//! time grows along each line in the direction of the field. The seed's time is 0 for
+//! [`trace`] and the given one for [`trace_at`]. In a uniform field of speed `v` a step of
+//! length `h` adds exactly `h / v`. For an eigenvector field (no sign) the time is the
+//! integration time along the arbitrary direction of travel. Pathlines through time-varying
+//! fields are [`crate::pathline`]'s.
 
-use crate::Streamlines;
+use crate::{Attribute, Streamlines};
 use glam::{DMat3, DMat4, DVec3, DVec4, Vec3};
 use rayon::prelude::*;
 use volume::Volume;
@@ -156,6 +166,15 @@ impl<'a> GridField<'a> {
         volume::grid_bounds(self.dims, self.affine)
     }
 
+    /// The largest finite magnitude of any sample (0 when there is none).
+    pub fn max_speed(&self) -> f64 {
+        self.data
+            .chunks_exact(3)
+            .map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64).length())
+            .filter(|s| s.is_finite())
+            .fold(0.0, f64::max)
+    }
+
     /// The smallest voxel spacing (a natural default step is a fraction of it).
     pub fn min_spacing(&self) -> f64 {
         let m = DMat3::from_mat4(self.affine);
@@ -209,8 +228,15 @@ pub struct TraceOptions<'a> {
     pub both_ways: bool,
 }
 
-/// The unit direction at `p`, oriented along `reference` when asked.
-fn direction(f: &GridField, p: DVec3, reference: DVec3, o: &TraceOptions) -> Option<DVec3> {
+/// The unit direction of travel at `p` and the speed there: an eigenvector field's direction
+/// oriented along `reference`, any other field's times `sign` (-1 traces backward).
+fn direction(
+    f: &GridField,
+    p: DVec3,
+    reference: DVec3,
+    sign: f64,
+    o: &TraceOptions,
+) -> Option<(DVec3, f64)> {
     let v = if o.orient {
         f.at_oriented(p, reference)?
     } else {
@@ -221,55 +247,91 @@ fn direction(f: &GridField, p: DVec3, reference: DVec3, o: &TraceOptions) -> Opt
         return None;
     }
     let d = v / speed;
-    Some(if o.orient && d.dot(reference) < 0.0 {
-        -d
-    } else {
-        d
-    })
+    Some((
+        if o.orient {
+            if d.dot(reference) < 0.0 {
+                -d
+            } else {
+                d
+            }
+        } else {
+            d * sign
+        },
+        speed,
+    ))
 }
 
-/// One step from `p` with unit direction of travel `dir`; returns the new point, the direction
-/// there, and the step taken (RK45 may shrink it).
+/// One integration step.
+struct Step {
+    /// The new point.
+    q: DVec3,
+    /// The direction of travel there.
+    dir: DVec3,
+    /// The arc length taken (RK45 may shrink the step).
+    h: f64,
+    /// The time it took, `∫ ds / |v|` by the integrator's own weights.
+    dt: f64,
+    /// The field's speed at `q`.
+    speed: f64,
+}
+
+/// One step from `p` with unit direction of travel `dir` and speed `speed` there (`sign` as
+/// [`direction`]'s).
 fn step(
     f: &GridField,
     p: DVec3,
-    dir: DVec3,
+    (dir, speed): (DVec3, f64),
     h: f64,
+    sign: f64,
     o: &TraceOptions,
-) -> Option<(DVec3, DVec3, f64)> {
-    let dirf = |q: DVec3, r: DVec3| direction(f, q, r, o);
+) -> Option<Step> {
+    let dirf = |q: DVec3, r: DVec3| direction(f, q, r, sign, o);
     match o.integrator {
         Integrator::Euler => {
             let q = p + dir * h;
-            Some((q, dirf(q, dir)?, h))
+            let (nd, ns) = dirf(q, dir)?;
+            Some(Step {
+                q,
+                dir: nd,
+                h,
+                dt: h / speed,
+                speed: ns,
+            })
         }
         Integrator::Rk4 => {
-            let k1 = dir;
-            let k2 = dirf(p + k1 * (h / 2.0), k1)?;
-            let k3 = dirf(p + k2 * (h / 2.0), k2)?;
-            let k4 = dirf(p + k3 * h, k3)?;
+            let (k1, s1) = (dir, speed);
+            let (k2, s2) = dirf(p + k1 * (h / 2.0), k1)?;
+            let (k3, s3) = dirf(p + k2 * (h / 2.0), k2)?;
+            let (k4, s4) = dirf(p + k3 * h, k3)?;
             let q = p + (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
-            Some((q, dirf(q, dir)?, h))
+            let (nd, ns) = dirf(q, dir)?;
+            Some(Step {
+                q,
+                dir: nd,
+                h,
+                dt: (1.0 / s1 + 2.0 / s2 + 2.0 / s3 + 1.0 / s4) * (h / 6.0),
+                speed: ns,
+            })
         }
         Integrator::Rk45 => {
             // Dormand-Prince 5(4).
             let mut h = h;
             for _ in 0..30 {
-                let k1 = dir;
-                let k2 = dirf(p + k1 * (h / 5.0), k1)?;
-                let k3 = dirf(p + (k1 * (3.0 / 40.0) + k2 * (9.0 / 40.0)) * h, k1)?;
-                let k4 = dirf(
+                let (k1, s1) = (dir, speed);
+                let (k2, _) = dirf(p + k1 * (h / 5.0), k1)?;
+                let (k3, s3) = dirf(p + (k1 * (3.0 / 40.0) + k2 * (9.0 / 40.0)) * h, k1)?;
+                let (k4, s4) = dirf(
                     p + (k1 * (44.0 / 45.0) - k2 * (56.0 / 15.0) + k3 * (32.0 / 9.0)) * h,
                     k1,
                 )?;
-                let k5 = dirf(
+                let (k5, s5) = dirf(
                     p + (k1 * (19372.0 / 6561.0) - k2 * (25360.0 / 2187.0)
                         + k3 * (64448.0 / 6561.0)
                         - k4 * (212.0 / 729.0))
                         * h,
                     k1,
                 )?;
-                let k6 = dirf(
+                let (k6, s6) = dirf(
                     p + (k1 * (9017.0 / 3168.0) - k2 * (355.0 / 33.0)
                         + k3 * (46732.0 / 5247.0)
                         + k4 * (49.0 / 176.0)
@@ -282,7 +344,7 @@ fn step(
                         - k5 * (2187.0 / 6784.0)
                         + k6 * (11.0 / 84.0))
                         * h;
-                let k7 = dirf(q5, k1)?;
+                let (k7, s7) = dirf(q5, k1)?;
                 let q4 = p
                     + (k1 * (5179.0 / 57600.0) + k3 * (7571.0 / 16695.0) + k4 * (393.0 / 640.0)
                         - k5 * (92097.0 / 339200.0)
@@ -291,7 +353,17 @@ fn step(
                         * h;
                 let err = (q5 - q4).length();
                 if err <= o.tolerance || h <= o.step * 1e-3 {
-                    return Some((q5, k7, h));
+                    let dt = (35.0 / 384.0 / s1 + 500.0 / 1113.0 / s3 + 125.0 / 192.0 / s4
+                        - 2187.0 / 6784.0 / s5
+                        + 11.0 / 84.0 / s6)
+                        * h;
+                    return Some(Step {
+                        q: q5,
+                        dir: k7,
+                        h,
+                        dt,
+                        speed: s7,
+                    });
                 }
                 h *= (0.9 * (o.tolerance / err).powf(0.2)).clamp(0.1, 0.9);
             }
@@ -300,15 +372,42 @@ fn step(
     }
 }
 
-/// Traces one way from `seed` in direction `sign` (1 or -1); returns the points after the seed.
-fn trace_one(f: &GridField, seed: DVec3, d0: DVec3, o: &TraceOptions) -> Vec<DVec3> {
+/// A traced point: position, integration time since the seed, speed.
+type Sample = (DVec3, f64, f64);
+
+/// Traces one way from `seed` (speed `s0`) along `sign d0` (`d0` the field's direction there,
+/// `sign` 1 forward, -1 backward); returns the points after the seed with their integration
+/// times since the seed (positive) and speeds.
+fn trace_one(
+    f: &GridField,
+    seed: DVec3,
+    d0: DVec3,
+    s0: f64,
+    sign: f64,
+    o: &TraceOptions,
+) -> Vec<Sample> {
     let mut out = Vec::new();
-    let (mut p, mut dir) = (seed, d0);
+    let (mut p, mut dir, mut speed) = (seed, d0 * sign, s0);
     let mut length = 0.0;
+    let mut time = 0.0;
     let cos_max = o.max_angle_deg.to_radians().cos();
     let max_steps = ((o.max_length / (o.step * 1e-3)).ceil() as usize).min(1_000_000);
     for _ in 0..max_steps {
-        let Some((q, ndir, h)) = step(f, p, dir, o.step.min(o.max_length - length), o) else {
+        let Some(Step {
+            q,
+            dir: ndir,
+            h,
+            dt,
+            speed: nspeed,
+        }) = step(
+            f,
+            p,
+            (dir, speed),
+            o.step.min(o.max_length - length),
+            sign,
+            o,
+        )
+        else {
             break;
         };
         if ndir.dot(dir) < cos_max {
@@ -326,9 +425,11 @@ fn trace_one(f: &GridField, seed: DVec3, d0: DVec3, o: &TraceOptions) -> Vec<DVe
             break;
         }
         length += h;
-        out.push(q);
+        time += dt;
+        out.push((q, time, nspeed));
         p = q;
         dir = ndir;
+        speed = nspeed;
         if length >= o.max_length - 1e-12 {
             break;
         }
@@ -336,12 +437,20 @@ fn trace_one(f: &GridField, seed: DVec3, d0: DVec3, o: &TraceOptions) -> Vec<DVe
     out
 }
 
-/// Traces a streamline through every seed (both ways unless told otherwise), in parallel.
-/// Seeds outside the field, below the minimum speed or outside the mask give no line.
+/// Traces a streamline through every seed (both ways unless told otherwise), in parallel, with
+/// the seeds at time 0 (see [`trace_at`]).
 pub fn trace(f: &GridField, seeds: &[DVec3], o: &TraceOptions) -> Streamlines {
-    let lines: Vec<Vec<DVec3>> = seeds
+    let timed: Vec<(DVec3, f64)> = seeds.iter().map(|&s| (s, 0.0)).collect();
+    trace_at(f, &timed, o)
+}
+
+/// Traces a streamline through every seed `(position, time)` (both ways unless told
+/// otherwise), in parallel, with the point attributes `time` and `speed` (module doc). Seeds
+/// outside the field, below the minimum speed or outside the mask give no line.
+pub fn trace_at(f: &GridField, seeds: &[(DVec3, f64)], o: &TraceOptions) -> Streamlines {
+    let lines: Vec<Vec<Sample>> = seeds
         .par_iter()
-        .filter_map(|&s| {
+        .filter_map(|&(s, t0)| {
             if let Some((mask, thr)) = o.mask {
                 if mask.at(s).is_none_or(|v| v < thr) {
                     return None;
@@ -351,24 +460,47 @@ pub fn trace(f: &GridField, seeds: &[DVec3], o: &TraceOptions) -> Streamlines {
             if v.length().is_nan() || v.length() <= o.min_speed {
                 return None;
             }
-            let d = v.normalize();
-            let fwd = trace_one(f, s, d, o);
-            let mut line: Vec<DVec3> = if o.both_ways {
-                let mut back = trace_one(f, s, -d, o);
+            let s0 = v.length();
+            let d = v / s0;
+            let fwd = trace_one(f, s, d, s0, 1.0, o);
+            let mut line: Vec<Sample> = if o.both_ways {
+                let mut back = trace_one(f, s, d, s0, -1.0, o);
                 back.reverse();
-                back
+                back.into_iter().map(|(p, t, v)| (p, t0 - t, v)).collect()
             } else {
                 Vec::new()
             };
-            line.push(s);
-            line.extend(fwd);
+            line.push((s, t0, s0));
+            line.extend(fwd.into_iter().map(|(p, t, v)| (p, t0 + t, v)));
             (line.len() >= 2).then_some(line)
         })
         .collect();
+    timed_lines(lines)
+}
+
+/// Streamlines from lines of `(position, time, speed)`, with the point attributes `time` and
+/// `speed`.
+pub(crate) fn timed_lines(lines: Vec<Vec<Sample>>) -> Streamlines {
     let mut s = Streamlines::new();
+    let n: usize = lines.iter().map(Vec::len).sum();
+    let (mut time, mut speed) = (Vec::with_capacity(n), Vec::with_capacity(n));
     for l in lines {
-        s.push(&l.iter().map(|p| p.as_vec3()).collect::<Vec<Vec3>>());
+        s.push(&l.iter().map(|p| p.0.as_vec3()).collect::<Vec<Vec3>>());
+        time.extend(l.iter().map(|p| p.1 as f32));
+        speed.extend(l.iter().map(|p| p.2 as f32));
     }
+    s.point_attributes = vec![
+        Attribute {
+            name: "time".into(),
+            components: 1,
+            values: time,
+        },
+        Attribute {
+            name: "speed".into(),
+            components: 1,
+            values: speed,
+        },
+    ];
     s.format = "traced".into();
     s
 }
@@ -390,6 +522,22 @@ pub fn grid_seeds(bounds: [DVec3; 2], n: usize) -> Vec<DVec3> {
         }
     }
     out
+}
+
+/// `n` times uniformly at random in `[lo, hi)` (deterministic for a given `seed`, and not the
+/// sequence [`random_seeds`] draws for the same `seed`).
+pub fn random_times(lo: f64, hi: f64, n: usize, seed: u64) -> Vec<f64> {
+    let mut s = seed ^ 0xD1B5_4A32_D192_ED03;
+    if s == 0 {
+        s = 1;
+    }
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n).map(|_| lo + (hi - lo) * next()).collect()
 }
 
 /// `n` seeds uniformly at random in `bounds` (deterministic for a given `seed`).

@@ -14,6 +14,10 @@
 //! Every array's byte size is checked against the header counts before it is read, and a
 //! member is read with a limit of the size it must have, so a header or a zip directory that
 //! lies cannot make the reader allocate more than the file holds.
+//!
+//! [`write`] writes a zip archive (stored, not deflated): `header.json`, `positions.3.float32`,
+//! `offsets.uint64` (`NB_STREAMLINES` entries, as the spec), and every attribute as
+//! `dpv/NAME[.C].float32` or `dps/NAME[.C].float32`.
 
 use crate::{Attribute, ReferenceSpace, Result, Streamlines, TubesError};
 use glam::{DMat4, DVec4, Vec3};
@@ -419,6 +423,93 @@ pub fn read(path: &Path) -> Result<Streamlines> {
     Ok(s)
 }
 
+/// Whether an attribute name survives `dpv/NAME[.C].float32`: a file name (no `/`, `\\`, NUL,
+/// not empty, `.` or `..`) whose last dot-separated part is not all digits (it would read as a
+/// component count).
+fn writable_name(name: &str) -> bool {
+    !name.is_empty()
+        && name != "."
+        && name != ".."
+        && !name.contains(['/', '\\', '\0'])
+        && name
+            .rsplit_once('.')
+            .is_none_or(|(_, last)| last.is_empty() || !last.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// Writes a `.trx` zip archive (see the module doc). The reference grid is the tractogram's
+/// (`VOXEL_TO_RASMM`, `DIMENSIONS`), else the identity and `[1, 1, 1]`.
+pub fn write(path: &Path, s: &Streamlines) -> Result<()> {
+    use std::io::Write;
+    s.validate()
+        .map_err(|e| TubesError::Invalid(format!("{}: {e}", path.display())))?;
+    for a in s.point_attributes.iter().chain(&s.line_attributes) {
+        if !writable_name(&a.name) {
+            return Err(TubesError::Invalid(format!(
+                "{}: attribute '{}': TRX stores attributes as files named NAME[.C].float32; \
+                 the name must be a file name not ending in .DIGITS",
+                path.display(),
+                a.name
+            )));
+        }
+    }
+    let (v2r, dims) = match &s.reference {
+        Some(r) => (r.vox_to_ras, r.dims),
+        None => (DMat4::IDENTITY, [1, 1, 1]),
+    };
+    let rows: Vec<Vec<f64>> = (0..4)
+        .map(|r| (0..4).map(|c| v2r.col(c)[r]).collect())
+        .collect();
+    let header = serde_json::json!({
+        "VOXEL_TO_RASMM": rows,
+        "DIMENSIONS": dims,
+        "NB_VERTICES": s.points.len(),
+        "NB_STREAMLINES": s.len(),
+    });
+    let f32s =
+        |v: &mut dyn Iterator<Item = f32>| -> Vec<u8> { v.flat_map(|x| x.to_le_bytes()).collect() };
+    let mut members: Vec<(String, Vec<u8>)> = vec![
+        (
+            "header.json".into(),
+            serde_json::to_vec_pretty(&header).map_err(|e| {
+                TubesError::Invalid(format!("{}: header.json: {e}", path.display()))
+            })?,
+        ),
+        (
+            "positions.3.float32".into(),
+            f32s(&mut s.points.iter().flat_map(|p| [p.x, p.y, p.z])),
+        ),
+        (
+            "offsets.uint64".into(),
+            s.offsets[..s.len()]
+                .iter()
+                .flat_map(|&o| (o as u64).to_le_bytes())
+                .collect(),
+        ),
+    ];
+    for (dir, attrs) in [("dpv", &s.point_attributes), ("dps", &s.line_attributes)] {
+        for a in attrs {
+            let name = if a.components == 1 {
+                format!("{dir}/{}.float32", a.name)
+            } else {
+                format!("{dir}/{}.{}.float32", a.name, a.components)
+            };
+            members.push((name, f32s(&mut a.values.iter().copied())));
+        }
+    }
+    let mut z = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let zerr =
+        |e: &dyn std::fmt::Display| TubesError::Invalid(format!("{}: zip: {e}", path.display()));
+    for (name, bytes) in &members {
+        let options = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Stored)
+            .large_file(bytes.len() as u64 >= u32::MAX as u64);
+        z.start_file(name.as_str(), options).map_err(|e| zerr(&e))?;
+        z.write_all(bytes).map_err(|e| zerr(&e))?;
+    }
+    let bytes = z.finish().map_err(|e| zerr(&e))?.into_inner();
+    crate::error::write_atomic(path, bytes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -448,5 +539,15 @@ mod tests {
         );
         assert!(split_name(p, "dpv/x.complex64").is_err());
         assert!(split_name(p, "dpv/x.0.float32").is_err());
+    }
+
+    #[test]
+    fn attribute_names_that_would_not_read_back_are_refused() {
+        for ok in ["time", "speed", "mean.fa", "v2", "x.", "a.b3"] {
+            assert!(writable_name(ok), "{ok}");
+        }
+        for bad in ["", ".", "..", "a/b", "a\\b", "fa.3", "x.12"] {
+            assert!(!writable_name(bad), "{bad}");
+        }
     }
 }
