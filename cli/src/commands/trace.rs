@@ -1,16 +1,61 @@
-//! `umbra trace`: streamlines through a vector field (see `tubes::trace`).
+//! `umbra trace`: streamlines through a vector field (see `tubes::trace`), or with
+//! `--pathlines` pathlines through a time-varying one (see `tubes::pathline`).
+//!
+//! Every point gets two attributes: `time` (the seed's time plus the integration time,
+//! `∫ ds / |v|` along a streamline, the particle's time on a pathline; earlier before the seed
+//! when tracing both ways) and `speed` (`|v|` there). `.trk` stores them as scalars and `.trx` as
+//! `dpv/time.float32` and `dpv/speed.float32`, so `[[lines]] color = "scalar:time"` or
+//! `"scalar:speed"` colours by them; `.tck` holds positions only, so they are dropped there (the
+//! command says so on stderr; the file is still written).
+//!
+//! Seed times (`--seed-times`): `start` (default: the field's first time, `toffset` of a NIfTI
+//! series, 0 for a steady field, the frame's time with `--frame`), a number, `random` (uniform
+//! over the series' time span `[t0, t0 + span)`, the period of a periodic series; a steady
+//! field has no span and needs `random:T0:T1`), or `random:T0:T1`. Random times and
+//! `--seeds random:N` are deterministic for a `--random-seed`.
+//!
+//! Pathlines (`--pathlines`): RK4 (or Euler) in time through the field interpolated
+//! trilinearly in space and linearly in time between the two frames around each time; a
+//! periodic series (NIfTI `descrip` holding `periodic`, as `umbra synth double-gyre` writes it)
+//! wraps around with period `frames x pixdim[4]`, any other is clamped (its first frame before
+//! it, its last after it); `--time-boundary` overrides the file. A steady volume (any format, or
+//! the 4-D NIfTI form) is one frame the same at every time, so its pathlines are its
+//! streamlines. `--time-step` defaults to the smaller of span / 200 ([002]'s heartbeat / 200)
+//! and the time to cross half the smallest voxel at the field's largest speed (the latter alone
+//! for a steady field); `--duration` (each way) to the span, or 200 time steps for a steady
+//! field. `--max-length`, `--min-speed`, `--max-angle` (between the velocities at consecutive
+//! points), `--mask` and `--one-way` apply as to streamlines; `--step`, `--eigen`, `--frame`
+//! and `rk45` do not and are refused, and `--tolerance` (RK45's) is ignored.
+//!
+//! A time series without `--pathlines` is refused unless `--frame K` picks the frame whose
+//! streamlines to trace.
 
 use glam::DVec3;
 use std::path::{Path, PathBuf};
+use tubes::pathline::{pathlines, PathIntegrator, PathlineOptions, SeriesField};
 use tubes::trace::{
-    grid_seeds, random_seeds, trace, GridField, GridScalar, Integrator, TraceOptions,
+    grid_seeds, random_seeds, random_times, trace_at, GridField, GridScalar, Integrator,
+    TraceOptions,
 };
 
+/// What `umbra trace --help` adds below the options.
+const NOTES: &str = "\
+Every point gets the attributes `time` and `speed`: .trk keeps them as scalars, .trx as dpv/ \
+arrays (colour with [[lines]] color = \"scalar:time\" or \"scalar:speed\"); .tck holds \
+positions only and drops them.
+--pathlines: RK4 in time, linear in time between frames; periodic when the NIfTI descrip says \
+periodic (as `umbra synth double-gyre` writes), else clamped at the ends. A steady volume is one \
+frame, so its pathlines are its streamlines.
+--seed-times: start (the field's first time), T, random (over the field's time span) or \
+random:T0:T1; deterministic for a --random-seed.";
+
 #[derive(clap::Args)]
+#[command(after_help = NOTES)]
 pub struct Args {
-    /// Vector field: any volume with a 3-component array (NIfTI V1, VTK vectors, ...).
+    /// Vector field: any volume with a 3-component array (NIfTI V1, VTK vectors, ...), or a
+    /// 5-D NIfTI time series (x, y, z, t, 3) for --pathlines.
     input: PathBuf,
-    /// Output tractogram (.tck or .trk).
+    /// Output tractogram (.trk or .trx keep time and speed; .tck drops them).
     #[arg(short, long)]
     output: PathBuf,
     /// The vector array, by name.
@@ -48,6 +93,37 @@ pub struct Args {
     /// Trace forward only (default: both ways from each seed).
     #[arg(long)]
     one_way: bool,
+    /// Trace pathlines through a time-varying field (RK4 in time; see below).
+    #[arg(long)]
+    pathlines: bool,
+    /// Seed times: start, a number, random, or random:T0:T1.
+    #[arg(long, default_value = "start")]
+    seed_times: String,
+    /// Random generator seed of --seeds random:N and --seed-times random.
+    #[arg(long, default_value_t = 1)]
+    random_seed: u64,
+    /// Pathline time step (default: min(span / 200, half the smallest voxel / the largest speed)).
+    #[arg(long, value_parser = super::positive)]
+    time_step: Option<f64>,
+    /// How long a pathline follows its particle each way (default: the time span; steady: 200
+    /// time steps).
+    #[arg(long, value_parser = super::positive)]
+    duration: Option<f64>,
+    /// Override the file's time boundary: periodic or clamp.
+    #[arg(long, value_enum)]
+    time_boundary: Option<TimeBoundary>,
+    /// Streamlines of one frame of a time series (0 = the first).
+    #[arg(long)]
+    frame: Option<usize>,
+}
+
+/// `--time-boundary`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum TimeBoundary {
+    /// Wrap around with period frames x time step.
+    Periodic,
+    /// Hold the first frame before the series and the last after it.
+    Clamp,
 }
 
 /// `--integrator`.
@@ -85,12 +161,72 @@ pub fn run(a: Args) -> Result<(), String> {
         eigen: a.eigen,
         one_way: a.one_way,
     };
-    let (n, p) = trace_to_file(&args)?;
+    let time = TimeArgs {
+        pathlines: a.pathlines,
+        seed_times: a.seed_times,
+        random_seed: a.random_seed,
+        time_step: a.time_step,
+        duration: a.duration,
+        time_boundary: a.time_boundary,
+        frame: a.frame,
+    };
+    let r = trace_to_file_with(&args, &time)?;
+    for n in &r.notes {
+        eprintln!("note: {n}");
+    }
     eprintln!(
-        "wrote {}: {n} streamlines, {p} points",
-        args.output.display()
+        "wrote {}: {} {}, {} points",
+        args.output.display(),
+        r.lines,
+        if time.pathlines {
+            "pathlines"
+        } else {
+            "streamlines"
+        },
+        r.points
     );
     Ok(())
+}
+
+/// The time options of `umbra trace` (the module doc says what they do).
+#[derive(Clone, Debug)]
+pub struct TimeArgs {
+    pub pathlines: bool,
+    /// `start`, a number, `random` or `random:T0:T1`.
+    pub seed_times: String,
+    pub random_seed: u64,
+    pub time_step: Option<f64>,
+    pub duration: Option<f64>,
+    pub time_boundary: Option<TimeBoundary>,
+    pub frame: Option<usize>,
+}
+
+impl Default for TimeArgs {
+    /// Streamlines, seeds at the field's first time, random seed 1.
+    fn default() -> Self {
+        TimeArgs {
+            pathlines: false,
+            seed_times: "start".into(),
+            random_seed: 1,
+            time_step: None,
+            duration: None,
+            time_boundary: None,
+            frame: None,
+        }
+    }
+}
+
+/// What [`trace_to_file_with`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TraceReport {
+    pub lines: usize,
+    pub points: usize,
+    /// What the user should know (attributes a format dropped, reader warnings).
+    pub notes: Vec<String>,
+    /// The time step pathlines were traced with.
+    pub time_step: Option<f64>,
+    /// How long each pathline followed its particle, each way.
+    pub duration: Option<f64>,
 }
 
 /// What `umbra trace` is asked to do.
@@ -112,9 +248,10 @@ pub struct TraceArgs {
     pub one_way: bool,
 }
 
-/// Seeds from a specification: `grid:N` (N^3 lattice), `random:N`, `plane:x=V:N` (an N x N
-/// lattice on a plane of constant x, y or z), or a CSV file of `x,y,z` lines.
-pub fn parse_seeds(spec: &str, bounds: [DVec3; 2]) -> Result<Vec<DVec3>, String> {
+/// Seeds from a specification: `grid:N` (N^3 lattice), `random:N` (drawn with generator seed
+/// `rng`), `plane:x=V:N` (an N x N lattice on a plane of constant x, y or z), or a CSV file of
+/// `x,y,z` lines.
+pub fn parse_seeds(spec: &str, bounds: [DVec3; 2], rng: u64) -> Result<Vec<DVec3>, String> {
     let num = |s: &str| {
         s.parse::<usize>()
             .ok()
@@ -131,7 +268,7 @@ pub fn parse_seeds(spec: &str, bounds: [DVec3; 2]) -> Result<Vec<DVec3>, String>
         return Ok(grid_seeds(bounds, n));
     }
     if let Some(n) = spec.strip_prefix("random:") {
-        return Ok(random_seeds(bounds, num(n)?, 1));
+        return Ok(random_seeds(bounds, num(n)?, rng));
     }
     if let Some(rest) = spec.strip_prefix("plane:") {
         let (eq, n) = rest
@@ -189,43 +326,240 @@ pub fn parse_seeds(spec: &str, bounds: [DVec3; 2]) -> Result<Vec<DVec3>, String>
     Ok(out)
 }
 
+/// Seed times from `--seed-times` for `n` seeds: `start` (`start`), a number, `random` (uniform
+/// over `[start, start + span)`; refused when `span` is 0) or `random:T0:T1`.
+pub fn parse_seed_times(
+    spec: &str,
+    n: usize,
+    start: f64,
+    span: f64,
+    rng: u64,
+) -> Result<Vec<f64>, String> {
+    let number = |s: &str| {
+        s.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("--seed-times {spec}: '{s}' is not a finite number"))
+    };
+    if spec == "start" {
+        return Ok(vec![start; n]);
+    }
+    if spec == "random" {
+        if span <= 0.0 {
+            return Err(format!(
+                "--seed-times {spec}: the field is steady and has no time span; give random:T0:T1"
+            ));
+        }
+        return Ok(random_times(start, start + span, n, rng));
+    }
+    if let Some(range) = spec.strip_prefix("random:") {
+        let (lo, hi) = range
+            .split_once(':')
+            .ok_or_else(|| format!("--seed-times {spec}: use random:T0:T1"))?;
+        let (lo, hi) = (number(lo)?, number(hi)?);
+        if hi <= lo {
+            return Err(format!("--seed-times {spec}: T1 must be greater than T0"));
+        }
+        return Ok(random_times(lo, hi, n, rng));
+    }
+    let t = number(spec)
+        .map_err(|_| format!("--seed-times {spec}: use start, a number, random or random:T0:T1"))?;
+    Ok(vec![t; n])
+}
+
 /// Traces the streamlines `a` asks for and writes them; returns the number of streamlines and
-/// points written.
+/// points written. Seeds start at the field's first time (see [`trace_to_file_with`]).
 pub fn trace_to_file(a: &TraceArgs) -> Result<(usize, usize), String> {
-    let vol = volume::load(&a.input).map_err(|e| e.to_string())?;
+    let r = trace_to_file_with(a, &TimeArgs::default())?;
+    Ok((r.lines, r.points))
+}
+
+/// Traces the streamlines, or with `t.pathlines` the pathlines, that `a` and `t` ask for, with
+/// the point attributes `time` and `speed`, and writes them.
+pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, String> {
+    let mut series = volume::load_series(&a.input).map_err(|e| e.to_string())?;
+    if let Some(b) = t.time_boundary {
+        series.periodic = b == TimeBoundary::Periodic;
+    }
     let sel: Option<volume::FieldSelector> = a
         .field
         .as_deref()
         .map(|s| s.parse().map_err(|e: volume::VolumeError| e.to_string()))
         .transpose()?;
-    let f = GridField::from_volume(&vol, sel.as_ref())
-        .map_err(|e| format!("{}: {e}", a.input.display()))?;
     let mask_vol = a
         .mask
         .as_ref()
         .map(|p| volume::load(p).map_err(|e| e.to_string()))
         .transpose()?;
     let mask = mask_vol.as_ref().map(GridScalar::from_volume).transpose()?;
-    let step = a.step.unwrap_or(0.5 * f.min_spacing());
-    if !(step.is_finite() && step > 0.0) {
-        return Err(format!("--step {step}: must be positive"));
-    }
-    let [lo, hi] = f.bounds();
-    let max_length = a.max_length.unwrap_or(2.0 * (hi - lo).length());
-    let seeds = parse_seeds(&a.seeds, f.bounds())?;
-    let o = TraceOptions {
-        integrator: a.integrator,
-        step,
-        tolerance: a.tolerance,
-        max_length,
-        min_speed: a.min_speed,
-        max_angle_deg: a.max_angle,
-        orient: a.eigen,
-        mask: mask.as_ref().map(|m| (m, a.threshold)),
-        both_ways: !a.one_way,
+    let mut notes: Vec<String> = series
+        .warnings
+        .iter()
+        .map(|w| format!("{}: {w}", a.input.display()))
+        .collect();
+    let (mut s, time_step, duration) = if t.pathlines {
+        if t.frame.is_some() {
+            return Err(
+                "--frame picks one frame for streamlines; --pathlines uses them all".into(),
+            );
+        }
+        if a.step.is_some() {
+            return Err(
+                "--step is the streamlines' arc-length step; pathlines take --time-step".into(),
+            );
+        }
+        if a.eigen {
+            return Err(
+                "--eigen: an eigenvector field has no direction in time to follow with --pathlines"
+                    .into(),
+            );
+        }
+        let integrator = match a.integrator {
+            Integrator::Rk4 => PathIntegrator::Rk4,
+            Integrator::Euler => PathIntegrator::Euler,
+            Integrator::Rk45 => {
+                return Err("--integrator rk45: pathlines integrate with rk4 or euler".into())
+            }
+        };
+        let f = SeriesField::from_series(&series, sel.as_ref())
+            .map_err(|e| format!("{}: {e}", a.input.display()))?;
+        let span = series.span();
+        let time_step = match t.time_step {
+            Some(h) => h,
+            None => {
+                let vmax = f.max_speed();
+                if vmax <= 0.0 {
+                    return Err(format!(
+                        "{}: the field is zero everywhere: give --time-step",
+                        a.input.display()
+                    ));
+                }
+                let cross = 0.5 * f.min_spacing() / vmax;
+                if span > 0.0 {
+                    (span / 200.0).min(cross)
+                } else {
+                    cross
+                }
+            }
+        };
+        let duration = t
+            .duration
+            .unwrap_or(if span > 0.0 { span } else { 200.0 * time_step });
+        let [lo, hi] = f.bounds();
+        let max_length = a.max_length.unwrap_or(2.0 * (hi - lo).length());
+        let seeds = parse_seeds(&a.seeds, f.bounds(), t.random_seed)?;
+        let times = parse_seed_times(&t.seed_times, seeds.len(), series.t0, span, t.random_seed)?;
+        let timed: Vec<(DVec3, f64)> = seeds.into_iter().zip(times).collect();
+        let o = PathlineOptions {
+            integrator,
+            time_step,
+            duration,
+            max_length,
+            min_speed: a.min_speed,
+            max_angle_deg: a.max_angle,
+            mask: mask.as_ref().map(|m| (m, a.threshold)),
+            both_ways: !a.one_way,
+        };
+        (pathlines(&f, &timed, &o), Some(time_step), Some(duration))
+    } else {
+        if t.time_step.is_some() || t.duration.is_some() {
+            return Err("--time-step and --duration are for --pathlines".into());
+        }
+        let k = match t.frame {
+            Some(k) if k >= series.len() => {
+                return Err(format!(
+                    "--frame {k}: {} has {} frame(s)",
+                    a.input.display(),
+                    series.len()
+                ))
+            }
+            Some(k) => k,
+            None if series.len() > 1 => {
+                return Err(format!(
+                    "{}: a time series of {} vector fields: trace pathlines with --pathlines, or \
+                     the streamlines of one frame with --frame K",
+                    a.input.display(),
+                    series.len()
+                ))
+            }
+            None => 0,
+        };
+        let vol = &series.frames[k];
+        let f = GridField::from_volume(vol, sel.as_ref())
+            .map_err(|e| format!("{}: {e}", a.input.display()))?;
+        let step = a.step.unwrap_or(0.5 * f.min_spacing());
+        if !(step.is_finite() && step > 0.0) {
+            return Err(format!("--step {step}: must be positive"));
+        }
+        let [lo, hi] = f.bounds();
+        let max_length = a.max_length.unwrap_or(2.0 * (hi - lo).length());
+        let seeds = parse_seeds(&a.seeds, f.bounds(), t.random_seed)?;
+        let times = parse_seed_times(
+            &t.seed_times,
+            seeds.len(),
+            series.time(k),
+            series.span(),
+            t.random_seed,
+        )?;
+        let timed: Vec<(DVec3, f64)> = seeds.into_iter().zip(times).collect();
+        let o = TraceOptions {
+            integrator: a.integrator,
+            step,
+            tolerance: a.tolerance,
+            max_length,
+            min_speed: a.min_speed,
+            max_angle_deg: a.max_angle,
+            orient: a.eigen,
+            mask: mask.as_ref().map(|m| (m, a.threshold)),
+            both_ways: !a.one_way,
+        };
+        (trace_at(&f, &timed, &o), None, None)
     };
-    let mut s = trace(&f, &seeds, &o);
     s.format = String::new();
+    let name = a.output.to_string_lossy().to_ascii_lowercase();
+    if name.trim_end_matches(".gz").ends_with(".tck") {
+        notes.push(format!(
+            "{}: .tck holds positions only: the time and speed attributes are not written (use \
+             .trk or .trx to keep them)",
+            a.output.display()
+        ));
+    }
     tubes::save(&a.output, &s).map_err(|e| e.to_string())?;
-    Ok((s.len(), s.points.len()))
+    Ok(TraceReport {
+        lines: s.len(),
+        points: s.points.len(),
+        notes,
+        time_step,
+        duration,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seed_times_are_constant_or_drawn_deterministically_in_their_range() {
+        assert_eq!(parse_seed_times("start", 3, 1.5, 0.0, 1).unwrap(), [1.5; 3]);
+        assert_eq!(parse_seed_times("-2", 2, 1.5, 0.0, 1).unwrap(), [-2.0; 2]);
+        let a = parse_seed_times("random", 500, 2.0, 10.0, 7).unwrap();
+        assert_eq!(a, parse_seed_times("random", 500, 2.0, 10.0, 7).unwrap());
+        assert_ne!(a, parse_seed_times("random", 500, 2.0, 10.0, 8).unwrap());
+        assert!(a.iter().all(|&t| (2.0..12.0).contains(&t)));
+        let mean = a.iter().sum::<f64>() / a.len() as f64;
+        assert!((mean - 7.0).abs() < 0.5, "mean {mean}");
+        let b = parse_seed_times("random:-1:1", 100, 0.0, 0.0, 1).unwrap();
+        assert!(b.iter().all(|&t| (-1.0..1.0).contains(&t)));
+        for bad in [
+            "random",
+            "random:1",
+            "random:2:1",
+            "random:0:inf",
+            "soon",
+            "nan",
+        ] {
+            assert!(parse_seed_times(bad, 1, 0.0, 0.0, 1).is_err(), "{bad}");
+        }
+    }
 }
