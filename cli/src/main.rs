@@ -26,12 +26,14 @@ enum Command {
     Sweep(sweep::Args),
     /// Render an isosurface on the CPU with swept or Monte Carlo ambient occlusion (reference).
     Iso(iso::Args),
-    /// Trace streamlines through a vector field (3-component volume) into .tck or .trk.
+    /// Trace streamlines (or, with --pathlines, pathlines through a time series) into .trk,
+    /// .trx or .tck, with time and speed per point.
     Trace(trace::Args),
     /// B-spline stream tubes of a tractogram (.trk, .tck), written as PLY or OBJ.
     Tubes(tubes::Args),
-    /// Write a synthetic scene as NRRD: validation (the sweeping paper's solids, [0,100]^3),
-    /// three-solids (sphere, torus, box in [0,1]^3), abc, burgers, rotation (vector fields).
+    /// Write a synthetic scene as NRRD or NIfTI: validation (the sweeping paper's solids,
+    /// [0,100]^3), three-solids (sphere, torus, box in [0,1]^3), abc, burgers, rotation (vector
+    /// fields), double-gyre (a time-periodic flow, 5-D NIfTI).
     Synth(synth::Args),
     /// Write a volume's field as NRRD (.nrrd) or NIfTI-1 (.nii, .nii.gz).
     Convert(convert::Args),
