@@ -84,7 +84,9 @@ pub struct LineAoParams {
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct HalfParams {
     pub src: u32,
-    pub pad: [u32; 3],
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
 }
 
 /// The widths LineAO's discs are sized from: the widest pixel-width line set (pixels) and the
@@ -274,7 +276,12 @@ impl LineAoPass {
             .map(|src| {
                 let half = gpu.buffer(
                     "lineao half",
-                    bytemuck::bytes_of(&HalfParams { src, pad: [0; 3] }),
+                    bytemuck::bytes_of(&HalfParams {
+                        src,
+                        pad0: 0,
+                        pad1: 0,
+                        pad2: 0,
+                    }),
                     wgpu::BufferUsages::UNIFORM,
                 );
                 gpu.bind(
@@ -364,7 +371,16 @@ mod tests {
                 level_size,
             }
         );
-        crate::prelude::assert_layout!(super::SHADER, "Half", super::HalfParams { src, pad });
+        crate::prelude::assert_layout!(
+            super::SHADER,
+            "Half",
+            super::HalfParams {
+                src,
+                pad0,
+                pad1,
+                pad2,
+            }
+        );
     }
 
     fn ortho(height: f64) -> Camera {
