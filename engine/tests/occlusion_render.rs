@@ -427,6 +427,7 @@ fn the_method_table_decides_the_terms_composite_folds() {
             "occlusion.volumetric",
             "occlusion.partial",
             "occlusion.vicinity",
+            "occlusion.lineao",
             "occlusion.combined",
             "Z"
         ]
