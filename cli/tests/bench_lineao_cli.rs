@@ -1,13 +1,16 @@
 //! `umbra bench lineao --quick` end to end: results.csv has its header and finite values, the
 //! isolated lines stay open and LineAO orders the dense bundle's pixels as the ray-traced
-//! reference does (positively correlated).
+//! reference does (positively correlated); the anisotropic group's tables: anisotropic LineAO
+//! keeps about A0 of the classic occlusion among parallel lines and about all of it at a
+//! crossing, and the roll-invariant alignment varies less with the camera's roll than the
+//! paper's.
 
 use std::collections::HashMap;
 
 const HEADER: &str = "case,method,setting,ms,rmse,bias,rmse_affine,spearman,ssim,mean_visibility,pixels,ref_stderr,rmse_converged,spearman_model,rmse_affine_model";
 
 #[test]
-fn bench_lineao_quick_writes_results_with_open_isolated_lines_and_a_positive_rank_correlation() {
+fn bench_lineao_quick_writes_the_accuracy_and_the_anisotropic_tables() {
     let dir = tempfile::tempdir().unwrap();
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_umbra"))
         .args(["bench", "lineao", "--quick", "-o"])
@@ -91,4 +94,89 @@ fn bench_lineao_quick_writes_results_with_open_isolated_lines_and_a_positive_ran
         .find(|r| r["case"] == "dense" && r["method"] == "vicinity")
         .unwrap();
     assert!(num(vicinity, "spearman") > 0.0);
+
+    // The anisotropic group (run by default).
+    let table = |name: &str, header: &str| -> Vec<HashMap<String, String>> {
+        let text = std::fs::read_to_string(dir.path().join(name)).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some(header), "{name}");
+        let names: Vec<&str> = header.split(',').collect();
+        lines
+            .map(|l| {
+                let v: Vec<&str> = l.split(',').collect();
+                assert_eq!(v.len(), names.len(), "{name}: {l}");
+                names
+                    .iter()
+                    .map(|n| n.to_string())
+                    .zip(v.iter().map(|x| x.to_string()))
+                    .collect()
+            })
+            .collect()
+    };
+    let f = |r: &HashMap<String, String>, k: &str| -> f64 { r[k].parse().unwrap() };
+    let summary = table("aniso_summary.csv", SUMMARY_HEADER);
+    let setting = |alignment: &str, intensity: &str| {
+        summary
+            .iter()
+            .find(|r| r["alignment"] == alignment && r["intensity"] == intensity)
+            .unwrap_or_else(|| panic!("no summary row {alignment} {intensity}"))
+    };
+    assert_eq!(summary.len(), 7, "classic and 2 alignments x 3 intensities");
+    for r in &summary {
+        assert_eq!(r["rolls"], "7");
+    }
+    let (inv, paper) = (setting("invariant", "15"), setting("paper", "15"));
+    // Parallel lines: about A0 = 0.1 of the classic occlusion at every roll; a 60-degree
+    // crossing: all of it for the invariant form at every roll.
+    for r in [inv, paper] {
+        assert!(
+            f(r, "ratio_parallel_max") < 0.5,
+            "{}: {}",
+            r["alignment"],
+            r["ratio_parallel_max"]
+        );
+    }
+    assert!(
+        f(inv, "ratio_crossing_min") > 0.7,
+        "{}",
+        inv["ratio_crossing_min"]
+    );
+    // The paper's |t.x| sees the crossing as parallel at the roll where its bisector is
+    // horizontal (30 degrees), and its crossing occlusion varies with the roll; the invariant
+    // form's hardly.
+    assert!(
+        f(paper, "ratio_crossing_min") < 0.5,
+        "{}",
+        paper["ratio_crossing_min"]
+    );
+    assert!(
+        f(inv, "cv_occlusion_crossing") < 0.5 * f(paper, "cv_occlusion_crossing"),
+        "{} {}",
+        inv["cv_occlusion_crossing"],
+        paper["cv_occlusion_crossing"]
+    );
+    let roll = table("aniso_roll.csv", ROLL_HEADER);
+    assert_eq!(roll.len(), 49);
+    for r in &roll {
+        for k in ["occlusion_parallel", "occlusion_crossing"] {
+            assert!(f(r, k).is_finite(), "{k} {r:?}");
+        }
+        assert!(f(r, "parallel_pixels") > 100.0 && f(r, "crossing_pixels") > 100.0);
+    }
+    assert!(dir.path().join("aniso_roll.svg").exists());
+    // The trail animation: every row finite; LineAO's visibility changes from frame to frame.
+    let flicker = table("aniso_flicker.csv", FLICKER_HEADER);
+    assert_eq!(flicker.len(), 5, "3 LineAO settings and 2 references");
+    for r in &flicker {
+        for k in ["mean_occlusion", "mean_abs_change", "rms_change", "pixels"] {
+            assert!(f(r, k).is_finite(), "{k} {r:?}");
+        }
+        assert!(f(r, "pixels") > 100.0, "{r:?}");
+    }
+    let classic = flicker.iter().find(|r| r["setting"] == "classic").unwrap();
+    assert!(f(classic, "mean_abs_change") > 0.0);
 }
+
+const ROLL_HEADER: &str = "method,alignment,intensity,roll_deg,pixels,mean_visibility,occlusion,occlusion_parallel,occlusion_crossing,ratio_parallel,ratio_crossing,g_align_parallel,g_align_crossing,parallel_pixels,crossing_pixels,ms";
+const SUMMARY_HEADER: &str = "method,alignment,intensity,rolls,cv_visibility,cv_occlusion,cv_occlusion_parallel,cv_occlusion_crossing,ratio_parallel_mean,ratio_parallel_min,ratio_parallel_max,ratio_crossing_mean,ratio_crossing_min,ratio_crossing_max";
+const FLICKER_HEADER: &str = "method,setting,frames,pixels,mean_occlusion,mean_abs_change,relative_change,frac_change_above_0.05,pearson_with_reference_change,pearson_with_model_change,rms_change,rms_change_denoised,noise_floor,ref_stderr,ms";

@@ -52,6 +52,39 @@
 //!   `<dir>/samples.svg` and `.png` (noise and error against `s_h`; not with `--quick`),
 //!   `zoom.csv`, `border.csv` (not with `--quick`), and the visibility images
 //!   `<dir>/images/<case>_<method>_<setting>.png` (grey, uncovered pixels white).
+//! * **Case groups** (`--cases`, default `accuracy,aniso`): `accuracy` is everything above;
+//!   `aniso` is anisotropic LineAO (Köhler et al. 2011, seed 002 §4.2, eq. 10-12; issue 12
+//!   item 6), classic LineAO beside `render.lineao.anisotropic = true` with
+//!   `alignment = "paper"` and `"invariant"`:
+//!   - *roll* ([`crossing_bundles`]): a bundle along x with depth spread over a one-layer bundle
+//!     at 60 degrees behind it, flat 2-pixel lines, orthographic from +z, the camera rolled
+//!     0 to 90 degrees in 15-degree steps (its `up` turned about the view axis), at `I` = 5, 15
+//!     and 25. Pixels are classed by the world point their centre sees, inside a disc about the
+//!     centre that keeps every sample on screen at every roll: *parallel* (front-bundle pixels
+//!     whose discs cannot reach the crossing bundle: only parallel neighbours occlude them) and
+//!     *crossing* (crossing-bundle pixels inside the front bundle's band: only the crossing
+//!     lines occlude them, the layer has no depth of its own). Per roll and setting: the mean
+//!     occlusion `1 - visibility` in each, their ratios to classic LineAO's at the same roll
+//!     and the mean `g_align` (`<dir>/aniso_roll.csv`, [`ROLL_HEADER`]); per setting, the
+//!     coefficients of variation (population) across the rolls and the ratios' mean, least and
+//!     largest (`<dir>/aniso_summary.csv`, [`SUMMARY_HEADER`]); `<dir>/aniso_roll.svg` (the
+//!     ratios against the roll, linear axes, SVG only).
+//!   - *flicker* ([`trail_lines`]): the dense bundle's lines with a per-point `time`
+//!     (`data/trails.trk`, one unit a point from a per-line phase), drawn as tapered trails
+//!     (`back = forward = 8`, the default taper) at `now = 0, 2, .., 14` (8 frames, as
+//!     `umbra render --trail-range 0:14:8`); per pair of consecutive frames, at the pixels both
+//!     cover with the same surface (depths within the tube radius) and the reference hits in
+//!     both: the mean absolute change of the visibility, the mean occlusion, their ratio, the
+//!     fraction changing by more than 0.05 and the correlation of the change with the
+//!     reference's, for classic, invariant and paper LineAO and the physical ray-traced
+//!     reference of the same trails (tubes of the tapered width in four steps, [`trail_pieces`],
+//!     `--spp` paths, the same per-pixel seed in every frame) (`<dir>/aniso_flicker.csv`,
+//!     [`FLICKER_HEADER`]).
+//!
+//!   Images `<dir>/images/aniso_*.png`, among them `aniso_roll0_montage.png` and
+//!   `aniso_roll30_montage.png` (visibility of classic, paper and invariant at I = 15 side by
+//!   side, the two `g_align` channels below) and `aniso_regions_roll0.png` (parallel pixels
+//!   dark, crossing pixels light grey). `--quick` runs the same at its size and paths.
 
 use super::chart::{write_chart, Plot};
 use super::metrics::{agreement, pareto, ssim, Agreement};
@@ -86,6 +119,12 @@ pub struct Args {
     /// `render.lineao.radius_step=2`).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Case groups, comma-separated: `accuracy` (LineAO against the ray-traced references: the
+    /// isolated lines, the dense bundle, s_h, the falloff, zoom, borders, the real tracts;
+    /// results.csv and its charts) and `aniso` (anisotropic LineAO: camera roll, parallel
+    /// against crossing, the intensity I, trail flicker; aniso_*.csv).
+    #[arg(long, default_value = "accuracy,aniso", value_name = "LIST")]
+    cases: String,
     /// Output folder.
     #[arg(short, long)]
     output: PathBuf,
@@ -99,6 +138,7 @@ pub fn run(a: Args) -> Result<(), String> {
         quick: a.quick,
         set: a.set.clone(),
         out: a.output.clone(),
+        cases: Cases::parse(&a.cases)?,
     };
     if !(16..=2048).contains(&cfg.size) {
         return Err(format!("--size {}: choose 16 to 2048 pixels", cfg.size));
@@ -107,37 +147,167 @@ pub fn run(a: Args) -> Result<(), String> {
         return Err("--spp and --frames must be at least 1".into());
     }
     let progress = Stages::new(true);
-    let rows = lineao(&cfg, &|m| progress.stage(m))?;
+    let outcome = lineao(&cfg, &|m| progress.stage(m))?;
     drop(progress);
-    out(format!(
-        "{:10} {:9} {:24} {:>9} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6}",
-        "case", "method", "setting", "ms", "rmse", "bias", "affine", "rho", "ssim", "vis", "pixels"
-    ))?;
-    for r in &rows {
+    let rows = &outcome.rows;
+    if cfg.cases.accuracy {
         out(format!(
-            "{:10} {:9} {:24} {:9.1} {:7.4} {:7.4} {:7.4} {:6.3} {:6.3} {:6.3} {:6}",
-            r.case,
-            r.method,
-            r.setting,
-            r.ms,
-            r.agreement.rmse,
-            r.agreement.bias,
-            r.agreement.rmse_affine,
-            r.agreement.spearman,
-            r.ssim,
-            r.mean_visibility,
-            r.pixels
+            "{:10} {:9} {:24} {:>9} {:>7} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6}",
+            "case",
+            "method",
+            "setting",
+            "ms",
+            "rmse",
+            "bias",
+            "affine",
+            "rho",
+            "ssim",
+            "vis",
+            "pixels"
         ))?;
+        for r in rows {
+            out(format!(
+                "{:10} {:9} {:24} {:9.1} {:7.4} {:7.4} {:7.4} {:6.3} {:6.3} {:6.3} {:6}",
+                r.case,
+                r.method,
+                r.setting,
+                r.ms,
+                r.agreement.rmse,
+                r.agreement.bias,
+                r.agreement.rmse_affine,
+                r.agreement.spearman,
+                r.ssim,
+                r.mean_visibility,
+                r.pixels
+            ))?;
+        }
     }
-    if a.quick {
-        eprintln!("wrote {0}/results.csv, {0}/pareto.svg", a.output.display());
-    } else {
-        eprintln!(
-            "wrote {0}/results.csv, {0}/pareto.svg, {0}/samples.svg, {0}/zoom.csv, {0}/border.csv",
-            a.output.display()
-        );
+    if cfg.cases.aniso {
+        out(format!(
+            "{:12} {:9} {:>4} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9}",
+            "aniso roll",
+            "alignment",
+            "I",
+            "cv_occ",
+            "cv_par",
+            "cv_cross",
+            "ratio_par",
+            "(min-max)",
+            "ratio_x",
+            "(min-max)"
+        ))?;
+        for r in &outcome.aniso {
+            out(format!(
+                "{:12} {:9} {:>4} {:8.4} {:8.4} {:8.4} {:9.3} {:>9} {:9.3} {:>9}",
+                r.method,
+                r.alignment,
+                r.intensity_label(),
+                r.cv_occlusion,
+                r.cv_parallel,
+                r.cv_crossing,
+                r.ratio_parallel[0],
+                format!("{:.2}-{:.2}", r.ratio_parallel[1], r.ratio_parallel[2]),
+                r.ratio_crossing[0],
+                format!("{:.2}-{:.2}", r.ratio_crossing[1], r.ratio_crossing[2]),
+            ))?;
+        }
+        out(format!(
+            "{:9} {:26} {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7}",
+            "flicker",
+            "setting",
+            "pixels",
+            "occ",
+            "d_abs",
+            "d/occ",
+            ">0.05",
+            "rms",
+            "r_ref",
+            "r_model"
+        ))?;
+        for r in &outcome.flicker {
+            out(format!(
+                "{:9} {:26} {:6} {:7.4} {:7.4} {:7.3} {:7.3} {:7.4} {:7.3} {:7.3}",
+                r.method,
+                r.setting,
+                r.pixels,
+                r.mean_occlusion,
+                r.mean_abs_change,
+                r.relative_change,
+                r.frac_above,
+                r.rms_change_denoised,
+                r.pearson_reference,
+                r.pearson_model
+            ))?;
+        }
     }
+    let mut wrote = vec![];
+    if cfg.cases.accuracy {
+        wrote.extend(["results.csv", "pareto.svg"]);
+        if !a.quick {
+            wrote.extend(["samples.svg", "zoom.csv", "border.csv"]);
+        }
+    }
+    if cfg.cases.aniso {
+        wrote.extend([
+            "aniso_roll.csv",
+            "aniso_summary.csv",
+            "aniso_roll.svg",
+            "aniso_flicker.csv",
+        ]);
+    }
+    let d = a.output.display();
+    eprintln!(
+        "wrote {}",
+        wrote
+            .iter()
+            .map(|f| format!("{d}/{f}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     Ok(())
+}
+
+/// The case groups `--cases` selects.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Cases {
+    /// LineAO against the ray-traced references (results.csv, its charts, zoom, border).
+    pub accuracy: bool,
+    /// Anisotropic LineAO: roll, parallel against crossing, I, flicker (aniso_*.csv).
+    pub aniso: bool,
+}
+
+impl Cases {
+    /// `accuracy`, `aniso`, comma-separated (`all` for both).
+    pub fn parse(list: &str) -> Result<Cases, String> {
+        let mut c = Cases {
+            accuracy: false,
+            aniso: false,
+        };
+        for w in list.split(',').map(str::trim).filter(|w| !w.is_empty()) {
+            match w {
+                "accuracy" => c.accuracy = true,
+                "aniso" => c.aniso = true,
+                "all" => (c.accuracy, c.aniso) = (true, true),
+                _ => {
+                    return Err(format!(
+                        "--cases {list}: unknown group {w:?} (choose from accuracy, aniso, all)"
+                    ))
+                }
+            }
+        }
+        if !(c.accuracy || c.aniso) {
+            return Err(format!("--cases {list:?}: name at least one group"));
+        }
+        Ok(c)
+    }
+}
+
+/// What a run gives: results.csv's rows (the `accuracy` group), and the `aniso` group's
+/// summary and flicker rows.
+pub struct Outcome {
+    pub rows: Vec<Row>,
+    pub aniso: Vec<AnisoSummary>,
+    pub flicker: Vec<FlickerRow>,
 }
 
 /// What `umbra bench lineao` is asked to do.
@@ -150,6 +320,8 @@ pub struct Config {
     /// Scene overrides for every case.
     pub set: Vec<String>,
     pub out: PathBuf,
+    /// The case groups to run.
+    pub cases: Cases,
 }
 
 /// One row of results.csv.
@@ -419,14 +591,27 @@ impl<'g> Geometry<'g> {
 
     /// One frame with `extra` overrides (they must not change the model), its channel `ch`.
     fn frame(&self, extra: &[String], ch: &str, frames: u32) -> Result<Frame, String> {
+        Ok(self.frame_at(extra, &[ch], frames, None)?.0)
+    }
+
+    /// [`Geometry::frame`] with every trail drawn at `now` (when given, as `umbra render
+    /// --trail-range`): the frame of the first of `chs`, and the others (NaN where `Z` is 0).
+    fn frame_at(
+        &self,
+        extra: &[String],
+        chs: &[&str],
+        frames: u32,
+        now: Option<f64>,
+    ) -> Result<(Frame, Vec<Vec<f64>>), String> {
         let s = self.scene(extra)?;
-        let (o, view) = self.up.draw(
+        let (o, view) = self.up.draw_at(
             &s,
             &self.model,
             engine::renderer::DrawOptions {
                 frames,
                 pass_timings: false,
             },
+            now,
         )?;
         let chans = o.aov_channels();
         let get = |name: &str| {
@@ -437,18 +622,30 @@ impl<'g> Geometry<'g> {
                 .ok_or_else(|| format!("{}: the frame has no channel {name}", self.path.display()))
         };
         let z = get("Z")?;
-        let v = if ch == "Z" { z.clone() } else { get(ch)? };
-        Ok(Frame {
-            vis: v
-                .iter()
-                .zip(&z)
-                .map(|(&v, &z)| if z > 0.0 { v as f64 } else { f64::NAN })
-                .collect(),
-            z,
-            ms: o.timings.total_ms,
-            w: view.width as usize,
-            h: view.height as usize,
-        })
+        let mut vs = vec![];
+        for &ch in chs {
+            let v = if ch == "Z" { z.clone() } else { get(ch)? };
+            vs.push(
+                v.iter()
+                    .zip(&z)
+                    .map(|(&v, &z)| if z > 0.0 { v as f64 } else { f64::NAN })
+                    .collect::<Vec<f64>>(),
+            );
+        }
+        if vs.is_empty() {
+            return Err("bench lineao: a frame needs a channel".into());
+        }
+        let vis = vs.remove(0);
+        Ok((
+            Frame {
+                vis,
+                z,
+                ms: o.timings.total_ms,
+                w: view.width as usize,
+                h: view.height as usize,
+            },
+            vs,
+        ))
     }
 
     /// The camera and size of the scene with `extra` overrides.
@@ -877,19 +1074,46 @@ impl Methods<'_> {
     }
 }
 
-/// Runs `umbra bench lineao`: the rows of results.csv (also written with the charts and the
-/// zoom and border tables).
-pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
-    let data = c.out.join("data");
-    let scenes = c.out.join("scenes");
-    let images = c.out.join("images");
-    for d in [&data, &scenes, &images] {
-        std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
+/// Runs `umbra bench lineao`: the selected case groups.
+pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Outcome, String> {
+    for d in ["data", "scenes", "images"] {
+        let d = c.out.join(d);
+        std::fs::create_dir_all(&d).map_err(|e| format!("{}: {e}", d.display()))?;
     }
     let n = c.size;
     let mut size = vec![format!("render.width={n}"), format!("render.height={n}")];
     size.extend(c.set.iter().cloned());
     let gpu = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
+    let rows = if c.cases.accuracy {
+        accuracy_cases(c, &gpu, &size, progress)?
+    } else {
+        vec![]
+    };
+    let (aniso, flicker) = if c.cases.aniso {
+        aniso_cases(c, &gpu, &size, progress)?
+    } else {
+        (vec![], vec![])
+    };
+    Ok(Outcome {
+        rows,
+        aniso,
+        flicker,
+    })
+}
+
+/// The `accuracy` group: the rows of results.csv (also written with the charts and the zoom
+/// and border tables).
+fn accuracy_cases(
+    c: &Config,
+    gpu: &engine::gpu::Gpu,
+    size: &[String],
+    progress: &dyn Fn(&str),
+) -> Result<Vec<Row>, String> {
+    let data = c.out.join("data");
+    let scenes = c.out.join("scenes");
+    let images = c.out.join("images");
+    let n = c.size;
+    let size = size.to_vec();
     let write =
         |p: &Path, text: &str| volume::write_atomic(p, text.as_bytes()).map_err(|e| e.to_string());
     // The synthetic lines and their scenes.
@@ -920,7 +1144,7 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
 
     // Isolated lines.
     progress("isolated: reference");
-    let iso = Geometry::new(&gpu, &isolated_scene, size.clone())?;
+    let iso = Geometry::new(gpu, &isolated_scene, size.clone())?;
     let iso_ref = iso.reference(&[], c.spp, seed)?;
     progress("isolated: methods");
     Methods {
@@ -935,7 +1159,7 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
     {
         let mut over = size.clone();
         over.push("lines.0.profile=\"cylinder\"".into());
-        let cyl = Geometry::new(&gpu, &isolated_scene, over)?;
+        let cyl = Geometry::new(gpu, &isolated_scene, over)?;
         let f = cyl.frame(&[], "occlusion.lineao", c.frames)?;
         rows.push(compare(
             "isolated",
@@ -953,7 +1177,7 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
 
     // The dense bundle: every method, and LineAO on flat ribbons.
     progress("dense: reference");
-    let bundle = Geometry::new(&gpu, &bundle_scene, size.clone())?;
+    let bundle = Geometry::new(gpu, &bundle_scene, size.clone())?;
     let bundle_ref = bundle.reference(&[], c.spp, seed)?;
     progress("dense: methods");
     let dense = Methods {
@@ -967,7 +1191,7 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
     {
         let mut over = size.clone();
         over.push("lines.0.profile=\"cylinder\"".into());
-        let cyl = Geometry::new(&gpu, &bundle_scene, over)?;
+        let cyl = Geometry::new(gpu, &bundle_scene, over)?;
         let f = cyl.frame(&[], "occlusion.lineao", c.frames)?;
         rows.push(dense.row("lineao", "pseudo-cylinder", &f, &bundle_ref, None)?);
     }
@@ -1015,7 +1239,7 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
     if !c.quick {
         zoom_case(
             c,
-            &gpu,
+            gpu,
             &world_scene,
             &size,
             &images,
@@ -1025,7 +1249,7 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
         )?;
         border_case(
             c,
-            &gpu,
+            gpu,
             &bundle_scene,
             &size,
             &images,
@@ -1033,7 +1257,7 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Vec<Row>, String> {
             &mut rows,
             progress,
         )?;
-        real_cases(c, &gpu, &size, &images, seed, &mut rows, progress)?;
+        real_cases(c, gpu, &size, &images, seed, &mut rows, progress)?;
     }
     drop(dense);
     drop(bundle);
@@ -1465,9 +1689,1022 @@ fn real_cases(
     Ok(())
 }
 
+// ---------------------------------------------------------------------------------------------
+// The `aniso` group: anisotropic LineAO (Köhler et al. 2011, seed 002 §4.2, eq. 10-12).
+
+/// Half the width of the roll case's bundles' bands (world units).
+pub const BAND: f32 = 12.0;
+/// The angle of the roll case's crossing bundle to x (degrees).
+pub const CROSSING_DEG: f32 = 60.0;
+/// The roll case's crossing layer lies at this z (the front bundle within `z` in [-4, 4]).
+const CROSSING_Z: f32 = -12.0;
+/// The roll case's view height (world units) and its camera's distance from the origin.
+const ROLL_VIEW: f64 = 80.0;
+const EYE_Z: f64 = 200.0;
+/// The rolls (degrees) and the intensities `I` (seed 002 Fig. 3) of the roll case.
+pub const ROLLS: [f64; 7] = [0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0];
+pub const INTENSITIES: [f64; 3] = [5.0, 15.0, 25.0];
+/// The flicker case's trail window (time units a side) and its frames' times.
+const TRAIL_HALF: f64 = 8.0;
+const TRAIL_NOW: (f64, f64, usize) = (0.0, 14.0, 8);
+
+/// The roll case's lines: `front` straight lines along x over [-55, 55] (111 points), evenly
+/// spread across `[-BAND, BAND]` in y (each moved by up to 0.3 of the spacing) with z uniform
+/// in [-4, 4], each turned by a Gaussian angle of 1.5 degrees; behind them `back` straight
+/// lines at `CROSSING_DEG` to x (110 long), spread likewise across the same width, turned
+/// likewise, all at `z = -12` (one layer: they do not occlude each other, so what occludes
+/// them is the front bundle alone).
+pub fn crossing_bundles(front: usize, back: usize) -> tubes::Streamlines {
+    let mut rng = SplitMix64(0xA1150);
+    let mut sl = tubes::Streamlines::new();
+    let jitter = |rng: &mut SplitMix64| 1.5f32.to_radians() * gauss(rng);
+    let uniform = |rng: &mut SplitMix64, a: f32| a * (2.0 * rng.next_f64() as f32 - 1.0);
+    let spread = |rng: &mut SplitMix64, k: usize, n: usize| {
+        -BAND + (k as f32 + 0.5 + uniform(rng, 0.3)) * 2.0 * BAND / n as f32
+    };
+    for k in 0..front {
+        let (y0, z0) = (spread(&mut rng, k, front), uniform(&mut rng, 4.0));
+        let j = jitter(&mut rng);
+        let d = Vec3::new(j.cos(), j.sin(), 0.0);
+        let pts: Vec<Vec3> = (-55..=55)
+            .map(|i| Vec3::new(0.0, y0, z0) + d * i as f32)
+            .collect();
+        sl.push(&pts);
+    }
+    let a = CROSSING_DEG.to_radians();
+    let perp = Vec3::new(-a.sin(), a.cos(), 0.0);
+    for k in 0..back {
+        let off = spread(&mut rng, k, back);
+        let b = a + jitter(&mut rng);
+        let d = Vec3::new(b.cos(), b.sin(), 0.0);
+        let pts: Vec<Vec3> = (-55..=55)
+            .map(|i| perp * off + d * i as f32 + Vec3::new(0.0, 0.0, CROSSING_Z))
+            .collect();
+        sl.push(&pts);
+    }
+    sl
+}
+
+/// The flicker case's lines: [`dense_bundle`]`(main, cross)` with a per-point attribute
+/// `time`: point i of a line at `i + phase`, the phase uniform in `[23 - n, -8]` for a line of
+/// n points, so that its trail (`now` in [0, 14], 8 either side) lies within the line.
+pub fn trail_lines(main: usize, cross: usize) -> tubes::Streamlines {
+    let mut sl = dense_bundle(main, cross);
+    let mut rng = SplitMix64(0x7A11);
+    let mut times = Vec::with_capacity(sl.points.len());
+    for k in 0..sl.len() {
+        let n = sl.line(k).len() as f64;
+        let phase = (23.0 - n) + rng.next_f64() * (n - 31.0);
+        times.extend((0..sl.line(k).len()).map(|i| (i as f64 + phase) as f32));
+    }
+    sl.point_attributes.push(tubes::Attribute {
+        name: "time".into(),
+        components: 1,
+        values: times,
+    });
+    sl
+}
+
+/// The visible parts of `sl`'s trails at `trail.now` as the renderer draws them (segments cut
+/// where their time crosses the window's ends), grouped by width: the full width, and
+/// `steps` equal steps of the taper from 1 down to `min_width`, each piece taking the step of
+/// the width factor at its middle. Returns (width factor, the pieces of that width).
+pub fn trail_pieces(
+    sl: &tubes::Streamlines,
+    times: &[f32],
+    trail: &tubes::lines::Trail,
+    steps: usize,
+) -> Vec<(f64, tubes::Streamlines)> {
+    let steps = steps.max(1);
+    let (lo, hi) = (trail.now - trail.back, trail.now + trail.forward);
+    let taper = (1.0 - trail.min_width).max(0.0);
+    let class = |f: f32| -> usize {
+        if f >= 1.0 - 1e-6 || taper <= 0.0 {
+            0
+        } else {
+            1 + (((1.0 - f) / taper * steps as f32) as usize).min(steps - 1)
+        }
+    };
+    let factor = |c: usize| -> f64 {
+        if c == 0 {
+            1.0
+        } else {
+            1.0 - (c as f64 - 0.5) / steps as f64 * taper as f64
+        }
+    };
+    let mut out: Vec<tubes::Streamlines> = (0..=steps).map(|_| tubes::Streamlines::new()).collect();
+    for k in 0..sl.len() {
+        let (a, b) = (sl.offsets[k], sl.offsets[k + 1]);
+        let (p, t) = (&sl.points[a..b], &times[a..b]);
+        // The run being built: its class and points; it continues while pieces join.
+        let mut run: Option<(usize, Vec<Vec3>)> = None;
+        let mut flush = |run: &mut Option<(usize, Vec<Vec3>)>| {
+            if let Some((c, pts)) = run.take() {
+                if pts.len() >= 2 {
+                    out[c].push(&pts);
+                }
+            }
+        };
+        for i in 0..p.len().saturating_sub(1) {
+            let (ta, tb) = (t[i], t[i + 1]);
+            if !(ta.is_finite() && tb.is_finite()) {
+                flush(&mut run);
+                continue;
+            }
+            let (u0, u1) = if ta == tb {
+                if ta >= lo && ta <= hi {
+                    (0.0, 1.0)
+                } else {
+                    (1.0, 0.0)
+                }
+            } else {
+                let (ua, ub) = ((lo - ta) / (tb - ta), (hi - ta) / (tb - ta));
+                (ua.min(ub).max(0.0), ua.max(ub).min(1.0))
+            };
+            if u0 >= u1 {
+                flush(&mut run);
+                continue;
+            }
+            let at = |u: f32| p[i] + (p[i + 1] - p[i]) * u;
+            let c = class(trail.width_factor(ta + (tb - ta) * 0.5 * (u0 + u1)));
+            let joins = u0 == 0.0 && matches!(&run, Some((rc, _)) if *rc == c);
+            if !joins {
+                flush(&mut run);
+                run = Some((c, vec![at(u0)]));
+            }
+            if let Some((_, pts)) = run.as_mut() {
+                pts.push(at(u1));
+            }
+            if u1 < 1.0 {
+                flush(&mut run);
+            }
+        }
+        flush(&mut run);
+    }
+    out.into_iter()
+        .enumerate()
+        .filter(|(_, s)| !s.is_empty())
+        .map(|(c, s)| (factor(c), s))
+        .collect()
+}
+
+/// One row of aniso_roll.csv.
+#[derive(Clone, Debug)]
+pub struct RollRow {
+    /// `classic` or `anisotropic`.
+    pub method: String,
+    /// `-` (classic), `paper` or `invariant`.
+    pub alignment: String,
+    /// `I` (NaN for classic).
+    pub intensity: f64,
+    pub roll: f64,
+    /// Covered pixels inside the disc, and their mean visibility and occlusion.
+    pub pixels: usize,
+    pub visibility: f64,
+    pub occlusion: f64,
+    pub occlusion_parallel: f64,
+    pub occlusion_crossing: f64,
+    /// Against classic LineAO at the same roll.
+    pub ratio_parallel: f64,
+    pub ratio_crossing: f64,
+    pub g_align_parallel: f64,
+    pub g_align_crossing: f64,
+    pub parallel_pixels: usize,
+    pub crossing_pixels: usize,
+    pub ms: f64,
+}
+
+/// The header of aniso_roll.csv.
+pub const ROLL_HEADER: &str = "method,alignment,intensity,roll_deg,pixels,mean_visibility,occlusion,occlusion_parallel,occlusion_crossing,ratio_parallel,ratio_crossing,g_align_parallel,g_align_crossing,parallel_pixels,crossing_pixels,ms";
+
+/// One row of aniso_summary.csv: a setting across the rolls.
+#[derive(Clone, Debug)]
+pub struct AnisoSummary {
+    pub method: String,
+    pub alignment: String,
+    pub intensity: f64,
+    pub rolls: usize,
+    /// Coefficients of variation (population standard deviation over mean) across the rolls:
+    /// of the mean visibility, of the mean occlusion over the disc, the parallel and the
+    /// crossing region.
+    pub cv_visibility: f64,
+    pub cv_occlusion: f64,
+    pub cv_parallel: f64,
+    pub cv_crossing: f64,
+    /// Mean, least, largest across the rolls.
+    pub ratio_parallel: [f64; 3],
+    pub ratio_crossing: [f64; 3],
+}
+
+/// The header of aniso_summary.csv.
+pub const SUMMARY_HEADER: &str = "method,alignment,intensity,rolls,cv_visibility,cv_occlusion,cv_occlusion_parallel,cv_occlusion_crossing,ratio_parallel_mean,ratio_parallel_min,ratio_parallel_max,ratio_crossing_mean,ratio_crossing_min,ratio_crossing_max";
+
+impl AnisoSummary {
+    fn intensity_label(&self) -> String {
+        if self.intensity.is_finite() {
+            format!("{}", self.intensity)
+        } else {
+            "-".into()
+        }
+    }
+}
+
+/// One row of aniso_flicker.csv: a method over the trail animation.
+#[derive(Clone, Debug)]
+pub struct FlickerRow {
+    /// `lineao` or `reference`.
+    pub method: String,
+    pub setting: String,
+    pub frames: usize,
+    /// The mean count of compared pixels a pair of frames.
+    pub pixels: usize,
+    /// Over every compared pixel of every pair: the mean occlusion (both frames), the mean
+    /// absolute change of the visibility, their ratio, the fraction changing by more than
+    /// 0.05, and the Pearson correlation of the change with the physical reference's.
+    pub mean_occlusion: f64,
+    pub mean_abs_change: f64,
+    pub relative_change: f64,
+    pub frac_above: f64,
+    pub pearson_reference: f64,
+    /// The same against the model-matched reference's change.
+    pub pearson_model: f64,
+    /// The root mean square change; the reference's with its noise taken out,
+    /// `sqrt(max(0, mean(Δ²) - mean(se_k² + se_k+1²)))` (LineAO's: the same as `rms_change`,
+    /// it has no frame-to-frame noise: its sample pattern is a fixed function of the pixel).
+    pub rms_change: f64,
+    pub rms_change_denoised: f64,
+    /// The mean absolute change two independent estimates of an unchanged pixel would show,
+    /// `sqrt(2 / pi) sqrt(se_k² + se_k+1²)` averaged (the reference's noise floor; NaN for
+    /// LineAO).
+    pub noise_floor: f64,
+    /// The reference's mean per-pixel standard error (NaN for LineAO).
+    pub ref_stderr: f64,
+    /// The mean frame (or trace) time.
+    pub ms: f64,
+}
+
+/// The header of aniso_flicker.csv.
+pub const FLICKER_HEADER: &str = "method,setting,frames,pixels,mean_occlusion,mean_abs_change,relative_change,frac_change_above_0.05,pearson_with_reference_change,pearson_with_model_change,rms_change,rms_change_denoised,noise_floor,ref_stderr,ms";
+
+/// The mean of `v` over the finite values `keep` selects, and how many.
+fn masked_mean(v: &[f64], keep: &[bool]) -> (f64, usize) {
+    let (s, n) = v
+        .iter()
+        .zip(keep)
+        .filter(|(x, k)| **k && x.is_finite())
+        .fold((0.0, 0usize), |(s, n), (x, _)| (s + x, n + 1));
+    (if n == 0 { f64::NAN } else { s / n as f64 }, n)
+}
+
+/// Population coefficient of variation.
+fn cv(v: &[f64]) -> f64 {
+    let n = v.len().max(1) as f64;
+    let m = v.iter().sum::<f64>() / n;
+    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt() / m.abs().max(1e-12)
+}
+
+/// The `aniso` group: the roll case and the flicker case (their CSVs and the chart).
+fn aniso_cases(
+    c: &Config,
+    gpu: &engine::gpu::Gpu,
+    size: &[String],
+    progress: &dyn Fn(&str),
+) -> Result<(Vec<AnisoSummary>, Vec<FlickerRow>), String> {
+    let data = c.out.join("data");
+    let scenes = c.out.join("scenes");
+    let images = c.out.join("images");
+    let write =
+        |p: &Path, text: &str| volume::write_atomic(p, text.as_bytes()).map_err(|e| e.to_string());
+    // The front lines 4 pixels apart on average, the crossing layer's 3.
+    let px = ROLL_VIEW / c.size as f64;
+    let count = |gap_px: f64| ((2.0 * BAND as f64 / (gap_px * px)).round() as usize).max(2);
+    let (front, back) = (count(4.0), count(3.0));
+    tubes::save(&data.join("crossing.tck"), &crossing_bundles(front, back))
+        .map_err(|e| e.to_string())?;
+    let roll_scene = scenes.join("crossing.toml");
+    write(
+        &roll_scene,
+        &synthetic_scene(&data.join("crossing.tck"), "width = 2.0"),
+    )?;
+    let rows = roll_case(c, gpu, &roll_scene, size, &images, progress)?;
+    let mut csv = Vec::new();
+    let _ = writeln!(csv, "{ROLL_HEADER}");
+    for r in &rows {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{:.5},{:.5},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},{},{},{:.3}",
+            r.method,
+            r.alignment,
+            if r.intensity.is_finite() {
+                format!("{}", r.intensity)
+            } else {
+                "-".into()
+            },
+            r.roll,
+            r.pixels,
+            r.visibility,
+            r.occlusion,
+            r.occlusion_parallel,
+            r.occlusion_crossing,
+            r.ratio_parallel,
+            r.ratio_crossing,
+            r.g_align_parallel,
+            r.g_align_crossing,
+            r.parallel_pixels,
+            r.crossing_pixels,
+            r.ms
+        );
+    }
+    volume::write_atomic(&c.out.join("aniso_roll.csv"), &csv).map_err(|e| e.to_string())?;
+    // Per setting across the rolls.
+    let mut keys: Vec<(String, String, f64)> = vec![];
+    for r in &rows {
+        let k = (r.method.clone(), r.alignment.clone(), r.intensity);
+        if !keys
+            .iter()
+            .any(|q| q.0 == k.0 && q.1 == k.1 && q.2.total_cmp(&k.2).is_eq())
+        {
+            keys.push(k);
+        }
+    }
+    let mut summary = vec![];
+    for (m, al, i) in &keys {
+        let of: Vec<&RollRow> = rows
+            .iter()
+            .filter(|r| &r.method == m && &r.alignment == al && r.intensity.total_cmp(i).is_eq())
+            .collect();
+        let col = |f: &dyn Fn(&RollRow) -> f64| of.iter().map(|r| f(r)).collect::<Vec<f64>>();
+        let stats = |v: Vec<f64>| {
+            [
+                v.iter().sum::<f64>() / v.len().max(1) as f64,
+                v.iter().copied().fold(f64::INFINITY, f64::min),
+                v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            ]
+        };
+        summary.push(AnisoSummary {
+            method: m.clone(),
+            alignment: al.clone(),
+            intensity: *i,
+            rolls: of.len(),
+            cv_visibility: cv(&col(&|r| r.visibility)),
+            cv_occlusion: cv(&col(&|r| r.occlusion)),
+            cv_parallel: cv(&col(&|r| r.occlusion_parallel)),
+            cv_crossing: cv(&col(&|r| r.occlusion_crossing)),
+            ratio_parallel: stats(col(&|r| r.ratio_parallel)),
+            ratio_crossing: stats(col(&|r| r.ratio_crossing)),
+        });
+    }
+    let mut csv = Vec::new();
+    let _ = writeln!(csv, "{SUMMARY_HEADER}");
+    for s in &summary {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{:.5},{:.5},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
+            s.method,
+            s.alignment,
+            s.intensity_label(),
+            s.rolls,
+            s.cv_visibility,
+            s.cv_occlusion,
+            s.cv_parallel,
+            s.cv_crossing,
+            s.ratio_parallel[0],
+            s.ratio_parallel[1],
+            s.ratio_parallel[2],
+            s.ratio_crossing[0],
+            s.ratio_crossing[1],
+            s.ratio_crossing[2]
+        );
+    }
+    volume::write_atomic(&c.out.join("aniso_summary.csv"), &csv).map_err(|e| e.to_string())?;
+    // The chart: the ratios against the roll.
+    volume::write_atomic(&c.out.join("aniso_roll.svg"), roll_svg(&rows).as_bytes())
+        .map_err(|e| e.to_string())?;
+
+    // Flicker.
+    let (main, cross) = if c.quick { (240, 96) } else { (400, 160) };
+    let trails = trail_lines(main, cross);
+    let trk = data.join("trails.trk");
+    tubes::save(&trk, &trails).map_err(|e| e.to_string())?;
+    let trail_scene = scenes.join("trails.toml");
+    write(
+        &trail_scene,
+        &synthetic_scene(
+            &trk,
+            &format!(
+                "width = 2.0\ntime = \"scalar:time\"\ntrail = {{ now = {}, back = {TRAIL_HALF}, forward = {TRAIL_HALF} }}",
+                TRAIL_NOW.0
+            ),
+        ),
+    )?;
+    let flicker = flicker_case(c, gpu, &trail_scene, size, &images, progress)?;
+    let mut csv = Vec::new();
+    let _ = writeln!(csv, "{FLICKER_HEADER}");
+    for r in &flicker {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{:.5},{:.5},{:.4},{:.4},{:.4},{:.4},{:.5},{:.5},{:.5},{:.5},{:.3}",
+            r.method,
+            r.setting,
+            r.frames,
+            r.pixels,
+            r.mean_occlusion,
+            r.mean_abs_change,
+            r.relative_change,
+            r.frac_above,
+            r.pearson_reference,
+            r.pearson_model,
+            r.rms_change,
+            r.rms_change_denoised,
+            r.noise_floor,
+            r.ref_stderr,
+            r.ms
+        );
+    }
+    volume::write_atomic(&c.out.join("aniso_flicker.csv"), &csv).map_err(|e| e.to_string())?;
+    Ok((summary, flicker))
+}
+
+/// The roll chart, a plain SVG with linear axes (`chart.rs` draws log-log ones): the crossing
+/// and parallel ratios against the roll, a line per setting.
+fn roll_svg(rows: &[RollRow]) -> String {
+    let (w, h, left, right, top, bottom) = (760.0, 460.0, 60.0, 250.0, 40.0, 50.0);
+    let (pw, ph) = (w - left - right, h - top - bottom);
+    let x = |roll: f64| left + pw * roll / 90.0;
+    let y = |v: f64| top + ph * (1.0 - v / 1.1);
+    let mut svg = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<text x=\"{}\" y=\"22\" font-size=\"15\" text-anchor=\"middle\">Anisotropic / classic LineAO occlusion against the camera roll</text>\n",
+        left + 0.5 * pw
+    );
+    for k in 0..=6 {
+        let r = 15.0 * k as f64;
+        svg += &format!(
+            "<line x1=\"{0:.1}\" y1=\"{1:.1}\" x2=\"{0:.1}\" y2=\"{2:.1}\" stroke=\"#ddd\"/><text x=\"{0:.1}\" y=\"{3:.1}\" text-anchor=\"middle\">{r}</text>\n",
+            x(r),
+            top,
+            top + ph,
+            top + ph + 16.0
+        );
+    }
+    for k in 0..=5 {
+        let v = 0.2 * k as f64;
+        svg += &format!(
+            "<line x1=\"{0:.1}\" y1=\"{1:.1}\" x2=\"{2:.1}\" y2=\"{1:.1}\" stroke=\"#ddd\"/><text x=\"{3:.1}\" y=\"{4:.1}\" text-anchor=\"end\">{v:.1}</text>\n",
+            left,
+            y(v),
+            left + pw,
+            left - 6.0,
+            y(v) + 4.0
+        );
+    }
+    svg += &format!(
+        "<rect x=\"{left}\" y=\"{top}\" width=\"{pw}\" height=\"{ph}\" fill=\"none\" stroke=\"black\"/>\n<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">camera roll (degrees); the bundles cross at 60 degrees</text>\n<text transform=\"translate(16 {:.1}) rotate(-90)\" text-anchor=\"middle\">anisotropic / classic mean occlusion</text>\n",
+        left + 0.5 * pw,
+        h - 12.0,
+        top + 0.5 * ph
+    );
+    // A0.
+    svg += &format!(
+        "<line x1=\"{left}\" y1=\"{0:.1}\" x2=\"{1:.1}\" y2=\"{0:.1}\" stroke=\"#888\" stroke-dasharray=\"2 3\"/>\n",
+        y(0.1),
+        left + pw
+    );
+    let series: [(&str, &str, f64, &str, &str); 7] = [
+        ("crossing", "invariant", 15.0, "#2a9d2a", ""),
+        ("crossing", "paper", 5.0, "#5aa0e6", ""),
+        ("crossing", "paper", 15.0, "#1f5fbf", ""),
+        ("crossing", "paper", 25.0, "#0b2a66", ""),
+        ("parallel", "invariant", 15.0, "#2a9d2a", "6 4"),
+        ("parallel", "invariant", 25.0, "#8fd18f", "6 4"),
+        ("parallel", "paper", 15.0, "#1f5fbf", "6 4"),
+    ];
+    for (k, (region, al, i, colour, dash)) in series.iter().enumerate() {
+        let pts: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|r| r.alignment == *al && r.intensity == *i)
+            .map(|r| {
+                let v = if *region == "crossing" {
+                    r.ratio_crossing
+                } else {
+                    r.ratio_parallel
+                };
+                (x(r.roll), y(v.clamp(0.0, 1.1)))
+            })
+            .collect();
+        let path: Vec<String> = pts
+            .iter()
+            .map(|p| format!("{:.1},{:.1}", p.0, p.1))
+            .collect();
+        svg += &format!(
+            "<polyline points=\"{}\" fill=\"none\" stroke=\"{colour}\" stroke-width=\"2\" stroke-dasharray=\"{dash}\"/>\n",
+            path.join(" ")
+        );
+        for p in &pts {
+            svg += &format!(
+                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3\" fill=\"{colour}\"/>\n",
+                p.0, p.1
+            );
+        }
+        let ly = top + 12.0 + 20.0 * k as f64;
+        svg += &format!(
+            "<line x1=\"{0:.1}\" y1=\"{1:.1}\" x2=\"{2:.1}\" y2=\"{1:.1}\" stroke=\"{colour}\" stroke-width=\"2\" stroke-dasharray=\"{dash}\"/><text x=\"{3:.1}\" y=\"{4:.1}\">{region}, {al}, I = {i}</text>\n",
+            left + pw + 12.0,
+            ly,
+            left + pw + 40.0,
+            left + pw + 46.0,
+            ly + 4.0
+        );
+    }
+    let ly = top + 12.0 + 20.0 * series.len() as f64;
+    svg += &format!(
+        "<line x1=\"{0:.1}\" y1=\"{1:.1}\" x2=\"{2:.1}\" y2=\"{1:.1}\" stroke=\"#888\" stroke-dasharray=\"2 3\"/><text x=\"{3:.1}\" y=\"{4:.1}\">A0 = 0.1</text>\n</svg>\n",
+        left + pw + 12.0,
+        ly,
+        left + pw + 40.0,
+        left + pw + 46.0,
+        ly + 4.0
+    );
+    svg
+}
+
+/// The LineAO settings of the aniso group: classic, and each alignment at each `I`.
+fn aniso_settings(intensities: &[f64]) -> Vec<(String, String, f64, Vec<String>)> {
+    let mut v = vec![(
+        "classic".to_string(),
+        "-".to_string(),
+        f64::NAN,
+        vec![
+            "render.method=\"lineao\"".to_string(),
+            "render.lineao.anisotropic=false".to_string(),
+        ],
+    )];
+    for al in ["invariant", "paper"] {
+        for &i in intensities {
+            v.push((
+                "anisotropic".into(),
+                al.into(),
+                i,
+                vec![
+                    "render.method=\"lineao\"".into(),
+                    "render.lineao.anisotropic=true".into(),
+                    format!("render.lineao.alignment=\"{al}\""),
+                    format!("render.lineao.intensity={i}"),
+                ],
+            ));
+        }
+    }
+    v
+}
+
+/// The roll case ([`crossing_bundles`]): every setting at every roll.
+fn roll_case(
+    c: &Config,
+    gpu: &engine::gpu::Gpu,
+    scene: &Path,
+    size: &[String],
+    images: &Path,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<RollRow>, String> {
+    let geo = Geometry::new(gpu, scene, size.to_vec())?;
+    let settings = aniso_settings(&INTENSITIES);
+    let a = (CROSSING_DEG as f64).to_radians();
+    let mut rows = vec![];
+    for &roll in &ROLLS {
+        progress(&format!("aniso: roll {roll}"));
+        let r = roll.to_radians();
+        let mut view = camera_at(0.0, 0.0, ROLL_VIEW);
+        view.push(format!("camera.up=[{}, {}, 0.0]", -r.sin(), r.cos()));
+        let (cam, w, h) = geo.view(&view)?;
+        let (w, h) = (w as usize, h as usize);
+        let (outer, px) = geo.outer_radius(&view)?;
+        // Every sample of a pixel within `r_in` of the centre is on screen at every roll.
+        let margin = outer + 2.0 * px;
+        let r_in = 0.5 * ROLL_VIEW - margin;
+        let band = BAND as f64;
+        let (mut inside, mut par, mut cross) =
+            (vec![false; w * h], vec![false; w * h], vec![false; w * h]);
+        let frames: Vec<(Frame, Vec<Vec<f64>>)> = settings
+            .iter()
+            .map(|(_, _, _, keys)| {
+                let mut e = view.clone();
+                e.extend(keys.iter().cloned());
+                geo.frame_at(
+                    &e,
+                    &["occlusion.lineao", "occlusion.lineao.g_align"],
+                    c.frames,
+                    None,
+                )
+            })
+            .collect::<Result<_, _>>()?;
+        let z = &frames[0].0.z;
+        // The front bundle lies at view depths EYE_Z -+ 4, the crossing layer at EYE_Z + 12:
+        // split at EYE_Z + 8.
+        let split = EYE_Z - 0.5 * (-4.0 + CROSSING_Z as f64);
+        for i in 0..w * h {
+            if z[i] <= 0.0 {
+                continue;
+            }
+            let (o, _) = cam.ray((i % w) as f64, (i / w) as f64, w, h);
+            let (x, y) = (o.x, o.y);
+            if x.hypot(y) > r_in {
+                continue;
+            }
+            inside[i] = true;
+            let d_cross = (-a.sin() * x + a.cos() * y).abs();
+            let front = (z[i] as f64) < split;
+            par[i] = front && d_cross > band + margin;
+            cross[i] = !front && y.abs() <= band;
+        }
+        let mut classic = (f64::NAN, f64::NAN);
+        for ((m, al, i, _), (f, extra)) in settings.iter().zip(&frames) {
+            let occ: Vec<f64> = f.vis.iter().map(|v| 1.0 - v).collect();
+            let (vis, n) = masked_mean(&f.vis, &inside);
+            let (op, np) = masked_mean(&occ, &par);
+            let (oc, nc) = masked_mean(&occ, &cross);
+            if m == "classic" {
+                classic = (op, oc);
+            }
+            let tag = if m == "classic" {
+                "classic".to_string()
+            } else {
+                format!("{al}_I{i}")
+            };
+            if roll == 0.0 || roll == 30.0 {
+                if m == "classic" || *i == 15.0 {
+                    write_image(images, &format!("aniso_roll{roll}_{tag}"), &f.vis, w, h)?;
+                }
+                if m != "classic" && *i == 15.0 {
+                    write_image(
+                        images,
+                        &format!("aniso_roll{roll}_{tag}_g_align"),
+                        &extra[0],
+                        w,
+                        h,
+                    )?;
+                }
+            }
+            rows.push(RollRow {
+                method: m.clone(),
+                alignment: al.clone(),
+                intensity: *i,
+                roll,
+                pixels: n,
+                visibility: vis,
+                occlusion: 1.0 - vis,
+                occlusion_parallel: op,
+                occlusion_crossing: oc,
+                ratio_parallel: op / classic.0,
+                ratio_crossing: oc / classic.1,
+                g_align_parallel: masked_mean(&extra[0], &par).0,
+                g_align_crossing: masked_mean(&extra[0], &cross).0,
+                parallel_pixels: np,
+                crossing_pixels: nc,
+                ms: f.ms,
+            });
+        }
+        if roll == 0.0 || roll == 30.0 {
+            // Classic, paper and invariant (I = 15) side by side, their g_align below.
+            let pick = |al: &str| {
+                settings
+                    .iter()
+                    .position(|(_, a, i, _)| a == al && (al == "-" || *i == 15.0))
+                    .map(|k| &frames[k])
+            };
+            let (Some(cl), Some(pa), Some(inv)) = (pick("-"), pick("paper"), pick("invariant"))
+            else {
+                return Err("bench lineao: a roll setting is missing".into());
+            };
+            let gap = 4;
+            let (mw, mh) = (3 * w + 2 * gap, 2 * h + gap);
+            let mut m = vec![f64::NAN; mw * mh];
+            let none = vec![f64::NAN; w * h];
+            let tiles: [(&[f64], usize, usize); 6] = [
+                (&cl.0.vis, 0, 0),
+                (&pa.0.vis, 1, 0),
+                (&inv.0.vis, 2, 0),
+                (&none, 0, 1),
+                (&pa.1[0], 1, 1),
+                (&inv.1[0], 2, 1),
+            ];
+            for (v, tx, ty) in tiles {
+                for (i, &x) in v.iter().enumerate() {
+                    m[tx * (w + gap) + i % w + mw * (ty * (h + gap) + i / w)] = x;
+                }
+            }
+            write_image(images, &format!("aniso_roll{roll}_montage"), &m, mw, mh)?;
+        }
+        if roll == 0.0 {
+            // The regions, for the record: parallel dark grey, crossing light grey.
+            let reg: Vec<f64> = (0..w * h)
+                .map(|i| {
+                    if par[i] {
+                        0.25
+                    } else if cross[i] {
+                        0.6
+                    } else if inside[i] {
+                        0.9
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect();
+            write_image(images, "aniso_regions_roll0", &reg, w, h)?;
+        }
+    }
+    Ok(rows)
+}
+
+/// A flicker series: method, setting, its frames' values, the reference kind whose noise it
+/// carries (none for LineAO), the index of its time.
+type Series<'a> = (String, String, &'a Vec<Vec<f64>>, Option<usize>, usize);
+
+/// The flicker case ([`trail_lines`]): LineAO classic, invariant and paper (I = 15) and the
+/// physical reference over the trail animation.
+fn flicker_case(
+    c: &Config,
+    gpu: &engine::gpu::Gpu,
+    scene: &Path,
+    size: &[String],
+    images: &Path,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<FlickerRow>, String> {
+    let geo = Geometry::new(gpu, scene, size.to_vec())?;
+    let (t0, t1, nf) = TRAIL_NOW;
+    let nows: Vec<f64> = (0..nf)
+        .map(|k| t0 + (t1 - t0) * k as f64 / (nf - 1) as f64)
+        .collect();
+    let settings: Vec<_> = aniso_settings(&[15.0]);
+    // Per setting and frame: the visibility and the time.
+    let mut vis: Vec<Vec<Vec<f64>>> = vec![vec![]; settings.len()];
+    let mut ms = vec![0.0; settings.len() + 1];
+    let mut zs: Vec<Vec<f32>> = vec![];
+    let (mut w, mut h) = (0, 0);
+    for (k, &now) in nows.iter().enumerate() {
+        progress(&format!("aniso: trail frame {k} (now {now})"));
+        for (si, (m, al, _, keys)) in settings.iter().enumerate() {
+            let (f, _) = geo.frame_at(keys, &["occlusion.lineao"], c.frames, Some(now))?;
+            if k == 0 {
+                let tag = if m == "classic" { m } else { al };
+                write_image(images, &format!("aniso_trails_f0_{tag}"), &f.vis, f.w, f.h)?;
+            }
+            if si == 0 {
+                zs.push(f.z.clone());
+                (w, h) = (f.w, f.h);
+            }
+            ms[si] += f.ms / nf as f64;
+            vis[si].push(f.vis);
+        }
+    }
+    // The reference of every frame: the trails' visible parts as tubes.
+    let s = geo.scene(&[])?;
+    let (cam, _, vh) = geo.view(&[])?;
+    let l = s
+        .lines
+        .first()
+        .ok_or("bench lineao: the scene has no lines")?;
+    let radius = tube_radius(l, &cam, vh)?;
+    let sl = tubes::load(&l.path).map_err(|e| e.to_string())?;
+    let times: Vec<f32> = sl
+        .point_attributes
+        .iter()
+        .find(|a| a.name == "time")
+        .ok_or("bench lineao: the trails have no time")?
+        .values
+        .clone();
+    let spec_trail = l
+        .trail
+        .as_ref()
+        .ok_or("bench lineao: the scene has no trail")?;
+    // Per kind (physical, model-matched) and frame: the open fraction and its standard error.
+    let mut refs: [Vec<Vec<f64>>; 2] = [vec![], vec![]];
+    let mut ses: [Vec<Vec<f64>>; 2] = [vec![], vec![]];
+    let mut stderr = [0.0; 2];
+    for (k, &now) in nows.iter().enumerate() {
+        progress(&format!("aniso: trail reference {k}"));
+        let t = Instant::now();
+        let trail = tubes::lines::Trail {
+            now: now as f32,
+            back: spec_trail.back as f32,
+            forward: spec_trail.forward as f32,
+            start: spec_trail.start as f32,
+            min_width: spec_trail.min_width as f32,
+        };
+        let meshes: Vec<tubes::tube_mesh::TubeMesh> = trail_pieces(&sl, &times, &trail, 3)
+            .iter()
+            .map(|(f, piece)| {
+                let rho = radius * f;
+                let mut o = tubes::tube_mesh::TubeOptions::defaults(rho, 12, (0.25 * rho).min(0.1));
+                o.color = tubes::tube_mesh::ColorMode::Constant([0.8; 3]);
+                tubes::tube_mesh::build(piece, &o).0
+            })
+            .collect();
+        let ts = TubeScene::new(&meshes, &compile::tube_clip(&s));
+        // The model-matched point uses the full radius: the taper's narrower tubes put it a
+        // little above their surface (open a little more than it should be).
+        let px = reference_ao(&ts, &cam, w, h, radius, c.spp, 0x7A11_0AE0);
+        ms[settings.len()] += t.elapsed().as_secs_f64() * 1e3 / nf as f64;
+        for kind in 0..2 {
+            let ao: Vec<f64> = px.iter().map(|p| p[2 * kind]).collect();
+            let se_k: Vec<f64> = px.iter().map(|p| p[2 * kind + 1]).collect();
+            let hit: Vec<bool> = ao.iter().map(|v| v.is_finite()).collect();
+            stderr[kind] += masked_mean(&se_k, &hit).0 / nf as f64;
+            if k == 0 {
+                let name = ["reference", "reference_model-matched"][kind];
+                write_image(images, &format!("aniso_trails_f0_{name}"), &ao, w, h)?;
+            }
+            refs[kind].push(ao);
+            ses[kind].push(se_k);
+        }
+    }
+    // The compared pixels of each pair.
+    let pairs: Vec<Vec<usize>> = (0..nf - 1)
+        .map(|k| {
+            (0..w * h)
+                .filter(|&i| {
+                    let (za, zb) = (zs[k][i] as f64, zs[k + 1][i] as f64);
+                    za > 0.0
+                        && zb > 0.0
+                        && (za - zb).abs() < radius
+                        && (0..2)
+                            .all(|r| refs[r][k][i].is_finite() && refs[r][k + 1][i].is_finite())
+                })
+                .collect()
+        })
+        .collect();
+    let n_px = pairs.iter().map(|p| p.len()).sum::<usize>();
+    let deltas = |v: &[Vec<f64>]| -> Vec<f64> {
+        pairs
+            .iter()
+            .enumerate()
+            .flat_map(|(k, p)| p.iter().map(move |&i| v[k + 1][i] - v[k][i]))
+            .collect()
+    };
+    let ref_d = deltas(&refs[0]);
+    let model_d = deltas(&refs[1]);
+    let mut out = vec![];
+    let mut all: Vec<Series> = settings
+        .iter()
+        .zip(&vis)
+        .enumerate()
+        .map(|(si, ((m, al, i, _), v))| {
+            let setting = if m == "classic" {
+                "classic".to_string()
+            } else {
+                format!("anisotropic {al} I={i}")
+            };
+            ("lineao".to_string(), setting, v, None, si)
+        })
+        .collect();
+    for (kind, name) in ["physical", "model-matched"].iter().enumerate() {
+        all.push((
+            "reference".into(),
+            format!("{name} {} spp", c.spp),
+            &refs[kind],
+            Some(kind),
+            settings.len(),
+        ));
+    }
+    for (m, setting, v, kind, ti) in &all {
+        let d = deltas(v);
+        let occ: f64 = pairs
+            .iter()
+            .enumerate()
+            .flat_map(|(k, p)| p.iter().map(move |&i| 2.0 - v[k][i] - v[k + 1][i]))
+            .sum::<f64>()
+            / (2 * n_px.max(1)) as f64;
+        let nd = d.len().max(1) as f64;
+        let mad = d.iter().map(|x| x.abs()).sum::<f64>() / nd;
+        let ms2 = d.iter().map(|x| x * x).sum::<f64>() / nd;
+        // The reference's noise: per compared pixel the variance of the difference of two
+        // independent estimates.
+        let (noise_var, floor) = match kind {
+            Some(r) => {
+                let var: Vec<f64> = pairs
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(k, p)| {
+                        let se = &ses[*r];
+                        p.iter()
+                            .map(move |&i| se[k][i].powi(2) + se[k + 1][i].powi(2))
+                    })
+                    .collect();
+                (
+                    var.iter().sum::<f64>() / nd,
+                    var.iter()
+                        .map(|v| (2.0 / std::f64::consts::PI * v).sqrt())
+                        .sum::<f64>()
+                        / nd,
+                )
+            }
+            None => (0.0, f64::NAN),
+        };
+        out.push(FlickerRow {
+            method: m.clone(),
+            setting: setting.clone(),
+            frames: nf,
+            pixels: n_px / pairs.len().max(1),
+            mean_occlusion: occ,
+            mean_abs_change: mad,
+            relative_change: mad / occ.max(1e-12),
+            frac_above: d.iter().filter(|x| x.abs() > 0.05).count() as f64 / nd,
+            pearson_reference: agreement(&d, &ref_d).pearson,
+            pearson_model: agreement(&d, &model_d).pearson,
+            rms_change: ms2.sqrt(),
+            rms_change_denoised: (ms2 - noise_var).max(0.0).sqrt(),
+            noise_floor: floor,
+            ref_stderr: kind.map_or(f64::NAN, |r| stderr[r]),
+            ms: ms[*ti],
+        });
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn trail_pieces_cut_the_window_and_step_the_taper() {
+        // One straight line along x, a point a unit, time = x.
+        let mut sl = tubes::Streamlines::new();
+        let pts: Vec<Vec3> = (0..=10).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
+        sl.push(&pts);
+        let times: Vec<f32> = (0..=10).map(|i| i as f32).collect();
+        let trail = tubes::lines::Trail {
+            now: 5.25,
+            back: 2.0,
+            forward: 2.0,
+            start: 0.5,
+            min_width: 0.5,
+        };
+        let pieces = trail_pieces(&sl, &times, &trail, 2);
+        let length =
+            |s: &tubes::Streamlines| -> f32 { (0..s.len()).map(|k| s.arc_length(k) as f32).sum() };
+        // The window [3.25, 7.25] is drawn, cut inside the segments at its ends.
+        let total: f32 = pieces.iter().map(|(_, s)| length(s)).sum();
+        assert!((total - 4.0).abs() < 1e-5, "{total}");
+        let (lo, hi) = pieces
+            .iter()
+            .flat_map(|(_, s)| s.points.iter())
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), p| {
+                (a.min(p.x), b.max(p.x))
+            });
+        assert!(
+            (lo - 3.25).abs() < 1e-5 && (hi - 7.25).abs() < 1e-5,
+            "{lo} {hi}"
+        );
+        // Full width where the segment's middle is within `start` (1 unit) of now: [4, 5] and
+        // [5, 6]; the pieces beyond are narrower, never below min_width.
+        let full = pieces
+            .iter()
+            .find(|(f, _)| *f == 1.0)
+            .expect("a full-width piece");
+        assert!((length(&full.1) - 2.0).abs() < 1e-5, "{}", length(&full.1));
+        assert!(pieces.iter().all(|(f, _)| *f >= 0.5 && *f <= 1.0));
+        assert!(
+            pieces.len() >= 2,
+            "{:?}",
+            pieces.iter().map(|p| p.0).collect::<Vec<_>>()
+        );
+        // A window off the line draws nothing.
+        let none = trail_pieces(&sl, &times, &tubes::lines::Trail { now: 50.0, ..trail }, 2);
+        assert!(none.is_empty());
+    }
+
+    #[test]
+    fn cases_parse_groups_and_refuse_unknown_ones() {
+        let both = Cases {
+            accuracy: true,
+            aniso: true,
+        };
+        assert_eq!(Cases::parse("accuracy,aniso").unwrap(), both);
+        assert_eq!(Cases::parse("all").unwrap(), both);
+        assert_eq!(
+            Cases::parse(" aniso ").unwrap(),
+            Cases {
+                accuracy: false,
+                aniso: true
+            }
+        );
+        assert!(Cases::parse("zoom").is_err());
+        assert!(Cases::parse("").is_err());
+    }
+
+    #[test]
+    fn the_crossing_bundles_lie_in_their_bands_and_layers() {
+        let sl = crossing_bundles(10, 8);
+        assert_eq!(sl.len(), 18);
+        let a = CROSSING_DEG.to_radians();
+        for k in 0..sl.len() {
+            let mid = sl.line(k)[55];
+            if k < 10 {
+                assert!(mid.y.abs() <= BAND && mid.z.abs() <= 4.0, "{mid}");
+            } else {
+                let across = -a.sin() * mid.x + a.cos() * mid.y;
+                assert!(across.abs() <= BAND + 1e-4 && mid.z == CROSSING_Z, "{mid}");
+            }
+        }
+    }
 
     #[test]
     fn ssao_leaves_a_flat_surface_open_and_darkens_a_pixel_beside_a_near_wall() {
