@@ -43,18 +43,28 @@ pub fn write_bw_png(
     height: usize,
     color: &[[f32; 3]],
 ) -> Result<(), String> {
-    if color.len() != width * height {
-        return Err(format!(
-            "{}: {} pixels for a {width} x {height} image",
-            path.display(),
-            color.len()
-        ));
-    }
+    check_pixels(path, width, height, color.len())?;
     let buf = image::GrayImage::from_fn(width as u32, height as u32, |x, y| {
         image::Luma([one_bit(color[x as usize + width * y as usize])])
     });
+    write_encoded(path, image::DynamicImage::ImageLuma8(buf))
+}
+
+/// An error unless `n` pixels fill a `width x height` image.
+fn check_pixels(path: &Path, width: usize, height: usize, n: usize) -> Result<(), String> {
+    if n != width * height {
+        return Err(format!(
+            "{}: {n} pixels for a {width} x {height} image",
+            path.display()
+        ));
+    }
+    Ok(())
+}
+
+/// Encodes `img` as PNG and writes it through a temporary file.
+fn write_encoded(path: &Path, img: image::DynamicImage) -> Result<(), String> {
     let mut bytes = Vec::new();
-    buf.write_to(
+    img.write_to(
         &mut std::io::Cursor::new(&mut bytes),
         image::ImageFormat::Png,
     )
@@ -69,13 +79,7 @@ pub fn write_rgb_png(
     height: usize,
     color: &[[f32; 3]],
 ) -> Result<(), String> {
-    if color.len() != width * height {
-        return Err(format!(
-            "{}: {} pixels for a {width} x {height} image",
-            path.display(),
-            color.len()
-        ));
-    }
+    check_pixels(path, width, height, color.len())?;
     let mut buf = image::RgbImage::new(width as u32, height as u32);
     for (i, c) in color.iter().enumerate() {
         buf.put_pixel(
@@ -84,13 +88,7 @@ pub fn write_rgb_png(
             image::Rgb([srgb8(c[0]), srgb8(c[1]), srgb8(c[2])]),
         );
     }
-    let mut bytes = Vec::new();
-    buf.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| format!("{}: encoding PNG: {e}", path.display()))?;
-    volume::write_atomic(path, &bytes).map_err(|e| e.to_string())
+    write_encoded(path, image::DynamicImage::ImageRgb8(buf))
 }
 
 /// Writes linear RGBA as EXR (channels R, G, B, A) with any further named channels (the

@@ -40,7 +40,9 @@ enum Command {
     /// LineAO against ray-traced ambient occlusion of the same lines as tubes (orthographic
     /// views), beside Schott's vicinity and a CPU SSAO: isolated lines, a dense bundle, the
     /// s_h sweep, the falloff, zoom, screen borders, real tracts. <out>/results.csv,
-    /// pareto.svg/.png, samples.svg/.png, zoom.csv, border.csv, images/.
+    /// pareto.svg/.png, samples.svg/.png, zoom.csv, border.csv, images/; with --cases aniso
+    /// (a default) anisotropic LineAO: aniso_roll.csv, aniso_summary.csv, aniso_flicker.csv,
+    /// aniso_roll.svg.
     Lineao(lineao::Args),
 }
 
