@@ -14,6 +14,19 @@ pub struct Plot {
     pub line: Option<(String, Vec<(f64, f64)>)>,
 }
 
+/// A log axis's range for data in `[lo, hi]`: out to whole powers of ten on both sides, so that
+/// the axis holds at least one labelled decade (a log axis within one decade prints no labels).
+fn decade_range(lo: f64, hi: f64) -> (f64, f64) {
+    let lo = lo.max(1e-9);
+    let hi = hi.max(lo);
+    let a = 10f64.powf(lo.log10().floor());
+    let mut b = 10f64.powf(hi.log10().ceil());
+    if b <= a {
+        b = a * 10.0;
+    }
+    (a, b)
+}
+
 fn draw<DB: plotters::prelude::DrawingBackend>(
     root: plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
     p: &Plot,
@@ -32,8 +45,8 @@ where
     if !(x0.is_finite() && y0.is_finite()) {
         return Err("nothing to chart".into());
     }
-    let (x0, x1) = ((x0 * 0.8).max(1e-9), (x1 * 1.25).max(x0 * 2.0));
-    let (y0, y1) = ((y0 * 0.8).max(1e-9), (y1 * 1.25).max(y0 * 2.0));
+    let (x0, x1) = decade_range(x0, x1);
+    let (y0, y1) = decade_range(y0, y1);
     let mut c = ChartBuilder::on(&root)
         .caption(&p.title, ("sans-serif", 18))
         .margin(12)
@@ -98,4 +111,16 @@ pub fn write_chart(dir: &Path, stem: &str, p: &Plot) -> Result<(), String> {
     )
     .map_err(|e| e.to_string())?;
     volume::write_atomic(&dir.join(format!("{stem}.png")), &bytes).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn log_axes_hold_at_least_one_labelled_decade() {
+        assert_eq!(super::decade_range(0.21, 0.24), (0.1, 1.0));
+        assert_eq!(super::decade_range(3.0, 450.0), (1.0, 1000.0));
+        assert_eq!(super::decade_range(1.0, 1.0), (1.0, 10.0));
+        let (a, b) = super::decade_range(0.0, 0.0);
+        assert!(a > 0.0 && b >= 10.0 * a);
+    }
 }
