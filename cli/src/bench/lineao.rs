@@ -1639,22 +1639,7 @@ fn real_cases(
     if carotid.exists() {
         progress("carotid: tracing");
         let traced = data.join("carotid_traced.tck");
-        crate::commands::trace::trace_to_file(&crate::commands::trace::TraceArgs {
-            input: carotid,
-            output: traced.clone(),
-            field: Some("vectors".into()),
-            seeds: "plane:z=3:60".into(),
-            step: None,
-            integrator: tubes::trace::Integrator::Rk4,
-            tolerance: 1e-3,
-            max_length: None,
-            min_speed: 1.0,
-            mask: None,
-            threshold: 0.2,
-            max_angle: 60.0,
-            eigen: false,
-            one_way: false,
-        })?;
+        crate::commands::demo::trace_carotid(&carotid, &traced)?;
         let sub = data.join("carotid.tck");
         let (kept, of) = subsample(&traced, max, &sub)?;
         eprintln!("carotid: {kept} of {of} streamlines");

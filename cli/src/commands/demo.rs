@@ -188,22 +188,7 @@ pub fn render_demo(
         "cfd" => {
             let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
             let tracts = dir.path().join("carotid.tck");
-            trace_to_file(&TraceArgs {
-                input: data.join("vtk/carotid.vtk"),
-                output: tracts.clone(),
-                field: Some("vectors".into()),
-                seeds: "plane:z=3:60".into(),
-                step: None,
-                integrator: tubes::trace::Integrator::Rk4,
-                tolerance: 1e-3,
-                max_length: None,
-                min_speed: 1.0,
-                mask: None,
-                threshold: 0.2,
-                max_angle: 60.0,
-                eigen: false,
-                one_way: false,
-            })?;
+            trace_carotid(&data.join("vtk/carotid.vtk"), &tracts)?;
             let scene = dir.path().join("cfd.toml");
             std::fs::write(&scene, cfd_scene(&data, &tracts)).map_err(|e| e.to_string())?;
             scene::render::run(&args(scene), &mut |_, _| {})
@@ -225,4 +210,26 @@ pub fn render_demo(
         }
         other => Err(format!("umbra demo {other}: choose lines, mni or cfd")),
     }
+}
+
+/// The carotid streamlines of `umbra demo cfd`: RK4 from a plane of 60 x 60 seeds at the inlet
+/// (z = 3) through `carotid` (the VTK carotid's `vectors`), written to `output`. The LineAO
+/// bench traces the same lines. Returns the lines and points written.
+pub fn trace_carotid(carotid: &Path, output: &Path) -> Result<(usize, usize), String> {
+    trace_to_file(&TraceArgs {
+        input: carotid.to_path_buf(),
+        output: output.to_path_buf(),
+        field: Some("vectors".into()),
+        seeds: "plane:z=3:60".into(),
+        step: None,
+        integrator: tubes::trace::Integrator::Rk4,
+        tolerance: 1e-3,
+        max_length: None,
+        min_speed: 1.0,
+        mask: None,
+        threshold: 0.2,
+        max_angle: 60.0,
+        eigen: false,
+        one_way: false,
+    })
 }
