@@ -47,9 +47,10 @@ struct VOut {
     @location(7) tangent: vec3<f32>,
     // Lines: the unit tangent on screen (pixels, view axes: x right, y up); tubes: zero.
     @location(8) screen_t: vec2<f32>,
-    // Haloed lines: the position across the strip, -1 to 1 (|across| below the core's fraction
-    // is the line, beyond it the halo); zero otherwise.
-    @location(9) across: f32,
+    // Haloed lines: the position across the strip, (-1 to 1, 0) (|across| below the core's
+    // fraction is the line, beyond it the halo); points: the position in the disc's square
+    // (x right, y up, -1 to 1; beyond a length of 1 is outside the disc); zero otherwise.
+    @location(9) across: vec2<f32>,
 };
 
 @vertex
@@ -66,7 +67,7 @@ fn vs(v: VIn) -> VOut {
     o.proxy = 0.0;
     o.tangent = vec3<f32>(0.0);
     o.screen_t = vec2<f32>(0.0);
-    o.across = 0.0;
+    o.across = vec2<f32>(0.0);
     return o;
 }
 
@@ -96,7 +97,9 @@ struct LineParams {
     forward: f32,
     start: f32,
     min_width: f32,
-    pad0: u32,
+    // 1: each segment entry is a point drawn as a disc of diameter `2 half_width` (Everts et
+    // al. §3.5: a screen-aligned square, a circular mask, a cone-shaped halo displacement)
+    points: u32,
     // Depth-dependent halos (Everts et al. 2009; Rust: tubes::lines::Halo): 0 none, 1 uniform
     // (no displacement), 2 depth; 1: outline style (dark rims that are part of the line),
     // 0: gap style (rims that hide what is behind them and are not a surface)
@@ -164,8 +167,11 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     // Six vertices per segment, in one non-instanced draw.
     let vi = index % 6u;
     let i = line_segments[index / 6u];
+    let pts = LP.points != 0u;
+    // A point is a segment of length zero (its square is built on screen axes below).
+    let j = select(i + 1u, i, pts);
     var a = line_point(i) + G.offset.xyz;
-    var b = line_point(i + 1u) + G.offset.xyz;
+    var b = line_point(j) + G.offset.xyz;
     // Trails, attribute filters and end tapers: the part of the segment that is drawn
     // (parameters s0..s1 along it) and its ends' width factors.
     var s0 = 0.0;
@@ -175,7 +181,7 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     var tb = 0.0;
     if (LP.trail != 0u) {
         ta = line_times[i];
-        tb = line_times[i + 1u];
+        tb = line_times[j];
         let lo = LP.now - LP.back;
         let hi = LP.now + LP.forward;
         if (!(max(ta, tb) >= lo && min(ta, tb) <= hi)) {
@@ -192,7 +198,7 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     var xb = vec2<f32>(0.0);
     if (LP.filter_on != 0u || LP.taper_t > 0.0) {
         xa = line_aux[i];
-        xb = line_aux[i + 1u];
+        xb = line_aux[j];
     }
     if (LP.filter_on != 0u) {
         // Seed 004 §3.6: only where the attribute reaches filter_min.
@@ -264,6 +270,10 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
         d = vec2<f32>(1.0, 0.0);
     }
     d = normalize(d);
+    if (pts) {
+        // Points: a square on the screen's axes (x along `d`, y along `n`).
+        d = vec2<f32>(1.0, 0.0);
+    }
     let n = vec2<f32>(-d.y, d.x);
     let px_per_world = 0.5 * LP.p11 * LP.viewport.y / max(c.w, 1e-6);
     var hw = LP.half_width;
@@ -300,7 +310,7 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     var o: VOut;
     o.clip = c;
     o.rel = p;
-    o.color = unpack4x8unorm(line_colors[select(i, i + 1u, end == 1u)]).rgb;
+    o.color = unpack4x8unorm(line_colors[select(i, j, end == 1u)]).rgb;
     // The view-facing normal (T x C) x T of illuminated lines, C towards the eye (a point
     // under perspective, a direction under orthographic projection).
     var to_eye = -G.forward.xyz;
@@ -319,7 +329,25 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     o.proxy = LP.proxy_radius;
     o.tangent = t;
     o.screen_t = d;
-    o.across = select(0.0, side, LP.halo != 0u);
+    o.across = vec2<f32>(select(0.0, side, LP.halo != 0u), 0.0);
+    if (pts) {
+        // A point has no tangent; it faces the viewer, a sphere's impostor unless haloed (the
+        // paper's discs are flat): the normal bends towards the square's corner, the depth
+        // bulges by the radius. Screen up in world is row 1 of the projection times the view
+        // (P11 u), screen right is forward x up (camera.rs).
+        o.tangent = vec3<f32>(0.0);
+        o.screen_t = vec2<f32>(0.0);
+        o.across = vec2<f32>(along, side);
+        o.normal = -G.forward.xyz;
+        if (LP.halo == 0u) {
+            let m = G.view_proj_rel;
+            let up = normalize(vec3<f32>(m[0].y, m[1].y, m[2].y));
+            let right = normalize(cross(G.forward.xyz, up));
+            o.bend = right * along + up * side;
+            o.bulge = hw / px_per_world;
+        }
+        return o;
+    }
     // Haloed lines keep the flat profile.
     if (LP.cylinder != 0u && LP.halo == 0u && dot(s, s) > 1e-12) {
         // The side vector on screen: +side is offset along perp(d) = (-d.y, d.x), which is
@@ -330,8 +358,12 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     return o;
 }
 
-fn clipped(rel: vec3<f32>) -> bool {
-    let p = rel + G.eye.xyz;
+// Outside the clipping planes, or outside a point's disc.
+fn clipped(v: VOut) -> bool {
+    if (dot(v.across, v.across) > 1.0) {
+        return true;
+    }
+    let p = v.rel + G.eye.xyz;
     for (var c = 0u; c < G.n_clip; c = c + 1u) {
         if (dot(G.clip[c].xyz, p) > G.clip[c].w) {
             return true;
@@ -352,7 +384,7 @@ fn fs_front(v: VOut) -> FrontOut {
 }
 
 fn front_values(v: VOut) -> FrontOut {
-    if (clipped(v.rel)) {
+    if (clipped(v)) {
         discard;
     }
     var o: FrontOut;
@@ -394,7 +426,7 @@ fn fs_surface(v: VOut) -> SurfaceOut {
 // The nearest surface's linear depth alone (single sample, beside a multisampled G-buffer).
 @fragment
 fn fs_depth(v: VOut) -> @location(0) vec4<f32> {
-    if (clipped(v.rel)) {
+    if (clipped(v)) {
         discard;
     }
     return vec4<f32>(surface_depth(v), 0.0, 0.0, 1.0);
@@ -449,7 +481,7 @@ fn fs_back(v: VOut) -> @location(0) vec4<f32> {
 }
 
 fn back_value(v: VOut) -> vec4<f32> {
-    if (clipped(v.rel)) {
+    if (clipped(v)) {
         discard;
     }
     if (v.proxy > 0.0) {
@@ -498,7 +530,8 @@ fn attachment_depth(z: f32) -> f32 {
 fn halo_at(v: VOut) -> Halo {
     var h: Halo;
     let z = surface_depth(v);
-    let a = abs(v.across);
+    // The distance from the line's centre (points: from the disc's, a cone).
+    let a = length(v.across);
     var core = 1.0 / LP.halo_width;
     if (LP.depth_cue > 0.0) {
         let t = clamp((z - LP.near) / (LP.far - LP.near), 0.0, 1.0);

@@ -125,6 +125,8 @@ pub struct GpuLines {
     aux: wgpu::Buffer,
     taper_t: f32,
     filter: Option<(f32, f32)>,
+    /// A point cloud: each segment entry is a point.
+    cloud: bool,
 }
 
 impl GpuLines {
@@ -149,7 +151,10 @@ impl GpuLines {
             } else {
                 gpu.buffer("line times", &[0; 16], storage)
             },
-            trail: l.trail.filter(|_| l.times.len() == l.positions.len()),
+            // Points have no trails, tapers or filters.
+            trail: l
+                .trail
+                .filter(|_| l.times.len() == l.positions.len() && !l.points),
             halo: l.halo,
             aux: {
                 let n = l.positions.len();
@@ -168,13 +173,14 @@ impl GpuLines {
                     gpu.buffer("line aux", &[0; 16], storage)
                 }
             },
-            taper_t: if l.taper_u.len() == l.positions.len() {
+            taper_t: if l.taper_u.len() == l.positions.len() && !l.points {
                 l.taper_t.max(0.0)
             } else {
                 0.0
             },
-            filter: (l.filter.len() == l.positions.len() && !l.filter.is_empty())
+            filter: (l.filter.len() == l.positions.len() && !l.filter.is_empty() && !l.points)
                 .then_some((l.filter_min, l.filter_taper.max(0.0))),
+            cloud: l.points,
         })
     }
 
@@ -216,7 +222,8 @@ pub struct LineParams {
     pub forward: f32,
     pub start: f32,
     pub min_width: f32,
-    pub pad0: u32,
+    /// 1: a point cloud (each segment entry a point, drawn as a disc).
+    pub points: u32,
     /// Halos (`tubes::lines::Halo`): 0 none, 1 uniform, 2 depth-dependent.
     pub halo: u32,
     pub halo_outline: u32,
@@ -576,7 +583,7 @@ impl GBuffer {
                 forward: t.forward,
                 start: t.start,
                 min_width: t.min_width,
-                pad0: 0,
+                points: l.cloud as u32,
                 halo: l.halo.map_or(0, |h| if h.uniform { 1 } else { 2 }),
                 halo_outline: l.halo.is_some_and(|h| h.outline) as u32,
                 halo_width: l.halo.map_or(1.0, |h| h.width.max(1.0)),
@@ -849,7 +856,7 @@ mod tests {
                 forward,
                 start,
                 min_width,
-                pad0,
+                points,
                 halo,
                 halo_outline,
                 halo_width,

@@ -391,6 +391,7 @@ mod tests {
             projection: Projection::Orthographic { height },
             near: 1.0,
             far: 20.0,
+            skew: 0.0,
         }
     }
 

@@ -537,3 +537,87 @@ fn end_tapers_and_attribute_filters_shape_the_strip() {
     assert!(rows(&o, 0.2) <= 4, "the cut end: {}", rows(&o, 0.2));
     assert!(rows(&o, 4.0) >= 7, "beyond the taper: {}", rows(&o, 4.0));
 }
+
+/// A point cloud of `points` as discs `diameter` world units across.
+fn cloud(points: &[[f32; 3]], diameter: f64, rgb: [f32; 3]) -> LineSet {
+    let mut s = tubes::Streamlines::new();
+    let pts: Vec<Vec3> = points.iter().map(|q| Vec3::from(*q)).collect();
+    s.push(&pts);
+    LineSet::points(&s, &ColorMode::Constant(rgb), LineWidth::World(diameter))
+}
+
+#[test]
+fn points_are_round_discs_of_their_world_size_and_their_halos_are_cones() {
+    use occlusion::halos::{halo_gap, Displacement as D};
+    let gpu = gpu();
+    let cam = top_camera(false);
+    // 24 world units over 64 pixels: a 6-pixel disc is 2.25 units across. The pixel column 32
+    // has its centre at x = 0.1875.
+    let (px, c) = (24.0 / W as f64, 0.1875f32);
+    let o = render(
+        &gpu,
+        &[cloud(&[[c, 0.0, 0.0]], 6.0 * px, [1.0; 3])],
+        cam,
+        &[],
+    );
+    let covered: Vec<(usize, usize)> = (0..(W * H) as usize)
+        .filter(|&i| o.aov[i].depth > 0.0)
+        .map(|i| (i % W as usize, i / W as usize))
+        .collect();
+    // Area pi r^2 = 28.3 pixels (a square would be 36); as wide as tall (to the pixel: the
+    // centre is on a pixel centre across, between two down); x - y spans 2 sqrt(2) r over a
+    // disc, twice the width 2 r over a square.
+    let area = covered.len() as f64;
+    assert!((area - 28.27).abs() <= 5.0, "disc area {area}");
+    let span = |f: &dyn Fn(&(usize, usize)) -> i64| {
+        let v: Vec<i64> = covered.iter().map(f).collect();
+        v.iter().max().unwrap() - v.iter().min().unwrap() + 1
+    };
+    let (w, h) = (span(&|p| p.0 as i64), span(&|p| p.1 as i64));
+    let diag = span(&|p| p.0 as i64 - p.1 as i64);
+    assert!((5..=7).contains(&w) && (w - h).abs() <= 1, "{w} x {h}");
+    assert!(
+        (diag as f64) <= 1.6 * h as f64,
+        "x - y spans {diag}, the height {h}"
+    );
+    // Unhaloed, the disc is a sphere's impostor: its depth bulges towards the eye by up to
+    // the radius at the centre.
+    let centre = o.aov[32 + W as usize * 32].depth;
+    let edge = o.aov[30 + W as usize * 32].depth;
+    assert!(
+        centre < edge && (edge - centre) < 1.2 * 3.0 * px as f32,
+        "{centre} {edge}"
+    );
+    // A haloed point (4 pixels, halo disc 24) in front of a line through its centre, dz
+    // behind: the gap along the line follows the corrected Appendix A radially (a cone).
+    let d_max = (4.0 / (cam.far - cam.near)) as f32;
+    for (f, d) in [
+        (tubes::lines::Displacement::Linear, D::Linear),
+        (tubes::lines::Displacement::Sqrt, D::Sqrt),
+    ] {
+        for dz in [1.5f32, 2.5, 6.0] {
+            let mut front = cloud(&[[c, 0.0, 2.0]], 4.0 * px, [0.0, 0.0, 1.0]);
+            front.halo = Some(halo(d_max, f, false));
+            let back = coloured(
+                &[vec![[c, -20.0, 2.0 - dz], [c, 20.0, 2.0 - dz]]],
+                2.0,
+                [1.0, 0.0, 0.0],
+            );
+            let o = render(&gpu, &[front, back], cam, &[]);
+            let pxl = |y: usize| o.image[32 + W as usize * y];
+            let red = |y: usize| pxl(y)[0] > pxl(y)[2] + 0.1;
+            let blue: Vec<usize> = (0..H as usize)
+                .filter(|&y| pxl(y)[2] > pxl(y)[0] + 0.1)
+                .collect();
+            let (top, bottom) = (blue[0], *blue.last().unwrap());
+            let up = (0..top).rev().take_while(|&y| !red(y)).count();
+            let down = (bottom + 1..H as usize).take_while(|&y| !red(y)).count();
+            let got = (up + down) as f64 / 2.0;
+            let want = halo_gap(dz as f64, 4.0, 24.0, 4.0, d);
+            assert!(
+                (got - want).abs() <= 1.0,
+                "{f:?}, dz {dz}: a gap of {got} pixels, the appendix says {want}"
+            );
+        }
+    }
+}

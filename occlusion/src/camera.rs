@@ -23,6 +23,17 @@
 //!   `R_t = 0.5 (P00, P11) r / |z|`; under orthographic projection `w = 1` and
 //!   `R_t = 0.5 (P00, P11) r`. `P` is the projection matrix; texture units span [0, 1] across
 //!   the image ([`Camera::texture_radius`], tested against the projected size).
+//! * Stereo (Everts et al. §3.7 leaves it unspecified): two off-axis eyes, no toe-in (it
+//!   gives vertical parallax). Eye `k` sits `o_k = -e/2` (left) or `+e/2` (right) along the
+//!   camera's right axis and looks parallel to the centre camera; its frustum is sheared so
+//!   that the convergence plane, at view distance `c`, projects where the centre camera puts
+//!   it: `x_eye = x_view - (o_k / c) z_view` before the projection, i.e. `P[2][0] =
+//!   -P00 o_k / c` ([`Camera::skew`] = `o_k / c`). Under perspective this is the usual
+//!   asymmetric frustum (near-plane shift `o_k n / c`); under orthographic projection it is
+//!   the parallel analogue, an oblique projection with the same shear. A point at view
+//!   distance `d` then lands `P00 e (1/c - 1/d)` apart in NDC between the eyes (perspective;
+//!   `P00 e (d - c) / c` orthographic): zero on the convergence plane, positive (right eye
+//!   to the right, behind the screen) beyond it ([`Camera::stereo_eye`], tested).
 
 use glam::{DMat4, DVec3, DVec4};
 
@@ -44,6 +55,9 @@ pub struct Camera {
     pub projection: Projection,
     pub near: f64,
     pub far: f64,
+    /// Off-axis shear of a stereo eye (module doc): view-space x is offset by
+    /// `-skew * z_view` before the projection; 0 for a mono camera.
+    pub skew: f64,
 }
 
 /// Near and far distances that enclose the sphere around `bounds` seen from `eye` along `dir`
@@ -101,6 +115,7 @@ impl Camera {
             projection,
             near,
             far,
+            skew: 0.0,
         })
     }
 
@@ -141,6 +156,20 @@ impl Camera {
             projection,
             near,
             far,
+            skew: 0.0,
+        }
+    }
+
+    /// The stereo eye `offset` world units along the camera's right axis (negative: the left
+    /// eye), converging at view distance `convergence` (> 0): eye and target moved by the
+    /// offset, the frustum sheared (module doc). Near and far stay.
+    pub fn stereo_eye(&self, offset: f64, convergence: f64) -> Camera {
+        let right = self.forward().cross(self.up).normalize();
+        Camera {
+            eye: self.eye + right * offset,
+            target: self.target + right * offset,
+            skew: self.skew + offset / convergence.max(1e-12),
+            ..*self
         }
     }
 
@@ -174,16 +203,17 @@ impl Camera {
                 DMat4::from_cols(
                     DVec4::new(h / aspect, 0.0, 0.0, 0.0),
                     DVec4::new(0.0, h, 0.0, 0.0),
-                    DVec4::new(0.0, 0.0, r, -1.0),
+                    DVec4::new(-h / aspect * self.skew, 0.0, r, -1.0),
                     DVec4::new(0.0, 0.0, r * n, 0.0),
                 )
             }
             Projection::Orthographic { height } => {
                 let q = 1.0 / (n - f);
+                let p00 = 2.0 / (height * aspect);
                 DMat4::from_cols(
-                    DVec4::new(2.0 / (height * aspect), 0.0, 0.0, 0.0),
+                    DVec4::new(p00, 0.0, 0.0, 0.0),
                     DVec4::new(0.0, 2.0 / height, 0.0, 0.0),
-                    DVec4::new(0.0, 0.0, q, 0.0),
+                    DVec4::new(-p00 * self.skew, 0.0, q, 0.0),
                     DVec4::new(0.0, 0.0, q * n, 1.0),
                 )
             }
@@ -334,6 +364,47 @@ mod tests {
                 assert!(((x1 - x0) / w as f64 - rx).abs() < 1e-3 * rx, "{c:?}");
                 assert!(((y0 - y1) / h as f64 - ry).abs() < 1e-3 * ry);
             }
+        }
+    }
+
+    #[test]
+    fn stereo_eyes_converge_on_their_plane_and_show_the_predicted_disparity() {
+        for c in cameras() {
+            let (w, h) = (400, 300);
+            let aspect = w as f64 / h as f64;
+            let conv = 0.5 * (c.near + c.far);
+            let e = 0.05 * conv;
+            let (l, r) = (c.stereo_eye(-0.5 * e, conv), c.stereo_eye(0.5 * e, conv));
+            let p00 = c.projection_matrix(aspect).x_axis.x;
+            let f = c.forward();
+            let right = f.cross(c.up).normalize();
+            let up = right.cross(f);
+            for d in [0.6 * conv, conv, 1.3 * conv] {
+                // A point off the axis at view distance d.
+                let p = c.eye + f * d + right * (0.03 * conv) + up * (0.02 * conv);
+                let (xl, yl, zl) = l.to_pixel(p, w, h).unwrap();
+                let (xr, yr, zr) = r.to_pixel(p, w, h).unwrap();
+                // No vertical parallax, the same depth in both eyes.
+                assert!((yl - yr).abs() < 1e-6 && (zl - zr).abs() < 1e-9);
+                let want_ndc = match c.projection {
+                    Projection::Perspective { .. } => p00 * e * (1.0 / conv - 1.0 / d),
+                    Projection::Orthographic { .. } => p00 * e * (d - conv) / conv,
+                };
+                let got_ndc = (xr - xl) / (0.5 * w as f64);
+                assert!(
+                    (got_ndc - want_ndc).abs() < 1e-9,
+                    "{c:?} d {d}: {got_ndc} vs {want_ndc}"
+                );
+                // On the convergence plane both eyes see it where the centre camera does.
+                if d == conv {
+                    let (x, y, _) = c.to_pixel(p, w, h).unwrap();
+                    assert!((x - xl).abs() < 1e-6 && (y - yl).abs() < 1e-6);
+                }
+            }
+            // Rays and projection still agree for a sheared eye.
+            let (o, dir) = r.ray(37.0, 211.0, w, h);
+            let (x, y, _) = r.to_pixel(o + dir * conv, w, h).unwrap();
+            assert!((x - 37.5).abs() < 1e-6 && (y - 211.5).abs() < 1e-6);
         }
     }
 

@@ -23,4 +23,5 @@ pub mod reference;
 pub mod reference_tubes;
 pub mod rng;
 pub mod settings;
+pub mod stereo;
 pub mod sweeping;

@@ -435,6 +435,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     for (i, l) in s.lines.iter().enumerate() {
         lines.push(line_set(i, l, &mut notes)?);
     }
+    for (i, p) in s.points.iter().enumerate() {
+        lines.push(point_set(i, p, &mut notes)?);
+    }
     let mut boxes: Vec<[DVec3; 2]> = meshes.iter().filter_map(mesh_bounds).collect();
     boxes.extend(lines.iter().filter_map(LineSet::bounds));
     if let Some((v, _, _)) = &volume {
@@ -444,7 +447,10 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         boxes.push(b);
     }
     let Some(first) = boxes.first().copied() else {
-        return Err("the scene has no [volume] and no [[tubes]] or [[lines]] with geometry".into());
+        return Err(
+            "the scene has no [volume] and no [[tubes]], [[lines]] or [[points]] with geometry"
+                .into(),
+        );
     };
     let bounds = boxes
         .iter()
@@ -540,6 +546,25 @@ fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<Li
     Ok(set)
 }
 
+/// The point cloud of `[[points]]` number `i` as a line set of discs (`LineSet::points`).
+fn point_set(i: usize, p: &spec::PointsSpec, notes: &mut Vec<String>) -> Result<LineSet, String> {
+    let mut sl = tubes::points::read(&p.path).map_err(|e| format!("points[{i}]: {e}"))?;
+    if let Some(m) = p.transform {
+        let key = format!("points[{i}].transform");
+        sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);
+    }
+    notes.extend(sl.warnings.iter().map(|w| format!("points[{i}]: {w}")));
+    if sl.points.is_empty() {
+        notes.push(format!("points[{i}] ({}): no points", p.path.display()));
+    }
+    let mut set = crate::tube_sets::with_color_mode(&sl, &p.color, |c| {
+        LineSet::points(&sl, c, LineWidth::World(p.size))
+    })
+    .map_err(|e| format!("points[{i}].color ({}): {e}", p.path.display()))?;
+    set.halo = p.halo.as_ref().and_then(|h| h.halo());
+    Ok(set)
+}
+
 /// The renderer's settings from a scene.
 pub fn settings(s: &Scene) -> Settings {
     let r = &s.render;
@@ -576,7 +601,11 @@ pub fn settings(s: &Scene) -> Settings {
 
 /// The slices and image of a scene for a model.
 pub fn view(s: &Scene, m: &Model) -> Result<EaView, String> {
-    let cam = camera(s, m.bounds)?;
+    view_from(s, m, camera(s, m.bounds)?)
+}
+
+/// The view of `s` through `cam` (a stereo eye of the scene's camera, say).
+fn view_from(s: &Scene, m: &Model, cam: Camera) -> Result<EaView, String> {
     let r = &s.render;
     let mut v = EaView::span(
         m.bounds,
@@ -772,11 +801,40 @@ impl Uploaded<'_> {
         let v = view(s, m)?;
         let mut st = settings(s);
         st.trail_now = trail_now.map(|t| t as f32);
-        let out = self
-            .renderer
-            .draw(&self.scene, &v, &tube_clip(s), &st, opts)
-            .map_err(|e| e.to_string())?;
-        Ok((out, v))
+        let draw = |v: &EaView| {
+            self.renderer
+                .draw(&self.scene, v, &tube_clip(s), &st, opts)
+                .map_err(|e| e.to_string())
+        };
+        if s.render.stereo == spec::Stereo::None {
+            return Ok((draw(&v)?, v));
+        }
+        // Anaglyph: the frame from both eyes (occlusion::stereo), mixed on the CPU; the AOVs
+        // are the left eye's, the times those of both frames together.
+        let cam = v.camera;
+        let conv = s
+            .render
+            .convergence
+            .unwrap_or_else(|| occlusion::stereo::default_convergence(&cam));
+        let sep = s
+            .render
+            .eye_separation
+            .unwrap_or(conv * occlusion::stereo::SEPARATION_RATIO);
+        let [l, r] = occlusion::stereo::eyes(&cam, sep, conv);
+        let mut left = draw(&view_from(s, m, l)?)?;
+        let right = draw(&view_from(s, m, r)?)?;
+        for (a, b) in left.image.iter_mut().zip(&right.image) {
+            *a = occlusion::stereo::anaglyph(*a, *b);
+        }
+        let t = &mut left.timings;
+        t.total_ms += right.timings.total_ms;
+        for (a, b) in t.frames_ms.iter_mut().zip(&right.timings.frames_ms) {
+            *a += b;
+        }
+        for (k, b) in &right.timings.passes {
+            *t.passes.entry(k.clone()).or_insert(0.0) += b;
+        }
+        Ok((left, v))
     }
 }
 

@@ -271,6 +271,31 @@ pub struct LinesSpec {
     pub filter_taper: f64,
 }
 
+/// `[[points]]`: a point cloud drawn as discs facing the viewer (Everts et al. §3.5).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PointsSpec {
+    /// PLY vertices, CSV x,y,z, or a tractogram's points (`tubes::points`).
+    pub path: PathBuf,
+    /// `scalar:NAME`, `volume:PATH`, or a colour (default black).
+    #[serde(default = "default_point_color")]
+    pub color: String,
+    /// Row-major 4x4 applied to the points.
+    pub transform: Option<[f64; 16]>,
+    /// The disc's diameter in world units.
+    #[serde(default = "default_point_size")]
+    pub size: f64,
+    /// Halos as on lines; `width` is the halo disc's diameter over the point's.
+    pub halo: Option<HaloSpec>,
+}
+
+fn default_point_color() -> String {
+    "#000000".into()
+}
+fn default_point_size() -> f64 {
+    1.0
+}
+
 /// `[[lines]] taper = { vertices = 2, u = 0.2 }`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -642,6 +667,22 @@ pub struct RenderSpec {
     pub illustrative: IllustrativeSpec,
     /// Bits per channel of a PNG: 8, or 1 (two values only, for print).
     pub bits: u32,
+    /// `none` or `anaglyph` (red = left eye; Everts et al. §3.7).
+    pub stereo: Stereo,
+    /// World units between the eyes (default: `convergence / 30`).
+    pub eye_separation: Option<f64>,
+    /// View distance of the plane with no disparity, world units (default: the distance from
+    /// the eye to the camera's target).
+    pub convergence: Option<f64>,
+}
+
+/// `render.stereo`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Stereo {
+    #[default]
+    None,
+    Anaglyph,
 }
 
 impl Default for RenderSpec {
@@ -668,6 +709,9 @@ impl Default for RenderSpec {
             lineao: LineAoSpec::default(),
             illustrative: IllustrativeSpec::default(),
             bits: 8,
+            stereo: Stereo::None,
+            eye_separation: None,
+            convergence: None,
         }
     }
 }
@@ -683,6 +727,9 @@ pub struct LightModel {
     pub geometry_extinction: f64,
     pub geometry_shadow: GeometryShadow,
     pub vicinity_distance: f64,
+    pub stereo: Stereo,
+    pub eye_separation: Option<f64>,
+    pub convergence: Option<f64>,
 }
 
 /// How a method approximates the light model: what a method may change without changing the
@@ -733,6 +780,9 @@ impl RenderSpec {
             lineao,
             illustrative,
             bits,
+            stereo,
+            eye_separation,
+            convergence,
         } = self.clone();
         (
             LightModel {
@@ -742,6 +792,9 @@ impl RenderSpec {
                 geometry_extinction,
                 geometry_shadow,
                 vicinity_distance,
+                stereo,
+                eye_separation,
+                convergence,
             },
             Approximation {
                 method,
@@ -773,6 +826,7 @@ pub struct ReferenceKey<'a> {
     pub volume: &'a Option<VolumeSpec>,
     pub tubes: &'a [TubesSpec],
     pub lines: &'a [LinesSpec],
+    pub points: &'a [PointsSpec],
     pub clip: &'a [ClipSpec],
     pub light: &'a LightSpec,
     pub model: LightModel,
@@ -792,6 +846,8 @@ pub struct Scene {
     #[serde(default)]
     pub lines: Vec<LinesSpec>,
     #[serde(default)]
+    pub points: Vec<PointsSpec>,
+    #[serde(default)]
     pub clip: Vec<ClipSpec>,
     #[serde(default)]
     pub light: LightSpec,
@@ -808,6 +864,7 @@ impl Scene {
             volume,
             tubes,
             lines,
+            points,
             clip,
             light,
             render,
@@ -818,6 +875,7 @@ impl Scene {
             volume,
             tubes,
             lines,
+            points,
             clip,
             light,
             model: render.split().0,
@@ -916,6 +974,21 @@ pub fn load(path: &Path, overrides: &[String]) -> Result<Scene, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     parse(&text, &path.display().to_string(), dir, overrides)
+}
+
+/// Checks a halo's ranges; `key` names it (`lines[0].halo`).
+fn check_halo(h: &HaloSpec, key: &str) -> Result<(), String> {
+    let bad = |k: &str, why: String| Err(format!("scene key {key}.{k}: {why}"));
+    if !(h.width >= 1.0 && h.width <= 64.0) {
+        return bad("width", format!("{} is not in [1, 64]", h.width));
+    }
+    if !(0.0..=1.0).contains(&h.d_max) {
+        return bad("d_max", format!("{} is not in [0, 1]", h.d_max));
+    }
+    if !(0.0..=1.0).contains(&h.depth_cue) {
+        return bad("depth_cue", format!("{} is not in [0, 1]", h.depth_cue));
+    }
+    Ok(())
 }
 
 /// Checks ranges and resolves relative paths.
@@ -1033,6 +1106,33 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
         check_color_source(&t.color).map_err(|why| format!("scene key tubes[{i}].color: {why}"))?;
     }
+    for (i, p) in s.points.iter_mut().enumerate() {
+        if p.path.is_relative() {
+            p.path = dir.join(&p.path);
+        }
+        if !(p.size > 0.0 && p.size.is_finite()) {
+            return bad(
+                &format!("points[{i}].size"),
+                format!("{} is not a positive diameter", p.size),
+            );
+        }
+        if p.color == "direction" {
+            return bad(
+                &format!("points[{i}].color"),
+                "points have no direction: use scalar:NAME, volume:PATH or #rrggbb".into(),
+            );
+        }
+        check_color_source(&p.color)
+            .map_err(|why| format!("scene key points[{i}].color: {why}"))?;
+        if let Some(c) = p.color.strip_prefix("volume:") {
+            if Path::new(c).is_relative() {
+                p.color = format!("volume:{}", dir.join(c).display());
+            }
+        }
+        if let Some(h) = &p.halo {
+            check_halo(h, &format!("points[{i}].halo"))?;
+        }
+    }
     for (i, l) in s.lines.iter_mut().enumerate() {
         if l.path.is_relative() {
             l.path = dir.join(&l.path);
@@ -1109,19 +1209,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             );
         }
         if let Some(h) = &l.halo {
-            let key = |k: &str| format!("lines[{i}].halo.{k}");
-            if !(h.width >= 1.0 && h.width <= 64.0) {
-                return bad(&key("width"), format!("{} is not in [1, 64]", h.width));
-            }
-            if !(0.0..=1.0).contains(&h.d_max) {
-                return bad(&key("d_max"), format!("{} is not in [0, 1]", h.d_max));
-            }
-            if !(0.0..=1.0).contains(&h.depth_cue) {
-                return bad(
-                    &key("depth_cue"),
-                    format!("{} is not in [0, 1]", h.depth_cue),
-                );
-            }
+            check_halo(h, &format!("lines[{i}].halo"))?;
         }
         if let Some(t) = &l.time {
             if !t.starts_with("scalar:") || t.len() == "scalar:".len() {
@@ -1217,6 +1305,16 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
     ] {
         c.rgb()
             .or_else(|e| bad(&format!("render.illustrative.{k}"), e).map(|()| [0.0; 3]))?;
+    }
+    for (k, v) in [
+        ("render.eye_separation", r.eye_separation),
+        ("render.convergence", r.convergence),
+    ] {
+        if let Some(v) = v {
+            if !(v > 0.0 && v.is_finite()) {
+                return bad(k, format!("{v} is not a positive distance"));
+            }
+        }
     }
     if ![1, 8].contains(&r.bits) {
         return bad("render.bits", format!("{} is not 1 or 8", r.bits));

@@ -10,6 +10,7 @@ pub mod error;
 pub mod lines;
 pub mod mesh_io;
 pub mod pathline;
+pub mod points;
 pub mod tck;
 pub mod trace;
 pub mod trk;

@@ -47,6 +47,9 @@ pub struct LineSet {
     pub filter: Vec<f32>,
     pub filter_min: f32,
     pub filter_taper: f32,
+    /// A point cloud (Everts et al. §3.5): each entry of `segments` is a point drawn as a disc
+    /// of diameter `width` facing the viewer (see [`LineSet::points`]).
+    pub points: bool,
 }
 
 /// Seed 004 §3.4's non-linear `u` along a line of `n` points: the first `vertices` points map
@@ -214,7 +217,17 @@ impl LineSet {
             filter: vec![],
             filter_min: 0.0,
             filter_taper: 0.0,
+            points: false,
         }
+    }
+
+    /// Every point of `s` as a disc of diameter `width` (a point cloud: the lines' order and
+    /// lengths do not matter; a line of one point is drawn too).
+    pub fn points(s: &Streamlines, color: &ColorMode, width: LineWidth) -> LineSet {
+        let mut set = LineSet::new(s, color, width, false);
+        set.segments = (0..set.positions.len() as u32).collect();
+        set.points = true;
+        set
     }
 
     /// World bounds of the points.
