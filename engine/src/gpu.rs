@@ -333,6 +333,11 @@ impl Gpu {
         ) && self.adapter.get_info().device_type != wgpu::DeviceType::Cpu
     }
 
+    /// Whether the adapter is a CPU (lavapipe, llvmpipe, WARP).
+    pub fn is_cpu(&self) -> bool {
+        self.adapter.get_info().device_type == wgpu::DeviceType::Cpu
+    }
+
     /// Waits for all submitted work.
     pub fn wait(&self) -> Result<(), GpuError> {
         self.device

@@ -4,6 +4,7 @@
 //! model on the GPU once and [`Uploaded::draw`] renders a frame of it.
 
 use crate::spec::{self, ProjectionKind, Scene, TransferSpec};
+use engine::method::Method;
 use engine::renderer::{self, DrawOptions, GpuScene, Renderer, Settings};
 use engine::slice_pass::VolumeInput;
 use glam::DVec3;
@@ -726,6 +727,31 @@ pub struct Uploaded<'g> {
     pub scene: GpuScene,
     /// What the upload changed (a volume downsampled to fit the adapter).
     pub notes: Vec<String>,
+    /// The volume for the native CPU renderer (`render.device`), prepared at its first frame.
+    cpu: std::sync::OnceLock<Result<raycast::EaVolume, String>>,
+}
+
+/// Why the native CPU renderer cannot draw a frame of `s` with model `m` (`None`: it can).
+pub fn cpu_refusal(s: &Scene, m: &Model) -> Option<String> {
+    if s.render.method != Method::Ea {
+        return Some(format!(
+            "method {:?} (the CPU renderer draws ea)",
+            s.render.method
+        ));
+    }
+    let Some((_, _, tf)) = &m.volume else {
+        return Some("no [volume]".into());
+    };
+    if m.iso.is_some() {
+        return Some("an isosurface ([volume.iso])".into());
+    }
+    if !m.meshes.is_empty() || !m.lines.is_empty() {
+        return Some("tubes, lines or points (geometry is drawn on the GPU)".into());
+    }
+    if !tf.rows.is_empty() {
+        return Some("a 2-D transfer function".into());
+    }
+    None
 }
 
 /// Uploads a model once: the volume (downsampled when the adapter cannot bind it, with a
@@ -775,7 +801,49 @@ pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, 
         renderer,
         scene,
         notes,
+        cpu: std::sync::OnceLock::new(),
     })
+}
+
+/// A frame of the native CPU renderer as the renderer's output: the image, no surfaces
+/// (AOVs: no occlusion, no depth), timed `opts.frames` times (`total_ms` the median; the pass
+/// `raycast` when pass times are asked for).
+fn cpu_frame(ev: &raycast::EaVolume, v: &EaView, opts: DrawOptions) -> renderer::Output {
+    let mut frames_ms = vec![];
+    let mut image = vec![];
+    for _ in 0..opts.frames.max(1) {
+        let t = std::time::Instant::now();
+        image = ev.render(v);
+        frames_ms.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let mut sorted = frames_ms.clone();
+    sorted.sort_by(f64::total_cmp);
+    let total_ms = sorted[sorted.len() / 2];
+    let aov = renderer::Aov {
+        volumetric: 1.0,
+        partial: 1.0,
+        vicinity: 1.0,
+        combined: 1.0,
+        depth: 0.0,
+    };
+    renderer::Output {
+        notes: vec!["drawn by the native CPU renderer (render.device)".into()],
+        aov: vec![aov; image.len()],
+        image,
+        terms: vec![],
+        term_channels: vec![],
+        timings: renderer::Timings {
+            total_ms,
+            frames_ms,
+            passes: if opts.pass_timings {
+                [("raycast".to_string(), total_ms)].into()
+            } else {
+                Default::default()
+            },
+            pass_clock: None,
+        },
+        triangles: 0,
+    }
 }
 
 impl Uploaded<'_> {
@@ -801,10 +869,34 @@ impl Uploaded<'_> {
         let v = view(s, m)?;
         let mut st = settings(s);
         st.trail_now = trail_now.map(|t| t as f32);
-        let draw = |v: &EaView| {
-            self.renderer
+        let cpu = match (s.render.device, cpu_refusal(s, m)) {
+            (spec::Device::Cpu, Some(why)) => {
+                return Err(format!(
+                    "scene key render.device: \"cpu\" cannot draw this scene: {why}"
+                ))
+            }
+            (spec::Device::Cpu, None) => true,
+            (spec::Device::Auto, None) => self.renderer.gpu().is_cpu(),
+            _ => false,
+        };
+        let cpu = match cpu {
+            true => Some(
+                self.cpu
+                    .get_or_init(|| {
+                        let (vol, data, tf) = m.volume.as_ref().expect("checked by cpu_refusal");
+                        raycast::EaVolume::new(vol, data, tf)
+                    })
+                    .as_ref()
+                    .map_err(|e| format!("the CPU renderer: {e}"))?,
+            ),
+            false => None,
+        };
+        let draw = |v: &EaView| match cpu {
+            Some(ev) => Ok(cpu_frame(ev, v, opts)),
+            None => self
+                .renderer
                 .draw(&self.scene, v, &tube_clip(s), &st, opts)
-                .map_err(|e| e.to_string())
+                .map_err(|e| e.to_string()),
         };
         if s.render.stereo == spec::Stereo::None {
             return Ok((draw(&v)?, v));

@@ -669,11 +669,24 @@ pub struct RenderSpec {
     pub bits: u32,
     /// `none` or `anaglyph` (red = left eye; Everts et al. §3.7).
     pub stereo: Stereo,
+    /// `auto`, `gpu` or `cpu`: who draws the frame (the native CPU renderer draws `ea`
+    /// volumes; `auto` picks it on a CPU adapter where it can).
+    pub device: Device,
     /// World units between the eyes (default: `convergence / 30`).
     pub eye_separation: Option<f64>,
     /// View distance of the plane with no disparity, world units (default: the distance from
     /// the eye to the camera's target).
     pub convergence: Option<f64>,
+}
+
+/// `render.device`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Device {
+    #[default]
+    Auto,
+    Gpu,
+    Cpu,
 }
 
 /// `render.stereo`.
@@ -710,6 +723,7 @@ impl Default for RenderSpec {
             illustrative: IllustrativeSpec::default(),
             bits: 8,
             stereo: Stereo::None,
+            device: Device::Auto,
             eye_separation: None,
             convergence: None,
         }
@@ -751,6 +765,7 @@ pub struct Approximation {
     pub lineao: LineAoSpec,
     pub illustrative: IllustrativeSpec,
     pub bits: u32,
+    pub device: Device,
 }
 
 impl RenderSpec {
@@ -781,6 +796,7 @@ impl RenderSpec {
             illustrative,
             bits,
             stereo,
+            device,
             eye_separation,
             convergence,
         } = self.clone();
@@ -812,6 +828,7 @@ impl RenderSpec {
                 lineao,
                 illustrative,
                 bits,
+                device,
             },
         )
     }

@@ -1,0 +1,672 @@
+//! The native CPU renderer: for machines without a GPU, where Mesa's lavapipe runs the
+//! renderer's compute passes several times slower than a ray caster written for the CPU
+//! (docs/benchmarks.md, "Renderer speed"). It renders the same model as the GPU passes and
+//! their f64 CPU twins - emission-absorption through view-aligned slices,
+//! `occlusion::emission_absorption` - so it is chosen by `render.device` without changing
+//! the image beyond f32 rounding (tested against the twin).
+//!
+//! What makes it fast, per ray: the samples lie where the ray crosses the slice planes, so
+//! their index-space positions are `q_k = q_a + k dq` (no matrix per sample); the slices
+//! where the ray is inside the grid are solved for once; empty bricks
+//! (`occlusion::emission_absorption::occupancy`, 8^3 cells) are stepped over whole, to the
+//! first slice past the brick, instead of sample by sample; rays end when the opacity passes
+//! 0.999 (as the shader); the transfer function is evaluated exactly (piecewise linear, not a
+//! table); rows of pixels run on rayon's threads.
+//!
+//! Scope: `ea` (unshaded emission-absorption, 1-D transfer functions, clipping planes). The
+//! occlusion methods, 2-D transfer functions, geometry and isosurfaces are drawn on the GPU.
+
+use glam::{DMat3, DMat4, DVec3, DVec4};
+use occlusion::emission_absorption::{occupancy, prepare, slab_interval, EaView, Transfer, BRICK};
+use rayon::prelude::*;
+
+/// A volume ready to ray cast: its samples as the passes read them (NaN as a gap), its grid,
+/// its empty-space bricks and its transfer function.
+pub struct EaVolume {
+    dims: [usize; 3],
+    data: Samples,
+    world_to_index: DMat4,
+    bricks: [usize; 3],
+    occupied: Vec<bool>,
+    tf: Vec<(f32, [f32; 3], f32)>,
+}
+
+impl EaVolume {
+    /// Prepares `data` (the field of `vol`, x fastest) with the transfer function `tf`;
+    /// errors for what only the GPU draws (a 2-D transfer function) and for a grid whose
+    /// sample count does not match.
+    pub fn new(vol: &volume::Volume, data: &[f32], tf: &Transfer) -> Result<EaVolume, String> {
+        if !tf.rows.is_empty() {
+            return Err(
+                "a 2-D transfer function (gradient rows) is drawn by the GPU passes only".into(),
+            );
+        }
+        let n = vol.dims.iter().product::<usize>();
+        if data.len() != n || n == 0 {
+            return Err(format!(
+                "the field has {} samples for a {} x {} x {} grid",
+                data.len(),
+                vol.dims[0],
+                vol.dims[1],
+                vol.dims[2]
+            ));
+        }
+        let data = prepare(data);
+        let (bricks, occ) = occupancy(&data, vol.dims, tf);
+        Ok(EaVolume {
+            dims: vol.dims,
+            data: Samples::new(&data, vol.dims, bricks),
+            world_to_index: vol.affine.inverse(),
+            bricks,
+            occupied: occ.iter().map(|&o| o != 0).collect(),
+            tf: tf
+                .points
+                .iter()
+                .map(|(v, c, e)| {
+                    (
+                        *v as f32,
+                        c.map(|x| x as f32),
+                        if e.is_finite() {
+                            e.max(0.0) as f32
+                        } else {
+                            0.0
+                        },
+                    )
+                })
+                .collect(),
+        })
+    }
+
+    /// Colour and extinction at `v` (piecewise linear, constant beyond the ends).
+    fn transfer(&self, v: f32) -> ([f32; 3], f32) {
+        let p = &self.tf;
+        let Some(first) = p.first() else {
+            return ([0.0; 3], 0.0);
+        };
+        if v <= first.0 {
+            return (first.1, first.2);
+        }
+        for i in 1..p.len() {
+            if v <= p[i].0 {
+                let (a, b) = (&p[i - 1], &p[i]);
+                let t = if b.0 > a.0 {
+                    (v - a.0) / (b.0 - a.0)
+                } else {
+                    0.0
+                };
+                let c = [0, 1, 2].map(|k| a.1[k] + (b.1[k] - a.1[k]) * t);
+                return (c, a.2 + (b.2 - a.2) * t);
+            }
+        }
+        let l = p[p.len() - 1];
+        (l.1, l.2)
+    }
+
+    /// The same volume with its samples stored as `f32` whatever they are (to measure what
+    /// the narrow types buy: `examples/storage.rs`).
+    pub fn with_f32_samples(mut self) -> EaVolume {
+        self.data = match self.data {
+            Samples::U8(d) => Samples::F32(d.into_iter().map(f32::from).collect()),
+            Samples::U16(d) => Samples::F32(d.into_iter().map(f32::from).collect()),
+            f => f,
+        };
+        self
+    }
+
+    /// How the samples are stored: `u8`, `u16` (data whose every value is an integer in
+    /// their range, e.g. a uint8 MRI: 4 or 2 times less memory to read, the same values) or
+    /// `f32`.
+    pub fn storage(&self) -> &'static str {
+        match self.data {
+            Samples::U8(_) => "u8",
+            Samples::U16(_) => "u16",
+            Samples::F32(_) => "f32",
+        }
+    }
+
+    /// Trilinear sample of `d` at index-space `q` (inside the grid); below -1e30 next to a
+    /// gap.
+    #[inline]
+    fn trilinear<T: Voxel>(&self, d: &[T], q: [f32; 3]) -> f32 {
+        let [nx, ny, nz] = self.dims;
+        let cell = |a: f32, n: usize| (a as usize).min(n.max(2) - 2);
+        let (cx, cy, cz) = (cell(q[0], nx), cell(q[1], ny), cell(q[2], nz));
+        let (fx, fy, fz) = (q[0] - cx as f32, q[1] - cy as f32, q[2] - cz as f32);
+        // The cell's brick holds all eight corners (see `Samples`).
+        let [bx, by] = [self.bricks[0], self.bricks[1]];
+        let brick = cx / BRICK + bx * (cy / BRICK + by * (cz / BRICK));
+        let i = brick * APRON.pow(3) + cx % BRICK + APRON * (cy % BRICK + APRON * (cz % BRICK));
+        let (sx, sy, sz) = (1, APRON, APRON * APRON);
+        let at = |a: T, b: T, t: f32| a.f() + (b.f() - a.f()) * t;
+        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        let x00 = at(d[i], d[i + sx], fx);
+        let x10 = at(d[i + sy], d[i + sy + sx], fx);
+        let x01 = at(d[i + sz], d[i + sz + sx], fx);
+        let x11 = at(d[i + sz + sy], d[i + sz + sy + sx], fx);
+        lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz)
+    }
+
+    /// Whether the brick holding `q` has extinction anywhere.
+    #[inline]
+    fn brick(&self, q: [f32; 3]) -> (bool, [usize; 3]) {
+        let b = [0, 1, 2].map(|a| ((q[a] as usize) / BRICK).min(self.bricks[a] - 1));
+        let i = b[0] + self.bricks[0] * (b[1] + self.bricks[1] * b[2]);
+        (self.occupied[i], b)
+    }
+
+    /// The image of `v` (rows top to bottom): RGBA with the background composited under the
+    /// volume and alpha its opacity, as `occlusion::emission_absorption::reference`.
+    /// Rays are marched in packets of `TILE x TILE` pixels, a step of each in turn, so that
+    /// neighbouring rays read the voxels their neighbours just brought into the cache.
+    pub fn render(&self, v: &EaView) -> Vec<[f32; 4]> {
+        match &self.data {
+            Samples::U8(d) => self.render_with(v, d),
+            Samples::U16(d) => self.render_with(v, d),
+            Samples::F32(d) => self.render_with(v, d),
+        }
+    }
+
+    fn render_with<T: Voxel>(&self, v: &EaView, data: &[T]) -> Vec<[f32; 4]> {
+        let (w, h) = (v.width as usize, v.height as usize);
+        let mut out = vec![[0.0f32; 4]; w * h];
+        if w == 0 || h == 0 {
+            return out;
+        }
+        let aspect = w as f64 / h as f64;
+        let inv = v.camera.view_projection(aspect).inverse();
+        let bg = v.background.map(|x| x as f32);
+        out.par_chunks_mut(w * TILE)
+            .enumerate()
+            .for_each(|(band, rows)| {
+                let y0 = band * TILE;
+                let nrows = rows.len() / w;
+                for x0 in (0..w).step_by(TILE) {
+                    let mut rays: Vec<(usize, Ray)> = Vec::with_capacity(TILE * TILE);
+                    for dy in 0..nrows {
+                        for x in x0..(x0 + TILE).min(w) {
+                            let y = y0 + dy;
+                            let ndc_x = 2.0 * (x as f64 + 0.5) / w as f64 - 1.0;
+                            let ndc_y = 1.0 - 2.0 * (y as f64 + 0.5) / h as f64;
+                            let un = |z: f64| {
+                                let p = inv * DVec4::new(ndc_x, ndc_y, z, 1.0);
+                                p.truncate() / p.w
+                            };
+                            let (a, b) = (un(0.0), un(1.0));
+                            rays.push((x + w * dy, self.start(v, a, (b - a).normalize())));
+                        }
+                    }
+                    // March together, a step of each ray a turn (neighbours stay near each other
+                    // in depth as long as they skip alike).
+                    let mut live = true;
+                    while live {
+                        live = false;
+                        for (_, r) in rays.iter_mut() {
+                            if r.next().is_some() {
+                                self.advance(v, data, r);
+                                live = true;
+                            }
+                        }
+                    }
+                    for (i, r) in &rays {
+                        let a = r.alpha;
+                        rows[*i] = [
+                            r.c[0] + (1.0 - a) * bg[0],
+                            r.c[1] + (1.0 - a) * bg[1],
+                            r.c[2] + (1.0 - a) * bg[2],
+                            a,
+                        ];
+                    }
+                }
+            });
+        out
+    }
+
+    /// A ray `o + s d` before its first sample: the slices in front of the eye where it is
+    /// inside the grid (one slice of margin each way; every sample is checked again).
+    fn start(&self, v: &EaView, o: DVec3, d: DVec3) -> Ray {
+        let f = v.camera.forward();
+        let cosine = d.dot(f);
+        let o_depth = (o - v.camera.eye).dot(f);
+        let mut r = Ray {
+            o,
+            d,
+            cosine,
+            o_depth,
+            qa: [0.0; 3],
+            dq: [0.0; 3],
+            seg: 0.0,
+            k: 1,
+            k1: 0,
+            c: [0.0; 3],
+            alpha: 0.0,
+        };
+        if cosine.is_nan() || cosine <= 1e-9 || v.slices == 0 {
+            return r;
+        }
+        // Slice k's sample, at depth z0 + (k + 1/2) dz without clipping planes: index-space
+        // q_k = qa + k dq.
+        let w2i = self.world_to_index;
+        let s0 = (v.z0 + 0.5 * v.dz - o_depth) / cosine;
+        let qa = (w2i * DVec4::from((o + d * s0, 1.0))).truncate();
+        let dq = DMat3::from_mat4(w2i) * (d * (v.dz / cosine));
+        let hi = self.hi();
+        let front = ((o_depth - v.z0) / v.dz - 0.5).ceil().max(0.0);
+        let (mut k0, mut k1) = (front, v.slices as f64 - 1.0);
+        for a in 0..3 {
+            if dq[a].abs() < 1e-12 {
+                if qa[a] < 0.0 || qa[a] > hi[a] as f64 {
+                    return r;
+                }
+                continue;
+            }
+            let (e0, e1) = (-qa[a] / dq[a], (hi[a] as f64 - qa[a]) / dq[a]);
+            k0 = k0.max(e0.min(e1).floor() - 1.0);
+            k1 = k1.min(e0.max(e1).ceil() + 1.0);
+        }
+        k0 = k0.max(front);
+        if k1 < k0 {
+            return r;
+        }
+        r.qa = qa.as_vec3().to_array();
+        r.dq = dq.as_vec3().to_array();
+        r.seg = (v.dz / cosine) as f32;
+        (r.k, r.k1) = (k0 as u32, k1 as u32);
+        r
+    }
+
+    /// The grid's last index per axis.
+    fn hi(&self) -> [f32; 3] {
+        self.dims.map(|n| n as f32 - 1.0)
+    }
+
+    /// Takes the ray's next slice: skips it (outside the grid or clipped away), steps over
+    /// the empty brick it falls in, or composites its sample; ends the ray when opaque.
+    #[inline]
+    fn advance<T: Voxel>(&self, v: &EaView, data: &[T], r: &mut Ray) {
+        let k = r.k;
+        let kf = k as f32;
+        let mut q = [0, 1, 2].map(|a| r.qa[a] + kf * r.dq[a]);
+        let mut len = r.seg;
+        let clipped = !v.clip.is_empty();
+        if clipped {
+            // The slab's part behind the clipping planes, sampled at its middle.
+            let (lo, hi) = slab_interval(v, r.o, r.d, k);
+            let s = (0.5 * (lo + hi) - r.o_depth) / r.cosine;
+            if hi <= lo || s < 0.0 {
+                r.k += 1;
+                return;
+            }
+            let p = self.world_to_index * DVec4::from((r.o + r.d * s, 1.0));
+            q = p.truncate().as_vec3().to_array();
+            len = ((hi - lo) / r.cosine) as f32;
+        }
+        let hi = self.hi();
+        if (0..3).any(|a| !(q[a] >= 0.0 && q[a] <= hi[a])) {
+            r.k += 1;
+            return;
+        }
+        let (occupied, b) = self.brick(q);
+        if !occupied {
+            // Step to the first slice past this brick (its cells [b B, (b + 1) B]): the
+            // samples before it are in the brick, transparent (truncation floors the
+            // non-negative step count).
+            let mut steps = u32::MAX;
+            for a in 0..3 {
+                let dqa = r.dq[a];
+                if dqa.abs() < 1e-12 {
+                    continue;
+                }
+                let edge = if dqa > 0.0 {
+                    ((b[a] + 1) * BRICK) as f32
+                } else {
+                    (b[a] * BRICK) as f32
+                };
+                let n = ((edge - q[a]) / dqa).max(0.0) as u32;
+                steps = steps.min(n.saturating_add(1));
+            }
+            r.k = k.saturating_add(if clipped { 1 } else { steps.max(1) });
+            return;
+        }
+        r.k += 1;
+        let val = self.trilinear(data, q);
+        if val < -1e30 {
+            return;
+        }
+        let (rgb, sigma) = self.transfer(val);
+        if sigma <= 0.0 {
+            return;
+        }
+        let al = 1.0 - exp_neg(sigma * len);
+        let wgt = (1.0 - r.alpha) * al;
+        for (c, x) in r.c.iter_mut().zip(rgb) {
+            *c += wgt * x;
+        }
+        r.alpha += wgt;
+        if r.alpha > 0.999 {
+            r.k1 = 0;
+            r.k = 1;
+        }
+    }
+}
+
+/// `exp(-x)` for `x >= 0` within 2e-6 relative (2^-y by range reduction and the Taylor
+/// polynomial of degree 7 of 2^f on [0, 1)); inlined, unlike the C library's.
+#[inline]
+fn exp_neg(x: f32) -> f32 {
+    if x.is_nan() || x <= 0.0 {
+        // 0, and NaN (no extinction).
+        return 1.0;
+    }
+    let y = (x * std::f32::consts::LOG2_E).min(125.0);
+    // y = n + f, 2^-y = 2^-(n + 1) 2^(1 - f).
+    let n = y as i32;
+    let f = 1.0 - (y - n as f32);
+    let p = 1.0
+        + f * (std::f32::consts::LN_2
+            + f * (0.240_226_5
+                + f * (0.055_504_11
+                    + f * (0.009_618_129
+                        + f * (0.001_333_355_8 + f * (0.000_154_035_3 + f * 0.000_015_252_734))))));
+    p * f32::from_bits(((126 - n) as u32) << 23)
+}
+
+/// Samples per brick edge in memory: a brick of `BRICK^3` cells with its far faces, so that
+/// every cell's eight corners are in one brick.
+const APRON: usize = BRICK + 1;
+
+/// The samples in the narrowest type that holds them exactly, by bricks: the bricks of
+/// `occupancy` (cells `[b B, (b + 1) B]` per axis) one after the other, x fastest, each
+/// `APRON^3` samples, x fastest within (faces shared by two bricks are stored twice; samples
+/// beyond the grid repeat its last). A trilinear sample then reads two cache lines for the
+/// bytes of a brick's slice instead of four rows of the whole grid, and a ray's next samples
+/// mostly fall in the same brick.
+enum Samples {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    F32(Vec<f32>),
+}
+
+impl Samples {
+    fn new(data: &[f32], dims: [usize; 3], bricks: [usize; 3]) -> Samples {
+        let fits = |max: f32| {
+            data.par_iter()
+                .all(|&v| v >= 0.0 && v <= max && v == v.trunc())
+        };
+        if fits(255.0) {
+            Samples::U8(bricked(data, dims, bricks, |v| v as u8))
+        } else if fits(65535.0) {
+            Samples::U16(bricked(data, dims, bricks, |v| v as u16))
+        } else {
+            Samples::F32(bricked(data, dims, bricks, |v| v))
+        }
+    }
+}
+
+/// `data` (x fastest) in the brick layout of [`Samples`].
+fn bricked<T: Voxel>(
+    data: &[f32],
+    dims: [usize; 3],
+    bricks: [usize; 3],
+    to: impl Fn(f32) -> T + Sync,
+) -> Vec<T> {
+    let n = APRON.pow(3);
+    let mut out = vec![to(0.0); n * bricks.iter().product::<usize>()];
+    out.par_chunks_mut(n).enumerate().for_each(|(b, brick)| {
+        let (bx, by, bz) = (
+            b % bricks[0],
+            (b / bricks[0]) % bricks[1],
+            b / (bricks[0] * bricks[1]),
+        );
+        let mut s = brick.iter_mut();
+        for lz in 0..APRON {
+            let z = (bz * BRICK + lz).min(dims[2] - 1);
+            for ly in 0..APRON {
+                let y = (by * BRICK + ly).min(dims[1] - 1);
+                let row = &data[dims[0] * (y + dims[1] * z)..][..dims[0]];
+                for lx in 0..APRON {
+                    let x = (bx * BRICK + lx).min(dims[0] - 1);
+                    *s.next().expect("APRON^3 samples a brick") = to(row[x]);
+                }
+            }
+        }
+    });
+    out
+}
+
+/// A stored sample type.
+trait Voxel: Copy + Send + Sync {
+    fn f(self) -> f32;
+}
+
+impl Voxel for u8 {
+    #[inline]
+    fn f(self) -> f32 {
+        self as f32
+    }
+}
+
+impl Voxel for u16 {
+    #[inline]
+    fn f(self) -> f32 {
+        self as f32
+    }
+}
+
+impl Voxel for f32 {
+    #[inline]
+    fn f(self) -> f32 {
+        self
+    }
+}
+
+/// Pixels per side of a packet of rays marched together.
+const TILE: usize = 4;
+
+/// A ray's march: its samples `q_k = qa + k dq` (index space), its next slice `k` and last
+/// `k1` (none left when `k > k1`), and what it has gathered (premultiplied colour, opacity).
+struct Ray {
+    o: DVec3,
+    d: DVec3,
+    cosine: f64,
+    o_depth: f64,
+    qa: [f32; 3],
+    dq: [f32; 3],
+    seg: f32,
+    k: u32,
+    k1: u32,
+    c: [f32; 3],
+    alpha: f32,
+}
+
+impl Ray {
+    /// The next slice to take, if any.
+    #[inline]
+    fn next(&self) -> Option<u32> {
+        (self.k <= self.k1).then_some(self.k)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use occlusion::camera::Camera;
+    use occlusion::emission_absorption::reference;
+    use volume::{Field, ScalarType, Space, Volume};
+
+    /// A Gaussian blob with a NaN hole and an empty margin (bricks to skip), on an
+    /// anisotropic grid off the origin.
+    fn blob(dims: [usize; 3]) -> Volume {
+        let affine = DMat4::from_cols(
+            DVec4::new(1.0, 0.0, 0.0, 0.0),
+            DVec4::new(0.0, 0.9, 0.0, 0.0),
+            DVec4::new(0.0, 0.0, 1.2, 0.0),
+            DVec4::new(-20.0, -18.0, -16.0, 1.0),
+        );
+        let mut data = Vec::new();
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let p = (affine * DVec4::new(i as f64, j as f64, k as f64, 1.0)).truncate();
+                    let c = DVec3::new(1.5, 0.0, 0.5);
+                    let v = (-(p - c).length_squared() / 40.0).exp() as f32;
+                    data.push(if (i, j, k) == (20, 20, 14) {
+                        f32::NAN
+                    } else {
+                        v
+                    });
+                }
+            }
+        }
+        let field = Field {
+            name: "blob".into(),
+            components: 1,
+            stored: ScalarType::F32,
+            data,
+        };
+        Volume::new(dims, affine, Space::File, field).unwrap()
+    }
+
+    fn tf() -> Transfer {
+        Transfer {
+            points: vec![
+                (0.1, [0.0, 0.0, 0.0], 0.0),
+                (0.5, [0.2, 0.4, 1.0], 0.3),
+                (0.9, [1.0, 0.6, 0.2], 0.9),
+            ],
+            rows: vec![],
+        }
+    }
+
+    #[test]
+    fn the_cpu_renderer_matches_the_f64_twin() {
+        let vol = blob([40, 44, 30]);
+        let data = vol.select(None).unwrap().data;
+        let ev = EaVolume::new(&vol, &data, &tf()).unwrap();
+        assert_eq!(ev.storage(), "f32");
+        assert!(
+            ev.occupied.iter().any(|o| !o) && ev.occupied.iter().any(|o| *o),
+            "the test needs empty and occupied bricks"
+        );
+        let b = vol.bounds();
+        let persp = Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0));
+        let inside = Camera::orbit(b, 10.0, -30.0, 1.01, Some(70.0));
+        for (cam, clip) in [
+            (persp, vec![]),
+            (Camera::orbit(b, -70.0, 60.0, 3.0, None), vec![]),
+            (persp, vec![([1.0, 0.0, 0.0], 1.5)]),
+            (inside, vec![]),
+        ] {
+            let mut view = EaView::new(&vol, cam, 48, 40, None, None, [0.1, 0.2, 0.3]).unwrap();
+            view.clip = clip;
+            let fast = ev.render(&view);
+            let twin = reference(
+                &occlusion::emission_absorption::prepare(&data),
+                &vol,
+                &tf(),
+                &view,
+            );
+            let mut worst = 0.0f64;
+            for (g, c) in fast.iter().zip(&twin) {
+                for k in 0..4 {
+                    worst = worst.max((g[k] as f64 - c[k]).abs());
+                }
+            }
+            // f32 against f64: the GPU's tolerance against the same twin.
+            assert!(worst < 2e-3, "CPU renderer and twin differ by {worst}");
+            let centre = twin[24 + 48 * 20];
+            assert!(centre[3] > 0.2, "centre alpha {}", centre[3]);
+        }
+    }
+
+    #[test]
+    fn empty_bricks_are_stepped_over_exactly_up_to_a_hard_edge() {
+        // A cube of ones from voxel 8 (a brick's first voxel) to 23 in zeros: a ray leaving
+        // an empty brick meets opaque data at once, so a step one slice too far shows.
+        let n = 32;
+        let mut data = vec![0.0f32; n * n * n];
+        for k in 8..24 {
+            for j in 8..24 {
+                for i in 8..24 {
+                    data[i + n * (j + n * k)] = 1.0;
+                }
+            }
+        }
+        let field = Field {
+            name: "cube".into(),
+            components: 1,
+            stored: ScalarType::F32,
+            data: data.clone(),
+        };
+        let vol = Volume::new([n; 3], DMat4::IDENTITY, Space::File, field).unwrap();
+        let tf = Transfer::ramp(0.0, 1.0, [1.0, 0.5, 0.2], 0.8);
+        let ev = EaVolume::new(&vol, &data, &tf).unwrap();
+        // Zeros and ones: stored as bytes, the same values.
+        assert_eq!(ev.storage(), "u8");
+        let b = vol.bounds();
+        for cam in [
+            Camera::orbit(b, 33.0, 21.0, 2.5, Some(35.0)),
+            Camera::orbit(b, 0.0, 0.0, 2.5, None),
+        ] {
+            let view = EaView::new(&vol, cam, 40, 40, None, None, [1.0; 3]).unwrap();
+            let fast = ev.render(&view);
+            let twin = reference(
+                &occlusion::emission_absorption::prepare(&data),
+                &vol,
+                &tf,
+                &view,
+            );
+            let worst = fast
+                .iter()
+                .zip(&twin)
+                .flat_map(|(g, c)| (0..4).map(move |k| (g[k] as f64 - c[k]).abs()))
+                .fold(0.0, f64::max);
+            assert!(worst < 2e-3, "{worst}");
+        }
+    }
+
+    #[test]
+    fn grids_that_do_not_fill_their_bricks_match_the_twin() {
+        for dims in [[17, 2, 11], [26, 19, 9], [9, 9, 9]] {
+            let vol = blob(dims);
+            let data = vol.select(None).unwrap().data;
+            let ev = EaVolume::new(&vol, &data, &tf()).unwrap();
+            let cam = Camera::orbit(vol.bounds(), 25.0, 35.0, 2.0, Some(45.0));
+            let view = EaView::new(&vol, cam, 32, 24, None, None, [1.0; 3]).unwrap();
+            let twin = reference(&prepare(&data), &vol, &tf(), &view);
+            let worst = ev
+                .render(&view)
+                .iter()
+                .zip(&twin)
+                .flat_map(|(g, c)| (0..4).map(move |k| (g[k] as f64 - c[k]).abs()))
+                .fold(0.0, f64::max);
+            assert!(worst < 2e-3, "{dims:?}: {worst}");
+        }
+    }
+
+    #[test]
+    fn the_inlined_exponential_is_within_its_bound() {
+        let mut worst = 0.0f64;
+        for i in 0..200_000 {
+            let x = i as f32 * 1e-4;
+            let want = (-(x as f64)).exp();
+            worst = worst.max((exp_neg(x) as f64 - want).abs() / want);
+        }
+        assert!(worst < 2e-6, "{worst}");
+        assert_eq!(exp_neg(0.0), 1.0);
+        assert_eq!(exp_neg(f32::NAN), 1.0);
+        assert!(exp_neg(1e9) < 1e-37);
+    }
+
+    #[test]
+    fn what_only_the_gpu_draws_is_refused() {
+        let vol = blob([8, 8, 8]);
+        let data = vol.select(None).unwrap().data;
+        let mut t = tf();
+        t.rows = vec![(0.0, 0), (1.0, 1)];
+        assert!(EaVolume::new(&vol, &data, &t)
+            .err()
+            .unwrap()
+            .contains("2-D"));
+        assert!(EaVolume::new(&vol, &data[1..], &tf()).is_err());
+    }
+}
