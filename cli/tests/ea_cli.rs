@@ -58,3 +58,109 @@ fn umbra_render_draws_the_ea_baseline_and_refuses_bad_settings() {
     let out = run(&[]);
     assert!(out.status.success());
 }
+
+#[test]
+fn the_cpu_renderer_draws_what_the_gpu_draws_and_bench_curves_times_both() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "background = [1.0, 1.0, 1.0]\n[camera]\nazimuth = 30.0\nelevation = 20.0\n[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n[render]\nmethod = \"ea\"\nwidth = 80\nheight = 64\nfxaa = false\n",
+            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    let umbra = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_umbra"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let s = scene.to_str().unwrap();
+    let mut images = vec![];
+    for device in ["gpu", "cpu"] {
+        let png = dir.path().join(format!("{device}.png"));
+        let set = format!("render.device=\"{device}\"");
+        let out = umbra(&[
+            "render",
+            s,
+            "-o",
+            png.to_str().unwrap(),
+            "--set",
+            &set,
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let notes = r["notes"].to_string();
+        assert_eq!(notes.contains("CPU renderer"), device == "cpu", "{notes}");
+        images.push(image::open(&png).unwrap().to_rgb8());
+    }
+    // The same model: within a level of 8 bits in mean, and the image is not empty.
+    let diff: f64 = images[0]
+        .as_raw()
+        .iter()
+        .zip(images[1].as_raw())
+        .map(|(a, b)| (*a as f64 - *b as f64).abs())
+        .sum::<f64>()
+        / images[0].as_raw().len() as f64;
+    assert!(diff <= 1.0, "mean difference {diff} levels");
+    let head = images[1].pixels().filter(|p| p.0[2] < 235).count();
+    assert!(head > 80 * 64 / 10, "{head} pixels show the head");
+    // What the CPU renderer cannot draw is refused, naming the key.
+    let out = umbra(&[
+        "render",
+        s,
+        "-o",
+        dir.path().join("x.png").to_str().unwrap(),
+        "--set",
+        "render.device=\"cpu\"",
+        "--method",
+        "combined",
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("render.device"));
+    // Cost curves on both devices in one run.
+    let curves = dir.path().join("curves");
+    let out = umbra(&[
+        "bench",
+        "curves",
+        s,
+        "-o",
+        curves.to_str().unwrap(),
+        "--sizes",
+        "32,48",
+        "--slices",
+        "40",
+        "--slice-size",
+        "32",
+        "--methods",
+        "ea",
+        "--devices",
+        "gpu,cpu",
+        "--frames",
+        "1",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(curves.join("curves.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 6, "{csv}");
+    assert!(
+        rows.iter()
+            .any(|r| r.starts_with("slices,ea,cpu,32,32,40,")),
+        "{csv}"
+    );
+    assert!(curves.join("curve_size.png").exists() && curves.join("curve_slices.svg").exists());
+}

@@ -1,9 +1,10 @@
 //! `umbra bench`: the benchmarks, one module each (`accuracy`, `stability`, `sweep`, `tubes`,
-//! `ao`, `lineao`), with the image metrics (`metrics`) and the charts (`chart`) they share.
+//! `ao`, `lineao`, `curves`), with the image metrics (`metrics`) and the charts (`chart`) they share.
 
 mod accuracy;
 mod ao;
 mod chart;
+mod curves;
 mod lineao;
 mod metrics;
 mod stability;
@@ -44,6 +45,11 @@ enum Command {
     /// (a default) anisotropic LineAO: aniso_roll.csv, aniso_summary.csv, aniso_flicker.csv,
     /// aniso_roll.svg.
     Lineao(lineao::Args),
+    /// The renderer's cost curves in one process: frame time against image size (--sizes),
+    /// slice count (--slices) and line segments (--segments, fractions of each set) for each
+    /// method (--methods) and device (--devices gpu,cpu): <out>/curves.csv and
+    /// curve_size|slices|segments.svg/.png.
+    Curves(curves::Args),
 }
 
 pub fn run(a: Args) -> Result<(), String> {
@@ -54,5 +60,6 @@ pub fn run(a: Args) -> Result<(), String> {
         Command::Stability(a) => stability::run(a),
         Command::Accuracy(a) => accuracy::run(a),
         Command::Lineao(a) => lineao::run(a),
+        Command::Curves(a) => curves::run(a),
     }
 }
