@@ -30,8 +30,8 @@ fn main() -> Result<(), String> {
         ],
         rows: vec![],
     };
-    let narrow = raycast::EaVolume::new(&vol, &field.data, &tf)?;
-    let wide = raycast::EaVolume::new(&vol, &field.data, &tf)?.with_f32_samples();
+    let narrow = raycast::EaVolume::with_storage(&vol, &field.data, &tf, true)?;
+    let wide = raycast::EaVolume::with_storage(&vol, &field.data, &tf, false)?;
     let h = vol.spacing().iter().cloned().fold(f64::INFINITY, f64::min);
     let cam = Camera::orbit(vol.bounds(), 120.0, 15.0, 2.5, Some(30.0));
     let view = EaView::new(&vol, cam, size, size, None, Some(0.5 * h), [1.0; 3])?;

@@ -29,13 +29,32 @@ pub struct EaVolume {
     bricks: [usize; 3],
     occupied: Vec<bool>,
     tf: Vec<(f32, [f32; 3], f32)>,
+    /// Per point `i > 0`: the segment from point `i - 1` as `1 / (v_i - v_{i-1})` (0 for a
+    /// step) and the colour and extinction differences (no division per sample).
+    slopes: Vec<(f32, [f32; 3], f32)>,
+    /// The last index per axis.
+    hi: [f32; 3],
 }
 
 impl EaVolume {
     /// Prepares `data` (the field of `vol`, x fastest) with the transfer function `tf`;
     /// errors for what only the GPU draws (a 2-D transfer function) and for a grid whose
-    /// sample count does not match.
+    /// sample count does not match. The samples are kept as `f32` up to [`NARROW_ABOVE`]
+    /// bytes of them, beyond it in the narrowest type that holds them exactly (see
+    /// [`EaVolume::storage`]).
     pub fn new(vol: &volume::Volume, data: &[f32], tf: &Transfer) -> Result<EaVolume, String> {
+        let narrow = data.len() * 4 > NARROW_ABOVE;
+        EaVolume::with_storage(vol, data, tf, narrow)
+    }
+
+    /// [`EaVolume::new`] with the storage chosen: `narrow` keeps integer data in `u8` or
+    /// `u16`, else `f32`.
+    pub fn with_storage(
+        vol: &volume::Volume,
+        data: &[f32],
+        tf: &Transfer,
+        narrow: bool,
+    ) -> Result<EaVolume, String> {
         if !tf.rows.is_empty() {
             return Err(
                 "a 2-D transfer function (gradient rows) is drawn by the GPU passes only".into(),
@@ -53,27 +72,31 @@ impl EaVolume {
         }
         let data = prepare(data);
         let (bricks, occ) = occupancy(&data, vol.dims, tf);
+        let points: Vec<(f32, [f32; 3], f32)> = tf
+            .points
+            .iter()
+            .map(|(v, c, e)| {
+                let e = if e.is_finite() { e.max(0.0) } else { 0.0 };
+                (*v as f32, c.map(|x| x as f32), e as f32)
+            })
+            .collect();
+        let slopes = (0..points.len())
+            .map(|i| {
+                let (a, b) = (points[i.saturating_sub(1)], points[i]);
+                let w = b.0 - a.0;
+                let inv = if w > 0.0 { 1.0 / w } else { 0.0 };
+                (inv, [0, 1, 2].map(|k| b.1[k] - a.1[k]), b.2 - a.2)
+            })
+            .collect();
         Ok(EaVolume {
             dims: vol.dims,
-            data: Samples::new(&data, vol.dims, bricks),
+            data: Samples::new(&data, vol.dims, bricks, narrow),
             world_to_index: vol.affine.inverse(),
             bricks,
             occupied: occ.iter().map(|&o| o != 0).collect(),
-            tf: tf
-                .points
-                .iter()
-                .map(|(v, c, e)| {
-                    (
-                        *v as f32,
-                        c.map(|x| x as f32),
-                        if e.is_finite() {
-                            e.max(0.0) as f32
-                        } else {
-                            0.0
-                        },
-                    )
-                })
-                .collect(),
+            tf: points,
+            slopes,
+            hi: vol.dims.map(|n| n as f32 - 1.0),
         })
     }
 
@@ -88,34 +111,21 @@ impl EaVolume {
         }
         for i in 1..p.len() {
             if v <= p[i].0 {
-                let (a, b) = (&p[i - 1], &p[i]);
-                let t = if b.0 > a.0 {
-                    (v - a.0) / (b.0 - a.0)
-                } else {
-                    0.0
-                };
-                let c = [0, 1, 2].map(|k| a.1[k] + (b.1[k] - a.1[k]) * t);
-                return (c, a.2 + (b.2 - a.2) * t);
+                let (a, (inv, dc, de)) = (&p[i - 1], self.slopes[i]);
+                let t = (v - a.0) * inv;
+                let c = [0, 1, 2].map(|k| a.1[k] + dc[k] * t);
+                return (c, a.2 + de * t);
             }
         }
         let l = p[p.len() - 1];
         (l.1, l.2)
     }
 
-    /// The same volume with its samples stored as `f32` whatever they are (to measure what
-    /// the narrow types buy: `examples/storage.rs`).
-    pub fn with_f32_samples(mut self) -> EaVolume {
-        self.data = match self.data {
-            Samples::U8(d) => Samples::F32(d.into_iter().map(f32::from).collect()),
-            Samples::U16(d) => Samples::F32(d.into_iter().map(f32::from).collect()),
-            f => f,
-        };
-        self
-    }
-
     /// How the samples are stored: `u8`, `u16` (data whose every value is an integer in
-    /// their range, e.g. a uint8 MRI: 4 or 2 times less memory to read, the same values) or
-    /// `f32`.
+    /// their range, e.g. a uint8 MRI: 4 or 2 times less memory, the same values) or `f32`.
+    /// Measured (`examples/storage.rs`, MNI T1 and headsq at 512^2): the narrow types cost
+    /// 5-8% more time a frame (the conversion to float per corner), so they are used only
+    /// where the memory matters.
     pub fn storage(&self) -> &'static str {
         match self.data {
             Samples::U8(_) => "u8",
@@ -127,14 +137,10 @@ impl EaVolume {
     /// Trilinear sample of `d` at index-space `q` (inside the grid); below -1e30 next to a
     /// gap.
     #[inline]
-    fn trilinear<T: Voxel>(&self, d: &[T], q: [f32; 3]) -> f32 {
-        let [nx, ny, nz] = self.dims;
-        let cell = |a: f32, n: usize| (a as usize).min(n.max(2) - 2);
-        let (cx, cy, cz) = (cell(q[0], nx), cell(q[1], ny), cell(q[2], nz));
+    fn trilinear<T: Voxel>(&self, d: &[T], q: [f32; 3], c: [usize; 3], brick: usize) -> f32 {
+        let [cx, cy, cz] = c;
         let (fx, fy, fz) = (q[0] - cx as f32, q[1] - cy as f32, q[2] - cz as f32);
         // The cell's brick holds all eight corners (see `Samples`).
-        let [bx, by] = [self.bricks[0], self.bricks[1]];
-        let brick = cx / BRICK + bx * (cy / BRICK + by * (cz / BRICK));
         let i = brick * APRON.pow(3) + cx % BRICK + APRON * (cy % BRICK + APRON * (cz % BRICK));
         let (sx, sy, sz) = (1, APRON, APRON * APRON);
         let at = |a: T, b: T, t: f32| a.f() + (b.f() - a.f()) * t;
@@ -146,12 +152,14 @@ impl EaVolume {
         lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz)
     }
 
-    /// Whether the brick holding `q` has extinction anywhere.
+    /// The cell holding `q` (inside the grid; the last cell for the far faces) and its brick:
+    /// the brick's index and per-axis position.
     #[inline]
-    fn brick(&self, q: [f32; 3]) -> (bool, [usize; 3]) {
-        let b = [0, 1, 2].map(|a| ((q[a] as usize) / BRICK).min(self.bricks[a] - 1));
+    fn cell(&self, q: [f32; 3]) -> ([usize; 3], usize, [usize; 3]) {
+        let c = [0, 1, 2].map(|a| (q[a] as usize).min(self.dims[a].max(2) - 2));
+        let b = c.map(|x| x / BRICK);
         let i = b[0] + self.bricks[0] * (b[1] + self.bricks[1] * b[2]);
-        (self.occupied[i], b)
+        (c, i, b)
     }
 
     /// The image of `v` (rows top to bottom): RGBA with the background composited under the
@@ -275,8 +283,9 @@ impl EaVolume {
     }
 
     /// The grid's last index per axis.
+    #[inline]
     fn hi(&self) -> [f32; 3] {
-        self.dims.map(|n| n as f32 - 1.0)
+        self.hi
     }
 
     /// Takes the ray's next slice: skips it (outside the grid or clipped away), steps over
@@ -305,8 +314,8 @@ impl EaVolume {
             r.k += 1;
             return;
         }
-        let (occupied, b) = self.brick(q);
-        if !occupied {
+        let (cell, brick, b) = self.cell(q);
+        if !self.occupied[brick] {
             // Step to the first slice past this brick (its cells [b B, (b + 1) B]): the
             // samples before it are in the brick, transparent (truncation floors the
             // non-negative step count).
@@ -328,7 +337,7 @@ impl EaVolume {
             return;
         }
         r.k += 1;
-        let val = self.trilinear(data, q);
+        let val = self.trilinear(data, q, cell, brick);
         if val < -1e30 {
             return;
         }
@@ -386,13 +395,18 @@ enum Samples {
     F32(Vec<f32>),
 }
 
+/// Bytes of `f32` samples beyond which integer data is kept in `u8` or `u16`.
+pub const NARROW_ABOVE: usize = 256 << 20;
+
 impl Samples {
-    fn new(data: &[f32], dims: [usize; 3], bricks: [usize; 3]) -> Samples {
+    fn new(data: &[f32], dims: [usize; 3], bricks: [usize; 3], narrow: bool) -> Samples {
         let fits = |max: f32| {
             data.par_iter()
                 .all(|&v| v >= 0.0 && v <= max && v == v.trunc())
         };
-        if fits(255.0) {
+        if !narrow {
+            Samples::F32(bricked(data, dims, bricks, |v| v))
+        } else if fits(255.0) {
             Samples::U8(bricked(data, dims, bricks, |v| v as u8))
         } else if fits(65535.0) {
             Samples::U16(bricked(data, dims, bricks, |v| v as u16))
@@ -580,47 +594,45 @@ mod tests {
 
     #[test]
     fn empty_bricks_are_stepped_over_exactly_up_to_a_hard_edge() {
-        // A cube of ones from voxel 8 (a brick's first voxel) to 23 in zeros: a ray leaving
-        // an empty brick meets opaque data at once, so a step one slice too far shows.
+        // A cube of `top` from voxel 8 (a brick's first voxel) to 23 in zeros: a ray leaving
+        // an empty brick meets opaque data at once, so a step one slice too far shows. Ones
+        // are stored as bytes, 1000 as u16, both exactly; f32 by default.
         let n = 32;
-        let mut data = vec![0.0f32; n * n * n];
-        for k in 8..24 {
-            for j in 8..24 {
-                for i in 8..24 {
-                    data[i + n * (j + n * k)] = 1.0;
+        for (top, storage) in [(1.0f32, "u8"), (1000.0, "u16")] {
+            let mut data = vec![0.0f32; n * n * n];
+            for k in 8..24 {
+                for j in 8..24 {
+                    for i in 8..24 {
+                        data[i + n * (j + n * k)] = top;
+                    }
                 }
             }
-        }
-        let field = Field {
-            name: "cube".into(),
-            components: 1,
-            stored: ScalarType::F32,
-            data: data.clone(),
-        };
-        let vol = Volume::new([n; 3], DMat4::IDENTITY, Space::File, field).unwrap();
-        let tf = Transfer::ramp(0.0, 1.0, [1.0, 0.5, 0.2], 0.8);
-        let ev = EaVolume::new(&vol, &data, &tf).unwrap();
-        // Zeros and ones: stored as bytes, the same values.
-        assert_eq!(ev.storage(), "u8");
-        let b = vol.bounds();
-        for cam in [
-            Camera::orbit(b, 33.0, 21.0, 2.5, Some(35.0)),
-            Camera::orbit(b, 0.0, 0.0, 2.5, None),
-        ] {
-            let view = EaView::new(&vol, cam, 40, 40, None, None, [1.0; 3]).unwrap();
-            let fast = ev.render(&view);
-            let twin = reference(
-                &occlusion::emission_absorption::prepare(&data),
-                &vol,
-                &tf,
-                &view,
-            );
-            let worst = fast
-                .iter()
-                .zip(&twin)
-                .flat_map(|(g, c)| (0..4).map(move |k| (g[k] as f64 - c[k]).abs()))
-                .fold(0.0, f64::max);
-            assert!(worst < 2e-3, "{worst}");
+            let field = Field {
+                name: "cube".into(),
+                components: 1,
+                stored: ScalarType::F32,
+                data: data.clone(),
+            };
+            let vol = Volume::new([n; 3], DMat4::IDENTITY, Space::File, field).unwrap();
+            let tf = Transfer::ramp(0.0, top as f64, [1.0, 0.5, 0.2], 0.8);
+            let ev = EaVolume::with_storage(&vol, &data, &tf, true).unwrap();
+            assert_eq!(ev.storage(), storage);
+            assert_eq!(EaVolume::new(&vol, &data, &tf).unwrap().storage(), "f32");
+            let b = vol.bounds();
+            for cam in [
+                Camera::orbit(b, 33.0, 21.0, 2.5, Some(35.0)),
+                Camera::orbit(b, 0.0, 0.0, 2.5, None),
+            ] {
+                let view = EaView::new(&vol, cam, 40, 40, None, None, [1.0; 3]).unwrap();
+                let fast = ev.render(&view);
+                let twin = reference(&prepare(&data), &vol, &tf, &view);
+                let worst = fast
+                    .iter()
+                    .zip(&twin)
+                    .flat_map(|(g, c)| (0..4).map(move |k| (g[k] as f64 - c[k]).abs()))
+                    .fold(0.0, f64::max);
+                assert!(worst < 2e-3, "{storage}: {worst}");
+            }
         }
     }
 

@@ -43,6 +43,35 @@ pub struct Args {
     output: PathBuf,
 }
 
+/// Draws scene `s` of the uploaded model `m` and records the point of `curve`, or a note
+/// saying why it could not be drawn.
+fn measure(
+    up: &scene::compile::Uploaded,
+    s: &spec::Scene,
+    m: &scene::compile::Model,
+    opts: DrawOptions,
+    (curve, method, device): (&'static str, &str, &str),
+    rows: &mut Vec<Row>,
+    notes: &mut Vec<String>,
+) {
+    let segments = m.lines.iter().map(|l| l.segments.len() as u64).sum();
+    match up.draw(s, m, opts) {
+        Ok((o, v)) => rows.push(Row {
+            curve,
+            method: method.into(),
+            device: device.into(),
+            width: v.width,
+            slices: v.slices,
+            segments,
+            ms: o.timings.total_ms,
+        }),
+        Err(e) => notes.push(format!(
+            "{method} on {device}, {curve} curve, {} x {}: {e}",
+            s.render.width, s.render.height
+        )),
+    }
+}
+
 /// One measured point.
 struct Row {
     curve: &'static str,
@@ -84,41 +113,17 @@ pub fn run(a: Args) -> Result<(), String> {
         let all: Vec<String> = a.overrides.iter().cloned().chain(sets).collect();
         spec::load(&a.scene, &all)
     };
-    let total_segments =
-        |m: &scene::compile::Model| m.lines.iter().map(|l| l.segments.len() as u64).sum::<u64>();
     {
         let up = scene::compile::upload(&gpu, &m)?;
-        let segs = total_segments(&m);
         for (method, device) in &cases {
+            let case = |curve| (curve, method.as_str(), device.as_str());
             for &size in &a.sizes {
                 let s = with(method, device, size, None)?;
-                match up.draw(&s, &m, opts) {
-                    Ok((o, v)) => rows.push(Row {
-                        curve: "size",
-                        method: method.clone(),
-                        device: device.clone(),
-                        width: size,
-                        slices: v.slices,
-                        segments: segs,
-                        ms: o.timings.total_ms,
-                    }),
-                    Err(e) => notes.push(format!("{method} on {device} at {size}^2: {e}")),
-                }
+                measure(&up, &s, &m, opts, case("size"), &mut rows, &mut notes);
             }
             for &n in &a.slices {
                 let s = with(method, device, a.slice_size, Some(n))?;
-                match up.draw(&s, &m, opts) {
-                    Ok((o, v)) => rows.push(Row {
-                        curve: "slices",
-                        method: method.clone(),
-                        device: device.clone(),
-                        width: a.slice_size,
-                        slices: v.slices,
-                        segments: segs,
-                        ms: o.timings.total_ms,
-                    }),
-                    Err(e) => notes.push(format!("{method} on {device}, {n} slices: {e}")),
-                }
+                measure(&up, &s, &m, opts, case("slices"), &mut rows, &mut notes);
             }
         }
     }
@@ -138,21 +143,10 @@ pub fn run(a: Args) -> Result<(), String> {
                 l.segments = s[..((s.len() as f64 * f).round() as usize).max(1)].to_vec();
             }
             let up = scene::compile::upload(&gpu, &m)?;
-            let segs = total_segments(&m);
             for (method, device) in &cases {
                 let s = with(method, device, a.slice_size, None)?;
-                match up.draw(&s, &m, opts) {
-                    Ok((o, v)) => rows.push(Row {
-                        curve: "segments",
-                        method: method.clone(),
-                        device: device.clone(),
-                        width: a.slice_size,
-                        slices: v.slices,
-                        segments: segs,
-                        ms: o.timings.total_ms,
-                    }),
-                    Err(e) => notes.push(format!("{method} on {device}, {segs} segments: {e}")),
-                }
+                let case = ("segments", method.as_str(), device.as_str());
+                measure(&up, &s, &m, opts, case, &mut rows, &mut notes);
             }
         }
     }
