@@ -134,22 +134,37 @@ impl EaVolume {
         }
     }
 
-    /// Trilinear sample of `d` at index-space `q` (inside the grid); below -1e30 next to a
-    /// gap.
+    /// The eight corners of cell `c` (in brick `brick`; see `Samples`): x fastest, then y,
+    /// then z. Below -1e30 next to a gap.
     #[inline]
-    fn trilinear<T: Voxel>(&self, d: &[T], q: [f32; 3], c: [usize; 3], brick: usize) -> f32 {
+    fn corners<T: Voxel>(&self, d: &[T], c: [usize; 3], brick: usize) -> [f32; 8] {
         let [cx, cy, cz] = c;
-        let (fx, fy, fz) = (q[0] - cx as f32, q[1] - cy as f32, q[2] - cz as f32);
-        // The cell's brick holds all eight corners (see `Samples`).
-        let i = brick * APRON.pow(3) + cx % BRICK + APRON * (cy % BRICK + APRON * (cz % BRICK));
-        let (sx, sy, sz) = (1, APRON, APRON * APRON);
-        let at = |a: T, b: T, t: f32| a.f() + (b.f() - a.f()) * t;
+        // One bounds check for the brick; the corners' offsets within it are below APRON^3
+        // by construction (local cells 0..BRICK), which the compiler sees.
+        let d = &d[brick * APRON.pow(3)..][..APRON.pow(3)];
+        let i = cx % BRICK + APRON * (cy % BRICK + APRON * (cz % BRICK));
+        let (sy, sz) = (APRON, APRON * APRON);
+        [
+            d[i].f(),
+            d[i + 1].f(),
+            d[i + sy].f(),
+            d[i + sy + 1].f(),
+            d[i + sz].f(),
+            d[i + sz + 1].f(),
+            d[i + sz + sy].f(),
+            d[i + sz + sy + 1].f(),
+        ]
+    }
+
+    /// Trilinear interpolation of a cell's corners at the position `f` in it.
+    #[inline]
+    fn trilinear(v: &[f32; 8], f: [f32; 3]) -> f32 {
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-        let x00 = at(d[i], d[i + sx], fx);
-        let x10 = at(d[i + sy], d[i + sy + sx], fx);
-        let x01 = at(d[i + sz], d[i + sz + sx], fx);
-        let x11 = at(d[i + sz + sy], d[i + sz + sy + sx], fx);
-        lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz)
+        let x00 = lerp(v[0], v[1], f[0]);
+        let x10 = lerp(v[2], v[3], f[0]);
+        let x01 = lerp(v[4], v[5], f[0]);
+        let x11 = lerp(v[6], v[7], f[0]);
+        lerp(lerp(x00, x10, f[1]), lerp(x01, x11, f[1]), f[2])
     }
 
     /// The cell holding `q` (inside the grid; the last cell for the far faces) and its brick:
@@ -337,7 +352,11 @@ impl EaVolume {
             return;
         }
         r.k += 1;
-        let val = self.trilinear(data, q, cell, brick);
+        // (Keeping the corners of the last cell in the ray, to read them once for the two to
+        // four samples a cell takes, measured 1.3x slower on headsq: the copies cost more
+        // than the loads from L1.)
+        let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
+        let val = EaVolume::trilinear(&self.corners(data, cell, brick), f);
         if val < -1e30 {
             return;
         }
