@@ -388,9 +388,21 @@ pub const BRICK: usize = 8;
 /// Bricks per axis and, per brick, whether any value its voxels span (the brick's cells,
 /// voxels `b B ..= b B + B`) has extinction; data as [`prepare`] returns it.
 pub fn occupancy(data: &[f32], dims: [usize; 3], tf: &Transfer) -> ([usize; 3], Vec<u32>) {
+    occupancy_of(data, dims, tf, BRICK)
+}
+
+/// [`occupancy`] for bricks of `brick^3` cells (the CPU renderer skips finer bricks than the
+/// GPU pass reads).
+pub fn occupancy_of(
+    data: &[f32],
+    dims: [usize; 3],
+    tf: &Transfer,
+    brick: usize,
+) -> ([usize; 3], Vec<u32>) {
     use rayon::prelude::*;
-    let nb = dims.map(|d| d.saturating_sub(1).max(1).div_ceil(BRICK));
-    let r = |b: usize, a: usize| b * BRICK..=((b + 1) * BRICK).min(dims[a] - 1);
+    let b_ = brick.max(1);
+    let nb = dims.map(|d| d.saturating_sub(1).max(1).div_ceil(b_));
+    let r = |b: usize, a: usize| b * b_..=((b + 1) * b_).min(dims[a] - 1);
     let occ: Vec<u32> = (0..nb[0] * nb[1] * nb[2])
         .into_par_iter()
         .map(|n| {
@@ -399,7 +411,7 @@ pub fn occupancy(data: &[f32], dims: [usize; 3], tf: &Transfer) -> ([usize; 3], 
             for k in r(bz, 2) {
                 for j in r(by, 1) {
                     let row = dims[0] * (j + dims[1] * k);
-                    for &v in &data[row + bx * BRICK..=row + ((bx + 1) * BRICK).min(dims[0] - 1)] {
+                    for &v in &data[row + bx * b_..=row + ((bx + 1) * b_).min(dims[0] - 1)] {
                         let v = v as f64;
                         if v >= -1e30 {
                             lo = lo.min(v);
