@@ -51,6 +51,10 @@ struct VOut {
     // fraction is the line, beyond it the halo); points: the position in the disc's square
     // (x right, y up, -1 to 1; beyond a length of 1 is outside the disc); zero otherwise.
     @location(9) across: vec2<f32>,
+    // Haloed lines: the position along the segment in pixels from its first end (negative
+    // or beyond `y` in the square caps), the segment's length on screen, and the core's half
+    // width in pixels; interpolated in screen space. Points and tubes: never in a cap.
+    @location(10) @interpolate(linear) seg: vec3<f32>,
 };
 
 @vertex
@@ -68,6 +72,7 @@ fn vs(v: VIn) -> VOut {
     o.tangent = vec3<f32>(0.0);
     o.screen_t = vec2<f32>(0.0);
     o.across = vec2<f32>(0.0);
+    o.seg = vec3<f32>(0.0, 1.0, 1.0);
     return o;
 }
 
@@ -291,15 +296,15 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     // overlap at their joint (watertight at any angle).
     let along = select(-1.0, 1.0, end == 1u);
     var cap = hw;
+    let ca = G.view_proj_rel * vec4<f32>(a, 1.0);
+    let cb = G.view_proj_rel * vec4<f32>(b, 1.0);
+    let seg_len = length((cb.xy / max(cb.w, 1e-6) - ca.xy / max(ca.w, 1e-6)) * 0.5 * LP.viewport);
     if (LP.trail != 0u || LP.taper_t > 0.0 || (LP.filter_on != 0u && LP.filter_taper > 0.0)) {
         // A tapered line (trail, end taper, filtered cut): a cap no longer than half the
         // segment on screen, so that a wider point's cap does not cover its narrower
         // neighbours (the taper would lag by half a width); dense lines bend little between
         // points, so their joints stay closed.
-        let ca = G.view_proj_rel * vec4<f32>(a, 1.0);
-        let cb = G.view_proj_rel * vec4<f32>(b, 1.0);
-        let seg = (cb.xy / max(cb.w, 1e-6) - ca.xy / max(ca.w, 1e-6)) * 0.5 * LP.viewport;
-        cap = min(hw, 0.5 * length(seg) + 0.5);
+        cap = min(hw, 0.5 * seg_len + 0.5);
     }
     let off = n * (side * hw) + d * (along * cap);
     c = vec4<f32>(c.xy + off * 2.0 / LP.viewport * c.w, c.z, c.w);
@@ -330,6 +335,8 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     o.tangent = t;
     o.screen_t = d;
     o.across = vec2<f32>(select(0.0, side, LP.halo != 0u), 0.0);
+    // Along the segment: -cap at the first end's corners, length + cap at the second's.
+    o.seg = vec3<f32>(select(-cap, seg_len + cap, end == 1u), seg_len, hw / LP.halo_width);
     if (pts) {
         // A point has no tangent; it faces the viewer, a sphere's impostor unless haloed (the
         // paper's discs are flat): the normal bends towards the square's corner, the depth
@@ -338,6 +345,7 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
         o.tangent = vec3<f32>(0.0);
         o.screen_t = vec2<f32>(0.0);
         o.across = vec2<f32>(along, side);
+        o.seg = vec3<f32>(0.0, 1.0, 1.0);
         o.normal = -G.forward.xyz;
         if (LP.halo == 0u) {
             let m = G.view_proj_rel;
@@ -538,6 +546,14 @@ fn halo_at(v: VOut) -> Halo {
         core = core * (1.0 - LP.depth_cue * t);
     }
     h.rim = a > core;
+    // The square caps hold the core only, reaching half the core's width beyond the point:
+    // the joints stay closed while no rim lies beyond a segment's end, where it would hide
+    // the next segment of a line that bends away in depth (and a line's tip carries no halo,
+    // as the paper's strips).
+    let beyond = max(-v.seg.x, v.seg.x - v.seg.y);
+    if (beyond > 0.0 && (h.rim || beyond > v.seg.z)) {
+        discard;
+    }
     h.depth = z;
     if (h.rim && LP.halo == 2u) {
         h.depth = z + LP.halo_depth * displacement(min(a, 1.0));

@@ -107,11 +107,14 @@ pub fn run(a: Args) -> Result<(), String> {
             format!("render.width={size}"),
             format!("render.height={size}"),
         ];
-        if let Some(n) = slices {
-            sets.push(format!("render.slices={n}"));
-        }
         let all: Vec<String> = a.overrides.iter().cloned().chain(sets).collect();
-        spec::load(&a.scene, &all)
+        let mut s = spec::load(&a.scene, &all)?;
+        if let Some(n) = slices {
+            // A slice count replaces whatever slice distance the scene or --set gives.
+            s.render.slices = Some(n);
+            s.render.slice_distance = None;
+        }
+        Ok::<_, String>(s)
     };
     {
         let up = scene::compile::upload(&gpu, &m)?;
