@@ -101,7 +101,7 @@ pub fn run(a: Args) -> Result<(), String> {
         .collect();
     // The scene for one case at one size and slice count.
     let with = |method: &str, device: &str, size: u32, slices: Option<u32>| {
-        let mut sets = vec![
+        let sets = vec![
             format!("render.method=\"{method}\""),
             format!("render.device=\"{device}\""),
             format!("render.width={size}"),
