@@ -656,3 +656,49 @@ fn a_haloed_line_bending_away_in_depth_does_not_cut_itself_at_its_joints() {
         );
     }
 }
+
+#[test]
+fn depth_cueing_narrows_far_cores() {
+    // Two haloed 4-pixel lines along x, one near the near plane and one near the far plane
+    // (orthographic: the same width on screen without cueing). With depth_cue = 0.75 the
+    // core narrows linearly with depth to a quarter at the far plane.
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let rows_of = |cue: f32| {
+        let line = |y: f32, z: f32| {
+            let mut l = coloured(&[vec![[-10.0, y, z], [10.0, y, z]]], 8.0, [0.0, 0.0, 1.0]);
+            let mut h = halo(0.0, tubes::lines::Displacement::Linear, true);
+            h.width = 2.0;
+            h.depth_cue = cue;
+            l.halo = Some(h);
+            l
+        };
+        let o = render(&gpu, &[line(5.0, 11.0), line(-5.0, -11.0)], cam, &[]);
+        // Core rows (a surface in the depth AOV) in column 32 above and below the centre.
+        let rows = |ys: std::ops::Range<usize>| {
+            ys.filter(|&y| o.aov[32 + W as usize * y].depth > 0.0)
+                .count()
+        };
+        (rows(0..32), rows(32..64))
+    };
+    let (near, far) = rows_of(0.0);
+    assert!(
+        near >= 3 && (near as i64 - far as i64).abs() <= 1,
+        "{near} {far}"
+    );
+    let (near_c, far_c) = rows_of(0.75);
+    // t = (z - near) / (far - near): about 0.04 and 0.96 here.
+    let t = |z: f64| ((cam.eye.z - z) - cam.near) / (cam.far - cam.near);
+    let want = |z: f64| near as f64 * (1.0 - 0.75 * t(z));
+    assert!(
+        (near_c as f64 - want(11.0)).abs() <= 1.0,
+        "near {near_c} want {}",
+        want(11.0)
+    );
+    assert!(
+        (far_c as f64 - want(-11.0)).abs() <= 1.0,
+        "far {far_c} want {}",
+        want(-11.0)
+    );
+    assert!(far_c + 2 <= near_c, "{near_c} {far_c}");
+}

@@ -9,7 +9,17 @@
 //! | eq. 2, core or rim by the distance from the strip's centre | [`is_rim`] | `gbuffer.wgsl::halo_at` | `the_rim_starts_at_the_core_fraction` |
 //! | eq. 3, `d_new = d + d_max f(x)`, `f` linear, sqrt or square | [`displacement`], [`rim_depth`] | `halo_at`, `displacement`, `attachment_depth` | `displacements_map_0_1_onto_0_1` |
 //! | Appendix A, eq. 4, the visible halo width against the depth gap (two cases' signs corrected) | [`halo_gap`] | - | `halo_gap_follows_the_corrected_appendix`, `engine/tests/lines_render.rs::a_halo_gap_follows_the_corrected_appendix_a` |
+//! | §3.4 tapering, `u` non-linear over the end vertices | `tubes::lines::taper_u` | `vs_line` (`taper_t`, the mask on the whole strip) | `lines_render.rs::end_tapers_and_attribute_filters_shape_the_strip` |
+//! | §3.4 depth cueing (formula unspecified: the core narrows linearly to `1 - depth_cue` at the far plane) | - | `halo_at` | `lines_render.rs::depth_cueing_narrows_far_cores` |
+//! | §3.5 points: a screen-aligned square, circular mask, cone displacement (no CPU quadrupling) | `tubes::lines::LineSet::points`, `tubes::points` | `vs_line` (`points`), `clipped`, `halo_at` (`length(across)`) | `lines_render.rs::points_are_round_discs_of_their_world_size_and_their_halos_are_cones` |
+//! | §3.6 attribute filtering with tapered cut ends | `scene::tube_sets::point_values` | `vs_line` (`filter_on`) | `end_tapers_and_attribute_filters_shape_the_strip` |
+//! | §3.7 anaglyph stereo (parameters unspecified: off-axis eyes, red = left) | `camera::Camera::stereo_eye`, `stereo::anaglyph` | - (both eyes are whole frames, mixed on the CPU) | `camera::tests::stereo_eyes_converge_on_their_plane_and_show_the_predicted_disparity`, `scene/tests/stereo_render.rs` |
+//! | §3.4 1-bit output | `scene::image_io::one_bit` | - | `scene/tests/print_render.rs` |
 //! | §4.3 `w_strip` = 4-8 `w_line` (printed inverted) | `render` default `halo.width = 6` | | |
+//!
+//! Strips end at their points: a segment's square cap holds the core only, half the core's
+//! width beyond the point, and no rim (a rim there hid the next segment of a line bending away
+//! in depth; `lines_render.rs::a_haloed_line_bending_away_in_depth_does_not_cut_itself_at_its_joints`).
 //!
 //! umbra displaces in *linear* view depth, `d_max` a fraction of the camera's clipping range
 //! (fitted to the scene, so it is the same fraction of the scene's depth at any zoom), and
