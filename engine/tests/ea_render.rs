@@ -5,42 +5,14 @@ use engine::gpu::Gpu;
 use engine::method::Method;
 use engine::renderer::{self, Settings};
 use engine::slice_pass::VolumeInput;
-use glam::{DMat4, DVec3, DVec4};
+use glam::DVec3;
 use occlusion::camera::Camera;
 use occlusion::emission_absorption::{reference, EaView, Transfer};
-use volume::{Field, ScalarType, Space, Volume};
+use volume::Volume;
 
 /// A Gaussian blob on an anisotropic grid, off the origin.
 fn blob() -> Volume {
-    let dims = [24, 20, 16];
-    let affine = DMat4::from_cols(
-        DVec4::new(1.0, 0.0, 0.0, 0.0),
-        DVec4::new(0.0, 0.9, 0.0, 0.0),
-        DVec4::new(0.0, 0.0, 1.2, 0.0),
-        DVec4::new(-10.0, -9.0, -8.0, 1.0),
-    );
-    let mut data = Vec::new();
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                let p = (affine * DVec4::new(i as f64, j as f64, k as f64, 1.0)).truncate();
-                let c = DVec3::new(1.5, 0.0, 0.5);
-                data.push((-(p - c).length_squared() / 30.0).exp() as f32);
-            }
-        }
-    }
-    Volume::new(
-        dims,
-        affine,
-        Space::File,
-        Field {
-            name: "blob".into(),
-            components: 1,
-            stored: ScalarType::F32,
-            data,
-        },
-    )
-    .unwrap()
+    volume::synthetic::gaussian_blob([24, 20, 16], DVec3::new(-10.0, -9.0, -8.0), 30.0)
 }
 
 /// The `ea` method of the renderer, no tubes, no FXAA.

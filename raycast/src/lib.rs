@@ -595,34 +595,12 @@ mod tests {
     /// A Gaussian blob with a NaN hole and an empty margin (bricks to skip), on an
     /// anisotropic grid off the origin.
     fn blob(dims: [usize; 3]) -> Volume {
-        let affine = DMat4::from_cols(
-            DVec4::new(1.0, 0.0, 0.0, 0.0),
-            DVec4::new(0.0, 0.9, 0.0, 0.0),
-            DVec4::new(0.0, 0.0, 1.2, 0.0),
-            DVec4::new(-20.0, -18.0, -16.0, 1.0),
-        );
-        let mut data = Vec::new();
-        for k in 0..dims[2] {
-            for j in 0..dims[1] {
-                for i in 0..dims[0] {
-                    let p = (affine * DVec4::new(i as f64, j as f64, k as f64, 1.0)).truncate();
-                    let c = DVec3::new(1.5, 0.0, 0.5);
-                    let v = (-(p - c).length_squared() / 40.0).exp() as f32;
-                    data.push(if (i, j, k) == (20, 20, 14) {
-                        f32::NAN
-                    } else {
-                        v
-                    });
-                }
-            }
+        let mut v = volume::synthetic::gaussian_blob(dims, DVec3::new(-20.0, -18.0, -16.0), 40.0);
+        if dims.iter().all(|&n| n > 20) {
+            let i = v.index(20, 20, 14);
+            v.fields[0].data[i] = f32::NAN;
         }
-        let field = Field {
-            name: "blob".into(),
-            components: 1,
-            stored: ScalarType::F32,
-            data,
-        };
-        Volume::new(dims, affine, Space::File, field).unwrap()
+        v
     }
 
     fn tf() -> Transfer {

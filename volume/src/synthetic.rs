@@ -139,6 +139,22 @@ pub fn sample_scalar(
     synthetic_volume(dims, affine, name, 1, data)
 }
 
+/// The renderers' test blob: `exp(-|p - c|^2 / width)` around `c = (1.5, 0, 0.5)` on an
+/// anisotropic grid (spacing 1, 0.9, 1.2) whose first sample is at `origin` - off-centre and
+/// with an empty margin where the grid is large enough.
+pub fn gaussian_blob(dims: [usize; 3], origin: DVec3, width: f64) -> Volume {
+    let affine = DMat4::from_cols(
+        DVec4::new(1.0, 0.0, 0.0, 0.0),
+        DVec4::new(0.0, 0.9, 0.0, 0.0),
+        DVec4::new(0.0, 0.0, 1.2, 0.0),
+        DVec4::from((origin, 1.0)),
+    );
+    let c = DVec3::new(1.5, 0.0, 0.5);
+    sample_scalar(dims, affine, "blob", |p| {
+        (-(p - c).length_squared() / width).exp()
+    })
+}
+
 /// Samples `-distance` of a solid (inside >= 0, iso level 0).
 pub fn sample_solid(solid: &Solid, dims: [usize; 3], affine: DMat4) -> Volume {
     sample_scalar(dims, affine, "neg_distance", |p| -solid.distance(p))
