@@ -1,21 +1,38 @@
 //! `umbra render` with the emission-absorption baseline end to end (moved from the renderer's
 //! tests: it runs the binary).
 
-#[test]
-fn umbra_render_draws_the_ea_baseline_and_refuses_bad_settings() {
+/// Writes `<dir>/s.toml`: the bundled headsq volume through `preset` (extinction 0.05) with
+/// method `ea`, after `head` (background, camera) and with `render` (size, options).
+fn headsq_scene(
+    dir: &std::path::Path,
+    head: &str,
+    preset: &str,
+    render: &str,
+) -> std::path::PathBuf {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
         .unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("s.toml");
+    let scene = dir.join("s.toml");
     std::fs::write(
         &scene,
         format!(
-            "background = [0.0, 0.0, 0.0]\n[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"fire\"\nextinction = 0.05\n[render]\nmethod = \"ea\"\nwidth = 64\nheight = 48\n",
+            "{head}[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"{preset}\"\nextinction = 0.05\n[render]\nmethod = \"ea\"\n{render}",
             root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
         ),
     )
     .unwrap();
+    scene
+}
+
+#[test]
+fn umbra_render_draws_the_ea_baseline_and_refuses_bad_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = headsq_scene(
+        dir.path(),
+        "background = [0.0, 0.0, 0.0]\n",
+        "fire",
+        "width = 64\nheight = 48\n",
+    );
     let png = dir.path().join("s.png");
     let run = |extra: &[&str]| {
         std::process::Command::new(env!("CARGO_BIN_EXE_umbra"))
@@ -61,19 +78,13 @@ fn umbra_render_draws_the_ea_baseline_and_refuses_bad_settings() {
 
 #[test]
 fn the_cpu_renderer_draws_what_the_gpu_draws_and_bench_curves_times_both() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("s.toml");
-    std::fs::write(
-        &scene,
-        format!(
-            "background = [1.0, 1.0, 1.0]\n[camera]\nazimuth = 30.0\nelevation = 20.0\n[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n[render]\nmethod = \"ea\"\nwidth = 80\nheight = 64\nfxaa = false\n",
-            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
-        ),
-    )
-    .unwrap();
+    let scene = headsq_scene(
+        dir.path(),
+        "background = [1.0, 1.0, 1.0]\n[camera]\nazimuth = 30.0\nelevation = 20.0\n",
+        "bone",
+        "width = 80\nheight = 64\nfxaa = false\n",
+    );
     let umbra = |args: &[&str]| {
         std::process::Command::new(env!("CARGO_BIN_EXE_umbra"))
             .args(args)

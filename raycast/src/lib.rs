@@ -115,7 +115,9 @@ impl EaVolume {
         })
     }
 
-    /// Colour and extinction at `v` (piecewise linear, constant beyond the ends).
+    /// Colour and extinction at `v` (piecewise linear, constant beyond the ends): the f32 twin
+    /// of `occlusion::emission_absorption::Transfer::eval` with the segments' slopes
+    /// precomputed (the f64 one divides per call).
     #[inline(always)]
     fn transfer(&self, v: f32) -> ([f32; 3], f32) {
         let p = &self.tf;
