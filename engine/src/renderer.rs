@@ -22,7 +22,7 @@ use crate::fxaa::FxaaPass;
 use crate::gbuffer::{GBuffer, GpuLines, GpuMesh};
 use crate::gpu::{Gpu, GpuError};
 use crate::iso_pass::{GpuIso, IsoInput, IsoPass};
-use crate::method::{LineAoShading, SurfaceAo, Term, VolumeShading, MAX_TERMS};
+use crate::method::{LineAoShading, VolumeShading, MAX_TERMS};
 use crate::slice_pass::{GpuVolume, SlicePass, SliceSettings, VolumeInput};
 use crate::terms::{surface_ao, TermInputs, TermPass};
 use occlusion::camera::Camera;
@@ -414,23 +414,7 @@ impl Frame {
         let occlusion = desc.volume == VolumeShading::Occlusion;
         let cam: &Camera = &view.camera;
         let (samples, msaa_note) = crate::gbuffer::sample_count(gpu, s.msaa);
-        // The layers of the method's terms, in the table's order, with the surface AO that
-        // fills each (none for partial); a slot left empty (`surface_ao = none`) has none.
-        let layers: Vec<(&'static str, Option<SurfaceAo>)> = desc
-            .terms
-            .iter()
-            .filter_map(|t| match t {
-                Term::Partial => Some(("partial", None)),
-                Term::SurfaceAo | Term::Ao(_) => {
-                    let choice = match t {
-                        Term::Ao(c) => *c,
-                        _ => s.surface_ao,
-                    };
-                    let d = surface_ao(choice);
-                    d.build.map(|_| (d.name, Some(choice)))
-                }
-            })
-            .collect();
+        let layers = crate::terms::layers(s.method, s.surface_ao);
         let layer_names: Vec<&'static str> = layers.iter().map(|(n, _)| *n).collect();
         let needs_nd = layers
             .iter()

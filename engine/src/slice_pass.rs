@@ -10,7 +10,7 @@ use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, GpuError, Slot};
 use crate::method::{require, SettingError};
 use crate::prelude::{clip_planes, mat4, with_prelude, FrameUniform, LightUniform};
-use occlusion::combined::{auto_cell, blur_stencil};
+use occlusion::combined::{blur_rows, light_cell, BlurRow};
 use occlusion::emission_absorption::{occupancy, EaView, Transfer, BRICK, MAX_CLIP};
 use volume::Volume;
 
@@ -21,7 +21,7 @@ const SHADER: &str = include_str!("../../shaders/slice_pass.wgsl");
 pub struct SliceSettings {
     /// Run the occlusion buffer (one dispatch per slice) and shade the volume with it.
     pub occlusion: bool,
-    /// Cell edge of the occlusion buffer in pixels (None: [`auto_cell`] from 2).
+    /// Cell edge of the occlusion buffer in pixels (None: `occlusion::combined::light_cell`).
     pub cell: Option<u32>,
     /// The cone-following model instead of the paper's constant per-slice blur.
     pub cone: bool,
@@ -347,17 +347,7 @@ impl SlicePass {
             ],
         );
 
-        let aspect = v.width as f64 / v.height.max(1) as f64;
-        let proj = v.camera.projection_matrix(aspect);
-        let persp = matches!(
-            v.camera.projection,
-            occlusion::camera::Projection::Perspective { .. }
-        );
-        let budget = (limit as u64).min(1 << 30);
-        let cell = match s.cell {
-            Some(c) => c.max(1),
-            None => auto_cell(v.width, v.height, v.slices, 2, budget),
-        };
+        let cell = light_cell(s.cell, v, limit as u64);
         let cells = (v.width.div_ceil(cell), v.height.div_ceil(cell));
         let light_bytes = cells.0 as u64 * cells.1 as u64 * v.slices as u64 * 4;
         if s.occlusion && light_bytes > limit as u64 {
@@ -440,17 +430,13 @@ impl SlicePass {
         let stride = (SLICE_BYTES as u32).div_ceil(align) * align;
         let rows = if s.occlusion { v.slices } else { 1 };
         let mut kb = vec![0u8; (rows * stride) as usize];
-        let tan = s.theta_deg.to_radians().tan();
+        let blur = blur_rows(v, cell, s.theta_deg);
         for k in 0..rows {
-            // The blur radius in cells at slice k - 1 (perpendicular to the view direction).
-            let z = (v.z0 + (k as f64 - 0.5) * v.dz).max(1e-9);
-            let r = v.dz * tan;
-            let scale = if persp { 0.5 * r / z } else { 0.5 * r } / cell as f64;
-            let rpx = [
-                scale * proj.x_axis.x * v.width as f64,
-                scale * proj.y_axis.y * v.height as f64,
-            ];
-            let (wide, w) = blur_stencil(rpx);
+            let BlurRow { wide, rpx, w } = blur.get(k as usize).copied().unwrap_or(BlurRow {
+                wide: false,
+                rpx: [0.0; 2],
+                w: [[0.0; 3]; 3],
+            });
             let row = SliceRow {
                 k,
                 wide: wide as u32,

@@ -76,6 +76,31 @@ pub fn surface_ao(choice: SurfaceAo) -> &'static SurfaceAoDesc {
         .expect("every surface AO has a row in SURFACE_AO")
 }
 
+/// The layers of `method`'s surface terms, in the method table's order, with the surface AO
+/// that fills each (none for partial); a slot `surface_ao` leaves empty (`none`) has none.
+pub fn layers(
+    method: crate::method::Method,
+    choice: SurfaceAo,
+) -> Vec<(&'static str, Option<SurfaceAo>)> {
+    use crate::method::Term;
+    method
+        .desc()
+        .terms
+        .iter()
+        .filter_map(|t| match t {
+            Term::Partial => Some(("partial", None)),
+            Term::SurfaceAo | Term::Ao(_) => {
+                let c = match t {
+                    Term::Ao(c) => *c,
+                    _ => choice,
+                };
+                let d = surface_ao(c);
+                d.build.map(|_| (d.name, Some(c)))
+            }
+        })
+        .collect()
+}
+
 fn line_ao(t: &TermInputs) -> Result<Box<dyn TermPass>, SettingError> {
     let s = &t.settings.lineao;
     s.kernel.check()?;

@@ -66,6 +66,7 @@
 //! that within a cell are left to the vicinity term. With `s = 1` the light is the paper's
 //! per-pixel buffer (the tubes exactly as in the model above).
 
+use crate::emission_absorption::EaView;
 use crate::rng::SplitMix64;
 
 /// Cell edge in pixels when the scene does not fix it: the smallest power of two (at least
@@ -80,6 +81,87 @@ pub fn auto_cell(width: u32, height: u32, slices: u32, min: u32, budget: u64) ->
         s *= 2;
     }
     s
+}
+
+/// The cell edge of a frame's light volume: the scene's `render.occlusion_cell`, or
+/// [`auto_cell`] from 2 pixels with the light volume within `limit` bytes (at most 1 GiB).
+/// The GPU pass passes its adapter's storage binding limit; the CPU renderer the same, so
+/// that both choose the same cells.
+pub fn light_cell(cell: Option<u32>, v: &EaView, limit: u64) -> u32 {
+    match cell {
+        Some(c) => c.max(1),
+        None => auto_cell(v.width, v.height, v.slices, 2, limit.min(1 << 30)),
+    }
+}
+
+/// One slice's blur (the paper's model; the cone model scales `rpx` per cell): the radius in
+/// cells `rpx` (x, y) and, up to two cells, the 3x3 stencil of [`blur_stencil`] (`wide`
+/// false); beyond, `n x n` bilinear taps on the disk.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BlurRow {
+    pub wide: bool,
+    pub rpx: [f64; 2],
+    pub w: [[f64; 3]; 3],
+}
+
+/// Every slice's blur for view `v` on cells of `cell` pixels and the cone's half-angle
+/// `theta_deg`: slice k gathers from slice k - 1, so its radius is the cone's disk
+/// `d tan(theta)` at depth `z_{k-1} = z0 + (k - 1/2) d` projected to cells
+/// (`0.5 (P00 w, P11 h) r / (z s)`; orthographic: without the division). Row 0 (no previous
+/// slice) is computed the same way and unused.
+pub fn blur_rows(v: &EaView, cell: u32, theta_deg: f64) -> Vec<BlurRow> {
+    let aspect = v.width as f64 / v.height.max(1) as f64;
+    let proj = v.camera.projection_matrix(aspect);
+    let persp = matches!(
+        v.camera.projection,
+        crate::camera::Projection::Perspective { .. }
+    );
+    let r = v.dz * theta_deg.to_radians().tan();
+    (0..v.slices)
+        .map(|k| {
+            let z = (v.z0 + (k as f64 - 0.5) * v.dz).max(1e-9);
+            let scale = if persp { 0.5 * r / z } else { 0.5 * r } / cell.max(1) as f64;
+            let rpx = [
+                scale * proj.x_axis.x * v.width as f64,
+                scale * proj.y_axis.y * v.height as f64,
+            ];
+            let (wide, w) = blur_stencil(rpx);
+            BlurRow { wide, rpx, w }
+        })
+        .collect()
+}
+
+/// Concentric map of `[-1, 1]^2` onto the unit disk (Shirley and Chiu): where the `n x n`
+/// blur taps of a wide blur fall (`shaders/slice_pass.wgsl::concentric`).
+pub fn concentric(a: [f64; 2]) -> [f64; 2] {
+    if a[0] == 0.0 && a[1] == 0.0 {
+        return [0.0; 2];
+    }
+    let q = std::f64::consts::FRAC_PI_4;
+    if a[0].abs() > a[1].abs() {
+        let t = q * a[1] / a[0];
+        return [a[0] * t.cos(), a[0] * t.sin()];
+    }
+    let t = std::f64::consts::FRAC_PI_2 - q * a[0] / a[1];
+    [a[1] * t.cos(), a[1] * t.sin()]
+}
+
+/// The `n x n` tap positions of a wide blur on the unit disk, in the shader's order (`i` over
+/// x outer, `j` over y inner); one tap at the centre for `n = 1`.
+pub fn blur_taps(n: u32) -> Vec<[f64; 2]> {
+    let mut out = Vec::with_capacity((n * n) as usize);
+    for i in 0..n {
+        for j in 0..n {
+            let g = if n > 1 {
+                let u = |x: u32| (x as f64 + 0.5) / n as f64 * 2.0 - 1.0;
+                [u(i), u(j)]
+            } else {
+                [0.0; 2]
+            };
+            out.push(concentric(g));
+        }
+    }
+    out
 }
 
 /// The occlusion blur of one slice, a uniform disk of radius `rpx` cells (x, y). On a grid a
@@ -180,6 +262,25 @@ mod tests {
         assert_eq!(auto_cell(512, 512, 512, 1, 128 << 20), 2);
         assert_eq!(auto_cell(512, 512, 512, 2, 100 << 20), 4);
         assert_eq!(auto_cell(512, 512, 512, 2, 1 << 30), 2);
+    }
+
+    #[test]
+    fn the_concentric_taps_cover_the_disk_evenly() {
+        // The map is area-preserving: n x n taps on equal-area cells of the square land on
+        // equal-area cells of the disk, so their mean is the centre and their second moment
+        // per axis approaches the uniform disk's 1/4.
+        let t = blur_taps(9);
+        assert_eq!(t.len(), 81);
+        assert!(t.iter().all(|p| p[0].hypot(p[1]) <= 1.0 + 1e-12));
+        let mean = t.iter().fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
+        assert!(mean[0].abs() < 1e-9 && mean[1].abs() < 1e-9);
+        let m2 = t.iter().map(|p| p[0] * p[0]).sum::<f64>() / 81.0;
+        assert!((m2 - 0.25).abs() < 0.02, "{m2}");
+        assert_eq!(blur_taps(1), vec![[0.0, 0.0]]);
+        // The corners of the square go to the circle, the edges' midpoints too.
+        let c = concentric([1.0, 1.0]);
+        assert!((c[0].hypot(c[1]) - 1.0).abs() < 1e-12);
+        assert!((concentric([0.0, -1.0])[1] + 1.0).abs() < 1e-12);
     }
 
     #[test]

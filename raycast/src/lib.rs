@@ -15,14 +15,44 @@
 //! not a table) and the exponential from a table (within 8e-6); bands of rows run on rayon's
 //! threads, compiled for AVX2 and FMA where the CPU has them.
 //!
-//! Scope: `ea` (unshaded emission-absorption, 1-D transfer functions, clipping planes). The
-//! occlusion methods, 2-D transfer functions, geometry and isosurfaces are drawn on the GPU.
+//! Scope: volume-only scenes with 1-D transfer functions and clipping planes: `ea` (unshaded
+//! emission-absorption) and, with a light volume ([`light`]: Schott et al.'s occlusion
+//! buffer on cells, as the GPU's `light` pass), `dos` and `combined`. Phong shading, 2-D
+//! transfer functions, geometry and isosurfaces are drawn on the GPU.
 
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use occlusion::emission_absorption::{
     occupancy_of, prepare, slab_interval, EaView, Transfer, BRICK,
 };
 use rayon::prelude::*;
+
+mod light;
+pub use light::LightSettings;
+use light::{Footprint, LightVolume};
+
+/// A frame of the CPU renderer: the image (as [`EaVolume::render`]), per pixel the volume's
+/// opacity-weighted mean occlusion (`occlusion.volumetric`: 1 where the volume is not lit or
+/// not there) and the view depth where its opacity passed 0.5 (0: never), and the time the
+/// light volume took (0 without one).
+pub struct Frame {
+    pub image: Vec<[f32; 4]>,
+    pub volumetric: Vec<f32>,
+    pub half_depth: Vec<f32>,
+    pub light_ms: f64,
+}
+
+/// The ray through a continuous pixel position `px` (y down) of view `v`, as the shaders'
+/// `pixel_ray`: from the near plane, unit direction.
+pub(crate) fn pixel_ray(inv: &DMat4, v: &EaView, px: [f64; 2]) -> (DVec3, DVec3) {
+    let ndc_x = 2.0 * px[0] / v.width as f64 - 1.0;
+    let ndc_y = 1.0 - 2.0 * px[1] / v.height as f64;
+    let un = |z: f64| {
+        let p = *inv * DVec4::new(ndc_x, ndc_y, z, 1.0);
+        p.truncate() / p.w
+    };
+    let (a, b) = (un(0.0), un(1.0));
+    (a, (b - a).normalize())
+}
 
 /// A volume ready to ray cast: its samples as the passes read them (NaN as a gap), its grid,
 /// its empty-space bricks and its transfer function.
@@ -199,25 +229,48 @@ impl EaVolume {
 
     /// The image of `v` (rows top to bottom): RGBA with the background composited under the
     /// volume and alpha its opacity, as `occlusion::emission_absorption::reference`.
+    pub fn render(&self, v: &EaView) -> Vec<[f32; 4]> {
+        self.render_frame(v, None).image
+    }
+
+    /// A frame of `v`: emission-absorption, and with `light` its colour times the light
+    /// volume's `O` (the `dos` and `combined` methods on a volume-only scene; [`light`]).
     /// Rays are marched in packets of `TILE x TILE` pixels, a step of each in turn, so that
     /// neighbouring rays read the voxels their neighbours just brought into the cache.
-    pub fn render(&self, v: &EaView) -> Vec<[f32; 4]> {
+    pub fn render_frame(&self, v: &EaView, light: Option<&LightSettings>) -> Frame {
         match &self.data {
-            Samples::U8(d) => self.render_with(v, d),
-            Samples::U16(d) => self.render_with(v, d),
-            Samples::F32(d) => self.render_with(v, d),
+            Samples::U8(d) => self.render_with(v, d, light),
+            Samples::U16(d) => self.render_with(v, d, light),
+            Samples::F32(d) => self.render_with(v, d, light),
         }
     }
 
-    fn render_with<T: Voxel>(&self, v: &EaView, data: &[T]) -> Vec<[f32; 4]> {
+    fn render_with<T: Voxel>(
+        &self,
+        v: &EaView,
+        data: &[T],
+        light: Option<&LightSettings>,
+    ) -> Frame {
         let (w, h) = (v.width as usize, v.height as usize);
-        let mut out = vec![[0.0f32; 4]; w * h];
+        let mut out = vec![Pixel::default(); w * h];
         if w == 0 || h == 0 {
-            return out;
+            return Frame {
+                image: vec![],
+                volumetric: vec![],
+                half_depth: vec![],
+                light_ms: 0.0,
+            };
         }
         let aspect = w as f64 / h as f64;
         let inv = v.camera.view_projection(aspect).inverse();
         let bg = v.background.map(|x| x as f32);
+        let t = std::time::Instant::now();
+        let lv = light.map(|s| self.sweep(v, data, s, inv));
+        let light_ms = if lv.is_some() {
+            t.elapsed().as_secs_f64() * 1e3
+        } else {
+            0.0
+        };
         #[cfg(target_arch = "x86_64")]
         let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
         out.par_chunks_mut(w * TILE)
@@ -230,6 +283,7 @@ impl EaVolume {
                     bg,
                     band,
                     rows,
+                    light: lv.as_ref(),
                 };
                 #[cfg(target_arch = "x86_64")]
                 if fma {
@@ -239,7 +293,12 @@ impl EaVolume {
                 }
                 self.band(job);
             });
-        out
+        Frame {
+            image: out.iter().map(|p| p.rgba).collect(),
+            volumetric: out.iter().map(|p| p.volumetric).collect(),
+            half_depth: out.iter().map(|p| p.half).collect(),
+            light_ms,
+        }
     }
 
     /// [`EaVolume::band`] compiled for AVX2 and FMA (fused multiply-adds in the lerps and
@@ -253,6 +312,18 @@ impl EaVolume {
     /// One band of `TILE` rows of the image: its packets of rays, marched and composited.
     #[inline(always)]
     fn band<T: Voxel>(&self, job: Band<'_, T>) {
+        match job.light {
+            Some(lv) => self.band_with::<T, true>(job, lv),
+            None => {
+                // Never read: the march without light does not look the light up.
+                let none = LightVolume::empty();
+                self.band_with::<T, false>(job, &none)
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn band_with<T: Voxel, const LIT: bool>(&self, job: Band<'_, T>, lv: &LightVolume) {
         let Band {
             v,
             data,
@@ -260,23 +331,22 @@ impl EaVolume {
             bg,
             band,
             rows,
+            ..
         } = job;
-        let (w, h) = (v.width as usize, v.height as usize);
+        let w = v.width as usize;
         let y0 = band * TILE;
         let nrows = rows.len() / w;
         for x0 in (0..w).step_by(TILE) {
             let mut rays: Vec<(usize, Ray)> = Vec::with_capacity(TILE * TILE);
             for dy in 0..nrows {
                 for x in x0..(x0 + TILE).min(w) {
-                    let y = y0 + dy;
-                    let ndc_x = 2.0 * (x as f64 + 0.5) / w as f64 - 1.0;
-                    let ndc_y = 1.0 - 2.0 * (y as f64 + 0.5) / h as f64;
-                    let un = |z: f64| {
-                        let p = inv * DVec4::new(ndc_x, ndc_y, z, 1.0);
-                        p.truncate() / p.w
-                    };
-                    let (a, b) = (un(0.0), un(1.0));
-                    rays.push((x + w * dy, self.start(v, a, (b - a).normalize())));
+                    let px = [x as f64 + 0.5, (y0 + dy) as f64 + 0.5];
+                    let (o, d) = pixel_ray(&inv, v, px);
+                    let mut r = self.start(v, o, d);
+                    if LIT {
+                        r.light = lv.footprint(px);
+                    }
+                    rays.push((x + w * dy, r));
                 }
             }
             // March together, a step of each ray a turn (neighbours stay near each other in
@@ -286,19 +356,27 @@ impl EaVolume {
                 live = false;
                 for (_, r) in rays.iter_mut() {
                     if r.next().is_some() {
-                        self.advance(v, data, r);
+                        self.advance::<T, LIT>(v, data, r, lv);
                         live = true;
                     }
                 }
             }
             for (i, r) in &rays {
                 let a = r.alpha;
-                rows[*i] = [
-                    r.c[0] + (1.0 - a) * bg[0],
-                    r.c[1] + (1.0 - a) * bg[1],
-                    r.c[2] + (1.0 - a) * bg[2],
-                    a,
-                ];
+                rows[*i] = Pixel {
+                    rgba: [
+                        r.c[0] + (1.0 - a) * bg[0],
+                        r.c[1] + (1.0 - a) * bg[1],
+                        r.c[2] + (1.0 - a) * bg[2],
+                        a,
+                    ],
+                    volumetric: if r.acc[1] > 1e-6 {
+                        r.acc[0] / r.acc[1]
+                    } else {
+                        1.0
+                    },
+                    half: r.half,
+                };
             }
         }
     }
@@ -321,6 +399,9 @@ impl EaVolume {
             k1: 0,
             c: [0.0; 3],
             alpha: 0.0,
+            light: Footprint::default(),
+            acc: [0.0; 2],
+            half: 0.0,
         };
         if cosine.is_nan() || cosine <= 1e-9 || v.slices == 0 {
             return r;
@@ -365,11 +446,18 @@ impl EaVolume {
     /// Takes the ray's next slice: skips it (outside the grid or clipped away), steps over
     /// the empty brick it falls in, or composites its sample; ends the ray when opaque.
     #[inline(always)]
-    fn advance<T: Voxel>(&self, v: &EaView, data: &[T], r: &mut Ray) {
+    fn advance<T: Voxel, const LIT: bool>(
+        &self,
+        v: &EaView,
+        data: &[T],
+        r: &mut Ray,
+        lv: &LightVolume,
+    ) {
         let k = r.k;
         let kf = k as f32;
         let mut q = [0, 1, 2].map(|a| r.qa[a] + kf * r.dq[a]);
         let mut len = r.seg;
+        let mut depth = v.z0 + (k as f64 + 0.5) * v.dz;
         let clipped = !v.clip.is_empty();
         if clipped {
             // The slab's part behind the clipping planes, sampled at its middle.
@@ -382,6 +470,7 @@ impl EaVolume {
             let p = self.world_to_index * DVec4::from((r.o + r.d * s, 1.0));
             q = p.truncate().as_vec3().to_array();
             len = ((hi - lo) / r.cosine) as f32;
+            depth = 0.5 * (lo + hi);
         }
         let hi = self.hi();
         if (0..3).any(|a| !(q[a] >= 0.0 && q[a] <= hi[a])) {
@@ -425,14 +514,65 @@ impl EaVolume {
         }
         let al = 1.0 - self.exp_neg(sigma * len);
         let wgt = (1.0 - r.alpha) * al;
+        let o = if LIT {
+            lv.lookup(&r.light, k as usize)
+        } else {
+            1.0
+        };
         for (c, x) in r.c.iter_mut().zip(rgb) {
-            *c += wgt * x;
+            *c += wgt * x * o;
         }
+        let before = r.alpha;
         r.alpha += wgt;
+        r.acc[0] += wgt * o;
+        r.acc[1] += wgt;
+        if r.alpha >= 0.5 && before < 0.5 {
+            r.half = depth as f32;
+        }
         if r.alpha > 0.999 {
             r.k1 = 0;
             r.k = 1;
         }
+    }
+}
+
+impl EaVolume {
+    /// The optical depth `sigma len / cos` of slab `k` along ray `r` (the whole slab, clipped
+    /// by the clipping planes only; sampled at its middle): 0 outside the grid, in an empty
+    /// block, next to a gap or where the transfer function is transparent. The light leaving
+    /// a cell through a slice is `exp(-` this `)`.
+    #[inline(always)]
+    pub(crate) fn optical_depth<T: Voxel>(&self, v: &EaView, data: &[T], r: &Ray, k: u32) -> f32 {
+        if k < r.k || k > r.k1 {
+            return 0.0;
+        }
+        let kf = k as f32;
+        let mut q = [0, 1, 2].map(|a| r.qa[a] + kf * r.dq[a]);
+        let mut len = r.seg;
+        if !v.clip.is_empty() {
+            let (lo, hi) = slab_interval(v, r.o, r.d, k);
+            let s = (0.5 * (lo + hi) - r.o_depth) / r.cosine;
+            if hi <= lo || s < 0.0 {
+                return 0.0;
+            }
+            let p = self.world_to_index * DVec4::from((r.o + r.d * s, 1.0));
+            q = p.truncate().as_vec3().to_array();
+            len = ((hi - lo) / r.cosine) as f32;
+        }
+        let hi = self.hi();
+        if (0..3).any(|a| !(q[a] >= 0.0 && q[a] <= hi[a])) {
+            return 0.0;
+        }
+        let (cell, brick, block, _) = self.cell(q);
+        if !self.occupied[block] {
+            return 0.0;
+        }
+        let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
+        let val = EaVolume::trilinear(&self.corners(data, cell, brick), f);
+        if val < -1e30 {
+            return 0.0;
+        }
+        self.transfer(val).1.max(0.0) * len
     }
 }
 
@@ -567,7 +707,16 @@ struct Band<'a, T> {
     inv: glam::DMat4,
     bg: [f32; 3],
     band: usize,
-    rows: &'a mut [[f32; 4]],
+    rows: &'a mut [Pixel],
+    light: Option<&'a LightVolume>,
+}
+
+/// What a ray leaves in its pixel.
+#[derive(Clone, Copy, Default)]
+struct Pixel {
+    rgba: [f32; 4],
+    volumetric: f32,
+    half: f32,
 }
 
 /// Pixels per side of a packet of rays marched together.
@@ -587,6 +736,12 @@ struct Ray {
     k1: u32,
     c: [f32; 3],
     alpha: f32,
+    /// Where the ray reads the light volume (lit frames).
+    light: Footprint,
+    /// The opacity-weighted sum of `O` and the sum of the weights (the volumetric AOV).
+    acc: [f32; 2],
+    /// The view depth where the opacity passed 0.5 (0: not yet).
+    half: f32,
 }
 
 impl Ray {

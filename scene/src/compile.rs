@@ -4,7 +4,7 @@
 //! model on the GPU once and [`Uploaded::draw`] renders a frame of it.
 
 use crate::spec::{self, ProjectionKind, Scene, TransferSpec};
-use engine::method::Method;
+use engine::method::SurfaceAo;
 use engine::renderer::{self, DrawOptions, GpuScene, Renderer, Settings};
 use engine::slice_pass::VolumeInput;
 use glam::DVec3;
@@ -731,12 +731,17 @@ pub struct Uploaded<'g> {
     cpu: std::sync::OnceLock<Result<raycast::EaVolume, String>>,
 }
 
-/// Why the native CPU renderer cannot draw a frame of `s` with model `m` (`None`: it can).
+/// Why the native CPU renderer cannot draw a frame of `s` with model `m` (`None`: it can):
+/// it draws volume-only scenes with a 1-D transfer function, unshaded or lit by the light
+/// volume (`ea`, `dos`, `combined` and the methods whose volume is `ea`'s), whose surface terms
+/// have no channels of their own.
 pub fn cpu_refusal(s: &Scene, m: &Model) -> Option<String> {
-    if s.render.method != Method::Ea {
+    use engine::method::VolumeShading;
+    let desc = s.render.method.desc();
+    if desc.volume == VolumeShading::Phong {
         return Some(format!(
-            "method {:?} (the CPU renderer draws ea)",
-            s.render.method
+            "method {} (Phong volume shading is drawn on the GPU)",
+            desc.name
         ));
     }
     let Some((_, _, tf)) = &m.volume else {
@@ -751,7 +756,47 @@ pub fn cpu_refusal(s: &Scene, m: &Model) -> Option<String> {
     if !tf.rows.is_empty() {
         return Some("a 2-D transfer function".into());
     }
+    if cpu_layers(s)
+        .iter()
+        .any(|(_, c)| *c == Some(SurfaceAo::LineAo))
+    {
+        return Some("a LineAO term (its AOV channels come from the GPU pass)".into());
+    }
     None
+}
+
+/// The surface terms' layers a frame of `s` has (all 1 on a volume-only frame).
+fn cpu_layers(s: &Scene) -> Vec<(&'static str, Option<SurfaceAo>)> {
+    engine::terms::layers(s.render.method, s.render.surface_ao)
+}
+
+/// The light volume's settings for the CPU renderer when the method lights the volume: the
+/// GPU pass's cells (`occlusion::combined::light_cell` with the adapter's binding limit),
+/// model, angle and taps; an error when the light volume exceeds that limit, as on the GPU.
+fn cpu_light(s: &Scene, v: &EaView, limit: u64) -> Result<Option<raycast::LightSettings>, String> {
+    use engine::method::VolumeShading;
+    if s.render.method.desc().volume != VolumeShading::Occlusion {
+        return Ok(None);
+    }
+    let r = &s.render;
+    let cell = occlusion::combined::light_cell(r.occlusion_cell, v, limit);
+    let cells = v.width.div_ceil(cell) as u64 * v.height.div_ceil(cell) as u64;
+    let bytes = cells * v.slices as u64 * 4;
+    if bytes > limit {
+        return Err(format!(
+            "scene key render.occlusion_cell: the light volume ({cells} cells x {} slices, {} \
+             MB) exceeds {} MB; raise render.occlusion_cell or lower the slice count",
+            v.slices,
+            bytes >> 20,
+            limit >> 20
+        ));
+    }
+    Ok(Some(raycast::LightSettings {
+        cell,
+        cone: r.occlusion_model == spec::OcclusionModel::Cone,
+        theta_deg: r.theta,
+        blur_samples: r.blur_samples,
+    }))
 }
 
 /// Uploads a model once: the volume (downsampled when the adapter cannot bind it, with a
@@ -805,41 +850,70 @@ pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, 
     })
 }
 
-/// A frame of the native CPU renderer as the renderer's output: the image, no surfaces
-/// (AOVs: no occlusion, no depth), timed `opts.frames` times (`total_ms` the median; the pass
-/// `raycast` when pass times are asked for).
-fn cpu_frame(ev: &raycast::EaVolume, v: &EaView, opts: DrawOptions) -> renderer::Output {
+/// A frame of the native CPU renderer as the renderer's output: the image, the volumetric
+/// occlusion and the depth where the volume passed half opacity (as the GPU's AOVs of a
+/// volume-only frame), every surface term's layer 1 (no surfaces), timed `opts.frames` times
+/// (`total_ms` the median; passes `light` and `raycast` when pass times are asked for).
+fn cpu_frame(
+    ev: &raycast::EaVolume,
+    v: &EaView,
+    opts: DrawOptions,
+    light: Option<&raycast::LightSettings>,
+    layers: &[(&'static str, Option<SurfaceAo>)],
+) -> renderer::Output {
     let mut frames_ms = vec![];
-    let mut image = vec![];
+    let mut light_ms = vec![];
+    let mut frame = None;
     for _ in 0..opts.frames.max(1) {
         let t = std::time::Instant::now();
-        image = ev.render(v);
+        let f = ev.render_frame(v, light);
         frames_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        light_ms.push(f.light_ms);
+        frame = Some(f);
     }
-    let mut sorted = frames_ms.clone();
-    sorted.sort_by(f64::total_cmp);
-    let total_ms = sorted[sorted.len() / 2];
-    let aov = renderer::Aov {
-        volumetric: 1.0,
-        partial: 1.0,
-        vicinity: 1.0,
-        combined: 1.0,
-        depth: 0.0,
+    let frame = frame.expect("at least one frame");
+    let median = |x: &[f64]| {
+        let mut s = x.to_vec();
+        s.sort_by(f64::total_cmp);
+        s[s.len() / 2]
     };
+    let total_ms = median(&frames_ms);
+    let aov = frame
+        .volumetric
+        .iter()
+        .zip(&frame.half_depth)
+        .map(|(&volumetric, &depth)| renderer::Aov {
+            volumetric,
+            partial: 1.0,
+            vicinity: 1.0,
+            combined: 1.0,
+            depth,
+        })
+        .collect();
+    let n = frame.image.len();
+    let mut passes = std::collections::BTreeMap::new();
+    if opts.pass_timings {
+        if light.is_some() {
+            let l = median(&light_ms);
+            passes.insert("light".to_string(), l);
+            passes.insert("raycast".to_string(), (total_ms - l).max(0.0));
+        } else {
+            passes.insert("raycast".to_string(), total_ms);
+        }
+    }
     renderer::Output {
         notes: vec!["drawn by the native CPU renderer (render.device)".into()],
-        aov: vec![aov; image.len()],
-        image,
-        terms: vec![],
+        aov,
+        image: frame.image,
+        terms: layers
+            .iter()
+            .map(|(name, _)| (*name, vec![1.0; n]))
+            .collect(),
         term_channels: vec![],
         timings: renderer::Timings {
             total_ms,
             frames_ms,
-            passes: if opts.pass_timings {
-                [("raycast".to_string(), total_ms)].into()
-            } else {
-                Default::default()
-            },
+            passes,
             pass_clock: None,
         },
         triangles: 0,
@@ -891,8 +965,21 @@ impl Uploaded<'_> {
             ),
             false => None,
         };
+        let limit = self
+            .renderer
+            .gpu()
+            .device
+            .limits()
+            .max_storage_buffer_binding_size;
+        let layers = cpu_layers(s);
         let draw = |v: &EaView| match cpu {
-            Some(ev) => Ok(cpu_frame(ev, v, opts)),
+            Some(ev) => Ok(cpu_frame(
+                ev,
+                v,
+                opts,
+                cpu_light(s, v, limit)?.as_ref(),
+                &layers,
+            )),
             None => self
                 .renderer
                 .draw(&self.scene, v, &tube_clip(s), &st, opts)

@@ -1,0 +1,273 @@
+//! The volumetric occlusion buffer on the CPU: Schott et al.'s Algorithm 3 (ComputeDOS) as
+//! `occlusion::combined` states it and `shaders/slice_pass.wgsl::light` computes it, for the
+//! `dos` and `combined` methods of volume-only scenes on machines without a GPU.
+//!
+//! The light volume holds `O_k`, the light reaching slice k, on cells of `s x s` pixels: slice
+//! by slice (each slice blurs the light leaving the previous one, so the slices are a
+//! sequence; the cells of a slice run on rayon's threads), each cell's `O_k` gathered from
+//! `L_{k-1} = O_{k-1} T_{k-1}` of its neighbours with the slice's blur
+//! (`occlusion::combined::blur_rows`: the 3x3 stencil up to two cells, else `n x n` bilinear
+//! taps on the disk), then `T_k` through the volume along the cell's centre ray, the whole
+//! slab clipped by the clipping planes (occlusion does not stop at the eye's opacity). The
+//! cone-following model carries the shadow's age as a second channel, as the shader does.
+//!
+//! Unlike the GPU's light volume (cells x slices, slice-major), the CPU's is cell-major in
+//! blocks of [`KB`] slices: a ray reads the light of consecutive slices of the same four
+//! cells, so one cache line serves [`KB`] of its samples, while the sweep writes one line per
+//! cell every [`KB`] slices.
+
+use crate::{EaVolume, Ray, Voxel};
+use occlusion::combined::{blur_rows, blur_taps, BlurRow};
+use occlusion::emission_absorption::EaView;
+use rayon::prelude::*;
+
+/// How the light volume is computed: `render.occlusion_cell` (as chosen by
+/// `occlusion::combined::light_cell`), `render.occlusion_model = "cone"`, `render.theta`
+/// (degrees) and `render.blur_samples`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSettings {
+    pub cell: u32,
+    pub cone: bool,
+    pub theta_deg: f64,
+    pub blur_samples: u32,
+}
+
+/// Slices per block of a cell's light (16 f32: one cache line).
+pub(crate) const KB: usize = 16;
+
+/// Cell rows per rayon job of the sweep.
+const BAND: usize = 4;
+
+/// `O_k` per cell and slice (see the module's layout).
+pub(crate) struct LightVolume {
+    pub cells: [usize; 2],
+    pub cell: usize,
+    pub slices: usize,
+    o: Vec<f32>,
+}
+
+impl LightVolume {
+    /// No light (the unlit march's placeholder; never read).
+    pub(crate) fn empty() -> LightVolume {
+        LightVolume {
+            cells: [1, 1],
+            cell: 1,
+            slices: 1,
+            o: vec![1.0; KB],
+        }
+    }
+
+    /// `O` of slice `k` (clamped to the slices) in cell `c`.
+    #[inline(always)]
+    fn at(&self, c: usize, k: usize) -> f32 {
+        let k = k.min(self.slices - 1);
+        let n = self.cells[0] * self.cells[1];
+        self.o[((k / KB) * n + c) * KB + k % KB]
+    }
+
+    /// `O` of slice `k` at a pixel: bilinear over the four cells of `f` (indices and
+    /// fractions from [`LightVolume::footprint`]).
+    #[inline(always)]
+    pub(crate) fn lookup(&self, f: &Footprint, k: usize) -> f32 {
+        let v = f.cells.map(|c| self.at(c as usize, k));
+        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
+    }
+
+    /// The four cells around pixel position `px` (centres at half-integers of cells, clamped
+    /// at the border) and the bilinear fractions, as `light_at` in the shader.
+    pub(crate) fn footprint(&self, px: [f64; 2]) -> Footprint {
+        let s = self.cell as f64;
+        let c = [px[0] / s - 0.5, px[1] / s - 0.5];
+        let b = c.map(|x| x.floor());
+        let hi = [self.cells[0] as i64 - 1, self.cells[1] as i64 - 1];
+        let at = |dx: i64, dy: i64| {
+            let x = (b[0] as i64 + dx).clamp(0, hi[0]) as usize;
+            let y = (b[1] as i64 + dy).clamp(0, hi[1]) as usize;
+            (x + self.cells[0] * y) as u32
+        };
+        Footprint {
+            cells: [at(0, 0), at(1, 0), at(0, 1), at(1, 1)],
+            f: [(c[0] - b[0]) as f32, (c[1] - b[1]) as f32],
+        }
+    }
+}
+
+/// Where a pixel reads the light volume: four cells and the bilinear fractions (x, y).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Footprint {
+    pub cells: [u32; 4],
+    pub f: [f32; 2],
+}
+
+/// A cell's light leaving a slice: `L` and, for the cone model, the shadow-weighted age
+/// `(1 - O) (D + d)` of the arriving shadow.
+type Leave = [f32; 2];
+
+impl EaVolume {
+    /// The light volume of view `v`: slice after slice, every cell's `O_k` from the previous
+    /// slice's light, then the light leaving through the slab.
+    pub(crate) fn sweep<T: Voxel>(
+        &self,
+        v: &EaView,
+        data: &[T],
+        s: &LightSettings,
+        inv: glam::DMat4,
+    ) -> LightVolume {
+        let cell = s.cell.max(1) as usize;
+        let (w, h) = (v.width as usize, v.height as usize);
+        let cells = [w.div_ceil(cell), h.div_ceil(cell)];
+        let n = cells[0] * cells[1];
+        let slices = v.slices.max(1) as usize;
+        let mut lv = LightVolume {
+            cells,
+            cell,
+            slices,
+            o: vec![1.0; n * slices.div_ceil(KB) * KB],
+        };
+        // The cells' centre rays, as the pixels' (a continuous pixel position).
+        let rays: Vec<Ray> = (0..n)
+            .map(|c| {
+                let px = [
+                    ((c % cells[0]) as f64 + 0.5) * cell as f64,
+                    ((c / cells[0]) as f64 + 0.5) * cell as f64,
+                ];
+                let (o, d) = crate::pixel_ray(&inv, v, px);
+                self.start(v, o, d)
+            })
+            .collect();
+        let blur = blur_rows(v, cell as u32, s.theta_deg);
+        let taps = blur_taps(s.blur_samples.clamp(1, 9));
+        // The cone model's tap sets, n = blur_samples..=9.
+        let cone_taps: Vec<Vec<[f64; 2]>> = (0..=9).map(blur_taps).collect();
+        let mut prev: Vec<Leave> = vec![[1.0, 0.0]; n];
+        let mut next: Vec<Leave> = vec![[1.0, 0.0]; n];
+        let d = v.dz as f32;
+        for k in 0..slices {
+            let row = blur[k];
+            let block = &mut lv.o[(k / KB) * n * KB..][..n * KB];
+            let job = Sweep {
+                prev: &prev,
+                cells,
+                row,
+                taps: &taps,
+                cone_taps: &cone_taps,
+                cone: s.cone,
+                min_taps: s.blur_samples.clamp(1, 9) as usize,
+                d,
+                k,
+            };
+            next.par_chunks_mut(cells[0] * BAND)
+                .zip(block.par_chunks_mut(cells[0] * BAND * KB))
+                .enumerate()
+                .for_each(|(band, (out, o))| {
+                    let c0 = band * cells[0] * BAND;
+                    for (i, leave) in out.iter_mut().enumerate() {
+                        let c = c0 + i;
+                        let (occl, age) = job.gather(c);
+                        o[i * KB + k % KB] = occl;
+                        let t = self.exp_neg(self.optical_depth(v, data, &rays[c], k as u32));
+                        *leave = [occl * t, (1.0 - occl) * (age + d)];
+                    }
+                });
+            std::mem::swap(&mut prev, &mut next);
+        }
+        lv
+    }
+}
+
+/// One slice of the sweep: what every cell's gather reads.
+struct Sweep<'a> {
+    prev: &'a [Leave],
+    cells: [usize; 2],
+    row: BlurRow,
+    taps: &'a [[f64; 2]],
+    cone_taps: &'a [Vec<[f64; 2]>],
+    cone: bool,
+    min_taps: usize,
+    d: f32,
+    k: usize,
+}
+
+impl Sweep<'_> {
+    /// The previous slice's light leaving cell `(x, y)`, clamped to the border.
+    #[inline(always)]
+    fn texel(&self, x: i64, y: i64) -> Leave {
+        let x = x.clamp(0, self.cells[0] as i64 - 1) as usize;
+        let y = y.clamp(0, self.cells[1] as i64 - 1) as usize;
+        self.prev[x + self.cells[0] * y]
+    }
+
+    /// Bilinear read at a continuous cell position (centres at half-integers).
+    fn bilinear(&self, t: [f64; 2]) -> Leave {
+        let s = [t[0] - 0.5, t[1] - 0.5];
+        let b = s.map(|x| x.floor());
+        let f = [(s[0] - b[0]) as f32, (s[1] - b[1]) as f32];
+        let (x, y) = (b[0] as i64, b[1] as i64);
+        let mix = |a: Leave, b: Leave, t: f32| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
+        let a = mix(self.texel(x, y), self.texel(x + 1, y), f[0]);
+        let c = mix(self.texel(x, y + 1), self.texel(x + 1, y + 1), f[0]);
+        mix(a, c, f[1])
+    }
+
+    /// The mean of `taps` scaled by the radius `r` (cells) around cell `(x, y)`'s centre.
+    fn taps(&self, taps: &[[f64; 2]], x: i64, y: i64, r: [f64; 2]) -> Leave {
+        let c = [x as f64 + 0.5, y as f64 + 0.5];
+        let mut sum = [0.0f32; 2];
+        for t in taps {
+            let l = self.bilinear([c[0] + t[0] * r[0], c[1] + t[1] * r[1]]);
+            sum = [sum[0] + l[0], sum[1] + l[1]];
+        }
+        let n = taps.len() as f32;
+        [sum[0] / n, sum[1] / n]
+    }
+
+    /// The 3x3 stencil `kx (x) ky` (rows y = -1, 0, 1).
+    #[inline(always)]
+    fn stencil(&self, w: &[[f32; 3]; 3], x: i64, y: i64) -> Leave {
+        let mut sum = [0.0f32; 2];
+        for (j, row) in w.iter().enumerate() {
+            for (i, wt) in row.iter().enumerate() {
+                let l = self.texel(x + i as i64 - 1, y + j as i64 - 1);
+                sum = [sum[0] + wt * l[0], sum[1] + wt * l[1]];
+            }
+        }
+        sum
+    }
+
+    /// `O_k` of cell `c` and (cone model) the mean age of the shadow arriving there.
+    fn gather(&self, c: usize) -> (f32, f32) {
+        if self.k == 0 {
+            return (1.0, 0.0);
+        }
+        let (x, y) = ((c % self.cells[0]) as i64, (c / self.cells[0]) as i64);
+        if !self.cone {
+            let occl = if self.row.wide {
+                self.taps(self.taps, x, y, self.row.rpx)[0]
+            } else {
+                let w = self.row.w.map(|r| r.map(|x| x as f32));
+                self.stencil(&w, x, y)[0]
+            };
+            return (occl, 0.0);
+        }
+        // The step that makes an occluder's shadow at distance D reach the cone's variance
+        // at D + d: the paper's radius times sqrt(1 + 2 D / d) (occlusion::combined).
+        let own = self.texel(x, y);
+        let d0 = own[1] / (1.0 - own[0]).max(1e-6);
+        let g = (1.0 + 2.0 * d0.max(0.0) / self.d).sqrt() as f64;
+        let rc = [self.row.rpx[0] * g, self.row.rpx[1] * g];
+        let sum = if rc[0].max(rc[1]) <= 2.0 {
+            let k = |r: f64| {
+                let v = (r * r * 0.25) as f32;
+                [0.5 * v, 1.0 - v, 0.5 * v]
+            };
+            let (kx, ky) = (k(rc[0]), k(rc[1]));
+            let w = ky.map(|b| kx.map(|a| a * b));
+            self.stencil(&w, x, y)
+        } else {
+            let n = (rc[0].max(rc[1]).ceil() as usize).clamp(self.min_taps, 9);
+            self.taps(&self.cone_taps[n], x, y, rc)
+        };
+        (sum[0], sum[1] / (1.0 - sum[0]).max(1e-6))
+    }
+}
