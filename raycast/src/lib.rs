@@ -66,6 +66,10 @@ pub struct EaVolume {
     /// (`occupancy_of`): the empty ones are stepped over.
     blocks: [usize; 3],
     occupied: Vec<bool>,
+    /// Per block, its Chebyshev distance in blocks to the nearest occupied one (0: occupied;
+    /// at most [`REACH`]): a ray in an empty block may step over the whole cube of blocks
+    /// around it that this distance leaves empty.
+    reach: Vec<u8>,
     tf: Vec<(f32, [f32; 3], f32)>,
     /// Per point `i > 0`: the segment from point `i - 1` as `1 / (v_i - v_{i-1})` (0 for a
     /// step) and the colour and extinction differences (no division per sample).
@@ -136,6 +140,7 @@ impl EaVolume {
             bricks,
             blocks,
             occupied: occ.iter().map(|&o| o != 0).collect(),
+            reach: reach_of(&occ, blocks),
             tf: points,
             slopes,
             hi: vol.dims.map(|n| n as f32 - 1.0),
@@ -479,24 +484,10 @@ impl EaVolume {
         }
         let (cell, brick, block, b) = self.cell(q);
         if !self.occupied[block] {
-            // Step to the first slice past this block (its cells [b S, (b + 1) S]): the
-            // samples before it are in the block, transparent (truncation floors the
-            // non-negative step count).
-            let mut steps = u32::MAX;
-            for a in 0..3 {
-                let dqa = r.dq[a];
-                if dqa.abs() < 1e-12 {
-                    continue;
-                }
-                let edge = if dqa > 0.0 {
-                    ((b[a] + 1) * SKIP) as f32
-                } else {
-                    (b[a] * SKIP) as f32
-                };
-                let n = ((edge - q[a]) / dqa).max(0.0) as u32;
-                steps = steps.min(n.saturating_add(1));
-            }
-            r.k = k.saturating_add(if clipped { 1 } else { steps.max(1) });
+            // Step to the first slice past the empty cube of blocks around this one: the
+            // samples before it are in empty blocks, transparent.
+            let d = self.reach[block] as usize;
+            r.k = k.saturating_add(if clipped { 1 } else { r.past_block(q, b, d) });
             return;
         }
         r.k += 1;
@@ -540,20 +531,33 @@ impl EaVolume {
     /// The optical depth `sigma len / cos` of slab `k` along ray `r` (the whole slab, clipped
     /// by the clipping planes only; sampled at its middle): 0 outside the grid, in an empty
     /// block, next to a gap or where the transfer function is transparent. The light leaving
-    /// a cell through a slice is `exp(-` this `)`.
+    /// a cell through a slice is `exp(-` this `)`. Also the next slice whose optical depth
+    /// may not be 0 (past an empty block, the ray's first slice in the grid; `u32::MAX` past
+    /// its last).
     #[inline(always)]
-    pub(crate) fn optical_depth<T: Voxel>(&self, v: &EaView, data: &[T], r: &Ray, k: u32) -> f32 {
-        if k < r.k || k > r.k1 {
-            return 0.0;
+    pub(crate) fn optical_depth<T: Voxel>(
+        &self,
+        v: &EaView,
+        data: &[T],
+        r: &Ray,
+        k: u32,
+    ) -> (f32, u32) {
+        if k < r.k {
+            return (0.0, r.k);
         }
+        if k > r.k1 {
+            return (0.0, u32::MAX);
+        }
+        let next = k + 1;
         let kf = k as f32;
         let mut q = [0, 1, 2].map(|a| r.qa[a] + kf * r.dq[a]);
         let mut len = r.seg;
-        if !v.clip.is_empty() {
+        let clipped = !v.clip.is_empty();
+        if clipped {
             let (lo, hi) = slab_interval(v, r.o, r.d, k);
             let s = (0.5 * (lo + hi) - r.o_depth) / r.cosine;
             if hi <= lo || s < 0.0 {
-                return 0.0;
+                return (0.0, next);
             }
             let p = self.world_to_index * DVec4::from((r.o + r.d * s, 1.0));
             q = p.truncate().as_vec3().to_array();
@@ -561,18 +565,20 @@ impl EaVolume {
         }
         let hi = self.hi();
         if (0..3).any(|a| !(q[a] >= 0.0 && q[a] <= hi[a])) {
-            return 0.0;
+            return (0.0, next);
         }
-        let (cell, brick, block, _) = self.cell(q);
+        let (cell, brick, block, b) = self.cell(q);
         if !self.occupied[block] {
-            return 0.0;
+            let d = self.reach[block] as usize;
+            let skip = if clipped { 1 } else { r.past_block(q, b, d) };
+            return (0.0, k.saturating_add(skip));
         }
         let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
         let val = EaVolume::trilinear(&self.corners(data, cell, brick), f);
         if val < -1e30 {
-            return 0.0;
+            return (0.0, next);
         }
-        self.transfer(val).1.max(0.0) * len
+        (self.transfer(val).1.max(0.0) * len, next)
     }
 }
 
@@ -604,6 +610,56 @@ impl EaVolume {
 /// bricks (`BRICK`), since a CPU ray pays for every sample (measured: a quarter to two fifths
 /// of the samples in 8^3 bricks were transparent on the MNI T1 and headsq).
 const SKIP: usize = 4;
+
+/// The largest skip distance kept, in blocks.
+const REACH: u8 = 16;
+
+/// [`EaVolume::reach`] from the blocks' occupancy (`nb` per axis, x fastest): the cube of
+/// radius `r` around a block grows by one block per axis a round (a separable dilation),
+/// and a block first reached in round `r` is `r` from the nearest occupied block; blocks
+/// not reached in [`REACH`] rounds keep [`REACH`].
+fn reach_of(occ: &[u32], nb: [usize; 3]) -> Vec<u8> {
+    let mut reach: Vec<u8> = occ
+        .iter()
+        .map(|&o| if o != 0 { 0 } else { REACH })
+        .collect();
+    let mut hit: Vec<bool> = occ.iter().map(|&o| o != 0).collect();
+    let idx = |x: usize, y: usize, z: usize| x + nb[0] * (y + nb[1] * z);
+    for r in 1..REACH {
+        // Dilate `hit` by one block along x, then y, then z: the 3^3 cube.
+        for axis in 0..3 {
+            let prev = hit.clone();
+            for z in 0..nb[2] {
+                for y in 0..nb[1] {
+                    for x in 0..nb[0] {
+                        let p = [x, y, z];
+                        let mut any = prev[idx(x, y, z)];
+                        for step in [-1i64, 1] {
+                            let c = p[axis] as i64 + step;
+                            if !any && c >= 0 && (c as usize) < nb[axis] {
+                                let mut n = p;
+                                n[axis] = c as usize;
+                                any = prev[idx(n[0], n[1], n[2])];
+                            }
+                        }
+                        hit[idx(x, y, z)] = any;
+                    }
+                }
+            }
+        }
+        let mut grew = false;
+        for (h, d) in hit.iter().zip(reach.iter_mut()) {
+            if *h && *d == REACH {
+                *d = r;
+                grew = true;
+            }
+        }
+        if !grew {
+            break;
+        }
+    }
+    reach
+}
 
 /// Samples per brick edge in memory: a brick of `BRICK^3` cells with its far faces, so that
 /// every cell's eight corners are in one brick.
@@ -745,6 +801,30 @@ struct Ray {
 }
 
 impl Ray {
+    /// Slices from the one at `q` (in the empty skip block `b`, whose empty cube of blocks
+    /// reaches `d >= 1` blocks: blocks `b - (d - 1) ..= b + (d - 1)` per axis, cells
+    /// `[(b - d + 1) S, (b + d) S]`) to the first past the cube, at least 1: the samples
+    /// before it are in empty blocks, transparent (truncation floors the non-negative step
+    /// count).
+    #[inline(always)]
+    fn past_block(&self, q: [f32; 3], b: [usize; 3], d: usize) -> u32 {
+        let mut steps = u32::MAX;
+        for a in 0..3 {
+            let dqa = self.dq[a];
+            if dqa.abs() < 1e-12 {
+                continue;
+            }
+            let edge = if dqa > 0.0 {
+                ((b[a] + d) * SKIP) as f32
+            } else {
+                ((b[a] + 1).saturating_sub(d) * SKIP) as f32
+            };
+            let n = ((edge - q[a]) / dqa).max(0.0) as u32;
+            steps = steps.min(n.saturating_add(1));
+        }
+        steps.max(1)
+    }
+
     /// The next slice to take, if any.
     #[inline(always)]
     fn next(&self) -> Option<u32> {
@@ -824,15 +904,16 @@ mod tests {
 
     #[test]
     fn empty_bricks_are_stepped_over_exactly_up_to_a_hard_edge() {
-        // A cube of `top` from voxel 8 (a brick's first voxel) to 23 in zeros: a ray leaving
-        // an empty brick meets opaque data at once, so a step one slice too far shows. Ones
-        // are stored as bytes, 1000 as u16, both exactly; f32 by default.
-        let n = 32;
+        // A cube of `top` from voxel 24 (a brick's first voxel) to 39 in zeros: a ray leaving
+        // the empty blocks meets opaque data at once, so a step one slice too far shows; the
+        // empty margin is five skip blocks deep, so rays cross cubes of several blocks at a
+        // step. Ones are stored as bytes, 1000 as u16, both exactly; f32 by default.
+        let n = 64;
         for (top, storage) in [(1.0f32, "u8"), (1000.0, "u16")] {
             let mut data = vec![0.0f32; n * n * n];
-            for k in 8..24 {
-                for j in 8..24 {
-                    for i in 8..24 {
+            for k in 24..40 {
+                for j in 24..40 {
+                    for i in 24..40 {
                         data[i + n * (j + n * k)] = top;
                     }
                 }
@@ -847,6 +928,10 @@ mod tests {
             let tf = Transfer::ramp(0.0, top as f64, [1.0, 0.5, 0.2], 0.8);
             let ev = EaVolume::with_storage(&vol, &data, &tf, true).unwrap();
             assert_eq!(ev.storage(), storage);
+            assert!(
+                ev.reach.iter().any(|&r| r >= 4),
+                "the test needs deep empty cubes"
+            );
             assert_eq!(EaVolume::new(&vol, &data, &tf).unwrap().storage(), "f32");
             let b = vol.bounds();
             for cam in [
@@ -883,6 +968,32 @@ mod tests {
                 .fold(0.0, f64::max);
             assert!(worst < 2e-3, "{dims:?}: {worst}");
         }
+    }
+
+    #[test]
+    fn the_skip_reach_is_the_chebyshev_distance_to_the_nearest_occupied_block() {
+        let nb = [7, 5, 6];
+        let mut occ = vec![0u32; 7 * 5 * 6];
+        let idx = |x: usize, y: usize, z: usize| x + 7 * (y + 5 * z);
+        occ[idx(1, 1, 1)] = 1;
+        occ[idx(6, 4, 5)] = 1;
+        let reach = reach_of(&occ, nb);
+        for z in 0..6usize {
+            for y in 0..5usize {
+                for x in 0..7usize {
+                    let cheb = |o: [usize; 3]| {
+                        [x.abs_diff(o[0]), y.abs_diff(o[1]), z.abs_diff(o[2])]
+                            .into_iter()
+                            .max()
+                            .unwrap()
+                    };
+                    let want = cheb([1, 1, 1]).min(cheb([6, 4, 5]));
+                    assert_eq!(reach[idx(x, y, z)] as usize, want, "{x} {y} {z}");
+                }
+            }
+        }
+        // Nothing occupied: every block keeps the cap.
+        assert!(reach_of(&[0; 8], [2, 2, 2]).iter().all(|&r| r == REACH));
     }
 
     #[test]

@@ -35,9 +35,6 @@ pub struct LightSettings {
 /// Slices per block of a cell's light (16 f32: one cache line).
 pub(crate) const KB: usize = 16;
 
-/// Cell rows per rayon job of the sweep.
-const BAND: usize = 4;
-
 /// `O_k` per cell and slice (see the module's layout).
 pub(crate) struct LightVolume {
     pub cells: [usize; 2],
@@ -57,19 +54,15 @@ impl LightVolume {
         }
     }
 
-    /// `O` of slice `k` (clamped to the slices) in cell `c`.
-    #[inline(always)]
-    fn at(&self, c: usize, k: usize) -> f32 {
-        let k = k.min(self.slices - 1);
-        let n = self.cells[0] * self.cells[1];
-        self.o[((k / KB) * n + c) * KB + k % KB]
-    }
-
-    /// `O` of slice `k` at a pixel: bilinear over the four cells of `f` (indices and
-    /// fractions from [`LightVolume::footprint`]).
+    /// `O` of slice `k` (below `slices`) at a pixel: bilinear over the four cells of `f`
+    /// (offsets and fractions from [`LightVolume::footprint`]).
     #[inline(always)]
     pub(crate) fn lookup(&self, f: &Footprint, k: usize) -> f32 {
-        let v = f.cells.map(|c| self.at(c as usize, k));
+        debug_assert!(k < self.slices);
+        let n = self.cells[0] * self.cells[1];
+        let block = &self.o[(k / KB) * n * KB..];
+        let j = k % KB;
+        let v = f.cells.map(|c| block[c as usize + j]);
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
     }
@@ -84,7 +77,7 @@ impl LightVolume {
         let at = |dx: i64, dy: i64| {
             let x = (b[0] as i64 + dx).clamp(0, hi[0]) as usize;
             let y = (b[1] as i64 + dy).clamp(0, hi[1]) as usize;
-            (x + self.cells[0] * y) as u32
+            ((x + self.cells[0] * y) * KB) as u32
         };
         Footprint {
             cells: [at(0, 0), at(1, 0), at(0, 1), at(1, 1)],
@@ -93,7 +86,8 @@ impl LightVolume {
     }
 }
 
-/// Where a pixel reads the light volume: four cells and the bilinear fractions (x, y).
+/// Where a pixel reads the light volume: four cells (as offsets `cell KB` into a block of
+/// slices) and the bilinear fractions (x, y).
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Footprint {
     pub cells: [u32; 4],
@@ -142,9 +136,34 @@ impl EaVolume {
         let cone_taps: Vec<Vec<[f64; 2]>> = (0..=9).map(blur_taps).collect();
         let mut prev: Vec<Leave> = vec![[1.0, 0.0]; n];
         let mut next: Vec<Leave> = vec![[1.0, 0.0]; n];
+        // Per row of cells, the span of cells whose light leaving the previous slice is not
+        // 1 (lo > hi: none); elsewhere the blur reads ones and gives 1 without reading.
+        let mut dirty: Vec<(i32, i32)> = vec![(i32::MAX, i32::MIN); cells[1]];
+        let mut dirty_next = dirty.clone();
+        // Per cell, the next slice whose sample may not be transparent.
+        let mut next_k: Vec<u32> = vec![0; n];
         let d = v.dz as f32;
-        for k in 0..slices {
-            let row = blur[k];
+        let rows_per_job = (cells[1] / 32).max(1);
+        for (k, &row) in blur.iter().enumerate().take(slices) {
+            // Cells further than the blur reaches from every dirty cell gather 1.
+            let reach_r = if row.wide {
+                row.rpx[0].max(row.rpx[1]).ceil() as i32 + 1
+            } else {
+                1
+            };
+            let reach: Vec<(i32, i32)> = (0..cells[1] as i32)
+                .map(|y| {
+                    let (mut lo, mut hi) = (i32::MAX, i32::MIN);
+                    for yy in (y - reach_r).max(0)..=(y + reach_r).min(cells[1] as i32 - 1) {
+                        let (a, b) = dirty[yy as usize];
+                        if a <= b {
+                            lo = lo.min(a - reach_r);
+                            hi = hi.max(b + reach_r);
+                        }
+                    }
+                    (lo, hi)
+                })
+                .collect();
             let block = &mut lv.o[(k / KB) * n * KB..][..n * KB];
             let job = Sweep {
                 prev: &prev,
@@ -157,20 +176,53 @@ impl EaVolume {
                 d,
                 k,
             };
-            next.par_chunks_mut(cells[0] * BAND)
-                .zip(block.par_chunks_mut(cells[0] * BAND * KB))
+            let span = cells[0] * rows_per_job;
+            next.par_chunks_mut(span)
+                .zip(block.par_chunks_mut(span * KB))
+                .zip(next_k.par_chunks_mut(span))
+                .zip(dirty_next.par_chunks_mut(rows_per_job))
                 .enumerate()
-                .for_each(|(band, (out, o))| {
-                    let c0 = band * cells[0] * BAND;
-                    for (i, leave) in out.iter_mut().enumerate() {
-                        let c = c0 + i;
-                        let (occl, age) = job.gather(c);
-                        o[i * KB + k % KB] = occl;
-                        let t = self.exp_neg(self.optical_depth(v, data, &rays[c], k as u32));
-                        *leave = [occl * t, (1.0 - occl) * (age + d)];
+                .for_each(|(job_i, (((out, o), nk), dn))| {
+                    let c0 = job_i * span;
+                    for (ry, ((out, nk), dn)) in out
+                        .chunks_mut(cells[0])
+                        .zip(nk.chunks_mut(cells[0]))
+                        .zip(dn.iter_mut())
+                        .enumerate()
+                    {
+                        let y = job_i * rows_per_job + ry;
+                        let (rlo, rhi) = reach[y];
+                        let (mut lo, mut hi) = (i32::MAX, i32::MIN);
+                        for (x, (leave, nk)) in out.iter_mut().zip(nk.iter_mut()).enumerate() {
+                            let clear = (x as i32) < rlo || (x as i32) > rhi;
+                            let kk = k as u32;
+                            if clear && kk < *nk {
+                                // Light 1 arrives (the volume holds 1 already) and leaves.
+                                *leave = [1.0, 0.0];
+                                continue;
+                            }
+                            let c = c0 + ry * cells[0] + x;
+                            let (occl, age) = if clear { (1.0, 0.0) } else { job.gather(c) };
+                            let i = (c - c0) * KB + k % KB;
+                            o[i] = occl;
+                            let tau = if kk >= *nk {
+                                let (tau, after) = self.optical_depth(v, data, &rays[c], kk);
+                                *nk = after;
+                                tau
+                            } else {
+                                0.0
+                            };
+                            *leave = [occl * self.exp_neg(tau), (1.0 - occl) * (age + d)];
+                            if leave[0] != 1.0 || leave[1] != 0.0 {
+                                lo = lo.min(x as i32);
+                                hi = hi.max(x as i32);
+                            }
+                        }
+                        *dn = (lo, hi);
                     }
                 });
             std::mem::swap(&mut prev, &mut next);
+            std::mem::swap(&mut dirty, &mut dirty_next);
         }
         lv
     }
