@@ -78,6 +78,9 @@ pub struct EaVolume {
     hi: [f32; 3],
     /// `exp(-x)` at `x = i / EXP_SCALE` (see [`EaVolume::exp_neg`]).
     exp_table: Vec<f32>,
+    /// The samples in `u8` or `u16` where they are integers in range (`None`: they are not,
+    /// or they are stored so already), made at the first lit frame for the light sweep.
+    sweep_samples: std::sync::OnceLock<Option<Samples>>,
 }
 
 impl EaVolume {
@@ -144,6 +147,7 @@ impl EaVolume {
             tf: points,
             slopes,
             hi: vol.dims.map(|n| n as f32 - 1.0),
+            sweep_samples: std::sync::OnceLock::new(),
             exp_table: (0..=EXP_N + 1)
                 .map(|i| (-(i as f64) / EXP_SCALE as f64).exp() as f32)
                 .collect(),
@@ -270,7 +274,16 @@ impl EaVolume {
         let inv = v.camera.view_projection(aspect).inverse();
         let bg = v.background.map(|x| x as f32);
         let t = std::time::Instant::now();
-        let lv = light.map(|s| self.sweep(v, data, s, inv));
+        // The sweep samples a plane of the volume a slice, all of it each time: where the
+        // samples are integers it reads them in their narrow type, 2-4 times fewer bytes
+        // (the same values; measured: the sweep is bound by the plane's cache misses).
+        let lv = light.map(
+            |s| match self.sweep_samples.get_or_init(|| self.data.narrowed()) {
+                Some(Samples::U8(d)) => self.sweep(v, d.as_slice(), s, inv),
+                Some(Samples::U16(d)) => self.sweep(v, d.as_slice(), s, inv),
+                _ => self.sweep(v, data, s, inv),
+            },
+        );
         let light_ms = if lv.is_some() {
             t.elapsed().as_secs_f64() * 1e3
         } else {
@@ -681,6 +694,25 @@ enum Samples {
 pub const NARROW_ABOVE: usize = 256 << 20;
 
 impl Samples {
+    /// `f32` samples in `u8` or `u16` where every one is an integer in range (the same
+    /// layout); `None` otherwise or when already narrow.
+    fn narrowed(&self) -> Option<Samples> {
+        let Samples::F32(d) = self else {
+            return None;
+        };
+        let fits = |max: f32| {
+            d.par_iter()
+                .all(|&v| v >= 0.0 && v <= max && v == v.trunc())
+        };
+        if fits(255.0) {
+            Some(Samples::U8(d.par_iter().map(|&v| v as u8).collect()))
+        } else if fits(65535.0) {
+            Some(Samples::U16(d.par_iter().map(|&v| v as u16).collect()))
+        } else {
+            None
+        }
+    }
+
     fn new(data: &[f32], dims: [usize; 3], bricks: [usize; 3], narrow: bool) -> Samples {
         let fits = |max: f32| {
             data.par_iter()

@@ -121,6 +121,7 @@ impl EaVolume {
         };
         // The cells' centre rays, as the pixels' (a continuous pixel position).
         let rays: Vec<Ray> = (0..n)
+            .into_par_iter()
             .map(|c| {
                 let px = [
                     ((c % cells[0]) as f64 + 0.5) * cell as f64,
@@ -169,6 +170,7 @@ impl EaVolume {
                 prev: &prev,
                 cells,
                 row,
+                w32: row.w.map(|r| r.map(|x| x as f32)),
                 taps: &taps,
                 cone_taps: &cone_taps,
                 cone: s.cone,
@@ -184,6 +186,7 @@ impl EaVolume {
                 .enumerate()
                 .for_each(|(job_i, (((out, o), nk), dn))| {
                     let c0 = job_i * span;
+                    let mut occ_row: Vec<f32> = Vec::new();
                     for (ry, ((out, nk), dn)) in out
                         .chunks_mut(cells[0])
                         .zip(nk.chunks_mut(cells[0]))
@@ -192,6 +195,16 @@ impl EaVolume {
                     {
                         let y = job_i * rows_per_job + ry;
                         let (rlo, rhi) = reach[y];
+                        // The paper's blur over the row's reachable span at once (the 3x3
+                        // stencil, vectorised); the cone model and wide blurs per cell.
+                        let span_lo = rlo.max(0) as usize;
+                        let span_hi = rhi.min(cells[0] as i32 - 1);
+                        let by_row = !s.cone && !row.wide && span_hi >= span_lo as i32;
+                        if by_row {
+                            occ_row.clear();
+                            occ_row.resize(cells[0], 0.0);
+                            job.stencil_row(y, span_lo, span_hi as usize, &mut occ_row);
+                        }
                         let (mut lo, mut hi) = (i32::MAX, i32::MIN);
                         for (x, (leave, nk)) in out.iter_mut().zip(nk.iter_mut()).enumerate() {
                             let clear = (x as i32) < rlo || (x as i32) > rhi;
@@ -202,7 +215,13 @@ impl EaVolume {
                                 continue;
                             }
                             let c = c0 + ry * cells[0] + x;
-                            let (occl, age) = if clear { (1.0, 0.0) } else { job.gather(c) };
+                            let (occl, age) = if clear {
+                                (1.0, 0.0)
+                            } else if by_row {
+                                (occ_row[x], 0.0)
+                            } else {
+                                job.gather(c)
+                            };
                             let i = (c - c0) * KB + k % KB;
                             o[i] = occl;
                             let tau = if kk >= *nk {
@@ -233,6 +252,8 @@ struct Sweep<'a> {
     prev: &'a [Leave],
     cells: [usize; 2],
     row: BlurRow,
+    /// The row's 3x3 stencil in f32.
+    w32: [[f32; 3]; 3],
     taps: &'a [[f64; 2]],
     cone_taps: &'a [Vec<[f64; 2]>],
     cone: bool,
@@ -287,6 +308,34 @@ impl Sweep<'_> {
         sum
     }
 
+    /// The paper's 3x3 stencil over cells `lo..=hi` of row `y` (borders clamped), into
+    /// `out` (zeros): the same sums as [`Sweep::stencil`], a row at a time.
+    fn stencil_row(&self, y: usize, lo: usize, hi: usize, out: &mut [f32]) {
+        let [cw, ch] = self.cells;
+        let rows = [y.saturating_sub(1), y, (y + 1).min(ch - 1)];
+        for (j, &ry) in rows.iter().enumerate() {
+            let p = &self.prev[ry * cw..][..cw];
+            let [a, b, c] = self.w32[j];
+            let at = |x: usize| {
+                a * p[x.saturating_sub(1)][0] + b * p[x][0] + c * p[(x + 1).min(cw - 1)][0]
+            };
+            // Interior cells without clamping (the loop the compiler vectorises).
+            let (i0, i1) = (lo.max(1), hi.min(cw.saturating_sub(2)));
+            for (x, o) in out.iter_mut().enumerate().take(i0.min(hi + 1)).skip(lo) {
+                *o += at(x);
+            }
+            if i0 <= i1 {
+                for (o, w3) in out[i0..=i1].iter_mut().zip(p[i0 - 1..=i1 + 1].windows(3)) {
+                    *o += a * w3[0][0] + b * w3[1][0] + c * w3[2][0];
+                }
+            }
+            let tail = (i1 + 1).max(i0);
+            for (x, o) in out.iter_mut().enumerate().take(hi + 1).skip(tail) {
+                *o += at(x);
+            }
+        }
+    }
+
     /// `O_k` of cell `c` and (cone model) the mean age of the shadow arriving there.
     fn gather(&self, c: usize) -> (f32, f32) {
         if self.k == 0 {
@@ -297,8 +346,7 @@ impl Sweep<'_> {
             let occl = if self.row.wide {
                 self.taps(self.taps, x, y, self.row.rpx)[0]
             } else {
-                let w = self.row.w.map(|r| r.map(|x| x as f32));
-                self.stencil(&w, x, y)[0]
+                self.stencil(&self.w32, x, y)[0]
             };
             return (occl, 0.0);
         }
