@@ -3,11 +3,11 @@
 //! paper - its equation index, the model as umbra implements it, and the pure functions the
 //! GPU passes are built on.
 //!
-//! | paper | CPU (this crate) | GPU (`engine`, `shaders/`) | checked by |
+//! | paper | CPU (this crate; the CPU renderer `raycast`) | GPU (`engine`, `shaders/`) | checked by |
 //! |---|---|---|---|
 //! | §3.2.1 G-buffer | - | `gbuffer.rs`, `gbuffer.wgsl` | `engine/tests/occlusion_render.rs` |
-//! | Alg. 2 eye buffer, E/A | `emission_absorption::reference` | `slice_pass.wgsl::march` | `engine/tests/ea_render.rs` |
-//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`auto_cell`], `reference::render` | `slice_pass.wgsl::light` | unit tests below, `occlusion_render.rs` |
+//! | Alg. 2 eye buffer, E/A | `emission_absorption::reference`; `raycast::EaVolume::render_frame` | `slice_pass.wgsl::march` | `engine/tests/ea_render.rs`, `raycast` tests |
+//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_cell`], [`auto_cell`], `reference::render`; `raycast::light` (the sweep, volume-only) | `slice_pass.wgsl::light` | unit tests below, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass) |
 //! | Alg. 4, eq. 1-3 partial occlusion | `reference::render` (surface AOV) | `slice_pass.wgsl::march` | `occlusion_render.rs` (exp(-sigma z)) |
 //! | Alg. 5, eq. 4-6 vicinity | [`poisson_disk`], `camera::texture_radius` | `vicinity.wgsl` | `occlusion_render.rs` (groove) |
 //! | Alg. 6, eq. 7-10 compositing | - | `composite.wgsl` | `occlusion_render.rs` (eq. 7, 8) |

@@ -145,6 +145,8 @@ impl EaVolume {
         let mut next_k: Vec<u32> = vec![0; n];
         let d = v.dz as f32;
         let rows_per_job = (cells[1] / 32).max(1);
+        #[cfg(target_arch = "x86_64")]
+        let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
         for (k, &row) in blur.iter().enumerate().take(slices) {
             // Cells further than the blur reaches from every dirty cell gather 1.
             let reach_r = if row.wide {
@@ -168,6 +170,8 @@ impl EaVolume {
             let block = &mut lv.o[(k / KB) * n * KB..][..n * KB];
             let job = Sweep {
                 prev: &prev,
+                reach: &reach,
+                rays: &rays,
                 cells,
                 row,
                 w32: row.w.map(|r| r.map(|x| x as f32)),
@@ -185,60 +189,20 @@ impl EaVolume {
                 .zip(dirty_next.par_chunks_mut(rows_per_job))
                 .enumerate()
                 .for_each(|(job_i, (((out, o), nk), dn))| {
-                    let c0 = job_i * span;
-                    let mut occ_row: Vec<f32> = Vec::new();
-                    for (ry, ((out, nk), dn)) in out
-                        .chunks_mut(cells[0])
-                        .zip(nk.chunks_mut(cells[0]))
-                        .zip(dn.iter_mut())
-                        .enumerate()
-                    {
-                        let y = job_i * rows_per_job + ry;
-                        let (rlo, rhi) = reach[y];
-                        // The paper's blur over the row's reachable span at once (the 3x3
-                        // stencil, vectorised); the cone model and wide blurs per cell.
-                        let span_lo = rlo.max(0) as usize;
-                        let span_hi = rhi.min(cells[0] as i32 - 1);
-                        let by_row = !s.cone && !row.wide && span_hi >= span_lo as i32;
-                        if by_row {
-                            occ_row.clear();
-                            occ_row.resize(cells[0], 0.0);
-                            job.stencil_row(y, span_lo, span_hi as usize, &mut occ_row);
-                        }
-                        let (mut lo, mut hi) = (i32::MAX, i32::MIN);
-                        for (x, (leave, nk)) in out.iter_mut().zip(nk.iter_mut()).enumerate() {
-                            let clear = (x as i32) < rlo || (x as i32) > rhi;
-                            let kk = k as u32;
-                            if clear && kk < *nk {
-                                // Light 1 arrives (the volume holds 1 already) and leaves.
-                                *leave = [1.0, 0.0];
-                                continue;
-                            }
-                            let c = c0 + ry * cells[0] + x;
-                            let (occl, age) = if clear {
-                                (1.0, 0.0)
-                            } else if by_row {
-                                (occ_row[x], 0.0)
-                            } else {
-                                job.gather(c)
-                            };
-                            let i = (c - c0) * KB + k % KB;
-                            o[i] = occl;
-                            let tau = if kk >= *nk {
-                                let (tau, after) = self.optical_depth(v, data, &rays[c], kk);
-                                *nk = after;
-                                tau
-                            } else {
-                                0.0
-                            };
-                            *leave = [occl * self.exp_neg(tau), (1.0 - occl) * (age + d)];
-                            if leave[0] != 1.0 || leave[1] != 0.0 {
-                                lo = lo.min(x as i32);
-                                hi = hi.max(x as i32);
-                            }
-                        }
-                        *dn = (lo, hi);
+                    let rows = Rows {
+                        first: job_i * rows_per_job,
+                        out,
+                        o,
+                        nk,
+                        dn,
+                    };
+                    #[cfg(target_arch = "x86_64")]
+                    if fma {
+                        // SAFETY: the CPU has AVX2 and FMA (checked above).
+                        unsafe { job.rows_fma(self, v, data, rows) };
+                        return;
                     }
+                    job.rows(self, v, data, rows);
                 });
             std::mem::swap(&mut prev, &mut next);
             std::mem::swap(&mut dirty, &mut dirty_next);
@@ -247,9 +211,24 @@ impl EaVolume {
     }
 }
 
+/// Rows of cells of one slice, from row `first`: their light leaving (`out`), their `O` in
+/// the light volume's block (`o`), their next slices to sample (`nk`) and their dirty spans
+/// (`dn`).
+struct Rows<'a> {
+    first: usize,
+    out: &'a mut [Leave],
+    o: &'a mut [f32],
+    nk: &'a mut [u32],
+    dn: &'a mut [(i32, i32)],
+}
+
 /// One slice of the sweep: what every cell's gather reads.
 struct Sweep<'a> {
     prev: &'a [Leave],
+    /// Per row, the cells the blur of a dirty cell may reach (outside: clear).
+    reach: &'a [(i32, i32)],
+    /// The cells' centre rays.
+    rays: &'a [Ray],
     cells: [usize; 2],
     row: BlurRow,
     /// The row's 3x3 stencil in f32.
@@ -263,6 +242,81 @@ struct Sweep<'a> {
 }
 
 impl Sweep<'_> {
+    /// [`Sweep::rows`] compiled for AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn rows_fma<T: Voxel>(&self, ev: &EaVolume, v: &EaView, data: &[T], r: Rows<'_>) {
+        self.rows(ev, v, data, r)
+    }
+
+    /// Slice `k` of rows `r`: each cell's `O_k` (1 where nothing dirty reaches it), stored
+    /// where not 1, and the light leaving it through its slab.
+    #[inline(always)]
+    fn rows<T: Voxel>(&self, ev: &EaVolume, v: &EaView, data: &[T], r: Rows<'_>) {
+        let Rows {
+            first,
+            out,
+            o,
+            nk,
+            dn,
+        } = r;
+        let cw = self.cells[0];
+        let (k, d) = (self.k, self.d);
+        let kk = k as u32;
+        let c0 = first * cw;
+        let mut occ_row: Vec<f32> = Vec::new();
+        for (ry, ((out, nk), dn)) in out
+            .chunks_mut(cw)
+            .zip(nk.chunks_mut(cw))
+            .zip(dn.iter_mut())
+            .enumerate()
+        {
+            let y = first + ry;
+            let (rlo, rhi) = self.reach[y];
+            // The paper's blur over the row's reachable span at once (the 3x3 stencil,
+            // vectorised); the cone model and wide blurs per cell.
+            let span_lo = rlo.max(0) as usize;
+            let span_hi = rhi.min(cw as i32 - 1);
+            let by_row = !self.cone && !self.row.wide && span_hi >= span_lo as i32;
+            if by_row {
+                occ_row.clear();
+                occ_row.resize(cw, 0.0);
+                self.stencil_row(y, span_lo, span_hi as usize, &mut occ_row);
+            }
+            let (mut lo, mut hi) = (i32::MAX, i32::MIN);
+            for (x, (leave, nk)) in out.iter_mut().zip(nk.iter_mut()).enumerate() {
+                let clear = (x as i32) < rlo || (x as i32) > rhi;
+                if clear && kk < *nk {
+                    // Light 1 arrives (the volume holds 1 already) and leaves.
+                    *leave = [1.0, 0.0];
+                    continue;
+                }
+                let c = c0 + ry * cw + x;
+                let (occl, age) = if clear {
+                    (1.0, 0.0)
+                } else if by_row {
+                    (occ_row[x], 0.0)
+                } else {
+                    self.gather(c)
+                };
+                o[(c - c0) * KB + k % KB] = occl;
+                let tau = if kk >= *nk {
+                    let (tau, after) = ev.optical_depth(v, data, &self.rays[c], kk);
+                    *nk = after;
+                    tau
+                } else {
+                    0.0
+                };
+                *leave = [occl * ev.exp_neg(tau), (1.0 - occl) * (age + d)];
+                if leave[0] != 1.0 || leave[1] != 0.0 {
+                    lo = lo.min(x as i32);
+                    hi = hi.max(x as i32);
+                }
+            }
+            *dn = (lo, hi);
+        }
+    }
+
     /// The previous slice's light leaving cell `(x, y)`, clamped to the border.
     #[inline(always)]
     fn texel(&self, x: i64, y: i64) -> Leave {
