@@ -8,7 +8,9 @@ mod output;
 mod progress;
 
 use clap::{error::ErrorKind, Parser, Subcommand};
-use commands::{convert, demo, info, iso, render, resample, scene, sweep, synth, trace, tubes};
+use commands::{
+    convert, demo, info, iso, render, resample, scene, sweep, synth, trace, tubes, view,
+};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -53,6 +55,9 @@ enum Command {
     /// Resample a CFD grid (.vtr, .vts, .vtu, legacy .vtk STRUCTURED_GRID/RECTILINEAR_GRID,
     /// PLOT3D) onto a regular grid; samples outside the mesh are NaN.
     Resample(resample::Args),
+    /// Open a scene file in a window (the interactive viewer): orbit, pan, zoom, standard
+    /// views, the method; a draft while you interact, the full image when the view rests.
+    View(view::Args),
 }
 
 fn run(command: Command) -> Result<(), String> {
@@ -69,6 +74,7 @@ fn run(command: Command) -> Result<(), String> {
         Command::Demo(a) => demo::run(a),
         Command::Scene(a) => scene::run(a),
         Command::Resample(a) => resample::run(a),
+        Command::View(a) => view::run(a),
     }
 }
 

@@ -13,6 +13,7 @@ pub mod sweep;
 pub mod synth;
 pub mod trace;
 pub mod tubes;
+pub mod view;
 
 use volume::FieldSelector;
 

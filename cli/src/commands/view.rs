@@ -1,0 +1,38 @@
+//! `umbra view`: the interactive viewer (`umbra-viewer`) on a scene file.
+
+use std::path::PathBuf;
+
+/// Open a scene in a window: drag to orbit, right-drag to pan, wheel to zoom; arrows
+/// (orbit) and shift+arrows (pan), + and - (zoom), L R A P S I (standard views of RAS data:
+/// from the left, right, front, back, top, bottom), O (orthographic/perspective), Home or 0
+/// (reset). A draft (a quarter of the resolution, ea, at most 128 slices) while you
+/// interact, the scene's full image when the view rests. Closes with the window, Ctrl+C or
+/// SIGTERM (status 0). Needs an X display (DISPLAY; xvfb-run works).
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scene file (see `umbra scene` and the README).
+    scene: PathBuf,
+    /// The window's inner size, logical pixels.
+    #[arg(long, default_value_t = 1100.0)]
+    width: f32,
+    #[arg(long, default_value_t = 720.0)]
+    height: f32,
+    /// Override a scene key by its dotted path (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+}
+
+pub fn run(a: Args) -> Result<(), String> {
+    let started = std::time::Instant::now();
+    umbra_viewer::run(umbra_viewer::ViewArgs {
+        scene: a.scene,
+        overrides: a.set,
+        window: [a.width, a.height],
+        on_first_image: Some(Box::new(move |device: &str| {
+            eprintln!(
+                "umbra view: first image after {:.1} s (renderer on {device})",
+                started.elapsed().as_secs_f64()
+            )
+        })),
+    })
+}

@@ -1,0 +1,217 @@
+//! `umbra view` end to end under Xvfb (scripts/setup.sh installs it, xdotool, xwd and netpbm):
+//! the window opens, shows a first image through the swapchain, a synthetic drag changes the
+//! view, and the viewer ends with status 0 on SIGTERM; without a display it says so instead of
+//! panicking.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn scene(dir: &std::path::Path) -> std::path::PathBuf {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap();
+    let p = dir.join("s.toml");
+    std::fs::write(
+        &p,
+        format!(
+            "[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n[render]\nmethod = \"ea\"\n",
+            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    p
+}
+
+/// An Xvfb server on a free display (24-bit, as Mesa's X11 swapchain needs), killed on drop.
+struct Xvfb(std::process::Child, String);
+
+impl Xvfb {
+    fn start() -> Xvfb {
+        for n in (0..50).map(|i| 80 + (std::process::id() as usize + i) % 400) {
+            if std::path::Path::new(&format!("/tmp/.X{n}-lock")).exists() {
+                continue;
+            }
+            let mut child = Command::new("Xvfb")
+                .args([
+                    &format!(":{n}"),
+                    "-screen",
+                    "0",
+                    "1024x768x24",
+                    "-nolisten",
+                    "tcp",
+                ])
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("Xvfb (scripts/setup.sh installs it)");
+            let t = Instant::now();
+            while t.elapsed() < Duration::from_secs(10) {
+                if std::path::Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
+                    return Xvfb(child, format!(":{n}"));
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+        panic!("no Xvfb display started");
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The screen of display `d` as RGB (width, height, bytes), through `xwd | xwdtopnm`.
+fn capture(d: &str) -> (usize, usize, Vec<u8>) {
+    let out = Command::new("sh")
+        .args([
+            "-c",
+            &format!("xwd -root -silent -display {d} | xwdtopnm 2>/dev/null"),
+        ])
+        .output()
+        .expect("xwd and xwdtopnm (scripts/setup.sh installs them)");
+    let ppm = out.stdout;
+    // P6 <w> <h> <max>\n<bytes>: four whitespace-separated tokens, then the samples.
+    let mut fields = vec![];
+    let mut i = 0;
+    while fields.len() < 4 {
+        while ppm[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        let start = i;
+        while !ppm[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        fields.push(String::from_utf8_lossy(&ppm[start..i]).to_string());
+    }
+    assert_eq!(fields[0], "P6", "not a PPM capture");
+    let (w, h): (usize, usize) = (fields[1].parse().unwrap(), fields[2].parse().unwrap());
+    let data = ppm[i + 1..].to_vec();
+    assert_eq!(data.len(), w * h * 3, "capture of {w} x {h}");
+    (w, h, data)
+}
+
+#[test]
+fn umbra_view_shows_a_first_image_under_xvfb_and_ends_on_sigterm() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let x = Xvfb::start();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_umbra"))
+        .args([
+            "view",
+            s.to_str().unwrap(),
+            "--width",
+            "480",
+            "--height",
+            "360",
+        ])
+        .env("DISPLAY", &x.1)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .env("WINIT_X11_SCALE_FACTOR", "1")
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Read stderr on a thread until the first image is reported.
+    let err = child.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(err).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    let t = Instant::now();
+    let mut log = vec![];
+    let mut shown = false;
+    while t.elapsed() < Duration::from_secs(90) && !shown {
+        if let Ok(line) = rx.recv_timeout(Duration::from_millis(200)) {
+            shown |= line.contains("first image");
+            log.push(line);
+        }
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("the viewer ended early ({status}): {}", log.join("\n"));
+        }
+    }
+    assert!(shown, "no first image in 90 s: {}", log.join("\n"));
+    // The 3-D view (right of the controls) is on the screen and not uniform; a drag across it
+    // changes it (a draft, then the full image).
+    std::thread::sleep(Duration::from_secs(2));
+    let (w, h, before) = capture(&x.1);
+    let view = |img: &[u8]| -> Vec<f64> {
+        let mut v = vec![];
+        for y in h / 6..h * 5 / 6 {
+            for xx in 300..460.min(w) {
+                v.push(img[3 * (xx + w * y)] as f64);
+            }
+        }
+        v
+    };
+    let a = view(&before);
+    let mean = a.iter().sum::<f64>() / a.len() as f64;
+    let spread = a.iter().map(|v| (v - mean).abs()).sum::<f64>() / a.len() as f64;
+    assert!(
+        spread > 2.0,
+        "the view is uniform (mean {mean}, spread {spread})"
+    );
+    let xdo = |args: &[&str]| {
+        let ok = Command::new("xdotool")
+            .args(args)
+            .env("DISPLAY", &x.1)
+            .status()
+            .expect("xdotool (scripts/setup.sh installs it)");
+        assert!(ok.success(), "xdotool {args:?}");
+    };
+    xdo(&["mousemove", "380", "180"]);
+    xdo(&["mousedown", "1"]);
+    for _ in 0..8 {
+        xdo(&["mousemove_relative", "--", "12", "4"]);
+        std::thread::sleep(Duration::from_millis(40));
+    }
+    xdo(&["mouseup", "1"]);
+    std::thread::sleep(Duration::from_secs(4));
+    let (_, _, after) = capture(&x.1);
+    let b = view(&after);
+    let changed = a.iter().zip(&b).map(|(p, q)| (p - q).abs()).sum::<f64>() / a.len() as f64;
+    assert!(
+        changed > 1.0,
+        "the view did not change after a drag ({changed})"
+    );
+    // SIGTERM ends it with status 0 within 5 s.
+    let kill = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let t = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t.elapsed() > Duration::from_secs(5) {
+            let _ = child.kill();
+            panic!("the viewer did not end within 5 s of SIGTERM");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "status {status}: {}", log.join("\n"));
+}
+
+#[test]
+fn umbra_view_without_a_display_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let out = Command::new(env!("CARGO_BIN_EXE_umbra"))
+        .args(["view", s.to_str().unwrap()])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("DISPLAY"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}

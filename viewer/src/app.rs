@@ -1,0 +1,347 @@
+//! The window: the latest image of the scene in the centre, the controls beside it, mouse
+//! and keys changing the scene state, which goes to the worker as a draft while the user
+//! interacts and as the full scene once the view rests.
+
+use crate::controls::{Orbit, StandardView};
+use crate::worker::{Image, Level, Request, Worker};
+use eframe::egui;
+use glam::DVec3;
+use scene::spec::Scene;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// How long the view must rest before the full image is asked for.
+pub const REST: Duration = Duration::from_millis(250);
+
+/// The methods the method menu offers, in the README's order.
+const METHODS: &[engine::method::Method] = {
+    use engine::method::Method::*;
+    &[
+        Combined,
+        Dos,
+        Vicinity,
+        Ea,
+        Phong,
+        Illuminated,
+        LineAo,
+        Illustrative,
+    ]
+};
+
+pub struct App {
+    /// The scene as the user has made it (camera, method, size follow the window).
+    pub scene: Scene,
+    pub orbit: Orbit,
+    initial: Orbit,
+    bounds: [DVec3; 2],
+    worker: Worker,
+    texture: Option<egui::TextureHandle>,
+    shown: Option<ImageInfo>,
+    error: Option<String>,
+    next_id: u64,
+    /// The newest request and whether its full image is still to be asked for.
+    asked: Option<(u64, Level)>,
+    full_pending: bool,
+    last_input: Instant,
+    quit: Arc<AtomicBool>,
+    /// Called once with the first image shown (the command line reports it).
+    on_first_image: Option<crate::OnFirstImage>,
+}
+
+/// What the shown image was.
+struct ImageInfo {
+    level: Level,
+    size: [usize; 2],
+    total_ms: f64,
+    passes: Vec<(String, f64)>,
+    notes: Vec<String>,
+    device: String,
+}
+
+impl App {
+    pub fn new(
+        scene: Scene,
+        bounds: [DVec3; 2],
+        worker: Worker,
+        quit: Arc<AtomicBool>,
+        on_first_image: Option<crate::OnFirstImage>,
+    ) -> App {
+        let orbit = Orbit::of(&scene.camera, bounds);
+        App {
+            scene,
+            orbit,
+            initial: orbit,
+            bounds,
+            worker,
+            texture: None,
+            shown: None,
+            error: None,
+            next_id: 0,
+            asked: None,
+            full_pending: true,
+            last_input: Instant::now() - REST,
+            quit,
+            on_first_image,
+        }
+    }
+
+    /// Sends the current state at `level`.
+    fn ask(&mut self, level: Level) {
+        self.next_id += 1;
+        let mut s = self.scene.clone();
+        self.orbit.apply(&mut s.camera);
+        let _ = self.worker.requests.send(Request {
+            id: self.next_id,
+            scene: s,
+            level,
+        });
+        self.asked = Some((self.next_id, level));
+    }
+
+    /// The state changed by the user: a draft now, the full image when the view rests.
+    fn changed(&mut self) {
+        self.last_input = Instant::now();
+        self.full_pending = true;
+        self.ask(Level::Draft);
+    }
+
+    fn receive(&mut self, ctx: &egui::Context) {
+        while let Ok(r) = self.worker.images.try_recv() {
+            match r {
+                Err(e) => self.error = Some(e),
+                Ok(img) => self.show(ctx, img),
+            }
+        }
+    }
+
+    fn show(&mut self, ctx: &egui::Context, img: Image) {
+        let color = egui::ColorImage::from_rgba_unmultiplied(img.size, &img.rgba);
+        match &mut self.texture {
+            Some(t) => t.set(color, egui::TextureOptions::LINEAR),
+            None => {
+                self.texture =
+                    Some(ctx.load_texture("umbra frame", color, egui::TextureOptions::LINEAR))
+            }
+        }
+        self.error = None;
+        if let Some(f) = self.on_first_image.take() {
+            f(&img.device);
+        }
+        self.shown = Some(ImageInfo {
+            level: img.level,
+            size: img.size,
+            total_ms: img.total_ms,
+            passes: img.passes,
+            notes: img.notes,
+            device: img.device,
+        });
+    }
+
+    /// Mouse over the view and keys: orbit (left drag, arrows), pan (right or middle drag,
+    /// shift+arrows), zoom (wheel, +/-), standard views (L R A P S I), reset (Home or 0),
+    /// projection (O). Returns whether anything changed.
+    fn input(&mut self, ui: &egui::Ui, response: &egui::Response) -> bool {
+        let before = self.orbit;
+        let d = response.drag_delta();
+        if response.dragged_by(egui::PointerButton::Primary) {
+            self.orbit = self.orbit.drag(d.x as f64, d.y as f64);
+        } else if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+        {
+            let per_px = self.world_per_point(response.rect.height() as f64);
+            self.orbit = self.orbit.pan(d.x as f64 * per_px, d.y as f64 * per_px);
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y) as f64;
+            if scroll != 0.0 {
+                self.orbit = self.orbit.zoom(scroll / 50.0);
+            }
+        }
+        let keys: Vec<(egui::Key, egui::Modifiers)> = ui.input(|i| {
+            i.events
+                .iter()
+                .filter_map(|e| match e {
+                    egui::Event::Key {
+                        key,
+                        pressed: true,
+                        modifiers,
+                        ..
+                    } => Some((*key, *modifiers)),
+                    _ => None,
+                })
+                .collect()
+        });
+        let focus_free = !ui.ctx().egui_wants_keyboard_input();
+        for (key, m) in keys.into_iter().filter(|_| focus_free) {
+            use egui::Key;
+            let step = crate::controls::KEY_STEP;
+            let pan = self.world_per_point(response.rect.height() as f64) * 20.0;
+            self.orbit = match key {
+                Key::ArrowLeft if m.shift => self.orbit.pan(-pan, 0.0),
+                Key::ArrowRight if m.shift => self.orbit.pan(pan, 0.0),
+                Key::ArrowUp if m.shift => self.orbit.pan(0.0, -pan),
+                Key::ArrowDown if m.shift => self.orbit.pan(0.0, pan),
+                Key::ArrowLeft => self
+                    .orbit
+                    .drag(-step / crate::controls::DEGREES_PER_PIXEL, 0.0),
+                Key::ArrowRight => self
+                    .orbit
+                    .drag(step / crate::controls::DEGREES_PER_PIXEL, 0.0),
+                Key::ArrowUp => self
+                    .orbit
+                    .drag(0.0, -step / crate::controls::DEGREES_PER_PIXEL),
+                Key::ArrowDown => self
+                    .orbit
+                    .drag(0.0, step / crate::controls::DEGREES_PER_PIXEL),
+                Key::Plus | Key::Equals => self.orbit.zoom(1.0),
+                Key::Minus => self.orbit.zoom(-1.0),
+                Key::L => self.orbit.standard(StandardView::Left),
+                Key::R => self.orbit.standard(StandardView::Right),
+                Key::A => self.orbit.standard(StandardView::Anterior),
+                Key::P => self.orbit.standard(StandardView::Posterior),
+                Key::S => self.orbit.standard(StandardView::Superior),
+                Key::I => self.orbit.standard(StandardView::Inferior),
+                Key::Home | Key::Num0 => self.initial,
+                Key::O => crate::controls::Orbit {
+                    orthographic: !self.orbit.orthographic,
+                    ..self.orbit
+                },
+                _ => self.orbit,
+            };
+        }
+        self.orbit != before
+    }
+
+    /// World units per logical point at the target's depth (a perspective camera's view
+    /// height there, or the orthographic height fitted to the scene).
+    fn world_per_point(&self, view_height_points: f64) -> f64 {
+        let radius = (self.bounds[1] - self.bounds[0]).length() * 0.5;
+        let depth = self.orbit.distance * radius;
+        let h = 2.0 * depth * (self.scene.camera.fov_y.to_radians() * 0.5).tan();
+        h / view_height_points.max(1.0)
+    }
+
+    fn panel(&mut self, ui: &mut egui::Ui) -> bool {
+        let mut changed = false;
+        ui.heading("umbra");
+        let current = self.scene.render.method;
+        egui::ComboBox::from_label("method")
+            .selected_text(current.desc().name)
+            .show_ui(ui, |ui| {
+                for m in METHODS {
+                    if ui
+                        .selectable_label(current == *m, m.desc().name)
+                        .on_hover_text(m.desc().summary)
+                        .clicked()
+                    {
+                        self.scene.render.method = *m;
+                        changed = true;
+                    }
+                }
+            });
+        let mut ortho = self.orbit.orthographic;
+        if ui.checkbox(&mut ortho, "orthographic (O)").changed() {
+            self.orbit.orthographic = ortho;
+            changed = true;
+        }
+        ui.horizontal_wrapped(|ui| {
+            for (label, v) in [
+                ("L", StandardView::Left),
+                ("R", StandardView::Right),
+                ("A", StandardView::Anterior),
+                ("P", StandardView::Posterior),
+                ("S", StandardView::Superior),
+                ("I", StandardView::Inferior),
+            ] {
+                if ui.button(label).clicked() {
+                    self.orbit = self.orbit.standard(v);
+                    changed = true;
+                }
+            }
+            if ui.button("reset").clicked() {
+                self.orbit = self.initial;
+                changed = true;
+            }
+        });
+        ui.separator();
+        ui.label(format!(
+            "azimuth {:.1}°, elevation {:.1}°, distance {:.2}",
+            self.orbit.azimuth, self.orbit.elevation, self.orbit.distance
+        ));
+        if let Some(i) = &self.shown {
+            let level = match i.level {
+                Level::Draft => "draft",
+                Level::Full => "full",
+            };
+            ui.label(format!(
+                "{level} image {} x {}: {:.0} ms",
+                i.size[0], i.size[1], i.total_ms
+            ));
+            for (p, ms) in &i.passes {
+                ui.label(format!("  {p} {ms:.1} ms"));
+            }
+            ui.label(format!("on {}", i.device));
+            for n in &i.notes {
+                ui.label(egui::RichText::new(n).small());
+            }
+        } else {
+            ui.label("rendering the first image ...");
+        }
+        if let Some(e) = &self.error {
+            ui.colored_label(egui::Color32::RED, e);
+        }
+        ui.separator();
+        ui.label(
+            "drag: orbit · right drag: pan · wheel: zoom\narrows, shift+arrows, +/-\nL R A P S I: \
+             standard views · O: projection · Home: reset",
+        );
+        changed
+    }
+}
+
+impl eframe::App for App {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let ctx = ui.ctx().clone();
+        if self.quit.load(Ordering::Relaxed) {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+        self.receive(&ctx);
+        let mut changed = false;
+        egui::Panel::left("controls")
+            .default_size(260.0)
+            .show(ui, |ui| changed |= self.panel(ui));
+        egui::CentralPanel::default().show(ui, |ui| {
+            let rect = ui.available_rect_before_wrap();
+            let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+            if let Some(t) = &self.texture {
+                ui.painter().image(
+                    t.id(),
+                    rect,
+                    egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                    egui::Color32::WHITE,
+                );
+            }
+            // The render follows the view's size in physical pixels.
+            let ppp = ctx.pixels_per_point();
+            let (w, h) = (
+                ((rect.width() * ppp).round() as u32).max(16),
+                ((rect.height() * ppp).round() as u32).max(16),
+            );
+            if (w, h) != (self.scene.render.width, self.scene.render.height) {
+                self.scene.render.width = w;
+                self.scene.render.height = h;
+                changed = true;
+            }
+            changed |= self.input(ui, &response);
+        });
+        if changed {
+            self.changed();
+        } else if self.full_pending && self.last_input.elapsed() >= REST {
+            self.full_pending = false;
+            self.ask(Level::Full);
+        }
+        // Keep ticking: the rest timer, the quit flag.
+        ctx.request_repaint_after(Duration::from_millis(100));
+    }
+}

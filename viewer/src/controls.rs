@@ -1,0 +1,230 @@
+//! The viewer's camera: an orbit about a target (the scene's `camera.azimuth`, `elevation`,
+//! `distance` and `target`, with the convention of `occlusion::camera`: azimuth 0 looks along
+//! +y, azimuth 90 along +x, elevation 90 looks down from +z), changed by mouse and keys and
+//! written back into the scene that the renderer draws, so that what the viewer shows is the
+//! scene `umbra render` draws.
+
+use glam::DVec3;
+use scene::spec::{CameraSpec, ProjectionKind};
+
+/// Degrees of orbit per logical pixel dragged.
+pub const DEGREES_PER_PIXEL: f64 = 0.4;
+/// Degrees per arrow-key press.
+pub const KEY_STEP: f64 = 5.0;
+/// The closest orbit distance, in bounding-sphere radii (as `Camera::orbit`).
+pub const MIN_DISTANCE: f64 = 1.01;
+/// Elevation is kept inside (-LIMIT, LIMIT) degrees, so that the up vector stays defined.
+pub const ELEVATION_LIMIT: f64 = 89.5;
+
+/// The orbit: angles in degrees, distance in bounding-sphere radii, the target in world units,
+/// the projection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Orbit {
+    pub azimuth: f64,
+    pub elevation: f64,
+    pub distance: f64,
+    pub target: DVec3,
+    pub orthographic: bool,
+}
+
+/// A standard view of RAS data (x to the Right, y Anterior, z Superior): from the left, right,
+/// front, back, top or bottom.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StandardView {
+    Left,
+    Right,
+    Anterior,
+    Posterior,
+    Superior,
+    Inferior,
+}
+
+impl StandardView {
+    /// Azimuth and elevation that look at the target from this side: from the left the eye is
+    /// at -x and looks along +x (azimuth 90), from the front at +y looking along -y (180).
+    pub fn angles(self) -> (f64, f64) {
+        match self {
+            StandardView::Left => (90.0, 0.0),
+            StandardView::Right => (-90.0, 0.0),
+            StandardView::Anterior => (180.0, 0.0),
+            StandardView::Posterior => (0.0, 0.0),
+            StandardView::Superior => (0.0, ELEVATION_LIMIT),
+            StandardView::Inferior => (0.0, -ELEVATION_LIMIT),
+        }
+    }
+}
+
+impl Orbit {
+    /// The orbit of a scene's camera in a scene of `bounds`: its angles and distance, or, for
+    /// a camera given by `eye`, the orbit that puts the eye there.
+    pub fn of(c: &CameraSpec, bounds: [DVec3; 2]) -> Orbit {
+        let centre = (bounds[0] + bounds[1]) * 0.5;
+        let radius = ((bounds[1] - bounds[0]).length() * 0.5).max(1e-9);
+        let target = c.target.map_or(centre, DVec3::from);
+        let mut o = Orbit {
+            azimuth: c.azimuth,
+            elevation: c.elevation,
+            distance: c.distance,
+            target,
+            orthographic: c.projection == ProjectionKind::Orthographic,
+        };
+        if let Some(eye) = c.eye {
+            let v = target - DVec3::from(eye);
+            let len = v.length();
+            if len > 1e-12 {
+                let f = v / len;
+                o.elevation = (-f.z).clamp(-1.0, 1.0).asin().to_degrees();
+                o.azimuth = f.x.atan2(f.y).to_degrees();
+                o.distance = len / radius;
+            }
+        }
+        o.clamped()
+    }
+
+    /// The direction the camera looks along (unit).
+    pub fn forward(&self) -> DVec3 {
+        let (a, e) = (self.azimuth.to_radians(), self.elevation.to_radians());
+        DVec3::new(a.sin() * e.cos(), a.cos() * e.cos(), -e.sin())
+    }
+
+    fn clamped(mut self) -> Orbit {
+        self.azimuth = (self.azimuth + 180.0).rem_euclid(360.0) - 180.0;
+        self.elevation = self.elevation.clamp(-ELEVATION_LIMIT, ELEVATION_LIMIT);
+        self.distance = self.distance.clamp(MIN_DISTANCE, 1e4);
+        self
+    }
+
+    /// A drag by `(dx, dy)` logical pixels: right turns the scene right (the eye left),
+    /// down tilts it towards the viewer (the eye up).
+    pub fn drag(self, dx: f64, dy: f64) -> Orbit {
+        Orbit {
+            azimuth: self.azimuth - dx * DEGREES_PER_PIXEL,
+            elevation: self.elevation + dy * DEGREES_PER_PIXEL,
+            ..self
+        }
+        .clamped()
+    }
+
+    /// Zoom by `steps` (positive: closer): the distance is divided by `1.1^steps`.
+    pub fn zoom(self, steps: f64) -> Orbit {
+        Orbit {
+            distance: self.distance / 1.1f64.powf(steps),
+            ..self
+        }
+        .clamped()
+    }
+
+    /// Pan by `(dx, dy)` in world units along the view's right and up axes.
+    pub fn pan(self, dx: f64, dy: f64) -> Orbit {
+        let f = self.forward();
+        let right = f.cross(DVec3::Z).try_normalize().unwrap_or(DVec3::X);
+        let up = right.cross(f);
+        Orbit {
+            target: self.target - right * dx + up * dy,
+            ..self
+        }
+    }
+
+    /// Looks from a standard side, keeping distance and target.
+    pub fn standard(self, v: StandardView) -> Orbit {
+        let (azimuth, elevation) = v.angles();
+        Orbit {
+            azimuth,
+            elevation,
+            ..self
+        }
+        .clamped()
+    }
+
+    /// Writes the orbit into a scene's camera (an orbit camera: `eye` cleared, `up` +z).
+    pub fn apply(&self, c: &mut CameraSpec) {
+        c.eye = None;
+        c.up = [0.0, 0.0, 1.0];
+        c.azimuth = self.azimuth;
+        c.elevation = self.elevation;
+        c.distance = self.distance;
+        c.target = Some(self.target.to_array());
+        c.projection = if self.orthographic {
+            ProjectionKind::Orthographic
+        } else {
+            ProjectionKind::Perspective
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bounds() -> [DVec3; 2] {
+        [DVec3::new(-10.0, -20.0, 0.0), DVec3::new(30.0, 20.0, 40.0)]
+    }
+
+    #[test]
+    fn an_eye_camera_becomes_the_orbit_that_puts_the_eye_there() {
+        let b = bounds();
+        let radius = (b[1] - b[0]).length() * 0.5;
+        let centre = (b[0] + b[1]) * 0.5;
+        for (az, el, dist) in [(30.0, 20.0, 2.5), (-120.0, -40.0, 4.0), (179.0, 80.0, 1.5)] {
+            let o = Orbit {
+                azimuth: az,
+                elevation: el,
+                distance: dist,
+                target: centre,
+                orthographic: false,
+            };
+            let eye = centre - o.forward() * dist * radius;
+            let c = CameraSpec {
+                eye: Some(eye.to_array()),
+                ..CameraSpec::default()
+            };
+            let back = Orbit::of(&c, b);
+            assert!((back.azimuth - az).abs() < 1e-9, "{az}: {}", back.azimuth);
+            assert!((back.elevation - el).abs() < 1e-9);
+            assert!((back.distance - dist).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn the_forward_direction_follows_the_camera_convention() {
+        let o = Orbit::of(&CameraSpec::default(), bounds());
+        let at = |az: f64, el: f64| Orbit {
+            azimuth: az,
+            elevation: el,
+            ..o
+        };
+        assert!((at(0.0, 0.0).forward() - DVec3::Y).length() < 1e-12);
+        assert!((at(90.0, 0.0).forward() - DVec3::X).length() < 1e-12);
+        assert!((at(0.0, 90.0).forward() + DVec3::Z).length() < 1e-12);
+        // The standard views look from their side: the left view's eye is at -x.
+        let l = o.standard(StandardView::Left);
+        assert!((l.forward() - DVec3::X).length() < 1e-12);
+        let a = o.standard(StandardView::Anterior);
+        assert!((a.forward() + DVec3::Y).length() < 1e-12);
+        assert!(o.standard(StandardView::Superior).forward().z < -0.99);
+        assert!(o.standard(StandardView::Inferior).forward().z > 0.99);
+    }
+
+    #[test]
+    fn drags_zooms_and_pans_stay_in_range() {
+        let o = Orbit::of(&CameraSpec::default(), bounds());
+        let d = o.drag(100.0, 0.0);
+        assert!((d.azimuth - (o.azimuth - 40.0)).abs() < 1e-9);
+        assert_eq!(o.drag(0.0, 1e6).elevation, ELEVATION_LIMIT);
+        assert_eq!(o.drag(0.0, -1e6).elevation, -ELEVATION_LIMIT);
+        // Azimuth wraps into [-180, 180).
+        let w = o.drag(-1000.0, 0.0);
+        assert!((-180.0..180.0).contains(&w.azimuth));
+        assert!((o.zoom(1.0).distance - o.distance / 1.1).abs() < 1e-12);
+        assert_eq!(o.zoom(1e3).distance, MIN_DISTANCE);
+        // A pan moves the target perpendicular to the view direction.
+        let p = o.pan(3.0, 4.0);
+        let moved = p.target - o.target;
+        assert!((moved.length() - 5.0).abs() < 1e-9);
+        assert!(moved.dot(o.forward()).abs() < 1e-9);
+        // The orbit written back reads back the same.
+        let mut c = CameraSpec::default();
+        p.apply(&mut c);
+        assert_eq!(Orbit::of(&c, bounds()), p);
+    }
+}

@@ -1,0 +1,69 @@
+//! `umbra view`: the interactive viewer. A window (eframe on wgpu, Vulkan on Linux, X11)
+//! shows the scene drawn by the same renderer as `umbra render` (`scene::compile`, on a
+//! worker thread: [`worker`]), a draft while the user drags and the full scene when the view
+//! rests; the camera is an orbit about the scene's target ([`controls`]) written back into the
+//! scene. It ends with status 0 when its window closes or on SIGINT or SIGTERM.
+
+pub mod app;
+pub mod controls;
+pub mod worker;
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+/// Called once when the first image is shown, with the renderer's adapter.
+pub type OnFirstImage = Box<dyn FnOnce(&str)>;
+
+/// What `umbra view` was asked for.
+pub struct ViewArgs {
+    pub scene: PathBuf,
+    /// Scene overrides, `KEY=VALUE` (as `umbra render --set`).
+    pub overrides: Vec<String>,
+    /// The window's inner size in logical points.
+    pub window: [f32; 2],
+    pub on_first_image: Option<OnFirstImage>,
+}
+
+/// Opens the viewer and returns when its window has closed; an error when the scene cannot
+/// be read, or no window can be opened (no display), naming what is missing.
+pub fn run(a: ViewArgs) -> Result<(), String> {
+    if cfg!(target_os = "linux") && std::env::var_os("DISPLAY").is_none() {
+        return Err(
+            "umbra view needs an X display (DISPLAY is not set); on a machine without \
+                    one, run it under xvfb-run or use umbra render"
+                .into(),
+        );
+    }
+    let s = scene::spec::load(&a.scene, &a.overrides)?;
+    let m = scene::compile::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
+    let bounds = m.bounds;
+    let quit = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, quit.clone())
+            .map_err(|e| format!("installing the signal handler: {e}"))?;
+    }
+    // The window's own wgpu device: Vulkan on Linux (the GL path needs a display EGL may not
+    // have under Xvfb), unless the user chose with WGPU_BACKEND.
+    if cfg!(target_os = "linux") && std::env::var_os("WGPU_BACKEND").is_none() {
+        std::env::set_var("WGPU_BACKEND", "vulkan");
+    }
+    let options = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_title(format!("umbra view - {}", a.scene.display()))
+            .with_inner_size(a.window),
+        renderer: eframe::Renderer::Wgpu,
+        ..Default::default()
+    };
+    let on_first = a.on_first_image;
+    eframe::run_native(
+        "umbra view",
+        options,
+        Box::new(move |cc| {
+            let ctx = cc.egui_ctx.clone();
+            let worker = worker::start(m, move || ctx.request_repaint());
+            Ok(Box::new(app::App::new(s, bounds, worker, quit, on_first)))
+        }),
+    )
+    .map_err(|e| format!("umbra view could not open its window: {e}"))
+}

@@ -1,0 +1,111 @@
+//! The viewer draws what `umbra render` draws: its orbit written into the scene gives the image
+//! of the scene with those camera keys, and a draft is the cheap image it says it is.
+
+use umbra_viewer::controls::Orbit;
+use umbra_viewer::worker::{draw, Level, Request};
+
+fn headsq_scene(dir: &std::path::Path) -> std::path::PathBuf {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap();
+    let p = dir.join("s.toml");
+    std::fs::write(
+        &p,
+        format!(
+            "background = [1.0, 1.0, 1.0]\n[camera]\nazimuth = 30.0\nelevation = 20.0\n[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n[render]\nmethod = \"combined\"\nwidth = 96\nheight = 72\nfxaa = false\n",
+            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    p
+}
+
+#[test]
+fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = headsq_scene(dir.path());
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let gpu = engine::gpu::Gpu::new().unwrap();
+    let up = scene::compile::upload(&gpu, &m).unwrap();
+    // A drag of 100 points right and 20 down: azimuth 30 - 40, elevation 20 + 8.
+    let orbit = Orbit::of(&s.camera, m.bounds).drag(100.0, 20.0);
+    let mut state = s.clone();
+    orbit.apply(&mut state.camera);
+    let full = draw(
+        &up,
+        &m,
+        &Request {
+            id: 1,
+            scene: state.clone(),
+            level: Level::Full,
+        },
+    )
+    .unwrap();
+    assert_eq!(full.size, [96, 72]);
+    // The same camera by its scene keys, through the headless renderer.
+    let keyed = scene::spec::load(
+        &path,
+        &[
+            "camera.azimuth=-10.0".into(),
+            "camera.elevation=28.0".into(),
+        ],
+    )
+    .unwrap();
+    let (out, _) = scene::compile::render_scene(&gpu, &keyed, &m, 1).unwrap();
+    let png: Vec<u8> = out
+        .image
+        .iter()
+        .flat_map(|p| [0, 1, 2].map(|c| scene::image_io::srgb8(p[c])))
+        .collect();
+    let rgb: Vec<u8> = full
+        .rgba
+        .chunks(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    let diff = png
+        .iter()
+        .zip(&rgb)
+        .map(|(a, b)| (*a as f64 - *b as f64).abs())
+        .sum::<f64>()
+        / png.len() as f64;
+    assert!(
+        diff <= 1.0,
+        "the viewer's image differs by {diff} levels in mean"
+    );
+    // The head is in the picture, not only the background.
+    assert!(rgb.iter().filter(|&&v| v < 200).count() > rgb.len() / 20);
+    // Another view gives another image (the orbit is not ignored).
+    let mut other = s.clone();
+    orbit.drag(200.0, 0.0).apply(&mut other.camera);
+    let turned = draw(
+        &up,
+        &m,
+        &Request {
+            id: 2,
+            scene: other,
+            level: Level::Full,
+        },
+    )
+    .unwrap();
+    let moved = turned
+        .rgba
+        .iter()
+        .zip(&full.rgba)
+        .filter(|(a, b)| a.abs_diff(**b) > 8)
+        .count();
+    assert!(moved > full.rgba.len() / 50, "{moved} values changed");
+    // The draft: a quarter of the size, drawn by ea.
+    let draft = draw(
+        &up,
+        &m,
+        &Request {
+            id: 3,
+            scene: state,
+            level: Level::Draft,
+        },
+    )
+    .unwrap();
+    assert_eq!(draft.size, [24, 18]);
+    assert_eq!(draft.rgba.len(), 24 * 18 * 4);
+}
