@@ -131,7 +131,7 @@ impl TrailRange {
 
 /// Writes one frame: PNG (8-bit sRGB) or EXR (linear RGBA, with `aov` the AOV channels),
 /// atomically, creating missing folders.
-fn write_image(
+pub fn write_image(
     path: &Path,
     exr: bool,
     aov: bool,

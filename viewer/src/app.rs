@@ -45,6 +45,12 @@ pub struct App {
     full_pending: bool,
     last_input: Instant,
     quit: Arc<AtomicBool>,
+    /// Where the save section writes: a path without its extension.
+    prefix: String,
+    /// Camera keys recorded for a camera path.
+    keys: Vec<Orbit>,
+    /// The last save's outcome.
+    message: Option<String>,
     /// Called once with the first image shown (the command line reports it).
     on_first_image: Option<crate::OnFirstImage>,
 }
@@ -82,21 +88,61 @@ impl App {
             full_pending: true,
             last_input: Instant::now() - REST,
             quit,
+            prefix: "umbra_view".into(),
+            keys: vec![],
+            message: None,
             on_first_image,
         }
     }
 
-    /// Sends the current state at `level`.
-    fn ask(&mut self, level: Level) {
-        self.next_id += 1;
+    /// The scene as shown: the user's scene with the orbit as its camera and the view's size.
+    pub fn state(&self) -> Scene {
         let mut s = self.scene.clone();
         self.orbit.apply(&mut s.camera);
+        s
+    }
+
+    /// Sends the current state at `level` (with a screenshot to write).
+    fn ask_saving(&mut self, level: Level, save: Option<(std::path::PathBuf, bool)>) {
+        self.next_id += 1;
         let _ = self.worker.requests.send(Request {
             id: self.next_id,
-            scene: s,
+            scene: self.state(),
             level,
+            save,
         });
         self.asked = Some((self.next_id, level));
+    }
+
+    fn ask(&mut self, level: Level) {
+        self.ask_saving(level, None);
+    }
+
+    /// The files of the "save" section: `<prefix>.png`, `.exr`, `.toml`, `_path.toml`.
+    fn file(&self, suffix: &str) -> std::path::PathBuf {
+        std::path::PathBuf::from(format!("{}{suffix}", self.prefix))
+    }
+
+    /// Writes the shown scene as TOML that `umbra render` reproduces.
+    fn save_scene(&mut self) {
+        let path = self.file(".toml");
+        self.message = Some(
+            scene::spec::to_toml(&self.state())
+                .and_then(|t| crate::write_atomic(&path, t.as_bytes()))
+                .map(|()| format!("wrote {}", path.display()))
+                .unwrap_or_else(|e| format!("the scene was not saved: {e}")),
+        );
+    }
+
+    /// Writes the camera keys so far as a camera path (`umbra render --camera-path`).
+    fn save_path(&mut self) {
+        let path = self.file("_path.toml");
+        self.message = Some(
+            crate::controls::camera_path(&self.keys, self.bounds, self.orbit.target)
+                .and_then(|t| crate::write_atomic(&path, t.as_bytes()))
+                .map(|()| format!("wrote {} ({} keys)", path.display(), self.keys.len()))
+                .unwrap_or_else(|e| format!("the camera path was not saved: {e}")),
+        );
     }
 
     /// The state changed by the user: a draft now, the full image when the view rests.
@@ -125,6 +171,11 @@ impl App {
             }
         }
         self.error = None;
+        match &img.saved {
+            Some(Ok(p)) => self.message = Some(format!("wrote {}", p.display())),
+            Some(Err(e)) => self.message = Some(format!("the screenshot was not written: {e}")),
+            None => {}
+        }
         if let Some(f) = self.on_first_image.take() {
             f(&img.device);
         }
@@ -290,6 +341,39 @@ impl App {
         }
         if let Some(e) = &self.error {
             ui.colored_label(egui::Color32::RED, e);
+        }
+        ui.separator();
+        ui.horizontal(|ui| {
+            ui.label("save as");
+            ui.text_edit_singleline(&mut self.prefix);
+        });
+        ui.horizontal_wrapped(|ui| {
+            if ui.button("screenshot .png").clicked() {
+                let p = self.file(".png");
+                self.ask_saving(Level::Full, Some((p, false)));
+            }
+            if ui.button(".exr with AOVs").clicked() {
+                let p = self.file(".exr");
+                self.ask_saving(Level::Full, Some((p, true)));
+            }
+            if ui.button("scene .toml").clicked() {
+                self.save_scene();
+            }
+        });
+        ui.horizontal_wrapped(|ui| {
+            if ui.button("add camera key").clicked() {
+                self.keys.push(self.orbit);
+            }
+            if ui
+                .add_enabled(self.keys.len() >= 2, egui::Button::new("save camera path"))
+                .clicked()
+            {
+                self.save_path();
+            }
+            ui.label(format!("{} keys", self.keys.len()));
+        });
+        if let Some(m) = &self.message {
+            ui.label(m);
         }
         ui.separator();
         ui.label(

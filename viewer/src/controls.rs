@@ -152,6 +152,46 @@ impl Orbit {
     }
 }
 
+/// A camera path file (`umbra render --camera-path`, `scene::camera_path`) through the
+/// orbits `keys`, a key a second, Catmull-Rom, 30 frames a second, for a scene whose camera
+/// targets `target`: orbit keys (azimuth, elevation, distance) when every key has that
+/// target, else look-at keys (eye, target, up) about the scene of `bounds`. Azimuths are
+/// unwrapped so that each step turns the short way.
+pub fn camera_path(keys: &[Orbit], bounds: [DVec3; 2], target: DVec3) -> Result<String, String> {
+    if keys.len() < 2 {
+        return Err(format!(
+            "a camera path needs two keys or more ({})",
+            keys.len()
+        ));
+    }
+    let radius = ((bounds[1] - bounds[0]).length() * 0.5).max(1e-9);
+    let same_target = keys.iter().all(|k| (k.target - target).length() < 1e-9);
+    let mut out = String::from("fps = 30\ninterpolation = \"catmull-rom\"\n");
+    let mut az = keys[0].azimuth;
+    for (i, k) in keys.iter().enumerate() {
+        if i > 0 {
+            // The nearest equivalent of this azimuth to the previous key's.
+            az += (k.azimuth - az + 180.0).rem_euclid(360.0) - 180.0;
+        }
+        out += &format!("\n[[key]]\ntime = {}.0\n", i);
+        if same_target {
+            out += &format!(
+                "azimuth = {az:?}\nelevation = {:?}\ndistance = {:?}\n",
+                k.elevation, k.distance
+            );
+        } else {
+            let eye = k.target - k.forward() * k.distance * radius;
+            let f = |v: DVec3| format!("[{:?}, {:?}, {:?}]", v.x, v.y, v.z);
+            out += &format!(
+                "eye = {}\ntarget = {}\nup = [0.0, 0.0, 1.0]\n",
+                f(eye),
+                f(k.target)
+            );
+        }
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -222,6 +262,50 @@ mod tests {
         let moved = p.target - o.target;
         assert!((moved.length() - 5.0).abs() < 1e-9);
         assert!(moved.dot(o.forward()).abs() < 1e-9);
+        // Camera paths: orbit keys about the scene's target, look-at keys once a key pans;
+        // both parse as camera paths and put the eye where the orbit does.
+        let dir = tempfile::tempdir().unwrap();
+        let keys = [o, o.drag(300.0, -20.0), o.drag(600.0, 10.0).zoom(2.0)];
+        let radius = (bounds()[1] - bounds()[0]).length() * 0.5;
+        for (keys, orbit_keys) in [(keys.to_vec(), true), (vec![o, o.pan(5.0, 0.0)], false)] {
+            let text = camera_path(&keys, bounds(), o.target).unwrap();
+            let f = dir.path().join("p.toml");
+            std::fs::write(&f, &text).unwrap();
+            let path = scene::camera_path::CameraPath::load(&f).unwrap();
+            assert_eq!(path.key.len(), keys.len());
+            for (k, want) in path.key.iter().zip(&keys) {
+                if orbit_keys {
+                    let (az, el) = (k.azimuth.unwrap(), k.elevation.unwrap());
+                    let dz = (az - want.azimuth).rem_euclid(360.0);
+                    assert!(dz < 1e-9 || 360.0 - dz < 1e-9, "{az} {}", want.azimuth);
+                    assert!((el - want.elevation).abs() < 1e-9);
+                    assert!((k.distance.unwrap() - want.distance).abs() < 1e-9);
+                } else {
+                    let eye = DVec3::from(k.eye.unwrap());
+                    let expect = want.target - want.forward() * want.distance * radius;
+                    assert!((eye - expect).length() < 1e-9);
+                }
+            }
+        }
+        // The azimuth is unwrapped: from 170 to -170 turns 20 degrees, not 340.
+        let a = Orbit {
+            azimuth: 170.0,
+            ..o
+        };
+        let text = camera_path(
+            &[
+                a,
+                Orbit {
+                    azimuth: -170.0,
+                    ..o
+                },
+            ],
+            bounds(),
+            o.target,
+        )
+        .unwrap();
+        assert!(text.contains("azimuth = 190.0"), "{text}");
+        assert!(camera_path(&[o], bounds(), o.target).is_err());
         // The orbit written back reads back the same.
         let mut c = CameraSpec::default();
         p.apply(&mut c);

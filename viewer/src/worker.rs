@@ -36,11 +36,13 @@ pub fn at_level(s: &Scene, level: Level) -> Scene {
     d
 }
 
-/// A frame to draw.
+/// A frame to draw, and where to write it (a screenshot: PNG, or EXR with `aov` the AOV
+/// channels, as `umbra render` writes them).
 pub struct Request {
     pub id: u64,
     pub scene: Scene,
     pub level: Level,
+    pub save: Option<(std::path::PathBuf, bool)>,
 }
 
 /// A drawn frame: 8-bit sRGB RGBA (rows top to bottom), what it took and what the renderer
@@ -54,13 +56,15 @@ pub struct Image {
     pub passes: Vec<(String, f64)>,
     pub notes: Vec<String>,
     pub device: String,
+    /// The screenshot the request asked for: its path, or why it was not written.
+    pub saved: Option<Result<std::path::PathBuf, String>>,
 }
 
 /// Draws `s` (the scene state, any level already applied) with the uploaded model into an
 /// [`Image`]: the same frame `umbra render` writes as PNG for that scene.
 pub fn draw(up: &scene::compile::Uploaded, m: &Model, req: &Request) -> Result<Image, String> {
     let s = at_level(&req.scene, req.level);
-    let (out, _) = up.draw(
+    let (out, v) = up.draw(
         &s,
         m,
         DrawOptions {
@@ -68,6 +72,13 @@ pub fn draw(up: &scene::compile::Uploaded, m: &Model, req: &Request) -> Result<I
             pass_timings: true,
         },
     )?;
+    let saved = req.save.as_ref().map(|(path, aov)| {
+        let exr = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        scene::render::write_image(path, exr, *aov && exr, s.render.bits, &out, &v)
+            .map(|()| path.clone())
+    });
     let rgba = out
         .image
         .iter()
@@ -89,6 +100,7 @@ pub fn draw(up: &scene::compile::Uploaded, m: &Model, req: &Request) -> Result<I
         passes: out.timings.passes.into_iter().collect(),
         notes: out.notes,
         device: up.renderer.gpu().report().name,
+        saved,
     })
 }
 

@@ -39,6 +39,7 @@ fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
             id: 1,
             scene: state.clone(),
             level: Level::Full,
+            save: None,
         },
     )
     .unwrap();
@@ -85,6 +86,7 @@ fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
             id: 2,
             scene: other,
             level: Level::Full,
+            save: None,
         },
     )
     .unwrap();
@@ -103,9 +105,79 @@ fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
             id: 3,
             scene: state,
             level: Level::Draft,
+            save: None,
         },
     )
     .unwrap();
     assert_eq!(draft.size, [24, 18]);
     assert_eq!(draft.rgba.len(), 24 * 18 * 4);
+}
+
+#[test]
+fn a_screenshot_is_what_umbra_render_draws_of_the_saved_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = headsq_scene(dir.path());
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let gpu = engine::gpu::Gpu::new().unwrap();
+    let up = scene::compile::upload(&gpu, &m).unwrap();
+    let mut state = s.clone();
+    Orbit::of(&s.camera, m.bounds)
+        .drag(-60.0, 30.0)
+        .pan(4.0, -2.0)
+        .apply(&mut state.camera);
+    state.render.method = engine::method::Method::Dos;
+    // The screenshot, through the worker's draw.
+    let shot = dir.path().join("out/shot.png");
+    let img = draw(
+        &up,
+        &m,
+        &Request {
+            id: 1,
+            scene: state.clone(),
+            level: Level::Full,
+            save: Some((shot.clone(), false)),
+        },
+    )
+    .unwrap();
+    assert_eq!(img.saved.as_ref().unwrap().as_ref().unwrap(), &shot);
+    // The scene saved elsewhere, loaded back and rendered headless.
+    let saved = dir.path().join("elsewhere/state.toml");
+    std::fs::create_dir_all(saved.parent().unwrap()).unwrap();
+    umbra_viewer::write_atomic(&saved, scene::spec::to_toml(&state).unwrap().as_bytes()).unwrap();
+    let back = scene::spec::load(&saved, &[]).unwrap();
+    assert_eq!(back.render.method, engine::method::Method::Dos);
+    let (out, _) = scene::compile::render_scene(&gpu, &back, &m, 1).unwrap();
+    let png = image::open(&shot).unwrap().to_rgb8();
+    assert_eq!(png.dimensions(), (96, 72));
+    let diff = png
+        .as_raw()
+        .chunks(3)
+        .zip(&out.image)
+        .map(|(p, q)| {
+            (0..3)
+                .map(|c| (p[c] as f64 - scene::image_io::srgb8(q[c]) as f64).abs())
+                .sum::<f64>()
+        })
+        .sum::<f64>()
+        / (3.0 * out.image.len() as f64);
+    assert!(
+        diff <= 1.0,
+        "screenshot and umbra render differ by {diff} levels in mean"
+    );
+    // An unwritable screenshot (its folder is a file) is reported, not a crash.
+    std::fs::write(dir.path().join("blocker"), b"a file").unwrap();
+    let bad = draw(
+        &up,
+        &m,
+        &Request {
+            id: 2,
+            scene: state,
+            level: Level::Full,
+            save: Some((dir.path().join("blocker/x.png"), false)),
+        },
+    )
+    .unwrap();
+    let err = bad.saved.unwrap().unwrap_err();
+    assert!(err.contains("blocker"), "{err}");
 }
