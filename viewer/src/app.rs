@@ -95,6 +95,21 @@ impl App {
         }
     }
 
+    /// The level of the image on screen (none yet: `None`).
+    pub fn shown_level(&self) -> Option<Level> {
+        self.shown.as_ref().map(|i| i.level)
+    }
+
+    /// The last save's outcome, as the panel shows it.
+    pub fn message(&self) -> Option<&str> {
+        self.message.as_deref()
+    }
+
+    /// Where the save section writes (a path without extension).
+    pub fn set_prefix(&mut self, prefix: &str) {
+        self.prefix = prefix.to_string();
+    }
+
     /// The scene as shown: the user's scene with the orbit as its camera and the view's size.
     pub fn state(&self) -> Scene {
         let mut s = self.scene.clone();
@@ -315,6 +330,8 @@ impl App {
                 changed = true;
             }
         });
+        let centre = ((self.bounds[0] + self.bounds[1]) * 0.5).to_array();
+        changed |= crate::settings::panel(ui, &mut self.scene, centre);
         ui.separator();
         ui.label(format!(
             "azimuth {:.1}°, elevation {:.1}°, distance {:.2}",
@@ -344,8 +361,9 @@ impl App {
         }
         ui.separator();
         ui.horizontal(|ui| {
-            ui.label("save as");
-            ui.text_edit_singleline(&mut self.prefix);
+            let label = ui.label("save as");
+            ui.text_edit_singleline(&mut self.prefix)
+                .labelled_by(label.id);
         });
         ui.horizontal_wrapped(|ui| {
             if ui.button("screenshot .png").clicked() {
@@ -386,6 +404,13 @@ impl App {
 
 impl eframe::App for App {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.show_ui(ui);
+    }
+}
+
+impl App {
+    /// The window's contents, a frame of them (what eframe calls; tests call it directly).
+    pub fn show_ui(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         if self.quit.load(Ordering::Relaxed) {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
@@ -393,8 +418,10 @@ impl eframe::App for App {
         self.receive(&ctx);
         let mut changed = false;
         egui::Panel::left("controls")
-            .default_size(260.0)
-            .show(ui, |ui| changed |= self.panel(ui));
+            .default_size(280.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| changed |= self.panel(ui));
+            });
         egui::CentralPanel::default().show(ui, |ui| {
             let rect = ui.available_rect_before_wrap();
             let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());

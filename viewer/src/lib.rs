@@ -6,6 +6,7 @@
 
 pub mod app;
 pub mod controls;
+pub mod settings;
 pub mod worker;
 
 use std::path::PathBuf;

@@ -1,0 +1,112 @@
+//! The window driven through its widgets (egui_kittest, no X server): a drag on the view
+//! orbits, the method menu changes the method, a setting changes the scene, and the screenshot
+//! button writes what `umbra render` draws of the shown state.
+
+use eframe::egui;
+use egui_kittest::kittest::Queryable;
+use egui_kittest::Harness;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use umbra_viewer::app::App;
+use umbra_viewer::worker::Level;
+
+#[test]
+fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap();
+    let path = dir.path().join("s.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "background = [1.0, 1.0, 1.0]\n[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n[render]\nmethod = \"ea\"\nfxaa = false\n",
+            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let bounds = m.bounds;
+    let worker = umbra_viewer::worker::start(m, || {});
+    let quit = Arc::new(AtomicBool::new(false));
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(900.0, 800.0))
+        .build_ui_state(
+            |ui, app: &mut App| app.show_ui(ui),
+            App::new(s.clone(), bounds, worker, quit, None),
+        );
+    h.run_steps(3);
+    let az0 = h.state().orbit.azimuth;
+    // A drag of 100 points to the right over the view turns the azimuth by -40 degrees.
+    h.drag_at(egui::pos2(450.0, 200.0));
+    h.run_steps(1);
+    h.hover_at(egui::pos2(500.0, 200.0));
+    h.run_steps(1);
+    h.hover_at(egui::pos2(550.0, 200.0));
+    h.run_steps(1);
+    h.drop_at(egui::pos2(550.0, 200.0));
+    h.run_steps(2);
+    let az = h.state().orbit.azimuth;
+    assert!((az - (az0 - 40.0)).abs() < 1.0, "azimuth {az0} -> {az}");
+    // The method menu (its button shows the current method) and its entry.
+    h.get_by_label("method").click();
+    h.run_steps(2);
+    h.get_by_label("dos").click();
+    h.run_steps(2);
+    assert_eq!(h.state().scene.render.method, engine::method::Method::Dos);
+    // The settings panel: open "render", switch FXAA off... it is off; turn it on and back.
+    h.get_by_label("render").click();
+    h.run_steps(2);
+    h.get_by_label("fxaa").click();
+    h.run_steps(2);
+    assert!(h.state().scene.render.fxaa);
+    h.get_by_label("fxaa").click();
+    h.run_steps(2);
+    assert!(!h.state().scene.render.fxaa);
+    // Wait for the full image of this state, then take the screenshot.
+    let t = Instant::now();
+    while h.state().shown_level() != Some(Level::Full) && t.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(50));
+        h.run_steps(1);
+    }
+    assert_eq!(h.state().shown_level(), Some(Level::Full));
+    let prefix = dir.path().join("shot");
+    h.state_mut().set_prefix(prefix.to_str().unwrap());
+    h.get_by_label("screenshot .png").click();
+    h.run_steps(1);
+    let png = dir.path().join("shot.png");
+    let t = Instant::now();
+    while h.state().message().is_none() && t.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(50));
+        h.run_steps(1);
+    }
+    assert!(
+        h.state().message().is_some_and(|m| m.starts_with("wrote")),
+        "{:?}",
+        h.state().message()
+    );
+    // The same state through the headless renderer.
+    let state = h.state().state();
+    let m = scene::compile::model(&state).unwrap();
+    let gpu = engine::gpu::Gpu::new().unwrap();
+    let (out, v) = scene::compile::render_scene(&gpu, &state, &m, 1).unwrap();
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (v.width, v.height));
+    let diff = img
+        .as_raw()
+        .chunks(3)
+        .zip(&out.image)
+        .map(|(p, q)| {
+            (0..3)
+                .map(|c| (p[c] as f64 - scene::image_io::srgb8(q[c]) as f64).abs())
+                .sum::<f64>()
+        })
+        .sum::<f64>()
+        / (3.0 * out.image.len() as f64);
+    assert!(
+        diff <= 1.0,
+        "screenshot and headless render differ by {diff} levels"
+    );
+}
