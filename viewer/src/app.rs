@@ -47,6 +47,8 @@ pub struct App {
     quit: Arc<AtomicBool>,
     /// Where the save section writes: a path without its extension.
     prefix: String,
+    /// The transfer-function editor (scenes with a volume).
+    editor: Option<crate::transfer::Editor>,
     /// Camera keys recorded for a camera path.
     keys: Vec<Orbit>,
     /// The last save's outcome.
@@ -89,10 +91,17 @@ impl App {
             last_input: Instant::now() - REST,
             quit,
             prefix: "umbra_view".into(),
+            editor: None,
             keys: vec![],
             message: None,
             on_first_image,
         }
+    }
+
+    /// With the transfer-function editor over the volume's data.
+    pub fn with_editor(mut self, editor: crate::transfer::Editor) -> App {
+        self.editor = Some(editor);
+        self
     }
 
     /// The level of the image on screen (none yet: `None`).
@@ -330,6 +339,13 @@ impl App {
                 changed = true;
             }
         });
+        if let (Some(e), Some(v)) = (&mut self.editor, &mut self.scene.volume) {
+            if v.iso.is_none() {
+                egui::CollapsingHeader::new("transfer function")
+                    .default_open(true)
+                    .show(ui, |ui| changed |= e.ui(ui, &mut v.transfer));
+            }
+        }
         let centre = ((self.bounds[0] + self.bounds[1]) * 0.5).to_array();
         changed |= crate::settings::panel(ui, &mut self.scene, centre);
         ui.separator();

@@ -7,6 +7,7 @@
 pub mod app;
 pub mod controls;
 pub mod settings;
+pub mod transfer;
 pub mod worker;
 
 use std::path::PathBuf;
@@ -39,6 +40,9 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     let s = scene::spec::load(&a.scene, &a.overrides)?;
     let m = scene::compile::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let bounds = m.bounds;
+    let range = worker::data_range(&m);
+    let editor = transfer::Editor::new(range, worker::histogram(&m, range, 128));
+    let tf = s.volume.as_ref().map(|v| v.transfer.clone());
     let quit = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, quit.clone())
@@ -62,8 +66,10 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
         options,
         Box::new(move |cc| {
             let ctx = cc.egui_ctx.clone();
-            let worker = worker::start(m, move || ctx.request_repaint());
-            Ok(Box::new(app::App::new(s, bounds, worker, quit, on_first)))
+            let worker = worker::start(m, tf, move || ctx.request_repaint());
+            Ok(Box::new(
+                app::App::new(s, bounds, worker, quit, on_first).with_editor(editor),
+            ))
         }),
     )
     .map_err(|e| format!("umbra view could not open its window: {e}"))

@@ -5,6 +5,7 @@
 
 use engine::renderer::DrawOptions;
 use scene::compile::{upload, Model};
+
 use scene::spec::Scene;
 use std::sync::mpsc::{channel, Receiver, Sender};
 
@@ -60,6 +61,88 @@ pub struct Image {
     pub saved: Option<Result<std::path::PathBuf, String>>,
 }
 
+/// The renderer's side of the viewer: the GPU, the scene's model and its upload. A frame
+/// whose scene has another `[volume.transfer]` than the uploaded one rebuilds the transfer
+/// function over the data's range (as `scene::compile::model` does) and uploads again.
+pub struct Session {
+    gpu: &'static engine::gpu::Gpu,
+    model: Model,
+    up: scene::compile::Uploaded<'static>,
+    /// The data's finite range (the presets' ramps span it) and the uploaded function.
+    range: [f64; 2],
+    transfer: Option<scene::spec::TransferSpec>,
+}
+
+/// The finite range of a model's volume samples (gaps excluded), `[0, 1]` without a volume.
+pub fn data_range(m: &Model) -> [f64; 2] {
+    let Some((_, data, _)) = &m.volume else {
+        return [0.0, 1.0];
+    };
+    let (lo, hi) = data
+        .iter()
+        .filter(|v| v.is_finite() && **v > -1e30)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v as f64), b.max(v as f64))
+        });
+    if lo <= hi {
+        [lo, hi]
+    } else {
+        [0.0, 1.0]
+    }
+}
+
+/// `bins` counts of the model's volume samples over `range` (gaps excluded): the histogram the
+/// transfer-function editor draws.
+pub fn histogram(m: &Model, range: [f64; 2], bins: usize) -> Vec<u64> {
+    let mut h = vec![0u64; bins.max(1)];
+    if let Some((_, data, _)) = &m.volume {
+        let w = (range[1] - range[0]).max(1e-30);
+        for &v in data.iter().filter(|v| v.is_finite() && **v > -1e30) {
+            let i = (((v as f64 - range[0]) / w) * bins as f64) as usize;
+            h[i.min(bins - 1)] += 1;
+        }
+    }
+    h
+}
+
+impl Session {
+    /// The GPU (kept for the life of the process: the viewer's one renderer) and the upload
+    /// of model `m`, whose volume was built from `transfer`.
+    pub fn new(m: Model, transfer: Option<scene::spec::TransferSpec>) -> Result<Session, String> {
+        let gpu: &'static engine::gpu::Gpu = Box::leak(Box::new(
+            engine::gpu::Gpu::new().map_err(|e| format!("no GPU adapter for the renderer: {e}"))?,
+        ));
+        let up = upload(gpu, &m)?;
+        Ok(Session {
+            gpu,
+            range: data_range(&m),
+            model: m,
+            up,
+            transfer,
+        })
+    }
+
+    /// The model as drawn.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Draws the request (re-uploading for a new transfer function) into an [`Image`], and
+    /// writes its screenshot: the same frame `umbra render` writes for that scene.
+    pub fn frame(&mut self, req: &Request) -> Result<Image, String> {
+        let tf = req.scene.volume.as_ref().map(|v| v.transfer.clone());
+        if tf != self.transfer {
+            if let (Some(spec), Some(vol)) = (&tf, &mut self.model.volume) {
+                vol.2 = scene::compile::transfer(spec, self.range)
+                    .map_err(|e| format!("scene key {e}"))?;
+                self.up = upload(self.gpu, &self.model)?;
+            }
+            self.transfer = tf;
+        }
+        draw(&self.up, &self.model, req)
+    }
+}
+
 /// Draws `s` (the scene state, any level already applied) with the uploaded model into an
 /// [`Image`]: the same frame `umbra render` writes as PNG for that scene.
 pub fn draw(up: &scene::compile::Uploaded, m: &Model, req: &Request) -> Result<Image, String> {
@@ -110,23 +193,20 @@ pub struct Worker {
     pub images: Receiver<Result<Image, String>>,
 }
 
-/// Starts the worker for model `m`; `wake` is called after each image (the window repaints).
-pub fn start(m: Model, wake: impl Fn() + Send + 'static) -> Worker {
+/// Starts the worker for model `m` (its volume built from `transfer`); `wake` is called after
+/// each image (the window repaints).
+pub fn start(
+    m: Model,
+    transfer: Option<scene::spec::TransferSpec>,
+    wake: impl Fn() + Send + 'static,
+) -> Worker {
     let (req_tx, req_rx) = channel::<Request>();
     let (img_tx, img_rx) = channel();
     std::thread::Builder::new()
         .name("umbra render".into())
         .spawn(move || {
-            let gpu = match engine::gpu::Gpu::new() {
-                Ok(g) => g,
-                Err(e) => {
-                    let _ = img_tx.send(Err(format!("no GPU adapter for the renderer: {e}")));
-                    wake();
-                    return;
-                }
-            };
-            let up = match upload(&gpu, &m) {
-                Ok(u) => u,
+            let mut session = match Session::new(m, transfer) {
+                Ok(s) => s,
                 Err(e) => {
                     let _ = img_tx.send(Err(e));
                     wake();
@@ -137,7 +217,7 @@ pub fn start(m: Model, wake: impl Fn() + Send + 'static) -> Worker {
                 while let Ok(newer) = req_rx.try_recv() {
                     req = newer;
                 }
-                if img_tx.send(draw(&up, &m, &req)).is_err() {
+                if img_tx.send(session.frame(&req)).is_err() {
                     break;
                 }
                 wake();

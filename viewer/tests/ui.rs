@@ -1,6 +1,7 @@
 //! The window driven through its widgets (egui_kittest, no X server): a drag on the view
-//! orbits, the method menu changes the method, a setting changes the scene, and the screenshot
-//! button writes what `umbra render` draws of the shown state.
+//! orbits, the method menu changes the method, a setting and the transfer function's preset
+//! change the scene, and the screenshot button writes what `umbra render` draws of the shown
+//! state (so the new transfer function reached the renderer).
 
 use eframe::egui;
 use egui_kittest::kittest::Queryable;
@@ -29,13 +30,17 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
     let s = scene::spec::load(&path, &[]).unwrap();
     let m = scene::compile::model(&s).unwrap();
     let bounds = m.bounds;
-    let worker = umbra_viewer::worker::start(m, || {});
+    let range = umbra_viewer::worker::data_range(&m);
+    let editor =
+        umbra_viewer::transfer::Editor::new(range, umbra_viewer::worker::histogram(&m, range, 64));
+    let tf = s.volume.as_ref().map(|v| v.transfer.clone());
+    let worker = umbra_viewer::worker::start(m, tf, || {});
     let quit = Arc::new(AtomicBool::new(false));
     let mut h = Harness::builder()
         .with_size(egui::vec2(900.0, 800.0))
         .build_ui_state(
             |ui, app: &mut App| app.show_ui(ui),
-            App::new(s.clone(), bounds, worker, quit, None),
+            App::new(s.clone(), bounds, worker, quit, None).with_editor(editor),
         );
     h.run_steps(3);
     let az0 = h.state().orbit.azimuth;
@@ -65,6 +70,17 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
     h.get_by_label("fxaa").click();
     h.run_steps(2);
     assert!(!h.state().scene.render.fxaa);
+    // Closed again, so that the save buttons are on screen.
+    h.get_by_label("render").click();
+    h.run_steps(2);
+    // The transfer-function editor's preset menu: bone -> fire (the worker uploads it).
+    h.get_by_label("volume.transfer").click();
+    h.run_steps(2);
+    h.get_by_label("fire").click();
+    h.run_steps(2);
+    let tf = &h.state().scene.volume.as_ref().unwrap().transfer;
+    assert_eq!(tf.preset, "fire");
+    assert!(tf.points.is_empty());
     // Wait for the full image of this state, then take the screenshot.
     let t = Instant::now();
     while h.state().shown_level() != Some(Level::Full) && t.elapsed() < Duration::from_secs(60) {
