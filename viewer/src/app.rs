@@ -49,6 +49,9 @@ pub struct App {
     prefix: String,
     /// The transfer-function editor (scenes with a volume).
     editor: Option<crate::transfer::Editor>,
+    /// Objects left out of the drawn scene, and the "open" field.
+    hidden: crate::objects::Hidden,
+    open_path: String,
     /// Camera keys recorded for a camera path.
     keys: Vec<Orbit>,
     /// The last save's outcome.
@@ -92,6 +95,8 @@ impl App {
             quit,
             prefix: "umbra_view".into(),
             editor: None,
+            hidden: Default::default(),
+            open_path: String::new(),
             keys: vec![],
             message: None,
             on_first_image,
@@ -121,7 +126,7 @@ impl App {
 
     /// The scene as shown: the user's scene with the orbit as its camera and the view's size.
     pub fn state(&self) -> Scene {
-        let mut s = self.scene.clone();
+        let mut s = self.hidden.apply(&self.scene);
         self.orbit.apply(&mut s.camera);
         s
     }
@@ -195,6 +200,12 @@ impl App {
             }
         }
         self.error = None;
+        if let Some(r) = &img.rebuilt {
+            self.bounds = r.bounds;
+            self.editor = r
+                .volume
+                .then(|| crate::transfer::Editor::new(r.range, r.histogram.clone()));
+        }
         match &img.saved {
             Some(Ok(p)) => self.message = Some(format!("wrote {}", p.display())),
             Some(Err(e)) => self.message = Some(format!("the screenshot was not written: {e}")),
@@ -346,6 +357,17 @@ impl App {
                     .show(ui, |ui| changed |= e.ui(ui, &mut v.transfer));
             }
         }
+        egui::CollapsingHeader::new("objects")
+            .default_open(false)
+            .show(ui, |ui| {
+                changed |= crate::objects::panel(
+                    ui,
+                    &mut self.scene,
+                    &mut self.hidden,
+                    &mut self.open_path,
+                    &mut self.message,
+                )
+            });
         let centre = ((self.bounds[0] + self.bounds[1]) * 0.5).to_array();
         changed |= crate::settings::panel(ui, &mut self.scene, centre);
         ui.separator();
@@ -433,6 +455,23 @@ impl App {
         }
         self.receive(&ctx);
         let mut changed = false;
+        // Files dropped on the window join the scene.
+        let dropped: Vec<std::path::PathBuf> = ctx.input(|i| {
+            i.raw
+                .dropped_files
+                .iter()
+                .map(|f| f.path().to_path_buf())
+                .collect()
+        });
+        for p in dropped {
+            match crate::objects::open(&mut self.scene, &p) {
+                Ok(m) => {
+                    self.message = Some(m);
+                    changed = true;
+                }
+                Err(e) => self.message = Some(e),
+            }
+        }
         egui::Panel::left("controls")
             .default_size(280.0)
             .show(ui, |ui| {

@@ -6,6 +6,7 @@
 
 pub mod app;
 pub mod controls;
+pub mod objects;
 pub mod settings;
 pub mod transfer;
 pub mod worker;
@@ -42,7 +43,6 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     let bounds = m.bounds;
     let range = worker::data_range(&m);
     let editor = transfer::Editor::new(range, worker::histogram(&m, range, 128));
-    let tf = s.volume.as_ref().map(|v| v.transfer.clone());
     let quit = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, quit.clone())
@@ -66,7 +66,7 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
         options,
         Box::new(move |cc| {
             let ctx = cc.egui_ctx.clone();
-            let worker = worker::start(m, tf, move || ctx.request_repaint());
+            let worker = worker::start(m, &s, move || ctx.request_repaint());
             Ok(Box::new(
                 app::App::new(s, bounds, worker, quit, on_first).with_editor(editor),
             ))

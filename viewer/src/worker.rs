@@ -59,6 +59,8 @@ pub struct Image {
     pub device: String,
     /// The screenshot the request asked for: its path, or why it was not written.
     pub saved: Option<Result<std::path::PathBuf, String>>,
+    /// Set when the frame's model was built anew (the scene's objects changed).
+    pub rebuilt: Option<Rebuilt>,
 }
 
 /// The renderer's side of the viewer: the GPU, the scene's model and its upload. A frame
@@ -71,6 +73,24 @@ pub struct Session {
     /// The data's finite range (the presets' ramps span it) and the uploaded function.
     range: [f64; 2],
     transfer: Option<scene::spec::TransferSpec>,
+    /// The scene's data as modelled: its objects, without the transfer function.
+    data: DataKey,
+}
+
+/// What a model is built from: the volume (but its transfer function) and the objects.
+type DataKey = (
+    Option<scene::spec::VolumeSpec>,
+    Vec<scene::spec::TubesSpec>,
+    Vec<scene::spec::LinesSpec>,
+    Vec<scene::spec::PointsSpec>,
+);
+
+fn data_key(s: &Scene) -> DataKey {
+    let volume = s.volume.clone().map(|mut v| {
+        v.transfer = Default::default();
+        v
+    });
+    (volume, s.tubes.clone(), s.lines.clone(), s.points.clone())
 }
 
 /// The finite range of a model's volume samples (gaps excluded), `[0, 1]` without a volume.
@@ -107,8 +127,9 @@ pub fn histogram(m: &Model, range: [f64; 2], bins: usize) -> Vec<u64> {
 
 impl Session {
     /// The GPU (kept for the life of the process: the viewer's one renderer) and the upload
-    /// of model `m`, whose volume was built from `transfer`.
-    pub fn new(m: Model, transfer: Option<scene::spec::TransferSpec>) -> Result<Session, String> {
+    /// of model `m` of scene `s`.
+    pub fn new(m: Model, s: &Scene) -> Result<Session, String> {
+        let transfer = s.volume.as_ref().map(|v| v.transfer.clone());
         let gpu: &'static engine::gpu::Gpu = Box::leak(Box::new(
             engine::gpu::Gpu::new().map_err(|e| format!("no GPU adapter for the renderer: {e}"))?,
         ));
@@ -119,6 +140,7 @@ impl Session {
             model: m,
             up,
             transfer,
+            data: data_key(s),
         })
     }
 
@@ -131,6 +153,22 @@ impl Session {
     /// writes its screenshot: the same frame `umbra render` writes for that scene.
     pub fn frame(&mut self, req: &Request) -> Result<Image, String> {
         let tf = req.scene.volume.as_ref().map(|v| v.transfer.clone());
+        let key = data_key(&req.scene);
+        let mut rebuilt = None;
+        if key != self.data {
+            // Other objects (opened, removed, hidden, resized, recoloured): the model anew.
+            self.model = scene::compile::model(&req.scene)?;
+            self.range = data_range(&self.model);
+            self.up = upload(self.gpu, &self.model)?;
+            self.data = key;
+            self.transfer = tf.clone();
+            rebuilt = Some(Rebuilt {
+                bounds: self.model.bounds,
+                range: self.range,
+                histogram: histogram(&self.model, self.range, 128),
+                volume: self.model.volume.is_some(),
+            });
+        }
         if tf != self.transfer {
             if let (Some(spec), Some(vol)) = (&tf, &mut self.model.volume) {
                 vol.2 = scene::compile::transfer(spec, self.range)
@@ -139,8 +177,19 @@ impl Session {
             }
             self.transfer = tf;
         }
-        draw(&self.up, &self.model, req)
+        let mut img = draw(&self.up, &self.model, req)?;
+        img.rebuilt = rebuilt;
+        Ok(img)
     }
+}
+
+/// A model built anew for a frame: the scene's bounds, and its volume's range and histogram.
+#[derive(Clone, Debug)]
+pub struct Rebuilt {
+    pub bounds: [glam::DVec3; 2],
+    pub range: [f64; 2],
+    pub histogram: Vec<u64>,
+    pub volume: bool,
 }
 
 /// Draws `s` (the scene state, any level already applied) with the uploaded model into an
@@ -184,6 +233,7 @@ pub fn draw(up: &scene::compile::Uploaded, m: &Model, req: &Request) -> Result<I
         notes: out.notes,
         device: up.renderer.gpu().report().name,
         saved,
+        rebuilt: None,
     })
 }
 
@@ -193,19 +243,16 @@ pub struct Worker {
     pub images: Receiver<Result<Image, String>>,
 }
 
-/// Starts the worker for model `m` (its volume built from `transfer`); `wake` is called after
-/// each image (the window repaints).
-pub fn start(
-    m: Model,
-    transfer: Option<scene::spec::TransferSpec>,
-    wake: impl Fn() + Send + 'static,
-) -> Worker {
+/// Starts the worker for model `m` of scene `s`; `wake` is called after each image (the window
+/// repaints).
+pub fn start(m: Model, s: &Scene, wake: impl Fn() + Send + 'static) -> Worker {
+    let s = s.clone();
     let (req_tx, req_rx) = channel::<Request>();
     let (img_tx, img_rx) = channel();
     std::thread::Builder::new()
         .name("umbra render".into())
         .spawn(move || {
-            let mut session = match Session::new(m, transfer) {
+            let mut session = match Session::new(m, &s) {
                 Ok(s) => s,
                 Err(e) => {
                     let _ = img_tx.send(Err(e));

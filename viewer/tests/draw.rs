@@ -181,3 +181,58 @@ fn a_screenshot_is_what_umbra_render_draws_of_the_saved_scene() {
     let err = bad.saved.unwrap().unwrap_err();
     assert!(err.contains("blocker"), "{err}");
 }
+
+#[test]
+fn the_session_rebuilds_for_opened_files_and_survives_bad_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = headsq_scene(dir.path());
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap();
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let volume_bounds = m.bounds;
+    let mut session = umbra_viewer::worker::Session::new(m, &s).unwrap();
+    let frame = |session: &mut umbra_viewer::worker::Session, scene: &scene::spec::Scene| {
+        session.frame(&Request {
+            id: 0,
+            scene: scene.clone(),
+            level: Level::Full,
+            save: None,
+        })
+    };
+    let first = frame(&mut session, &s).unwrap();
+    assert!(first.rebuilt.is_none(), "the same scene needs no new model");
+    // A tractogram opened into the scene: a new model with the lines, bounds grown.
+    let mut with_lines = s.clone();
+    let msg = umbra_viewer::objects::open(
+        &mut with_lines,
+        &root.join("datasets/tracts/AF_R_demo.trk.gz"),
+    )
+    .unwrap();
+    assert!(msg.contains("lines[0]"), "{msg}");
+    let img = frame(&mut session, &with_lines).unwrap();
+    let r = img.rebuilt.expect("a new model");
+    assert!(r.volume);
+    assert_eq!(session.model().lines.len(), 1);
+    let grown = (0..3).any(|a| {
+        r.bounds[0][a] < volume_bounds[0][a] - 1e-6 || r.bounds[1][a] > volume_bounds[1][a] + 1e-6
+    });
+    assert!(grown, "{:?} within {:?}", r.bounds, volume_bounds);
+    // A transfer function the renderer refuses is an error naming the key, and the session
+    // draws the next good frame.
+    let mut bad = with_lines.clone();
+    bad.volume.as_mut().unwrap().transfer.preset = "nope".into();
+    let e = frame(&mut session, &bad).err().unwrap();
+    assert!(e.contains("volume.transfer.preset"), "{e}");
+    let again = frame(&mut session, &with_lines).unwrap();
+    assert_eq!(again.size, [96, 72]);
+    // The lines hidden: the model without them.
+    let hidden = umbra_viewer::objects::Hidden {
+        lines: vec![true],
+        ..Default::default()
+    };
+    let img = frame(&mut session, &hidden.apply(&with_lines)).unwrap();
+    assert!(img.rebuilt.is_some());
+    assert!(session.model().lines.is_empty());
+}

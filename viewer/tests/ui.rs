@@ -33,8 +33,7 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
     let range = umbra_viewer::worker::data_range(&m);
     let editor =
         umbra_viewer::transfer::Editor::new(range, umbra_viewer::worker::histogram(&m, range, 64));
-    let tf = s.volume.as_ref().map(|v| v.transfer.clone());
-    let worker = umbra_viewer::worker::start(m, tf, || {});
+    let worker = umbra_viewer::worker::start(m, &s, || {});
     let quit = Arc::new(AtomicBool::new(false));
     let mut h = Harness::builder()
         .with_size(egui::vec2(900.0, 800.0))

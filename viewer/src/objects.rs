@@ -1,0 +1,345 @@
+//! The scene's objects in the viewer: the volume, `[[tubes]]`, `[[lines]]` and `[[points]]`,
+//! each shown or hidden, with its size and colour editable, removable; and files opened into
+//! the scene (typed or dropped on the window): a volume replaces the scene's volume, a
+//! tractogram is added as `[[lines]]`, a mesh as `[[tubes]]`. A hidden object is left out of the
+//! scene the renderer draws and the saved scene (what you see is what you save).
+
+use eframe::egui;
+use scene::spec::Scene;
+use std::path::Path;
+
+/// What a file is, by its name (and, for `.vtk`, its header).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    Volume,
+    Lines,
+    Mesh,
+}
+
+/// The kind of a file to open, or why it cannot be opened (naming the file).
+pub fn classify(path: &Path) -> Result<Kind, String> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    let ext = stem.rsplit_once('.').map_or("", |(_, e)| e);
+    if !path.is_file() {
+        return Err(format!("{}: no such file", path.display()));
+    }
+    Ok(match ext {
+        "nii" | "hdr" | "nrrd" | "nhdr" | "vti" | "mhd" | "mha" | "slc" => Kind::Volume,
+        "trk" | "tck" | "trx" => Kind::Lines,
+        "ply" | "obj" => Kind::Mesh,
+        "vtk" => {
+            // Legacy VTK: image data is a volume, polydata lines a tractogram.
+            let mut head = vec![0u8; 1024];
+            let n = std::io::Read::read(
+                &mut std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?,
+                &mut head,
+            )
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+            if String::from_utf8_lossy(&head[..n]).contains("STRUCTURED_POINTS") {
+                Kind::Volume
+            } else {
+                Kind::Lines
+            }
+        }
+        _ => {
+            return Err(format!(
+                "{}: not a volume (.nii, .nii.gz, .nrrd, .nhdr, .vti, .mhd, .mha, .slc, .vtk), \
+                 tractogram (.trk, .tck, .trx, .vtk) or mesh (.ply, .obj)",
+                path.display()
+            ))
+        }
+    })
+}
+
+/// Adds the file at `path` to scene `s` (with the scene keys' defaults); what was done.
+pub fn open(s: &mut Scene, path: &Path) -> Result<String, String> {
+    let kind = classify(path)?;
+    let p = std::path::absolute(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let toml = match kind {
+        Kind::Volume => format!("[volume]\npath = {:?}\n", p.display().to_string()),
+        Kind::Lines => format!("[[lines]]\npath = {:?}\n", p.display().to_string()),
+        Kind::Mesh => format!("[[tubes]]\npath = {:?}\n", p.display().to_string()),
+    };
+    let add = scene::spec::parse(&toml, "the opened file", Path::new("."), &[])?;
+    Ok(match kind {
+        Kind::Volume => {
+            s.volume = add.volume;
+            format!("opened {} as the volume", p.display())
+        }
+        Kind::Lines => {
+            s.lines.extend(add.lines);
+            format!("opened {} as lines[{}]", p.display(), s.lines.len() - 1)
+        }
+        Kind::Mesh => {
+            s.tubes.extend(add.tubes);
+            format!("opened {} as tubes[{}]", p.display(), s.tubes.len() - 1)
+        }
+    })
+}
+
+/// Which objects are hidden, by kind and index.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Hidden {
+    pub volume: bool,
+    pub tubes: Vec<bool>,
+    pub lines: Vec<bool>,
+    pub points: Vec<bool>,
+}
+
+impl Hidden {
+    /// Flags for every object of `s` (new objects are shown).
+    fn fit(&mut self, s: &Scene) {
+        self.tubes.resize(s.tubes.len(), false);
+        self.lines.resize(s.lines.len(), false);
+        self.points.resize(s.points.len(), false);
+    }
+
+    /// `s` without its hidden objects.
+    pub fn apply(&self, s: &Scene) -> Scene {
+        let keep = |flags: &[bool], i: usize| !flags.get(i).copied().unwrap_or(false);
+        let mut d = s.clone();
+        if self.volume {
+            d.volume = None;
+        }
+        d.tubes = s
+            .tubes
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| keep(&self.tubes, *i))
+            .map(|(_, t)| t.clone())
+            .collect();
+        d.lines = s
+            .lines
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| keep(&self.lines, *i))
+            .map(|(_, t)| t.clone())
+            .collect();
+        d.points = s
+            .points
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| keep(&self.points, *i))
+            .map(|(_, t)| t.clone())
+            .collect();
+        d
+    }
+}
+
+/// One row of an object: shown, its name, a size and a colour, remove. True when removed.
+fn row(
+    ui: &mut egui::Ui,
+    key: &str,
+    path: &Path,
+    shown: &mut bool,
+    size: Option<(&mut f64, &str)>,
+    color: &mut String,
+) -> bool {
+    let mut remove = false;
+    ui.horizontal(|ui| {
+        ui.checkbox(shown, key)
+            .on_hover_text(path.display().to_string());
+        if let Some((v, unit)) = size {
+            ui.add(
+                egui::DragValue::new(v)
+                    .range(1e-3..=1e3)
+                    .speed(0.02)
+                    .suffix(unit),
+            );
+        }
+        if ui.small_button("remove").clicked() {
+            remove = true;
+        }
+    });
+    ui.horizontal(|ui| {
+        let l = ui.label("  color");
+        ui.text_edit_singleline(color).labelled_by(l.id);
+    });
+    remove
+}
+
+/// The objects panel and the file field; true when the scene changed. `message` receives
+/// what an open did or why it failed.
+pub fn panel(
+    ui: &mut egui::Ui,
+    s: &mut Scene,
+    hidden: &mut Hidden,
+    open_path: &mut String,
+    message: &mut Option<String>,
+) -> bool {
+    hidden.fit(s);
+    let before = (
+        s.volume.clone(),
+        s.tubes.clone(),
+        s.lines.clone(),
+        s.points.clone(),
+        hidden.clone(),
+    );
+    if let Some(v) = &s.volume {
+        let mut shown = !hidden.volume;
+        ui.checkbox(&mut shown, "volume")
+            .on_hover_text(v.path.display().to_string());
+        hidden.volume = !shown;
+    }
+    let mut remove = None;
+    for (i, t) in s.tubes.iter_mut().enumerate() {
+        let mut shown = !hidden.tubes[i];
+        let path = t.path.clone();
+        if row(
+            ui,
+            &format!("tubes[{i}]"),
+            &path,
+            &mut shown,
+            Some((&mut t.radius, " radius")),
+            &mut t.color,
+        ) {
+            remove = Some(("tubes", i));
+        }
+        hidden.tubes[i] = !shown;
+    }
+    for (i, l) in s.lines.iter_mut().enumerate() {
+        let mut shown = !hidden.lines[i];
+        let path = l.path.clone();
+        if row(
+            ui,
+            &format!("lines[{i}]"),
+            &path,
+            &mut shown,
+            Some((&mut l.width, " width")),
+            &mut l.color,
+        ) {
+            remove = Some(("lines", i));
+        }
+        hidden.lines[i] = !shown;
+    }
+    for (i, p) in s.points.iter_mut().enumerate() {
+        let mut shown = !hidden.points[i];
+        let path = p.path.clone();
+        if row(
+            ui,
+            &format!("points[{i}]"),
+            &path,
+            &mut shown,
+            Some((&mut p.size, " size")),
+            &mut p.color,
+        ) {
+            remove = Some(("points", i));
+        }
+        hidden.points[i] = !shown;
+    }
+    match remove {
+        Some(("tubes", i)) => {
+            s.tubes.remove(i);
+            hidden.tubes.remove(i);
+        }
+        Some(("lines", i)) => {
+            s.lines.remove(i);
+            hidden.lines.remove(i);
+        }
+        Some(("points", i)) => {
+            s.points.remove(i);
+            hidden.points.remove(i);
+        }
+        _ => {}
+    }
+    ui.horizontal(|ui| {
+        let l = ui.label("open");
+        let r = ui.text_edit_singleline(open_path).labelled_by(l.id);
+        let go = ui.button("add").clicked()
+            || (r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)));
+        if go && !open_path.trim().is_empty() {
+            *message = Some(open(s, Path::new(open_path.trim())).unwrap_or_else(|e| e));
+        }
+    });
+    ui.label(egui::RichText::new("or drop a file on the window").small());
+    hidden.fit(s);
+    before
+        != (
+            s.volume.clone(),
+            s.tubes.clone(),
+            s.lines.clone(),
+            s.points.clone(),
+            hidden.clone(),
+        )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn root() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .unwrap()
+            .to_path_buf()
+    }
+
+    #[test]
+    fn files_open_by_kind_and_bad_ones_say_why() {
+        let r = root();
+        let mut s = scene::spec::parse("", "empty", Path::new("."), &[]).unwrap();
+        let vol = r.join("datasets/vtk/headsq_64x64x93.nhdr");
+        assert!(open(&mut s, &vol).unwrap().contains("as the volume"));
+        assert!(s.volume.as_ref().unwrap().path.is_absolute());
+        let dir = tempfile::tempdir().unwrap();
+        let bad = dir.path().join("notes.txt");
+        std::fs::write(&bad, "x").unwrap();
+        let e = open(&mut s, &bad).unwrap_err();
+        assert!(e.contains("notes.txt") && e.contains("tractogram"), "{e}");
+        let e = open(&mut s, &dir.path().join("missing.trk")).unwrap_err();
+        assert!(
+            e.contains("missing.trk") && e.contains("no such file"),
+            "{e}"
+        );
+        // A legacy VTK file is a volume by its header, else lines.
+        let img = dir.path().join("a.vtk");
+        std::fs::write(
+            &img,
+            "# vtk DataFile Version 3.0\nx\nASCII\nDATASET STRUCTURED_POINTS\n",
+        )
+        .unwrap();
+        assert_eq!(classify(&img).unwrap(), Kind::Volume);
+        let poly = dir.path().join("b.vtk");
+        std::fs::write(
+            &poly,
+            "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\n",
+        )
+        .unwrap();
+        assert_eq!(classify(&poly).unwrap(), Kind::Lines);
+        let mesh = dir.path().join("m.ply");
+        std::fs::write(&mesh, "ply\n").unwrap();
+        assert!(open(&mut s, &mesh).unwrap().contains("tubes[0]"));
+        assert_eq!(s.tubes.len(), 1);
+    }
+
+    #[test]
+    fn hidden_objects_are_left_out_of_the_drawn_scene() {
+        let r = root();
+        let mut s = scene::spec::parse("", "empty", Path::new("."), &[]).unwrap();
+        open(&mut s, &r.join("datasets/vtk/headsq_64x64x93.nhdr")).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        for n in ["a.ply", "b.ply", "c.ply"] {
+            let p = dir.path().join(n);
+            std::fs::write(&p, "ply\n").unwrap();
+            open(&mut s, &p).unwrap();
+        }
+        let mut h = Hidden::default();
+        h.fit(&s);
+        h.tubes[1] = true;
+        h.volume = true;
+        let d = h.apply(&s);
+        assert!(d.volume.is_none());
+        let names: Vec<_> = d
+            .tubes
+            .iter()
+            .map(|t| t.path.file_name().unwrap().to_owned())
+            .collect();
+        assert_eq!(names, ["a.ply", "c.ply"]);
+        assert_eq!(h.apply(&s).tubes.len(), 2);
+        assert_eq!(Hidden::default().apply(&s), s);
+    }
+}
