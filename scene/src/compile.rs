@@ -139,7 +139,14 @@ pub fn camera(s: &Scene, bounds: [DVec3; 2]) -> Result<Camera, String> {
             if let (Some(h), Projection::Orthographic { .. }) = (c.height, cam.projection) {
                 cam.projection = Projection::Orthographic { height: h };
             }
-            cam
+            // An orbit about `camera.target` where it is given: the same orbit moved there,
+            // its clipping range fitted again.
+            match c.target.map(DVec3::from) {
+                Some(t) if (t - centre).length() > 0.0 => {
+                    Camera::look_at(cam.eye + (t - centre), t, cam.up, cam.projection, bounds)?
+                }
+                _ => cam,
+            }
         }
     };
     if let Some(n) = c.near {
@@ -1020,6 +1027,33 @@ impl Uploaded<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_orbit_camera_orbits_its_target() {
+        let bounds = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(40.0, 20.0, 30.0)];
+        let centre = (bounds[0] + bounds[1]) * 0.5;
+        for ortho in [false, true] {
+            let mut s = spec::parse("", "t", Path::new("."), &[]).unwrap();
+            s.camera.azimuth = 70.0;
+            s.camera.elevation = -25.0;
+            if ortho {
+                s.camera.projection = ProjectionKind::Orthographic;
+            }
+            let about_centre = camera(&s, bounds).unwrap();
+            let t = DVec3::new(5.0, 15.0, 2.0);
+            s.camera.target = Some(t.to_array());
+            let moved = camera(&s, bounds).unwrap();
+            // The same orbit, translated by target - centre: same direction, same distance.
+            assert!((moved.eye - (about_centre.eye + (t - centre))).length() < 1e-9);
+            assert!((moved.target - t).length() < 1e-12);
+            assert!((moved.forward() - about_centre.forward()).length() < 1e-12);
+            assert_eq!(moved.projection, about_centre.projection);
+            assert!(moved.near > 0.0 && moved.far > moved.near);
+            // The target at the centre is the plain orbit.
+            s.camera.target = Some(centre.to_array());
+            assert_eq!(camera(&s, bounds).unwrap().eye, about_centre.eye);
+        }
+    }
 
     #[test]
     fn the_slice_distance_follows_the_data_and_the_transfer_function() {

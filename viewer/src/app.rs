@@ -49,6 +49,8 @@ pub struct App {
     prefix: String,
     /// The transfer-function editor (scenes with a volume).
     editor: Option<crate::transfer::Editor>,
+    /// The scenes of the requests not yet drawn, by id (a drawn image knows its camera).
+    shown_scenes: std::collections::BTreeMap<u64, Scene>,
     /// Objects left out of the drawn scene, and the "open" field.
     hidden: crate::objects::Hidden,
     open_path: String,
@@ -64,6 +66,9 @@ pub struct App {
 struct ImageInfo {
     level: Level,
     size: [usize; 2],
+    depth: Vec<f32>,
+    /// The scene the image shows (for picking).
+    scene: Scene,
     total_ms: f64,
     passes: Vec<(String, f64)>,
     notes: Vec<String>,
@@ -96,6 +101,7 @@ impl App {
             prefix: "umbra_view".into(),
             editor: None,
             hidden: Default::default(),
+            shown_scenes: Default::default(),
             open_path: String::new(),
             keys: vec![],
             message: None,
@@ -134,9 +140,11 @@ impl App {
     /// Sends the current state at `level` (with a screenshot to write).
     fn ask_saving(&mut self, level: Level, save: Option<(std::path::PathBuf, bool)>) {
         self.next_id += 1;
+        let scene = self.state();
+        self.shown_scenes.insert(self.next_id, scene.clone());
         let _ = self.worker.requests.send(Request {
             id: self.next_id,
-            scene: self.state(),
+            scene,
             level,
             save,
         });
@@ -214,9 +222,16 @@ impl App {
         if let Some(f) = self.on_first_image.take() {
             f(&img.device);
         }
+        let scene = self
+            .shown_scenes
+            .remove(&img.id)
+            .unwrap_or_else(|| self.state());
+        self.shown_scenes.retain(|id, _| *id > img.id);
         self.shown = Some(ImageInfo {
             level: img.level,
             size: img.size,
+            depth: img.depth,
+            scene,
             total_ms: img.total_ms,
             passes: img.passes,
             notes: img.notes,
@@ -237,6 +252,11 @@ impl App {
         {
             let per_px = self.world_per_point(response.rect.height() as f64);
             self.orbit = self.orbit.pan(d.x as f64 * per_px, d.y as f64 * per_px);
+        }
+        if response.double_clicked() {
+            if let Some(p) = response.interact_pointer_pos() {
+                self.pick(response.rect, p);
+            }
         }
         if response.hovered() {
             let scroll = ui.input(|i| i.smooth_scroll_delta.y) as f64;
@@ -297,6 +317,67 @@ impl App {
             };
         }
         self.orbit != before
+    }
+
+    /// Double click: the orbit turns about the point the image shows under the pointer (its
+    /// depth AOV), the eye staying put; nothing where the image shows only background.
+    fn pick(&mut self, rect: egui::Rect, p: egui::Pos2) {
+        let Some(i) = &self.shown else { return };
+        let [w, h] = i.size;
+        let u = ((p.x - rect.left()) / rect.width()).clamp(0.0, 0.999_999) as f64;
+        let v = ((p.y - rect.top()) / rect.height()).clamp(0.0, 0.999_999) as f64;
+        let (px, py) = ((u * w as f64) as usize, (v * h as f64) as usize);
+        let depth = i.depth.get(px + w * py).copied().unwrap_or(0.0) as f64;
+        if depth <= 0.0 {
+            self.message = Some("nothing to pivot about there".into());
+            return;
+        }
+        let Ok(cam) = scene::compile::camera(&i.scene, self.bounds) else {
+            return;
+        };
+        let (o, d) = cam.ray(px as f64 + 0.5, py as f64 + 0.5, w, h);
+        let f = cam.forward();
+        let t = (depth - (o - cam.eye).dot(f)) / d.dot(f).max(1e-12);
+        let point = o + d * t;
+        self.orbit = self.orbit.pivot(cam.eye, point, self.bounds);
+        self.message = Some(format!(
+            "pivot at ({:.1}, {:.1}, {:.1})",
+            point.x, point.y, point.z
+        ));
+        self.changed();
+    }
+
+    /// The orientation triad in the view's lower left corner: the world axes as the camera
+    /// sees them, labelled R, A, S at their positive ends (L, P, I at the others).
+    fn triad(&self, painter: &egui::Painter, rect: egui::Rect) {
+        let f = self.orbit.forward();
+        let right = f.cross(DVec3::Z).try_normalize().unwrap_or(DVec3::X);
+        let up = right.cross(f);
+        let c = egui::pos2(rect.left() + 40.0, rect.bottom() - 40.0);
+        let len = 28.0;
+        for (axis, pos, neg, color) in [
+            (DVec3::X, "R", "L", egui::Color32::from_rgb(220, 70, 70)),
+            (DVec3::Y, "A", "P", egui::Color32::from_rgb(70, 200, 70)),
+            (DVec3::Z, "S", "I", egui::Color32::from_rgb(80, 120, 240)),
+        ] {
+            let s = egui::vec2(axis.dot(right) as f32, -axis.dot(up) as f32);
+            painter.line_segment([c, c + s * len], egui::Stroke::new(2.0, color));
+            let font = egui::FontId::proportional(12.0);
+            painter.text(
+                c + s * (len + 8.0),
+                egui::Align2::CENTER_CENTER,
+                pos,
+                font.clone(),
+                color,
+            );
+            painter.text(
+                c - s * (len * 0.6 + 6.0),
+                egui::Align2::CENTER_CENTER,
+                neg,
+                font,
+                color.gamma_multiply(0.5),
+            );
+        }
     }
 
     /// World units per logical point at the target's depth (a perspective camera's view
@@ -488,6 +569,7 @@ impl App {
                     egui::Color32::WHITE,
                 );
             }
+            self.triad(ui.painter(), rect);
             // The render follows the view's size in physical pixels.
             let ppp = ctx.pixels_per_point();
             let (w, h) = (

@@ -136,6 +136,22 @@ impl Orbit {
         .clamped()
     }
 
+    /// The orbit that keeps the eye where it is and turns about `point` (a picked point):
+    /// the new target, the distance to it (at least [`MIN_DISTANCE`] radii).
+    pub fn pivot(self, eye: DVec3, point: DVec3, bounds: [DVec3; 2]) -> Orbit {
+        let c = CameraSpec {
+            eye: Some(eye.to_array()),
+            target: Some(point.to_array()),
+            projection: if self.orthographic {
+                ProjectionKind::Orthographic
+            } else {
+                ProjectionKind::Perspective
+            },
+            ..CameraSpec::default()
+        };
+        Orbit::of(&c, bounds)
+    }
+
     /// Writes the orbit into a scene's camera (an orbit camera: `eye` cleared, `up` +z).
     pub fn apply(&self, c: &mut CameraSpec) {
         c.eye = None;
@@ -306,6 +322,15 @@ mod tests {
         .unwrap();
         assert!(text.contains("azimuth = 190.0"), "{text}");
         assert!(camera_path(&[o], bounds(), o.target).is_err());
+        // A pivot keeps the eye and looks at the picked point.
+        let b = bounds();
+        let radius = (b[1] - b[0]).length() * 0.5;
+        let eye = o.target - o.forward() * o.distance * radius;
+        let point = o.target + DVec3::new(3.0, -2.0, 5.0);
+        let q = o.pivot(eye, point, b);
+        assert!((q.target - point).length() < 1e-9);
+        let eye_after = q.target - q.forward() * q.distance * radius;
+        assert!((eye_after - eye).length() < 1e-9);
         // The orbit written back reads back the same.
         let mut c = CameraSpec::default();
         p.apply(&mut c);

@@ -53,6 +53,8 @@ pub struct Image {
     pub level: Level,
     pub size: [usize; 2],
     pub rgba: Vec<u8>,
+    /// Per pixel, the linear view depth of what it shows (the `Z` AOV; 0: nothing).
+    pub depth: Vec<f32>,
     pub total_ms: f64,
     pub passes: Vec<(String, f64)>,
     pub notes: Vec<String>,
@@ -228,6 +230,7 @@ pub fn draw(up: &scene::compile::Uploaded, m: &Model, req: &Request) -> Result<I
         level: req.level,
         size: [s.render.width as usize, s.render.height as usize],
         rgba,
+        depth: out.aov.iter().map(|a| a.depth).collect(),
         total_ms: out.timings.total_ms,
         passes: out.timings.passes.into_iter().collect(),
         notes: out.notes,

@@ -97,6 +97,27 @@ fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
         .filter(|(a, b)| a.abs_diff(**b) > 8)
         .count();
     assert!(moved > full.rgba.len() / 50, "{moved} values changed");
+    // A pan moves the picture (the renderer orbits the moved target).
+    let mut panned = s.clone();
+    orbit.pan(20.0, 0.0).apply(&mut panned.camera);
+    let shifted = draw(
+        &up,
+        &m,
+        &Request {
+            id: 4,
+            scene: panned,
+            level: Level::Full,
+            save: None,
+        },
+    )
+    .unwrap();
+    let moved = shifted
+        .rgba
+        .iter()
+        .zip(&full.rgba)
+        .filter(|(a, b)| a.abs_diff(**b) > 8)
+        .count();
+    assert!(moved > full.rgba.len() / 50, "a pan changed {moved} values");
     // The draft: a quarter of the size, drawn by ea.
     let draft = draw(
         &up,
