@@ -23,12 +23,20 @@ fn scene(dir: &std::path::Path) -> std::path::PathBuf {
     p
 }
 
-/// An Xvfb server on a free display (24-bit, as Mesa's X11 swapchain needs), killed on drop.
-struct Xvfb(std::process::Child, String);
+/// An Xvfb server on a free display (24-bit, as Mesa's X11 swapchain needs), killed on drop;
+/// the tests that use one run one at a time (the guard).
+struct Xvfb(
+    std::process::Child,
+    String,
+    #[allow(dead_code)] std::sync::MutexGuard<'static, ()>,
+);
+
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 impl Xvfb {
     fn start() -> Xvfb {
-        for n in (0..50).map(|i| 80 + (std::process::id() as usize + i) % 400) {
+        let guard = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+        for n in (0..50).map(|i| 80 + (std::process::id() as usize + 7 * i) % 400) {
             if std::path::Path::new(&format!("/tmp/.X{n}-lock")).exists() {
                 continue;
             }
@@ -47,8 +55,11 @@ impl Xvfb {
                 .expect("Xvfb (scripts/setup.sh installs it)");
             let t = Instant::now();
             while t.elapsed() < Duration::from_secs(10) {
+                if child.try_wait().unwrap().is_some() {
+                    break;
+                }
                 if std::path::Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-                    return Xvfb(child, format!(":{n}"));
+                    return Xvfb(child, format!(":{n}"), guard);
                 }
                 std::thread::sleep(Duration::from_millis(50));
             }
@@ -198,6 +209,105 @@ fn umbra_view_shows_a_first_image_under_xvfb_and_ends_on_sigterm() {
         std::thread::sleep(Duration::from_millis(50));
     };
     assert!(status.success(), "status {status}: {}", log.join("\n"));
+}
+
+/// Starts the viewer on display `d` and waits for its first image (at most 90 s).
+fn start_viewer(
+    scene: &std::path::Path,
+    d: &str,
+) -> (std::process::Child, std::sync::mpsc::Receiver<String>) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_umbra"))
+        .args([
+            "view",
+            scene.to_str().unwrap(),
+            "--width",
+            "400",
+            "--height",
+            "300",
+        ])
+        .env("DISPLAY", d)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .env("WINIT_X11_SCALE_FACTOR", "1")
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let err = child.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(err).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(90) {
+        if let Ok(line) = rx.recv_timeout(Duration::from_millis(200)) {
+            if line.contains("first image") {
+                return (child, rx);
+            }
+        }
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("the viewer ended early ({status})");
+        }
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    panic!("no first image in 90 s");
+}
+
+/// The viewer's status, waiting at most 5 s.
+fn ends_within_5_s(child: &mut std::process::Child) -> std::process::ExitStatus {
+    let t = Instant::now();
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return s;
+        }
+        if t.elapsed() > Duration::from_secs(5) {
+            let _ = child.kill();
+            panic!("the viewer did not end within 5 s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn umbra_view_ends_with_success_when_its_window_is_destroyed_or_on_sigint() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let x = Xvfb::start();
+    // Another X client destroys the window.
+    let (mut child, log) = start_viewer(&s, &x.1);
+    let found = Command::new("xdotool")
+        .args(["search", "--name", "umbra view"])
+        .env("DISPLAY", &x.1)
+        .output()
+        .expect("xdotool (scripts/setup.sh installs it)");
+    let id = String::from_utf8_lossy(&found.stdout)
+        .lines()
+        .next()
+        .expect("the viewer's window")
+        .to_string();
+    let ok = Command::new("xdotool")
+        .args(["windowclose", &id])
+        .env("DISPLAY", &x.1)
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let status = ends_within_5_s(&mut child);
+    let said: Vec<String> = log.try_iter().collect();
+    assert!(
+        status.success(),
+        "window destroyed: {status}: {}",
+        said.join("\n")
+    );
+    // Ctrl+C.
+    let (mut child, _log) = start_viewer(&s, &x.1);
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let status = ends_within_5_s(&mut child);
+    assert!(status.success(), "SIGINT: {status}");
 }
 
 #[test]

@@ -61,18 +61,49 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
         ..Default::default()
     };
     let on_first = a.on_first_image;
-    eframe::run_native(
-        "umbra view",
-        options,
-        Box::new(move |cc| {
-            let ctx = cc.egui_ctx.clone();
-            let worker = worker::start(m, &s, move || ctx.request_repaint());
-            Ok(Box::new(
-                app::App::new(s, bounds, worker, quit, on_first).with_editor(editor),
-            ))
-        }),
-    )
-    .map_err(|e| format!("umbra view could not open its window: {e}"))
+    // A window destroyed by another X client (`xdotool windowclose`) makes winit 0.30 panic on
+    // its next request about the window (BadWindow, BadDrawable): that is the window closing,
+    // so it ends the viewer with success, without the panic's message.
+    let previous = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !window_gone(&panic_text(info.payload())) {
+            previous(info);
+        }
+    }));
+    let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        eframe::run_native(
+            "umbra view",
+            options,
+            Box::new(move |cc| {
+                let ctx = cc.egui_ctx.clone();
+                let worker = worker::start(m, &s, move || ctx.request_repaint());
+                Ok(Box::new(
+                    app::App::new(s, bounds, worker, quit, on_first).with_editor(editor),
+                ))
+            }),
+        )
+    }));
+    let _ = std::panic::take_hook();
+    match run {
+        Ok(r) => r.map_err(|e| format!("umbra view could not open its window: {e}")),
+        Err(p) if window_gone(&panic_text(&*p)) => Ok(()),
+        Err(p) => std::panic::resume_unwind(p),
+    }
+}
+
+/// A panic's message, where it is text.
+fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<String>()
+        .cloned()
+        .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_default()
+}
+
+/// Whether a panic says the X server no longer knows the window (an X11 BadWindow or
+/// BadDrawable error, whichever request winit made first).
+fn window_gone(text: &str) -> bool {
+    text.contains("X11Error")
+        && (text.contains("error_kind: Window") || text.contains("error_kind: Drawable"))
 }
 
 /// Writes `bytes` to `path` through a temporary file beside it, renamed when complete.
