@@ -77,6 +77,30 @@ pub struct Session {
     transfer: Option<scene::spec::TransferSpec>,
     /// The scene's data as modelled: its objects, without the transfer function.
     data: DataKey,
+    /// The upload drafts draw when the geometry is heavy ([`DRAFT_PRIMITIVES`]), made at the
+    /// first draft after the model or its transfer function changed.
+    draft: Option<scene::compile::Uploaded<'static>>,
+}
+
+/// Triangles and line segments above which a draft draws a share of the geometry: every
+/// k-th block of [`DRAFT_BLOCK`] triangles or segments, k chosen to keep about this many.
+pub const DRAFT_PRIMITIVES: usize = 150_000;
+/// Triangles (tubes) or segments (lines) per block a draft keeps or drops whole.
+pub const DRAFT_BLOCK: usize = 256;
+
+/// The geometry's primitives: tube triangles and line segments.
+pub fn primitives(m: &Model) -> usize {
+    m.meshes.iter().map(|t| t.triangles()).sum::<usize>()
+        + m.lines.iter().map(|l| l.segments.len()).sum::<usize>()
+}
+
+/// Every `k`-th block of [`DRAFT_BLOCK`] items of `v` (in `chunk`-sized items).
+fn every_kth_block<T: Clone>(v: &[T], chunk: usize, k: usize) -> Vec<T> {
+    v.chunks(DRAFT_BLOCK * chunk)
+        .step_by(k.max(1))
+        .flatten()
+        .cloned()
+        .collect()
 }
 
 /// What a model is built from: the volume (but its transfer function) and the objects.
@@ -143,6 +167,7 @@ impl Session {
             up,
             transfer,
             data: data_key(s),
+            draft: None,
         })
     }
 
@@ -164,6 +189,7 @@ impl Session {
             self.up = upload(self.gpu, &self.model)?;
             self.data = key;
             self.transfer = tf.clone();
+            self.draft = None;
             rebuilt = Some(Rebuilt {
                 bounds: self.model.bounds,
                 range: self.range,
@@ -176,8 +202,50 @@ impl Session {
                 vol.2 = scene::compile::transfer(spec, self.range)
                     .map_err(|e| format!("scene key {e}"))?;
                 self.up = upload(self.gpu, &self.model)?;
+                self.draft = None;
             }
             self.transfer = tf;
+        }
+        let heavy = primitives(&self.model);
+        if req.level == Level::Draft && heavy > DRAFT_PRIMITIVES {
+            if self.draft.is_none() {
+                // The model with a share of its geometry, uploaded once; the full geometry
+                // goes back into the model.
+                let k = heavy.div_ceil(DRAFT_PRIMITIVES);
+                let meshes: Vec<_> = self
+                    .model
+                    .meshes
+                    .iter()
+                    .map(|t| {
+                        let mut d = t.clone();
+                        d.indices = every_kth_block(&t.indices, 3, k);
+                        d
+                    })
+                    .collect();
+                let lines: Vec<_> = self
+                    .model
+                    .lines
+                    .iter()
+                    .map(|l| {
+                        let mut d = l.clone();
+                        d.segments = every_kth_block(&l.segments, 1, k);
+                        d
+                    })
+                    .collect();
+                let full_meshes = std::mem::replace(&mut self.model.meshes, meshes);
+                let full_lines = std::mem::replace(&mut self.model.lines, lines);
+                let up = upload(self.gpu, &self.model);
+                self.model.meshes = full_meshes;
+                self.model.lines = full_lines;
+                self.draft = Some(up?);
+            }
+            let mut img = draw(self.draft.as_ref().expect("made above"), &self.model, req)?;
+            img.rebuilt = rebuilt;
+            img.notes.push(format!(
+                "draft: 1 block of {DRAFT_BLOCK} triangles or segments in {} of the geometry",
+                heavy.div_ceil(DRAFT_PRIMITIVES)
+            ));
+            return Ok(img);
         }
         let mut img = draw(&self.up, &self.model, req)?;
         img.rebuilt = rebuilt;
@@ -277,5 +345,28 @@ pub fn start(m: Model, s: &Scene, wake: impl Fn() + Send + 'static) -> Worker {
     Worker {
         requests: req_tx,
         images: img_rx,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_draft_keeps_whole_blocks_of_whole_triangles() {
+        // 1000 triangles (3000 indices): blocks of 256 triangles, every 2nd kept.
+        let idx: Vec<u32> = (0..3000).collect();
+        let kept = every_kth_block(&idx, 3, 2);
+        assert_eq!(kept.len() % 3, 0);
+        // Blocks 0 and 2 of 0..3 (256 + 256 triangles).
+        assert_eq!(kept.len(), 3 * 512);
+        assert_eq!(kept[..3], [0, 1, 2]);
+        assert_eq!(kept[3 * 256], 3 * 512);
+        // Triangles stay whole: each kept triple starts at a multiple of 3.
+        assert!(kept.chunks(3).all(|t| t[0] % 3 == 0 && t[1] == t[0] + 1));
+        // k = 1 keeps everything.
+        assert_eq!(every_kth_block(&idx, 3, 1), idx);
+        let segs: Vec<u32> = (0..1000).collect();
+        assert_eq!(every_kth_block(&segs, 1, 4).len(), 256);
     }
 }
