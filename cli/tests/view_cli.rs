@@ -112,42 +112,7 @@ fn umbra_view_shows_a_first_image_under_xvfb_and_ends_on_sigterm() {
     let dir = tempfile::tempdir().unwrap();
     let s = scene(dir.path());
     let x = Xvfb::start();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_umbra"))
-        .args([
-            "view",
-            s.to_str().unwrap(),
-            "--width",
-            "480",
-            "--height",
-            "360",
-        ])
-        .env("DISPLAY", &x.1)
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .env("WINIT_X11_SCALE_FACTOR", "1")
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Read stderr on a thread until the first image is reported.
-    let err = child.stderr.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(err).lines().map_while(Result::ok) {
-            let _ = tx.send(line);
-        }
-    });
-    let t = Instant::now();
-    let mut log = vec![];
-    let mut shown = false;
-    while t.elapsed() < Duration::from_secs(90) && !shown {
-        if let Ok(line) = rx.recv_timeout(Duration::from_millis(200)) {
-            shown |= line.contains("first image");
-            log.push(line);
-        }
-        if let Some(status) = child.try_wait().unwrap() {
-            panic!("the viewer ended early ({status}): {}", log.join("\n"));
-        }
-    }
-    assert!(shown, "no first image in 90 s: {}", log.join("\n"));
+    let (mut child, log) = start_viewer(&s, &x.1, [480, 360]);
     // The 3-D view (right of the controls) is on the screen and not uniform; a drag across it
     // changes it (a draft, then the full image).
     std::thread::sleep(Duration::from_secs(2));
@@ -197,33 +162,27 @@ fn umbra_view_shows_a_first_image_under_xvfb_and_ends_on_sigterm() {
         .status()
         .unwrap();
     assert!(kill.success());
-    let t = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if t.elapsed() > Duration::from_secs(5) {
-            let _ = child.kill();
-            panic!("the viewer did not end within 5 s of SIGTERM");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    assert!(status.success(), "status {status}: {}", log.join("\n"));
+    let status = ends_within_5_s(&mut child);
+    let said: Vec<String> = log.try_iter().collect();
+    assert!(status.success(), "status {status}: {}", said.join("\n"));
 }
 
-/// Starts the viewer on display `d` and waits for its first image (at most 90 s).
+/// Starts the viewer on display `d` with a window of `size` and waits for its first image
+/// (at most 90 s); its standard error's lines follow on the receiver.
 fn start_viewer(
     scene: &std::path::Path,
     d: &str,
+    size: [u32; 2],
 ) -> (std::process::Child, std::sync::mpsc::Receiver<String>) {
+    let (w, h) = (size[0].to_string(), size[1].to_string());
     let mut child = Command::new(env!("CARGO_BIN_EXE_umbra"))
         .args([
             "view",
             scene.to_str().unwrap(),
             "--width",
-            "400",
+            &w,
             "--height",
-            "300",
+            &h,
         ])
         .env("DISPLAY", d)
         .env("XDG_RUNTIME_DIR", std::env::temp_dir())
@@ -275,7 +234,7 @@ fn umbra_view_ends_with_success_when_its_window_is_destroyed_or_on_sigint() {
     let s = scene(dir.path());
     let x = Xvfb::start();
     // Another X client destroys the window.
-    let (mut child, log) = start_viewer(&s, &x.1);
+    let (mut child, log) = start_viewer(&s, &x.1, [400, 300]);
     let found = Command::new("xdotool")
         .args(["search", "--name", "umbra view"])
         .env("DISPLAY", &x.1)
@@ -300,7 +259,7 @@ fn umbra_view_ends_with_success_when_its_window_is_destroyed_or_on_sigint() {
         said.join("\n")
     );
     // Ctrl+C.
-    let (mut child, _log) = start_viewer(&s, &x.1);
+    let (mut child, _log) = start_viewer(&s, &x.1, [400, 300]);
     let kill = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()

@@ -14,21 +14,6 @@ use std::time::{Duration, Instant};
 /// How long the view must rest before the full image is asked for.
 pub const REST: Duration = Duration::from_millis(250);
 
-/// The methods the method menu offers, in the README's order.
-const METHODS: &[engine::method::Method] = {
-    use engine::method::Method::*;
-    &[
-        Combined,
-        Dos,
-        Vicinity,
-        Ea,
-        Phong,
-        Illuminated,
-        LineAo,
-        Illustrative,
-    ]
-};
-
 pub struct App {
     /// The scene as the user has made it (camera, method, size follow the window).
     pub scene: Scene,
@@ -396,13 +381,14 @@ impl App {
         egui::ComboBox::from_label("method")
             .selected_text(current.desc().name)
             .show_ui(ui, |ui| {
-                for m in METHODS {
+                // Every row of the method table (`engine::method::METHODS`).
+                for d in engine::method::METHODS {
                     if ui
-                        .selectable_label(current == *m, m.desc().name)
-                        .on_hover_text(m.desc().summary)
+                        .selectable_label(current == d.method, d.name)
+                        .on_hover_text(d.summary)
                         .clicked()
                     {
-                        self.scene.render.method = *m;
+                        self.scene.render.method = d.method;
                         changed = true;
                     }
                 }

@@ -20,6 +20,27 @@ fn headsq_scene(dir: &std::path::Path) -> std::path::PathBuf {
     p
 }
 
+/// A frame of `scene` at `level` (no screenshot).
+fn frame(
+    up: &scene::compile::Uploaded,
+    m: &scene::compile::Model,
+    scene: &scene::spec::Scene,
+    level: Level,
+) -> umbra_viewer::worker::Image {
+    let req = Request {
+        id: 0,
+        scene: scene.clone(),
+        level,
+        save: None,
+    };
+    draw(up, m, &req).unwrap()
+}
+
+/// Values of two images of one size that differ by more than 8 levels.
+fn changed(a: &[u8], b: &[u8]) -> usize {
+    a.iter().zip(b).filter(|(x, y)| x.abs_diff(**y) > 8).count()
+}
+
 #[test]
 fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
     let dir = tempfile::tempdir().unwrap();
@@ -32,17 +53,7 @@ fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
     let orbit = Orbit::of(&s.camera, m.bounds).drag(100.0, 20.0);
     let mut state = s.clone();
     orbit.apply(&mut state.camera);
-    let full = draw(
-        &up,
-        &m,
-        &Request {
-            id: 1,
-            scene: state.clone(),
-            level: Level::Full,
-            save: None,
-        },
-    )
-    .unwrap();
+    let full = frame(&up, &m, &state, Level::Full);
     assert_eq!(full.size, [96, 72]);
     // The same camera by its scene keys, through the headless renderer.
     let keyed = scene::spec::load(
@@ -79,57 +90,17 @@ fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
     // Another view gives another image (the orbit is not ignored).
     let mut other = s.clone();
     orbit.drag(200.0, 0.0).apply(&mut other.camera);
-    let turned = draw(
-        &up,
-        &m,
-        &Request {
-            id: 2,
-            scene: other,
-            level: Level::Full,
-            save: None,
-        },
-    )
-    .unwrap();
-    let moved = turned
-        .rgba
-        .iter()
-        .zip(&full.rgba)
-        .filter(|(a, b)| a.abs_diff(**b) > 8)
-        .count();
+    let turned = frame(&up, &m, &other, Level::Full);
+    let moved = changed(&turned.rgba, &full.rgba);
     assert!(moved > full.rgba.len() / 50, "{moved} values changed");
     // A pan moves the picture (the renderer orbits the moved target).
     let mut panned = s.clone();
     orbit.pan(20.0, 0.0).apply(&mut panned.camera);
-    let shifted = draw(
-        &up,
-        &m,
-        &Request {
-            id: 4,
-            scene: panned,
-            level: Level::Full,
-            save: None,
-        },
-    )
-    .unwrap();
-    let moved = shifted
-        .rgba
-        .iter()
-        .zip(&full.rgba)
-        .filter(|(a, b)| a.abs_diff(**b) > 8)
-        .count();
+    let shifted = frame(&up, &m, &panned, Level::Full);
+    let moved = changed(&shifted.rgba, &full.rgba);
     assert!(moved > full.rgba.len() / 50, "a pan changed {moved} values");
     // The draft: a quarter of the size, drawn by ea.
-    let draft = draw(
-        &up,
-        &m,
-        &Request {
-            id: 3,
-            scene: state,
-            level: Level::Draft,
-            save: None,
-        },
-    )
-    .unwrap();
+    let draft = frame(&up, &m, &state, Level::Draft);
     assert_eq!(draft.size, [24, 18]);
     assert_eq!(draft.rgba.len(), 24 * 18 * 4);
 }
