@@ -1,6 +1,8 @@
 //! The viewer draws what `umbra render` draws: its orbit written into the scene gives the image
 //! of the scene with those camera keys, and a draft is the cheap image it says it is.
 
+mod common;
+
 use umbra_viewer::controls::Orbit;
 use umbra_viewer::worker::{draw, Level, Request};
 
@@ -41,14 +43,28 @@ fn changed(a: &[u8], b: &[u8]) -> usize {
     a.iter().zip(b).filter(|(x, y)| x.abs_diff(**y) > 8).count()
 }
 
+/// The headsq scene, its model, a GPU context (leaked: one per test) and the upload.
+fn setup(
+    dir: &std::path::Path,
+) -> (
+    std::path::PathBuf,
+    scene::spec::Scene,
+    scene::compile::Model,
+    &'static engine::gpu::Gpu,
+    scene::compile::Uploaded<'static>,
+) {
+    let path = headsq_scene(dir);
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let gpu: &'static engine::gpu::Gpu = Box::leak(Box::new(engine::gpu::Gpu::new().unwrap()));
+    let up = scene::compile::upload(gpu, &m).unwrap();
+    (path, s, m, gpu, up)
+}
+
 #[test]
 fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
     let dir = tempfile::tempdir().unwrap();
-    let path = headsq_scene(dir.path());
-    let s = scene::spec::load(&path, &[]).unwrap();
-    let m = scene::compile::model(&s).unwrap();
-    let gpu = engine::gpu::Gpu::new().unwrap();
-    let up = scene::compile::upload(&gpu, &m).unwrap();
+    let (path, s, m, gpu, up) = setup(dir.path());
     // A drag of 100 points right and 20 down: azimuth 30 - 40, elevation 20 + 8.
     let orbit = Orbit::of(&s.camera, m.bounds).drag(100.0, 20.0);
     let mut state = s.clone();
@@ -64,7 +80,7 @@ fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
         ],
     )
     .unwrap();
-    let (out, _) = scene::compile::render_scene(&gpu, &keyed, &m, 1).unwrap();
+    let (out, _) = scene::compile::render_scene(gpu, &keyed, &m, 1).unwrap();
     let png: Vec<u8> = out
         .image
         .iter()
@@ -108,11 +124,7 @@ fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
 #[test]
 fn a_screenshot_is_what_umbra_render_draws_of_the_saved_scene() {
     let dir = tempfile::tempdir().unwrap();
-    let path = headsq_scene(dir.path());
-    let s = scene::spec::load(&path, &[]).unwrap();
-    let m = scene::compile::model(&s).unwrap();
-    let gpu = engine::gpu::Gpu::new().unwrap();
-    let up = scene::compile::upload(&gpu, &m).unwrap();
+    let (_, s, m, gpu, up) = setup(dir.path());
     let mut state = s.clone();
     Orbit::of(&s.camera, m.bounds)
         .drag(-60.0, 30.0)
@@ -139,20 +151,10 @@ fn a_screenshot_is_what_umbra_render_draws_of_the_saved_scene() {
     umbra_viewer::write_atomic(&saved, scene::spec::to_toml(&state).unwrap().as_bytes()).unwrap();
     let back = scene::spec::load(&saved, &[]).unwrap();
     assert_eq!(back.render.method, engine::method::Method::Dos);
-    let (out, _) = scene::compile::render_scene(&gpu, &back, &m, 1).unwrap();
+    let (out, _) = scene::compile::render_scene(gpu, &back, &m, 1).unwrap();
     let png = image::open(&shot).unwrap().to_rgb8();
     assert_eq!(png.dimensions(), (96, 72));
-    let diff = png
-        .as_raw()
-        .chunks(3)
-        .zip(&out.image)
-        .map(|(p, q)| {
-            (0..3)
-                .map(|c| (p[c] as f64 - scene::image_io::srgb8(q[c]) as f64).abs())
-                .sum::<f64>()
-        })
-        .sum::<f64>()
-        / (3.0 * out.image.len() as f64);
+    let diff = common::png_difference(&png, &out.image);
     assert!(
         diff <= 1.0,
         "screenshot and umbra render differ by {diff} levels in mean"

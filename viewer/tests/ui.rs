@@ -3,6 +3,8 @@
 //! change the scene, and the screenshot button writes what `umbra render` draws of the shown
 //! state (so the new transfer function reached the renderer).
 
+mod common;
+
 use eframe::egui;
 use egui_kittest::kittest::Queryable;
 use egui_kittest::Harness;
@@ -109,17 +111,7 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
     let (out, v) = scene::compile::render_scene(&gpu, &state, &m, 1).unwrap();
     let img = image::open(&png).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (v.width, v.height));
-    let diff = img
-        .as_raw()
-        .chunks(3)
-        .zip(&out.image)
-        .map(|(p, q)| {
-            (0..3)
-                .map(|c| (p[c] as f64 - scene::image_io::srgb8(q[c]) as f64).abs())
-                .sum::<f64>()
-        })
-        .sum::<f64>()
-        / (3.0 * out.image.len() as f64);
+    let diff = common::png_difference(&img, &out.image);
     assert!(
         diff <= 1.0,
         "screenshot and headless render differ by {diff} levels"
