@@ -130,6 +130,25 @@ impl Hidden {
     }
 }
 
+/// The translation of a row-major 4 x 4 `transform` (entries 3, 7, 11) as three fields; the
+/// identity is written when the object had none and a field moves.
+fn translation(ui: &mut egui::Ui, t: &mut Option<[f64; 16]>) {
+    let mut m = t.unwrap_or([
+        1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    ]);
+    let before = m;
+    ui.horizontal(|ui| {
+        let l = ui.label("  transform t");
+        for i in [3, 7, 11] {
+            ui.add(egui::DragValue::new(&mut m[i]).speed(0.5))
+                .labelled_by(l.id);
+        }
+    });
+    if m != before {
+        *t = Some(m);
+    }
+}
+
 /// One row of an object: shown, its name, a size and a colour, remove. True when removed.
 fn row(
     ui: &mut egui::Ui,
@@ -199,6 +218,7 @@ pub fn panel(
         ) {
             remove = Some(("tubes", i));
         }
+        translation(ui, &mut t.transform);
         hidden.tubes[i] = !shown;
     }
     for (i, l) in s.lines.iter_mut().enumerate() {
@@ -214,6 +234,7 @@ pub fn panel(
         ) {
             remove = Some(("lines", i));
         }
+        translation(ui, &mut l.transform);
         hidden.lines[i] = !shown;
     }
     for (i, p) in s.points.iter_mut().enumerate() {
@@ -229,6 +250,7 @@ pub fn panel(
         ) {
             remove = Some(("points", i));
         }
+        translation(ui, &mut p.transform);
         hidden.points[i] = !shown;
     }
     match remove {

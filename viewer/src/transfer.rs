@@ -3,13 +3,22 @@
 //! it, `extinction` at the top) or piecewise-linear points (`value`, `color`, `extinction` per
 //! world unit), shown as the extinction curve over the histogram (linear or log scale) with
 //! each point a handle: drag it to move its value and extinction, or type them in the list.
-//! 2-D functions (points with `gradient`) are shown as their list only.
+//! 2-D functions (`points (2-D)`: rows of points by gradient magnitude) show a curve per row
+//! and a gradient column in the list.
 
 use eframe::egui;
 use scene::spec::{Color, TfPoint, TransferSpec};
 
 /// The presets, by their scene names.
 pub const PRESETS: &[&str] = &["grey", "bone", "fire", "cool-warm"];
+
+/// The menu's name of 2-D functions.
+const TWO_D: &str = "points (2-D)";
+
+/// Whether the function is 2-D (its points carry gradient magnitudes).
+pub fn is_2d(spec: &TransferSpec) -> bool {
+    spec.points.iter().any(|p| p.gradient.is_some())
+}
 
 /// The lowest extinction the log scale shows, as a fraction of the largest.
 const LOG_FLOOR: f64 = 1e-3;
@@ -52,12 +61,32 @@ impl Editor {
             .unwrap_or_default()
     }
 
+    /// `spec` as a 2-D function of the same values at low gradients: its points as the row at
+    /// gradient 0 and again at a tenth of the value range (edit either row to make edges or
+    /// flat regions stand out; between rows the renderer interpolates in the gradient).
+    pub fn two_d(&self, spec: &TransferSpec) -> TransferSpec {
+        let pts = self.points_of(spec);
+        let g1 = 0.1 * (self.range[1] - self.range[0]).max(1e-9);
+        let row = |g: f64| {
+            pts.iter().map(move |p| TfPoint {
+                gradient: Some(g),
+                ..p.clone()
+            })
+        };
+        TransferSpec {
+            points: row(0.0).chain(row(g1)).collect(),
+            ..spec.clone()
+        }
+    }
+
     /// The editor; true when the transfer function changed.
     pub fn ui(&mut self, ui: &mut egui::Ui, spec: &mut TransferSpec) -> bool {
         let before = spec.clone();
         let custom = "points";
         let current = if spec.points.is_empty() {
             spec.preset.clone()
+        } else if is_2d(spec) {
+            TWO_D.to_string()
         } else {
             custom.to_string()
         };
@@ -153,10 +182,23 @@ impl Editor {
             .iter()
             .map(|p| egui::pos2(to_x(p.value), to_y(p.extinction)))
             .collect();
-        painter.add(egui::Shape::line(
-            line.clone(),
-            egui::Stroke::new(1.5, egui::Color32::WHITE),
-        ));
+        // One curve per row of equal gradient (one row for a 1-D function), the rows of
+        // higher gradients fainter.
+        let mut rows: Vec<(f64, Vec<egui::Pos2>)> = vec![];
+        for (p, pos) in pts.iter().zip(&line) {
+            let g = p.gradient.unwrap_or(0.0);
+            match rows.iter_mut().find(|r| r.0 == g) {
+                Some(r) => r.1.push(*pos),
+                None => rows.push((g, vec![*pos])),
+            }
+        }
+        for (i, (_, row)) in rows.into_iter().enumerate() {
+            let gray = (255.0 * 0.6f32.powi(i as i32)) as u8;
+            painter.add(egui::Shape::line(
+                row,
+                egui::Stroke::new(1.5, egui::Color32::from_gray(gray.max(60))),
+            ));
+        }
         for (p, pos) in pts.iter().zip(&line) {
             let c = p.color.rgb().unwrap_or([1.0; 3]);
             let fill = egui::Color32::from_rgb(
@@ -211,10 +253,21 @@ impl Editor {
     /// The points as rows of widgets: value, colour, extinction, remove; and "add point".
     fn list(&mut self, ui: &mut egui::Ui, spec: &mut TransferSpec) {
         let [lo, hi] = self.range;
+        let two = is_2d(spec);
         let mut remove = None;
         for (i, p) in spec.points.iter_mut().enumerate() {
             ui.horizontal(|ui| {
                 let l = ui.label(format!("points[{i}]"));
+                if two {
+                    let g = p.gradient.get_or_insert(0.0);
+                    ui.add(
+                        egui::DragValue::new(g)
+                            .range(0.0..=f64::MAX)
+                            .speed((hi - lo) / 500.0)
+                            .prefix("gradient "),
+                    )
+                    .labelled_by(l.id);
+                }
                 ui.add(
                     egui::DragValue::new(&mut p.value)
                         .speed((hi - lo) / 500.0)
@@ -261,6 +314,29 @@ impl Editor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_function_made_2d_keeps_its_values_at_low_gradients() {
+        let e = Editor::new([0.0, 200.0], vec![1; 16]);
+        let spec = TransferSpec {
+            preset: "bone".into(),
+            extinction: 0.3,
+            points: vec![],
+        };
+        let two = e.two_d(&spec);
+        assert!(is_2d(&two) && !is_2d(&spec));
+        let a = scene::compile::transfer(&spec, e.range).unwrap();
+        let b = scene::compile::transfer(&two, e.range).unwrap();
+        assert_eq!(b.rows.len(), 2, "two rows of gradient");
+        for v in [0.0, 20.0, 77.0, 150.0, 200.0] {
+            for g in [0.0, 5.0, 20.0, 100.0] {
+                let (ca, ea) = a.eval(v);
+                let (cb, eb) = b.eval2(v, g);
+                assert!((ea - eb).abs() < 1e-12, "{v} {g}");
+                assert!((0..3).all(|k| (ca[k] - cb[k]).abs() < 1e-12));
+            }
+        }
+    }
 
     #[test]
     fn a_preset_made_explicit_is_the_same_function() {
