@@ -1,27 +1,14 @@
 //! `umbra render` with the emission-absorption baseline end to end (moved from the renderer's
 //! tests: it runs the binary).
 
-/// Writes `<dir>/s.toml`: the bundled headsq volume through `preset` (extinction 0.05) with
-/// method `ea`, after `head` (background, camera) and with `render` (size, options).
+/// The headsq scene (`test_support::headsq_scene`) with method `ea` and `render`.
 fn headsq_scene(
     dir: &std::path::Path,
     head: &str,
     preset: &str,
     render: &str,
 ) -> std::path::PathBuf {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap();
-    let scene = dir.join("s.toml");
-    std::fs::write(
-        &scene,
-        format!(
-            "{head}[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"{preset}\"\nextinction = 0.05\n[render]\nmethod = \"ea\"\n{render}",
-            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
-        ),
-    )
-    .unwrap();
-    scene
+    test_support::headsq_scene(dir, head, preset, &format!("method = \"ea\"\n{render}"))
 }
 
 #[test]

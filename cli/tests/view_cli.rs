@@ -8,19 +8,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 fn scene(dir: &std::path::Path) -> std::path::PathBuf {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap();
-    let p = dir.join("s.toml");
-    std::fs::write(
-        &p,
-        format!(
-            "[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n[render]\nmethod = \"ea\"\n",
-            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
-        ),
-    )
-    .unwrap();
-    p
+    test_support::headsq_scene(dir, "", "bone", "method = \"ea\"\n")
 }
 
 /// An Xvfb server on a free display (24-bit, as Mesa's X11 swapchain needs), killed on drop;
@@ -283,4 +271,17 @@ fn umbra_view_without_a_display_says_so() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("DISPLAY"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
+    // A window size that is no size is refused before anything opens, naming the flag.
+    for bad in ["nan", "0", "-5", "1e9"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_umbra"))
+            .args(["view", s.to_str().unwrap(), &format!("--width={bad}")])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "--width {bad}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--width") && err.contains("200..16384"),
+            "{err}"
+        );
+    }
 }

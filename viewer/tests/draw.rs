@@ -7,19 +7,12 @@ use umbra_viewer::controls::Orbit;
 use umbra_viewer::worker::{draw, Level, Request};
 
 fn headsq_scene(dir: &std::path::Path) -> std::path::PathBuf {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap();
-    let p = dir.join("s.toml");
-    std::fs::write(
-        &p,
-        format!(
-            "background = [1.0, 1.0, 1.0]\n[camera]\nazimuth = 30.0\nelevation = 20.0\n[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n[render]\nmethod = \"combined\"\nwidth = 96\nheight = 72\nfxaa = false\n",
-            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
-        ),
+    test_support::headsq_scene(
+        dir,
+        "background = [1.0, 1.0, 1.0]\n[camera]\nazimuth = 30.0\nelevation = 20.0\n",
+        "bone",
+        "method = \"combined\"\nwidth = 96\nheight = 72\nfxaa = false\n",
     )
-    .unwrap();
-    p
 }
 
 /// A frame of `scene` at `level` (no screenshot).

@@ -17,18 +17,12 @@ use umbra_viewer::worker::Level;
 #[test]
 fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_image() {
     let dir = tempfile::tempdir().unwrap();
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap();
-    let path = dir.path().join("s.toml");
-    std::fs::write(
-        &path,
-        format!(
-            "background = [1.0, 1.0, 1.0]\n[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"bone\"\nextinction = 0.05\n[render]\nmethod = \"ea\"\nfxaa = false\n",
-            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
-        ),
-    )
-    .unwrap();
+    let path = test_support::headsq_scene(
+        dir.path(),
+        "background = [1.0, 1.0, 1.0]\n",
+        "bone",
+        "method = \"ea\"\nfxaa = false\n",
+    );
     let s = scene::spec::load(&path, &[]).unwrap();
     let m = scene::compile::model(&s).unwrap();
     let bounds = m.bounds;

@@ -12,14 +12,23 @@ use std::path::PathBuf;
 pub struct Args {
     /// Scene file (see `umbra scene` and the README).
     scene: PathBuf,
-    /// The window's inner size, logical pixels.
-    #[arg(long, default_value_t = 1100.0)]
+    /// The window's inner width, logical pixels (200 to 16384).
+    #[arg(long, default_value_t = 1100.0, value_parser = window_side)]
     width: f32,
-    #[arg(long, default_value_t = 720.0)]
+    /// The window's inner height, logical pixels (200 to 16384).
+    #[arg(long, default_value_t = 720.0, value_parser = window_side)]
     height: f32,
     /// Override a scene key by its dotted path (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+}
+
+/// A window side: a finite number of logical pixels in [200, 16384].
+fn window_side(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if (200.0..=16384.0).contains(&v) => Ok(v),
+        _ => Err(format!("'{s}' is not a number of pixels in 200..16384")),
+    }
 }
 
 pub fn run(a: Args) -> Result<(), String> {

@@ -12,6 +12,23 @@ pub fn root() -> PathBuf {
         .to_path_buf()
 }
 
+/// Writes `<dir>/s.toml`: the bundled headsq volume (`datasets/vtk/headsq_64x64x93.nhdr`, 64 x
+/// 64 x 93, 3.2 x 3.2 x 1.5 mm) through the transfer preset `preset` (extinction 0.05 per
+/// world unit), after `head` (top-level keys, `[camera]`, `[[clip]]`) and with `render` (the
+/// `[render]` keys, the method among them). The renderers' small real-data scene.
+pub fn headsq_scene(dir: &std::path::Path, head: &str, preset: &str, render: &str) -> PathBuf {
+    let scene = dir.join("s.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "{head}[volume]\npath = \"{}\"\n[volume.transfer]\npreset = \"{preset}\"\nextinction = 0.05\n[render]\n{render}",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    scene
+}
+
 /// Reader fixtures written by `tests/fixtures/make_fixtures.py` with reference libraries.
 pub fn fixtures() -> PathBuf {
     root().join("tests").join("fixtures")
