@@ -106,21 +106,8 @@ fn window_gone(text: &str) -> bool {
         && (text.contains("error_kind: Window") || text.contains("error_kind: Drawable"))
 }
 
-/// Writes `bytes` to `path` through a temporary file beside it, renamed when complete.
+/// Writes `bytes` to `path` through a temporary file and a rename (`volume::write_atomic`, the
+/// writer every output of umbra goes through), the error as text naming the file.
 pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    let tmp = dir.join(format!(
-        ".{}.tmp",
-        path.file_name()
-            .map_or("out".into(), |n| n.to_string_lossy())
-    ));
-    std::fs::write(&tmp, bytes)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            format!("{}: {e}", path.display())
-        })
+    volume::write_atomic(path, bytes).map_err(|e| e.to_string())
 }
