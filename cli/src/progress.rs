@@ -66,18 +66,52 @@ impl Frames {
         }
     }
 
-    /// Frame `index` (from 0) of `n`, written to `path` in `ms` milliseconds.
-    pub fn frame(&self, index: usize, n: usize, path: &std::path::Path, ms: f64) {
-        match &self.bar {
+    /// The bar, shown from the first frame on (so that a run with nothing to do shows none).
+    fn bar(&self, n: Option<usize>) -> Option<&indicatif::ProgressBar> {
+        let bar = self.bar.as_ref()?;
+        if bar.is_hidden() {
+            bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        }
+        if let Some(n) = n {
+            bar.set_length(n as u64);
+        }
+        Some(bar)
+    }
+
+    /// Frame `index` (its number in the sequence or manifest) written to `path` in `ms`
+    /// milliseconds, one of `n` this run renders.
+    pub fn done(&self, index: usize, n: usize, path: &std::path::Path, ms: f64) {
+        match self.bar(Some(n)) {
             Some(bar) => {
-                if bar.is_hidden() {
-                    bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-                    bar.set_length(n as u64);
-                }
                 bar.set_message(path.display().to_string());
                 bar.inc(1);
             }
-            None => eprintln!("frame {}/{n} {} {ms:.1} ms", index + 1, path.display()),
+            None => eprintln!("frame {index}: {} in {ms:.1} ms", path.display()),
+        }
+    }
+
+    /// Frame `index` left as it is: its output is complete.
+    pub fn skipped(&self, index: usize, name: Option<&str>, path: &std::path::Path) {
+        let name = name.map(|n| format!(" {n}")).unwrap_or_default();
+        match self.bar(None) {
+            Some(bar) => bar.println(format!(
+                "frame {index}{name}: {} is complete, skipped",
+                path.display()
+            )),
+            None => eprintln!(
+                "frame {index}{name}: {} is complete, skipped",
+                path.display()
+            ),
+        }
+    }
+
+    /// Frame `index` failed (the others go on).
+    pub fn failed(&self, index: usize, name: Option<&str>, path: &std::path::Path, error: &str) {
+        let name = name.map(|n| format!(" {n}")).unwrap_or_default();
+        let line = format!("frame {index}{name}: {} FAILED: {error}", path.display());
+        match self.bar(None) {
+            Some(bar) => bar.println(line),
+            None => eprintln!("{line}"),
         }
     }
 }

@@ -177,35 +177,183 @@ pub fn choose_sample_count(
     (chosen, note)
 }
 
-impl Gpu {
-    /// Opens the best adapter: `UMBRA_ADAPTER` if set, else high performance, falling back to
-    /// any adapter, software ones included.
-    pub fn new() -> Result<Self, GpuError> {
-        pollster::block_on(Self::new_async())
+/// One adapter of [`adapters`]: what `umbra info --adapters` lists.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct AdapterEntry {
+    /// Its position in the list, what `--adapter N` names.
+    pub index: usize,
+    pub name: String,
+    pub backend: String,
+    pub device_type: String,
+    /// PCI bus id as the driver reports it (`domain:bus:device.function`), empty where it
+    /// reports none (software adapters, some drivers).
+    pub pci_bus_id: String,
+    pub driver: String,
+}
+
+/// Every adapter this machine offers, in the order `--adapter N` counts them.
+pub fn adapters() -> Vec<AdapterEntry> {
+    let instance = Gpu::instance();
+    let all = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+    all.iter()
+        .enumerate()
+        .map(|(index, a)| {
+            let i = a.get_info();
+            AdapterEntry {
+                index,
+                name: i.name,
+                backend: format!("{:?}", i.backend),
+                device_type: format!("{:?}", i.device_type),
+                pci_bus_id: i.device_pci_bus_id,
+                driver: format!("{} {}", i.driver, i.driver_info).trim().to_string(),
+            }
+        })
+        .collect()
+}
+
+/// Which adapter to open: by its index in [`adapters`], by PCI bus id (identical GPUs of a
+/// multi-GPU node differ only there) or by a part of its name.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum AdapterChoice {
+    Index(usize),
+    /// `[domain:]bus:device.function`, hexadecimal (what `nvidia-smi --query-gpu=pci.bus_id`
+    /// and `lspci -D` print; case, zero padding and a missing domain, read as 0, do not matter).
+    PciBus([u32; 4]),
+    /// A case-insensitive part of the adapter's name (`llvmpipe`, `A100`).
+    Name(String),
+}
+
+impl AdapterChoice {
+    /// Reads a choice: a decimal number is an index; `pci:BUS` or a bus id of the form above is
+    /// a PCI bus id; anything else is a part of a name.
+    pub fn parse(text: &str) -> Result<AdapterChoice, String> {
+        let t = text.trim();
+        if t.is_empty() {
+            return Err(
+                "empty adapter choice: give an index, a PCI bus id or a part of a name".into(),
+            );
+        }
+        if let Ok(k) = t.parse::<usize>() {
+            return Ok(AdapterChoice::Index(k));
+        }
+        let bus = t.strip_prefix("pci:").or_else(|| t.strip_prefix("PCI:"));
+        match (bus, parse_pci_bus_id(bus.unwrap_or(t))) {
+            (_, Some(b)) => Ok(AdapterChoice::PciBus(b)),
+            (Some(b), None) => Err(format!(
+                "'{b}' is not a PCI bus id ([domain:]bus:device.function in hexadecimal, e.g. 0000:3b:00.0)"
+            )),
+            (None, None) => Ok(AdapterChoice::Name(t.to_lowercase())),
+        }
     }
 
-    async fn new_async() -> Result<Self, GpuError> {
+    /// The index in `infos` this choice names, or why none.
+    pub fn pick(&self, infos: &[wgpu::AdapterInfo]) -> Result<usize, String> {
+        let list = || {
+            let all: Vec<String> = infos
+                .iter()
+                .enumerate()
+                .map(|(k, i)| {
+                    let bus = if i.device_pci_bus_id.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" at {}", i.device_pci_bus_id)
+                    };
+                    format!("{k}: {} ({:?}){bus}", i.name, i.backend)
+                })
+                .collect();
+            if all.is_empty() {
+                "no adapters at all".to_string()
+            } else {
+                format!("the adapters are {}", all.join("; "))
+            }
+        };
+        let found = match self {
+            AdapterChoice::Index(k) => (*k < infos.len()).then_some(*k),
+            AdapterChoice::PciBus(b) => infos
+                .iter()
+                .position(|i| parse_pci_bus_id(&i.device_pci_bus_id) == Some(*b)),
+            AdapterChoice::Name(n) => infos
+                .iter()
+                .position(|i| i.name.to_lowercase().contains(n.as_str())),
+        };
+        found.ok_or_else(|| format!("{} matches no adapter: {}", self.describe(), list()))
+    }
+
+    fn describe(&self) -> String {
+        match self {
+            AdapterChoice::Index(k) => format!("adapter index {k}"),
+            AdapterChoice::PciBus(b) => {
+                format!(
+                    "PCI bus id {:04x}:{:02x}:{:02x}.{:x}",
+                    b[0], b[1], b[2], b[3]
+                )
+            }
+            AdapterChoice::Name(n) => format!("adapter name '{n}'"),
+        }
+    }
+}
+
+/// `[domain:]bus:device.function` in hexadecimal as numbers, or `None` when `text` is not one.
+pub fn parse_pci_bus_id(text: &str) -> Option<[u32; 4]> {
+    let (head, function) = text.trim().rsplit_once('.')?;
+    let parts: Vec<&str> = head.split(':').collect();
+    let (domain, bus, device) = match parts[..] {
+        [d, b, v] => (d, b, v),
+        [b, v] => ("0", b, v),
+        _ => return None,
+    };
+    let hex = |s: &str, max: u32| {
+        (!s.is_empty() && s.len() <= 8)
+            .then(|| u32::from_str_radix(s, 16).ok())
+            .flatten()
+            .filter(|&v| v <= max)
+    };
+    Some([
+        hex(domain, u32::MAX)?,
+        hex(bus, 0xff)?,
+        hex(device, 0x1f)?,
+        hex(function, 0x7)?,
+    ])
+}
+
+impl Gpu {
+    /// Opens the best adapter: the one `UMBRA_ADAPTER` names (see [`AdapterChoice`]) if set,
+    /// else high performance, falling back to any adapter, software ones included.
+    pub fn new() -> Result<Self, GpuError> {
+        let choice = match std::env::var("UMBRA_ADAPTER") {
+            Ok(v) => Some(
+                AdapterChoice::parse(&v)
+                    .map_err(|e| GpuError::NoAdapter(format!("UMBRA_ADAPTER={v}: {e}")))?,
+            ),
+            Err(_) => None,
+        };
+        Self::open(choice.as_ref())
+    }
+
+    /// Opens the adapter `choice` names, or the best one (see [`Gpu::new`]; `UMBRA_ADAPTER` is
+    /// not read) when it is `None`.
+    pub fn open(choice: Option<&AdapterChoice>) -> Result<Self, GpuError> {
+        pollster::block_on(Self::new_async(choice))
+    }
+
+    fn instance() -> wgpu::Instance {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
         desc.backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY);
-        let instance = wgpu::Instance::new(desc);
-        let adapter = match std::env::var("UMBRA_ADAPTER") {
-            Ok(want) => {
+        wgpu::Instance::new(desc)
+    }
+
+    async fn new_async(choice: Option<&AdapterChoice>) -> Result<Self, GpuError> {
+        let instance = Self::instance();
+        let adapter = match choice {
+            Some(want) => {
                 let all = instance.enumerate_adapters(wgpu::Backends::all()).await;
-                let names: Vec<String> = all.iter().map(|a| a.get_info().name).collect();
+                let infos: Vec<wgpu::AdapterInfo> = all.iter().map(|a| a.get_info()).collect();
+                let k = want.pick(&infos).map_err(GpuError::NoAdapter)?;
                 all.into_iter()
-                    .find(|a| {
-                        a.get_info()
-                            .name
-                            .to_lowercase()
-                            .contains(&want.to_lowercase())
-                    })
-                    .ok_or_else(|| {
-                        GpuError::NoAdapter(format!(
-                            "UMBRA_ADAPTER={want} matches none of {names:?}"
-                        ))
-                    })?
+                    .nth(k)
+                    .expect("pick returns an index of the list")
             }
-            Err(_) => {
+            None => {
                 let opts = |power, fallback| wgpu::RequestAdapterOptions {
                     power_preference: power,
                     force_fallback_adapter: fallback,
@@ -628,5 +776,66 @@ impl Gpu {
         // Unmapped whatever happened: a pooled buffer left mapped would fail every later copy.
         buffer.unmap();
         data.map_err(|e| GpuError::Operation(format!("reading a mapped buffer: {e:?}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info(name: &str, bus: &str) -> wgpu::AdapterInfo {
+        let mut i = wgpu::AdapterInfo::new(wgpu::DeviceType::DiscreteGpu, wgpu::Backend::Vulkan);
+        i.name = name.into();
+        i.device_pci_bus_id = bus.into();
+        i
+    }
+
+    #[test]
+    fn pci_bus_ids_compare_as_numbers_whatever_their_spelling() {
+        // nvidia-smi pads the domain to 8 digits in capitals; Vulkan and lspci -D use 4.
+        let want = Some([0, 0x3b, 0, 0]);
+        assert_eq!(parse_pci_bus_id("00000000:3B:00.0"), want);
+        assert_eq!(parse_pci_bus_id("0000:3b:00.0"), want);
+        assert_eq!(parse_pci_bus_id("3b:00.0"), want);
+        assert_eq!(parse_pci_bus_id("0001:3b:1f.7"), Some([1, 0x3b, 0x1f, 7]));
+        for bad in [
+            "",
+            "3b",
+            "3b:00",
+            "0000:3b:20.0",
+            "0000:3b:00.8",
+            "0000:xx:00.0",
+            "a:b:c:d.0",
+        ] {
+            assert_eq!(parse_pci_bus_id(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn an_adapter_is_chosen_by_index_bus_id_or_name() {
+        let infos = [
+            info("NVIDIA H100", "0000:17:00.0"),
+            info("NVIDIA H100", "0000:3b:00.0"),
+            info("llvmpipe (LLVM 19)", ""),
+        ];
+        let pick = |t: &str| AdapterChoice::parse(t).unwrap().pick(&infos);
+        assert_eq!(pick("1"), Ok(1));
+        assert_eq!(pick("00000000:3B:00.0"), Ok(1));
+        assert_eq!(pick("pci:17:00.0"), Ok(0));
+        assert_eq!(pick("LLVMpipe"), Ok(2));
+        // Identical names: the first; the bus id tells them apart.
+        assert_eq!(pick("h100"), Ok(0));
+        let e = pick("3").unwrap_err();
+        assert!(
+            e.contains("adapter index 3") && e.contains("1: NVIDIA H100 (Vulkan) at 0000:3b:00.0"),
+            "{e}"
+        );
+        assert!(pick("0000:5e:00.0")
+            .unwrap_err()
+            .contains("PCI bus id 0000:5e:00.0"));
+        assert!(AdapterChoice::parse("pci:zz")
+            .unwrap_err()
+            .contains("not a PCI bus id"));
+        assert!(AdapterChoice::parse(" ").is_err());
     }
 }

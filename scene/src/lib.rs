@@ -2,9 +2,11 @@
 //! override, save), compiling a scene into the renderer's inputs ([`compile`]: the model, the
 //! camera, the slices, the settings), the tube sets and isosurface fields it loads
 //! ([`tube_sets`], [`fields`]), frame sequences ([`camera_path`]), rendering a scene to image
-//! files ([`render`]) and the image writers ([`image_io`]). The command line, the viewer and
+//! files ([`render`]), batches of them on clusters ([`batch`]: shards, manifests, resumable
+//! outputs) and the image writers ([`image_io`]). The command line, the viewer and
 //! the Python package all call these.
 
+pub mod batch;
 pub mod camera_path;
 pub mod compile;
 pub mod fields;

@@ -2,12 +2,15 @@
 //! turntable or camera path in one process (one upload, a frame per camera, each frame written
 //! atomically as it is done).
 
+use crate::batch::{complete_image, Shard};
 use crate::camera_path::{frame_path, CameraPath, Sequence};
 use crate::compile::{model, upload};
 use crate::image_io::write_exr;
 use crate::spec;
+use engine::gpu::{AdapterChoice, Gpu};
 use engine::renderer::{self, DrawOptions, Timings};
 use occlusion::emission_absorption::EaView;
+use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -36,6 +39,65 @@ pub struct RenderReport {
     /// Each frame of a turntable or camera path (empty for one image).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub sequence: Vec<FrameReport>,
+    /// The frames this run was to render (its shard's): how many, and those rendered,
+    /// skipped (`skip_existing`: already complete) and failed (with their errors).
+    pub frames_owned: usize,
+    #[serde(skip)]
+    pub done: Vec<FrameOutcome>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub skipped: Vec<FrameOutcome>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub failed: Vec<FrameOutcome>,
+}
+
+impl RenderReport {
+    /// The report, or an error naming the frames that failed.
+    pub fn failures(self) -> Result<RenderReport, String> {
+        match failure_summary(&self.failed, self.frames_owned, "frames") {
+            Some(e) => Err(e),
+            None => Ok(self),
+        }
+    }
+}
+
+/// "2 of 10 frames failed: the first ..." when any did (`what`: "frames", "scenes").
+pub fn failure_summary(failed: &[FrameOutcome], of: usize, what: &str) -> Option<String> {
+    let first = failed.first()?;
+    let which = match &first.name {
+        Some(n) => format!("{n} ({})", first.path.display()),
+        None => format!("frame {} ({})", first.index, first.path.display()),
+    };
+    Some(format!(
+        "{} of {of} {what} failed; the first, {which}: {}",
+        failed.len(),
+        first.error.as_deref().unwrap_or("failed")
+    ))
+}
+
+/// What became of one frame (or one manifest line) of a batch.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct FrameOutcome {
+    /// Global index: the frame's in its sequence, the line's among a manifest's entries.
+    pub index: usize,
+    /// The manifest entry's name.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    pub path: PathBuf,
+    /// Median frame time, ms (rendered frames).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ms: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// What [`run`] tells its caller as it goes.
+pub enum Progress<'a> {
+    /// A frame rendered and written, of `n` this run renders.
+    Done(&'a FrameReport, usize),
+    /// A frame not rendered: its output is already complete.
+    Skipped(&'a FrameOutcome),
+    /// A frame that failed (the others go on).
+    Failed(&'a FrameOutcome),
 }
 
 /// One frame of a sequence.
@@ -83,6 +145,19 @@ pub struct RenderArgs {
     pub cameras: Cameras,
     /// Animate the lines' trails: `n` frames with `now` from `t0` to `t1` (inclusive).
     pub trail_range: Option<TrailRange>,
+    /// Render only this shard's frames (global index k with k mod N = I).
+    pub shard: Shard,
+    /// Leave outputs that are already complete images of the right size
+    /// ([`crate::batch::complete_image`]) as they are.
+    pub skip_existing: bool,
+    /// The GPU adapter to open (default: `UMBRA_ADAPTER`, else the best one).
+    pub adapter: Option<AdapterChoice>,
+}
+
+impl Default for Shard {
+    fn default() -> Shard {
+        Shard::ALL
+    }
 }
 
 /// `--trail-range T0:T1:N`: frame k of N draws every trail at `T0 + (T1 - T0) k / (N - 1)`
@@ -157,10 +232,34 @@ pub fn write_image(
 }
 
 /// Runs `umbra render`: one frame, or a turntable or camera path (one upload, a frame per
-/// camera, each written as it is done; `progress` hears of each).
-pub fn run(
+/// camera, each written as it is done; `progress` hears of each). A frame that fails is
+/// recorded in the report's `failed` and the others go on; what fails before the first frame
+/// (the scene, the data, the GPU) is the error.
+pub fn run(a: &RenderArgs, progress: &mut dyn FnMut(Progress)) -> Result<RenderReport, String> {
+    run_on(a, &OnceCell::new(), progress)
+}
+
+/// The GPU of `cell`, opened on first use.
+pub(crate) fn gpu_of<'a>(
+    cell: &'a OnceCell<Gpu>,
+    choice: Option<&AdapterChoice>,
+) -> Result<&'a Gpu, String> {
+    if cell.get().is_none() {
+        let g = match choice {
+            Some(c) => Gpu::open(Some(c)),
+            None => Gpu::new(),
+        }
+        .map_err(|e| e.to_string())?;
+        let _ = cell.set(g);
+    }
+    Ok(cell.get().expect("set above"))
+}
+
+/// [`run`] on the GPU of `gpu` (opened on first use, kept for the next run).
+pub(crate) fn run_on(
     a: &RenderArgs,
-    progress: &mut dyn FnMut(&FrameReport, usize),
+    gpu_cell: &OnceCell<Gpu>,
+    progress: &mut dyn FnMut(Progress),
 ) -> Result<RenderReport, String> {
     let t0 = Instant::now();
     let path = &a.scene;
@@ -222,12 +321,84 @@ pub fn run(
         }
     }
     let sequence = sequence.or(a.trail_range.map(|t| Sequence::Still(t.n)));
+    let n_frames = match &sequence {
+        None => 1,
+        Some(Sequence::Orbit(n) | Sequence::Still(n)) => *n as usize,
+        Some(Sequence::Path(p)) => p.frame_times().len(),
+    };
+    if let (Some(Sequence::Path(_)), Some(t)) = (&sequence, &a.trail_range) {
+        if n_frames != t.n as usize {
+            return Err(format!(
+                "the camera path has {n_frames} frames and --trail-range {}: give both the same count",
+                t.n
+            ));
+        }
+    }
     if sequence.is_some() {
         frame_path(&a.output, 0)?;
     }
+    // This run's frames, their outputs, and those already done.
+    let mut owned: Vec<(usize, PathBuf)> = vec![];
+    for k in (0..n_frames).filter(|&k| a.shard.owns(k)) {
+        let file = match &sequence {
+            None => a.output.clone(),
+            Some(_) => frame_path(&a.output, k)?,
+        };
+        owned.push((k, file));
+    }
+    let frames_owned = owned.len();
+    let mut skipped = vec![];
+    if a.skip_existing {
+        owned.retain(|(k, file)| {
+            let done = complete_image(file, s.render.width, s.render.height);
+            if done {
+                let o = FrameOutcome {
+                    index: *k,
+                    name: None,
+                    path: file.clone(),
+                    ms: None,
+                    error: None,
+                };
+                progress(Progress::Skipped(&o));
+                skipped.push(o);
+            }
+            !done
+        });
+    }
+    let mut report = RenderReport {
+        method: format!("{:?}", s.render.method).to_lowercase(),
+        width: s.render.width,
+        height: s.render.height,
+        slices: 0,
+        slice_distance: 0.0,
+        triangles: 0,
+        adapter: String::new(),
+        total_ms: 0.0,
+        passes: Default::default(),
+        pass_clock: None,
+        frames_ms: vec![],
+        seconds: 0.0,
+        setup_seconds: 0.0,
+        notes: vec![],
+        sequence: vec![],
+        frames_owned,
+        done: vec![],
+        skipped,
+        failed: vec![],
+    };
+    if owned.is_empty() {
+        // Nothing to render: the scene's data are not even read.
+        report.setup_seconds = t0.elapsed().as_secs_f64();
+        report.seconds = report.setup_seconds;
+        return Ok(report);
+    }
+    // A killed run's temporary files of these outputs (no other process writes them).
+    for (_, file) in &owned {
+        volume::remove_stale_temps(file);
+    }
     let m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
-    let gpu = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
-    let up = upload(&gpu, &m).map_err(|e| format!("{}: {e}", path.display()))?;
+    let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;
+    let up = upload(gpu, &m).map_err(|e| format!("{}: {e}", path.display()))?;
     let opts = DrawOptions {
         frames: a.frames.max(1),
         pass_timings: a.pass_timings,
@@ -241,31 +412,39 @@ pub fn run(
             q.cameras(&s, c.to_array())
         }
     };
-    if let Some(t) = &a.trail_range {
-        if cameras.len() != t.n as usize {
-            return Err(format!(
-                "the camera path has {} frames and --trail-range {}: give both the same count",
-                cameras.len(),
-                t.n
-            ));
-        }
-    }
-    let setup_seconds = t0.elapsed().as_secs_f64();
-    let mut frames: Vec<FrameReport> = Vec::with_capacity(cameras.len());
+    report.setup_seconds = t0.elapsed().as_secs_f64();
+    report.adapter = gpu.report().name;
+    let mut frames: Vec<FrameReport> = Vec::with_capacity(owned.len());
     let mut last = None;
-    for (k, cam) in cameras.iter().enumerate() {
+    let n_owned = owned.len();
+    for (k, file) in owned {
+        let cam = &cameras[k];
         let mut sk = s.clone();
         sk.camera = cam.clone();
         let now = a.trail_range.map(|t| t.time(k as u32));
-        let (out, v) = up
+        let drawn = up
             .draw_at(&sk, &m, opts, now)
-            .map_err(|e| format!("{}: frame {k}: {e}", path.display()))?;
-        let file = match &sequence {
-            None => a.output.clone(),
-            Some(_) => frame_path(&a.output, k)?,
+            .map_err(|e| format!("{}: frame {k}: {e}", path.display()))
+            .and_then(|(out, v)| {
+                write_image(&file, exr, a.aov, s.render.bits, &out, &v)?;
+                Ok((out, v))
+            });
+        let (out, v) = match drawn {
+            Ok(d) => d,
+            Err(error) => {
+                let o = FrameOutcome {
+                    index: k,
+                    name: None,
+                    path: file,
+                    ms: None,
+                    error: Some(error),
+                };
+                progress(Progress::Failed(&o));
+                report.failed.push(o);
+                continue;
+            }
         };
-        write_image(&file, exr, a.aov, s.render.bits, &out, &v)?;
-        if k == 0 {
+        if last.is_none() {
             notes.extend(out.notes.iter().cloned());
         }
         let f = FrameReport {
@@ -278,11 +457,22 @@ pub fn run(
             frames_ms: out.timings.frames_ms.clone(),
             passes: out.timings.passes.clone(),
         };
-        progress(&f, cameras.len());
+        progress(Progress::Done(&f, n_owned));
+        report.done.push(FrameOutcome {
+            index: k,
+            name: None,
+            path: f.path.clone(),
+            ms: Some(f.total_ms),
+            error: None,
+        });
         frames.push(f);
         last = Some((out, v));
     }
-    let (out, v) = last.ok_or("no frame was rendered")?;
+    report.notes = notes;
+    report.seconds = t0.elapsed().as_secs_f64();
+    let Some((out, v)) = last else {
+        return Ok(report);
+    };
     let Timings {
         total_ms,
         frames_ms,
@@ -291,25 +481,21 @@ pub fn run(
     } = out.timings;
     let mut totals: Vec<f64> = frames.iter().map(|f| f.total_ms).collect();
     totals.sort_by(f64::total_cmp);
-    Ok(RenderReport {
-        method: format!("{:?}", s.render.method).to_lowercase(),
-        width: v.width,
-        height: v.height,
-        slices: v.slices,
-        slice_distance: v.dz,
-        triangles: out.triangles,
-        adapter: gpu.report().name,
-        total_ms: if sequence.is_some() {
-            totals[totals.len() / 2]
-        } else {
-            total_ms
-        },
-        passes,
-        pass_clock,
-        frames_ms,
-        setup_seconds,
-        seconds: t0.elapsed().as_secs_f64(),
-        notes,
-        sequence: if sequence.is_some() { frames } else { vec![] },
-    })
+    report.width = v.width;
+    report.height = v.height;
+    report.slices = v.slices;
+    report.slice_distance = v.dz;
+    report.triangles = out.triangles;
+    report.total_ms = if sequence.is_some() {
+        totals[totals.len() / 2]
+    } else {
+        total_ms
+    };
+    report.passes = passes;
+    report.pass_clock = pass_clock;
+    report.frames_ms = frames_ms;
+    if sequence.is_some() {
+        report.sequence = frames;
+    }
+    Ok(report)
 }

@@ -32,7 +32,7 @@ fn illustrative_halos_in_one_bit_print() {
             frames: 1,
             ..Default::default()
         },
-        &mut |_, _| {},
+        &mut |_| {},
     )
     .unwrap();
     let img = image::open(&out).unwrap().to_luma8();
@@ -62,7 +62,7 @@ fn illustrative_halos_in_one_bit_print() {
             frames: 1,
             ..Default::default()
         },
-        &mut |_, _| {},
+        &mut |_| {},
     )
     .unwrap_err();
     assert!(e.contains("render.bits"), "{e}");

@@ -54,7 +54,7 @@ fn an_anaglyph_shows_the_off_axis_disparity_of_points_at_known_depths() {
             frames: 1,
             ..Default::default()
         },
-        &mut |_, _| {},
+        &mut |_| {},
     )
     .unwrap();
     let img = image::open(&out).unwrap().to_rgb8();
@@ -86,7 +86,7 @@ fn an_anaglyph_shows_the_off_axis_disparity_of_points_at_known_depths() {
             overrides: vec!["render.stereo=\"none\"".into()],
             ..Default::default()
         },
-        &mut |_, _| {},
+        &mut |_| {},
     )
     .unwrap();
     let img = image::open(&mono).unwrap().to_rgb8();

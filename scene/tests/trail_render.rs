@@ -53,7 +53,7 @@ fn a_trail_range_writes_a_frame_per_time_and_the_trail_moves() {
         trail_range: Some(TrailRange::parse("4:16:3").unwrap()),
         ..Default::default()
     };
-    let r = run(&args, &mut |_, _| {}).unwrap();
+    let r = run(&args, &mut |_| {}).unwrap();
     let nows: Vec<f64> = r.sequence.iter().map(|f| f.now.unwrap()).collect();
     assert_eq!(nows, [4.0, 10.0, 16.0]);
     let xs: Vec<f64> = r.sequence.iter().map(|f| centroid_x(&f.path)).collect();
@@ -70,7 +70,7 @@ fn a_trail_range_writes_a_frame_per_time_and_the_trail_moves() {
             scene: plain,
             ..args.clone()
         },
-        &mut |_, _| {},
+        &mut |_| {},
     )
     .unwrap_err();
     assert!(e.contains("trail"), "{e}");
@@ -82,7 +82,7 @@ fn a_trail_range_writes_a_frame_per_time_and_the_trail_moves() {
             cameras: Cameras::Orbit(4),
             ..args
         },
-        &mut |_, _| {},
+        &mut |_| {},
     )
     .unwrap_err();
     assert!(e.contains("same count"), "{e}");

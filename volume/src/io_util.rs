@@ -426,7 +426,8 @@ pub fn parse_sizes(path: &Path, field: &str, s: &str, n: usize) -> Result<Vec<i6
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so that a
-/// failure never leaves a half-written output.
+/// failure never leaves a half-written output. The temporary file is `.NAME.PID.tmp`
+/// ([`temp_name`]); one a killed process left behind is what [`remove_stale_temps`] removes.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     let dir = path
@@ -436,11 +437,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let name = path
         .file_name()
         .ok_or_else(|| VolumeError::Invalid(format!("{}: not a file path", path.display())))?;
-    let tmp = dir.join(format!(
-        ".{}.{}.tmp",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
+    let tmp = dir.join(temp_name(&name.to_string_lossy(), std::process::id()));
     let res = (|| -> std::io::Result<()> {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
@@ -454,9 +451,96 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
+/// The temporary file name [`write_atomic`] writes `name` through in process `pid`.
+pub fn temp_name(name: &str, pid: u32) -> String {
+    format!(".{name}.{pid}.tmp")
+}
+
+/// Removes the temporary files of `path` that [`write_atomic`] in other processes left
+/// (`.NAME.PID.tmp` beside it, PID not this process's): what a killed process leaves. Call it
+/// only for outputs no other live process writes (a shard's own frames). Returns how many were
+/// removed; a folder that cannot be read removes none.
+pub fn remove_stale_temps(path: &Path) -> usize {
+    let (Some(name), dir) = (
+        path.file_name().map(|n| n.to_string_lossy().into_owned()),
+        path.parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new(".")),
+    ) else {
+        return 0;
+    };
+    let prefix = format!(".{name}.");
+    let own = std::process::id().to_string();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    entries
+        .flatten()
+        .filter(|e| {
+            let f = e.file_name();
+            let f = f.to_string_lossy();
+            f.strip_prefix(&prefix)
+                .and_then(|r| r.strip_suffix(".tmp"))
+                .is_some_and(|pid| {
+                    !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()) && pid != own
+                })
+        })
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+        .filter(|e| std::fs::remove_file(e.path()).is_ok())
+        .count()
+}
+
 pub fn gzip_bytes(bytes: &[u8]) -> Vec<u8> {
     use std::io::Write;
     let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::new(6));
     enc.write_all(bytes).expect("writing to memory");
     enc.finish().expect("writing to memory")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_temporary_files_of_one_output_are_removed_and_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("f_03.png");
+        let touch = |n: &str| std::fs::write(dir.path().join(n), b"x").unwrap();
+        // Left by killed processes 17 and 4242: removed.
+        touch(&temp_name("f_03.png", 17));
+        touch(&temp_name("f_03.png", 4242));
+        // Not stale or not ours: kept.
+        let own = temp_name("f_03.png", std::process::id());
+        touch(&own);
+        for keep in [
+            ".f_04.png.17.tmp",
+            ".f_03.png.x1.tmp",
+            ".f_03.png..tmp",
+            "f_03.png.17.tmp",
+        ] {
+            touch(keep);
+        }
+        assert_eq!(remove_stale_temps(&out), 2);
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        let mut want = vec![
+            own,
+            ".f_04.png.17.tmp".to_string(),
+            ".f_03.png.x1.tmp".to_string(),
+            ".f_03.png..tmp".to_string(),
+            "f_03.png.17.tmp".to_string(),
+        ];
+        want.sort();
+        assert_eq!(left, want);
+        // A write goes through this process's temporary name and leaves none.
+        write_atomic(&out, b"png").unwrap();
+        assert_eq!(std::fs::read(&out).unwrap(), b"png");
+        assert!(!dir
+            .path()
+            .join(temp_name("f_03.png", std::process::id()))
+            .exists());
+    }
 }

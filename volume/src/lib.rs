@@ -41,7 +41,7 @@ pub mod vtk_legacy;
 
 pub use error::{Result, VolumeError};
 use glam::{DMat4, DVec3, DVec4};
-pub use io_util::{gzip_bytes, write_atomic, Bytes};
+pub use io_util::{gzip_bytes, remove_stale_temps, temp_name, write_atomic, Bytes};
 pub use series::VolumeSeries;
 use std::path::Path;
 

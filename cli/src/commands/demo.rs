@@ -173,6 +173,7 @@ pub fn render_demo(
         pass_timings: false,
         cameras: Default::default(),
         trail_range: None,
+        ..Default::default()
     };
     match which {
         "mni" => {
@@ -183,7 +184,7 @@ pub fn render_demo(
                     scene.display()
                 ));
             }
-            scene::render::run(&args(scene), &mut |_, _| {})
+            scene::render::run(&args(scene), &mut |_| {})?.failures()
         }
         "cfd" => {
             let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
@@ -191,7 +192,7 @@ pub fn render_demo(
             trace_carotid(&data.join("vtk/carotid.vtk"), &tracts)?;
             let scene = dir.path().join("cfd.toml");
             std::fs::write(&scene, cfd_scene(&data, &tracts)).map_err(|e| e.to_string())?;
-            scene::render::run(&args(scene), &mut |_, _| {})
+            scene::render::run(&args(scene), &mut |_| {})?.failures()
         }
         "lines" => {
             let scene = data.join("scenes/demo_lines.toml");
@@ -206,7 +207,7 @@ pub fn render_demo(
             o.extend(overrides.iter().cloned());
             let mut a = args(scene);
             a.overrides = o;
-            scene::render::run(&a, &mut |_, _| {})
+            scene::render::run(&a, &mut |_| {})?.failures()
         }
         other => Err(format!("umbra demo {other}: choose lines, mni or cfd")),
     }

@@ -17,9 +17,13 @@ pub struct Args {
     /// Field to describe: NAME, NAME:magnitude or NAME:x|y|z (default: the file's active array).
     #[arg(long, value_parser = super::field_selector)]
     field: Option<FieldSelector>,
-    /// Describe the GPU adapter and run the GPU smoke check instead of reading a file.
+    /// Describe the GPU adapter and run the GPU smoke check instead of reading a file
+    /// (the adapter `--adapter` of `umbra render` would open: UMBRA_ADAPTER, else the best).
     #[arg(long)]
     gpu: bool,
+    /// List every adapter with the index and PCI bus id `--adapter` takes.
+    #[arg(long, conflicts_with = "gpu")]
+    adapters: bool,
     /// PLOT3D solution (q) file, for a PLOT3D grid.
     #[arg(long)]
     q: Option<PathBuf>,
@@ -29,7 +33,30 @@ pub fn run(a: Args) -> Result<(), String> {
     if a.gpu {
         return gpu(a.json);
     }
-    let file = a.file.ok_or("umbra info: give a file, or --gpu")?;
+    if a.adapters {
+        let list = engine::gpu::adapters();
+        if a.json {
+            return out_json_pretty(&list);
+        }
+        if list.is_empty() {
+            return Err("no GPU adapter found (on a machine without a GPU install Mesa's software Vulkan driver: apt-get install mesa-vulkan-drivers)".into());
+        }
+        for e in &list {
+            let bus = if e.pci_bus_id.is_empty() {
+                "-"
+            } else {
+                e.pci_bus_id.as_str()
+            };
+            out(format!(
+                "{:>2}  {:<13} {:<8} {}  ({})",
+                e.index, bus, e.backend, e.name, e.device_type
+            ))?;
+        }
+        return Ok(());
+    }
+    let file = a
+        .file
+        .ok_or("umbra info: give a file, --gpu or --adapters")?;
     let name = file.display().to_string();
     let warn = |ws: &[String]| {
         ws.iter()

@@ -1,16 +1,21 @@
 //! `umbra render`: a scene file rendered on the GPU (`scene::render`) to PNG or EXR: one image,
 //! a turntable (`--orbit N`) or a camera path (`--camera-path FILE`), with a one-line report
-//! (or `--json`) and optional timings.
+//! (or `--json`) and optional timings; on clusters a shard of the frames (`--shard`, Slurm
+//! job arrays), resumable (`--skip-existing`), a manifest of scenes (`--manifest`) and a
+//! record of each shard (`--record`), all from `scene::batch`.
 
 use crate::output::{out, out_json_pretty};
 use crate::progress::Frames;
-use scene::render::{Cameras, RenderArgs, RenderReport};
-use std::path::PathBuf;
+use scene::batch::{Shard, ShardFrom};
+use scene::render::{Cameras, FrameOutcome, Progress, RenderArgs, RenderReport};
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene file (see `umbra scene` and the README).
-    scene: PathBuf,
+    /// Scene file (see `umbra scene` and the README); with --manifest, the template scene of
+    /// the lines that name none.
+    #[arg(required_unless_present = "manifest")]
+    scene: Option<PathBuf>,
     /// Output image: .png (8-bit sRGB) or .exr (linear float RGBA).
     #[arg(short, long)]
     output: PathBuf,
@@ -56,12 +61,76 @@ pub struct Args {
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+    /// Render shard I of N (0 <= I < N): the frames (of --orbit, --camera-path,
+    /// --trail-range or --manifest) whose index k has k mod N = I. Default: a Slurm array
+    /// task's (SLURM_ARRAY_TASK_ID, _MIN, _STEP, _COUNT) when set. Implies --skip-existing.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
+    /// Leave outputs that are already complete images of the scene's size; render the rest.
+    #[arg(long)]
+    skip_existing: bool,
+    /// Render one scene per line of FILE: `NAME [SCENE] [KEY=VALUE ...]` (see the README);
+    /// the output needs {name}.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["orbit", "camera_path", "trail_range"])]
+    manifest: Option<PathBuf>,
+    /// Write a JSON record of this run: its shard, the frames done (with their times),
+    /// skipped and failed (with their errors), seconds, adapter, host.
+    #[arg(long, value_name = "FILE")]
+    record: Option<PathBuf>,
+    /// The GPU adapter: its index in `umbra info --adapters`, a PCI bus id (0000:3b:00.0, as
+    /// nvidia-smi or lspci print it) or a part of its name. Default: UMBRA_ADAPTER, else the
+    /// best adapter.
+    #[arg(long, value_name = "CHOICE", value_parser = adapter_choice)]
+    adapter: Option<engine::gpu::AdapterChoice>,
+}
+
+fn adapter_choice(text: &str) -> Result<engine::gpu::AdapterChoice, String> {
+    engine::gpu::AdapterChoice::parse(text)
+}
+
+/// What `--record` writes.
+#[derive(serde::Serialize)]
+struct Record<'a> {
+    shard: Shard,
+    shard_from: ShardFrom,
+    /// The frames (or manifest lines) of this shard.
+    frames: usize,
+    done: &'a [FrameOutcome],
+    skipped: &'a [FrameOutcome],
+    failed: &'a [FrameOutcome],
+    /// What failed before any frame (the scene, its data, the GPU).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    error: Option<&'a str>,
+    seconds: f64,
+    adapter: &'a str,
+    host: String,
+}
+
+/// This machine's name (for a record read after a job array ran on many nodes).
+fn host() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .ok()
+        .or_else(|| std::env::var("HOSTNAME").ok())
+        .map(|h| h.trim().to_string())
+        .unwrap_or_default()
+}
+
+/// Checks that `path` can be written before the work starts (its folder made, not a folder).
+fn writable(path: &Path, what: &str) -> Result<(), String> {
+    if path.is_dir() {
+        return Err(format!("{}: {what} is a folder", path.display()));
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    Ok(())
 }
 
 pub fn run(a: Args) -> Result<(), String> {
-    let cameras = match (a.orbit, a.camera_path) {
+    let t0 = std::time::Instant::now();
+    let cameras = match (a.orbit, &a.camera_path) {
         (Some(n), _) => Cameras::Orbit(n),
-        (None, Some(p)) => Cameras::Path(p),
+        (None, Some(p)) => Cameras::Path(p.clone()),
         (None, None) => Cameras::Single,
     };
     let trail_range = a
@@ -70,35 +139,143 @@ pub fn run(a: Args) -> Result<(), String> {
         .map(scene::render::TrailRange::parse)
         .transpose()?;
     let sequence = cameras != Cameras::Single || trail_range.is_some();
+    let (mut shard, mut from) = Shard::resolve(a.shard.as_deref(), |k| std::env::var(k).ok())
+        .map_err(|e| match a.shard {
+            Some(_) => format!("--shard: {e}"),
+            None => e,
+        })?;
+    // One image in a Slurm array task is that task's own image (e.g. its subject's), not
+    // a shard of one frame; --shard still applies.
+    if from == ShardFrom::Slurm && !sequence && a.manifest.is_none() {
+        (shard, from) = (Shard::ALL, ShardFrom::None);
+    }
+    let skip_existing = a.skip_existing || from != ShardFrom::None;
+    for (p, what) in [(&a.record, "--record"), (&a.timings_json, "--timings-json")] {
+        if let Some(p) = p {
+            writable(p, what)?;
+        }
+    }
     let progress = Frames::new();
-    let r = scene::render::run(
-        &RenderArgs {
-            scene: a.scene,
-            output: a.output.clone(),
-            overrides: size_method_overrides(a.width, a.height, a.method, a.set),
-            frames: a.frames,
-            aov: a.aov,
-            pass_timings: a.timings_json.is_some() || a.frames > 1,
-            cameras,
-            trail_range,
-        },
-        &mut |f, n| {
-            if sequence {
-                progress.frame(f.index, n, &f.path, f.total_ms);
+    let mut on_progress = |p: Progress| match p {
+        Progress::Done(f, n) => {
+            if sequence || a.manifest.is_some() {
+                progress.done(f.index, n, &f.path, f.total_ms);
             }
-        },
-    )?;
+        }
+        Progress::Skipped(o) => progress.skipped(o.index, o.name.as_deref(), &o.path),
+        Progress::Failed(o) => progress.failed(
+            o.index,
+            o.name.as_deref(),
+            &o.path,
+            o.error.as_deref().unwrap_or(""),
+        ),
+    };
+    let base = RenderArgs {
+        scene: a.scene.clone().unwrap_or_default(),
+        output: a.output.clone(),
+        overrides: size_method_overrides(a.width, a.height, a.method, a.set.clone()),
+        frames: a.frames,
+        aov: a.aov,
+        pass_timings: a.timings_json.is_some() || a.frames > 1,
+        cameras,
+        trail_range,
+        shard,
+        skip_existing,
+        adapter: a.adapter.clone(),
+    };
+    let record = |done: &[FrameOutcome],
+                  skipped: &[FrameOutcome],
+                  failed: &[FrameOutcome],
+                  frames: usize,
+                  adapter: &str,
+                  error: Option<&str>|
+     -> Result<(), String> {
+        let Some(path) = &a.record else {
+            return Ok(());
+        };
+        let r = Record {
+            shard,
+            shard_from: from,
+            frames,
+            done,
+            skipped,
+            failed,
+            error,
+            seconds: t0.elapsed().as_secs_f64(),
+            adapter,
+            host: host(),
+        };
+        let text = serde_json::to_string_pretty(&r).map_err(|e| e.to_string())?;
+        volume::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())
+    };
+    if let Some(m) = &a.manifest {
+        let entries = scene::batch::read_manifest(m, a.scene.as_deref())?;
+        let r =
+            match scene::batch::run_manifest(&entries, &a.output, &base, shard, &mut on_progress) {
+                Ok(r) => r,
+                Err(e) => {
+                    record(&[], &[], &[], 0, "", Some(&e))?;
+                    return Err(e);
+                }
+            };
+        drop(progress);
+        for (n, names) in &r.notes {
+            if names.len() == r.done.len() {
+                eprintln!("note: {n}");
+            } else {
+                eprintln!("note: {}: {n}", names.join(", "));
+            }
+        }
+        record(
+            &r.done,
+            &r.skipped,
+            &r.failed,
+            r.frames_owned,
+            &r.adapter,
+            None,
+        )?;
+        if a.json {
+            out_json_pretty(&r)?;
+        }
+        eprintln!(
+            "{} of {} scenes rendered, {} skipped, {} failed, in {:.1} s",
+            r.done.len(),
+            r.frames_owned,
+            r.skipped.len(),
+            r.failed.len(),
+            r.seconds
+        );
+        return match scene::render::failure_summary(&r.failed, r.frames_owned, "scenes") {
+            Some(e) => Err(e),
+            None => Ok(()),
+        };
+    }
+    let r = match scene::render::run(&base, &mut on_progress) {
+        Ok(r) => r,
+        Err(e) => {
+            record(&[], &[], &[], 0, "", Some(&e))?;
+            return Err(e);
+        }
+    };
     drop(progress);
     for n in &r.notes {
         eprintln!("note: {n}");
     }
-    if let Some(t) = a.timings_json {
+    record(
+        &r.done,
+        &r.skipped,
+        &r.failed,
+        r.frames_owned,
+        &r.adapter,
+        None,
+    )?;
+    if let Some(t) = &a.timings_json {
         let text = serde_json::to_string_pretty(&timings(&r)).map_err(|e| e.to_string())?;
-        volume::write_atomic(&t, text.as_bytes()).map_err(|e| e.to_string())?;
+        volume::write_atomic(t, text.as_bytes()).map_err(|e| e.to_string())?;
     }
     if a.json {
         out_json_pretty(&r)?;
-    } else {
+    } else if !r.done.is_empty() {
         out(summary(&r))?;
     }
     match (r.sequence.first(), r.sequence.last()) {
@@ -108,9 +285,24 @@ pub fn run(a: Args) -> Result<(), String> {
             first.path.display(),
             last.path.display()
         ),
-        _ => eprintln!("wrote {}", a.output.display()),
+        _ if r.done.len() == 1 => eprintln!("wrote {}", a.output.display()),
+        _ => {}
     }
-    Ok(())
+    if !r.skipped.is_empty() || r.done.len() < r.frames_owned || from != ShardFrom::None {
+        eprintln!(
+            "shard {}/{}: {} of {} frames rendered, {} skipped (complete), {} failed",
+            shard.index,
+            shard.count,
+            r.done.len(),
+            r.frames_owned,
+            r.skipped.len(),
+            r.failed.len()
+        );
+    }
+    match scene::render::failure_summary(&r.failed, r.frames_owned, "frames") {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
 }
 
 /// What `--timings-json` writes.

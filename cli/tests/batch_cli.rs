@@ -1,0 +1,447 @@
+//! `umbra render` on clusters, end to end: shards of an orbit cover every frame once and give
+//! the frames one process gives, Slurm job-array variables give the partition `--shard`
+//! gives, a rerun after a killed run renders only what is missing, a failing frame is recorded
+//! while the others render, manifests name their outputs, `--adapter` picks or refuses.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn umbra() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_umbra"));
+    // The tests choose their own shards.
+    for v in scene::batch::SLURM_VARIABLES {
+        c.env_remove(v);
+    }
+    c
+}
+
+fn ok(out: &Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    err
+}
+
+/// A small, quick scene: the CT head, emission-absorption, 64 x 48.
+fn scene(dir: &Path) -> PathBuf {
+    test_support::headsq_scene(
+        dir,
+        "",
+        "bone",
+        "method = \"ea\"\nwidth = 64\nheight = 48\n",
+    )
+}
+
+fn record(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// The `index` of every entry of a record's list.
+fn indices(r: &serde_json::Value, list: &str) -> Vec<usize> {
+    r[list]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["index"].as_u64().unwrap() as usize)
+        .collect()
+}
+
+fn pixels(p: &Path) -> Vec<u8> {
+    image::open(p).unwrap().to_rgb8().into_raw()
+}
+
+/// An orbit of `n` frames into `pattern`, with extra arguments; its output.
+fn orbit(s: &Path, n: u32, pattern: &Path, extra: &[&str]) -> Output {
+    umbra()
+        .arg("render")
+        .arg(s)
+        .args(["--orbit", &n.to_string(), "-o"])
+        .arg(pattern)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn shards_of_an_orbit_render_every_frame_once_and_as_one_process_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let one = dir.path().join("one/f_##.png");
+    ok(&orbit(&s, 10, &one, &[]));
+    let frame = |pattern: &Path, k: usize| {
+        PathBuf::from(pattern.to_string_lossy().replace("##", &format!("{k:02}")))
+    };
+    for n in [1u32, 2, 3, 7] {
+        let pattern = dir.path().join(format!("n{n}/f_##.png"));
+        let mut seen = vec![0; 10];
+        for i in 0..n {
+            let rec = dir.path().join(format!("n{n}/record_{i}.json"));
+            let err = ok(&orbit(
+                &s,
+                10,
+                &pattern,
+                &[
+                    "--shard",
+                    &format!("{i}/{n}"),
+                    "--record",
+                    rec.to_str().unwrap(),
+                ],
+            ));
+            let r = record(&rec);
+            let done = indices(&r, "done");
+            // Shard i renders k = i, i + n, ...
+            assert_eq!(
+                done,
+                (i as usize..10).step_by(n as usize).collect::<Vec<_>>()
+            );
+            assert_eq!(r["frames"].as_u64().unwrap() as usize, done.len());
+            assert_eq!(r["shard"]["index"], i);
+            assert_eq!(r["shard"]["count"], n);
+            assert_eq!(r["shard_from"], "flag");
+            // A plain line per frame in the log.
+            for k in &done {
+                assert!(err.contains(&format!("frame {k}: ")), "{err}");
+                seen[*k] += 1;
+            }
+        }
+        assert!(seen.iter().all(|&c| c == 1), "{n} shards: {seen:?}");
+        let files = std::fs::read_dir(dir.path().join(format!("n{n}")))
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().path().extension().unwrap() == "png")
+            .count();
+        assert_eq!(files, 10);
+        for k in 0..10 {
+            let (a, b) = (pixels(&frame(&pattern, k)), pixels(&frame(&one, k)));
+            let max = a.iter().zip(&b).map(|(x, y)| x.abs_diff(*y)).max().unwrap();
+            assert!(max <= 1, "{n} shards, frame {k}: differs by {max}/255");
+        }
+    }
+}
+
+#[test]
+fn slurm_array_variables_give_the_partition_the_flag_gives() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    // --array=1-3: tasks 1, 2, 3 are shards 0, 1, 2 of 3.
+    for task in 1..=3u32 {
+        let rec = dir.path().join(format!("slurm_{task}.json"));
+        let out = umbra()
+            .arg("render")
+            .arg(&s)
+            .args(["--orbit", "10", "-o"])
+            .arg(dir.path().join("slurm/f_##.png"))
+            .arg("--record")
+            .arg(&rec)
+            .env("SLURM_ARRAY_TASK_ID", task.to_string())
+            .env("SLURM_ARRAY_TASK_MIN", "1")
+            .env("SLURM_ARRAY_TASK_MAX", "3")
+            .env("SLURM_ARRAY_TASK_COUNT", "3")
+            .env("SLURM_ARRAY_TASK_STEP", "1")
+            .output()
+            .unwrap();
+        ok(&out);
+        let flag = dir.path().join(format!("flag_{task}.json"));
+        ok(&orbit(
+            &s,
+            10,
+            &dir.path().join("flag/f_##.png"),
+            &[
+                "--shard",
+                &format!("{}/3", task - 1),
+                "--record",
+                flag.to_str().unwrap(),
+            ],
+        ));
+        let (r, f) = (record(&rec), record(&flag));
+        assert_eq!(r["shard_from"], "slurm");
+        assert_eq!(r["shard"], f["shard"]);
+        assert_eq!(indices(&r, "done"), indices(&f, "done"));
+    }
+    // One image in an array task is the task's own image, not a shard of one frame.
+    let single = dir.path().join("task_2.png");
+    ok(&umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("-o")
+        .arg(&single)
+        .env("SLURM_ARRAY_TASK_ID", "2")
+        .env("SLURM_ARRAY_TASK_MIN", "1")
+        .env("SLURM_ARRAY_TASK_COUNT", "3")
+        .output()
+        .unwrap());
+    assert!(single.exists());
+    // A sparse array is refused, naming the variables.
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "10", "-o"])
+        .arg(dir.path().join("sparse/f_##.png"))
+        .env("SLURM_ARRAY_TASK_ID", "9")
+        .env("SLURM_ARRAY_TASK_MIN", "1")
+        .env("SLURM_ARRAY_TASK_COUNT", "3")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("SLURM_ARRAY_TASK_ID=9") && err.contains("I/N"),
+        "{err}"
+    );
+    assert!(!dir.path().join("sparse").exists());
+}
+
+#[test]
+fn a_rerun_after_a_killed_run_renders_only_what_is_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    // Slower frames (the occlusion sweep at 192 x 144), so that the kill lands mid-sequence.
+    let s = test_support::headsq_scene(
+        dir.path(),
+        "",
+        "bone",
+        "method = \"dos\"\nwidth = 192\nheight = 144\n",
+    );
+    let pattern = dir.path().join("out/f_##.png");
+    let frame = |k: usize| dir.path().join(format!("out/f_{k:02}.png"));
+    let mut child = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "10", "-o"])
+        .arg(&pattern)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while !frame(1).exists() && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let existed: BTreeSet<usize> = (0..10).filter(|&k| frame(k).exists()).collect();
+    assert!(
+        existed.contains(&1),
+        "the first frames were written before the kill"
+    );
+    // What a killed writer leaves, and a frame cut short (e.g. a copy interrupted).
+    std::fs::write(dir.path().join("out/.f_09.png.999999.tmp"), b"partial").unwrap();
+    let cut = *existed.iter().next().unwrap();
+    let bytes = std::fs::read(frame(cut)).unwrap();
+    std::fs::write(frame(cut), &bytes[..bytes.len() / 3]).unwrap();
+    let kept: BTreeSet<usize> = existed.iter().copied().filter(|&k| k != cut).collect();
+    let stamps: Vec<_> = kept
+        .iter()
+        .map(|&k| std::fs::metadata(frame(k)).unwrap().modified().unwrap())
+        .collect();
+    let rec = dir.path().join("rerun.json");
+    ok(&orbit(
+        &s,
+        10,
+        &pattern,
+        &["--skip-existing", "--record", rec.to_str().unwrap()],
+    ));
+    let r = record(&rec);
+    let skipped: BTreeSet<usize> = indices(&r, "skipped").into_iter().collect();
+    let done: BTreeSet<usize> = indices(&r, "done").into_iter().collect();
+    assert_eq!(skipped, kept, "only complete frames are kept");
+    assert_eq!(
+        done,
+        (0..10)
+            .filter(|k| !kept.contains(k))
+            .collect::<BTreeSet<_>>()
+    );
+    for (k, t) in kept.iter().zip(stamps) {
+        assert_eq!(
+            std::fs::metadata(frame(*k)).unwrap().modified().unwrap(),
+            t,
+            "frame {k} was rewritten"
+        );
+    }
+    assert!(
+        image::open(frame(cut)).is_ok(),
+        "the cut frame is whole again"
+    );
+    let left: Vec<_> = std::fs::read_dir(dir.path().join("out"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "stale temporary files: {left:?}");
+    // Nothing left to do: the scene is not even read again, and nothing is rendered.
+    let again = dir.path().join("again.json");
+    ok(&orbit(
+        &s,
+        10,
+        &pattern,
+        &["--shard", "0/1", "--record", again.to_str().unwrap()],
+    ));
+    let r = record(&again);
+    assert_eq!(indices(&r, "skipped").len(), 10);
+    assert!(indices(&r, "done").is_empty());
+}
+
+#[test]
+fn a_failing_frame_is_recorded_and_the_others_still_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    // Frame 4's output is a folder: its write fails.
+    std::fs::create_dir_all(dir.path().join("out/f_04.png")).unwrap();
+    let rec = dir.path().join("r.json");
+    let out = orbit(
+        &s,
+        6,
+        &dir.path().join("out/f_##.png"),
+        &["--record", rec.to_str().unwrap()],
+    );
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("1 of 6 frames failed") && err.contains("f_04.png"),
+        "{err}"
+    );
+    let r = record(&rec);
+    assert_eq!(indices(&r, "done"), [0, 1, 2, 3, 5]);
+    assert_eq!(indices(&r, "failed"), [4]);
+    assert!(r["failed"][0]["error"]
+        .as_str()
+        .unwrap()
+        .contains("f_04.png"));
+    for k in [0, 1, 2, 3, 5] {
+        assert!(dir.path().join(format!("out/f_{k:02}.png")).is_file());
+    }
+}
+
+#[test]
+fn manifests_render_one_named_scene_per_line_sharded_the_same_way() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    std::fs::create_dir_all(dir.path().join("study")).unwrap();
+    // sub-02 has its own scene file, beside the manifest.
+    std::fs::copy(&s, dir.path().join("study/sub-02.toml")).unwrap();
+    let manifest = dir.path().join("study/subjects.txt");
+    std::fs::write(
+        &manifest,
+        "# participant  scene  overrides\n\
+         sub-01 camera.azimuth=0\n\
+         sub-02 sub-02.toml camera.azimuth=90\n\
+         sub-03 missing.toml\n\
+         sub-04 camera.azimuth=180 'render.method=\"ea\"'\n\
+         \n\
+         sub-05 camera.azimuth=270\n",
+    )
+    .unwrap();
+    let pattern = dir.path().join("out/{name}/{name}_t1.png");
+    let mut done = BTreeSet::new();
+    let mut failed = vec![];
+    for i in 0..2 {
+        let rec = dir.path().join(format!("m{i}.json"));
+        let out = umbra()
+            .arg("render")
+            .arg(&s)
+            .arg("--manifest")
+            .arg(&manifest)
+            .arg("-o")
+            .arg(&pattern)
+            .args([
+                "--shard",
+                &format!("{i}/2"),
+                "--record",
+                rec.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        let r = record(&rec);
+        for f in r["done"].as_array().unwrap() {
+            let name = f["name"].as_str().unwrap().to_string();
+            assert_eq!(
+                Path::new(f["path"].as_str().unwrap()),
+                dir.path().join(format!("out/{name}/{name}_t1.png"))
+            );
+            done.insert(name);
+        }
+        for f in r["failed"].as_array().unwrap() {
+            failed.push((
+                i,
+                f["name"].as_str().unwrap().to_string(),
+                f["error"].as_str().unwrap().to_string(),
+            ));
+        }
+        // Entry k (from 0, over the entries) is shard k mod 2's.
+        assert!(indices(&r, "done")
+            .iter()
+            .chain(&indices(&r, "failed"))
+            .all(|k| k % 2 == i));
+        // The shard with the missing scene exits 1, after the others were done.
+        assert_eq!(
+            out.status.success(),
+            i == 1,
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    assert_eq!(
+        done,
+        ["sub-01", "sub-02", "sub-04", "sub-05"]
+            .map(String::from)
+            .into()
+    );
+    assert_eq!(failed.len(), 1);
+    let (shard, name, error) = &failed[0];
+    assert_eq!((*shard, name.as_str()), (0, "sub-03"));
+    assert!(
+        error.contains("subjects.txt: line 4") && error.contains("missing.toml"),
+        "{error}"
+    );
+    // The overrides took effect: each subject's camera turned.
+    let img = |n: &str| pixels(&dir.path().join(format!("out/{n}/{n}_t1.png")));
+    assert_ne!(img("sub-01"), img("sub-02"));
+    assert_ne!(img("sub-04"), img("sub-05"));
+    // Without {name} every line would write one file: refused before any work.
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("--manifest")
+        .arg(&manifest)
+        .arg("-o")
+        .arg(dir.path().join("one.png"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("{name}"));
+    assert!(!dir.path().join("one.png").exists());
+}
+
+#[test]
+fn the_adapter_is_chosen_by_index_or_refused_naming_the_adapters() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let list = umbra()
+        .args(["info", "--adapters", "--json"])
+        .output()
+        .unwrap();
+    ok(&list);
+    let adapters: serde_json::Value = serde_json::from_slice(&list.stdout).unwrap();
+    let first = adapters[0]["name"].as_str().unwrap().to_string();
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--adapter", "0", "--json", "-o"])
+        .arg(dir.path().join("a.png"))
+        .output()
+        .unwrap();
+    ok(&out);
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(r["adapter"], first.as_str());
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--adapter", "0000:fe:1f.7", "-o"])
+        .arg(dir.path().join("b.png"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("PCI bus id 0000:fe:1f.7 matches no adapter") && err.contains(&first),
+        "{err}"
+    );
+    assert!(!dir.path().join("b.png").exists());
+}

@@ -1,0 +1,554 @@
+//! Batch rendering, the library behind `umbra render --shard`, `--skip-existing` and
+//! `--manifest`: which frames a shard renders ([`Shard`], from a flag or a Slurm job array's
+//! variables), manifests of scenes ([`read_manifest`]), and which outputs are already done
+//! ([`complete_image`]). The unit of work is a frame (or a manifest line): umbra's occlusion
+//! is a per-frame light sweep, so a frame is never split, and the scheduler (Slurm, GNU
+//! parallel) runs one process per shard.
+
+use crate::render::{run_on, Cameras, FrameOutcome, Progress, RenderArgs};
+use std::cell::OnceCell;
+use std::path::{Path, PathBuf};
+
+/// Shard `index` of `count`: the frames whose global index k has k mod count = index.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Shard {
+    pub index: u32,
+    pub count: u32,
+}
+
+/// Where a [`Shard`] came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ShardFrom {
+    /// Neither a flag nor a job array: every frame.
+    None,
+    /// `--shard I/N`.
+    Flag,
+    /// `SLURM_ARRAY_TASK_ID` and its companions.
+    Slurm,
+}
+
+/// The Slurm job-array variables [`Shard::from_slurm`] reads.
+pub const SLURM_VARIABLES: [&str; 4] = [
+    "SLURM_ARRAY_TASK_ID",
+    "SLURM_ARRAY_TASK_MIN",
+    "SLURM_ARRAY_TASK_COUNT",
+    "SLURM_ARRAY_TASK_STEP",
+];
+
+impl Shard {
+    /// Every frame in one shard.
+    pub const ALL: Shard = Shard { index: 0, count: 1 };
+
+    /// Reads `I/N` (0 <= I < N).
+    pub fn parse(text: &str) -> Result<Shard, String> {
+        let bad = || format!("shard '{text}': expected I/N with 0 <= I < N, e.g. 0/4");
+        let (i, n) = text.split_once('/').ok_or_else(bad)?;
+        let index: u32 = i.trim().parse().map_err(|_| bad())?;
+        let count: u32 = n.trim().parse().map_err(|_| bad())?;
+        if count == 0 || index >= count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The shard of a Slurm job-array task: I = (ID - MIN) / STEP and N = COUNT, from
+    /// `SLURM_ARRAY_TASK_ID`, `_MIN`, `_COUNT` and `_STEP` (1 when unset), read through `var`.
+    /// `None` when `SLURM_ARRAY_TASK_ID` is unset (not an array task); an error when the
+    /// variables do not make a shard (a sparse array such as `--array=1,4,9`).
+    pub fn from_slurm(var: impl Fn(&str) -> Option<String>) -> Result<Option<Shard>, String> {
+        let Some(id) = var(SLURM_VARIABLES[0]) else {
+            return Ok(None);
+        };
+        let num = |name: &str, value: Option<String>| -> Result<u64, String> {
+            let v = value.ok_or_else(|| {
+                format!("{name} is not set beside SLURM_ARRAY_TASK_ID: give the shard as I/N")
+            })?;
+            v.trim()
+                .parse::<u64>()
+                .map_err(|_| format!("{name}='{v}' is not a whole number"))
+        };
+        let id = num(SLURM_VARIABLES[0], Some(id))?;
+        let min = num(SLURM_VARIABLES[1], var(SLURM_VARIABLES[1]))?;
+        let count = num(SLURM_VARIABLES[2], var(SLURM_VARIABLES[2]))?;
+        let step = match var(SLURM_VARIABLES[3]) {
+            Some(s) => num(SLURM_VARIABLES[3], Some(s))?.max(1),
+            None => 1,
+        };
+        let sparse = || {
+            format!(
+                "SLURM_ARRAY_TASK_ID={id} with SLURM_ARRAY_TASK_MIN={min}, SLURM_ARRAY_TASK_STEP={step}, \
+                 SLURM_ARRAY_TASK_COUNT={count} is not task I of N = COUNT evenly spaced tasks \
+                 (a sparse --array list?): give the shard as I/N"
+            )
+        };
+        if id < min || (id - min) % step != 0 {
+            return Err(sparse());
+        }
+        let index = (id - min) / step;
+        if count == 0 || index >= count || count > u32::MAX as u64 {
+            return Err(sparse());
+        }
+        Ok(Some(Shard {
+            index: index as u32,
+            count: count as u32,
+        }))
+    }
+
+    /// The shard to render: `flag` (`I/N`) if given, else a Slurm array task's, else every
+    /// frame.
+    pub fn resolve(
+        flag: Option<&str>,
+        var: impl Fn(&str) -> Option<String>,
+    ) -> Result<(Shard, ShardFrom), String> {
+        if let Some(f) = flag {
+            return Ok((Shard::parse(f)?, ShardFrom::Flag));
+        }
+        Ok(match Shard::from_slurm(var)? {
+            Some(s) => (s, ShardFrom::Slurm),
+            None => (Shard::ALL, ShardFrom::None),
+        })
+    }
+
+    /// Whether frame `k` (global index) is this shard's.
+    pub fn owns(&self, k: usize) -> bool {
+        k as u64 % self.count as u64 == self.index as u64
+    }
+}
+
+/// Whether `path` holds a whole image of `width` x `height`: a PNG or an EXR that decodes
+/// completely at that size. What `--skip-existing` keeps; anything else (missing, truncated,
+/// another size, another format than the extension says) is rendered again.
+pub fn complete_image(path: &Path, width: u32, height: u32) -> bool {
+    if !path.is_file() {
+        return false;
+    }
+    let exr = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if exr {
+        exr::prelude::read_all_data_from_file(path).is_ok_and(|img| {
+            img.layer_data
+                .first()
+                .is_some_and(|l| l.size.0 == width as usize && l.size.1 == height as usize)
+        })
+    } else {
+        image::ImageReader::open(path)
+            .ok()
+            .and_then(|r| r.with_guessed_format().ok())
+            .and_then(|r| r.decode().ok())
+            .is_some_and(|img| img.width() == width && img.height() == height)
+    }
+}
+
+/// One line of a manifest: a scene (its own file, or the template) with overrides, named.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Entry {
+    /// What `{name}` in the output becomes (e.g. a BIDS participant label).
+    pub name: String,
+    pub scene: PathBuf,
+    /// `KEY=VALUE` overrides of this line, applied after the command's own.
+    pub overrides: Vec<String>,
+    /// Line number in the manifest, from 1.
+    pub line: usize,
+    /// Where the entry is written: `MANIFEST: line N`.
+    pub at: String,
+}
+
+/// Longest manifest read, bytes.
+pub const MAX_MANIFEST_BYTES: u64 = 64 << 20;
+
+/// Reads a manifest: one entry per line, `NAME [SCENE] [KEY=VALUE ...]`, fields separated by
+/// blanks and quoted as in a POSIX shell; blank lines and lines starting with `#` are skipped.
+/// SCENE (the first field after NAME without `=`) is relative to the manifest's folder; a line
+/// without one renders `template`. Names are unique and usable as file names.
+pub fn read_manifest(path: &Path, template: Option<&Path>) -> Result<Vec<Entry>, String> {
+    let p = path.display();
+    let meta = std::fs::metadata(path).map_err(|e| format!("{p}: {e}"))?;
+    if !meta.is_file() {
+        return Err(format!("{p}: a manifest must be a regular file"));
+    }
+    if meta.len() > MAX_MANIFEST_BYTES {
+        return Err(format!(
+            "{p}: {} bytes; a manifest is at most {MAX_MANIFEST_BYTES} bytes",
+            meta.len()
+        ));
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{p}: {e}"))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    parse_manifest(&text, &p.to_string(), dir, template)
+}
+
+/// [`read_manifest`] of text; `name` labels errors, scene paths resolve against `dir`.
+pub fn parse_manifest(
+    text: &str,
+    name: &str,
+    dir: &Path,
+    template: Option<&Path>,
+) -> Result<Vec<Entry>, String> {
+    let mut entries: Vec<Entry> = vec![];
+    let mut seen = std::collections::HashMap::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line = i + 1;
+        let t = raw.trim();
+        if t.is_empty() || t.starts_with('#') {
+            continue;
+        }
+        let at = |what: String| format!("{name}: line {line}: {what}");
+        let fields = shlex::split(t).ok_or_else(|| at("unbalanced quotes".into()))?;
+        let (label, rest) = fields.split_first().expect("a non-blank line has a field");
+        check_name(label).map_err(at)?;
+        if let Some(first) = seen.insert(label.clone(), line) {
+            return Err(at(format!(
+                "the name '{label}' is also on line {first}: every output would be written twice"
+            )));
+        }
+        let (scene, overrides) = match rest.split_first() {
+            Some((s, o)) if !s.contains('=') => (dir.join(s), o.to_vec()),
+            _ => (
+                template.map(Path::to_path_buf).ok_or_else(|| {
+                    at(format!(
+                        "'{label}' names no scene file and the command gives no template scene"
+                    ))
+                })?,
+                rest.to_vec(),
+            ),
+        };
+        if let Some(bad) = overrides.iter().find(|o| !o.contains('=')) {
+            return Err(at(format!(
+                "'{bad}' is not KEY=VALUE (only the first field after the name may be a scene)"
+            )));
+        }
+        entries.push(Entry {
+            name: label.clone(),
+            scene,
+            overrides,
+            line,
+            at: format!("{name}: line {line}"),
+        });
+    }
+    if entries.is_empty() {
+        return Err(format!("{name}: the manifest names no scene"));
+    }
+    Ok(entries)
+}
+
+/// Whether a manifest name can become part of a file name.
+fn check_name(n: &str) -> Result<(), String> {
+    if n.is_empty() || n == "." || n == ".." {
+        return Err(format!("'{n}' is not a name"));
+    }
+    if n.len() > 200 {
+        return Err(format!("a name of {} bytes; at most 200", n.len()));
+    }
+    if let Some(c) = n
+        .chars()
+        .find(|c| matches!(c, '/' | '\\' | '{' | '}' | '#') || c.is_control())
+    {
+        return Err(format!(
+            "the name '{}' holds {c:?}; names become file names",
+            n.escape_default()
+        ));
+    }
+    Ok(())
+}
+
+/// The output of a manifest entry: every `{name}` in `pattern` replaced by `name`.
+pub fn named_output(pattern: &Path, name: &str) -> Result<PathBuf, String> {
+    let text = pattern.to_string_lossy();
+    if !text.contains("{name}") {
+        return Err(format!(
+            "{}: a manifest's output needs {{name}} (e.g. out/{{name}}.png), or every line writes the same file",
+            pattern.display()
+        ));
+    }
+    Ok(PathBuf::from(text.replace("{name}", name)))
+}
+
+/// What [`run_manifest`] did: one outcome per entry of its shard.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ManifestReport {
+    /// The entries this run was to render (its shard's).
+    pub frames_owned: usize,
+    pub done: Vec<FrameOutcome>,
+    pub skipped: Vec<FrameOutcome>,
+    pub failed: Vec<FrameOutcome>,
+    /// The adapter's name (empty when nothing was rendered).
+    pub adapter: String,
+    pub seconds: f64,
+    /// Each note of the renders with the names of the entries it came from.
+    pub notes: Vec<(String, Vec<String>)>,
+}
+
+/// Renders the entries of `shard` (entry k, counted from 0 over the manifest's entries, with
+/// k mod N = I), each with `base`'s settings, its own scene and overrides (after `base`'s), to
+/// `output` with `{name}` replaced, on one GPU opened once. An entry that fails (a missing
+/// scene, bad data, a failed frame) is recorded and the others go on.
+pub fn run_manifest(
+    entries: &[Entry],
+    output: &Path,
+    base: &RenderArgs,
+    shard: Shard,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<ManifestReport, String> {
+    let t0 = std::time::Instant::now();
+    named_output(output, "x")?;
+    let gpu = OnceCell::new();
+    let owned: Vec<(usize, &Entry)> = entries
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| shard.owns(*k))
+        .collect();
+    let mut r = ManifestReport {
+        frames_owned: owned.len(),
+        done: vec![],
+        skipped: vec![],
+        failed: vec![],
+        adapter: String::new(),
+        seconds: 0.0,
+        notes: vec![],
+    };
+    let n = owned.len();
+    for (k, e) in owned {
+        let path = named_output(output, &e.name)?;
+        let mut overrides = base.overrides.clone();
+        overrides.extend(e.overrides.iter().cloned());
+        let args = RenderArgs {
+            scene: e.scene.clone(),
+            output: path.clone(),
+            overrides,
+            cameras: Cameras::Single,
+            trail_range: None,
+            shard: Shard::ALL,
+            ..base.clone()
+        };
+        let named = |mut o: FrameOutcome| {
+            o.index = k;
+            o.name = Some(e.name.clone());
+            o
+        };
+        let got = run_on(&args, &gpu, &mut |p| match p {
+            Progress::Done(f, _) => {
+                let mut f = f.clone();
+                f.index = k;
+                progress(Progress::Done(&f, n));
+            }
+            Progress::Skipped(o) => progress(Progress::Skipped(&named(o.clone()))),
+            Progress::Failed(o) => progress(Progress::Failed(&named(o.clone()))),
+        });
+        match got {
+            Ok(rep) => {
+                if r.adapter.is_empty() {
+                    r.adapter = rep.adapter.clone();
+                }
+                for m in rep.notes {
+                    match r.notes.iter_mut().find(|(n, _)| *n == m) {
+                        Some((_, names)) => names.push(e.name.clone()),
+                        None => r.notes.push((m, vec![e.name.clone()])),
+                    }
+                }
+                r.done.extend(rep.done.into_iter().map(named));
+                r.skipped.extend(rep.skipped.into_iter().map(named));
+                r.failed.extend(rep.failed.into_iter().map(named));
+            }
+            // The scene, its data or the GPU: the entry fails, the others go on.
+            Err(error) => {
+                let o = named(FrameOutcome {
+                    index: k,
+                    name: None,
+                    path,
+                    ms: None,
+                    error: Some(format!("{}: {error}", e.at)),
+                });
+                progress(Progress::Failed(&o));
+                r.failed.push(o);
+            }
+        }
+    }
+    r.seconds = t0.elapsed().as_secs_f64();
+    Ok(r)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashMap;
+
+    fn env(pairs: &[(&str, &str)]) -> impl Fn(&str) -> Option<String> {
+        let m: HashMap<String, String> = pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        move |k| m.get(k).cloned()
+    }
+
+    #[test]
+    fn shards_cover_every_frame_exactly_once() {
+        for frames in [1usize, 7, 10, 1000] {
+            for count in [1u32, 2, 3, 7, 10, 13] {
+                let mut hits = vec![0; frames];
+                for index in 0..count {
+                    let s = Shard { index, count };
+                    (0..frames)
+                        .filter(|&k| s.owns(k))
+                        .for_each(|k| hits[k] += 1);
+                }
+                assert!(
+                    hits.iter().all(|&h| h == 1),
+                    "{frames} frames, {count} shards"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn shard_flags_are_read_and_checked() {
+        assert_eq!(Shard::parse("2/7"), Ok(Shard { index: 2, count: 7 }));
+        assert_eq!(Shard::parse(" 0 / 1 "), Ok(Shard::ALL));
+        for bad in ["7/7", "1/0", "-1/3", "1", "a/3", "1/3/4", "", "1/"] {
+            assert!(
+                Shard::parse(bad).unwrap_err().contains("0 <= I < N"),
+                "{bad}"
+            );
+        }
+    }
+
+    #[test]
+    fn slurm_arrays_give_the_shards_the_flag_gives() {
+        // --array=0-4 and --array=1-5: the same five shards.
+        for min in [0u32, 1] {
+            for task in 0..5u32 {
+                let (id, min_s) = ((min + task).to_string(), min.to_string());
+                let v = env(&[
+                    ("SLURM_ARRAY_TASK_ID", &id),
+                    ("SLURM_ARRAY_TASK_MIN", &min_s),
+                    ("SLURM_ARRAY_TASK_COUNT", "5"),
+                    ("SLURM_ARRAY_TASK_STEP", "1"),
+                ]);
+                assert_eq!(
+                    Shard::resolve(None, &v),
+                    Ok((
+                        Shard {
+                            index: task,
+                            count: 5
+                        },
+                        ShardFrom::Slurm
+                    ))
+                );
+                // The flag wins over the variables.
+                assert_eq!(
+                    Shard::resolve(Some("0/2"), &v),
+                    Ok((Shard { index: 0, count: 2 }, ShardFrom::Flag))
+                );
+            }
+        }
+        // --array=10-40:10 (STEP 10): tasks 10, 20, 30, 40 are shards 0..3 of 4.
+        let v = env(&[
+            ("SLURM_ARRAY_TASK_ID", "30"),
+            ("SLURM_ARRAY_TASK_MIN", "10"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ("SLURM_ARRAY_TASK_STEP", "10"),
+        ]);
+        assert_eq!(Shard::from_slurm(v), Ok(Some(Shard { index: 2, count: 4 })));
+        // Not an array task.
+        assert_eq!(
+            Shard::resolve(None, env(&[])),
+            Ok((Shard::ALL, ShardFrom::None))
+        );
+        // A sparse list --array=1,4,9 (COUNT 3, MIN 1): task 9 is not shard 8 of 3.
+        let v = env(&[
+            ("SLURM_ARRAY_TASK_ID", "9"),
+            ("SLURM_ARRAY_TASK_MIN", "1"),
+            ("SLURM_ARRAY_TASK_COUNT", "3"),
+        ]);
+        assert!(Shard::from_slurm(v).unwrap_err().contains("sparse"));
+        let v = env(&[("SLURM_ARRAY_TASK_ID", "3")]);
+        assert!(Shard::from_slurm(v)
+            .unwrap_err()
+            .contains("SLURM_ARRAY_TASK_MIN is not set"));
+        let v = env(&[
+            ("SLURM_ARRAY_TASK_ID", "x"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_COUNT", "3"),
+        ]);
+        assert!(Shard::from_slurm(v)
+            .unwrap_err()
+            .contains("not a whole number"));
+    }
+
+    #[test]
+    fn manifests_name_scenes_or_the_template_with_overrides() {
+        let dir = Path::new("/data/study");
+        let text = "# participants\n\
+                    sub-01 scenes/sub-01.toml\n\
+                    \n\
+                    sub-02 volume.path=\"/data/sub 02/T1w.nii.gz\" camera.azimuth=90\n\
+                    sub-03 scenes/three.toml 'render.method=\"ea\"'\n";
+        let e = parse_manifest(text, "m.txt", dir, Some(Path::new("/t/template.toml"))).unwrap();
+        assert_eq!(e.len(), 3);
+        assert_eq!(e[0].scene, dir.join("scenes/sub-01.toml"));
+        assert!(e[0].overrides.is_empty());
+        assert_eq!((e[0].line, e[1].line, e[2].line), (2, 4, 5));
+        assert_eq!(e[1].scene, Path::new("/t/template.toml"));
+        assert_eq!(
+            e[1].overrides,
+            ["volume.path=/data/sub 02/T1w.nii.gz", "camera.azimuth=90"]
+        );
+        assert_eq!(e[2].overrides, ["render.method=\"ea\""]);
+        assert_eq!(e[2].name, "sub-03");
+    }
+
+    #[test]
+    fn bad_manifests_are_refused_naming_the_line() {
+        let t = Some(Path::new("t.toml"));
+        let err = |text: &str, template| {
+            parse_manifest(text, "m.txt", Path::new("."), template).unwrap_err()
+        };
+        assert!(err("a s.toml\nb s.toml\na s.toml\n", t)
+            .contains("line 3: the name 'a' is also on line 1"));
+        assert!(err("a camera.azimuth=3\n", None).contains("line 1: 'a' names no scene"));
+        assert!(err("a s.toml other.toml\n", t).contains("'other.toml' is not KEY=VALUE"));
+        assert!(err("a \"s.toml\n", t).contains("unbalanced quotes"));
+        assert!(err("../x s.toml\n", t).contains("names become file names"));
+        assert!(err("..\n", t).contains("not a name"));
+        assert!(err("# nothing\n\n", t).contains("names no scene"));
+    }
+
+    #[test]
+    fn a_manifest_output_needs_the_name() {
+        assert_eq!(
+            named_output(Path::new("out/{name}/{name}_t1.png"), "sub-01").unwrap(),
+            Path::new("out/sub-01/sub-01_t1.png")
+        );
+        assert!(named_output(Path::new("out/x.png"), "a")
+            .unwrap_err()
+            .contains("{name}"));
+    }
+
+    #[test]
+    fn only_whole_images_of_the_right_size_are_complete() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("a.png");
+        let rgb = vec![[0.5f32, 0.2, 0.1]; 8 * 6];
+        crate::image_io::write_rgb_png(&png, 8, 6, &rgb).unwrap();
+        assert!(complete_image(&png, 8, 6));
+        assert!(!complete_image(&png, 6, 8));
+        // Truncated: the first half of the file.
+        let bytes = std::fs::read(&png).unwrap();
+        let cut = dir.path().join("cut.png");
+        std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+        assert!(!complete_image(&cut, 8, 6));
+        std::fs::write(&cut, b"").unwrap();
+        assert!(!complete_image(&cut, 8, 6));
+        assert!(!complete_image(&dir.path().join("missing.png"), 8, 6));
+        assert!(!complete_image(dir.path(), 8, 6));
+        let exr = dir.path().join("a.exr");
+        let rgba = vec![[0.5f32, 0.2, 0.1, 1.0]; 8 * 6];
+        crate::image_io::write_exr(&exr, 8, 6, &rgba, &[]).unwrap();
+        assert!(complete_image(&exr, 8, 6));
+        let bytes = std::fs::read(&exr).unwrap();
+        std::fs::write(&exr, &bytes[..bytes.len() - 40]).unwrap();
+        assert!(!complete_image(&exr, 8, 6));
+    }
+}
