@@ -160,7 +160,8 @@ pub struct Entry {
 pub const MAX_MANIFEST_BYTES: u64 = 64 << 20;
 
 /// Reads a manifest: one entry per line, `NAME [SCENE] [KEY=VALUE ...]`, fields separated by
-/// blanks and quoted as in a POSIX shell; blank lines and lines starting with `#` are skipped.
+/// blanks and quoted as in a POSIX shell; blank lines and lines starting with `#` are skipped,
+/// and a field starting with `#` begins a comment to the end of the line.
 /// SCENE (the first field after NAME without `=`) is relative to the manifest's folder; a line
 /// without one renders `template`. Names are unique and usable as file names.
 pub fn read_manifest(path: &Path, template: Option<&Path>) -> Result<Vec<Entry>, String> {
@@ -484,7 +485,7 @@ mod tests {
                     sub-01 scenes/sub-01.toml\n\
                     \n\
                     sub-02 volume.path=\"/data/sub 02/T1w.nii.gz\" camera.azimuth=90\n\
-                    sub-03 scenes/three.toml 'render.method=\"ea\"'\n";
+                    sub-03 scenes/three.toml 'render.method=\"ea\"'  # its own scene\n";
         let e = parse_manifest(text, "m.txt", dir, Some(Path::new("/t/template.toml"))).unwrap();
         assert_eq!(e.len(), 3);
         assert_eq!(e[0].scene, dir.join("scenes/sub-01.toml"));
