@@ -80,13 +80,21 @@ impl Frames {
 
     /// Frame `index` (its number in the sequence or manifest) written to `path` in `ms`
     /// milliseconds, one of `n` this run renders.
-    pub fn done(&self, index: usize, n: usize, path: &std::path::Path, ms: f64) {
+    pub fn done(
+        &self,
+        index: usize,
+        name: Option<&str>,
+        n: usize,
+        path: &std::path::Path,
+        ms: f64,
+    ) {
+        let name = name.map(|n| format!(" {n}")).unwrap_or_default();
         match self.bar(Some(n)) {
             Some(bar) => {
                 bar.set_message(path.display().to_string());
                 bar.inc(1);
             }
-            None => eprintln!("frame {index}: {} in {ms:.1} ms", path.display()),
+            None => eprintln!("frame {index}{name}: {} in {ms:.1} ms", path.display()),
         }
     }
 
@@ -94,10 +102,13 @@ impl Frames {
     pub fn skipped(&self, index: usize, name: Option<&str>, path: &std::path::Path) {
         let name = name.map(|n| format!(" {n}")).unwrap_or_default();
         match self.bar(None) {
-            Some(bar) => bar.println(format!(
-                "frame {index}{name}: {} is complete, skipped",
-                path.display()
-            )),
+            Some(bar) => {
+                bar.println(format!(
+                    "frame {index}{name}: {} is complete, skipped",
+                    path.display()
+                ));
+                bar.inc(1);
+            }
             None => eprintln!(
                 "frame {index}{name}: {} is complete, skipped",
                 path.display()
@@ -110,7 +121,10 @@ impl Frames {
         let name = name.map(|n| format!(" {n}")).unwrap_or_default();
         let line = format!("frame {index}{name}: {} FAILED: {error}", path.display());
         match self.bar(None) {
-            Some(bar) => bar.println(line),
+            Some(bar) => {
+                bar.println(line);
+                bar.inc(1);
+            }
             None => eprintln!("{line}"),
         }
     }

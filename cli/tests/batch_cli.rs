@@ -170,6 +170,20 @@ fn slurm_array_variables_give_the_partition_the_flag_gives() {
         .output()
         .unwrap());
     assert!(single.exists());
+    // ... even in an array whose task ids are not evenly spaced (--array=1,4,9).
+    let single = dir.path().join("task_4.png");
+    ok(&umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("-o")
+        .arg(&single)
+        .env("SLURM_ARRAY_TASK_ID", "4")
+        .env("SLURM_ARRAY_TASK_MIN", "1")
+        .env("SLURM_ARRAY_TASK_MAX", "9")
+        .env("SLURM_ARRAY_TASK_COUNT", "3")
+        .output()
+        .unwrap());
+    assert!(single.exists());
     // A sparse array is refused, naming the variables.
     let out = umbra()
         .arg("render")
@@ -307,6 +321,38 @@ fn a_failing_frame_is_recorded_and_the_others_still_render() {
     for k in [0, 1, 2, 3, 5] {
         assert!(dir.path().join(format!("out/f_{k:02}.png")).is_file());
     }
+    // What fails before any frame (here the scene) is in the record too.
+    let rec = dir.path().join("setup.json");
+    let out = orbit(
+        &dir.path().join("missing.toml"),
+        6,
+        &dir.path().join("out2/f_##.png"),
+        &["--shard", "1/2", "--record", rec.to_str().unwrap()],
+    );
+    assert_eq!(out.status.code(), Some(1));
+    let r = record(&rec);
+    assert!(r["error"].as_str().unwrap().contains("missing.toml"), "{r}");
+    assert_eq!(r["shard"]["index"], 1);
+    assert!(indices(&r, "done").is_empty());
+    // Before the shard is known (bad Slurm variables), the shard is null.
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "6", "-o"])
+        .arg(dir.path().join("out3/f_##.png"))
+        .arg("--record")
+        .arg(&rec)
+        .env("SLURM_ARRAY_TASK_ID", "x")
+        .env("SLURM_ARRAY_TASK_MIN", "0")
+        .env("SLURM_ARRAY_TASK_COUNT", "3")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let r = record(&rec);
+    assert!(
+        r["shard"].is_null() && r["error"].as_str().unwrap().contains("SLURM_ARRAY_TASK_ID"),
+        "{r}"
+    );
 }
 
 #[test]
@@ -369,6 +415,12 @@ fn manifests_render_one_named_scene_per_line_sharded_the_same_way() {
             .iter()
             .chain(&indices(&r, "failed"))
             .all(|k| k % 2 == i));
+        let err = String::from_utf8_lossy(&out.stderr);
+        for f in r["done"].as_array().unwrap() {
+            let line = format!("frame {} {}: ", f["index"], f["name"].as_str().unwrap());
+            assert!(err.contains(&line), "{line} in {err}");
+        }
+        assert!(err.contains(&format!("shard {i}/2: ")), "{err}");
         // The shard with the missing scene exits 1, after the others were done.
         assert_eq!(
             out.status.success(),

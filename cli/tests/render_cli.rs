@@ -12,7 +12,12 @@ fn root() -> PathBuf {
 }
 
 fn umbra() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_umbra"))
+    let mut c = Command::new(env!("CARGO_BIN_EXE_umbra"));
+    // Run inside a Slurm array task, the sequences here would be sharded.
+    for v in scene::batch::SLURM_VARIABLES {
+        c.env_remove(v);
+    }
+    c
 }
 
 fn ok(out: &std::process::Output) {

@@ -29,11 +29,12 @@ pub enum ShardFrom {
 }
 
 /// The Slurm job-array variables [`Shard::from_slurm`] reads.
-pub const SLURM_VARIABLES: [&str; 4] = [
+pub const SLURM_VARIABLES: [&str; 5] = [
     "SLURM_ARRAY_TASK_ID",
     "SLURM_ARRAY_TASK_MIN",
     "SLURM_ARRAY_TASK_COUNT",
     "SLURM_ARRAY_TASK_STEP",
+    "SLURM_ARRAY_TASK_MAX",
 ];
 
 impl Shard {
@@ -75,14 +76,25 @@ impl Shard {
             Some(s) => num(SLURM_VARIABLES[3], Some(s))?.max(1),
             None => 1,
         };
+        let max = match var(SLURM_VARIABLES[4]) {
+            Some(m) => Some(num(SLURM_VARIABLES[4], Some(m))?),
+            None => None,
+        };
         let sparse = || {
             format!(
                 "SLURM_ARRAY_TASK_ID={id} with SLURM_ARRAY_TASK_MIN={min}, SLURM_ARRAY_TASK_STEP={step}, \
-                 SLURM_ARRAY_TASK_COUNT={count} is not task I of N = COUNT evenly spaced tasks \
-                 (a sparse --array list?): give the shard as I/N"
+                 SLURM_ARRAY_TASK_COUNT={count}{} is not task I of N = COUNT evenly spaced tasks \
+                 (a sparse --array list?): give the shard as I/N",
+                max.map(|m| format!(", SLURM_ARRAY_TASK_MAX={m}")).unwrap_or_default()
             )
         };
         if id < min || (id - min) % step != 0 {
+            return Err(sparse());
+        }
+        // Every task of an evenly spaced array: MAX = MIN + STEP (COUNT - 1).
+        if max.is_some_and(|m| {
+            count == 0 || Some(m) != step.checked_mul(count - 1).and_then(|d| d.checked_add(min))
+        }) {
             return Err(sparse());
         }
         let index = (id - min) / step;
@@ -188,6 +200,8 @@ pub fn parse_manifest(
     dir: &Path,
     template: Option<&Path>,
 ) -> Result<Vec<Entry>, String> {
+    // A byte-order mark (editors on Windows write one) is not part of the first name.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut entries: Vec<Entry> = vec![];
     let mut seen = std::collections::HashMap::new();
     for (i, raw) in text.lines().enumerate() {
@@ -333,6 +347,7 @@ pub fn run_manifest(
             Progress::Done(f, _) => {
                 let mut f = f.clone();
                 f.index = k;
+                f.name = Some(e.name.clone());
                 progress(Progress::Done(&f, n));
             }
             Progress::Skipped(o) => progress(Progress::Skipped(&named(o.clone()))),
@@ -421,9 +436,11 @@ mod tests {
         for min in [0u32, 1] {
             for task in 0..5u32 {
                 let (id, min_s) = ((min + task).to_string(), min.to_string());
+                let max_s = (min + 4).to_string();
                 let v = env(&[
                     ("SLURM_ARRAY_TASK_ID", &id),
                     ("SLURM_ARRAY_TASK_MIN", &min_s),
+                    ("SLURM_ARRAY_TASK_MAX", &max_s),
                     ("SLURM_ARRAY_TASK_COUNT", "5"),
                     ("SLURM_ARRAY_TASK_STEP", "1"),
                 ]);
@@ -448,6 +465,7 @@ mod tests {
         let v = env(&[
             ("SLURM_ARRAY_TASK_ID", "30"),
             ("SLURM_ARRAY_TASK_MIN", "10"),
+            ("SLURM_ARRAY_TASK_MAX", "40"),
             ("SLURM_ARRAY_TASK_COUNT", "4"),
             ("SLURM_ARRAY_TASK_STEP", "10"),
         ]);
@@ -464,6 +482,27 @@ mod tests {
             ("SLURM_ARRAY_TASK_COUNT", "3"),
         ]);
         assert!(Shard::from_slurm(v).unwrap_err().contains("sparse"));
+        // ... and with MAX set (as Slurm sets it) every task of it is refused, task 1 too,
+        // as is --array=0,2,3 where task 2 would pass for shard 2 of 3.
+        for (id, min, max, count) in [
+            ("1", "1", "9", "3"),
+            ("4", "1", "9", "3"),
+            ("2", "0", "3", "3"),
+        ] {
+            let v = env(&[
+                ("SLURM_ARRAY_TASK_ID", id),
+                ("SLURM_ARRAY_TASK_MIN", min),
+                ("SLURM_ARRAY_TASK_MAX", max),
+                ("SLURM_ARRAY_TASK_COUNT", count),
+                ("SLURM_ARRAY_TASK_STEP", "1"),
+            ]);
+            assert!(
+                Shard::from_slurm(v)
+                    .unwrap_err()
+                    .contains("SLURM_ARRAY_TASK_MAX"),
+                "{id}"
+            );
+        }
         let v = env(&[("SLURM_ARRAY_TASK_ID", "3")]);
         assert!(Shard::from_slurm(v)
             .unwrap_err()
@@ -487,6 +526,11 @@ mod tests {
                     sub-02 volume.path=\"/data/sub 02/T1w.nii.gz\" camera.azimuth=90\n\
                     sub-03 scenes/three.toml 'render.method=\"ea\"'  # its own scene\n";
         let e = parse_manifest(text, "m.txt", dir, Some(Path::new("/t/template.toml"))).unwrap();
+        let bom = format!("\u{feff}{text}");
+        assert_eq!(
+            parse_manifest(&bom, "m.txt", dir, Some(Path::new("/t/template.toml"))).unwrap(),
+            e
+        );
         assert_eq!(e.len(), 3);
         assert_eq!(e[0].scene, dir.join("scenes/sub-01.toml"));
         assert!(e[0].overrides.is_empty());

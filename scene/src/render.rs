@@ -92,7 +92,7 @@ pub struct FrameOutcome {
 
 /// What [`run`] tells its caller as it goes.
 pub enum Progress<'a> {
-    /// A frame rendered and written, of `n` this run renders.
+    /// A frame rendered and written, of `n` this run owns (rendered, skipped or failed).
     Done(&'a FrameReport, usize),
     /// A frame not rendered: its output is already complete.
     Skipped(&'a FrameOutcome),
@@ -104,6 +104,9 @@ pub enum Progress<'a> {
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct FrameReport {
     pub index: usize,
+    /// The manifest entry's name (manifest runs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     pub path: PathBuf,
     /// The frame's `[camera]`.
     pub camera: spec::CameraSpec,
@@ -393,9 +396,8 @@ pub(crate) fn run_on(
         return Ok(report);
     }
     // A killed run's temporary files of these outputs (no other process writes them).
-    for (_, file) in &owned {
-        volume::remove_stale_temps(file);
-    }
+    let files: Vec<&Path> = owned.iter().map(|(_, f)| f.as_path()).collect();
+    volume::remove_stale_temps(&files);
     let m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
     let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;
     let up = upload(gpu, &m).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -416,7 +418,7 @@ pub(crate) fn run_on(
     report.adapter = gpu.report().name;
     let mut frames: Vec<FrameReport> = Vec::with_capacity(owned.len());
     let mut last = None;
-    let n_owned = owned.len();
+    let n_owned = frames_owned;
     for (k, file) in owned {
         let cam = &cameras[k];
         let mut sk = s.clone();
@@ -449,6 +451,7 @@ pub(crate) fn run_on(
         }
         let f = FrameReport {
             index: k,
+            name: None,
             path: file,
             camera: cam.clone(),
             slices: v.slices,

@@ -456,38 +456,54 @@ pub fn temp_name(name: &str, pid: u32) -> String {
     format!(".{name}.{pid}.tmp")
 }
 
-/// Removes the temporary files of `path` that [`write_atomic`] in other processes left
-/// (`.NAME.PID.tmp` beside it, PID not this process's): what a killed process leaves. Call it
-/// only for outputs no other live process writes (a shard's own frames). Returns how many were
-/// removed; a folder that cannot be read removes none.
-pub fn remove_stale_temps(path: &Path) -> usize {
-    let (Some(name), dir) = (
-        path.file_name().map(|n| n.to_string_lossy().into_owned()),
-        path.parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new(".")),
-    ) else {
-        return 0;
-    };
-    let prefix = format!(".{name}.");
+/// Removes the temporary files of `paths` that [`write_atomic`] in other processes left
+/// (`.NAME.PID.tmp` beside each, PID not this process's): what a killed process leaves. Call it
+/// only for outputs no other live process writes (a shard's own frames). Each folder is read
+/// once, however many outputs it holds. Returns how many were removed; a folder that cannot be
+/// read removes none.
+pub fn remove_stale_temps(paths: &[&Path]) -> usize {
+    use std::collections::{BTreeMap, HashSet};
+    let mut by_dir: BTreeMap<&Path, HashSet<String>> = BTreeMap::new();
+    for p in paths {
+        let Some(name) = p.file_name() else { continue };
+        let dir = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        by_dir
+            .entry(dir)
+            .or_default()
+            .insert(name.to_string_lossy().into_owned());
+    }
     let own = std::process::id().to_string();
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return 0;
-    };
-    entries
-        .flatten()
-        .filter(|e| {
+    let mut removed = 0;
+    for (dir, names) in by_dir {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
             let f = e.file_name();
             let f = f.to_string_lossy();
-            f.strip_prefix(&prefix)
+            // `.NAME.PID.tmp` with NAME one of ours and PID digits, not ours.
+            let stale = f
+                .strip_prefix('.')
                 .and_then(|r| r.strip_suffix(".tmp"))
-                .is_some_and(|pid| {
-                    !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()) && pid != own
-                })
-        })
-        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
-        .filter(|e| std::fs::remove_file(e.path()).is_ok())
-        .count()
+                .and_then(|r| r.rsplit_once('.'))
+                .is_some_and(|(name, pid)| {
+                    names.contains(name)
+                        && !pid.is_empty()
+                        && pid.bytes().all(|b| b.is_ascii_digit())
+                        && pid != own
+                });
+            if stale
+                && e.file_type().is_ok_and(|t| t.is_file())
+                && std::fs::remove_file(e.path()).is_ok()
+            {
+                removed += 1;
+            }
+        }
+    }
+    removed
 }
 
 pub fn gzip_bytes(bytes: &[u8]) -> Vec<u8> {
@@ -520,7 +536,7 @@ mod tests {
         ] {
             touch(keep);
         }
-        assert_eq!(remove_stale_temps(&out), 2);
+        assert_eq!(remove_stale_temps(&[out.as_path()]), 2);
         let mut left: Vec<String> = std::fs::read_dir(dir.path())
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

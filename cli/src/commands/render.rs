@@ -8,6 +8,7 @@ use crate::output::{out, out_json_pretty};
 use crate::progress::Frames;
 use scene::batch::{Shard, ShardFrom};
 use scene::render::{Cameras, FrameOutcome, Progress, RenderArgs, RenderReport};
+use std::cell::Cell;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
@@ -71,7 +72,7 @@ pub struct Args {
     skip_existing: bool,
     /// Render one scene per line of FILE: `NAME [SCENE] [KEY=VALUE ...]` (see the README);
     /// the output needs {name}.
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["orbit", "camera_path", "trail_range"])]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["orbit", "camera_path", "trail_range", "timings_json"])]
     manifest: Option<PathBuf>,
     /// Write a JSON record of this run: its shard, the frames done (with their times),
     /// skipped and failed (with their errors), seconds, adapter, host.
@@ -91,8 +92,9 @@ fn adapter_choice(text: &str) -> Result<engine::gpu::AdapterChoice, String> {
 /// What `--record` writes.
 #[derive(serde::Serialize)]
 struct Record<'a> {
-    shard: Shard,
-    shard_from: ShardFrom,
+    /// Null when the run failed before its shard was known.
+    shard: Option<Shard>,
+    shard_from: Option<ShardFrom>,
     /// The frames (or manifest lines) of this shard.
     frames: usize,
     done: &'a [FrameOutcome],
@@ -126,8 +128,49 @@ fn writable(path: &Path, what: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// What the error path needs to write the record: the shard once known, whether the record
+/// was written.
+struct RecordState {
+    shard: Cell<Option<(Shard, ShardFrom)>>,
+    written: Cell<bool>,
+}
+
 pub fn run(a: Args) -> Result<(), String> {
     let t0 = std::time::Instant::now();
+    let state = RecordState {
+        shard: Cell::new(None),
+        written: Cell::new(false),
+    };
+    let r = render(&a, t0, &state);
+    if let (Err(e), Some(path)) = (&r, &a.record) {
+        if !state.written.get() {
+            let known = state.shard.get();
+            let rec = Record {
+                shard: known.map(|k| k.0),
+                shard_from: known.map(|k| k.1),
+                frames: 0,
+                done: &[],
+                skipped: &[],
+                failed: &[],
+                error: Some(e),
+                seconds: t0.elapsed().as_secs_f64(),
+                adapter: "",
+                host: host(),
+            };
+            if let Err(w) = write_record(path, &rec) {
+                return Err(format!("{e} (and the record could not be written: {w})"));
+            }
+        }
+    }
+    r
+}
+
+fn write_record(path: &Path, r: &Record) -> Result<(), String> {
+    let text = serde_json::to_string_pretty(r).map_err(|e| e.to_string())?;
+    volume::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())
+}
+
+fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), String> {
     let cameras = match (a.orbit, &a.camera_path) {
         (Some(n), _) => Cameras::Orbit(n),
         (None, Some(p)) => Cameras::Path(p.clone()),
@@ -139,16 +182,18 @@ pub fn run(a: Args) -> Result<(), String> {
         .map(scene::render::TrailRange::parse)
         .transpose()?;
     let sequence = cameras != Cameras::Single || trail_range.is_some();
-    let (mut shard, mut from) = Shard::resolve(a.shard.as_deref(), |k| std::env::var(k).ok())
-        .map_err(|e| match a.shard {
-            Some(_) => format!("--shard: {e}"),
-            None => e,
-        })?;
-    // One image in a Slurm array task is that task's own image (e.g. its subject's), not
-    // a shard of one frame; --shard still applies.
-    if from == ShardFrom::Slurm && !sequence && a.manifest.is_none() {
-        (shard, from) = (Shard::ALL, ShardFrom::None);
-    }
+    // One image in a Slurm array task is that task's own image (e.g. its subject's), not a
+    // shard of one frame: the Slurm variables are read for sequences and manifests only;
+    // --shard applies to all.
+    let slurm = sequence || a.manifest.is_some();
+    let (shard, from) = Shard::resolve(a.shard.as_deref(), |k| {
+        slurm.then(|| std::env::var(k).ok()).flatten()
+    })
+    .map_err(|e| match a.shard {
+        Some(_) => format!("--shard: {e}"),
+        None => e,
+    })?;
+    state.shard.set(Some((shard, from)));
     let skip_existing = a.skip_existing || from != ShardFrom::None;
     for (p, what) in [(&a.record, "--record"), (&a.timings_json, "--timings-json")] {
         if let Some(p) = p {
@@ -159,7 +204,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let mut on_progress = |p: Progress| match p {
         Progress::Done(f, n) => {
             if sequence || a.manifest.is_some() {
-                progress.done(f.index, n, &f.path, f.total_ms);
+                progress.done(f.index, f.name.as_deref(), n, &f.path, f.total_ms);
             }
         }
         Progress::Skipped(o) => progress.skipped(o.index, o.name.as_deref(), &o.path),
@@ -187,37 +232,32 @@ pub fn run(a: Args) -> Result<(), String> {
                   skipped: &[FrameOutcome],
                   failed: &[FrameOutcome],
                   frames: usize,
-                  adapter: &str,
-                  error: Option<&str>|
+                  adapter: &str|
      -> Result<(), String> {
         let Some(path) = &a.record else {
             return Ok(());
         };
-        let r = Record {
-            shard,
-            shard_from: from,
-            frames,
-            done,
-            skipped,
-            failed,
-            error,
-            seconds: t0.elapsed().as_secs_f64(),
-            adapter,
-            host: host(),
-        };
-        let text = serde_json::to_string_pretty(&r).map_err(|e| e.to_string())?;
-        volume::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())
+        write_record(
+            path,
+            &Record {
+                shard: Some(shard),
+                shard_from: Some(from),
+                frames,
+                done,
+                skipped,
+                failed,
+                error: None,
+                seconds: t0.elapsed().as_secs_f64(),
+                adapter,
+                host: host(),
+            },
+        )?;
+        state.written.set(true);
+        Ok(())
     };
     if let Some(m) = &a.manifest {
         let entries = scene::batch::read_manifest(m, a.scene.as_deref())?;
-        let r =
-            match scene::batch::run_manifest(&entries, &a.output, &base, shard, &mut on_progress) {
-                Ok(r) => r,
-                Err(e) => {
-                    record(&[], &[], &[], 0, "", Some(&e))?;
-                    return Err(e);
-                }
-            };
+        let r = scene::batch::run_manifest(&entries, &a.output, &base, shard, &mut on_progress)?;
         drop(progress);
         for (n, names) in &r.notes {
             if names.len() == r.done.len() {
@@ -226,49 +266,30 @@ pub fn run(a: Args) -> Result<(), String> {
                 eprintln!("note: {}: {n}", names.join(", "));
             }
         }
-        record(
-            &r.done,
-            &r.skipped,
-            &r.failed,
-            r.frames_owned,
-            &r.adapter,
-            None,
-        )?;
+        record(&r.done, &r.skipped, &r.failed, r.frames_owned, &r.adapter)?;
         if a.json {
             out_json_pretty(&r)?;
         }
         eprintln!(
-            "{} of {} scenes rendered, {} skipped, {} failed, in {:.1} s",
+            "shard {}/{}: {} of {} scenes rendered, {} skipped (complete), {} failed",
+            shard.index,
+            shard.count,
             r.done.len(),
             r.frames_owned,
             r.skipped.len(),
-            r.failed.len(),
-            r.seconds
+            r.failed.len()
         );
         return match scene::render::failure_summary(&r.failed, r.frames_owned, "scenes") {
             Some(e) => Err(e),
             None => Ok(()),
         };
     }
-    let r = match scene::render::run(&base, &mut on_progress) {
-        Ok(r) => r,
-        Err(e) => {
-            record(&[], &[], &[], 0, "", Some(&e))?;
-            return Err(e);
-        }
-    };
+    let r = scene::render::run(&base, &mut on_progress)?;
     drop(progress);
     for n in &r.notes {
         eprintln!("note: {n}");
     }
-    record(
-        &r.done,
-        &r.skipped,
-        &r.failed,
-        r.frames_owned,
-        &r.adapter,
-        None,
-    )?;
+    record(&r.done, &r.skipped, &r.failed, r.frames_owned, &r.adapter)?;
     if let Some(t) = &a.timings_json {
         let text = serde_json::to_string_pretty(&timings(&r)).map_err(|e| e.to_string())?;
         volume::write_atomic(t, text.as_bytes()).map_err(|e| e.to_string())?;
