@@ -9,7 +9,7 @@ mod progress;
 
 use clap::{error::ErrorKind, Parser, Subcommand};
 use commands::{
-    convert, demo, info, iso, render, resample, scene, sweep, synth, trace, tubes, view,
+    convert, demo, info, iso, render, resample, scene, sweep, synth, trace, tracts, tubes, view,
 };
 use std::process::ExitCode;
 
@@ -33,6 +33,9 @@ enum Command {
     Trace(trace::Args),
     /// B-spline stream tubes of a tractogram (.trk, .tck), written as PLY or OBJ.
     Tubes(tubes::Args),
+    /// Tractogram tools: `umbra tracts select` (streamlines by include/exclude ROIs, length,
+    /// attribute ranges, subsample).
+    Tracts(tracts::Args),
     /// Write a synthetic scene as NRRD or NIfTI: validation (the sweeping paper's solids,
     /// [0,100]^3), three-solids (sphere, torus, box in [0,1]^3), abc, burgers, rotation (vector
     /// fields), double-gyre (a time-periodic flow, 5-D NIfTI).
@@ -67,6 +70,7 @@ fn run(command: Command) -> Result<(), String> {
         Command::Iso(a) => iso::run(a),
         Command::Trace(a) => trace::run(a),
         Command::Tubes(a) => tubes::run(a),
+        Command::Tracts(a) => tracts::run(a),
         Command::Synth(a) => synth::run(a),
         Command::Convert(a) => convert::run(a),
         Command::Render(a) => render::run(a),

@@ -433,6 +433,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             let key = format!("tubes[{i}].transform");
             sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);
         }
+        let (sl, note) =
+            crate::tube_sets::apply_selection(sl, t.select.as_ref(), &format!("tubes[{i}]"))?;
+        notes.extend(note);
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
         let args = crate::tube_sets::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
         let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
@@ -495,6 +498,9 @@ fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<Li
         let key = format!("lines[{i}].transform");
         sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);
     }
+    let (sl, note) =
+        crate::tube_sets::apply_selection(sl, l.select.as_ref(), &format!("lines[{i}]"))?;
+    notes.extend(note);
     let width = match l.width_unit {
         spec::WidthUnit::Pixels => LineWidth::Pixels(l.width),
         spec::WidthUnit::World => LineWidth::World(l.width),

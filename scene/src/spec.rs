@@ -198,6 +198,46 @@ pub struct TubesSpec {
     /// Fitting tolerance, world units.
     #[serde(default = "default_tolerance")]
     pub tolerance: f64,
+    /// Only the streamlines these ROIs and ranges select (in the scene's world, after
+    /// `transform`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub select: Option<SelectSpec>,
+}
+
+/// `select = { include_spheres = [[x, y, z, r]], ... }` of `[[tubes]]` and `[[lines]]`:
+/// streamline selection (`tubes::select`; `umbra tracts select` takes the same as flags).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SelectSpec {
+    /// Spheres `[x, y, z, r]` each of which a kept streamline has a point in.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub include_spheres: Vec<[f64; 4]>,
+    /// Spheres no point of a kept streamline is in.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub exclude_spheres: Vec<[f64; 4]>,
+    /// Boxes `[x0, y0, z0, x1, y1, z1]` (two opposite corners).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub include_boxes: Vec<[f64; 6]>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub exclude_boxes: Vec<[f64; 6]>,
+    /// Volumes `FILE` (nonzero voxels) or `FILE:LABEL` (voxels equal to LABEL).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub include_masks: Vec<String>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub exclude_masks: Vec<String>,
+    /// Arc length range, world units (inclusive).
+    pub min_length: Option<f64>,
+    pub max_length: Option<f64>,
+    /// A per-streamline attribute (or a per-point one's mean) in `[attribute_min,
+    /// attribute_max]` (each unbounded when absent).
+    pub attribute: Option<String>,
+    pub attribute_min: Option<f64>,
+    pub attribute_max: Option<f64>,
+    /// Keep this many of the streamlines that pass, at random.
+    pub subsample: Option<usize>,
+    /// The seed of `subsample`.
+    #[serde(default)]
+    pub seed: u64,
 }
 
 fn default_radius() -> f64 {
@@ -269,6 +309,9 @@ pub struct LinesSpec {
     /// The attribute range over which the cut ends narrow to a point (0: square cuts).
     #[serde(default)]
     pub filter_taper: f64,
+    /// Only the streamlines these ROIs and ranges select (see `[[tubes]] select`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub select: Option<SelectSpec>,
 }
 
 /// `[[points]]`: a point cloud drawn as discs facing the viewer (Everts et al. §3.5).
@@ -1010,12 +1053,25 @@ pub fn to_toml(s: &Scene) -> Result<String, String> {
             *f = abs(f);
         }
     }
+    let abs_masks = |sel: &mut Option<SelectSpec>| {
+        for m in sel
+            .iter_mut()
+            .flat_map(|s| s.include_masks.iter_mut().chain(s.exclude_masks.iter_mut()))
+        {
+            if let Ok((p, _)) = tubes::select::split_mask(m) {
+                let a = abs(Path::new(p)).display().to_string();
+                *m = format!("{a}{}", &m[p.len()..]);
+            }
+        }
+    };
     for t in &mut s.tubes {
         t.path = abs(&t.path);
         abs_source(&mut t.color);
+        abs_masks(&mut t.select);
     }
     for l in &mut s.lines {
         l.path = abs(&l.path);
+        abs_masks(&mut l.select);
         abs_source(&mut l.color);
         if let Some(f) = &mut l.filter {
             abs_source(f);
@@ -1026,6 +1082,45 @@ pub fn to_toml(s: &Scene) -> Result<String, String> {
         abs_source(&mut p.color);
     }
     toml::to_string(&s).map_err(|e| format!("writing the scene as TOML: {e}"))
+}
+
+/// Checks a selection's values (each ROI and range as `tubes::select` requires) and resolves
+/// its masks' relative paths against `dir`; `key` names it (`tubes[0].select`).
+fn check_select(sel: &mut SelectSpec, dir: &Path, key: &str) -> Result<(), String> {
+    let at = |k: &str, why: String| format!("scene key {key}.{k}: {why}");
+    for (k, list) in [
+        ("include_spheres", &sel.include_spheres),
+        ("exclude_spheres", &sel.exclude_spheres),
+    ] {
+        for s in list {
+            tubes::select::Roi::sphere(*s).map_err(|e| at(k, e))?;
+        }
+    }
+    for (k, list) in [
+        ("include_boxes", &sel.include_boxes),
+        ("exclude_boxes", &sel.exclude_boxes),
+    ] {
+        for b in list {
+            tubes::select::Roi::cuboid(*b).map_err(|e| at(k, e))?;
+        }
+    }
+    for (k, list) in [
+        ("include_masks", &mut sel.include_masks),
+        ("exclude_masks", &mut sel.exclude_masks),
+    ] {
+        for m in list.iter_mut() {
+            let (p, label) = tubes::select::split_mask(m).map_err(|e| at(k, e))?;
+            if Path::new(p).is_relative() {
+                let joined = dir.join(p).display().to_string();
+                *m = match label {
+                    Some(_) => format!("{joined}{}", &m[p.len()..]),
+                    None => joined,
+                };
+            }
+        }
+    }
+    // Masks are read when the scene is modelled; here only the values are checked.
+    crate::tube_sets::selection(sel, &|k| crate::tube_sets::scene_key(key, k), false).map(|_| ())
 }
 
 /// Checks a halo's ranges; `key` names it (`lines[0].halo`).
@@ -1157,6 +1252,9 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             );
         }
         check_color_source(&t.color).map_err(|why| format!("scene key tubes[{i}].color: {why}"))?;
+        if let Some(sel) = &mut t.select {
+            check_select(sel, dir, &format!("tubes[{i}].select"))?;
+        }
     }
     for (i, p) in s.points.iter_mut().enumerate() {
         if p.path.is_relative() {
@@ -1188,6 +1286,9 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
     for (i, l) in s.lines.iter_mut().enumerate() {
         if l.path.is_relative() {
             l.path = dir.join(&l.path);
+        }
+        if let Some(sel) = &mut l.select {
+            check_select(sel, dir, &format!("lines[{i}].select"))?;
         }
         if !(l.width > 0.0 && l.width.is_finite()) {
             return bad(

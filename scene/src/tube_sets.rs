@@ -273,3 +273,93 @@ pub fn point_values(s: &tubes::Streamlines, source: &str) -> Result<Vec<f32>, St
         })
         .collect())
 }
+
+/// The selection a `select` spec asks; `label` names a key of it in errors (a scene gives
+/// `scene key tubes[0].select.include_spheres`, the command line its flag). The masks are read
+/// from their files when `read_masks`, else left out (to check the values alone).
+pub fn selection(
+    sel: &crate::spec::SelectSpec,
+    label: &dyn Fn(&str) -> String,
+    read_masks: bool,
+) -> Result<tubes::select::Selection, String> {
+    use tubes::select::{AttributeRange, Mask, Roi, Selection};
+    let at = |k: &str, why: String| format!("{}: {why}", label(k));
+    let spheres = |k: &str, v: &[[f64; 4]]| -> Result<Vec<Roi>, String> {
+        v.iter()
+            .map(|s| Roi::sphere(*s).map_err(|e| at(k, e)))
+            .collect()
+    };
+    let boxes = |k: &str, v: &[[f64; 6]]| -> Result<Vec<Roi>, String> {
+        v.iter()
+            .map(|b| Roi::cuboid(*b).map_err(|e| at(k, e)))
+            .collect()
+    };
+    let masks = |k: &str, v: &[String]| -> Result<Vec<Roi>, String> {
+        if !read_masks {
+            return Ok(vec![]);
+        }
+        v.iter()
+            .map(|m| Mask::load(m).map(Roi::Mask).map_err(|e| at(k, e)))
+            .collect()
+    };
+    let mut include = spheres("include_spheres", &sel.include_spheres)?;
+    include.extend(boxes("include_boxes", &sel.include_boxes)?);
+    include.extend(masks("include_masks", &sel.include_masks)?);
+    let mut exclude = spheres("exclude_spheres", &sel.exclude_spheres)?;
+    exclude.extend(boxes("exclude_boxes", &sel.exclude_boxes)?);
+    exclude.extend(masks("exclude_masks", &sel.exclude_masks)?);
+    let attribute = match (&sel.attribute, sel.attribute_min, sel.attribute_max) {
+        (Some(name), min, max) => Some(AttributeRange {
+            name: name.clone(),
+            min: min.unwrap_or(f64::NEG_INFINITY),
+            max: max.unwrap_or(f64::INFINITY),
+        }),
+        (None, None, None) => None,
+        (None, _, _) => {
+            return Err(at(
+                "attribute",
+                "a minimum or maximum needs the attribute's name".into(),
+            ))
+        }
+    };
+    let out = Selection {
+        include,
+        exclude,
+        min_length: sel.min_length,
+        max_length: sel.max_length,
+        attribute,
+        subsample: sel.subsample.map(|n| (n, sel.seed)),
+    };
+    out.check().map_err(|e| format!("{}: {e}", label("")))?;
+    Ok(out)
+}
+
+/// `s` reduced to what the selection `sel` keeps (nothing done without one), and a note with
+/// the counts; `key` names the set (`tubes[0]`).
+pub fn apply_selection(
+    s: tubes::Streamlines,
+    sel: Option<&crate::spec::SelectSpec>,
+    key: &str,
+) -> Result<(tubes::Streamlines, Option<String>), String> {
+    let Some(sel) = sel else {
+        return Ok((s, None));
+    };
+    let selection = selection(sel, &|k| scene_key(&format!("{key}.select"), k), true)?;
+    let (out, sum) = selection
+        .apply(&s)
+        .map_err(|e| format!("{key}.select: {e}"))?;
+    let note = format!(
+        "{key}: select kept {} of {} streamlines",
+        sum.kept, sum.total
+    );
+    Ok((out, Some(note)))
+}
+
+/// `scene key tubes[0].select.include_spheres` (or `... tubes[0].select` for `k` empty).
+pub fn scene_key(key: &str, k: &str) -> String {
+    if k.is_empty() {
+        format!("scene key {key}")
+    } else {
+        format!("scene key {key}.{k}")
+    }
+}

@@ -11,6 +11,7 @@ pub mod lines;
 pub mod mesh_io;
 pub mod pathline;
 pub mod points;
+pub mod select;
 pub mod tck;
 pub mod trace;
 pub mod trk;

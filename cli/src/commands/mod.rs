@@ -12,6 +12,7 @@ pub mod scene;
 pub mod sweep;
 pub mod synth;
 pub mod trace;
+pub mod tracts;
 pub mod tubes;
 pub mod view;
 
