@@ -185,6 +185,8 @@ pub struct Model {
     /// One line set per `[[lines]]`.
     pub lines: Vec<LineSet>,
     pub bounds: [DVec3; 2],
+    /// The colouring `[annotate] colorbar` names, when it names one.
+    pub colorbar: Option<crate::annotate::ColorBar>,
     /// Twice the default slice distance (`EaView::span` halves it): see [`slice_distance`].
     pub spacing: f64,
     pub notes: Vec<String>,
@@ -331,6 +333,7 @@ fn mesh_set(i: usize, t: &spec::TubesSpec) -> Result<TubeMesh, String> {
 /// Loads the scene's volume and builds its tube meshes.
 pub fn model(s: &Scene) -> Result<Model, String> {
     let mut notes = vec![];
+    let mut colorbar = None;
     // The volume, loaded once: drawn by its transfer function, or in isosurface mode as its
     // isosurface.
     let (mut volume, mut iso, mut iso_bounds) = (None, None, None);
@@ -418,6 +421,19 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 ));
             }
             let tf = transfer(&vspec.transfer, [st.min, st.max])?;
+            if s.annotate.colorbar.as_deref() == Some("volume") {
+                let [lo, hi] = [st.min, st.max];
+                colorbar = Some(crate::annotate::ColorBar {
+                    label: field.name.clone(),
+                    range: [lo, hi],
+                    colors: (0..64)
+                        .map(|k| {
+                            let v = lo + (hi - lo) * (k as f64 + 0.5) / 64.0;
+                            tf.eval(v).0.map(|c| c as f32)
+                        })
+                        .collect(),
+                });
+            }
             let data = emission_absorption::prepare(&field.data);
             volume = Some((vol, data, tf));
         }
@@ -437,6 +453,10 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             crate::tube_sets::apply_selection(sl, t.select.as_ref(), &format!("tubes[{i}]"))?;
         notes.extend(note);
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
+        if s.annotate.colorbar.as_deref() == Some(&format!("tubes.{i}")) {
+            colorbar = crate::tube_sets::color_bar(&sl, &t.color)
+                .map_err(|e| format!("tubes[{i}].color: {e}"))?;
+        }
         let args = crate::tube_sets::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
         let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
             .map_err(|e| format!("tubes[{i}].color ({}): {e}", t.path.display()))?;
@@ -444,7 +464,10 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     }
     let mut lines = vec![];
     for (i, l) in s.lines.iter().enumerate() {
-        lines.push(line_set(i, l, &mut notes)?);
+        let bar = s.annotate.colorbar.as_deref() == Some(&format!("lines.{i}"));
+        let (set, b) = line_set(i, l, &mut notes, bar)?;
+        lines.push(set);
+        colorbar = colorbar.or(b);
     }
     for (i, p) in s.points.iter().enumerate() {
         lines.push(point_set(i, p, &mut notes)?);
@@ -487,12 +510,18 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         bounds,
         spacing,
         notes,
+        colorbar,
     })
 }
 
 /// The line set of `[[lines]]` number `i`: the tractogram read (its reader's warnings added to
 /// `notes`), transformed and coloured.
-fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<LineSet, String> {
+fn line_set(
+    i: usize,
+    l: &spec::LinesSpec,
+    notes: &mut Vec<String>,
+    want_bar: bool,
+) -> Result<(LineSet, Option<crate::annotate::ColorBar>), String> {
     let mut sl = tubes::load(&l.path).map_err(|e| format!("lines[{i}]: {e}"))?;
     if let Some(m) = l.transform {
         let key = format!("lines[{i}].transform");
@@ -501,6 +530,11 @@ fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<Li
     let (sl, note) =
         crate::tube_sets::apply_selection(sl, l.select.as_ref(), &format!("lines[{i}]"))?;
     notes.extend(note);
+    let bar = match want_bar {
+        true => crate::tube_sets::color_bar(&sl, &l.color)
+            .map_err(|e| format!("lines[{i}].color: {e}"))?,
+        false => None,
+    };
     let width = match l.width_unit {
         spec::WidthUnit::Pixels => LineWidth::Pixels(l.width),
         spec::WidthUnit::World => LineWidth::World(l.width),
@@ -557,7 +591,7 @@ fn line_set(i: usize, l: &spec::LinesSpec, notes: &mut Vec<String>) -> Result<Li
         start: t.start as f32,
         min_width: t.min_width as f32,
     });
-    Ok(set)
+    Ok((set, bar))
 }
 
 /// The point cloud of `[[points]]` number `i` as a line set of discs (`LineSet::points`).

@@ -6,6 +6,7 @@
 //! outputs) and the image writers ([`image_io`]). The command line, the viewer and
 //! the Python package all call these.
 
+pub mod annotate;
 pub mod batch;
 pub mod camera_path;
 pub mod compile;

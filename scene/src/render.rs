@@ -234,6 +234,38 @@ pub fn write_image(
     }
 }
 
+/// Draws the scene's `[annotate]` over a frame's image.
+pub fn annotate_frame(
+    s: &spec::Scene,
+    m: &crate::compile::Model,
+    out: &mut renderer::Output,
+    v: &EaView,
+) -> Result<(), String> {
+    if s.annotate.is_empty() {
+        return Ok(());
+    }
+    let camera = crate::compile::camera(s, m.bounds)?;
+    let ras = m
+        .volume
+        .as_ref()
+        .is_none_or(|(vol, _, _)| vol.space == volume::Space::Ras);
+    let bg = s.background.rgb()?.map(|c| c as f32);
+    let ctx = crate::annotate::Context {
+        camera: &camera,
+        ras,
+        background: bg,
+        colorbar: m.colorbar.as_ref(),
+    };
+    crate::annotate::draw(
+        &mut out.image,
+        v.width as usize,
+        v.height as usize,
+        &s.annotate,
+        &ctx,
+    )
+    .map(|_| ())
+}
+
 /// Runs `umbra render`: one frame, or a turntable or camera path (one upload, a frame per
 /// camera, each written as it is done; `progress` hears of each). A frame that fails is
 /// recorded in the report's `failed` and the others go on; what fails before the first frame
@@ -427,7 +459,8 @@ pub(crate) fn run_on(
         let drawn = up
             .draw_at(&sk, &m, opts, now)
             .map_err(|e| format!("{}: frame {k}: {e}", path.display()))
-            .and_then(|(out, v)| {
+            .and_then(|(mut out, v)| {
+                annotate_frame(&sk, &m, &mut out, &v)?;
                 write_image(&file, exr, a.aov, s.render.bits, &out, &v)?;
                 Ok((out, v))
             });

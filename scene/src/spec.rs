@@ -913,6 +913,46 @@ pub struct Scene {
     pub light: LightSpec,
     #[serde(default)]
     pub render: RenderSpec,
+    /// Text and marks drawn over the image (`crate::annotate`).
+    #[serde(default, skip_serializing_if = "AnnotateSpec::is_empty")]
+    pub annotate: AnnotateSpec,
+}
+
+/// `[annotate]`: a title, orientation labels, a scale bar and a colour bar over the image.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnnotateSpec {
+    /// Text at the top centre.
+    pub title: Option<String>,
+    /// L/R, A/P, S/I at the middle of each edge: the anatomical direction that points there.
+    #[serde(default)]
+    pub orientation: bool,
+    /// A scale bar at the bottom left: its length in world units, or `"auto"` (1, 2 or 5 times
+    /// a power of ten, about a fifth of the image width).
+    pub scale_bar: Option<ScaleBarSpec>,
+    /// Units written after the scale bar's length (default `mm` for RAS+ data, else `units`).
+    pub units: Option<String>,
+    /// A colour bar at the bottom right of the colouring of `volume` (its transfer
+    /// function), `tubes.N` or `lines.N` (their `scalar:NAME` or `volume:PATH` colours).
+    pub colorbar: Option<String>,
+    /// The colour bar's label (default: the attribute's or field's name).
+    pub colorbar_label: Option<String>,
+    /// Colour of text and marks (default black on light backgrounds, white on dark ones).
+    pub color: Option<Color>,
+}
+
+impl AnnotateSpec {
+    pub fn is_empty(&self) -> bool {
+        *self == AnnotateSpec::default()
+    }
+}
+
+/// `annotate.scale_bar`: a length or `"auto"`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ScaleBarSpec {
+    Length(f64),
+    Word(String),
 }
 
 impl Scene {
@@ -928,6 +968,7 @@ impl Scene {
             clip,
             light,
             render,
+            annotate: _,
         } = self;
         ReferenceKey {
             camera,
@@ -1123,6 +1164,61 @@ fn check_select(sel: &mut SelectSpec, dir: &Path, key: &str) -> Result<(), Strin
     crate::tube_sets::selection(sel, &|k| crate::tube_sets::scene_key(key, k), false).map(|_| ())
 }
 
+/// Checks `[annotate]`: a positive finite or `"auto"` scale bar, a colour bar source that names
+/// an entry with scalar colouring, a colour, text of reasonable length.
+fn check_annotate(s: &Scene) -> Result<(), String> {
+    let a = &s.annotate;
+    let bad = |key: &str, why: String| Err(format!("scene key annotate.{key}: {why}"));
+    match &a.scale_bar {
+        Some(ScaleBarSpec::Length(l)) if !(l.is_finite() && *l > 0.0) => {
+            return bad("scale_bar", format!("{l} is not a positive length"))
+        }
+        Some(ScaleBarSpec::Word(w)) if w != "auto" => {
+            return bad("scale_bar", format!("'{w}': give a length or \"auto\""))
+        }
+        _ => {}
+    }
+    for (k, t) in [
+        ("title", &a.title),
+        ("units", &a.units),
+        ("colorbar_label", &a.colorbar_label),
+    ] {
+        if let Some(t) = t {
+            if t.chars().count() > 200 || t.chars().any(char::is_control) {
+                return bad(k, "at most 200 characters, no control characters".into());
+            }
+        }
+    }
+    if let Some(c) = &a.color {
+        c.rgb()
+            .map_err(|e| format!("scene key annotate.color: {e}"))?;
+    }
+    if let Some(src) = &a.colorbar {
+        let scalar = |c: &str| c.starts_with("scalar:") || c.starts_with("volume:");
+        let ok = match src.split_once('.') {
+            None if src == "volume" => s.volume.is_some(),
+            Some(("tubes", n)) => n
+                .parse::<usize>()
+                .ok()
+                .and_then(|i| s.tubes.get(i))
+                .is_some_and(|t| scalar(&t.color)),
+            Some(("lines", n)) => n
+                .parse::<usize>()
+                .ok()
+                .and_then(|i| s.lines.get(i))
+                .is_some_and(|l| scalar(&l.color)),
+            _ => false,
+        };
+        if !ok {
+            return bad(
+                "colorbar",
+                format!("'{src}': give volume (a scene with a volume), or tubes.N / lines.N of an entry coloured by scalar:NAME or volume:PATH"),
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Checks a halo's ranges; `key` names it (`lines[0].halo`).
 fn check_halo(h: &HaloSpec, key: &str) -> Result<(), String> {
     let bad = |k: &str, why: String| Err(format!("scene key {key}.{k}: {why}"));
@@ -1141,6 +1237,7 @@ fn check_halo(h: &HaloSpec, key: &str) -> Result<(), String> {
 /// Checks ranges and resolves relative paths.
 fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
     let bad = |key: &str, why: String| Err(format!("scene key {key}: {why}"));
+    check_annotate(s)?;
     let c = &s.camera;
     if !(c.fov_y > 0.0 && c.fov_y < 180.0) {
         return bad(

@@ -363,3 +363,53 @@ pub fn scene_key(key: &str, k: &str) -> String {
         format!("scene key {key}.{k}")
     }
 }
+
+/// The colour bar of a set coloured by `color`: `scalar:NAME` (the attribute's finite range, as
+/// the tubes and lines map it) or `volume:PATH` (the field's range), the tubes' colour map over
+/// it; `None` for other colourings.
+pub fn color_bar(
+    s: &tubes::Streamlines,
+    color: &str,
+) -> Result<Option<crate::annotate::ColorBar>, String> {
+    let label = color
+        .strip_prefix("scalar:")
+        .map(str::to_string)
+        .or_else(|| {
+            color.strip_prefix("volume:").map(|p| {
+                let n = std::path::Path::new(p)
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                n.split('.').next().unwrap_or("").to_string()
+            })
+        });
+    let Some(label) = label else {
+        return Ok(None);
+    };
+    let range = with_color_mode(s, color, |mode| match mode {
+        ColorMode::Scalar(name) => s
+            .point_attributes
+            .iter()
+            .find(|a| &a.name == name)
+            .map(|a| {
+                a.values
+                    .iter()
+                    .step_by(a.components)
+                    .filter(|v| v.is_finite())
+                    .fold([f64::INFINITY, f64::NEG_INFINITY], |[l, h], &x| {
+                        [l.min(x as f64), h.max(x as f64)]
+                    })
+            }),
+        ColorMode::Field(_, r) => Some(*r),
+        _ => None,
+    })?;
+    Ok(range
+        .filter(|r| r[0] <= r[1])
+        .map(|range| crate::annotate::ColorBar {
+            label,
+            range,
+            colors: (0..64)
+                .map(|k| tubes::tube_mesh::colormap((k as f64 + 0.5) / 64.0))
+                .collect(),
+        }))
+}

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+const FONT: &[u8] = scene::annotate::FONT;
 
 /// A log-log scatter chart: named point series and an optional line (e.g. a Pareto front).
 pub struct Plot {

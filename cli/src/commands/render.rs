@@ -59,6 +59,18 @@ pub struct Args {
     /// Override a scene key by its dotted path (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// A title at the top (annotate.title).
+    #[arg(long, value_name = "TEXT")]
+    title: Option<String>,
+    /// Orientation labels (L/R, A/P, S/I) at the image's edges (annotate.orientation).
+    #[arg(long)]
+    orientation: bool,
+    /// A scale bar of this length in world units, or auto (annotate.scale_bar).
+    #[arg(long, value_name = "LENGTH|auto")]
+    scale_bar: Option<String>,
+    /// A colour bar of the colouring of volume, tubes.N or lines.N (annotate.colorbar).
+    #[arg(long, value_name = "SOURCE")]
+    colorbar: Option<String>,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -218,7 +230,7 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
     let base = RenderArgs {
         scene: a.scene.clone().unwrap_or_default(),
         output: a.output.clone(),
-        overrides: size_method_overrides(a.width, a.height, a.method, a.set.clone()),
+        overrides: size_method_overrides(a.width, a.height, a.method, annotate_overrides(a)),
         frames: a.frames,
         aov: a.aov,
         pass_timings: a.timings_json.is_some() || a.frames > 1,
@@ -350,6 +362,31 @@ fn timings(r: &RenderReport) -> serde_json::Value {
             "slices": f.slices,
         })).collect::<Vec<_>>(),
     })
+}
+
+/// `--title`, `--orientation`, `--scale-bar`, `--colorbar` as scene overrides, then the `--set`
+/// ones (which may change them).
+fn annotate_overrides(a: &Args) -> Vec<String> {
+    // A JSON string is a TOML basic string.
+    let quoted = |t: &str| serde_json::to_string(t).expect("a string serialises");
+    let mut o = vec![];
+    if let Some(t) = &a.title {
+        o.push(format!("annotate.title={}", quoted(t)));
+    }
+    if a.orientation {
+        o.push("annotate.orientation=true".into());
+    }
+    if let Some(b) = &a.scale_bar {
+        match b.trim().parse::<f64>() {
+            Ok(v) => o.push(format!("annotate.scale_bar={v:?}")),
+            Err(_) => o.push(format!("annotate.scale_bar={}", quoted(b.trim()))),
+        }
+    }
+    if let Some(c) = &a.colorbar {
+        o.push(format!("annotate.colorbar={}", quoted(c)));
+    }
+    o.extend(a.set.iter().cloned());
+    o
 }
 
 /// `--width`, `--height`, `--method` as scene overrides, before the `--set` ones.

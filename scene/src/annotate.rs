@@ -1,0 +1,577 @@
+//! Annotations over a rendered image (`[annotate]`): a title, orientation labels, a scale bar
+//! and a colour bar, drawn on the CPU into the frame's linear RGBA pixels before it is written,
+//! with the bundled DejaVu Sans ([`FONT`]). Sizes follow the image: the text height is
+//! `clamp(min(width, height) / 28, 9, 96)` pixels and every margin is 0.6 of it, so a figure at
+//! 4x the size has the same layout at 4x the scale.
+//!
+//! - Orientation labels: for each edge, the world axis direction (+x R, -x L, +y A, -y P, +z S,
+//!   -z I in RAS+; `+X` ... `-Z` for data in the file's own frame) whose projection points most
+//!   towards it, measured by projecting the camera's target and the target moved along each
+//!   axis.
+//! - Scale bar: at the bottom left, `length x (pixels per world unit at the camera's target)`
+//!   pixels long, with its length and units above it.
+//! - Colour bar: at the bottom right, a horizontal ramp of the colouring (the range's low end at
+//!   the left), its range below and its label above.
+
+use crate::spec::{AnnotateSpec, ScaleBarSpec};
+use ab_glyph::{Font, FontRef, PxScale, ScaleFont};
+use glam::DVec3;
+use occlusion::camera::Camera;
+
+/// DejaVu Sans (Bitstream Vera license, `scene/assets/`).
+pub const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+
+/// A colouring to draw as a colour bar: its range and its colours sampled evenly over it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColorBar {
+    pub label: String,
+    pub range: [f64; 2],
+    /// Linear RGB from the range's low end to its high end.
+    pub colors: Vec<[f32; 3]>,
+}
+
+/// What the annotations need beyond their keys.
+pub struct Context<'a> {
+    pub camera: &'a Camera,
+    /// Whether world coordinates are RAS+ (anatomical labels and `mm`).
+    pub ras: bool,
+    pub background: [f32; 3],
+    pub colorbar: Option<&'a ColorBar>,
+}
+
+/// A pixel rectangle `[x0, y0, x1, y1)`.
+pub type Rect = [f32; 4];
+
+/// Where each annotation was drawn (what the layout tests check).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Placed {
+    pub text_px: f32,
+    pub title: Option<Rect>,
+    /// Right, left, top, bottom edge labels with their boxes.
+    pub labels: Vec<(String, Rect)>,
+    /// The bar, its length in pixels and in world units.
+    pub scale_bar: Option<(Rect, f64, f64)>,
+    pub colorbar: Option<Rect>,
+}
+
+/// The text height of an image of `w` x `h` pixels.
+pub fn text_px(w: usize, h: usize) -> f32 {
+    (w.min(h) as f32 / 28.0).clamp(9.0, 96.0)
+}
+
+/// 1, 2 or 5 times a power of ten, the largest not above `x` (`x` > 0).
+pub fn nice_length(x: f64) -> f64 {
+    let p = 10f64.powf(x.log10().floor());
+    [5.0, 2.0, 1.0]
+        .into_iter()
+        .map(|m| m * p)
+        .find(|&v| v <= x * (1.0 + 1e-9))
+        .unwrap_or(p)
+}
+
+/// A number in at most 4 significant digits, without trailing zeros.
+pub fn format_number(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let digits = (3 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    let s = format!("{v:.digits$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" {
+        "0".into()
+    } else {
+        s
+    }
+}
+
+/// The label of a world direction.
+fn axis_label(axis: usize, positive: bool, ras: bool) -> String {
+    if ras {
+        ["LR", "PA", "IS"][axis][positive as usize..=positive as usize].to_string()
+    } else {
+        format!(
+            "{}{}",
+            if positive { '+' } else { '-' },
+            ['X', 'Y', 'Z'][axis]
+        )
+    }
+}
+
+/// The labels of the right, left, top and bottom edges for `camera` on a `w` x `h` image.
+pub fn orientation_labels(camera: &Camera, w: usize, h: usize, ras: bool) -> [String; 4] {
+    let t = camera.target;
+    let step = (camera.eye - t).length().max(1e-9) * 0.01;
+    let p0 = camera.to_pixel(t, w, h);
+    // Screen direction (pixels, y down) of each of the six world directions.
+    let dirs: Vec<(String, f64, f64)> = (0..6)
+        .filter_map(|k| {
+            let (axis, positive) = (k / 2, k % 2 == 1);
+            let mut d = DVec3::ZERO;
+            d[axis] = if positive { step } else { -step };
+            let (p0, p1) = (p0?, camera.to_pixel(t + d, w, h)?);
+            let (dx, dy) = (p1.0 - p0.0, p1.1 - p0.1);
+            let n = (dx * dx + dy * dy).sqrt().max(1e-12);
+            Some((axis_label(axis, positive, ras), dx / n, dy / n))
+        })
+        .collect();
+    let best = |score: &dyn Fn(f64, f64) -> f64| {
+        dirs.iter()
+            .max_by(|a, b| score(a.1, a.2).total_cmp(&score(b.1, b.2)))
+            .map(|d| d.0.clone())
+            .unwrap_or_default()
+    };
+    [
+        best(&|x, _| x),
+        best(&|x, _| -x),
+        best(&|_, y| -y),
+        best(&|_, y| y),
+    ]
+}
+
+/// Pixels per world unit at the camera's target, along the screen's horizontal.
+pub fn pixels_per_unit(camera: &Camera, w: usize, h: usize) -> Option<f64> {
+    let right = camera.forward().cross(camera.up).normalize_or_zero();
+    let t = camera.target;
+    let step = (camera.eye - t).length().max(1e-9) * 0.01;
+    let (a, b) = (
+        camera.to_pixel(t, w, h)?,
+        camera.to_pixel(t + right * step, w, h)?,
+    );
+    let d = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt() / step;
+    (d.is_finite() && d > 0.0).then_some(d)
+}
+
+struct Canvas<'a> {
+    img: &'a mut [[f32; 4]],
+    w: usize,
+    h: usize,
+}
+
+impl Canvas<'_> {
+    fn blend(&mut self, x: i64, y: i64, c: [f32; 3], a: f32) {
+        if x < 0 || y < 0 || x >= self.w as i64 || y >= self.h as i64 || a <= 0.0 {
+            return;
+        }
+        let p = &mut self.img[y as usize * self.w + x as usize];
+        let a = a.min(1.0);
+        for k in 0..3 {
+            p[k] = p[k] * (1.0 - a) + c[k] * a;
+        }
+        p[3] = p[3] * (1.0 - a) + a;
+    }
+
+    fn fill(&mut self, r: Rect, c: [f32; 3]) {
+        for y in r[1].round() as i64..r[3].round() as i64 {
+            for x in r[0].round() as i64..r[2].round() as i64 {
+                self.blend(x, y, c, 1.0);
+            }
+        }
+    }
+}
+
+/// Width and height of `text` at `px` pixels.
+fn extent(font: &FontRef, px: f32, text: &str) -> (f32, f32) {
+    let f = font.as_scaled(PxScale::from(px));
+    let mut x = 0.0;
+    let mut prev = None;
+    for ch in text.chars() {
+        let g = f.glyph_id(ch);
+        if let Some(p) = prev {
+            x += f.kern(p, g);
+        }
+        x += f.h_advance(g);
+        prev = Some(g);
+    }
+    (x, f.ascent() - f.descent())
+}
+
+/// Draws `text` with its box's top left at (`x`, `y`) in `fg`, over a one-pixel halo of `halo`
+/// so that it reads over any image; returns its box.
+/// The font and the colours text is drawn in.
+struct Pen<'a> {
+    font: FontRef<'a>,
+    fg: [f32; 3],
+    halo: [f32; 3],
+}
+
+fn text(cv: &mut Canvas, pen: &Pen, px: f32, s: &str, x: f32, y: f32) -> Rect {
+    let (font, fg, halo) = (&pen.font, pen.fg, pen.halo);
+    let (tw, th) = extent(font, px, s);
+    let (bw, bh) = (tw.ceil() as usize + 4, th.ceil() as usize + 4);
+    let mut mask = vec![0f32; bw * bh];
+    let f = font.as_scaled(PxScale::from(px));
+    let mut pen = 2.0f32;
+    let mut prev = None;
+    for ch in s.chars() {
+        let id = f.glyph_id(ch);
+        if let Some(p) = prev {
+            pen += f.kern(p, id);
+        }
+        let g =
+            id.with_scale_and_position(PxScale::from(px), ab_glyph::point(pen, 2.0 + f.ascent()));
+        if let Some(o) = font.outline_glyph(g) {
+            let b = o.px_bounds();
+            o.draw(|gx, gy, c| {
+                let (mx, my) = (b.min.x as i64 + gx as i64, b.min.y as i64 + gy as i64);
+                if mx >= 0 && my >= 0 && (mx as usize) < bw && (my as usize) < bh {
+                    let m = &mut mask[my as usize * bw + mx as usize];
+                    *m = m.max(c);
+                }
+            });
+        }
+        pen += f.h_advance(id);
+        prev = Some(id);
+    }
+    let (ox, oy) = (x.round() as i64 - 2, y.round() as i64 - 2);
+    let at = |mx: i64, my: i64| -> f32 {
+        if mx < 0 || my < 0 || mx >= bw as i64 || my >= bh as i64 {
+            0.0
+        } else {
+            mask[my as usize * bw + mx as usize]
+        }
+    };
+    for my in -1..=bh as i64 {
+        for mx in -1..=bw as i64 {
+            let mut d = 0f32;
+            for (dx, dy) in [
+                (-1, 0),
+                (1, 0),
+                (0, -1),
+                (0, 1),
+                (-1, -1),
+                (1, 1),
+                (-1, 1),
+                (1, -1),
+            ] {
+                d = d.max(at(mx + dx, my + dy));
+            }
+            cv.blend(ox + mx, oy + my, halo, d * 0.85);
+        }
+    }
+    for my in 0..bh as i64 {
+        for mx in 0..bw as i64 {
+            cv.blend(ox + mx, oy + my, fg, at(mx, my));
+        }
+    }
+    [x, y, x + tw, y + th]
+}
+
+/// The colour of text and marks: the spec's, else black over light backgrounds and white over
+/// dark ones; and the halo's, the other of the two.
+fn colors(spec: &AnnotateSpec, background: [f32; 3]) -> Result<([f32; 3], [f32; 3]), String> {
+    let lum = 0.2126 * background[0] + 0.7152 * background[1] + 0.0722 * background[2];
+    let auto = if lum > 0.25 { [0.0; 3] } else { [1.0; 3] };
+    let fg = match &spec.color {
+        Some(c) => c
+            .rgb()
+            .map_err(|e| format!("scene key annotate.color: {e}"))?
+            .map(|v| v as f32),
+        None => auto,
+    };
+    let flum = 0.2126 * fg[0] + 0.7152 * fg[1] + 0.0722 * fg[2];
+    let halo = if flum > 0.25 { [0.0; 3] } else { [1.0; 3] };
+    Ok((fg, halo))
+}
+
+/// Draws the annotations of `spec` into `img` (`w` x `h` linear RGBA, rows top to bottom);
+/// returns where they went.
+pub fn draw(
+    img: &mut [[f32; 4]],
+    w: usize,
+    h: usize,
+    spec: &AnnotateSpec,
+    ctx: &Context,
+) -> Result<Placed, String> {
+    let mut placed = Placed::default();
+    if spec.is_empty() || w == 0 || h == 0 {
+        return Ok(placed);
+    }
+    let font = FontRef::try_from_slice(FONT).map_err(|e| format!("the bundled font: {e}"))?;
+    let (fg, halo) = colors(spec, ctx.background)?;
+    let pen = Pen {
+        font: font.clone(),
+        fg,
+        halo,
+    };
+    let px = text_px(w, h);
+    let margin = 0.6 * px;
+    placed.text_px = px;
+    let mut cv = Canvas { img, w, h };
+    let (wf, hf) = (w as f32, h as f32);
+    if let Some(t) = spec.title.as_deref().filter(|t| !t.is_empty()) {
+        let tp = px * 1.4;
+        let (tw, _) = extent(&font, tp, t);
+        placed.title = Some(text(&mut cv, &pen, tp, t, (wf - tw) * 0.5, margin));
+    }
+    if spec.orientation {
+        let [r, l, t, b] = orientation_labels(ctx.camera, w, h, ctx.ras);
+        let e = |s: &str| extent(&font, px, s);
+        let spots = [
+            (r.clone(), wf - margin - e(&r).0, (hf - e(&r).1) * 0.5),
+            (l.clone(), margin, (hf - e(&l).1) * 0.5),
+            (
+                t.clone(),
+                (wf - e(&t).0) * 0.5,
+                margin + placed.title.map_or(0.0, |r| r[3]),
+            ),
+            (b.clone(), (wf - e(&b).0) * 0.5, hf - margin - e(&b).1),
+        ];
+        for (s, x, y) in spots {
+            let r = text(&mut cv, &pen, px, &s, x, y);
+            placed.labels.push((s, r));
+        }
+    }
+    if let Some(sb) = &spec.scale_bar {
+        let ppu = pixels_per_unit(ctx.camera, w, h)
+            .ok_or("annotate.scale_bar: the camera's target is not on screen")?;
+        let world = match sb {
+            ScaleBarSpec::Length(l) => *l,
+            ScaleBarSpec::Word(_) => nice_length(wf as f64 * 0.2 / ppu),
+        };
+        let len = world * ppu;
+        let units =
+            spec.units
+                .clone()
+                .unwrap_or_else(|| if ctx.ras { "mm".into() } else { "units".into() });
+        let thick = (px * 0.3).max(2.0);
+        let (x0, y1) = (margin, hf - margin);
+        let bar = [x0, y1 - thick, x0 + len as f32, y1];
+        let label = format!("{} {units}", format_number(world));
+        let (lw, lh) = extent(&font, px, &label);
+        // The halo first, then the bar, so the bar reads over any image.
+        cv.fill(
+            [bar[0] - 1.0, bar[1] - 1.0, bar[2] + 1.0, bar[3] + 1.0],
+            halo,
+        );
+        cv.fill(bar, fg);
+        text(
+            &mut cv,
+            &pen,
+            px,
+            &label,
+            x0 + (len as f32 - lw).max(0.0) * 0.5,
+            bar[1] - lh - 0.2 * px,
+        );
+        placed.scale_bar = Some((bar, len, world));
+    }
+    if let Some(src) = &spec.colorbar {
+        let cb = ctx
+            .colorbar
+            .ok_or_else(|| format!("annotate.colorbar: '{src}' has no colouring to show"))?;
+        let bw = (wf * 0.3).round();
+        let bh = (px * 0.8).round().max(4.0);
+        let x1 = wf - margin;
+        let x0 = x1 - bw;
+        let y1 = hf - margin - px * 1.25;
+        let y0 = y1 - bh;
+        cv.fill([x0 - 2.0, y0 - 2.0, x1 + 2.0, y1 + 2.0], halo);
+        cv.fill([x0 - 1.0, y0 - 1.0, x1 + 1.0, y1 + 1.0], fg);
+        let n = cb.colors.len().max(1);
+        for x in x0 as i64..x1 as i64 {
+            let t = (x as f32 - x0 + 0.5) / bw;
+            let c = cb.colors[((t * n as f32) as usize).min(n - 1)];
+            for y in y0 as i64..y1 as i64 {
+                cv.blend(x, y, c, 1.0);
+            }
+        }
+        let (lo, hi) = (format_number(cb.range[0]), format_number(cb.range[1]));
+        text(&mut cv, &pen, px, &lo, x0, y1 + 0.2 * px);
+        let (hw, _) = extent(&font, px, &hi);
+        text(&mut cv, &pen, px, &hi, x1 - hw, y1 + 0.2 * px);
+        let label = spec
+            .colorbar_label
+            .clone()
+            .unwrap_or_else(|| cb.label.clone());
+        if !label.is_empty() {
+            let (lw, lh) = extent(&font, px, &label);
+            text(
+                &mut cv,
+                &pen,
+                px,
+                &label,
+                x0 + (bw - lw) * 0.5,
+                y0 - lh - 0.2 * px,
+            );
+        }
+        placed.colorbar = Some([x0, y0, x1, y1]);
+    }
+    Ok(placed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use occlusion::camera::Projection;
+
+    fn cam(eye: DVec3, up: DVec3) -> Camera {
+        Camera::look_at(
+            eye,
+            DVec3::ZERO,
+            up,
+            Projection::Perspective { fov_y_deg: 30.0 },
+            [DVec3::splat(-50.0), DVec3::splat(50.0)],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn orientation_labels_name_the_direction_each_edge_faces() {
+        // Seen from the front (eye anterior, +y), head up: the subject's right (+x) is on the
+        // viewer's left, as when facing a person.
+        let front = cam(DVec3::new(0.0, 400.0, 0.0), DVec3::Z);
+        assert_eq!(
+            orientation_labels(&front, 200, 100, true),
+            ["L", "R", "S", "I"].map(String::from)
+        );
+        // From above (eye superior), anterior up on screen.
+        let top = cam(DVec3::new(0.0, 0.0, 400.0), DVec3::Y);
+        assert_eq!(
+            orientation_labels(&top, 100, 100, true),
+            ["R", "L", "A", "P"].map(String::from)
+        );
+        // From the right side (eye at +x).
+        let side = cam(DVec3::new(400.0, 0.0, 0.0), DVec3::Z);
+        assert_eq!(
+            orientation_labels(&side, 100, 100, true),
+            ["A", "P", "S", "I"].map(String::from)
+        );
+        assert_eq!(
+            orientation_labels(&side, 100, 100, false),
+            ["+Y", "-Y", "+Z", "-Z"].map(String::from)
+        );
+    }
+
+    #[test]
+    fn nice_lengths_and_numbers() {
+        assert_eq!(nice_length(37.0), 20.0);
+        assert_eq!(nice_length(9.99), 5.0);
+        assert_eq!(nice_length(10.0), 10.0);
+        assert_eq!(nice_length(0.0031), 0.002);
+        assert_eq!(format_number(10.0), "10");
+        assert_eq!(format_number(0.25), "0.25");
+        assert_eq!(format_number(1234.5678), "1235");
+        assert_eq!(format_number(-0.00012346), "-0.0001235");
+    }
+
+    fn blank(w: usize, h: usize) -> Vec<[f32; 4]> {
+        vec![[1.0, 1.0, 1.0, 1.0]; w * h]
+    }
+
+    /// Pixels that differ from white inside `r` (grown by 2) and outside every box.
+    fn ink(img: &[[f32; 4]], w: usize, boxes: &[Rect]) -> (usize, usize) {
+        let (mut inside, mut outside) = (0, 0);
+        for (i, p) in img.iter().enumerate() {
+            if p[0] < 0.99 || p[1] < 0.99 || p[2] < 0.99 {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                if boxes.iter().any(|b| {
+                    x >= b[0] - 3.0 && x <= b[2] + 3.0 && y >= b[1] - 3.0 && y <= b[3] + 3.0
+                }) {
+                    inside += 1;
+                } else {
+                    outside += 1;
+                }
+            }
+        }
+        (inside, outside)
+    }
+
+    #[test]
+    fn the_layout_scales_with_the_image_and_the_scale_bar_measures_the_world() {
+        let camera = Camera::look_at(
+            DVec3::new(0.0, 0.0, 400.0),
+            DVec3::ZERO,
+            DVec3::Y,
+            Projection::Orthographic { height: 100.0 },
+            [DVec3::splat(-50.0), DVec3::splat(50.0)],
+        )
+        .unwrap();
+        let bar = ColorBar {
+            label: "speed".into(),
+            range: [0.0, 2.5],
+            colors: (0..64)
+                .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))
+                .collect(),
+        };
+        let spec = AnnotateSpec {
+            title: Some("Flow".into()),
+            orientation: true,
+            scale_bar: Some(ScaleBarSpec::Length(20.0)),
+            colorbar: Some("lines.0".into()),
+            ..Default::default()
+        };
+        let mut prev: Option<(usize, Placed)> = None;
+        for (w, h) in [(400usize, 300usize), (800, 600), (1600, 1200)] {
+            let mut img = blank(w, h);
+            let ctx = Context {
+                camera: &camera,
+                ras: true,
+                background: [1.0; 3],
+                colorbar: Some(&bar),
+            };
+            let p = draw(&mut img, w, h, &spec, &ctx).unwrap();
+            // Orthographic, 100 world units over h pixels: 20 units are h / 5 pixels.
+            let (rect, len, world) = p.scale_bar.unwrap();
+            assert_eq!(world, 20.0);
+            assert!((len - h as f64 / 5.0).abs() < 1e-6, "{len}");
+            let drawn: Vec<usize> = (rect[0] as usize..rect[2] as usize)
+                .filter(|&x| img[(rect[1] as usize + 1) * w + x][0] < 0.01)
+                .collect();
+            assert!(
+                (drawn.len() as f64 - len).abs() <= 1.0,
+                "{} drawn of {len}",
+                drawn.len()
+            );
+            // Everything lies inside the image, nothing overlaps, and ink is only where
+            // something was placed.
+            let mut boxes: Vec<Rect> = p.labels.iter().map(|l| l.1).collect();
+            boxes.extend(p.title);
+            boxes.push(rect);
+            boxes.push(p.colorbar.unwrap());
+            for b in &boxes {
+                assert!(
+                    b[0] >= 0.0 && b[1] >= 0.0 && b[2] <= w as f32 && b[3] <= h as f32,
+                    "{b:?} in {w}x{h}"
+                );
+            }
+            for (i, a) in boxes.iter().enumerate() {
+                for b in &boxes[i + 1..] {
+                    let apart = a[2] <= b[0] || b[2] <= a[0] || a[3] <= b[1] || b[3] <= a[1];
+                    assert!(apart, "{a:?} overlaps {b:?} at {w}x{h}");
+                }
+            }
+            // The colour bar's ends are the colouring's ends.
+            let cb = p.colorbar.unwrap();
+            let yc = ((cb[1] + cb[3]) * 0.5) as usize;
+            let left = img[yc * w + cb[0] as usize];
+            let right = img[yc * w + cb[2] as usize - 1];
+            for k in 0..3 {
+                assert!((left[k] - bar.colors[0][k]).abs() < 1e-6);
+                assert!((right[k] - bar.colors[63][k]).abs() < 1e-6);
+            }
+            // Labels above and below the bar and the ticks are in the grown boxes except the
+            // text around the bars: the only ink outside is that text, bounded.
+            let (inside, outside) = ink(&img, w, &boxes);
+            assert!(inside > 0);
+            assert!(
+                (outside as f64) < 0.02 * (w * h) as f64,
+                "{outside} stray pixels"
+            );
+            // Doubling the image doubles the layout.
+            if let Some((pw, pp)) = &prev {
+                let s = (w / pw) as f32;
+                assert!((p.text_px / pp.text_px - s).abs() < 0.01);
+                let (a, b) = (p.title.unwrap(), pp.title.unwrap());
+                assert!(
+                    ((a[2] - a[0]) / (b[2] - b[0]) - s).abs() < 0.15,
+                    "title width"
+                );
+                assert!((a[1] / b[1] - s).abs() < 0.01, "title margin");
+            }
+            prev = Some((w, p));
+        }
+    }
+}
