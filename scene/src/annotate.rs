@@ -5,9 +5,9 @@
 //! 4x the size has the same layout at 4x the scale.
 //!
 //! - Orientation labels: for each edge, the world axis direction (+x R, -x L, +y A, -y P, +z S,
-//!   -z I in RAS+; `+X` ... `-Z` for data in the file's own frame) whose projection points most
-//!   towards it, measured by projecting the camera's target and the target moved along each
-//!   axis.
+//!   -z I in RAS+; `+X` ... `-Z` for data in the file's own frame) whose projection reaches
+//!   furthest towards it (a unit step from the camera's target, projected; so of two axes that
+//!   both point up the screen the less foreshortened one wins).
 //! - Scale bar: at the bottom left, `length x (pixels per world unit at the camera's target)`
 //!   pixels long, with its length and units above it.
 //! - Colour bar: at the bottom right, a horizontal ramp of the colouring (the range's low end at
@@ -113,9 +113,9 @@ pub fn orientation_labels(camera: &Camera, w: usize, h: usize, ras: bool) -> [St
             let mut d = DVec3::ZERO;
             d[axis] = if positive { step } else { -step };
             let (p0, p1) = (p0?, camera.to_pixel(t + d, w, h)?);
-            let (dx, dy) = (p1.0 - p0.0, p1.1 - p0.1);
-            let n = (dx * dx + dy * dy).sqrt().max(1e-12);
-            Some((axis_label(axis, positive, ras), dx / n, dy / n))
+            // Not normalised: of two axes that both point up the screen, the one less
+            // foreshortened names the edge.
+            Some((axis_label(axis, positive, ras), p1.0 - p0.0, p1.1 - p0.1))
         })
         .collect();
     let best = |score: &dyn Fn(f64, f64) -> f64| {
@@ -420,6 +420,14 @@ mod tests {
 
     #[test]
     fn orientation_labels_name_the_direction_each_edge_faces() {
+        // Looking down at 50 degrees from the front: anterior is further up the screen than
+        // superior.
+        let e = 50f64.to_radians();
+        let oblique = cam(DVec3::new(0.0, 400.0 * e.cos(), 400.0 * e.sin()), DVec3::Z);
+        assert_eq!(
+            orientation_labels(&oblique, 200, 100, true)[2..],
+            ["P", "A"].map(String::from)
+        );
         // Seen from the front (eye anterior, +y), head up: the subject's right (+x) is on the
         // viewer's left, as when facing a person.
         let front = cam(DVec3::new(0.0, 400.0, 0.0), DVec3::Z);

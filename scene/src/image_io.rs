@@ -199,3 +199,70 @@ impl RefImageExr for RefImage {
         })
     }
 }
+
+/// The median over the pixels in `mask` of the standard deviation of `values` in the
+/// `(2 half + 1)^2` window around each, over the window's pixels that are in `mask` too (so
+/// edges against what the mask leaves out do not count); NaN when the mask is empty. With
+/// `values` the 8-bit luminance of an image, the local contrast figure of `docs/gallery.md`.
+pub fn median_local_spread(values: &[f32], mask: &[bool], w: usize, h: usize, half: usize) -> f64 {
+    let mut spreads: Vec<f64> = (0..w * h)
+        .filter(|&i| mask[i])
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (mut n, mut s, mut s2) = (0.0f64, 0.0f64, 0.0f64);
+            for yy in y.saturating_sub(half)..(y + half + 1).min(h) {
+                for xx in x.saturating_sub(half)..(x + half + 1).min(w) {
+                    let j = yy * w + xx;
+                    if mask[j] {
+                        let v = values[j] as f64;
+                        n += 1.0;
+                        s += v;
+                        s2 += v * v;
+                    }
+                }
+            }
+            let m = s / n;
+            (s2 / n - m * m).max(0.0).sqrt()
+        })
+        .collect();
+    if spreads.is_empty() {
+        return f64::NAN;
+    }
+    let k = spreads.len() / 2;
+    spreads.select_nth_unstable_by(k, f64::total_cmp);
+    spreads[k]
+}
+
+/// The 8-bit luminance (Rec. 709 weights of the sRGB-encoded channels) of linear RGBA pixels.
+pub fn luminance8(image: &[[f32; 4]]) -> Vec<f32> {
+    image
+        .iter()
+        .map(|c| {
+            0.2126 * srgb8(c[0]) as f32 + 0.7152 * srgb8(c[1]) as f32 + 0.0722 * srgb8(c[2]) as f32
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod spread_tests {
+    use super::*;
+
+    #[test]
+    fn the_local_spread_of_a_checkerboard_and_of_a_flat_image() {
+        let (w, h) = (40, 30);
+        let flat = vec![100.0f32; w * h];
+        let all = vec![true; w * h];
+        assert_eq!(median_local_spread(&flat, &all, w, h, 4), 0.0);
+        // Alternating 0 / 20 columns: a spread of 10 wherever the window is even-sized in x
+        // ... about 10 everywhere.
+        let cols: Vec<f32> = (0..w * h)
+            .map(|i| if i % 2 == 0 { 0.0 } else { 20.0 })
+            .collect();
+        let m = median_local_spread(&cols, &all, w, h, 4);
+        assert!((m - 10.0).abs() < 0.2, "{m}");
+        // Masked-out pixels do not count: only the 20s left, no spread.
+        let odd: Vec<bool> = (0..w * h).map(|i| i % 2 == 1).collect();
+        assert_eq!(median_local_spread(&cols, &odd, w, h, 4), 0.0);
+        assert!(median_local_spread(&cols, &vec![false; w * h], w, h, 4).is_nan());
+    }
+}

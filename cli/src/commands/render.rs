@@ -321,7 +321,7 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
         _ if r.done.len() == 1 => eprintln!("wrote {}", a.output.display()),
         _ => {}
     }
-    if !r.skipped.is_empty() || r.done.len() < r.frames_owned || from != ShardFrom::None {
+    if !r.skipped.is_empty() || from != ShardFrom::None || (sequence && !r.failed.is_empty()) {
         eprintln!(
             "shard {}/{}: {} of {} frames rendered, {} skipped (complete), {} failed",
             shard.index,
