@@ -11,7 +11,8 @@
 //! - Scale bar: at the bottom left, `length x (pixels per world unit at the camera's target)`
 //!   pixels long, with its length and units above it.
 //! - Colour bar: at the bottom right, a horizontal ramp of the colouring (the range's low end at
-//!   the left), its range below and its label above.
+//!   the left), its range below and above it its label, units and colour map's name
+//!   (`speed [m/s], viridis`).
 
 use crate::spec::{AnnotateSpec, ScaleBarSpec};
 use ab_glyph::{Font, FontRef, PxScale, ScaleFont};
@@ -25,6 +26,8 @@ pub const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 #[derive(Clone, Debug, PartialEq)]
 pub struct ColorBar {
     pub label: String,
+    /// The colour map's name (`viridis`, `transfer function`), written after the label.
+    pub map: String,
     pub range: [f64; 2],
     /// Linear RGB from the range's low end to its high end.
     pub colors: Vec<[f32; 3]>,
@@ -382,10 +385,20 @@ pub fn draw(
         text(&mut cv, &pen, px, &lo, x0, y1 + 0.2 * px);
         let (hw, _) = extent(&font, px, &hi);
         text(&mut cv, &pen, px, &hi, x1 - hw, y1 + 0.2 * px);
-        let label = spec
+        let mut label = spec
             .colorbar_label
             .clone()
             .unwrap_or_else(|| cb.label.clone());
+        if let Some(u) = spec.colorbar_units.as_deref().filter(|u| !u.is_empty()) {
+            label = format!("{label} [{u}]");
+        }
+        if !cb.map.is_empty() {
+            label = if label.is_empty() {
+                cb.map.clone()
+            } else {
+                format!("{label}, {}", cb.map)
+            };
+        }
         if !label.is_empty() {
             let (lw, lh) = extent(&font, px, &label);
             text(
@@ -499,6 +512,7 @@ mod tests {
         .unwrap();
         let bar = ColorBar {
             label: "speed".into(),
+            map: "viridis".into(),
             range: [0.0, 2.5],
             colors: (0..64)
                 .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))

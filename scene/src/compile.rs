@@ -425,6 +425,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 let [lo, hi] = [st.min, st.max];
                 colorbar = Some(crate::annotate::ColorBar {
                     label: field.name.clone(),
+                    map: "transfer function".into(),
                     range: [lo, hi],
                     colors: (0..64)
                         .map(|k| {

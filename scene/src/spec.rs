@@ -937,6 +937,8 @@ pub struct AnnotateSpec {
     pub colorbar: Option<String>,
     /// The colour bar's label (default: the attribute's or field's name).
     pub colorbar_label: Option<String>,
+    /// Units written after the colour bar's label, in brackets.
+    pub colorbar_units: Option<String>,
     /// Colour of text and marks (default black on light backgrounds, white on dark ones).
     pub color: Option<Color>,
 }
@@ -1182,6 +1184,7 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
         ("title", &a.title),
         ("units", &a.units),
         ("colorbar_label", &a.colorbar_label),
+        ("colorbar_units", &a.colorbar_units),
     ] {
         if let Some(t) = t {
             if t.chars().count() > 200 || t.chars().any(char::is_control) {

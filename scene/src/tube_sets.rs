@@ -407,6 +407,7 @@ pub fn color_bar(
         .filter(|r| r[0] <= r[1])
         .map(|range| crate::annotate::ColorBar {
             label,
+            map: "viridis".into(),
             range,
             colors: (0..64)
                 .map(|k| tubes::tube_mesh::colormap((k as f64 + 0.5) / 64.0))

@@ -394,37 +394,30 @@ pub fn subset(s: &Streamlines, keep: &[usize]) -> Streamlines {
     for &i in keep {
         out.push(s.line(i));
     }
+    // The values of streamlines `keep` of an attribute with `components` per item, the items
+    // of streamline i being `range(i)`.
+    let take = |a: &crate::Attribute, range: &dyn Fn(usize) -> (usize, usize)| crate::Attribute {
+        name: a.name.clone(),
+        components: a.components,
+        values: keep
+            .iter()
+            .flat_map(|&i| {
+                let (lo, hi) = range(i);
+                a.values[lo * a.components..hi * a.components]
+                    .iter()
+                    .copied()
+            })
+            .collect(),
+    };
     out.point_attributes = s
         .point_attributes
         .iter()
-        .map(|a| crate::Attribute {
-            name: a.name.clone(),
-            components: a.components,
-            values: keep
-                .iter()
-                .flat_map(|&i| {
-                    a.values[s.offsets[i] * a.components..s.offsets[i + 1] * a.components]
-                        .iter()
-                        .copied()
-                })
-                .collect(),
-        })
+        .map(|a| take(a, &|i| (s.offsets[i], s.offsets[i + 1])))
         .collect();
     out.line_attributes = s
         .line_attributes
         .iter()
-        .map(|a| crate::Attribute {
-            name: a.name.clone(),
-            components: a.components,
-            values: keep
-                .iter()
-                .flat_map(|&i| {
-                    a.values[i * a.components..(i + 1) * a.components]
-                        .iter()
-                        .copied()
-                })
-                .collect(),
-        })
+        .map(|a| take(a, &|i| (i, i + 1)))
         .collect();
     out.reference = s.reference.clone();
     out.format = s.format.clone();

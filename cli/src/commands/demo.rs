@@ -223,11 +223,16 @@ pub fn render_demo(
 /// (the lumen: seeds in the still tissue end at once), so the lines fill every branch of the
 /// bifurcation. Returns the lines and points written.
 pub fn trace_carotid_demo(carotid: &Path, output: &Path) -> Result<(usize, usize), String> {
-    trace_to_file(&TraceArgs {
+    trace_to_file(&carotid_trace(carotid, output, "random:20000"))
+}
+
+/// RK4 through the carotid's `vectors` from `seeds`, both ways, stopping below speed 1.
+fn carotid_trace(carotid: &Path, output: &Path, seeds: &str) -> TraceArgs {
+    TraceArgs {
         input: carotid.to_path_buf(),
         output: output.to_path_buf(),
         field: Some("vectors".into()),
-        seeds: "random:20000".into(),
+        seeds: seeds.into(),
         step: None,
         integrator: tubes::trace::Integrator::Rk4,
         tolerance: 1e-3,
@@ -238,29 +243,14 @@ pub fn trace_carotid_demo(carotid: &Path, output: &Path) -> Result<(usize, usize
         max_angle: 60.0,
         eigen: false,
         one_way: false,
-    })
+    }
 }
 
 /// The carotid streamlines of the LineAO bench (`umbra bench lineao`): RK4 from a plane of
 /// 60 x 60 seeds at the inlet (z = 3) through `carotid`, written to `output` (the bench's
 /// figures were measured on these). Returns the lines and points written.
 pub fn trace_carotid(carotid: &Path, output: &Path) -> Result<(usize, usize), String> {
-    trace_to_file(&TraceArgs {
-        input: carotid.to_path_buf(),
-        output: output.to_path_buf(),
-        field: Some("vectors".into()),
-        seeds: "plane:z=3:60".into(),
-        step: None,
-        integrator: tubes::trace::Integrator::Rk4,
-        tolerance: 1e-3,
-        max_length: None,
-        min_speed: 1.0,
-        mask: None,
-        threshold: 0.2,
-        max_angle: 60.0,
-        eigen: false,
-        one_way: false,
-    })
+    trace_to_file(&carotid_trace(carotid, output, "plane:z=3:60"))
 }
 
 #[cfg(test)]

@@ -283,13 +283,15 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
             out_json_pretty(&r)?;
         }
         eprintln!(
-            "shard {}/{}: {} of {} scenes rendered, {} skipped (complete), {} failed",
-            shard.index,
-            shard.count,
-            r.done.len(),
-            r.frames_owned,
-            r.skipped.len(),
-            r.failed.len()
+            "{}",
+            shard_line(
+                shard,
+                "scenes",
+                r.frames_owned,
+                &r.done,
+                &r.skipped,
+                &r.failed
+            )
         );
         return match scene::render::failure_summary(&r.failed, r.frames_owned, "scenes") {
             Some(e) => Err(e),
@@ -323,19 +325,41 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
     }
     if !r.skipped.is_empty() || from != ShardFrom::None || (sequence && !r.failed.is_empty()) {
         eprintln!(
-            "shard {}/{}: {} of {} frames rendered, {} skipped (complete), {} failed",
-            shard.index,
-            shard.count,
-            r.done.len(),
-            r.frames_owned,
-            r.skipped.len(),
-            r.failed.len()
+            "{}",
+            shard_line(
+                shard,
+                "frames",
+                r.frames_owned,
+                &r.done,
+                &r.skipped,
+                &r.failed
+            )
         );
     }
     match scene::render::failure_summary(&r.failed, r.frames_owned, "frames") {
         Some(e) => Err(e),
         None => Ok(()),
     }
+}
+
+/// The last line of a shard's log: `shard I/N: D of M frames rendered, S skipped (complete), F
+/// failed`.
+fn shard_line(
+    shard: Shard,
+    what: &str,
+    owned: usize,
+    done: &[FrameOutcome],
+    skipped: &[FrameOutcome],
+    failed: &[FrameOutcome],
+) -> String {
+    format!(
+        "shard {}/{}: {} of {owned} {what} rendered, {} skipped (complete), {} failed",
+        shard.index,
+        shard.count,
+        done.len(),
+        skipped.len(),
+        failed.len()
+    )
 }
 
 /// What `--timings-json` writes.
