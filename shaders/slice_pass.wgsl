@@ -154,6 +154,79 @@ fn light_at(px: vec2<f32>, k: u32) -> f32 {
     return mix(mix(v[0], v[1], f.x), mix(v[2], v[3], f.x), f.y);
 }
 
+// The view depth where the clipping planes let ray r in (the largest entry over the planes it
+// crosses front to back), or -1 when none does.
+fn clip_entry(r: Ray) -> f32 {
+    var a = -1.0;
+    for (var c = 0u; c < P.n_clip; c = c + 1u) {
+        let n = P.clip[c].xyz;
+        let g1 = dot(n, r.d) / r.cosine;
+        let g0 = dot(n, r.o) - P.clip[c].w - g1 * r.o_depth;
+        if (g1 < -1e-12) {
+            a = max(a, -g0 / g1);
+        }
+    }
+    return a;
+}
+
+// Cell ci's light at fractional slice kf: O interpolated between slices, 1 in front of slice
+// -1 (O_{-1} = 1), the last slice's beyond it.
+fn light_cell(ci: u32, kf: f32) -> f32 {
+    let n = P.n_slices;
+    let base = P.cells.x * P.cells.y;
+    if (kf <= -1.0) {
+        return 1.0;
+    }
+    if (kf < 0.0) {
+        return mix(1.0, light_volume[ci], kf + 1.0);
+    }
+    let k0 = u32(floor(kf));
+    let t = kf - floor(kf);
+    let a = light_volume[ci + base * min(k0, n - 1u)];
+    let b = light_volume[ci + base * min(k0 + 1u, n - 1u)];
+    return mix(a, b, t);
+}
+
+// Where a pixel behind a clipping plane reads its four cells: each cell at the same distance
+// behind the plane as the pixel's sample (slice k + shift), not at the same depth. A cut face
+// tilted to the slices meets a 2-pixel cell's rays in different slabs; read at equal depth, a
+// cell whose cut is a slab nearer has absorbed a slab's worth more and the face shows a band
+// per slice (`light_cell_shifts` in raycast/src/light.rs is the CPU twin).
+struct CellShift {
+    cells: array<u32, 4>,
+    shift: vec4<f32>,
+    f: vec2<f32>,
+};
+
+fn cell_shifts(px: vec2<f32>, r: Ray) -> CellShift {
+    var cs: CellShift;
+    let c = px / f32(P.cell) - vec2<f32>(0.5);
+    let b = vec2<i32>(floor(c));
+    cs.f = c - floor(c);
+    let hi = vec2<i32>(P.cells) - vec2<i32>(1);
+    let a_px = clip_entry(r);
+    for (var i = 0; i < 4; i = i + 1) {
+        let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
+        cs.cells[i] = u32(q.x) + P.cells.x * u32(q.y);
+        let a_c = clip_entry(pixel_ray(P.frame, (vec2<f32>(q) + vec2<f32>(0.5)) * f32(P.cell)));
+        var sh = 0.0;
+        if (a_px >= 0.0 && a_c >= 0.0) {
+            sh = (a_c - a_px) / P.dz;
+        }
+        cs.shift[i] = sh;
+    }
+    return cs;
+}
+
+fn light_shifted(cs: CellShift, k: u32) -> f32 {
+    let kf = f32(k);
+    let v0 = light_cell(cs.cells[0], kf + cs.shift[0]);
+    let v1 = light_cell(cs.cells[1], kf + cs.shift[1]);
+    let v2 = light_cell(cs.cells[2], kf + cs.shift[2]);
+    let v3 = light_cell(cs.cells[3], kf + cs.shift[3]);
+    return mix(mix(v0, v1, cs.f.x), mix(v2, v3, cs.f.x), cs.f.y);
+}
+
 fn voxel(i: vec3<u32>) -> f32 {
     return field[i.x + P.dims.x * (i.y + P.dims.y * i.z)];
 }
@@ -520,6 +593,11 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     var acc = vec2<f32>(0.0);
     var half = 0.0;
     let kr = box_slices(r, front);
+    let shifted = lit && P.n_clip > 0u;
+    var cs: CellShift;
+    if (shifted) {
+        cs = cell_shifts(px, r);
+    }
     for (var k = kr.x; k < kr.y; k = k + 1u) {
         let iv = slab_interval(r, k, front);
         if (iv.y <= iv.x) {
@@ -529,7 +607,9 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
         let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
         if (c.a > 0.0) {
             var o = 1.0;
-            if (lit) {
+            if (shifted) {
+                o = light_shifted(cs, k);
+            } else if (lit) {
                 o = light_at(px, k);
             }
             composite_eye(&e, &acc, &half, r, iv, c, grad, o);

@@ -26,6 +26,13 @@
 //!   `camera::texture_radius`), sampled with `n x n` taps (`blur_samples`) mapped
 //!   concentrically onto the disk, bilinear ([`blur_stencil`]). This is the paper's incremental
 //!   blur ("ComputeDOS", after Schott et al. 2009): each slice blurs the previous one.
+//! * Behind clipping planes (not in the paper): a pixel reads each of its four light cells at
+//!   the same distance behind the planes as its own sample, slice `k + (a_cell - a_pixel) / d`
+//!   with `a` the view depth where the planes let a ray in
+//!   ([`crate::emission_absorption::clip_entry`]), interpolated between slices. Read at equal
+//!   depth, a cut face tilted to the slices shows a band per slice, because neighbouring cells
+//!   meet the plane in different slabs (`slice_pass.wgsl::cell_shifts`,
+//!   `raycast::light::LightVolume::clip_shifts`; `cli/tests/render_cli.rs`, a tilted cut face).
 //! * Geometry into volume (Alg. 3): where slice k lies inside a tube (`front <= z_k <= back`),
 //!   the tube's extinction `geometry_extinction` adds to the volume's for the light leaving
 //!   the slice. The paper, with the front depth only, replaces the opacity of every sample

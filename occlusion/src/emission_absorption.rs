@@ -326,6 +326,26 @@ pub fn slab_interval(v: &EaView, o: DVec3, d: DVec3, k: u32) -> (f64, f64) {
     (a, b)
 }
 
+/// The view depth where the clipping planes let the ray `o + s d` in (the largest entry over
+/// the planes it crosses front to back), `None` when it crosses none that way (the shader's
+/// `clip_entry`, -1 there).
+pub fn clip_entry(v: &EaView, o: DVec3, d: DVec3) -> Option<f64> {
+    let f = v.camera.forward();
+    let cosine = d.dot(f);
+    let o_depth = (o - v.camera.eye).dot(f);
+    let mut a: Option<f64> = None;
+    for (n, off) in &v.clip {
+        let n = DVec3::from(*n);
+        let g1 = n.dot(d) / cosine;
+        let g0 = n.dot(o) - off - g1 * o_depth;
+        if g1 < -1e-12 {
+            let e = -g0 / g1;
+            a = Some(a.map_or(e, |x| x.max(e)));
+        }
+    }
+    a.filter(|&x| x >= 0.0)
+}
+
 /// The CPU twin of the shader, in f64: RGBA per pixel (rows top to bottom), alpha the
 /// volume's opacity. `data` as [`prepare`] returns it.
 pub fn reference(data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[f64; 4]> {

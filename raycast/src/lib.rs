@@ -363,6 +363,10 @@ impl EaVolume {
                     let mut r = self.start(v, o, d);
                     if LIT {
                         r.light = lv.footprint(px);
+                        if !v.clip.is_empty() {
+                            let entry = occlusion::emission_absorption::clip_entry(v, o, d);
+                            lv.clip_shifts(&mut r.light, px, v, entry, |p| pixel_ray(&inv, v, p));
+                        }
                     }
                     rays.push((x + w * dy, r));
                 }

@@ -59,12 +59,75 @@ impl LightVolume {
     #[inline(always)]
     pub(crate) fn lookup(&self, f: &Footprint, k: usize) -> f32 {
         debug_assert!(k < self.slices);
+        if f.shifted {
+            return self.lookup_shifted(f, k);
+        }
         let n = self.cells[0] * self.cells[1];
         let block = &self.o[(k / KB) * n * KB..];
         let j = k % KB;
         let v = f.cells.map(|c| block[c as usize + j]);
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
+    }
+
+    /// Cell `c`'s (an offset `cell KB`) light at fractional slice `kf`, as `light_cell` in the
+    /// shader: interpolated between slices, `O_{-1} = 1` before slice 0, the last beyond it.
+    fn cell_at(&self, c: u32, kf: f32) -> f32 {
+        if kf <= -1.0 {
+            return 1.0;
+        }
+        let n = self.cells[0] * self.cells[1];
+        let at = |k: usize| {
+            let k = k.min(self.slices - 1);
+            self.o[(k / KB) * n * KB + c as usize + k % KB]
+        };
+        if kf < 0.0 {
+            return 1.0 + (at(0) - 1.0) * (kf + 1.0);
+        }
+        let k0 = kf.floor() as usize;
+        let t = kf - kf.floor();
+        let (a, b) = (at(k0), at(k0 + 1));
+        a + (b - a) * t
+    }
+
+    /// [`LightVolume::lookup`] behind a clipping plane: each cell read at the pixel's slice plus
+    /// its shift (`light_shifted` in the shader; see [`LightVolume::clip_shifts`]).
+    fn lookup_shifted(&self, f: &Footprint, k: usize) -> f32 {
+        let kf = k as f32;
+        let v = [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], kf + f.shift[i]));
+        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
+    }
+
+    /// Sets `f`'s shifts for a pixel behind clipping planes (`cell_shifts` in the shader): a
+    /// cut face tilted to the slices meets a cell's rays in different slabs, and read at equal
+    /// depth a cell whose cut is a slab nearer has absorbed a slab more (a band per slice on
+    /// the face); each cell is read instead at the same distance behind the planes as the
+    /// pixel, `(entry_cell - entry_pixel) / dz` slices further. `entry` is the pixel's
+    /// [`occlusion::emission_absorption::clip_entry`]; `ray` gives a pixel position's ray.
+    pub(crate) fn clip_shifts(
+        &self,
+        f: &mut Footprint,
+        px: [f64; 2],
+        v: &EaView,
+        entry: Option<f64>,
+        ray: impl Fn([f64; 2]) -> (glam::DVec3, glam::DVec3),
+    ) {
+        let s = self.cell as f64;
+        let c = [px[0] / s - 0.5, px[1] / s - 0.5];
+        let b = c.map(|x| x.floor());
+        let hi = [self.cells[0] as i64 - 1, self.cells[1] as i64 - 1];
+        for (i, (dx, dy)) in [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate() {
+            let x = (b[0] as i64 + dx).clamp(0, hi[0]);
+            let y = (b[1] as i64 + dy).clamp(0, hi[1]);
+            let (o, d) = ray([(x as f64 + 0.5) * s, (y as f64 + 0.5) * s]);
+            let a_c = occlusion::emission_absorption::clip_entry(v, o, d);
+            f.shift[i] = match (entry, a_c) {
+                (Some(a), Some(b)) => ((b - a) / v.dz) as f32,
+                _ => 0.0,
+            };
+        }
+        f.shifted = true;
     }
 
     /// The four cells around pixel position `px` (centres at half-integers of cells, clamped
@@ -82,6 +145,8 @@ impl LightVolume {
         Footprint {
             cells: [at(0, 0), at(1, 0), at(0, 1), at(1, 1)],
             f: [(c[0] - b[0]) as f32, (c[1] - b[1]) as f32],
+            shift: [0.0; 4],
+            shifted: false,
         }
     }
 }
@@ -92,6 +157,9 @@ impl LightVolume {
 pub(crate) struct Footprint {
     pub cells: [u32; 4],
     pub f: [f32; 2],
+    /// Slices each cell is read further than the pixel's (behind clipping planes).
+    pub shift: [f32; 4],
+    pub shifted: bool,
 }
 
 /// A cell's light leaving a slice: `L` and, for the cone model, the shadow-weighted age
