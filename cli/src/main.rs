@@ -82,7 +82,25 @@ fn run(command: Command) -> Result<(), String> {
     }
 }
 
+/// Without a usable `XDG_RUNTIME_DIR` (a batch job, a container, `sudo`), Mesa's device-select
+/// Vulkan layer tries to reach a Wayland display and prints "error: XDG_RUNTIME_DIR is invalid
+/// or not set in the environment." twice to standard error, on success too. The layer only
+/// orders the adapters (by `MESA_VK_DEVICE_SELECT` or the display's GPU), so it is turned off
+/// then (`NODEVICE_SELECT=1`), unless the user asked it for a device.
+fn quiet_device_select() {
+    let runtime_ok =
+        std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir());
+    let asked = ["MESA_VK_DEVICE_SELECT", "NODEVICE_SELECT"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some());
+    if !runtime_ok && !asked {
+        // Before any thread starts: nothing else reads the environment yet.
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
+}
+
 fn main() -> ExitCode {
+    quiet_device_select();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {

@@ -497,3 +497,19 @@ fn the_adapter_is_chosen_by_index_or_refused_naming_the_adapters() {
     );
     assert!(!dir.path().join("b.png").exists());
 }
+
+#[test]
+fn a_gpu_command_without_xdg_runtime_dir_prints_no_error_line() {
+    // Slurm jobs and containers often have no XDG_RUNTIME_DIR; Mesa's device-select layer then
+    // printed "error: XDG_RUNTIME_DIR is invalid or not set" twice, on success.
+    let out = umbra()
+        .args(["info", "--adapters"])
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("NODEVICE_SELECT")
+        .env_remove("MESA_VK_DEVICE_SELECT")
+        .output()
+        .unwrap();
+    let err = ok(&out);
+    assert!(!err.contains("XDG_RUNTIME_DIR"), "{err}");
+    assert!(!String::from_utf8_lossy(&out.stdout).is_empty());
+}
