@@ -191,7 +191,7 @@ fn light_cell(ci: u32, kf: f32) -> f32 {
 // behind the plane as the pixel's sample (slice k + shift), not at the same depth. A cut face
 // tilted to the slices meets a 2-pixel cell's rays in different slabs; read at equal depth, a
 // cell whose cut is a slab nearer has absorbed a slab's worth more and the face shows a band
-// per slice (`light_cell_shifts` in raycast/src/light.rs is the CPU twin).
+// per slice (`LightVolume::clip_shifts` in raycast/src/light.rs is the CPU twin).
 struct CellShift {
     cells: array<u32, 4>,
     shift: vec4<f32>,

@@ -86,7 +86,7 @@ impl LightVolume {
         }
         let k0 = kf.floor() as usize;
         let t = kf - kf.floor();
-        let (a, b) = (at(k0), at(k0 + 1));
+        let (a, b) = (at(k0), at(k0.saturating_add(1)));
         a + (b - a) * t
     }
 

@@ -168,8 +168,18 @@ impl Canvas<'_> {
     }
 
     fn fill(&mut self, r: Rect, c: [f32; 3]) {
-        for y in r[1].round() as i64..r[3].round() as i64 {
-            for x in r[0].round() as i64..r[2].round() as i64 {
+        // Clamped to the image: a bar may be longer than the image is wide.
+        let (w, h) = (self.w as f32, self.h as f32);
+        let (x0, x1) = (
+            r[0].clamp(0.0, w).round() as i64,
+            r[2].clamp(0.0, w).round() as i64,
+        );
+        let (y0, y1) = (
+            r[1].clamp(0.0, h).round() as i64,
+            r[3].clamp(0.0, h).round() as i64,
+        );
+        for y in y0..y1 {
+            for x in x0..x1 {
                 self.blend(x, y, c, 1.0);
             }
         }
@@ -356,7 +366,7 @@ pub fn draw(
             &pen,
             px,
             &label,
-            x0 + (len as f32 - lw).max(0.0) * 0.5,
+            (x0 + (len as f32 - lw).max(0.0) * 0.5).min((wf - margin - lw).max(x0)),
             bar[1] - lh - 0.2 * px,
         );
         placed.scale_bar = Some((bar, len, world));
@@ -464,6 +474,33 @@ mod tests {
             orientation_labels(&side, 100, 100, false),
             ["+Y", "-Y", "+Z", "-Z"].map(String::from)
         );
+    }
+
+    #[test]
+    fn a_scale_bar_longer_than_the_image_is_cut_at_its_edge() {
+        let camera = cam(DVec3::new(0.0, 0.0, 400.0), DVec3::Y);
+        let (w, h) = (64, 48);
+        let mut img = blank(w, h);
+        let spec = AnnotateSpec {
+            scale_bar: Some(ScaleBarSpec::Length(1e12)),
+            ..Default::default()
+        };
+        let ctx = Context {
+            camera: &camera,
+            ras: true,
+            background: [1.0; 3],
+            colorbar: None,
+        };
+        let t = std::time::Instant::now();
+        let p = draw(&mut img, w, h, &spec, &ctx).unwrap();
+        assert!(
+            t.elapsed().as_secs_f64() < 5.0,
+            "drawn pixel by pixel off the image"
+        );
+        assert!(p.scale_bar.unwrap().1 > 1e9);
+        // The bar reaches the right edge.
+        let y = (h as f32 - p.text_px * 0.6 - 1.0) as usize;
+        assert!(img[y * w + w - 1][0] < 0.5);
     }
 
     #[test]

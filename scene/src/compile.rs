@@ -187,6 +187,8 @@ pub struct Model {
     pub bounds: [DVec3; 2],
     /// The colouring `[annotate] colorbar` names, when it names one.
     pub colorbar: Option<crate::annotate::ColorBar>,
+    /// The frame of the scene's volume (drawn or as an isosurface), when it has one.
+    pub space: Option<volume::Space>,
     /// Twice the default slice distance (`EaView::span` halves it): see [`slice_distance`].
     pub spacing: f64,
     pub notes: Vec<String>,
@@ -334,11 +336,13 @@ fn mesh_set(i: usize, t: &spec::TubesSpec) -> Result<TubeMesh, String> {
 pub fn model(s: &Scene) -> Result<Model, String> {
     let mut notes = vec![];
     let mut colorbar = None;
+    let mut space = None;
     // The volume, loaded once: drawn by its transfer function, or in isosurface mode as its
     // isosurface.
     let (mut volume, mut iso, mut iso_bounds) = (None, None, None);
     if let Some(vspec) = &s.volume {
         let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
+        space = Some(vol.space);
         let sel = vspec
             .field
             .as_deref()
@@ -473,6 +477,11 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     for (i, p) in s.points.iter().enumerate() {
         lines.push(point_set(i, p, &mut notes)?);
     }
+    if let (Some(src), None) = (&s.annotate.colorbar, &colorbar) {
+        return Err(format!(
+            "scene key annotate.colorbar: '{src}' has no colouring to show (no finite values, or select kept no streamline)"
+        ));
+    }
     let mut boxes: Vec<[DVec3; 2]> = meshes.iter().filter_map(mesh_bounds).collect();
     boxes.extend(lines.iter().filter_map(LineSet::bounds));
     if let Some((v, _, _)) = &volume {
@@ -512,6 +521,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         spacing,
         notes,
         colorbar,
+        space,
     })
 }
 

@@ -245,10 +245,8 @@ pub fn annotate_frame(
         return Ok(());
     }
     let camera = crate::compile::camera(s, m.bounds)?;
-    let ras = m
-        .volume
-        .as_ref()
-        .is_none_or(|(vol, _, _)| vol.space == volume::Space::Ras);
+    // Tractograms and meshes alone are RAS+ by convention; a volume says.
+    let ras = m.space.is_none_or(|sp| sp == volume::Space::Ras);
     let bg = s.background.rgb()?.map(|c| c as f32);
     let ctx = crate::annotate::Context {
         camera: &camera,

@@ -1199,7 +1199,7 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
     if let Some(src) = &a.colorbar {
         let scalar = |c: &str| c.starts_with("scalar:") || c.starts_with("volume:");
         let ok = match src.split_once('.') {
-            None if src == "volume" => s.volume.is_some(),
+            None if src == "volume" => s.volume.as_ref().is_some_and(|v| v.iso.is_none()),
             Some(("tubes", n)) => n
                 .parse::<usize>()
                 .ok()
@@ -1215,7 +1215,7 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
         if !ok {
             return bad(
                 "colorbar",
-                format!("'{src}': give volume (a scene with a volume), or tubes.N / lines.N of an entry coloured by scalar:NAME or volume:PATH"),
+                format!("'{src}': give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), or tubes.N / lines.N of an entry coloured by scalar:NAME or volume:PATH"),
             );
         }
     }

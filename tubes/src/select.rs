@@ -56,7 +56,8 @@ impl Mask {
             .data
             .iter()
             .map(|&x| match label {
-                Some(l) => x as f64 == l,
+                // In the stored precision: a label 0.1 matches the f32 value 0.1.
+                Some(l) => x == l as f32,
                 None => x != 0.0 && !x.is_nan(),
             })
             .collect();

@@ -132,6 +132,15 @@ fn select(a: SelectArgs) -> Result<(), String> {
         k => format!("--{}", k.trim_end_matches('s').replace('_', "-")),
     };
     let sel = scene::tube_sets::selection(&spec, &flag, true)?;
+    // The output's format before the work (what tubes::save writes).
+    let name = a.output.to_string_lossy().to_ascii_lowercase();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    if !(stem.ends_with(".trk") || stem.ends_with(".tck") || name.ends_with(".trx")) {
+        return Err(format!(
+            "{}: the output must be .trk, .tck (optionally .gz) or .trx",
+            a.output.display()
+        ));
+    }
     let s = tubes::load(&a.input).map_err(|e| e.to_string())?;
     for w in &s.warnings {
         eprintln!("umbra: warning: {}: {w}", a.input.display());
