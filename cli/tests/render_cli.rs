@@ -894,6 +894,10 @@ fn a_tilted_cut_face_shows_no_band_per_slice_on_either_device() {
             ripple.push(vertical_ripple(&png, face));
         }
         let (one, two) = (ripple[ripple.len() - 2], ripple[ripple.len() - 1]);
+        // The README quotes these (run with --nocapture).
+        eprintln!(
+            "{device}: cut-face ripple {two:.2} with 2-pixel cells, {one:.2} with 1-pixel cells"
+        );
         assert!(
             two < 1.5 * one.max(0.5),
             "{device}: {two:.2} with 2-pixel cells, {one:.2} with 1"

@@ -80,7 +80,7 @@ azimuth = 20.0
 elevation = 15.0
 distance = 2.4
 [volume]
-path = "{}"
+path = {}
 field = "scalars"
 [volume.transfer]
 points = [
@@ -89,7 +89,7 @@ points = [
   {{ value = 580.0, color = [0.95, 0.8, 0.75], extinction = 0.25 }},
 ]
 [[tubes]]
-path = "{}"
+path = {}
 radius = 0.2
 color = "scalar:speed"
 select = {{ min_length = 8.0 }}
@@ -103,9 +103,15 @@ theta = 40.0
 vicinity_distance = 1.5
 combine = "product"
 "#,
-        data.join("vtk/carotid.vtk").display(),
-        tracts.display()
+        toml_string(&data.join("vtk/carotid.vtk")),
+        toml_string(tracts)
     )
+}
+
+/// A path as a TOML basic string (a JSON string is one): quotes and backslashes in
+/// `UMBRA_DATASETS` or the temporary folder do not break the scene.
+fn toml_string(p: &Path) -> String {
+    serde_json::to_string(&p.display().to_string()).expect("a string serialises")
 }
 
 /// The environment variable naming a folder that holds the HCP1065 bundles (`AF_R.trk.gz`, ...).
