@@ -188,7 +188,7 @@ pub fn read_manifest(path: &Path, template: Option<&Path>) -> Result<Vec<Entry>,
             meta.len()
         ));
     }
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{p}: {e}"))?;
+    let text = volume::read_text(path, 64 << 20).map_err(|e| format!("{p}: {e}"))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     parse_manifest(&text, &p.to_string(), dir, template)
 }

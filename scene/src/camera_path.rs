@@ -107,7 +107,8 @@ fn interpolate(keys: &[(f64, f64)], t: f64, how: Interpolation) -> f64 {
 impl CameraPath {
     /// Reads and checks a camera path file.
     pub fn load(path: &Path) -> Result<CameraPath, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text =
+            volume::read_text(path, 64 << 20).map_err(|e| format!("{}: {e}", path.display()))?;
         Self::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
     }
 

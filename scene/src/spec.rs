@@ -1074,7 +1074,7 @@ pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result
 
 /// Reads a scene file.
 pub fn load(path: &Path, overrides: &[String]) -> Result<Scene, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = volume::read_text(path, 16 << 20).map_err(|e| format!("{}: {e}", path.display()))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     parse(&text, &path.display().to_string(), dir, overrides)
 }

@@ -31,33 +31,84 @@ impl TubesError {
     pub fn format(path: &Path, field: impl Into<String>, problem: impl Into<String>) -> Self {
         TubesError::Format {
             path: path.to_path_buf(),
-            field: field.into(),
-            problem: problem.into(),
+            field: volume::clip_text(&field.into(), 120),
+            problem: volume::clip_text(&problem.into(), 400),
         }
     }
 }
 
 pub type Result<T> = std::result::Result<T, TubesError>;
 
-/// Reads a file, decompressing gzip (by content, not name).
-pub fn read_maybe_gz(path: &Path) -> Result<Vec<u8>> {
+/// The most bytes a compressed tractogram may decode to (2 GiB, about 180 million points of
+/// a `.tck`): beyond it reading stops with an error rather than exhausting memory.
+pub const MAX_GZ_DECODED: u64 = 2 << 30;
+
+/// Reads a regular file (devices, pipes and directories are refused; see
+/// `volume::open_regular`), decompressing gzip (by content, not name) up to
+/// [`MAX_GZ_DECODED`] bytes. The data (decoded) must start with `magic`, the format's
+/// signature, which is checked on the first decoded bytes before the rest is inflated: a
+/// gzip bomb of zeros is refused at once. An empty file is an error.
+pub fn read_maybe_gz(path: &Path, magic: &[u8], format: &str) -> Result<Vec<u8>> {
     use std::io::Read;
-    let raw = std::fs::read(path).map_err(|e| TubesError::io(path, e))?;
-    if raw.starts_with(&[0x1f, 0x8b]) {
-        let mut out = Vec::new();
-        flate2::read::MultiGzDecoder::new(&raw[..])
-            .read_to_end(&mut out)
-            .map_err(|e| {
-                TubesError::format(
-                    path,
-                    "gzip",
-                    format!("broken gzip stream after {} bytes: {e}", out.len()),
-                )
-            })?;
-        Ok(out)
-    } else {
-        Ok(raw)
+    let raw = volume::read_regular(path, None).map_err(|e| TubesError::io(path, e))?;
+    if raw.is_empty() {
+        return Err(TubesError::format(
+            path,
+            "file",
+            format!("the file is empty (a {format} file starts with its header)"),
+        ));
     }
+    let check = |head: &[u8]| -> Result<()> {
+        if head.starts_with(magic) {
+            Ok(())
+        } else {
+            let shown: String = String::from_utf8_lossy(&head[..head.len().min(magic.len())])
+                .chars()
+                .map(|c| if c.is_control() { '.' } else { c })
+                .collect();
+            Err(TubesError::format(
+                path,
+                "magic",
+                format!(
+                    "not a {format} file: it starts with '{shown}', not '{}'",
+                    String::from_utf8_lossy(magic)
+                ),
+            ))
+        }
+    };
+    if !raw.starts_with(&[0x1f, 0x8b]) {
+        check(&raw)?;
+        return Ok(raw);
+    }
+    let broken = |n: usize, e: std::io::Error| {
+        TubesError::format(
+            path,
+            "gzip",
+            format!("broken gzip stream after {n} decoded bytes: {e}"),
+        )
+    };
+    let mut dec = flate2::read::MultiGzDecoder::new(&raw[..]);
+    let mut out = Vec::new();
+    (&mut dec)
+        .take(magic.len() as u64)
+        .read_to_end(&mut out)
+        .map_err(|e| broken(out.len(), e))?;
+    check(&out)?;
+    let res = dec
+        .take(MAX_GZ_DECODED + 1 - out.len() as u64)
+        .read_to_end(&mut out);
+    res.map_err(|e| broken(out.len(), e))?;
+    if out.len() as u64 > MAX_GZ_DECODED {
+        return Err(TubesError::format(
+            path,
+            "gzip",
+            format!(
+                "the stream decodes to more than {MAX_GZ_DECODED} bytes, the most umbra \
+                 inflates; decompress it first (gunzip) to read it"
+            ),
+        ));
+    }
+    Ok(out)
 }
 
 /// Writes through a temporary file and a rename (`volume::write_atomic`); gzip when the name

@@ -57,8 +57,17 @@ pub fn load(path: &Path) -> Result<Streamlines> {
             "unknown tractogram format (expected .trk, .tck, VTK polylines .vtk, optionally .gz, or .trx)",
         ));
     };
+    let mut s = s;
     s.validate()
         .map_err(|e| TubesError::format(path, "data", e))?;
+    let bad = s.nonfinite_points();
+    if bad > 0 {
+        s.warnings.push(format!(
+            "{bad} of {} points have a NaN or infinite coordinate; tube meshes skip them and \
+             line renders break the line there",
+            s.points.len()
+        ));
+    }
     Ok(s)
 }
 
@@ -98,16 +107,38 @@ pub fn is_tractogram(path: &Path) -> bool {
     }
     if stem.ends_with(".vtk") {
         // A VTK file is a tractogram when its dataset is POLYDATA (else a volume).
-        use std::io::Read;
-        let mut head = Vec::new();
-        if let Ok(f) = std::fs::File::open(path) {
-            let _ = f.take(512).read_to_end(&mut head);
-        }
-        return String::from_utf8_lossy(&head)
-            .to_ascii_uppercase()
-            .contains("POLYDATA");
+        return vtk_dataset(path).is_some_and(|d| d == "POLYDATA");
     }
     false
+}
+
+/// The dataset type of a legacy VTK file (`POLYDATA`, `STRUCTURED_POINTS`, ...), read from the
+/// `DATASET` line of its first 1 KiB, through gzip when the file is compressed; `None` when
+/// the file cannot be read or has no such line.
+pub fn vtk_dataset(path: &Path) -> Option<String> {
+    use std::io::Read;
+    let (f, _) = volume::open_regular(path).ok()?;
+    let mut raw = Vec::new();
+    f.take(1 << 16).read_to_end(&mut raw).ok()?;
+    let mut head = Vec::new();
+    if raw.starts_with(&[0x1f, 0x8b]) {
+        // A truncated stream still gives its first bytes.
+        let _ = flate2::read::MultiGzDecoder::new(&raw[..])
+            .take(1024)
+            .read_to_end(&mut head);
+    } else {
+        raw.truncate(1024);
+        head = raw;
+    }
+    let text = String::from_utf8_lossy(&head);
+    // The dataset line is the fourth: magic, title, ASCII/BINARY, DATASET.
+    text.lines().skip(2).take(4).find_map(|l| {
+        let mut t = l.split_whitespace();
+        t.next()
+            .filter(|k| k.eq_ignore_ascii_case("DATASET"))
+            .and_then(|_| t.next())
+            .map(|d| d.to_ascii_uppercase())
+    })
 }
 
 /// A named attribute with `components` values per point or per streamline.
@@ -173,14 +204,17 @@ impl Streamlines {
         }
     }
 
-    /// Axis-aligned bounding box of all points, `None` when there are none.
+    /// Axis-aligned bounding box of the finite points, `None` when there are none. Points with
+    /// a NaN or infinite coordinate are left out (glam's `min`/`max` would let one NaN point
+    /// restart the fold and lose every point before it).
     pub fn bounds(&self) -> Option<[Vec3; 2]> {
-        let first = *self.points.first()?;
-        Some(
-            self.points
-                .iter()
-                .fold([first, first], |[lo, hi], &p| [lo.min(p), hi.max(p)]),
-        )
+        finite_bounds(&self.points)
+    }
+
+    /// Points with a NaN or infinite coordinate (kept as the file has them, as nibabel keeps
+    /// them; the tube mesher and the line renderer leave them out).
+    pub fn nonfinite_points(&self) -> usize {
+        self.points.iter().filter(|p| !p.is_finite()).count()
     }
 
     /// Checks the offset and attribute invariants; returns what is wrong.
@@ -224,6 +258,13 @@ impl Streamlines {
             .map(|w| (w[1].as_dvec3() - w[0].as_dvec3()).length())
             .sum()
     }
+}
+
+/// Axis-aligned bounding box of the finite points of `points` (`None` when none is finite).
+pub fn finite_bounds(points: &[Vec3]) -> Option<[Vec3; 2]> {
+    let mut it = points.iter().filter(|p| p.is_finite());
+    let first = *it.next()?;
+    Some(it.fold([first, first], |[lo, hi], &p| [lo.min(p), hi.max(p)]))
 }
 
 /// Converts a world point to f64 for fitting code.

@@ -196,7 +196,8 @@ impl LineSet {
                     }
                 };
                 colors.push(rgba(c));
-                if k + 1 < line.len() {
+                // A segment with a non-finite end is left out (the line breaks there).
+                if k + 1 < line.len() && line[k].is_finite() && line[k + 1].is_finite() {
                     segments.push((first + k) as u32);
                 }
             }
@@ -225,18 +226,17 @@ impl LineSet {
     /// lengths do not matter; a line of one point is drawn too).
     pub fn points(s: &Streamlines, color: &ColorMode, width: LineWidth) -> LineSet {
         let mut set = LineSet::new(s, color, width, false);
-        set.segments = (0..set.positions.len() as u32).collect();
+        set.segments = (0..set.positions.len() as u32)
+            .filter(|&i| s.points[i as usize].is_finite())
+            .collect();
         set.points = true;
         set
     }
 
     /// World bounds of the points.
     pub fn bounds(&self) -> Option<[DVec3; 2]> {
-        let first = self.origin + self.positions.first()?.as_dvec3();
-        Some(self.positions.iter().fold([first, first], |[lo, hi], p| {
-            let q = self.origin + p.as_dvec3();
-            [lo.min(q), hi.max(q)]
-        }))
+        crate::finite_bounds(&self.positions)
+            .map(|[lo, hi]| [self.origin + lo.as_dvec3(), self.origin + hi.as_dvec3()])
     }
 
     /// Bytes the renderer keeps for the set: a position, a colour and a segment index per point.

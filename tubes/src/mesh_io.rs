@@ -105,7 +105,7 @@ pub fn obj_bytes(mesh: &TubeMesh) -> String {
 /// light grey. Positions are stored relative to their mean as origin. Errors name the file
 /// and the element, line or field.
 pub fn read(path: &Path) -> Result<TubeMesh> {
-    let bytes = std::fs::read(path).map_err(|e| TubesError::io(path, e))?;
+    let bytes = volume::read_regular(path, None).map_err(|e| TubesError::io(path, e))?;
     let name = path.to_string_lossy().to_ascii_lowercase();
     let (pos, mut normals, colors, indices) = if name.ends_with(".ply") {
         read_ply(path, &bytes)?

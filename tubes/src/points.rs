@@ -31,7 +31,8 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             .collect();
         one_line(points, vec![])
     } else if name.ends_with(".csv") || name.ends_with(".txt") {
-        let text = std::fs::read_to_string(path).map_err(|e| TubesError::io(path, e))?;
+        let text =
+            volume::read_text(path, volume::MAX_FILE_BYTES).map_err(|e| TubesError::io(path, e))?;
         read_csv(path, &text)?
     } else {
         let t = crate::load(path)?;

@@ -16,10 +16,7 @@ use std::path::Path;
 
 /// Reads a `.tck` or `.tck.gz` file.
 pub fn read(path: &Path) -> Result<Streamlines> {
-    let bytes = read_maybe_gz(path)?;
-    if bytes.is_empty() {
-        return Ok(Streamlines::new());
-    }
+    let bytes = read_maybe_gz(path, b"mrtrix tracks", "MRtrix .tck")?;
     let magic = b"mrtrix tracks";
     if !bytes.starts_with(magic) {
         return Err(TubesError::format(
@@ -28,9 +25,14 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             "the file does not start with 'mrtrix tracks'",
         ));
     }
-    // Header lines up to END.
+    // Header lines up to END, read as nibabel reads them: lines are trimmed, blank ones
+    // skipped, a line without ':' continues the last key's value, and a repeated key's values
+    // are joined by newlines (MRtrix repeats command_history). Keys are indexed by a map, so
+    // the header's cost is linear in its length.
     let mut pos = 0;
     let mut keys: Vec<(String, String)> = Vec::new();
+    let mut index: std::collections::HashMap<String, usize> = Default::default();
+    let mut last: Option<usize> = None;
     let mut ended = false;
     let mut first = true;
     while pos < bytes.len() {
@@ -39,39 +41,53 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             .position(|&b| b == b'\n')
             .map(|e| pos + e);
         let Some(end) = end else { break };
-        let line = String::from_utf8_lossy(&bytes[pos..end])
-            .trim_end_matches('\r')
-            .to_string();
+        let line = String::from_utf8_lossy(&bytes[pos..end]).trim().to_string();
         pos = end + 1;
         if first {
             first = false;
             continue;
         }
-        if line.trim() == "END" {
+        if line == "END" {
             ended = true;
             break;
         }
-        if line.trim().is_empty() {
+        if line.is_empty() {
             continue;
         }
-        let Some((k, v)) = line.split_once(':') else {
-            return Err(TubesError::format(
-                path,
-                "header",
-                format!(
-                    "line '{}' is not 'key: value'",
-                    line.chars().take(60).collect::<String>()
-                ),
-            ));
-        };
-        let (k, v) = (k.trim().to_string(), v.trim().to_string());
-        match keys.iter_mut().find(|(key, _)| *key == k) {
-            Some((_, val)) => {
-                val.push('\n');
-                val.push_str(&v);
+        let slot = match line.split_once(':') {
+            Some((k, v)) => {
+                let k = k.trim().to_string();
+                let v = v.trim().to_string();
+                match index.get(&k) {
+                    Some(&i) => {
+                        keys[i].1.push('\n');
+                        keys[i].1.push_str(&v);
+                        i
+                    }
+                    None => {
+                        index.insert(k.clone(), keys.len());
+                        keys.push((k, v));
+                        keys.len() - 1
+                    }
+                }
             }
-            None => keys.push((k, v)),
-        }
+            None => {
+                let Some(i) = last else {
+                    return Err(TubesError::format(
+                        path,
+                        "header",
+                        format!(
+                            "line '{}' is not 'key: value' and follows no key",
+                            volume::clip_text(&line, 60)
+                        ),
+                    ));
+                };
+                keys[i].1.push('\n');
+                keys[i].1.push_str(&line);
+                i
+            }
+        };
+        last = Some(slot);
     }
     if !ended {
         return Err(TubesError::format(
@@ -80,21 +96,39 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             "the header has no END line (truncated file?)",
         ));
     }
-    let get = |k: &str| {
-        keys.iter()
-            .find(|(key, _)| key == k)
-            .map(|(_, v)| v.as_str())
-    };
-    let file = get("file").ok_or_else(|| TubesError::format(path, "file", "missing"))?;
-    let offset: usize = match file.split_whitespace().collect::<Vec<_>>().as_slice() {
+    let get = |k: &str| index.get(k).map(|&i| keys[i].1.as_str());
+    let mut warnings = Vec::new();
+    // A missing `file` is guessed as nibabel guesses it: the data follow the header.
+    let guessed = format!(". {pos}");
+    let file = get("file").unwrap_or_else(|| {
+        warnings.push(format!(
+            "no 'file' key; the data are read from byte {pos}, after END"
+        ));
+        &guessed
+    });
+    // A repeated key's first value counts (nibabel takes the first offset of a repeated
+    // `file`).
+    let first_value = |v: &str| v.split('\n').next().unwrap_or("").trim().to_string();
+    let file1 = first_value(file);
+    let offset: usize = match file1.split_whitespace().collect::<Vec<_>>().as_slice() {
         [".", off] => off.parse().map_err(|_| {
-            TubesError::format(path, "file", format!("'{file}': offset is not a number"))
+            TubesError::format(
+                path,
+                "file",
+                format!(
+                    "'{}': offset is not a number",
+                    volume::clip_text(&file1, 60)
+                ),
+            )
         })?,
         _ => {
             return Err(TubesError::format(
                 path,
                 "file",
-                format!("'{file}': only '. <offset>' (data in this file) is supported"),
+                format!(
+                    "'{}': only '. <offset>' (data in this file) is supported",
+                    volume::clip_text(&file1, 60)
+                ),
             ))
         }
     };
@@ -108,19 +142,28 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             ),
         ));
     }
-    let (size, big) = match get("datatype") {
-        Some("Float32LE") => (4, false),
+    // nibabel's rules: no datatype is Float32LE (with a warning), a datatype without BE is
+    // little endian. Float64 is read too (nibabel refuses it).
+    let datatype = get("datatype").map(first_value);
+    let (size, big) = match datatype.as_deref() {
+        Some("Float32LE") | Some("Float32") => (4, false),
         Some("Float32BE") => (4, true),
-        Some("Float64LE") => (8, false),
+        Some("Float64LE") | Some("Float64") => (8, false),
         Some("Float64BE") => (8, true),
         Some(other) => {
             return Err(TubesError::format(
                 path,
                 "datatype",
-                format!("'{other}' is not Float32LE/BE or Float64LE/BE"),
+                format!(
+                    "'{}' is not Float32LE/BE or Float64LE/BE",
+                    volume::clip_text(other, 60)
+                ),
             ))
         }
-        None => return Err(TubesError::format(path, "datatype", "missing")),
+        None => {
+            warnings.push("no 'datatype' key; Float32LE assumed (as nibabel does)".into());
+            (4, false)
+        }
     };
     let data = &bytes[offset..];
     let triplet = 3 * size;
@@ -142,24 +185,34 @@ pub fn read(path: &Path) -> Result<Streamlines> {
         }
     };
     let mut s = Streamlines::new();
+    s.warnings = warnings;
     let mut terminated = false;
     let mut open = 0usize; // points since the last delimiter
     let mut o = 0;
+    // A triplet of three NaNs ends a streamline, one of three infinities the data (as in
+    // MRtrix and nibabel); a triplet with only some NaN or infinite components is a point
+    // (non-finite: see `Streamlines::nonfinite_points`).
     while o + triplet <= data.len() {
         let (x, y, z) = (value(o), value(o + size), value(o + 2 * size));
         o += triplet;
-        if x.is_nan() || y.is_nan() || z.is_nan() {
+        if x.is_nan() && y.is_nan() && z.is_nan() {
             if open > 0 {
                 s.offsets.push(s.points.len());
             }
             open = 0;
             continue;
         }
-        if x.is_infinite() || y.is_infinite() || z.is_infinite() {
+        if x.is_infinite() && y.is_infinite() && z.is_infinite() {
             if open > 0 {
                 s.offsets.push(s.points.len());
             }
             terminated = true;
+            if data.len() - o >= triplet {
+                s.warnings.push(format!(
+                    "{} bytes after the end marker 'inf inf inf' ignored",
+                    data.len() - o
+                ));
+            }
             break;
         }
         s.points.push(Vec3::new(x as f32, y as f32, z as f32));
@@ -176,16 +229,17 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             },
         ));
     }
-    if let Some(c) = get("count") {
+    if let Some(c) = get("count").map(first_value) {
         match c.trim().parse::<usize>() {
             Ok(n) if n != s.len() => s.warnings.push(format!(
                 "header count {n} disagrees with the {} streamlines in the data; using the data",
                 s.len()
             )),
             Ok(_) => {}
-            Err(_) => s
-                .warnings
-                .push(format!("header count '{c}' is not a number; ignored")),
+            Err(_) => s.warnings.push(format!(
+                "header count '{}' is not a number; ignored",
+                volume::clip_text(&c, 40)
+            )),
         }
     }
     s.format = "tck".into();

@@ -17,7 +17,7 @@
 
 use crate::error::{read_maybe_gz, write_atomic, Result, TubesError};
 use crate::{Attribute, ReferenceSpace, Streamlines};
-use glam::{DMat3, DMat4, DVec3, DVec4, Vec3};
+use glam::{DMat3, DMat4, DVec3, DVec4};
 use std::path::Path;
 
 const HDR: usize = 1000;
@@ -184,10 +184,7 @@ fn names(
 
 /// Reads a `.trk` or `.trk.gz` file into RAS+ mm.
 pub fn read(path: &Path) -> Result<Streamlines> {
-    let bytes = read_maybe_gz(path)?;
-    if bytes.is_empty() {
-        return Ok(Streamlines::new());
-    }
+    let bytes = read_maybe_gz(path, b"TRACK", "TrackVis")?;
     if bytes.len() < HDR {
         return Err(TubesError::format(
             path,
@@ -222,21 +219,34 @@ pub fn read(path: &Path) -> Result<Streamlines> {
         b: &bytes,
         big_endian: big,
     };
-    let version = h.i32(992);
+    let mut warnings = Vec::new();
+    let mut version = h.i32(992);
+    if version == 3 {
+        // TrackVis 3 files have the version 2 header; nibabel reads them as version 2.
+        warnings.push("version 3 read as version 2 (the same header, as nibabel reads it)".into());
+        version = 2;
+    }
     if version != 1 && version != 2 {
         return Err(TubesError::format(
             path,
             "version",
-            format!("{version} is not 1 or 2"),
+            format!("{version} is not 1, 2 or 3"),
         ));
     }
     let dims = [h.i16(6), h.i16(8), h.i16(10)];
     let voxel_sizes = [h.f32(12) as f64, h.f32(16) as f64, h.f32(20) as f64];
-    if voxel_sizes.iter().any(|v| !v.is_finite() || *v <= 0.0) {
+    if voxel_sizes
+        .iter()
+        .any(|v| !(volume::MIN_SPACING..=volume::MAX_SPACING).contains(v))
+    {
         return Err(TubesError::format(
             path,
             "voxel_size",
-            format!("{voxel_sizes:?} must be positive"),
+            format!(
+                "{voxel_sizes:?} must be positive, from {:e} to {:e} mm",
+                volume::MIN_SPACING,
+                volume::MAX_SPACING
+            ),
         ));
     }
     let n_scalars = h.i16(36);
@@ -251,7 +261,6 @@ pub fn read(path: &Path) -> Result<Streamlines> {
     let (ns, np) = (n_scalars as usize, n_props as usize);
     let scalar_names = names(path, &h, 38, ns, "scalar_name")?;
     let prop_names = names(path, &h, 240, np, "property_name")?;
-    let mut warnings = Vec::new();
     let mut vox_to_ras = DMat4::ZERO;
     if version == 2 {
         let mut rows = [[0.0f64; 4]; 4];
@@ -333,7 +342,23 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             let o = pos + p * per * 4;
             let v = DVec3::new(rd(o) as f64, rd(o + 4) as f64, rd(o + 8) as f64);
             let w = (to_ras * DVec4::from((v, 1.0))).truncate();
-            s.points.push(Vec3::new(w.x as f32, w.y as f32, w.z as f32));
+            let q = w.as_vec3();
+            if v.is_finite() && !q.is_finite() {
+                // The header's frame, not the data, made the point infinite.
+                return Err(TubesError::format(
+                    path,
+                    "voxel_size/vox_to_ras",
+                    format!(
+                        "streamline {} point {p}: the header's transform maps ({}, {}, {}) to \
+                         a position outside f32's range",
+                        s.len(),
+                        v.x,
+                        v.y,
+                        v.z
+                    ),
+                ));
+            }
+            s.points.push(q);
             for k in 0..ns {
                 point_vals.push(rd(o + 12 + 4 * k));
             }

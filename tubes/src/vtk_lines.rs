@@ -131,12 +131,23 @@ fn count(path: &Path, field: &str, t: Option<&str>) -> Result<usize> {
         .ok_or_else(|| TubesError::format(path, field, format!("'{t}' is not a count")))
 }
 
+/// An index or count of the file (a point id, an offset, a line's length): a whole number
+/// from 0 to 2^31 - 1; -1, NaN and 1.9 are errors naming the entry.
+fn index(path: &Path, field: &str, entry: usize, v: f64) -> Result<usize> {
+    if v >= 0.0 && v.fract() == 0.0 && v < (1u64 << 31) as f64 {
+        Ok(v as usize)
+    } else {
+        Err(TubesError::format(
+            path,
+            field,
+            format!("entry {entry} is {v}, not an index (a whole number from 0 to 2^31 - 1)"),
+        ))
+    }
+}
+
 /// Reads a legacy `.vtk` POLYDATA file's lines.
 pub fn read(path: &Path) -> Result<Streamlines> {
-    let bytes = read_maybe_gz(path)?;
-    if bytes.is_empty() {
-        return Ok(Streamlines::new());
-    }
+    let bytes = read_maybe_gz(path, b"# vtk DataFile", "VTK legacy")?;
     let mut c = Cur {
         b: &bytes,
         pos: 0,
@@ -186,6 +197,7 @@ pub fn read(path: &Path) -> Result<Streamlines> {
     let mut lines: Vec<Vec<usize>> = Vec::new();
     let mut point_attrs: Vec<(String, usize, Vec<f64>)> = Vec::new();
     let mut cell_attrs: Vec<(String, usize, Vec<f64>)> = Vec::new();
+    let mut warnings: Vec<String> = Vec::new();
     let mut section = "";
     let mut n_section = 0usize;
     while let Some(kw) = c.token() {
@@ -195,6 +207,16 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                 let ty = c.token().unwrap_or("float").to_ascii_lowercase();
                 c.end_line();
                 let v = c.values(path, "POINTS", &ty, n.saturating_mul(3))?;
+                if let Some(i) = v
+                    .iter()
+                    .position(|&x| x.is_finite() && !(x as f32).is_finite())
+                {
+                    return Err(TubesError::format(
+                        path,
+                        "POINTS",
+                        format!("point {}: {:e} is outside f32's range", i / 3, v[i]),
+                    ));
+                }
                 points = v
                     .chunks_exact(3)
                     .map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
@@ -223,8 +245,21 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                     let ty = c.token().unwrap_or("vtktypeint64").to_ascii_lowercase();
                     c.end_line();
                     let conn = c.values(path, "CONNECTIVITY", &ty, b)?;
+                    let offsets = offsets
+                        .iter()
+                        .enumerate()
+                        .map(|(i, &o)| index(path, "OFFSETS", i, o))
+                        .collect::<Result<Vec<_>>>()?;
+                    if offsets.first().is_some_and(|&o| o != 0) {
+                        return Err(TubesError::format(path, "OFFSETS", "must start at 0"));
+                    }
+                    let conn = conn
+                        .iter()
+                        .enumerate()
+                        .map(|(i, &o)| index(path, "CONNECTIVITY", i, o))
+                        .collect::<Result<Vec<_>>>()?;
                     for w in offsets.windows(2) {
-                        let (s, e) = (w[0] as usize, w[1] as usize);
+                        let (s, e) = (w[0], w[1]);
                         if s > e || e > conn.len() {
                             return Err(TubesError::format(
                                 path,
@@ -235,12 +270,17 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                                 ),
                             ));
                         }
-                        lines.push(conn[s..e].iter().map(|&i| i as usize).collect());
+                        lines.push(conn[s..e].to_vec());
                     }
                 } else {
                     c.pos = save;
                     let v = c.values(path, "LINES", "int", b)?;
-                    let mut k = 0;
+                    let v = v
+                        .iter()
+                        .enumerate()
+                        .map(|(i, &o)| index(path, "LINES", i, o))
+                        .collect::<Result<Vec<_>>>()?;
+                    let mut k = 0usize;
                     for l in 0..a {
                         let n = *v.get(k).ok_or_else(|| {
                             TubesError::format(
@@ -248,7 +288,8 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                                 "LINES",
                                 format!("line {l} runs past the {b} entries"),
                             )
-                        })? as usize;
+                        })?;
+                        // n < 2^31 and k < len: no overflow.
                         let ids = v.get(k + 1..k + 1 + n).ok_or_else(|| {
                             TubesError::format(
                                 path,
@@ -256,7 +297,7 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                                 format!("line {l} with {n} points runs past the {b} entries"),
                             )
                         })?;
-                        lines.push(ids.iter().map(|&i| i as usize).collect());
+                        lines.push(ids.to_vec());
                         k += 1 + n;
                     }
                 }
@@ -332,6 +373,12 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                             &mut point_attrs
                         };
                         dest.push((name, comps, v));
+                    } else {
+                        warnings.push(format!(
+                            "FIELD array '{}' ({comps} components x {tuples} tuples) does not \
+                             fit its {n_section}-tuple {section} data; ignored",
+                            volume::clip_text(&name, 40)
+                        ));
                     }
                 }
             }
@@ -367,6 +414,12 @@ pub fn read(path: &Path) -> Result<Streamlines> {
     }
     for (name, comps, v) in point_attrs {
         if v.len() != comps * points.len() {
+            warnings.push(format!(
+                "point array '{}' has {} tuples for {} points; ignored",
+                volume::clip_text(&name, 40),
+                v.len() / comps.max(1),
+                points.len()
+            ));
             continue;
         }
         let values = lines
@@ -387,8 +440,16 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                 components: comps,
                 values: v.iter().map(|&x| x as f32).collect(),
             });
+        } else {
+            warnings.push(format!(
+                "cell array '{}' has {} tuples for {} lines; ignored",
+                volume::clip_text(&name, 40),
+                v.len() / comps.max(1),
+                lines.len()
+            ));
         }
     }
+    s.warnings = warnings;
     s.format = "vtk-polydata".into();
     Ok(s)
 }

@@ -238,11 +238,12 @@ fn malformed_tractograms_are_errors_not_panics() {
             assert!(r.is_ok(), "{name} cut at {cut}: panic");
         }
     }
-    // Empty files are empty sets.
-    for name in ["z.trk", "z.tck"] {
+    // Empty files are errors (nibabel cannot read their header either), not empty sets.
+    for name in ["z.trk", "z.tck", "z.vtk", "z.tck.gz"] {
         let p = d.path().join(name);
         std::fs::write(&p, b"").unwrap();
-        assert!(tubes::load(&p).unwrap().is_empty());
+        let e = tubes::load(&p).unwrap_err().to_string();
+        assert!(e.contains("empty"), "{name}: {e}");
     }
 }
 
@@ -506,4 +507,191 @@ fn trx_directories_old_offsets_and_malformed_archives() {
     let full = std::fs::read(trx_dir().join("complex.trx")).unwrap();
     std::fs::write(&z, &full[..full.len() / 2]).unwrap();
     assert!(tubes::load(&z).is_err());
+}
+
+/// The forms nibabel reads that a strict reader refused (issue 17): `.tck` continuation lines
+/// and repeated keys, a repeated `file` (the first offset), no `datatype` (Float32LE), `Float32`
+/// without an endianness, no `file` key (the data after END), triplets with one NaN or one Inf
+/// component (points: only all-NaN splits and all-Inf ends), and TrackVis version 3 (read as
+/// 2). Every streamline length and point against nibabel 5.4
+/// (tests/fixtures/tracts/conformance/make_conformance.py).
+#[test]
+fn forms_nibabel_accepts_read_as_nibabel_reads_them() {
+    let root = dir().join("conformance");
+    let text = std::fs::read_to_string(root.join("conformance.json")).unwrap();
+    let all: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let value = |v: &serde_json::Value| -> f32 {
+        match v {
+            serde_json::Value::String(s) => s.parse().unwrap(),
+            v => v.as_f64().unwrap() as f32,
+        }
+    };
+    let mut n = 0;
+    for (name, e) in all.as_object().unwrap() {
+        let s = tubes::load(&root.join(name)).unwrap_or_else(|err| panic!("{name}: {err}"));
+        let lengths: Vec<usize> = (0..s.len()).map(|i| s.line(i).len()).collect();
+        let want: Vec<usize> = e["lengths"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap() as usize)
+            .collect();
+        assert_eq!(lengths, want, "{name}");
+        let pts = e["points"].as_array().unwrap();
+        assert_eq!(pts.len(), s.points.len(), "{name}");
+        for (k, (p, q)) in s.points.iter().zip(pts).enumerate() {
+            for c in 0..3 {
+                let (a, b) = (p[c], value(&q[c]));
+                let same = (a.is_nan() && b.is_nan()) || a == b || (a - b).abs() < 1e-4;
+                assert!(same, "{name}: point {k}[{c}] {a} vs nibabel {b}");
+            }
+        }
+        n += 1;
+    }
+    assert_eq!(n, 10);
+}
+
+/// Non-finite points are kept (as nibabel keeps them) but never poison what is computed from
+/// them: bounds come from the finite points (a NaN point restarted glam's fold and lost every
+/// point before it), a tube mesh of lines with an Inf or a trailing NaN point has only finite
+/// vertices, and the line renderer's segments skip them.
+#[test]
+fn non_finite_points_leave_bounds_and_meshes_finite() {
+    let mut s = Streamlines::new();
+    s.push(&[
+        Vec3::new(-5.0, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(f32::NAN, 1.0, 2.0),
+        Vec3::new(1.0, 1.0, 1.0),
+        Vec3::new(2.0, 3.0, 1.0),
+    ]);
+    s.push(&[
+        Vec3::new(0.0, 4.0, 0.0),
+        Vec3::new(f32::INFINITY, 0.0, 0.0),
+        Vec3::new(1.0, 5.0, 0.0),
+        Vec3::new(2.0, 6.0, 1.0),
+        Vec3::new(3.0, 7.0, f32::NAN),
+    ]);
+    let [lo, hi] = s.bounds().unwrap();
+    assert_eq!(lo, Vec3::new(-5.0, 0.0, 0.0));
+    assert_eq!(hi, Vec3::new(2.0, 6.0, 1.0));
+    assert_eq!(s.nonfinite_points(), 3);
+    let o = tubes::tube_mesh::TubeOptions::defaults(0.2, 8, 0.01);
+    let (mesh, _) = tubes::tube_mesh::build(&s, &o);
+    assert!(!mesh.indices.is_empty());
+    assert!(mesh.origin.is_finite());
+    assert!(mesh.positions.iter().all(|p| p.is_finite()));
+    let set = tubes::lines::LineSet::new(
+        &s,
+        &tubes::tube_mesh::ColorMode::Direction,
+        tubes::lines::LineWidth::Pixels(2.0),
+        false,
+    );
+    assert!(set.origin.is_finite());
+    for &i in &set.segments {
+        let (a, b) = (s.points[i as usize], s.points[i as usize + 1]);
+        assert!(a.is_finite() && b.is_finite(), "segment {i}");
+    }
+    assert_eq!(set.segments.len(), 3);
+}
+
+/// Issue 17's hostile tractograms, one per case: header values that overflow f32 when applied
+/// (TrackVis voxel_size 1e-45, vox_to_ras 3.4e38), VTK polyline indices that are not indices
+/// (-1, NaN, 1.9), doubles outside f32 (1e300), a gzip bomb of zeros (refused at its first
+/// bytes), devices, and a .tck header of 150,000 keys (read in linear time).
+#[test]
+fn hostile_tractograms_are_refused_or_read_exactly() {
+    let d = tempfile::tempdir().unwrap();
+    let trk = std::fs::read(dir().join("nibabel/simple.trk")).unwrap();
+    let mut tiny = trk.clone();
+    tiny[12..16].copy_from_slice(&1e-45f32.to_le_bytes());
+    assert!(expect_err(d.path(), "v.trk", &tiny, "voxel_size 1e-45").contains("voxel_size"));
+    let mut huge = trk.clone();
+    huge[440..444].copy_from_slice(&3.4e38f32.to_le_bytes());
+    huge[460..464].copy_from_slice(&3.4e38f32.to_le_bytes());
+    huge[480..484].copy_from_slice(&3.4e38f32.to_le_bytes());
+    let e = expect_err(d.path(), "r.trk", &huge, "vox_to_ras 3.4e38");
+    assert!(e.contains("vox_to_ras"), "{e}");
+
+    let vtk = std::fs::read(dir().join("lines_ascii.vtk")).unwrap();
+    for (bad, what) in [("-1", "-1"), ("nan", "NaN"), ("1.9", "1.9")] {
+        let b = replace(&vtk, "0 1 2 3 4 5 6 3 2", &format!("0 1 {bad} 3 4 5 6 3 2"));
+        let e = expect_err(d.path(), "i.vtk", &b, what);
+        assert!(
+            e.contains("CONNECTIVITY") && e.contains("entry 2"),
+            "{what}: {e}"
+        );
+        let b = replace(&vtk, "0 4 7 9", &format!("0 {bad} 7 9"));
+        expect_err(d.path(), "o.vtk", &b, what);
+    }
+    let b = replace(
+        &replace(&vtk, "POINTS 7 float", "POINTS 7 double"),
+        "0 0 0 1 0 0",
+        "1e300 0 0 1 0 0",
+    );
+    assert!(expect_err(d.path(), "f.vtk", &b, "1e300").contains("f32"));
+    // An attribute of the wrong length is reported, not dropped in silence.
+    let b = replace(&vtk, "id 1 3 float\n10 20 30", "id 1 2 float\n10 20");
+    let p = d.path().join("a.vtk");
+    std::fs::write(&p, &b).unwrap();
+    let s = tubes::load(&p).unwrap();
+    assert!(
+        s.warnings.iter().any(|w| w.contains("'id'")),
+        "{:?}",
+        s.warnings
+    );
+
+    // 64 MiB of zeros as gzip: refused at the magic, without inflating the rest.
+    let bomb = volume::gzip_bytes(&vec![0u8; 64 << 20]);
+    for name in ["b.trk.gz", "b.tck.gz", "b.vtk.gz"] {
+        assert!(expect_err(d.path(), name, &bomb, "gzip of zeros").contains("magic"));
+    }
+    #[cfg(unix)]
+    for target in ["/dev/zero", "/dev/urandom"] {
+        let link = d.path().join("dev.tck");
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(target, &link).unwrap();
+        let e = tubes::load(&link).unwrap_err().to_string();
+        assert!(e.contains("regular file"), "{target}: {e}");
+    }
+
+    let tck = std::fs::read(dir().join("nibabel/simple.tck")).unwrap();
+    let keys: String = (0..150_000).map(|i| format!("k{i}: {i}\n")).collect();
+    let head_end = tck.windows(4).position(|w| w == b"END\n").unwrap();
+    let old_off = 67usize;
+    let new_off = old_off + keys.len();
+    let mut many = replace(
+        &tck[..head_end],
+        "file: . 67",
+        &format!("file: . {new_off}"),
+    );
+    many.extend_from_slice(keys.as_bytes());
+    many.extend_from_slice(&tck[head_end..]);
+    // The offset line changed length by the digits of new_off against those of 67.
+    let shift = format!("{new_off}").len() - 2;
+    let many = replace(
+        &many,
+        &format!("file: . {new_off}"),
+        &format!("file: . {}", new_off + shift),
+    );
+    let p = d.path().join("keys.tck");
+    std::fs::write(&p, &many).unwrap();
+    let s = tubes::load(&p).unwrap();
+    assert_eq!(s.len(), 3);
+}
+
+/// `.vtk.gz` polylines are recognised through the compression (info sniffed the gzip bytes and
+/// called them a volume), and a title that says POLYDATA does not make a volume a tractogram.
+#[test]
+fn compressed_vtk_polylines_are_recognised() {
+    let d = tempfile::tempdir().unwrap();
+    let vtk = std::fs::read(dir().join("lines_ascii.vtk")).unwrap();
+    let p = d.path().join("l.vtk.gz");
+    std::fs::write(&p, volume::gzip_bytes(&vtk)).unwrap();
+    assert!(tubes::is_tractogram(&p));
+    assert_eq!(tubes::load(&p).unwrap().len(), 3);
+    let img = b"# vtk DataFile Version 3.0\nPOLYDATA lines\nASCII\nDATASET STRUCTURED_POINTS\n";
+    let q = d.path().join("img.vtk");
+    std::fs::write(&q, img).unwrap();
+    assert!(!tubes::is_tractogram(&q));
 }

@@ -32,17 +32,11 @@ pub fn classify(path: &Path) -> Result<Kind, String> {
         "trk" | "tck" | "trx" => Kind::Lines,
         "ply" | "obj" => Kind::Mesh,
         "vtk" => {
-            // Legacy VTK: image data is a volume, polydata lines a tractogram.
-            let mut head = vec![0u8; 1024];
-            let n = std::io::Read::read(
-                &mut std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?,
-                &mut head,
-            )
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-            if String::from_utf8_lossy(&head[..n]).contains("STRUCTURED_POINTS") {
-                Kind::Volume
-            } else {
+            // Legacy VTK: polydata lines a tractogram, anything else a volume (or its error).
+            if tubes::vtk_dataset(path).is_some_and(|d| d == "POLYDATA") {
                 Kind::Lines
+            } else {
+                Kind::Volume
             }
         }
         _ => {

@@ -38,8 +38,8 @@ impl VolumeError {
     pub fn format(path: &Path, field: impl Into<String>, problem: impl Into<String>) -> Self {
         VolumeError::Format {
             path: path.to_path_buf(),
-            field: field.into(),
-            problem: problem.into(),
+            field: crate::io_util::clip_text(&field.into(), 120),
+            problem: crate::io_util::clip_text(&problem.into(), 400),
         }
     }
 }

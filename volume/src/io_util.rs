@@ -41,8 +41,91 @@ impl Bytes<'_> {
     bytes_getter!(f64, f64, 8);
 }
 
+/// The most bytes any reader takes from one file or decodes from one compressed stream
+/// (16 GiB: 2^32 samples of 4 bytes); a larger file is refused before it is read.
+pub const MAX_FILE_BYTES: u64 = 1 << 34;
+
+/// Opens a file for reading, refusing what is not a regular file (directories, devices such as
+/// /dev/zero or /dev/urandom, sockets, pipes: they have no size to bound the read by) and files
+/// over [`MAX_FILE_BYTES`]. Returns the file and its length.
+pub fn open_regular(path: &Path) -> std::io::Result<(std::fs::File, u64)> {
+    use std::io::{Error, ErrorKind};
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        let what = if meta.is_dir() {
+            "a directory"
+        } else {
+            "not a regular file (a device, pipe or socket)"
+        };
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            format!("{what}; umbra reads regular files only"),
+        ));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            format!(
+                "{} bytes, more than the {MAX_FILE_BYTES} umbra reads from one file",
+                meta.len()
+            ),
+        ));
+    }
+    let f = std::fs::File::open(path)?;
+    Ok((f, meta.len()))
+}
+
+/// Reads at most `limit` bytes of a regular file (all of it with `None`), never more than the
+/// file's length: a file that grows while it is read is cut at the length it had when opened.
+pub fn read_regular(path: &Path, limit: Option<u64>) -> std::io::Result<Vec<u8>> {
+    let (f, len) = open_regular(path)?;
+    let n = limit.map_or(len, |l| l.min(len));
+    let mut buf = Vec::with_capacity(n as usize);
+    f.take(n).read_to_end(&mut buf)?;
+    Ok(buf)
+}
+
+/// Reads a UTF-8 text file (a scene, a manifest, a seed list) of at most `max` bytes: larger
+/// files, devices and invalid UTF-8 are errors.
+pub fn read_text(path: &Path, max: u64) -> std::io::Result<String> {
+    use std::io::{Error, ErrorKind};
+    let (_, len) = open_regular(path)?;
+    if len > max {
+        return Err(Error::new(
+            ErrorKind::InvalidData,
+            format!("{len} bytes, more than the {max} a text file of this kind may have"),
+        ));
+    }
+    let bytes = read_regular(path, Some(max))?;
+    String::from_utf8(bytes).map_err(|e| {
+        Error::new(
+            ErrorKind::InvalidData,
+            format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+        )
+    })
+}
+
+/// Reads a whole regular file (see [`open_regular`] for what is refused).
 pub fn read_file(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| VolumeError::io(path, e))
+    read_regular(path, None).map_err(|e| VolumeError::io(path, e))
+}
+
+/// Whether three axis vectors fail to span 3-D space: a non-finite determinant, or a cell
+/// volume below 1e-6 of its edges' product (scale-free: 10 um voxels in metres are fine,
+/// parallel axes are not).
+pub fn degenerate_axes(m: glam::DMat3) -> bool {
+    let det = m.determinant();
+    let edges = m.x_axis.length() * m.y_axis.length() * m.z_axis.length();
+    !(det.is_finite() && det.abs() > 1e-6 * edges && edges > 0.0)
+}
+
+/// Cuts text quoted from a file for an error message to at most `max` characters, saying how
+/// long it was: a 5 MB header line gives a readable error, not a 5 MB one.
+pub fn clip_text(s: &str, max: usize) -> String {
+    match s.char_indices().nth(max) {
+        None => s.to_string(),
+        Some((cut, _)) => format!("{}... ({} bytes in all)", &s[..cut], s.len()),
+    }
 }
 
 /// Reads a data file named by a header: errors name both the header and its field.
@@ -59,19 +142,14 @@ pub fn read_companion(
     } else {
         header.parent().unwrap_or(Path::new(".")).join(name)
     };
-    let bytes = std::fs::read(&p).map_err(|e| {
+    let bytes = read_regular(&p, None).map_err(|e| {
         VolumeError::format(header, field, format!("cannot read {}: {e}", p.display()))
     })?;
     Ok((p, bytes))
 }
 
 pub fn read_head(path: &Path, n: usize) -> Result<Vec<u8>> {
-    let f = std::fs::File::open(path).map_err(|e| VolumeError::io(path, e))?;
-    let mut buf = Vec::with_capacity(n);
-    f.take(n as u64)
-        .read_to_end(&mut buf)
-        .map_err(|e| VolumeError::io(path, e))?;
-    Ok(buf)
+    read_regular(path, Some(n as u64)).map_err(|e| VolumeError::io(path, e))
 }
 
 /// Product of dimensions with overflow and size checks. `what` names the header field.
@@ -107,10 +185,15 @@ fn decompress_limited(
     kind: &str,
 ) -> Result<Vec<u8>> {
     let mut out = Vec::new();
-    let res = match expected {
-        Some(n) => reader.by_ref().take(n as u64 + 1).read_to_end(&mut out),
-        None => reader.read_to_end(&mut out),
-    };
+    let limit = expected.map_or(MAX_FILE_BYTES, |n| n as u64);
+    let res = reader.by_ref().take(limit + 1).read_to_end(&mut out);
+    if expected.is_none() && out.len() as u64 > limit {
+        return Err(VolumeError::format(
+            path,
+            field,
+            format!("{kind} data decode to more than {MAX_FILE_BYTES} bytes; refusing"),
+        ));
+    }
     if let Err(e) = res {
         return Err(VolumeError::format(
             path,

@@ -41,7 +41,10 @@ pub mod vtk_legacy;
 
 pub use error::{Result, VolumeError};
 use glam::{DMat4, DVec3, DVec4};
-pub use io_util::{gzip_bytes, remove_stale_temps, temp_name, write_atomic, Bytes};
+pub use io_util::{
+    clip_text, gzip_bytes, open_regular, read_regular, read_text, remove_stale_temps, temp_name,
+    write_atomic, Bytes, MAX_FILE_BYTES,
+};
 pub use series::VolumeSeries;
 use std::path::Path;
 
@@ -278,12 +281,14 @@ impl Volume {
         Ok(v)
     }
 
-    /// Checks the invariants every reader guarantees.
+    /// Checks the invariants every reader guarantees: a positive grid of at most
+    /// [`MAX_SAMPLES`] values, every field the grid's size, and a world frame that is usable in
+    /// `f32` (see [`check_frame`]).
     pub fn validate(&self) -> Result<()> {
         if self.fields.is_empty() {
             return Err(VolumeError::Invalid("volume has no data arrays".into()));
         }
-        let n = self.voxel_count();
+        let n = checked_voxels(self.dims)?;
         for f in &self.fields {
             if f.components != 1 && f.components != 3 {
                 return Err(VolumeError::Invalid(format!(
@@ -303,14 +308,14 @@ impl Volume {
         if self.default_field >= self.fields.len() {
             return Err(VolumeError::Invalid("default field out of range".into()));
         }
-        if !self.affine.to_cols_array().iter().all(|v| v.is_finite()) {
-            return Err(VolumeError::Invalid("affine has non-finite entries".into()));
-        }
-        Ok(())
+        check_frame(self.dims, self.affine)
     }
 
+    /// Voxels of the grid (saturating: a validated volume never gets near `usize::MAX`).
     pub fn voxel_count(&self) -> usize {
-        self.dims[0] * self.dims[1] * self.dims[2]
+        self.dims[0]
+            .saturating_mul(self.dims[1])
+            .saturating_mul(self.dims[2])
     }
 
     /// Linear index of voxel (i, j, k).
@@ -393,6 +398,87 @@ impl Volume {
     }
 }
 
+/// The most samples (values, all components) one array may hold: 2^32.
+pub const MAX_SAMPLES: u64 = io_util::MAX_SAMPLES;
+
+/// The smallest and largest voxel spacing (world units) a volume may have, and the largest
+/// absolute world coordinate of its grid. Outside them a frame is refused: a spacing that
+/// underflows `f32` (a denormal such as 1e-320 reads as 0) or bounds that overflow it
+/// (1e308 x 256) would give the renderer null or infinite boxes.
+pub const MIN_SPACING: f64 = 1e-12;
+pub const MAX_SPACING: f64 = 1e12;
+pub const MAX_COORDINATE: f64 = 1e15;
+
+/// The grid's voxel count, with every dimension at least 1 and the product checked (no
+/// wrapping) against [`MAX_SAMPLES`].
+pub fn checked_voxels(dims: [usize; 3]) -> Result<usize> {
+    let mut n: u64 = 1;
+    for &d in &dims {
+        if d == 0 {
+            return Err(VolumeError::Invalid(format!(
+                "grid {} x {} x {} has an empty axis",
+                dims[0], dims[1], dims[2]
+            )));
+        }
+        n = n
+            .checked_mul(d as u64)
+            .filter(|&n| n <= MAX_SAMPLES)
+            .ok_or_else(|| {
+                VolumeError::Invalid(format!(
+                    "grid {} x {} x {} has more than {MAX_SAMPLES} voxels",
+                    dims[0], dims[1], dims[2]
+                ))
+            })?;
+    }
+    Ok(n as usize)
+}
+
+/// Checks an index-to-world affine of a `dims` grid: finite entries, a last row of
+/// `(0, 0, 0, 1)`, each axis's spacing within [`MIN_SPACING`, `MAX_SPACING`], independent
+/// axes (the 3 x 3 part invertible, not merely nonzero), and every grid corner within
+/// [`MAX_COORDINATE`] of the origin.
+pub fn check_frame(dims: [usize; 3], affine: DMat4) -> Result<()> {
+    let bad = |msg: String| Err(VolumeError::Invalid(msg));
+    if let Some(v) = affine.to_cols_array().iter().find(|v| !v.is_finite()) {
+        return bad(format!("the affine has a non-finite entry ({v})"));
+    }
+    let row3 = affine.row(3);
+    if row3 != DVec4::new(0.0, 0.0, 0.0, 1.0) {
+        return bad(format!(
+            "the affine's last row is {row3:?}, not (0, 0, 0, 1) (no projective frames)"
+        ));
+    }
+    let axes = [affine.x_axis, affine.y_axis, affine.z_axis].map(|a| a.truncate());
+    for (a, name) in axes.iter().zip(["i", "j", "k"]) {
+        let s = a.length();
+        if !(MIN_SPACING..=MAX_SPACING).contains(&s) {
+            return bad(format!(
+                "the spacing along {name} is {s:e} (world units per voxel); umbra reads \
+                 {MIN_SPACING:e} to {MAX_SPACING:e}"
+            ));
+        }
+    }
+    // Independence: the volume of the unit cell against the product of its edge lengths
+    // (1 for orthogonal axes, 0 for parallel ones).
+    let cell = axes[0].cross(axes[1]).dot(axes[2]).abs();
+    let edges = axes[0].length() * axes[1].length() * axes[2].length();
+    if cell.is_nan() || cell <= 1e-6 * edges {
+        return bad(format!(
+            "the affine's axes are (nearly) linearly dependent (cell volume {cell:e}, edges' \
+             product {edges:e}): the grid has no 3-D world frame"
+        ));
+    }
+    let [lo, hi] = grid_bounds(dims, affine);
+    let far = lo.abs().max(hi.abs()).max_element();
+    if far.is_nan() || far > MAX_COORDINATE {
+        return bad(format!(
+            "the grid reaches world coordinate {far:e}; umbra reads coordinates up to \
+             {MAX_COORDINATE:e}"
+        ));
+    }
+    Ok(())
+}
+
 /// Axis-aligned world bounding box of the node positions of a `dims` grid whose index-to-world
 /// map is `affine`: the box of its eight corner nodes.
 pub fn grid_bounds(dims: [usize; 3], affine: DMat4) -> [DVec3; 2] {
@@ -411,6 +497,22 @@ pub fn grid_bounds(dims: [usize; 3], affine: DMat4) -> [DVec3; 2] {
         hi = hi.max(p);
     }
     [lo, hi]
+}
+
+/// Whether a file's name is one of the volume formats' (`.nii`, `.nii.gz`, `.hdr`, `.nrrd`,
+/// `.nhdr`, `.vti`, `.mhd`, `.mha`, `.slc`): such a file is read by its reader or refused, never
+/// guessed at as a PLOT3D grid (which has no signature).
+pub fn has_volume_extension(path: &Path) -> bool {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    let ext = stem.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    matches!(
+        ext,
+        "nii" | "hdr" | "img" | "nrrd" | "nhdr" | "vti" | "mhd" | "mha" | "raw" | "slc"
+    )
 }
 
 /// Reads a volume, choosing the reader by file name (and by content where the name says nothing).
@@ -496,6 +598,12 @@ pub fn load_grid(path: &Path, q: Option<&Path>) -> Result<(cfd_grid::CfdGrid, Ve
     match ext {
         "vtr" | "vts" | "vtu" => Ok((vti::read_grid(path)?, vec![])),
         "vtk" => Ok((vtk_legacy::read_grid(path)?, vec![])),
+        _ if has_volume_extension(path) => Err(VolumeError::format(
+            path,
+            "file name",
+            "a volume format, not a CFD grid (.vtr, .vts, .vtu, .vtk or PLOT3D): it is already \
+             a regular grid",
+        )),
         _ => plot3d::read(path, q),
     }
 }

@@ -165,7 +165,7 @@ pub fn read(path: &Path) -> Result<Volume> {
         .map(|a| dirs[a] * if a < ndims { sp[a] } else { 1.0 } * flip)
         .collect();
     let m3 = DMat3::from_cols(cols[0], cols[1], cols[2]);
-    if m3.determinant().abs() < 1e-12 || !m3.determinant().is_finite() {
+    if crate::io_util::degenerate_axes(m3) {
         return Err(VolumeError::format(
             path,
             "ElementSpacing/TransformMatrix",
@@ -187,11 +187,9 @@ pub fn read(path: &Path) -> Result<Volume> {
     for a in 0..ndims {
         dims[a] = sizes[a] as usize;
     }
-    let count = checked_count(
-        path,
-        "DimSize",
-        &[sizes.iter().product::<i64>().max(1), channels as i64],
-    )?;
+    let mut factors = sizes.clone();
+    factors.push(channels as i64);
+    let count = checked_count(path, "DimSize", &factors)?;
     let nbytes = count * ty.size();
     let (dpath, bytes): (PathBuf, Vec<u8>) = if data_file.eq_ignore_ascii_case("LOCAL") {
         (

@@ -274,7 +274,7 @@ fn affine_of(path: &Path, h: &Header, dims: [usize; 3]) -> Result<(DMat4, Space)
                 "non-finite entries in the sform",
             ));
         }
-        if m.determinant().abs() < 1e-12 {
+        if crate::io_util::degenerate_axes(glam::DMat3::from_mat4(m)) {
             return Err(VolumeError::format(
                 path,
                 "srow_x/y/z",

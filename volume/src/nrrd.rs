@@ -364,7 +364,7 @@ pub fn read(path: &Path) -> Result<Volume> {
         }
     }
     let m3 = DMat3::from_cols(cols[0] * flip, cols[1] * flip, cols[2] * flip);
-    if m3.determinant().abs() < 1e-12 || !m3.determinant().is_finite() {
+    if crate::io_util::degenerate_axes(m3) {
         return Err(VolumeError::format(
             path,
             "space directions",
@@ -511,6 +511,23 @@ pub fn read(path: &Path) -> Result<Volume> {
                 })
                 .collect();
             mf = DMat3::from_cols(c[0], c[1], c[2]);
+            // The frame the vectors were measured in: a rotation (or a reflection). A zero or
+            // scaling frame would silently zero or rescale every vector.
+            let gram = mf.transpose() * mf;
+            let off = (gram - DMat3::IDENTITY)
+                .to_cols_array()
+                .iter()
+                .fold(0.0f64, |a, v| a.max(v.abs()));
+            if off.is_nan() || off > 1e-3 {
+                return Err(VolumeError::format(
+                    path,
+                    "measurement frame",
+                    format!(
+                        "not orthonormal (its vectors' dot products differ from the identity by \
+                         {off:.3e}): the frame must be a rotation"
+                    ),
+                ));
+            }
         }
         let m = DMat3::from_diagonal(flip) * mf;
         if m != DMat3::IDENTITY {

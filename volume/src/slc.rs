@@ -6,7 +6,8 @@
 //! (each slice preceded by `size X`; a control byte `c` with `c & 0x7f = n`, `n = 0` ends the
 //! slice, high bit set: `n` literal bytes follow, else one byte repeated `n` times). Only 8-bit
 //! data exist in the format. Some writers (the `embryo.slc` of VTK's data, for one) encode
-//! slices one byte short; such slices are padded with 0 and a warning says so. The grid starts at the origin with the header's spacing, in the
+//! slices one byte short; such slices (short by at most one row) are padded with 0 and a warning
+//! says so; slices shorter than that are errors. The grid starts at the origin with the header's spacing, in the
 //! file's own frame.
 
 use crate::io_util::{self, checked_count, Cursor};
@@ -42,7 +43,8 @@ fn expect_x(path: &Path, field: &str, cur: &mut Cursor) -> Result<()> {
 /// Decodes one run-length encoded slice of at most `size` bytes (the caller pads short slices).
 fn decode_rle(path: &Path, slice: usize, input: &[u8], size: usize) -> Result<Vec<u8>> {
     let err = |m: &str| VolumeError::format(path, format!("slice {slice}"), m.to_string());
-    let mut out = Vec::with_capacity(size);
+    // A run of at most 127 bytes per input byte: the output never exceeds that.
+    let mut out = Vec::with_capacity(size.min(input.len().saturating_mul(127)));
     let mut i = 0;
     loop {
         let c = *input
@@ -158,6 +160,19 @@ pub fn read(path: &Path) -> Result<Volume> {
                 })?;
                 let dec = decode_rle(path, z, comp, plane)?;
                 if dec.len() < plane {
+                    // Short by a row at most (real files lose their last byte); more is a
+                    // broken or hostile file, not something to pad with zeros.
+                    if plane - dec.len() > d[0] as usize {
+                        return Err(VolumeError::format(
+                            path,
+                            format!("slice {z}"),
+                            format!(
+                                "run-length data decode to {} bytes, the slice has {plane} (more \
+                                 than a row short)",
+                                dec.len()
+                            ),
+                        ));
+                    }
                     short += 1;
                 }
                 data.extend(dec.iter().map(|&b| b as f32));

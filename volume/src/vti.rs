@@ -252,8 +252,17 @@ impl Ctx<'_> {
 }
 
 fn attr_map(path: &Path, e: &quick_xml::events::BytesStart) -> Result<Vec<(String, String)>> {
-    let mut v = Vec::new();
-    for a in e.attributes() {
+    let mut v: Vec<(String, String)> = Vec::new();
+    // quick-xml's duplicate check is quadratic in the attribute count; VTK elements have a
+    // handful, so more than 64 is refused and duplicates are found here.
+    for a in e.attributes().with_checks(false) {
+        if v.len() == 64 {
+            return Err(VolumeError::format(
+                path,
+                "XML",
+                "an element with more than 64 attributes (VTK's have a dozen at most)",
+            ));
+        }
         let a =
             a.map_err(|err| VolumeError::format(path, "XML", format!("bad attribute: {err}")))?;
         let k = String::from_utf8_lossy(a.key.as_ref()).to_string();
@@ -261,6 +270,13 @@ fn attr_map(path: &Path, e: &quick_xml::events::BytesStart) -> Result<Vec<(Strin
             .unescape_value()
             .map_err(|err| VolumeError::format(path, "XML", format!("bad attribute value: {err}")))?
             .to_string();
+        if v.iter().any(|(key, _)| *key == k) {
+            return Err(VolumeError::format(
+                path,
+                "XML",
+                format!("attribute '{}' repeated", io_util::clip_text(&k, 40)),
+            ));
+        }
         v.push((k, val));
     }
     Ok(v)
@@ -431,17 +447,29 @@ pub fn parse_xml(path: &Path, kinds: &[&str]) -> Result<XmlDoc> {
                         let piece = pieces.len() - 1;
                         let pattrs = &pieces[piece];
                         // Tuples implied by the piece.
-                        let span = |e: [i64; 6], a: usize| (e[2 * a + 1] - e[2 * a] + 1) as usize;
+                        let span = |e: [i64; 6], a: usize| {
+                            e[2 * a + 1].saturating_sub(e[2 * a]).saturating_add(1)
+                        };
                         let tuples = match (sec, piece_extent) {
                             (Section::PointData | Section::Points, Some(e)) => {
-                                Some(span(e, 0) * span(e, 1) * span(e, 2))
+                                Some(io_util::checked_count(
+                                    path,
+                                    "Piece Extent",
+                                    &[0, 1, 2].map(|a| span(e, a)),
+                                )?)
                             }
-                            (Section::CellData, Some(e)) => {
-                                Some((0..3).map(|a| (span(e, a) - 1).max(1)).product())
-                            }
+                            (Section::CellData, Some(e)) => Some(io_util::checked_count(
+                                path,
+                                "Piece Extent",
+                                &[0, 1, 2].map(|a| (span(e, a) - 1).max(1)),
+                            )?),
                             (Section::Coordinates, Some(e)) => {
                                 coordinate += 1;
-                                Some(span(e, (coordinate - 1).min(2)))
+                                Some(io_util::checked_count(
+                                    path,
+                                    "Piece Extent",
+                                    &[span(e, (coordinate - 1).min(2))],
+                                )?)
                             }
                             (Section::PointData | Section::Points, None) => {
                                 count_attr(pattrs, "NumberOfPoints")?
@@ -690,7 +718,7 @@ pub fn read(path: &Path) -> Result<Volume> {
         DVec3::new(dir[2], dir[5], dir[8]),
     );
     let m3 = d * DMat3::from_diagonal(DVec3::new(spacing[0], spacing[1], spacing[2]));
-    if m3.determinant().abs() < 1e-12 {
+    if crate::io_util::degenerate_axes(m3) {
         return Err(VolumeError::format(
             path,
             "Direction",

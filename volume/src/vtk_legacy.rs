@@ -320,12 +320,17 @@ fn parse(path: &Path) -> Result<Legacy> {
                         read_values(path, "CELLS", &mut cur, binary, ScalarType::I32, b as usize)?;
                     let (mut conn, mut ends) = (
                         Vec::with_capacity(list.len()),
-                        Vec::with_capacity(a as usize),
+                        // Never more cells than list entries: a header count alone
+                        // allocates nothing.
+                        Vec::with_capacity((a as usize).min(list.len())),
                     );
                     let mut i = 0usize;
                     for c in 0..a as usize {
                         let k = list.get(i).copied().unwrap_or(-1.0);
-                        if k < 0.0 || i + 1 + k as usize > list.len() {
+                        let fits = k >= 0.0
+                            && k.fract() == 0.0
+                            && (k as usize) < list.len().saturating_sub(i);
+                        if !fits {
                             return Err(VolumeError::format(
                                 path,
                                 "CELLS",
@@ -694,7 +699,28 @@ pub fn read_grid(path: &Path) -> Result<CfdGrid> {
             }
         }
         _ => {
-            // Regular: expand to coordinates.
+            // Regular: expand to coordinates, once the data show the grid exists (a header's
+            // DIMENSIONS alone allocates nothing).
+            let n = io_util::checked_count(path, "DIMENSIONS", &dims.map(|d| d as i64))?;
+            let cells = dims
+                .map(|d| d.saturating_sub(1).max(1))
+                .iter()
+                .product::<usize>();
+            let has_data = lg
+                .arrays
+                .iter()
+                .any(|a| a.data.len() == a.comps * if a.on_cells { cells } else { n });
+            if !has_data {
+                return Err(VolumeError::format(
+                    path,
+                    "POINT_DATA",
+                    format!(
+                        "no array of the {} x {} x {} grid's size: a regular grid is resampled \
+                         from its data",
+                        dims[0], dims[1], dims[2]
+                    ),
+                ));
+            }
             let axis = |a: usize| {
                 (0..dims[a])
                     .map(|i| lg.origin[a] + lg.spacing[a] * i as f64)

@@ -447,3 +447,199 @@ fn empty_and_garbage_files_are_errors() {
         .to_string();
     assert!(missing.contains("missing.nii"), "{missing}");
 }
+
+/// Issue 17's hostile headers: products of header fields that overflow 64 bits are refused
+/// (the MetaImage product wrapped to 2 and a 2-byte file was accepted as 3 x 6.1e18 x 1), and
+/// so are piece extents whose voxel count overflows.
+#[test]
+fn header_products_that_overflow_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let mha = b"ObjectType = Image\nNDims = 3\nDimSize = 3 6148914691236517206 1\n\
+        ElementType = MET_UCHAR\nElementDataFile = LOCAL\nab";
+    let e = expect_error(dir.path(), "wrap.mha", mha, None, "DimSize product wraps");
+    assert!(e.contains("DimSize"), "{e}");
+    let b = std::fs::read(fixtures().join("image_appended_raw.vti")).unwrap();
+    let b = replace_once(
+        &replace_once(
+            &b,
+            "WholeExtent=\"0 4 0 3 0 2\"",
+            "WholeExtent=\"0 4398046511103 0 4398046511103 0 4398046511103\"",
+        ),
+        "Extent=\"0 4 0 3 0 2\"",
+        "Extent=\"0 4398046511103 0 4398046511103 0 4398046511103\"",
+    );
+    expect_error(dir.path(), "wrap.vti", &b, None, "extent product wraps");
+}
+
+/// Finite but absurd spacings (1e308: infinite bounds), denormal ones (1e-320: zero in f32)
+/// and zero ones are refused by every reader, naming the spacing.
+#[test]
+fn spacings_outside_what_f32_can_draw_are_refused_in_every_reader() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = fixtures();
+    let read = |n: &str| std::fs::read(f.join(n)).unwrap();
+    for bad in ["1e308", "1e-320", "1e-30", "1e20"] {
+        let cases: Vec<(&str, Vec<u8>)> = vec![
+            (
+                "s.nrrd",
+                replace_once(
+                    &read("spacings_ascii.nrrd"),
+                    "spacings: 0.5 0.25 4",
+                    &format!("spacings: {bad} 0.25 4"),
+                ),
+            ),
+            (
+                "s.vtk",
+                replace_once(
+                    &read("image_ascii.vtk"),
+                    "SPACING 0.5 1 2",
+                    &format!("SPACING {bad} 1 2"),
+                ),
+            ),
+            (
+                "s.vti",
+                replace_once(
+                    &read("image_ascii.vti"),
+                    "Spacing=\"0.5 1 2\"",
+                    &format!("Spacing=\"{bad} 1 2\""),
+                ),
+            ),
+            (
+                "s.mha",
+                replace_once(
+                    &read("oblique_i16.mha"),
+                    "ElementSpacing = 0.69999999999999996",
+                    &format!("ElementSpacing = {bad}"),
+                ),
+            ),
+            (
+                "s.slc",
+                replace_once(
+                    &read("ramp_rle.slc"),
+                    "0.5 1.0 2.0",
+                    &format!("{bad} 1.0 2.0"),
+                ),
+            ),
+        ];
+        for (name, b) in cases {
+            let e = expect_error(dir.path(), name, &b, None, bad);
+            assert!(
+                e.contains("spacing") || e.contains("degenerate") || e.contains("positive"),
+                "{name} {bad}: {e}"
+            );
+        }
+        // NIfTI-2: srow_x[0] (f64) set to the value, sform code 2 kept.
+        let mut b = read("n2_f64_nan.nii");
+        let v: f64 = bad.parse().unwrap();
+        b[400..408].copy_from_slice(&v.to_le_bytes());
+        let e = expect_error(dir.path(), "s.nii", &b, None, bad);
+        assert!(
+            e.contains("spacing") || e.contains("singular"),
+            "nifti2 {bad}: {e}"
+        );
+    }
+}
+
+/// A NRRD measurement frame that is not a rotation (zero, scaling) is refused: a zero frame
+/// turned every vector into (0, 0, 0).
+#[test]
+fn measurement_frames_that_are_not_rotations_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let b = std::fs::read(fixtures().join("ras_vec_raw.nrrd")).unwrap();
+    for frame in [
+        "(0,0,0) (0,0,0) (0,0,0)",
+        "(2,0,0) (0,2,0) (0,0,2)",
+        "(1,0,0) (1,0,0) (0,0,1)",
+    ] {
+        let bad = replace_once(
+            &b,
+            "kinds: vector domain domain domain",
+            &format!("kinds: vector domain domain domain\nmeasurement frame: {frame}"),
+        );
+        let e = expect_error(dir.path(), "mf.nrrd", &bad, None, frame);
+        assert!(e.contains("measurement frame"), "{frame}: {e}");
+    }
+    // A rotation is accepted.
+    let ok = replace_once(
+        &b,
+        "kinds: vector domain domain domain",
+        "kinds: vector domain domain domain\nmeasurement frame: (0,1,0) (-1,0,0) (0,0,1)",
+    );
+    assert!(try_load(dir.path(), "mf.nrrd", &ok, None).unwrap().is_ok());
+}
+
+/// A header that promises a huge run-length slice, a CELLS count or DIMENSIONS without the
+/// data allocates nothing: the SLC slice of 65536 x 65536 in a 51-byte file, `CELLS
+/// 4294967296 0` and `DIMENSIONS 4294967296 1 1` are errors at once.
+#[test]
+fn header_counts_without_their_data_allocate_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let slc = b"11111\n65536 65536 1 8\n1.0 1.0 1.0\n1 6 0 1\n1 1 X\0\0\0 1 X\0";
+    let e = expect_error(dir.path(), "big.slc", slc, None, "65536^2 run-length slice");
+    assert!(e.contains("slice 0"), "{e}");
+    let cells = b"# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+        POINTS 1 float\n0 0 0\nCELLS 4294967296 0\nCELL_TYPES 0\n";
+    let p = dir.path().join("cells.vtk");
+    std::fs::write(&p, cells).unwrap();
+    assert!(volume::load_grid(&p, None).is_err());
+    let dims = b"# vtk DataFile Version 3.0\nx\nASCII\nDATASET STRUCTURED_POINTS\n\
+        DIMENSIONS 4294967296 1 1\nSPACING 1 1 1\nORIGIN 0 0 0\n";
+    let p = dir.path().join("dims.vtk");
+    std::fs::write(&p, dims).unwrap();
+    let e = volume::load_grid(&p, None).unwrap_err().to_string();
+    assert!(e.contains("POINT_DATA") || e.contains("DIMENSIONS"), "{e}");
+}
+
+/// Devices, directories and pipes are refused before a byte is read (a /dev/zero data file
+/// was read until memory ran out); a detached data file that is a device too.
+#[cfg(unix)]
+#[test]
+fn special_files_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = volume::load(Path::new("/dev/zero"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("regular file"), "{e}");
+    let link = dir.path().join("zero.nii");
+    std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+    let e = volume::load(&link).unwrap_err().to_string();
+    assert!(e.contains("regular file"), "{e}");
+    let nhdr = b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\
+        data file: /dev/urandom\n";
+    let e = expect_error(dir.path(), "dev.nhdr", nhdr, None, "/dev/urandom data file");
+    assert!(e.contains("regular file"), "{e}");
+    let e = volume::load(dir.path()).unwrap_err().to_string();
+    assert!(e.contains("directory") || e.contains("regular"), "{e}");
+}
+
+/// Header text quoted in an error is cut: a 5 MB header line gives a short message.
+#[test]
+fn errors_quote_at_most_a_few_hundred_bytes_of_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let long = "x".repeat(5 << 20);
+    let nrrd = format!("NRRD0004\ntype: {long}\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n");
+    let e = expect_error(dir.path(), "long.nrrd", nrrd.as_bytes(), None, "5 MB line");
+    assert!(e.len() < 1000, "{} bytes of error", e.len());
+    let mha = format!("ObjectType = Image\nNDims = 3\nDimSize = {long}\n");
+    let e = expect_error(dir.path(), "long.mha", mha.as_bytes(), None, "5 MB line");
+    assert!(e.len() < 1000, "{} bytes of error", e.len());
+}
+
+/// A broken volume with a volume's name is reported by its reader, never read as a PLOT3D
+/// grid (which has no signature).
+#[test]
+fn volume_names_are_never_guessed_as_plot3d_grids() {
+    let dir = tempfile::tempdir().unwrap();
+    // 12 bytes that parse as a PLOT3D header of 1 x 1 x 1 and then 3 floats.
+    let mut b = Vec::new();
+    for v in [1i32, 1, 1] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [0f32, 0.0, 0.0] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    let p = dir.path().join("broken.nii");
+    std::fs::write(&p, &b).unwrap();
+    let e = volume::load_grid(&p, None).unwrap_err().to_string();
+    assert!(e.contains("volume format"), "{e}");
+}

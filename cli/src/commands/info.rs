@@ -91,6 +91,7 @@ pub fn run(a: Args) -> Result<(), String> {
                 };
                 return print(j, text);
             }
+            Err(e) if volume::has_volume_extension(&file) => return Err(e.to_string()),
             Err(e) => volume::plot3d::read(&file, None).map_err(|_| e.to_string())?,
         }
     };

@@ -301,7 +301,7 @@ pub fn parse_seeds(spec: &str, bounds: [DVec3; 2], rng: u64) -> Result<Vec<DVec3
         return Ok(out);
     }
     let path = Path::new(spec);
-    let text = std::fs::read_to_string(path).map_err(|e| format!("--seeds {spec}: not grid:N, random:N or plane:x=V:N, and not a readable CSV file ({e})"))?;
+    let text = volume::read_text(path, volume::MAX_FILE_BYTES).map_err(|e| format!("--seeds {spec}: not grid:N, random:N or plane:x=V:N, and not a readable CSV file ({e})"))?;
     let mut out = Vec::new();
     for (ln, line) in text.lines().enumerate() {
         let t = line.trim();
