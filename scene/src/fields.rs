@@ -186,6 +186,26 @@ pub fn read_octants(path: &Path, dims: [usize; 3]) -> Result<OctantFields, Strin
 /// Runs `umbra sweep`; `stage` hears the name of each stage as it starts.
 pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, String> {
     let t0 = Instant::now();
+    // Settings and every output path before any work (a bad octants path left the distance
+    // file written).
+    let dopts = DistanceOptions {
+        iso: args.iso,
+        inside: args.inside,
+        init: args.init,
+        tolerance: args.tolerance,
+        ..Default::default()
+    };
+    dopts.check()?;
+    let oopts = OcclusionOptions {
+        subsurface_alpha: args.subsurface_alpha,
+    };
+    oopts.check()?;
+    let octants_path = (!args.sdf_only).then(|| {
+        args.octants_out
+            .clone()
+            .unwrap_or_else(|| default_octants_path(&args.output))
+    });
+    volume::check_outputs(&[Some(args.output.as_path()), octants_path.as_deref()])?;
     stage("reading");
     let vol = volume::load(&args.input).map_err(|e| e.to_string())?;
     let values = scalar_field(
@@ -200,16 +220,6 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
     stage("sweeping distance and octants");
     let sp = vol.spacing();
     let spacing = [sp[0] as f32, sp[1] as f32, sp[2] as f32];
-    let dopts = DistanceOptions {
-        iso: args.iso,
-        inside: args.inside,
-        init: args.init,
-        tolerance: args.tolerance,
-        ..Default::default()
-    };
-    let oopts = OcclusionOptions {
-        subsurface_alpha: args.subsurface_alpha,
-    };
     let t1 = Instant::now();
     let (df, oct) = sweep_fields(&values, vol.dims, spacing, &dopts, &oopts, !args.sdf_only);
     let t_compute = t1.elapsed().as_secs_f64();
@@ -230,10 +240,7 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
     write_distance(&args.output, &vol, &df)?;
     let oct_path = match (&oct, args.sdf_only) {
         (Some(o), false) => {
-            let p = args
-                .octants_out
-                .clone()
-                .unwrap_or_else(|| default_octants_path(&args.output));
+            let p = octants_path.clone().unwrap_or_default();
             write_octants(&p, &vol, o)?;
             Some(p)
         }
@@ -301,6 +308,8 @@ pub fn iso_fields(
                 inside,
                 ..Default::default()
             };
+            dopts.check()?;
+            OcclusionOptions { subsurface_alpha }.check()?;
             let (df, oct) = sweep_fields(
                 values,
                 vol.dims,

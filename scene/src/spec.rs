@@ -1248,11 +1248,39 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             format!("{} is not in (0, 180) degrees", c.fov_y),
         );
     }
-    if c.distance <= 1.0 {
+    if !(c.distance.is_finite() && c.distance > 1.0) {
         return bad(
             "camera.distance",
-            format!("{} must exceed 1 (bounding-sphere radii)", c.distance),
+            format!(
+                "{} must be a finite number above 1 (bounding-sphere radii)",
+                c.distance
+            ),
         );
+    }
+    for (key, v) in [
+        ("camera.azimuth", c.azimuth),
+        ("camera.elevation", c.elevation),
+    ] {
+        if !v.is_finite() {
+            return bad(key, format!("{v} is not a finite angle"));
+        }
+    }
+    for (key, v) in [
+        ("camera.eye", c.eye),
+        ("camera.target", c.target),
+        ("camera.up", Some(c.up)),
+    ] {
+        if let Some(v) = v.filter(|v| {
+            !v.iter()
+                .all(|x| x.is_finite() && x.abs() <= volume::MAX_COORDINATE)
+        }) {
+            return bad(key, format!("{v:?} is not a finite point"));
+        }
+    }
+    for (key, v) in [("camera.near", c.near), ("camera.far", c.far)] {
+        if let Some(v) = v.filter(|v| !(v.is_finite() && *v > 0.0)) {
+            return bad(key, format!("{v} is not a positive finite distance"));
+        }
     }
     if let (Some(n), Some(f)) = (c.near, c.far) {
         if !(n > 0.0 && f > n) {
@@ -1263,9 +1291,28 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
     }
     if let Some(h) = c.height {
-        if h <= 0.0 {
-            return bad("camera.height", format!("{h} is not positive"));
+        if !(h.is_finite() && h > 0.0) {
+            return bad(
+                "camera.height",
+                format!("{h} is not a positive finite height"),
+            );
         }
+    }
+    let l = &s.light;
+    for (key, v) in [
+        ("light.ambient", l.ambient),
+        ("light.diffuse", l.diffuse),
+        ("light.specular", l.specular),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return bad(key, format!("{v} is not a finite weight of at least 0"));
+        }
+    }
+    if !(l.shininess.is_finite() && l.shininess > 0.0) {
+        return bad(
+            "light.shininess",
+            format!("{} is not a positive exponent", l.shininess),
+        );
     }
     s.background
         .rgb()
@@ -1304,6 +1351,12 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 format!("'{}' is not one of {}", t.preset, PRESETS.join(", ")),
             );
         }
+        if !(t.extinction.is_finite() && t.extinction >= 0.0) {
+            return bad(
+                "volume.transfer.extinction",
+                format!("{} is not a finite extinction of at least 0", t.extinction),
+            );
+        }
         for (i, p) in t.points.iter().enumerate() {
             p.color.rgb().or_else(|e| {
                 bad(&format!("volume.transfer.points[{i}].color"), e).map(|()| [0.0; 3])
@@ -1339,13 +1392,14 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         if t.path.is_relative() {
             t.path = dir.join(&t.path);
         }
-        if !(t.radius > 0.0 && t.radius.is_finite()) {
+        let max_r = tubes::tube_mesh::TubeOptions::MAX_RADIUS;
+        if !(t.radius > 0.0 && t.radius <= max_r) {
             return bad(
                 &format!("tubes[{i}].radius"),
-                format!("{} is not positive", t.radius),
+                format!("{} is not a positive radius up to {max_r:e}", t.radius),
             );
         }
-        if t.tolerance.is_nan() || t.tolerance <= 0.0 {
+        if !(t.tolerance.is_finite() && t.tolerance > 0.0) {
             return bad(
                 &format!("tubes[{i}].tolerance"),
                 format!("{} is not positive", t.tolerance),
@@ -1479,9 +1533,29 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             );
         }
     }
+    if s.clip.len() > occlusion::emission_absorption::MAX_CLIP {
+        return bad(
+            "clip",
+            format!(
+                "{} planes; at most {} are drawn",
+                s.clip.len(),
+                occlusion::emission_absorption::MAX_CLIP
+            ),
+        );
+    }
     for (i, c) in s.clip.iter().enumerate() {
-        if glam::DVec3::from(c.normal).length() < 1e-12 {
-            return bad(&format!("clip[{i}].normal"), "is zero".into());
+        let n = glam::DVec3::from(c.normal);
+        if !n.is_finite() || n.length() < 1e-12 {
+            return bad(
+                &format!("clip[{i}].normal"),
+                format!("{:?} is not a finite nonzero direction", c.normal),
+            );
+        }
+        if !(c.offset.is_finite() && c.offset.abs() <= volume::MAX_COORDINATE) {
+            return bad(
+                &format!("clip[{i}].offset"),
+                format!("{} is not finite", c.offset),
+            );
         }
     }
     let r = &s.render;
@@ -1497,7 +1571,10 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             "give slices or slice_distance, not both".into(),
         );
     }
-    if r.slices == Some(0) || r.slice_distance.is_some_and(|d| d.is_nan() || d <= 0.0) {
+    if r.slices == Some(0)
+        || r.slice_distance
+            .is_some_and(|d| !(d.is_finite() && d > 0.0))
+    {
         return bad("render.slices", "must be positive".into());
     }
     if r.slices.is_some_and(|n| n > 16384) {

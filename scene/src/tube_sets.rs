@@ -95,21 +95,16 @@ pub fn transform_matrix(m: &[f64; 16], key: &str) -> Result<DMat4, String> {
 /// Runs `umbra tubes`.
 pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     let t0 = Instant::now();
-    if !(a.radius.is_finite() && a.radius > 0.0) {
-        return Err(format!("radius {}: must be a positive number", a.radius));
+    // Settings first, before anything is read (the mesher's check, on the same values).
+    TubeOptions {
+        radius: a.radius,
+        sides: a.sides,
+        per_span: a.per_span,
+        chordal: a.chordal,
+        ..TubeOptions::defaults(a.radius, a.sides, a.tolerance)
     }
-    if !(a.tolerance.is_finite() && a.tolerance > 0.0) {
-        return Err(format!(
-            "tolerance {}: must be a positive number",
-            a.tolerance
-        ));
-    }
-    if !(3..=256).contains(&a.sides) || !(1..=64).contains(&a.per_span) {
-        return Err(format!(
-            "sides {} (3 to 256) or rings per span {} (1 to 64) out of range",
-            a.sides, a.per_span
-        ));
-    }
+    .check()?;
+    volume::check_output(&a.output)?;
     let mut s = tubes::load(&a.input).map_err(|e| e.to_string())?;
     if let Some(m) = a.transform {
         s.transform(&transform_matrix(&m, "transform")?);
@@ -221,8 +216,24 @@ pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, Tu
             caps: a.caps,
             color: color.clone(),
         };
-        build(s, &opts)
-    })
+        opts.check()?;
+        let (mesh, st) = build(s, &opts);
+        // A non-empty input that gives no triangle: the radius is beyond what the lines'
+        // curvature allows everywhere (the mesher cuts a tube where even 1/1000 of the radius
+        // would fold), or every line is degenerate; say so rather than write an empty mesh.
+        if mesh.indices.is_empty()
+            && st.streamlines_in > 0
+            && st.skipped_streamlines < st.streamlines_in
+        {
+            return Err(format!(
+                "radius {}: no tube could be built (the tubes would fold on themselves at \
+                 every ring of the {} streamlines); use a radius below the lines' radius of \
+                 curvature",
+                a.radius, st.streamlines_in
+            ));
+        }
+        Ok((mesh, st))
+    })?
 }
 
 /// A value per point of `s` from `source`: `scalar:NAME` (a per-point attribute) or

@@ -228,6 +228,40 @@ pub struct TraceOptions<'a> {
     pub both_ways: bool,
 }
 
+impl TraceOptions<'_> {
+    /// Checks every setting's range, NaN and infinities refused, naming the setting (a NaN
+    /// tolerance or length gave 0 streamlines, a NaN speed or angle turned a stop test off):
+    /// the one place the CLI and scenes validate a tracer configuration.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let positive = |v: f64, what: &str| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("{what} {v}: must be a positive number"))
+            }
+        };
+        positive(self.step, "step")?;
+        positive(self.tolerance, "tolerance")?;
+        positive(self.max_length, "max length")?;
+        if !(self.min_speed.is_finite() && self.min_speed >= 0.0) {
+            return Err(format!(
+                "min speed {}: must be a number of at least 0",
+                self.min_speed
+            ));
+        }
+        let a = self.max_angle_deg;
+        if !(a.is_finite() && a > 0.0 && a <= 180.0) {
+            return Err(format!("max angle {a} degrees: must be in (0, 180]"));
+        }
+        if let Some((_, t)) = self.mask {
+            if !t.is_finite() {
+                return Err(format!("mask threshold {t}: must be a finite number"));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// The unit direction of travel at `p` and the speed there: an eigenvector field's direction
 /// oriented along `reference`, any other field's times `sign` (-1 traces backward).
 fn direction(

@@ -79,6 +79,56 @@ pub struct TubeOptions<'a> {
 }
 
 impl TubeOptions<'_> {
+    /// The largest radius (world units) the mesher takes: beyond it vertices leave `f32`'s
+    /// useful range (the same bound as a volume's coordinates).
+    pub const MAX_RADIUS: f64 = 1e15;
+    /// The smallest chordal tolerance, as a fraction of the radius: below it a ring would need
+    /// more than the 256 sides the mesher makes (and spans are bisected to their depth limit,
+    /// millions of triangles for a few points).
+    pub const MIN_CHORDAL_FRACTION: f64 = 1e-4;
+
+    /// Checks every setting's range (NaN and infinities refused), naming the setting: the one
+    /// place the CLI, scene tube sets and benchmarks validate a mesher configuration.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let r = self.radius;
+        let show = volume::show_number;
+        if !(r.is_finite() && r > 0.0 && r <= Self::MAX_RADIUS) {
+            return Err(format!(
+                "radius {}: must be a positive number up to {:e}",
+                show(r),
+                Self::MAX_RADIUS
+            ));
+        }
+        if !(3..=256).contains(&self.sides) {
+            return Err(format!("sides {}: must be 3 to 256", self.sides));
+        }
+        if !(1..=64).contains(&self.per_span) {
+            return Err(format!("rings per span {}: must be 1 to 64", self.per_span));
+        }
+        if let Some(c) = self.chordal {
+            let min = Self::MIN_CHORDAL_FRACTION * r;
+            if !(c.is_finite() && c >= min) {
+                return Err(format!(
+                    "chordal tolerance {}: must be a number of at least {:e} x the radius \
+                     ({} for radius {})",
+                    show(c),
+                    Self::MIN_CHORDAL_FRACTION,
+                    show(min),
+                    show(r)
+                ));
+            }
+        }
+        let t = self.max_turn_deg;
+        if !(t.is_finite() && t > 0.0 && t <= 180.0) {
+            return Err(format!("max turn {t} degrees: must be in (0, 180]"));
+        }
+        let e = self.fit.epsilon;
+        if !(e.is_finite() && e > 0.0) {
+            return Err(format!("fit tolerance {e}: must be a positive number"));
+        }
+        Ok(())
+    }
+
     /// The mesher's defaults, as `umbra tubes` and the scene's tube sets have them: iterative
     /// fit to `tolerance` (100 iterations at most), rotation-minimising frames, local radius,
     /// caps, one ring per span and one more per 15 degrees of turn, coloured by direction.

@@ -84,6 +84,26 @@ pub struct DistanceOptions {
     pub max_iterations: usize,
 }
 
+impl DistanceOptions {
+    /// Checks the settings' ranges (a NaN tolerance never converged, running every round),
+    /// naming the setting.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        if !self.iso.is_finite() {
+            return Err(format!("iso level {}: must be a finite number", self.iso));
+        }
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return Err(format!(
+                "tolerance {} voxels: must be a positive number",
+                self.tolerance
+            ));
+        }
+        if self.max_iterations == 0 {
+            return Err("max iterations 0: must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
 impl Default for DistanceOptions {
     fn default() -> Self {
         DistanceOptions {

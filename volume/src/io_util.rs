@@ -119,6 +119,16 @@ pub fn degenerate_axes(m: glam::DMat3) -> bool {
     !(det.is_finite() && det.abs() > 1e-6 * edges && edges > 0.0)
 }
 
+/// A number as an error message shows it: plain in the range people write (1e-4 to 1e6),
+/// exponent form outside it (1e300, not three hundred digits).
+pub fn show_number(v: f64) -> String {
+    if !v.is_finite() || v == 0.0 || (1e-4..1e6).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// Cuts text quoted from a file for an error message to at most `max` characters, saying how
 /// long it was: a 5 MB header line gives a readable error, not a 5 MB one.
 pub fn clip_text(s: &str, max: usize) -> String {
@@ -539,9 +549,61 @@ pub fn temp_name(name: &str, pid: u32) -> String {
     format!(".{name}.{pid}.tmp")
 }
 
+/// Checks, before any work, that `path` can be written: not a directory, its folder created
+/// when missing, and a file can be created there (a probe named like the temporary file, then
+/// removed). Also removes the temporaries a killed earlier run left for this path
+/// ([`remove_stale_temps`]). The error names the path and the reason.
+pub fn check_output(path: &Path) -> std::result::Result<(), String> {
+    let fail = |why: String| {
+        Err(format!(
+            "{}: cannot write the output here: {why}",
+            path.display()
+        ))
+    };
+    let Some(name) = path.file_name() else {
+        return fail("not a file path".into());
+    };
+    if path.is_dir() {
+        return fail("it is a directory".into());
+    }
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        return fail(format!("cannot create its folder: {e}"));
+    }
+    remove_stale_temps(&[path]);
+    let probe = dir.join(temp_name(&name.to_string_lossy(), std::process::id()));
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        // Our own temporary from an earlier write of this process: the folder is writable.
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+        Err(e) => fail(e.to_string()),
+    }
+}
+
+/// [`check_output`] for every path given (`None`s skipped): all outputs of a command are
+/// checked before it starts, so a bad second path leaves no first output written.
+pub fn check_outputs(paths: &[Option<&Path>]) -> std::result::Result<(), String> {
+    paths.iter().flatten().try_for_each(|p| check_output(p))
+}
+
+/// Whether process `pid` is alive on this machine (Linux: /proc; elsewhere assumed dead).
+fn process_alive(pid: &str) -> bool {
+    cfg!(target_os = "linux") && Path::new("/proc").join(pid).exists()
+}
+
 /// Removes the temporary files of `paths` that [`write_atomic`] in other processes left
-/// (`.NAME.PID.tmp` beside each, PID not this process's): what a killed process leaves. Call it
-/// only for outputs no other live process writes (a shard's own frames). Each folder is read
+/// (`.NAME.PID.tmp` beside each, PID not this process's nor, on Linux, any live process's):
+/// what a killed process leaves. Call it only for outputs no other process writes. Each folder is read
 /// once, however many outputs it holds. Returns how many were removed; a folder that cannot be
 /// read removes none.
 pub fn remove_stale_temps(paths: &[&Path]) -> usize {
@@ -577,6 +639,7 @@ pub fn remove_stale_temps(paths: &[&Path]) -> usize {
                         && !pid.is_empty()
                         && pid.bytes().all(|b| b.is_ascii_digit())
                         && pid != own
+                        && !process_alive(pid)
                 });
             if stale
                 && e.file_type().is_ok_and(|t| t.is_file())

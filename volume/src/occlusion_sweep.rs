@@ -55,6 +55,19 @@ pub struct OcclusionOptions {
     pub subsurface_alpha: Option<f32>,
 }
 
+impl OcclusionOptions {
+    /// Checks the subsurface opacity: a number in [0, 1] (2 was clamped in silence, NaN made
+    /// every voxel opaque).
+    pub fn check(&self) -> std::result::Result<(), String> {
+        match self.subsurface_alpha {
+            Some(a) if !(0.0..=1.0).contains(&a) => Err(format!(
+                "subsurface opacity {a}: must be a number from 0 to 1"
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// The eight octant visibility fields, `round(255 V)`, in Table 1 order, each x fastest.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OctantFields {

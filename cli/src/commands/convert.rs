@@ -32,9 +32,23 @@ pub fn convert(
     field: Option<&FieldSelector>,
     gzip: bool,
 ) -> Result<(), VolumeError> {
+    check_volume_output(output)?;
     let vol = volume::load(input)?;
     let f = vol.select(field)?;
     write_field(output, &vol, &f, gzip)
+}
+
+/// Checks before any work that `output` names a format [`write_field`] writes and can be
+/// written ([`volume::check_output`]).
+pub fn check_volume_output(output: &Path) -> Result<(), VolumeError> {
+    let name = output.to_string_lossy().to_ascii_lowercase();
+    if !(name.ends_with(".nrrd") || name.ends_with(".nii") || name.ends_with(".nii.gz")) {
+        return Err(VolumeError::Invalid(format!(
+            "{}: output format unknown; use .nrrd, .nii or .nii.gz",
+            output.display()
+        )));
+    }
+    volume::check_output(output).map_err(VolumeError::Invalid)
 }
 
 /// Writes one field of a volume as `.nrrd` (optionally gzip-encoded), `.nii` or `.nii.gz`,

@@ -39,7 +39,7 @@ pub struct Args {
     #[arg(long, value_enum, hide_possible_values = true)]
     method: Option<super::Method>,
     /// Frames timed; total_ms is their median.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
     /// Override a scene key by its dotted path (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]

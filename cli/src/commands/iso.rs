@@ -33,17 +33,17 @@ pub struct Args {
     #[arg(long, default_value_t = 512)]
     height: usize,
     /// Degrees; 0 looks along +y, 90 along +x.
-    #[arg(long, default_value_t = 30.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = 30.0, allow_hyphen_values = true, value_parser = super::finite64)]
     azimuth: f64,
     /// Degrees; 90 looks down from +z.
-    #[arg(long, default_value_t = 30.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = 30.0, allow_hyphen_values = true, value_parser = super::finite64)]
     elevation: f64,
     /// Camera distance in multiples of the bounding-sphere radius.
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, value_parser = distance)]
     distance: f64,
     /// Shade with Monte Carlo ambient occlusion from N rays per pixel instead.
-    #[arg(long)]
-    reference_ao: Option<usize>,
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    reference_ao: Option<u64>,
     /// With --reference-ao: uniform-sphere visibility (the reference for --geometry none).
     #[arg(long)]
     uniform: bool,
@@ -65,10 +65,10 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     gamma: f64,
     /// Flat-face correction: look the octants up at P + c h N.
-    #[arg(long, default_value_t = volume::occlusion_shading::DEFAULT_OFFSET)]
+    #[arg(long, default_value_t = volume::occlusion_shading::DEFAULT_OFFSET, value_parser = super::nonnegative)]
     offset: f64,
     /// Subsurface opacity for the octant sweeps computed in memory.
-    #[arg(long)]
+    #[arg(long, value_parser = super::unit)]
     subsurface: Option<f32>,
     /// Add a Phong head light.
     #[arg(long)]
@@ -102,6 +102,7 @@ impl From<Geometry> for GeometryTerm {
 }
 
 pub fn run(a: Args) -> Result<(), String> {
+    volume::check_output(&a.output)?;
     if !(a.gamma.is_finite() && a.gamma > 0.0) {
         return Err(format!("--gamma {}: must be a positive number", a.gamma));
     }
@@ -126,7 +127,7 @@ pub fn run(a: Args) -> Result<(), String> {
             elevation_deg: a.elevation,
             distance: a.distance,
         },
-        reference_ao: a.reference_ao,
+        reference_ao: a.reference_ao.map(|n| n as usize),
         uniform: a.uniform,
         local: a.local,
         ambient: AmbientOptions {
@@ -255,4 +256,13 @@ pub fn render_to_file(args: &IsoArgs) -> Result<(IsoImage, IsoStats), String> {
         seconds: t0.elapsed().as_secs_f64(),
     };
     Ok((img, stats))
+}
+
+/// `--distance`: a camera distance of more than one bounding-sphere radius (the camera outside
+/// the sphere), finite.
+fn distance(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 1.0 => Ok(v),
+        _ => Err("must be a finite number above 1 (bounding-sphere radii)".into()),
+    }
 }

@@ -38,6 +38,46 @@ pub fn positive(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A finite number (an angle, an offset).
+pub fn finite64(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err("must be a finite number".into()),
+    }
+}
+
+/// A finite number of at least 0 (a speed).
+pub fn nonnegative(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err("must be a number of at least 0".into()),
+    }
+}
+
+/// A positive finite `f32` (a tolerance in voxels).
+pub fn positive32(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err("must be a positive number".into()),
+    }
+}
+
+/// A number from 0 to 1 (an opacity).
+pub fn unit(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err("must be a number from 0 to 1".into()),
+    }
+}
+
+/// An angle in degrees in (0, 180] (a largest turn).
+pub fn degrees(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= 180.0 => Ok(v),
+        _ => Err("must be an angle in degrees, more than 0 and at most 180".into()),
+    }
+}
+
 /// A finite number (an iso level).
 pub fn finite(s: &str) -> Result<f32, String> {
     match s.trim().parse::<f32>() {

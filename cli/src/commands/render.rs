@@ -32,7 +32,7 @@ pub struct Args {
     method: Option<super::Method>,
     /// Render each image this many times, every pass re-run (total_ms is the median);
     /// more than 1 also times each pass.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
     /// Write the timings (total_ms, passes, each frame's) as JSON to this file; also times
     /// each pass.
@@ -129,15 +129,10 @@ fn host() -> String {
         .unwrap_or_default()
 }
 
-/// Checks that `path` can be written before the work starts (its folder made, not a folder).
+/// Checks that `path` can be written before the work starts ([`volume::check_output`]: its
+/// folder made, not a folder, a file can be created there).
 fn writable(path: &Path, what: &str) -> Result<(), String> {
-    if path.is_dir() {
-        return Err(format!("{}: {what} is a folder", path.display()));
-    }
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    }
-    Ok(())
+    volume::check_output(path).map_err(|e| format!("{what}: {e}"))
 }
 
 /// What the error path needs to write the record: the shard once known, whether the record

@@ -140,6 +140,12 @@ pub fn resample(
     gzip: bool,
     stage: &dyn Fn(&str),
 ) -> Result<ResampleReport, VolumeError> {
+    if dims.is_none() && !(2..=2048).contains(&longest) {
+        return Err(VolumeError::Invalid(format!(
+            "size {longest}: the longest side needs 2 to 2048 samples"
+        )));
+    }
+    super::convert::check_volume_output(output)?;
     stage("reading the grid");
     let (grid, warnings) = volume::load_grid(input, q)?;
     if grid.arrays.is_empty() {

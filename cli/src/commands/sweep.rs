@@ -39,10 +39,10 @@ pub struct Args {
     )]
     init: Init,
     /// Convergence tolerance of the distance sweeps, in voxels.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = 1e-3, value_parser = super::positive32)]
     tolerance: f32,
     /// Subsurface variant: per-voxel opacity alpha in [0, 1] for the octant sweeps.
-    #[arg(long)]
+    #[arg(long, value_parser = super::unit)]
     subsurface: Option<f32>,
     /// Print the summary as one JSON object on standard output.
     #[arg(long)]

@@ -65,27 +65,27 @@ pub struct Args {
     #[arg(long, default_value = "grid:10")]
     seeds: String,
     /// Step in world units (default: half the smallest voxel spacing).
-    #[arg(long)]
+    #[arg(long, value_parser = super::positive)]
     step: Option<f64>,
     /// Integrator: rk4, rk45 (adaptive) or euler.
     #[arg(long, value_enum, default_value = "rk4", hide_possible_values = true)]
     integrator: IntegratorArg,
     /// RK45 local error bound (world units).
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = 1e-3, value_parser = super::positive)]
     tolerance: f64,
     /// Longest streamline (world units; default: twice the grid's diagonal).
-    #[arg(long)]
+    #[arg(long, value_parser = super::positive)]
     max_length: Option<f64>,
     /// Stop where the field's magnitude falls below this.
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, default_value_t = 1e-6, value_parser = super::nonnegative)]
     min_speed: f64,
     /// Stop where this scalar volume (e.g. FA) falls below --threshold.
     #[arg(long)]
     mask: Option<PathBuf>,
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = 0.2, allow_hyphen_values = true, value_parser = super::finite64)]
     threshold: f64,
     /// Stop where the direction turns by more than this many degrees in one step.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, value_parser = super::degrees)]
     max_angle: f64,
     /// The field is an eigenvector field (no sign): orient it along the direction of travel.
     #[arg(long)]
@@ -285,7 +285,9 @@ pub fn parse_seeds(spec: &str, bounds: [DVec3; 2], rng: u64) -> Result<Vec<DVec3
         };
         let v: f64 = value
             .parse()
-            .map_err(|_| format!("--seeds {spec}: '{value}' is not a number"))?;
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| format!("--seeds {spec}: '{value}' is not a finite number"))?;
         let n = num(n)?.min(3000);
         let (u, w) = ((a + 1) % 3, (a + 2) % 3);
         let mut out = Vec::with_capacity(n * n);
@@ -378,6 +380,28 @@ pub fn trace_to_file(a: &TraceArgs) -> Result<(usize, usize), String> {
 /// Traces the streamlines, or with `t.pathlines` the pathlines, that `a` and `t` ask for, with
 /// the point attributes `time` and `speed`, and writes them.
 pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, String> {
+    // Settings and the output first, before the field is read: the tracer's own check on the
+    // values given (the step and length defaults, computed from the field, are checked again
+    // below). A NaN tolerance or length gave 0 streamlines without a word.
+    TraceOptions {
+        integrator: a.integrator,
+        step: a.step.unwrap_or(1.0),
+        tolerance: a.tolerance,
+        max_length: a.max_length.unwrap_or(1.0),
+        min_speed: a.min_speed,
+        max_angle_deg: a.max_angle,
+        orient: a.eigen,
+        mask: None,
+        both_ways: !a.one_way,
+    }
+    .check()?;
+    if !a.threshold.is_finite() {
+        return Err(format!(
+            "threshold {}: must be a finite number",
+            a.threshold
+        ));
+    }
+    volume::check_output(&a.output)?;
     let mut series = volume::load_series(&a.input).map_err(|e| e.to_string())?;
     if let Some(b) = t.time_boundary {
         series.periodic = b == TimeBoundary::Periodic;
@@ -514,6 +538,7 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
             mask: mask.as_ref().map(|m| (m, a.threshold)),
             both_ways: !a.one_way,
         };
+        o.check()?;
         (trace_at(&f, &timed, &o), None, None)
     };
     s.format = String::new();

@@ -141,6 +141,7 @@ fn select(a: SelectArgs) -> Result<(), String> {
             a.output.display()
         ));
     }
+    volume::check_output(&a.output)?;
     let s = tubes::load(&a.input).map_err(|e| e.to_string())?;
     for w in &s.warnings {
         eprintln!("umbra: warning: {}: {w}", a.input.display());

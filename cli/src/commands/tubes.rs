@@ -137,6 +137,7 @@ pub fn run(a: Args) -> Result<(), String> {
         caps: a.caps,
         transform: a.transform,
     };
+    volume::check_outputs(&[Some(args.output.as_path()), a.stats_json.as_deref()])?;
     let s = scene::tube_sets::run(&args)?;
     for w in &s.warnings {
         eprintln!("umbra: warning: {}: {w}", args.input.display());

@@ -1,0 +1,344 @@
+//! Issue 17's hostile command lines, one test per case: every numeric option range-checked
+//! (NaN and infinities refused) before any work, every output path checked before the first
+//! output is written, and hostile headers that panicked the commands behind them.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn umbra() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_umbra"));
+    c.env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    c
+}
+
+fn fixture(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .join("tests/fixtures")
+        .join(rel)
+}
+
+/// Runs `umbra ARGS`, expecting a clean failure (exit 1 or clap's 2, no panic, no signal)
+/// whose standard error contains `needle`; returns it.
+fn refused(args: &[&str], needle: &str) -> String {
+    let out: Output = umbra().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(
+        matches!(out.status.code(), Some(1) | Some(2)),
+        "{args:?}: status {:?}\n{err}",
+        out.status
+    );
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    assert!(
+        err.contains(needle),
+        "{args:?}: wanted '{needle}' in\n{err}"
+    );
+    err
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn tube_settings_out_of_range_are_refused_before_reading() {
+    let d = tempfile::tempdir().unwrap();
+    let trk = fixture("tracts/nibabel/simple.trk");
+    let out = d.path().join("t.ply");
+    // --chordal 0, NaN or 1e-12 ran for seconds and allocated gigabytes; -1 gave 6.3 M
+    // triangles for 8 points.
+    for bad in ["0", "nan", "1e-12", "-1", "inf"] {
+        refused(
+            &["tubes", s(&trk), "-o", s(&out), &format!("--chordal={bad}")],
+            "chordal tolerance",
+        );
+    }
+    // --radius 1e300 gave 0 triangles; 1e6 cannot bend with these lines.
+    refused(
+        &["tubes", s(&trk), "-o", s(&out), "--radius", "1e300"],
+        "radius 1e300",
+    );
+    refused(
+        &["tubes", s(&trk), "-o", s(&out), "--radius", "1e6"],
+        "no tube could be built",
+    );
+    assert!(!out.exists());
+    // A good chordal tolerance still meshes.
+    let ok = umbra()
+        .args(["tubes", s(&trk), "-o", s(&out), "--chordal", "0.01"])
+        .output()
+        .unwrap();
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    assert!(out.exists());
+}
+
+#[test]
+fn a_second_output_that_cannot_be_written_leaves_no_first_output() {
+    let d = tempfile::tempdir().unwrap();
+    // A path under a regular file can never be created.
+    let blocker = d.path().join("file");
+    std::fs::write(&blocker, b"x").unwrap();
+    let bad = blocker.join("stats.json");
+    let trk = fixture("tracts/nibabel/simple.trk");
+    let mesh = d.path().join("t.ply");
+    refused(
+        &["tubes", s(&trk), "-o", s(&mesh), "--stats-json", s(&bad)],
+        "cannot write",
+    );
+    assert!(
+        !mesh.exists(),
+        "the mesh was written before the stats path was checked"
+    );
+    let vol = fixture("spacings_ascii.nrrd");
+    let dist = d.path().join("d.nrrd");
+    refused(
+        &[
+            "sweep",
+            s(&vol),
+            "--iso",
+            "50",
+            "-o",
+            s(&dist),
+            "--octants-out",
+            s(&bad),
+        ],
+        "cannot write",
+    );
+    assert!(
+        !dist.exists(),
+        "the distance was written before the octants path was checked"
+    );
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .join("datasets/scenes/example.toml");
+    let png = d.path().join("r.png");
+    refused(
+        &[
+            "render",
+            s(&scene),
+            "-o",
+            s(&png),
+            "--timings-json",
+            s(&bad),
+        ],
+        "cannot write",
+    );
+    assert!(!png.exists());
+    // The output of convert and resample: the format before the work.
+    refused(
+        &["convert", s(&vol), "-o", s(&d.path().join("x.png"))],
+        "output format",
+    );
+}
+
+#[test]
+fn sweep_trace_and_resample_values_are_range_checked() {
+    let d = tempfile::tempdir().unwrap();
+    let vol = fixture("spacings_ascii.nrrd");
+    let o = d.path().join("d.nrrd");
+    refused(
+        &[
+            "sweep",
+            s(&vol),
+            "--iso",
+            "5",
+            "-o",
+            s(&o),
+            "--tolerance",
+            "nan",
+        ],
+        "--tolerance",
+    );
+    // Documented 0-1; 2 was clamped in silence.
+    refused(
+        &[
+            "sweep",
+            s(&vol),
+            "--iso",
+            "5",
+            "-o",
+            s(&o),
+            "--subsurface",
+            "2",
+        ],
+        "0 to 1",
+    );
+    refused(
+        &[
+            "sweep",
+            s(&vol),
+            "--iso",
+            "5",
+            "-o",
+            s(&o),
+            "--subsurface",
+            "nan",
+        ],
+        "0 to 1",
+    );
+    let field = fixture("ras_vec_raw.nrrd");
+    let trk = d.path().join("t.trk");
+    // NaN lengths and tolerances gave "0 streamlines".
+    for (flag, v) in [
+        ("--max-length", "nan"),
+        ("--tolerance", "nan"),
+        ("--step", "0"),
+        ("--min-speed", "-1"),
+        ("--max-angle", "nan"),
+        ("--max-angle", "270"),
+        ("--threshold", "nan"),
+    ] {
+        refused(
+            &["trace", s(&field), "-o", s(&trk), &format!("{flag}={v}")],
+            flag,
+        );
+    }
+    refused(
+        &[
+            "trace",
+            s(&field),
+            "-o",
+            s(&trk),
+            "--seeds",
+            "plane:x=nan:4",
+        ],
+        "finite",
+    );
+    assert!(!trk.exists());
+    let grid = fixture("grids/fire_part_42_ascii.vtk");
+    // --size 0 gave a 2 x 1 x 1 volume.
+    for size in ["0", "1", "5000"] {
+        refused(
+            &[
+                "resample",
+                s(&grid),
+                "--field",
+                "T",
+                "--size",
+                size,
+                "-o",
+                s(&o),
+            ],
+            "2 to 2048",
+        );
+    }
+    refused(
+        &["render", "x.toml", "-o", "x.png", "--frames", "0"],
+        "--frames",
+    );
+}
+
+#[test]
+fn scene_values_that_cannot_be_drawn_are_refused_naming_the_key() {
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .join("datasets/scenes/demo.toml");
+    let plane = "{normal=[0,0,1],offset=0}";
+    let nine = format!("clip=[{}]", [plane; 9].join(","));
+    for (set, key) in [
+        ("camera.distance=nan", "camera.distance"),
+        ("camera.distance=inf", "camera.distance"),
+        ("camera.azimuth=nan", "camera.azimuth"),
+        ("camera.far=inf", "camera.far"),
+        ("light.ambient=nan", "light.ambient"),
+        ("light.shininess=0", "light.shininess"),
+        (
+            "volume.transfer.extinction=nan",
+            "volume.transfer.extinction",
+        ),
+        ("clip=[{normal=[nan,0,1],offset=0}]", "clip[0].normal"),
+        ("clip=[{normal=[0,0,1],offset=inf}]", "clip[0].offset"),
+        (nine.as_str(), "at most 8"),
+        ("render.slice_distance=inf", "render.slices"),
+    ] {
+        refused(&["scene", s(&scene), "--set", set], key);
+    }
+}
+
+#[test]
+fn hostile_headers_fail_cleanly_in_every_command_that_reads_them() {
+    let d = tempfile::tempdir().unwrap();
+    // DimSize whose product wraps to 2 in 64 bits: sweep panicked (index out of bounds),
+    // sweep --sdf-only with "capacity overflow", convert wrote a NRRD its reader refuses.
+    let mha = d.path().join("wrap.mha");
+    std::fs::write(
+        &mha,
+        b"ObjectType = Image\nNDims = 3\nDimSize = 3 6148914691236517206 1\n\
+          ElementType = MET_UCHAR\nElementDataFile = LOCAL\nab",
+    )
+    .unwrap();
+    let o = d.path().join("o.nrrd");
+    refused(&["info", s(&mha)], "DimSize");
+    refused(&["sweep", s(&mha), "--iso", "1", "-o", s(&o)], "DimSize");
+    refused(
+        &["sweep", s(&mha), "--iso", "1", "-o", s(&o), "--sdf-only"],
+        "DimSize",
+    );
+    refused(&["convert", s(&mha), "-o", s(&o)], "DimSize");
+    let vec3 = d.path().join("wrap3.mha");
+    std::fs::write(
+        &vec3,
+        b"ObjectType = Image\nNDims = 3\nDimSize = 3 6148914691236517206 1\n\
+          ElementNumberOfChannels = 3\nElementType = MET_FLOAT\nElementDataFile = LOCAL\nabcdef",
+    )
+    .unwrap();
+    refused(
+        &["trace", s(&vec3), "-o", s(&d.path().join("t.trk"))],
+        "DimSize",
+    );
+    assert!(!o.exists());
+    // A tractogram that is a device.
+    #[cfg(unix)]
+    {
+        let link = d.path().join("zero.tck");
+        std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+        refused(
+            &["tubes", s(&link), "-o", s(&d.path().join("t.ply"))],
+            "regular file",
+        );
+        refused(&["info", s(&link)], "regular file");
+    }
+}
+
+#[test]
+fn compressed_vtk_polylines_are_described_by_info() {
+    let d = tempfile::tempdir().unwrap();
+    let vtk = std::fs::read(fixture("tracts/lines_ascii.vtk")).unwrap();
+    let p = d.path().join("l.vtk.gz");
+    std::fs::write(&p, volume::gzip_bytes(&vtk)).unwrap();
+    let out = umbra().args(["info", s(&p), "--json"]).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["streamlines"], 3, "{j}");
+}
+
+#[test]
+fn a_killed_writers_temporary_is_removed_when_the_output_is_written_again() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("c.nrrd");
+    // What a process killed mid-write leaves (its PID long gone).
+    let stale = d.path().join(".c.nrrd.999999999.tmp");
+    std::fs::write(&stale, b"half").unwrap();
+    let ok = umbra()
+        .args(["convert", s(&fixture("spacings_ascii.nrrd")), "-o", s(&out)])
+        .output()
+        .unwrap();
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    assert!(out.exists());
+    assert!(!stale.exists(), "the stale temporary is still there");
+}
