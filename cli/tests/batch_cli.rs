@@ -236,7 +236,7 @@ fn a_rerun_after_a_killed_run_renders_only_what_is_missing() {
         "the first frames were written before the kill"
     );
     // What a killed writer leaves, and a frame cut short (e.g. a copy interrupted).
-    std::fs::write(dir.path().join("out/.f_09.png.999999.tmp"), b"partial").unwrap();
+    std::fs::write(dir.path().join("out/.f_09.png.999999999.tmp"), b"partial").unwrap();
     let cut = *existed.iter().next().unwrap();
     let bytes = std::fs::read(frame(cut)).unwrap();
     std::fs::write(frame(cut), &bytes[..bytes.len() / 3]).unwrap();

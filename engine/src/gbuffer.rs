@@ -18,7 +18,7 @@
 //! it is lit) and averages; the linear depths stay single-sampled (a third pass writes the
 //! nearest surface's), as the slices and the vicinity term need one precise depth per pixel.
 
-use crate::gpu::{Gpu, Slot};
+use crate::gpu::{Gpu, GpuError, Slot};
 use crate::prelude::{clip_planes, mat4, vec4, with_prelude};
 use glam::{DMat4, DVec3};
 use occlusion::camera::Camera;
@@ -66,11 +66,19 @@ pub struct GpuMesh {
 }
 
 impl GpuMesh {
-    /// Uploads `m` (`None` when it has no triangles).
-    pub fn upload(gpu: &Gpu, m: &TubeMesh) -> Option<GpuMesh> {
+    /// Uploads `m` (`None` when it has no triangles); an error naming the buffer when the mesh
+    /// is larger than the adapter's buffers.
+    pub fn upload(gpu: &Gpu, m: &TubeMesh) -> Result<Option<GpuMesh>, GpuError> {
         if m.indices.is_empty() {
-            return None;
+            return Ok(None);
         }
+        let vertex_bytes = m.positions.len() as u64 * STRIDE;
+        gpu.check_buffer("tube vertices", vertex_bytes, wgpu::BufferUsages::VERTEX)?;
+        gpu.check_buffer(
+            "tube indices",
+            m.indices.len() as u64 * 4,
+            wgpu::BufferUsages::INDEX,
+        )?;
         let mut v = Vec::with_capacity(m.positions.len() * STRIDE as usize);
         for i in 0..m.positions.len() {
             let n = m.normals.get(i).copied().unwrap_or(glam::Vec3::Z);
@@ -80,7 +88,7 @@ impl GpuMesh {
             }
             v.extend([c[0], c[1], c[2], 255]);
         }
-        Some(GpuMesh {
+        Ok(Some(GpuMesh {
             vertices: gpu.buffer("tube vertices", &v, wgpu::BufferUsages::VERTEX),
             indices: gpu.buffer(
                 "tube indices",
@@ -90,7 +98,7 @@ impl GpuMesh {
             count: m.indices.len() as u32,
             origin: m.origin,
             diameter: (2.0 * m.radius.max(0.0)) as f32,
-        })
+        }))
     }
 
     /// Triangles of the mesh.
@@ -130,14 +138,17 @@ pub struct GpuLines {
 }
 
 impl GpuLines {
-    /// Uploads `l` (`None` when it has no segment).
-    pub fn upload(gpu: &Gpu, l: &LineSet) -> Option<GpuLines> {
+    /// Uploads `l` (`None` when it has no segment); an error naming the buffer when the set is
+    /// larger than the adapter's storage bindings.
+    pub fn upload(gpu: &Gpu, l: &LineSet) -> Result<Option<GpuLines>, GpuError> {
         if l.segments.is_empty() {
-            return None;
+            return Ok(None);
         }
         let storage = wgpu::BufferUsages::STORAGE;
+        gpu.check_buffer("line points", l.positions.len() as u64 * 12, storage)?;
+        gpu.check_buffer("line segments", l.segments.len() as u64 * 4, storage)?;
         let xyz: Vec<f32> = l.positions.iter().flat_map(|p| p.to_array()).collect();
-        Some(GpuLines {
+        Ok(Some(GpuLines {
             points: gpu.buffer("line points", bytemuck::cast_slice(&xyz), storage),
             colors: gpu.buffer("line colours", bytemuck::cast_slice(&l.colors), storage),
             segments: gpu.buffer("line segments", bytemuck::cast_slice(&l.segments), storage),
@@ -181,7 +192,7 @@ impl GpuLines {
             filter: (l.filter.len() == l.positions.len() && !l.filter.is_empty() && !l.points)
                 .then_some((l.filter_min, l.filter_taper.max(0.0))),
             cloud: l.points,
-        })
+        }))
     }
 
     /// Segments drawn per pass.

@@ -85,6 +85,10 @@ pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pool: Pool,
+    /// The first fault wgpu reported outside an error scope (the device lost, an uncaptured
+    /// error): [`Gpu::wait`] returns it as an error instead of wgpu's default panic.
+    /// (message, whether it stays: a lost device does, an error is reported once).
+    fault: Arc<std::sync::Mutex<Option<(String, bool)>>>,
 }
 
 /// What [`Gpu::cached`] keeps: any clonable value by a key naming its description.
@@ -398,11 +402,33 @@ impl Gpu {
                 adapter: info.name.clone(),
                 reason: e.to_string(),
             })?;
+        type Fault = Arc<std::sync::Mutex<Option<(String, bool)>>>;
+        let fault: Fault = Arc::default();
+        let keep = |f: &Fault, msg: String, stays: bool| {
+            if let Ok(mut g) = f.lock() {
+                if g.as_ref().is_none_or(|(_, s)| !s) {
+                    *g = Some((msg, stays));
+                }
+            }
+        };
+        let f = fault.clone();
+        device.set_device_lost_callback(move |reason, msg| {
+            keep(
+                &f,
+                format!("the GPU device was lost ({reason:?}): {msg}; the driver may have reset it (a frame too long for its watchdog, or too much memory): try a smaller image or scene"),
+                true,
+            )
+        });
+        let f = fault.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            keep(&f, format!("GPU error: {e}"), false)
+        }));
         Ok(Gpu {
             adapter,
             device,
             queue,
             pool: Pool::default(),
+            fault,
         })
     }
 
@@ -491,7 +517,24 @@ impl Gpu {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map(|_| ())
-            .map_err(|e| GpuError::Operation(format!("waiting for the device: {e}")))
+            .map_err(|e| GpuError::Operation(format!("waiting for the device: {e}")))?;
+        self.check_fault()
+    }
+
+    /// The fault wgpu reported outside an error scope since the device was opened, if any.
+    pub fn check_fault(&self) -> Result<(), GpuError> {
+        let Ok(mut g) = self.fault.lock() else {
+            return Ok(());
+        };
+        match g.clone() {
+            Some((m, stays)) => {
+                if !stays {
+                    *g = None;
+                }
+                Err(GpuError::Operation(m))
+            }
+            None => Ok(()),
+        }
     }
 
     /// A storage buffer of `size` bytes for a compute pass to write, and a mappable buffer of
@@ -687,6 +730,36 @@ impl Gpu {
     }
 
     /// A buffer holding `bytes` with `usage`.
+    /// Checks that a buffer of `bytes` with `usage` fits this adapter (its largest buffer and,
+    /// for storage buffers, its largest binding), naming the buffer and both sizes: wgpu would
+    /// otherwise panic inside `create_buffer` (the 2.6 GB tube vertex buffer of a whole-brain
+    /// tractogram) or fail validation at draw time.
+    pub fn check_buffer(
+        &self,
+        label: &str,
+        bytes: u64,
+        usage: wgpu::BufferUsages,
+    ) -> Result<(), GpuError> {
+        let l = self.device.limits();
+        let (most, what) = if usage.contains(wgpu::BufferUsages::STORAGE) {
+            (
+                l.max_storage_buffer_binding_size.min(l.max_buffer_size),
+                "storage binding",
+            )
+        } else {
+            (l.max_buffer_size, "buffer")
+        };
+        if bytes > most {
+            return Err(GpuError::Operation(format!(
+                "{label}: {} MB, more than this adapter's largest {what} ({} MB): draw fewer \
+                 streamlines or triangles (a selection, a subsample, fewer tube sides)",
+                bytes >> 20,
+                most >> 20
+            )));
+        }
+        Ok(())
+    }
+
     pub fn buffer(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
         use wgpu::util::DeviceExt;
         self.device
@@ -788,6 +861,40 @@ mod tests {
         i.name = name.into();
         i.device_pci_bus_id = bus.into();
         i
+    }
+
+    /// A buffer over the adapter's limits is an error naming it and both sizes, before wgpu
+    /// sees it (issue 17: the 2.6 GB vertex buffer panicked inside wgpu).
+    #[test]
+    fn buffers_over_the_adapters_limits_are_errors_naming_them() {
+        let Ok(g) = Gpu::new() else {
+            eprintln!("skipped: no GPU adapter");
+            return;
+        };
+        let l = g.device.limits();
+        let v = wgpu::BufferUsages::VERTEX;
+        let s = wgpu::BufferUsages::STORAGE;
+        assert!(g
+            .check_buffer("tube vertices", l.max_buffer_size, v)
+            .is_ok());
+        let e = g
+            .check_buffer("tube vertices", l.max_buffer_size + 1, v)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("tube vertices") && e.contains("largest buffer"),
+            "{e}"
+        );
+        let most = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
+        assert!(g.check_buffer("line points", most, s).is_ok());
+        let e = g
+            .check_buffer("line points", most + 1, s)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("line points") && e.contains("storage binding"),
+            "{e}"
+        );
     }
 
     #[test]

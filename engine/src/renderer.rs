@@ -279,12 +279,12 @@ impl<'g> Renderer<'g> {
             volume: volume.map(|v| GpuVolume::upload(gpu, v)).transpose()?,
             meshes: meshes
                 .iter()
-                .filter_map(|m| GpuMesh::upload(gpu, m))
-                .collect(),
+                .filter_map(|m| GpuMesh::upload(gpu, m).transpose())
+                .collect::<Result<_, _>>()?,
             lines: lines
                 .iter()
-                .filter_map(|l| GpuLines::upload(gpu, l))
-                .collect(),
+                .filter_map(|l| GpuLines::upload(gpu, l).transpose())
+                .collect::<Result<_, _>>()?,
             iso: iso.map(|i| GpuIso::upload(gpu, i)),
         })
     }

@@ -2,3 +2,5 @@
 //! in `tests/support` (package `test-support`), which the single-crate tests use directly.
 
 pub use test_support::*;
+
+pub mod fuzz;

@@ -258,26 +258,43 @@ pub fn inflate_zlib(
     )
 }
 
-/// Converts raw samples to `f32`. `bytes.len()` must be `count * ty.size()`.
-pub fn decode_samples(bytes: &[u8], ty: ScalarType, big_endian: bool) -> Vec<f32> {
+/// Converts raw samples to `f32` (`bytes.len()` a multiple of `ty.size()`). The output is
+/// reserved with `try_reserve_exact`, so a volume too large for the memory the process may use
+/// (an address-space limit, a cgroup) is an error naming its size, not an abort.
+pub fn decode_samples(
+    path: &Path,
+    field: &str,
+    bytes: &[u8],
+    ty: ScalarType,
+    big_endian: bool,
+) -> Result<Vec<f32>> {
+    let n = bytes.len() / ty.size();
+    let mut out: Vec<f32> = Vec::new();
+    out.try_reserve_exact(n).map_err(|_| {
+        VolumeError::format(
+            path,
+            field,
+            format!(
+                "not enough memory for {n} samples ({} MiB as float32)",
+                (n as u64 * 4) >> 20
+            ),
+        )
+    })?;
     macro_rules! conv {
         ($t:ty, $n:expr) => {
-            bytes
-                .chunks_exact($n)
-                .map(|c| {
-                    let a: [u8; $n] = c.try_into().unwrap();
-                    (if big_endian {
-                        <$t>::from_be_bytes(a)
-                    } else {
-                        <$t>::from_le_bytes(a)
-                    }) as f32
-                })
-                .collect()
+            out.extend(bytes.chunks_exact($n).map(|c| {
+                let a: [u8; $n] = c.try_into().unwrap();
+                (if big_endian {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                }) as f32
+            }))
         };
     }
     match ty {
-        ScalarType::U8 => bytes.iter().map(|&b| b as f32).collect(),
-        ScalarType::I8 => bytes.iter().map(|&b| b as i8 as f32).collect(),
+        ScalarType::U8 => out.extend(bytes.iter().map(|&b| b as f32)),
+        ScalarType::I8 => out.extend(bytes.iter().map(|&b| b as i8 as f32)),
         ScalarType::U16 => conv!(u16, 2),
         ScalarType::I16 => conv!(i16, 2),
         ScalarType::U32 => conv!(u32, 4),
@@ -287,6 +304,7 @@ pub fn decode_samples(bytes: &[u8], ty: ScalarType, big_endian: bool) -> Vec<f32
         ScalarType::F32 => conv!(f32, 4),
         ScalarType::F64 => conv!(f64, 8),
     }
+    Ok(out)
 }
 
 /// Takes exactly `count` samples of `ty` from `bytes` (which may be longer only when
@@ -314,7 +332,7 @@ pub fn take_samples(
             ),
         ));
     }
-    Ok(decode_samples(&bytes[..need], ty, big_endian))
+    decode_samples(path, field, &bytes[..need], ty, big_endian)
 }
 
 /// Encodes `f32` samples as `ty` (values must be representable; floats round to nearest).
@@ -668,12 +686,18 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("f_03.png");
         let touch = |n: &str| std::fs::write(dir.path().join(n), b"x").unwrap();
-        // Left by killed processes 17 and 4242: removed.
-        touch(&temp_name("f_03.png", 17));
-        touch(&temp_name("f_03.png", 4242));
-        // Not stale or not ours: kept.
+        // Left by processes that are gone (PIDs above Linux's largest, 2^22): removed.
+        touch(&temp_name("f_03.png", 999_999_917));
+        touch(&temp_name("f_03.png", 999_994_242));
+        // Not stale or not ours: kept; among them a live process's (our parent's).
         let own = temp_name("f_03.png", std::process::id());
         touch(&own);
+        #[cfg(target_os = "linux")]
+        let live = {
+            let p = temp_name("f_03.png", std::os::unix::process::parent_id());
+            touch(&p);
+            p
+        };
         for keep in [
             ".f_04.png.17.tmp",
             ".f_03.png.x1.tmp",
@@ -695,6 +719,8 @@ mod tests {
             ".f_03.png..tmp".to_string(),
             "f_03.png.17.tmp".to_string(),
         ];
+        #[cfg(target_os = "linux")]
+        want.push(live);
         want.sort();
         assert_eq!(left, want);
         // A write goes through this process's temporary name and leaves none.

@@ -614,10 +614,12 @@ pub fn parse_xml(path: &Path, kinds: &[&str]) -> Result<XmlDoc> {
                     base64_lenient(&a.text).map_err(|m| VolumeError::format(path, &field, m))?;
                 let data = ctx.block(&field, &bytes, nbytes)?;
                 io_util::decode_samples(
+                    path,
+                    &field,
                     &data[..data.len() / a.ty.size() * a.ty.size()],
                     a.ty,
                     big_endian,
-                )
+                )?
             }
             "appended" => {
                 let (app, b64) = appended.ok_or_else(|| {
@@ -644,10 +646,12 @@ pub fn parse_xml(path: &Path, kinds: &[&str]) -> Result<XmlDoc> {
                 };
                 let data = ctx.block(&field, &bytes, nbytes)?;
                 io_util::decode_samples(
+                    path,
+                    &field,
                     &data[..data.len() / a.ty.size() * a.ty.size()],
                     a.ty,
                     big_endian,
-                )
+                )?
             }
             other => {
                 return Err(VolumeError::format(
@@ -790,6 +794,9 @@ pub fn read(path: &Path) -> Result<Volume> {
             parts[0].values.clone()
         } else {
             let mut out = vec![f32::NAN; wcount * comps];
+            // Pieces share their boundary points; a point no piece covers is a gap (a piece
+            // overlapping another more than that can hide one from the value count).
+            let mut covered = vec![false; wcount];
             for a in &parts {
                 let e = a.extent.unwrap();
                 let (px, py) = ((e[1] - e[0] + 1) as usize, (e[3] - e[2] + 1) as usize);
@@ -800,7 +807,18 @@ pub fn read(path: &Path) -> Result<Volume> {
                     let gk = (e[4] - whole[4]) as usize + k;
                     let g = gi + wd[0] as usize * (gj + wd[1] as usize * gk);
                     out[g * comps..(g + 1) * comps].copy_from_slice(chunk);
+                    covered[g] = true;
                 }
+            }
+            let gaps = covered.iter().filter(|&&c| !c).count();
+            if gaps > 0 {
+                return Err(VolumeError::format(
+                    path,
+                    format!("DataArray {name}"),
+                    format!(
+                        "the pieces leave {gaps} of the WholeExtent's {wcount} points uncovered"
+                    ),
+                ));
             }
             out
         };

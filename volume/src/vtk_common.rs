@@ -55,7 +55,7 @@ pub(crate) fn cells_from_vtk(
     let mut start = 0usize;
     for (ci, (&off, &ty)) in offsets.iter().zip(types.iter()).enumerate() {
         let end = off as usize;
-        if off < 0.0 || end < start || end > conn.len() {
+        if !(off >= 0.0 && off.fract() == 0.0) || end < start || end > conn.len() {
             return Err(VolumeError::format(
                 path,
                 "Cells offsets",
@@ -63,6 +63,18 @@ pub(crate) fn cells_from_vtk(
                     "cell {ci}: offset {off} after {start} (connectivity has {})",
                     conn.len()
                 ),
+            ));
+        }
+        // Point ids are whole numbers from 0 (-1, NaN and 1.9 became 0, 0 and 1); the grid's
+        // validation checks them against the point count.
+        if let Some(&bad) = conn[start..end]
+            .iter()
+            .find(|&&v| !(v >= 0.0 && v.fract() == 0.0 && v < (1u32 << 31) as f32))
+        {
+            return Err(VolumeError::format(
+                path,
+                "Cells connectivity",
+                format!("cell {ci}: point id {bad} is not a whole number from 0"),
             ));
         }
         let ids: Vec<u32> = conn[start..end].iter().map(|&v| v as u32).collect();

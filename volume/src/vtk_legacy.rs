@@ -90,7 +90,7 @@ fn read_values(
         if cur.rest().first() == Some(&b'\n') {
             cur.pos += 1;
         }
-        Ok(io_util::decode_samples(bytes, ty, true))
+        io_util::decode_samples(path, field, bytes, ty, true)
     } else {
         let (v, used) = io_util::parse_ascii(path, field, cur.rest(), count)?;
         cur.pos += used;

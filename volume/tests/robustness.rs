@@ -643,3 +643,41 @@ fn volume_names_are_never_guessed_as_plot3d_grids() {
     let e = volume::load_grid(&p, None).unwrap_err().to_string();
     assert!(e.contains("volume format"), "{e}");
 }
+
+/// Pieces of a `.vti` that overlap can hide a gap from the value count (20 NaN voxels were read
+/// without a word): points no piece covers are an error; pieces that share a boundary (as VTK
+/// writes them) are fine.
+#[test]
+fn vti_pieces_that_leave_a_gap_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let doc = |pieces: &[(&str, &str)]| {
+        let mut s = String::from(
+            "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"0.1\" \
+             byte_order=\"LittleEndian\">\n<ImageData WholeExtent=\"0 4 0 0 0 0\" \
+             Origin=\"0 0 0\" Spacing=\"1 1 1\">\n",
+        );
+        for (e, v) in pieces {
+            s += &format!(
+                "<Piece Extent=\"{e}\"><PointData Scalars=\"d\"><DataArray type=\"Float32\" \
+                 Name=\"d\" format=\"ascii\">{v}</DataArray></PointData></Piece>\n"
+            );
+        }
+        s + "</ImageData>\n</VTKFile>\n"
+    };
+    // Two pieces over points 0-2: six values for five points, points 3 and 4 uncovered.
+    let gap = doc(&[("0 2 0 0 0 0", "0 1 2"), ("0 2 0 0 0 0", "0 1 2")]);
+    let e = expect_error(
+        dir.path(),
+        "gap.vti",
+        gap.as_bytes(),
+        None,
+        "overlap hiding a gap",
+    );
+    assert!(e.contains("2 of") && e.contains("uncovered"), "{e}");
+    // Pieces sharing point 2, as VTK splits an extent.
+    let ok = doc(&[("0 2 0 0 0 0", "0 1 2"), ("2 4 0 0 0 0", "2 3 4")]);
+    let v = try_load(dir.path(), "ok.vti", ok.as_bytes(), None)
+        .unwrap()
+        .unwrap();
+    assert_eq!(v.fields[0].data, vec![0.0, 1.0, 2.0, 3.0, 4.0]);
+}
