@@ -215,7 +215,19 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             }
             break;
         }
-        s.points.push(Vec3::new(x as f32, y as f32, z as f32));
+        let q = Vec3::new(x as f32, y as f32, z as f32);
+        if [x, y, z].iter().any(|v| v.is_finite() && !(*v as f32).is_finite()) {
+            // A Float64 value that is finite but beyond f32's range.
+            return Err(TubesError::format(
+                path,
+                "data",
+                format!(
+                    "point {}: ({x:e}, {y:e}, {z:e}) is outside f32's range",
+                    s.points.len()
+                ),
+            ));
+        }
+        s.points.push(q);
         open += 1;
     }
     if !terminated {

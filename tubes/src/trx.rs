@@ -327,8 +327,18 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             ),
         ));
     }
-    s.points = dt
-        .decode(&b)
+    let values = dt.decode(&b);
+    if let Some(i) = values
+        .iter()
+        .position(|&x| x.is_finite() && !(x as f32).is_finite())
+    {
+        return Err(TubesError::format(
+            path,
+            &pm.name,
+            format!("point {}: {:e} is outside f32's range", i / 3, values[i]),
+        ));
+    }
+    s.points = values
         .chunks_exact(3)
         .map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
         .collect();

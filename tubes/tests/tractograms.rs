@@ -695,3 +695,22 @@ fn compressed_vtk_polylines_are_recognised() {
     std::fs::write(&q, img).unwrap();
     assert!(!tubes::is_tractogram(&q));
 }
+
+/// A Float64 `.tck` value that is finite but beyond `f32`'s range (1e300) is an error naming
+/// the point, not an infinite coordinate.
+#[test]
+fn float64_values_beyond_f32_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let mut head = b"mrtrix tracks\ndatatype: Float64LE\ncount: 1\nfile: . 64\n".to_vec();
+    head.extend_from_slice(b"END\n");
+    head.resize(64, b' ');
+    let mut b = head.clone();
+    for v in [0.0f64, 0.0, 0.0, 1e300, 1.0, 1.0, f64::NAN, f64::NAN, f64::NAN] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    for _ in 0..3 {
+        b.extend_from_slice(&f64::INFINITY.to_le_bytes());
+    }
+    let e = expect_err(d.path(), "big.tck", &b, "1e300");
+    assert!(e.contains("point 1") && e.contains("f32"), "{e}");
+}
