@@ -124,14 +124,24 @@ pub fn read(path: &Path) -> Result<TubeMesh> {
             format!("vertex index {bad} with {} vertices", pos.len()),
         ));
     }
-    if let Some(p) = pos.iter().find(|p| !p.is_finite()) {
+    // Finite and within the coordinates a volume may have (beyond them positions relative
+    // to the mean leave f32's useful range; 1e100 became infinite).
+    let far = volume::MAX_COORDINATE;
+    if let Some(i) = pos
+        .iter()
+        .position(|p| !(p.is_finite() && p.abs().max_element() <= far))
+    {
         return Err(TubesError::format(
             path,
             "vertices",
-            format!("a position is not finite: {p:?}"),
+            format!(
+                "vertex {i} at {:?} is not within {far:e} of the origin",
+                pos[i]
+            ),
         ));
     }
-    if normals.len() != pos.len() {
+    // Normals the file gives that are not finite are recomputed.
+    if normals.len() != pos.len() || normals.iter().any(|n| !n.is_finite()) {
         normals = vertex_normals(&pos, &indices);
     }
     let n = pos.len().max(1) as f64;

@@ -216,7 +216,10 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             break;
         }
         let q = Vec3::new(x as f32, y as f32, z as f32);
-        if [x, y, z].iter().any(|v| v.is_finite() && !(*v as f32).is_finite()) {
+        if [x, y, z]
+            .iter()
+            .any(|v| v.is_finite() && !(*v as f32).is_finite())
+        {
             // A Float64 value that is finite but beyond f32's range.
             return Err(TubesError::format(
                 path,

@@ -705,7 +705,17 @@ fn float64_values_beyond_f32_are_refused() {
     head.extend_from_slice(b"END\n");
     head.resize(64, b' ');
     let mut b = head.clone();
-    for v in [0.0f64, 0.0, 0.0, 1e300, 1.0, 1.0, f64::NAN, f64::NAN, f64::NAN] {
+    for v in [
+        0.0f64,
+        0.0,
+        0.0,
+        1e300,
+        1.0,
+        1.0,
+        f64::NAN,
+        f64::NAN,
+        f64::NAN,
+    ] {
         b.extend_from_slice(&v.to_le_bytes());
     }
     for _ in 0..3 {

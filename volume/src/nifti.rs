@@ -258,6 +258,26 @@ fn quat_to_mat(path: &Path, q: [f64; 3]) -> Result<DMat3> {
     ))
 }
 
+/// A warning when the frame comes from `pixdim` (no sform) and a voxel size there is zero,
+/// negative or not finite: nibabel takes 1 for it, and so does umbra, but the user should know.
+fn pixdim_warnings(h: &Header) -> Vec<String> {
+    if h.sform_code > 0 {
+        return vec![];
+    }
+    let bad: Vec<String> = (1..=3)
+        .filter(|&i| !(h.pixdim[i].is_finite() && h.pixdim[i] != 0.0))
+        .map(|i| format!("pixdim[{i}] = {}", h.pixdim[i]))
+        .collect();
+    if bad.is_empty() {
+        vec![]
+    } else {
+        vec![format!(
+            "{} read as 1 (the voxel size is unknown)",
+            bad.join(", ")
+        )]
+    }
+}
+
 fn affine_of(path: &Path, h: &Header, dims: [usize; 3]) -> Result<(DMat4, Space)> {
     if h.sform_code > 0 {
         let s = h.srow;
@@ -548,7 +568,7 @@ pub fn read_series(path: &Path) -> Result<VolumeSeries> {
             data,
         }],
         default_field: 0,
-        warnings: vec![],
+        warnings: pixdim_warnings(&h),
     };
     let volumes = if components == 3 {
         // Component blocks (each of `frames` planes) follow each other; interleave the

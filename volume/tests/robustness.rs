@@ -681,3 +681,21 @@ fn vti_pieces_that_leave_a_gap_are_refused() {
         .unwrap();
     assert_eq!(v.fields[0].data, vec![0.0, 1.0, 2.0, 3.0, 4.0]);
 }
+
+/// A zero or NaN voxel size in `pixdim`, where the frame comes from it (no sform), is read as
+/// 1 (as nibabel does) with a warning, not in silence.
+#[test]
+fn zero_voxel_sizes_read_as_one_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = std::fs::read(fixtures().join("n1_nocode_f32.nii")).unwrap();
+    b[80..84].copy_from_slice(&0f32.to_le_bytes());
+    b[84..88].copy_from_slice(&f32::NAN.to_le_bytes());
+    let v = try_load(dir.path(), "z.nii", &b, None).unwrap().unwrap();
+    assert_eq!(v.spacing()[0], 1.0);
+    assert_eq!(v.spacing()[1], 1.0);
+    let w = v.warnings.join("; ");
+    assert!(
+        w.contains("pixdim[1] = 0") && w.contains("pixdim[2] = NaN"),
+        "{w}"
+    );
+}
