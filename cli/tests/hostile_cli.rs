@@ -142,46 +142,17 @@ fn sweep_trace_and_resample_values_are_range_checked() {
     let d = tempfile::tempdir().unwrap();
     let vol = fixture("spacings_ascii.nrrd");
     let o = d.path().join("d.nrrd");
-    refused(
-        &[
-            "sweep",
-            s(&vol),
-            "--iso",
-            "5",
-            "-o",
-            s(&o),
-            "--tolerance",
-            "nan",
-        ],
-        "--tolerance",
-    );
-    // Documented 0-1; 2 was clamped in silence.
-    refused(
-        &[
-            "sweep",
-            s(&vol),
-            "--iso",
-            "5",
-            "-o",
-            s(&o),
-            "--subsurface",
-            "2",
-        ],
-        "0 to 1",
-    );
-    refused(
-        &[
-            "sweep",
-            s(&vol),
-            "--iso",
-            "5",
-            "-o",
-            s(&o),
-            "--subsurface",
-            "nan",
-        ],
-        "0 to 1",
-    );
+    // NaN tolerance; a subsurface opacity documented 0-1 (2 was clamped in silence).
+    for (flag, v, needle) in [
+        ("--tolerance", "nan", "--tolerance"),
+        ("--subsurface", "2", "0 to 1"),
+        ("--subsurface", "nan", "0 to 1"),
+    ] {
+        refused(
+            &["sweep", s(&vol), "--iso", "5", "-o", s(&o), flag, v],
+            needle,
+        );
+    }
     let field = fixture("ras_vec_raw.nrrd");
     let trk = d.path().join("t.trk");
     // NaN lengths and tolerances gave "0 streamlines".

@@ -499,16 +499,25 @@ pub fn grid_bounds(dims: [usize; 3], affine: DMat4) -> [DVec3; 2] {
     [lo, hi]
 }
 
-/// Whether a file's name is one of the volume formats' (`.nii`, `.nii.gz`, `.hdr`, `.nrrd`,
-/// `.nhdr`, `.vti`, `.mhd`, `.mha`, `.slc`): such a file is read by its reader or refused, never
-/// guessed at as a PLOT3D grid (which has no signature).
-pub fn has_volume_extension(path: &Path) -> bool {
+/// A file name's extension in lower case, after a `.gz` (`a.NII.gz` gives `nii`; none: "").
+fn extension(path: &Path) -> String {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
     let stem = name.strip_suffix(".gz").unwrap_or(&name);
-    let ext = stem.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    stem.rsplit_once('.')
+        .map(|(_, e)| e)
+        .unwrap_or("")
+        .to_string()
+}
+
+/// Whether a file's name is one of the volume formats' (`.nii`, `.nii.gz`, `.hdr`, `.nrrd`,
+/// `.nhdr`, `.vti`, `.mhd`, `.mha`, `.slc`): such a file is read by its reader or refused, never
+/// guessed at as a PLOT3D grid (which has no signature).
+pub fn has_volume_extension(path: &Path) -> bool {
+    let ext = extension(path);
+    let ext = ext.as_str();
     matches!(
         ext,
         "nii" | "hdr" | "img" | "nrrd" | "nhdr" | "vti" | "mhd" | "mha" | "raw" | "slc"
@@ -520,12 +529,8 @@ pub fn has_volume_extension(path: &Path) -> bool {
 /// Supported: NIfTI-1/2 (`.nii`, `.nii.gz`, `.hdr`+`.img`), NRRD (`.nrrd`, `.nhdr`), VTK legacy
 /// STRUCTURED_POINTS (`.vtk`), VTK XML ImageData (`.vti`), MetaImage (`.mhd`, `.mha`), SLC (`.slc`).
 pub fn load(path: &Path) -> Result<Volume> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    let stem = name.strip_suffix(".gz").unwrap_or(&name);
-    let ext = stem.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    let ext = extension(path);
+    let ext = ext.as_str();
     let vol = match ext {
         "nii" | "hdr" => nifti::read(path)?,
         "nrrd" | "nhdr" => nrrd::read(path)?,
@@ -544,12 +549,8 @@ pub fn load(path: &Path) -> Result<Volume> {
 /// frames; see [`nifti::read_series`]) gives all its frames, any other volume a steady series
 /// of one frame ([`VolumeSeries::steady`]).
 pub fn load_series(path: &Path) -> Result<VolumeSeries> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    let stem = name.strip_suffix(".gz").unwrap_or(&name);
-    let ext = stem.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    let ext = extension(path);
+    let ext = ext.as_str();
     if matches!(ext, "nii" | "hdr") {
         let s = nifti::read_series(path)?;
         s.validate()
