@@ -699,3 +699,18 @@ fn zero_voxel_sizes_read_as_one_with_a_warning() {
         "{w}"
     );
 }
+
+/// VTK XML elements with very many attributes are refused at once (quick-xml's duplicate check
+/// is quadratic: 120,000 attributes took over 20 s), and a repeated attribute is an error.
+#[test]
+fn xml_attribute_floods_and_repeats_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let b = std::fs::read(fixtures().join("image_ascii.vti")).unwrap();
+    let many: String = (0..120_000).map(|i| format!(" a{i}=\"{i}\"")).collect();
+    let flood = replace_once(&b, "<ImageData ", &format!("<ImageData{many} "));
+    let e = expect_error(dir.path(), "flood.vti", &flood, None, "120k attributes");
+    assert!(e.contains("64 attributes"), "{e}");
+    let rep = replace_once(&b, "<ImageData ", "<ImageData Origin=\"0 0 0\" ");
+    let e = expect_error(dir.path(), "rep.vti", &rep, None, "repeated Origin");
+    assert!(e.contains("'Origin' repeated"), "{e}");
+}
