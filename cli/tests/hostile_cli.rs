@@ -313,3 +313,23 @@ fn a_killed_writers_temporary_is_removed_when_the_output_is_written_again() {
     assert!(out.exists());
     assert!(!stale.exists(), "the stale temporary is still there");
 }
+
+#[test]
+fn a_subsample_of_nothing_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let trk = fixture("tracts/nibabel/simple.trk");
+    let out = d.path().join("o.trk");
+    refused(
+        &[
+            "tracts",
+            "select",
+            s(&trk),
+            "-o",
+            s(&out),
+            "--subsample",
+            "0",
+        ],
+        "subsample",
+    );
+    assert!(!out.exists());
+}

@@ -220,7 +220,8 @@ impl Selection {
             && self.subsample.is_none()
     }
 
-    /// Checks the ranges: lengths finite and >= 0, min <= max, the attribute's bounds not NaN.
+    /// Checks the ranges: lengths finite and >= 0, min <= max, the attribute's bounds not NaN,
+    /// a subsample of at least 1.
     pub fn check(&self) -> Result<(), String> {
         for (k, v) in [
             ("min_length", self.min_length),
@@ -236,6 +237,9 @@ impl Selection {
             if a > b {
                 return Err(format!("min_length {a} is above max_length {b}"));
             }
+        }
+        if self.subsample.is_some_and(|(n, _)| n == 0) {
+            return Err("subsample = 0: keeps no streamline; give at least 1".into());
         }
         if let Some(a) = &self.attribute {
             if a.min.is_nan() || a.max.is_nan() || a.min > a.max {
