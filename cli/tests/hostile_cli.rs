@@ -37,6 +37,16 @@ fn refused(args: &[&str], needle: &str) -> String {
     err
 }
 
+/// Runs `umbra ARGS`, expecting success.
+fn succeeds(args: &[&str]) {
+    let out = umbra().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
@@ -65,15 +75,7 @@ fn tube_settings_out_of_range_are_refused_before_reading() {
     );
     assert!(!out.exists());
     // A good chordal tolerance still meshes.
-    let ok = umbra()
-        .args(["tubes", s(&trk), "-o", s(&out), "--chordal", "0.01"])
-        .output()
-        .unwrap();
-    assert!(
-        ok.status.success(),
-        "{}",
-        String::from_utf8_lossy(&ok.stderr)
-    );
+    succeeds(&["tubes", s(&trk), "-o", s(&out), "--chordal", "0.01"]);
     assert!(out.exists());
 }
 
@@ -301,15 +303,7 @@ fn a_killed_writers_temporary_is_removed_when_the_output_is_written_again() {
     // What a process killed mid-write leaves (its PID long gone).
     let stale = d.path().join(".c.nrrd.999999999.tmp");
     std::fs::write(&stale, b"half").unwrap();
-    let ok = umbra()
-        .args(["convert", s(&fixture("spacings_ascii.nrrd")), "-o", s(&out)])
-        .output()
-        .unwrap();
-    assert!(
-        ok.status.success(),
-        "{}",
-        String::from_utf8_lossy(&ok.stderr)
-    );
+    succeeds(&["convert", s(&fixture("spacings_ascii.nrrd")), "-o", s(&out)]);
     assert!(out.exists());
     assert!(!stale.exists(), "the stale temporary is still there");
 }
