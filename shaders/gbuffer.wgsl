@@ -431,6 +431,127 @@ fn fs_surface(v: VOut) -> SurfaceOut {
     return o;
 }
 
+// Slices of volumes (`[[slices]]`; Rust: engine/src/planes.rs, CPU twin: planes::plane_color):
+// planar polygons drawn as meshes whose colour each fragment samples from the layers' grid at
+// its own world position - the slice's volume, then the overlays blended over it in order.
+// Keep in sync with `planes::PlaneLayerParams`.
+struct PlaneLayer {
+    // the window: t = (v - lo) / (hi - lo) runs the colour map from its low end (t = 0) to its
+    // high end (t = 1); lo > hi turns it round (negative statistics)
+    lo: f32,
+    hi: f32,
+    opacity: f32,
+    // 0: scalar (trilinear) through the 256 colours at `lut`; 1: labels (the nearest voxel),
+    // label l's colour at lut + l (alpha 0: hidden), `count` entries
+    labels: u32,
+    lut: u32,
+    count: u32,
+    // 1: the slice's own volume (opaque; t clamped to [0, 1], NaN at the low end); 0: an
+    // overlay (transparent where t < 0 or NaN, clamped above)
+    base: u32,
+    pad: u32,
+};
+
+// Keep in sync with `planes::PlaneParams`.
+struct PlaneParams {
+    // camera-relative position (VOut.rel) to the layers' voxel index
+    rel_to_index: mat4x4<f32>,
+    // the grid's samples per axis (xyz) and the number of layers (w, 1 to 4)
+    dims: vec4<u32>,
+    layers: array<PlaneLayer, 4>,
+};
+
+@group(2) @binding(0) var<uniform> PP: PlaneParams;
+@group(2) @binding(1) var<storage, read> plane_lut: array<vec4<f32>>;
+@group(2) @binding(2) var<storage, read> plane_f0: array<f32>;
+@group(2) @binding(3) var<storage, read> plane_f1: array<f32>;
+@group(2) @binding(4) var<storage, read> plane_f2: array<f32>;
+@group(2) @binding(5) var<storage, read> plane_f3: array<f32>;
+
+fn plane_voxel(l: u32, i: vec3<u32>) -> f32 {
+    let n = i.x + PP.dims.x * (i.y + PP.dims.y * i.z);
+    switch l {
+        case 0u: { return plane_f0[n]; }
+        case 1u: { return plane_f1[n]; }
+        case 2u: { return plane_f2[n]; }
+        default: { return plane_f3[n]; }
+    }
+}
+
+// Layer l at index-space q (clamped into the grid): trilinear, or the nearest voxel
+// (floor(q + 0.5)) for labels. NaN corners make NaN.
+fn plane_sample(l: u32, q: vec3<f32>, nearest: bool) -> f32 {
+    let hi = vec3<f32>(PP.dims.xyz) - vec3<f32>(1.0);
+    let c = clamp(q, vec3<f32>(0.0), hi);
+    if (nearest) {
+        return plane_voxel(l, vec3<u32>(floor(c + vec3<f32>(0.5))));
+    }
+    let b = min(vec3<u32>(floor(c)), max(PP.dims.xyz, vec3<u32>(2u)) - vec3<u32>(2u));
+    let top = PP.dims.xyz - vec3<u32>(1u);
+    var v: array<f32, 8>;
+    for (var k = 0u; k < 8u; k = k + 1u) {
+        v[k] = plane_voxel(l, min(b + cell_corner(k), top));
+    }
+    return trilinear_mix(v, c - vec3<f32>(b));
+}
+
+// A layer's colour (rgb) and coverage (a) at value v.
+fn plane_layer_color(y: PlaneLayer, v: f32) -> vec4<f32> {
+    if (y.labels != 0u) {
+        // Gaps and labels outside the table are not shown.
+        if (!(v >= 0.0 && v < f32(y.count))) {
+            return vec4<f32>(0.0);
+        }
+        return plane_lut[y.lut + u32(floor(v + 0.5))];
+    }
+    // Gaps (NaN voxels, as -3e38: engine::planes) show the low end under the slice's volume
+    // and nothing of an overlay.
+    let gap = v < -1e30;
+    var t = (v - y.lo) / (y.hi - y.lo);
+    if (y.base != 0u) {
+        t = select(clamp(t, 0.0, 1.0), 0.0, gap);
+    } else if (gap || !(t >= 0.0)) {
+        return vec4<f32>(0.0);
+    }
+    let x = min(t, 1.0) * 255.0;
+    let i = min(u32(floor(x)), 254u);
+    let c = mix(plane_lut[y.lut + i], plane_lut[y.lut + i + 1u], x - f32(i));
+    return vec4<f32>(c.rgb, 1.0);
+}
+
+// The slice's colour at a fragment: its volume (opaque; a hidden or missing label shows
+// black), then each overlay over it by its coverage times its opacity.
+fn plane_color(rel: vec3<f32>) -> vec3<f32> {
+    let q = (PP.rel_to_index * vec4<f32>(rel, 1.0)).xyz;
+    var c = vec3<f32>(0.0);
+    for (var l = 0u; l < min(PP.dims.w, 4u); l = l + 1u) {
+        let y = PP.layers[l];
+        let s = plane_layer_color(y, plane_sample(l, q, y.labels != 0u));
+        if (y.base != 0u) {
+            c = s.rgb * s.a;
+        } else {
+            c = mix(c, s.rgb, s.a * y.opacity);
+        }
+    }
+    return c;
+}
+
+@fragment
+fn fs_front_p(v: VOut) -> FrontOut {
+    var f = front_values(v);
+    f.color = vec4<f32>(plane_color(v.rel), 1.0);
+    return f;
+}
+
+@fragment
+fn fs_surface_p(v: VOut) -> SurfaceOut {
+    let f = front_values(v);
+    var o: SurfaceOut;
+    o.color = vec4<f32>(plane_color(v.rel), 1.0);
+    o.normal = f.normal;
+    return o;
+}
+
 // The nearest surface's linear depth alone (single sample, beside a multisampled G-buffer).
 @fragment
 fn fs_depth(v: VOut) -> @location(0) vec4<f32> {

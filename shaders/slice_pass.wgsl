@@ -28,6 +28,11 @@ override CONE: bool = false;
 // the gradient magnitude (ea_pass::Transfer). A constant, so 1-D functions skip the gradient.
 override TF2D: bool = false;
 
+// A projection instead of emission-absorption (Rust: method::VolumeShading::Projection): 0
+// none, 1 the largest value along the ray (MIP), 2 the smallest (MinIP). CPU twin:
+// occlusion::projection.
+override PROJECTION: u32 = 0u;
+
 // Keep in sync with `slice_pass::SliceParams`.
 struct Params {
     frame: Frame,
@@ -577,6 +582,47 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
+// The projected value of the ray: the largest (PROJECTION 1) or smallest (2) trilinear
+// sample at the middles of the slabs' intervals kept by the clipping planes, over the whole
+// ray inside the grid (surfaces do not stop it); NaN gaps are skipped. Through the transfer
+// function: premultiplied colour and opacity (its extinction, clamped to [0, 1]); nothing
+// where no sample was taken. Occupancy bricks are not consulted (an empty brick for the
+// transfer function may still hold the extreme value).
+fn projection(r: Ray) -> vec4<f32> {
+    let kr = box_slices(r, 0.0);
+    let hi = vec3<f32>(P.dims) - vec3<f32>(1.0);
+    var found = false;
+    var m = 0.0;
+    for (var k = kr.x; k < kr.y; k = k + 1u) {
+        let iv = slab_interval(r, k, 0.0);
+        if (iv.y <= iv.x) {
+            continue;
+        }
+        let s = (0.5 * (iv.x + iv.y) - r.o_depth) / r.cosine;
+        if (s < 0.0) {
+            continue;
+        }
+        let q = (P.world_to_index * vec4<f32>(r.o + r.d * s, 1.0)).xyz;
+        if (any(q < vec3<f32>(0.0)) || any(q > hi)) {
+            continue;
+        }
+        let v = trilinear(q);
+        if (v < -1e30) {
+            continue;
+        }
+        if (!found || (PROJECTION == 1u && v > m) || (PROJECTION == 2u && v < m)) {
+            m = v;
+            found = true;
+        }
+    }
+    if (!found) {
+        return vec4<f32>(0.0);
+    }
+    let c = transfer(m, 0.0);
+    let a = clamp(c.a, 0.0, 1.0);
+    return vec4<f32>(c.rgb * a, a);
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     let w = P.frame.size.x;
@@ -588,6 +634,17 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     let px = vec2<f32>(id.xy) + vec2<f32>(0.5);
     let r = pixel_ray(P.frame, px);
     let front = textureLoad(front_depth, vec2<i32>(id.xy), 0).r;
+    if (PROJECTION != 0u) {
+        // Behind the surfaces: shown only where none is.
+        var e = vec4<f32>(0.0);
+        if (front <= 0.0 && P.has_volume != 0u) {
+            e = projection(r);
+        }
+        eye_buf[idx] = e;
+        state[2u * idx] = vec4<f32>(1.0, 1.0, 0.0, 0.0);
+        state[2u * idx + 1u] = vec4<f32>(0.0);
+        return;
+    }
     let lit = P.occlusion != 0u;
     var e = vec4<f32>(0.0);
     var acc = vec2<f32>(0.0);

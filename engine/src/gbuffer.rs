@@ -25,7 +25,7 @@ use occlusion::camera::Camera;
 use tubes::lines::{LineSet, LineWidth};
 use tubes::tube_mesh::TubeMesh;
 
-const SHADER: &str = include_str!("../../shaders/gbuffer.wgsl");
+pub(crate) const SHADER: &str = include_str!("../../shaders/gbuffer.wgsl");
 
 pub const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 pub const NORMAL: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -266,10 +266,12 @@ struct LineDraw {
     proxy: bool,
 }
 
-/// A mesh's draw in one frame: its buffers and the bind group of its per-view uniform.
+/// A mesh's draw in one frame: its buffers and the bind group of its per-view uniform; a
+/// slice's (`planes`) also the bind group of its layers, which its colour pass reads.
 struct MeshDraw {
     mesh: GpuMesh,
     bind: wgpu::BindGroup,
+    plane: Option<wgpu::BindGroup>,
 }
 
 /// LineAO's normal-depth map (Eichelbaum et al. §3.2): the nearest surface's linear view depth
@@ -329,8 +331,13 @@ struct PipelinePair {
 struct Pipelines {
     layout: wgpu::BindGroupLayout,
     line_layout: wgpu::BindGroupLayout,
+    /// Slices' layers (group 2 of `front_plane`).
+    plane_layout: wgpu::BindGroupLayout,
     /// Single sample: colour, normal and depth; multisampled: colour and normal.
     front: PipelinePair,
+    /// The colour pass of slices (`fs_front_p` or `fs_surface_p`): meshes whose colour is
+    /// sampled from their layers.
+    front_plane: wgpu::RenderPipeline,
     /// Multisampled only: the single-sample depth.
     depth: Option<PipelinePair>,
     /// LineAO's normal-depth map (single sample).
@@ -361,46 +368,77 @@ impl Pipelines {
                 Slot::Storage,
             ],
         );
+        let plane_layout = gpu.layout(
+            "gbuffer planes",
+            wgpu::ShaderStages::FRAGMENT,
+            &[
+                Slot::Uniform,
+                Slot::Storage,
+                Slot::Storage,
+                Slot::Storage,
+                Slot::Storage,
+                Slot::Storage,
+            ],
+        );
         let pl = gpu.pipeline_layout("gbuffer", &[&layout]);
         let pl_lines = gpu.pipeline_layout("gbuffer lines", &[&layout, &line_layout]);
+        // Slices bind group 2 (group 1 is the lines'; the slice entries do not use it).
+        let pl_planes = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("gbuffer planes"),
+            bind_group_layouts: &[Some(&layout), None, Some(&plane_layout)],
+            immediate_size: 0,
+        });
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4];
         let vbl = [Some(wgpu::VertexBufferLayout {
             array_stride: STRIDE,
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &attributes,
         })];
+        let pipeline_in = |layout: &wgpu::PipelineLayout,
+                           lines: bool,
+                           entry: &str,
+                           targets: &[Option<wgpu::ColorTargetState>],
+                           count: u32| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(entry),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some(if lines { "vs_line" } else { "vs" }),
+                    compilation_options: Default::default(),
+                    buffers: if lines { &[] } else { &vbl },
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: wgpu::TextureFormat::Depth32Float,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: wgpu::MultisampleState {
+                    count,
+                    ..Default::default()
+                },
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
         let pipeline =
             |lines: bool, entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| {
-                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some(entry),
-                    layout: Some(if lines { &pl_lines } else { &pl }),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some(if lines { "vs_line" } else { "vs" }),
-                        compilation_options: Default::default(),
-                        buffers: if lines { &[] } else { &vbl },
-                    },
-                    primitive: wgpu::PrimitiveState::default(),
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: wgpu::TextureFormat::Depth32Float,
-                        depth_write_enabled: Some(true),
-                        depth_compare: Some(wgpu::CompareFunction::Less),
-                        stencil: Default::default(),
-                        bias: Default::default(),
-                    }),
-                    multisample: wgpu::MultisampleState {
-                        count,
-                        ..Default::default()
-                    },
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some(entry),
-                        compilation_options: Default::default(),
-                        targets,
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                })
+                pipeline_in(
+                    if lines { &pl_lines } else { &pl },
+                    lines,
+                    entry,
+                    targets,
+                    count,
+                )
             };
         let pair =
             |entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| PipelinePair {
@@ -414,8 +452,27 @@ impl Pipelines {
         } else {
             pair("fs_front", &[t(COLOR), t(NORMAL), t(DEPTH)], 1)
         };
+        let front_plane = if ms {
+            pipeline_in(
+                &pl_planes,
+                false,
+                "fs_surface_p",
+                &[t(COLOR), t(NORMAL)],
+                samples,
+            )
+        } else {
+            pipeline_in(
+                &pl_planes,
+                false,
+                "fs_front_p",
+                &[t(COLOR), t(NORMAL), t(DEPTH)],
+                1,
+            )
+        };
         Pipelines {
             front,
+            front_plane,
+            plane_layout,
             depth: ms.then(|| pair("fs_depth", &[t(DEPTH)], 1)),
             nd: pair("fs_nd", &[t(DEPTH), t(NORMAL), t(NORMAL)], 1),
             back: pair("fs_back", &[t(DEPTH)], 1),
@@ -515,6 +572,7 @@ impl GBuffer {
         width: u32,
         height: u32,
         meshes: &[GpuMesh],
+        planes: &[crate::planes::GpuPlane],
         lines: &[GpuLines],
         clip: &[([f64; 3], f64)],
         samples: u32,
@@ -632,11 +690,29 @@ impl GBuffer {
                 ],
             )
         };
+        // A slice's layers for this view: their uniform and buffers (group 2).
+        let plane_data = |p: &crate::planes::GpuPlane| {
+            let params = gpu.buffer(
+                "plane params",
+                bytemuck::bytes_of(&p.params(e)),
+                wgpu::BufferUsages::UNIFORM,
+            );
+            let mut r = vec![params.as_entire_binding(), p.lut.as_entire_binding()];
+            r.extend(p.fields.iter().map(|f| f.as_entire_binding()));
+            gpu.bind("gbuffer planes", &pipes.plane_layout, &r)
+        };
+        // Slices are meshes (their polygons) with a colour of their own.
+        let meshes: Vec<(&GpuMesh, Option<&crate::planes::GpuPlane>)> = meshes
+            .iter()
+            .map(|m| (m, None))
+            .chain(planes.iter().map(|p| (&p.mesh, Some(p))))
+            .collect();
         let mesh_draws = meshes
             .iter()
-            .map(|m| MeshDraw {
-                mesh: m.clone(),
+            .map(|(m, p)| MeshDraw {
+                mesh: (*m).clone(),
                 bind: view(vp_rel, m.origin, code(m)),
+                plane: p.map(plane_data),
             })
             .collect();
         let line_draws = lines
@@ -669,7 +745,10 @@ impl GBuffer {
                     nh,
                 )
                 .1,
-                meshes: meshes.iter().map(|m| view(vp, m.origin, code(m))).collect(),
+                meshes: meshes
+                    .iter()
+                    .map(|(m, _)| view(vp, m.origin, code(m)))
+                    .collect(),
                 lines: lines
                     .iter()
                     .map(|l| (view(vp, l.origin, 0.0), line_data(l, p11g, nw, nh)))
@@ -735,6 +814,8 @@ impl GBuffer {
         let p = &self.pipes;
         #[derive(PartialEq)]
         enum Kind {
+            /// The colour pass (slices take their own pipeline here).
+            Color,
             Surface,
             Nd,
             Back,
@@ -743,7 +824,7 @@ impl GBuffer {
         match (&p.depth, &self.depth_ms) {
             (Some(dp), Some(dms)) => {
                 passes.push((
-                    Kind::Surface,
+                    Kind::Color,
                     &p.front,
                     vec![clear(&self.color), clear(&self.normal)],
                     dms,
@@ -758,7 +839,7 @@ impl GBuffer {
                 }
             }
             _ => passes.push((
-                Kind::Surface,
+                Kind::Color,
                 &p.front,
                 vec![clear(&self.color), clear(&self.normal), clear(&self.front)],
                 &self.depth_front,
@@ -799,7 +880,22 @@ impl GBuffer {
                 if !self.meshes.is_empty() {
                     pass.set_pipeline(&pipe.mesh);
                 }
-                for (k, MeshDraw { mesh: m, bind }) in self.meshes.iter().enumerate() {
+                for (
+                    k,
+                    MeshDraw {
+                        mesh: m,
+                        bind,
+                        plane,
+                    },
+                ) in self.meshes.iter().enumerate()
+                {
+                    match (plane, kind == Kind::Color) {
+                        (Some(g), true) => {
+                            pass.set_pipeline(&p.front_plane);
+                            pass.set_bind_group(2, g, &[]);
+                        }
+                        _ => pass.set_pipeline(&pipe.mesh),
+                    }
                     pass.set_bind_group(0, nd.map_or(bind, |n| &n.meshes[k]), &[]);
                     pass.set_vertex_buffer(0, m.vertices.slice(..));
                     pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);

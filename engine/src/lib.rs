@@ -15,6 +15,7 @@ pub mod gpu;
 pub mod iso_pass;
 pub mod line_ao;
 pub mod method;
+pub mod planes;
 pub mod prelude;
 pub mod renderer;
 pub mod slice_pass;

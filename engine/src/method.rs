@@ -16,6 +16,9 @@ pub enum Method {
     #[serde(rename = "lineao")]
     LineAo,
     Illustrative,
+    Mip,
+    #[serde(rename = "minip")]
+    MinIp,
 }
 
 /// How tubes shadow the volume behind them.
@@ -70,7 +73,14 @@ pub enum VolumeShading {
     EmissionAbsorption,
     /// Phong shading with on-the-fly gradients under the head light.
     Phong,
+    /// A projection of the samples' values along the ray (the largest, or the smallest), shown
+    /// through the volume's transfer function behind the surfaces (seed 002's context
+    /// volume): `march` with its `PROJECTION` constant.
+    Projection(Extremum),
 }
+
+/// Which value a projection keeps along a ray (MIP: `Max`, MinIP: `Min`).
+pub use occlusion::projection::Extremum;
 
 /// One occlusion term of the surfaces: a layer of one value per pixel that composite folds
 /// with the others by min (eq. 7) or product (eq. 8).
@@ -151,6 +161,20 @@ pub const METHODS: &[MethodDesc] = &[
         volume: VolumeShading::EmissionAbsorption,
         terms: &[],
         summary: "unshaded line cores and halos in two colours (Everts et al.), no occlusion",
+    },
+    MethodDesc {
+        method: Method::Mip,
+        name: "mip",
+        volume: VolumeShading::Projection(Extremum::Max),
+        terms: &[],
+        summary: "maximum intensity projection behind Phong surfaces (a context volume)",
+    },
+    MethodDesc {
+        method: Method::MinIp,
+        name: "minip",
+        volume: VolumeShading::Projection(Extremum::Min),
+        terms: &[],
+        summary: "minimum intensity projection behind Phong surfaces",
     },
     MethodDesc {
         method: Method::Phong,

@@ -23,6 +23,7 @@ use crate::gbuffer::{GBuffer, GpuLines, GpuMesh};
 use crate::gpu::{Gpu, GpuError};
 use crate::iso_pass::{GpuIso, IsoInput, IsoPass};
 use crate::method::{LineAoShading, VolumeShading, MAX_TERMS};
+use crate::planes::{GpuPlane, PlaneGrid, PlaneInput};
 use crate::slice_pass::{GpuVolume, SlicePass, SliceSettings, VolumeInput};
 use crate::terms::{surface_ao, TermInputs, TermPass};
 use occlusion::camera::Camera;
@@ -217,6 +218,8 @@ fn submit_and_wait(gpu: &Gpu, record: &dyn Fn(&mut wgpu::CommandEncoder)) -> Res
 pub struct GpuScene {
     volume: Option<GpuVolume>,
     meshes: Vec<GpuMesh>,
+    /// Slices of volumes ([`Renderer::upload_planes`]).
+    planes: Vec<GpuPlane>,
     lines: Vec<GpuLines>,
     iso: Option<GpuIso>,
 }
@@ -224,7 +227,11 @@ pub struct GpuScene {
 impl GpuScene {
     /// Triangles drawn per G-buffer pass (two per line segment).
     pub fn triangles(&self) -> u64 {
-        self.meshes.iter().map(GpuMesh::triangles).sum::<u64>()
+        self.meshes
+            .iter()
+            .chain(self.planes.iter().map(|p| &p.mesh))
+            .map(GpuMesh::triangles)
+            .sum::<u64>()
             + self.lines.iter().map(|l| 2 * l.segments()).sum::<u64>()
     }
 }
@@ -286,7 +293,20 @@ impl<'g> Renderer<'g> {
                 .filter_map(|l| GpuLines::upload(gpu, l).transpose())
                 .collect::<Result<_, _>>()?,
             iso: iso.map(|i| GpuIso::upload(gpu, i)),
+            planes: vec![],
         })
+    }
+
+    /// Adds slices of volumes to an uploaded scene (replacing any it had): their polygons and
+    /// the fields of `grid` their layers read, each field uploaded once.
+    pub fn upload_planes(
+        &self,
+        scene: &mut GpuScene,
+        grid: &PlaneGrid,
+        planes: &[PlaneInput],
+    ) -> Result<(), GpuError> {
+        scene.planes = GpuPlane::upload_all(self.gpu, grid, planes)?;
+        Ok(())
     }
 
     /// Gives an uploaded scene's volume a new transfer function (`volume` is the volume as
@@ -440,6 +460,7 @@ impl Frame {
             w,
             h,
             &scene.meshes,
+            &scene.planes,
             &scene.lines,
             tube_clip,
             samples,
@@ -469,6 +490,10 @@ impl Frame {
                 cell: s.occlusion_cell,
                 cone: s.cone,
                 phong: desc.volume == VolumeShading::Phong,
+                projection: match desc.volume {
+                    VolumeShading::Projection(e) => Some(e),
+                    _ => None,
+                },
                 column: s.column,
                 theta_deg: s.theta_deg,
                 blur_samples: s.blur_samples,

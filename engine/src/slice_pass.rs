@@ -27,6 +27,11 @@ pub struct SliceSettings {
     pub cone: bool,
     /// Phong shading of the volume with on-the-fly gradients.
     pub phong: bool,
+    /// A maximum or minimum intensity projection instead of emission-absorption: the
+    /// extreme value of the ray's samples (slab midpoints, the whole ray inside the grid and
+    /// the clipping planes) through the transfer function, colour `rgb` and opacity its
+    /// extinction, drawn only where no surface is (behind them).
+    pub projection: Option<crate::method::Extremum>,
     /// The paper's endless shadow column behind surfaces instead of the tubes' thickness.
     pub column: bool,
     pub theta_deg: f64,
@@ -344,6 +349,14 @@ impl SlicePass {
             &[
                 ("PHONG", if s.phong { 1.0 } else { 0.0 }),
                 ("TF2D", if tf2d { 1.0 } else { 0.0 }),
+                (
+                    "PROJECTION",
+                    match s.projection {
+                        None => 0.0,
+                        Some(crate::method::Extremum::Max) => 1.0,
+                        Some(crate::method::Extremum::Min) => 2.0,
+                    },
+                ),
             ],
         );
 
@@ -531,6 +544,7 @@ mod tests {
             cell: None,
             cone: false,
             phong: false,
+            projection: None,
             column: false,
             theta_deg: 25.0,
             blur_samples: 3,

@@ -107,6 +107,39 @@ pub fn transfer(spec: &TransferSpec, range: [f64; 2]) -> Result<Transfer, String
     })
 }
 
+/// The transfer function the projections (`mip`, `minip`) show their value through:
+/// `volume.colormap` (default grey) over `volume.window` `[lo, hi]` (default the field's
+/// `range`) as 256 points, each with extinction `volume.opacity` (default 1), which the
+/// projection takes as its opacity; values before the window's `lo` end (below it, or above
+/// it when `lo > hi`) are transparent, as for overlays, and values past `hi` take the map's
+/// top.
+pub fn projection_transfer(v: &spec::VolumeSpec, range: [f64; 2]) -> Result<Transfer, String> {
+    let cm: volume::colormap::Colormap = v.colormap.as_deref().unwrap_or("grey").parse()?;
+    let mut w = v.window.unwrap_or(range);
+    if w[0] == w[1] {
+        w[1] = w[0] + 1.0;
+    }
+    let opacity = v.opacity.unwrap_or(1.0);
+    // Points by increasing value (a reversed window reverses the table).
+    let mut points: Vec<(f64, [f64; 3], f64)> = cm
+        .linear_table()
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let x = w[0] + (w[1] - w[0]) * k as f64 / 255.0;
+            (x, c.map(|c| c as f64), opacity)
+        })
+        .collect();
+    // Transparent before the window: a point a millionth of the window beyond `lo`.
+    let eps = 1e-6 * (w[1] - w[0]);
+    points.push((w[0] - eps, [0.0; 3], 0.0));
+    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(Transfer {
+        points,
+        rows: vec![],
+    })
+}
+
 /// The scene's camera for a volume with `bounds`.
 pub fn camera(s: &Scene, bounds: [DVec3; 2]) -> Result<Camera, String> {
     let c = &s.camera;
@@ -182,6 +215,8 @@ pub struct Model {
     pub volume: Option<(volume::Volume, Vec<f32>, Transfer)>,
     pub iso: Option<IsoModel>,
     pub meshes: Vec<TubeMesh>,
+    /// `[[slices]]` and `[[overlays]]`: the grid, its fields and the slices' planes.
+    pub planes: Option<crate::slices::PlaneModel>,
     /// One line set per `[[lines]]`.
     pub lines: Vec<LineSet>,
     pub bounds: [DVec3; 2],
@@ -340,6 +375,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     // The volume, loaded once: drawn by its transfer function, or in isosurface mode as its
     // isosurface.
     let (mut volume, mut iso, mut iso_bounds) = (None, None, None);
+    // Slices and overlays; the slabs that crop geometry; the bounds of a volume not drawn.
+    let (mut planes, mut slabs, mut hidden_bounds) = (None, vec![], None);
     if let Some(vspec) = &s.volume {
         let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
         space = Some(vol.space);
@@ -440,7 +477,20 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 });
             }
             let data = emission_absorption::prepare(&field.data);
-            volume = Some((vol, data, tf));
+            // The projections show their value through the volume's window and colour map.
+            let tf = match s.render.method.desc().volume {
+                engine::method::VolumeShading::Projection(_) => {
+                    projection_transfer(vspec, [st.min, st.max])?
+                }
+                _ => tf,
+            };
+            planes = crate::slices::model(s, &vol, &data, &mut notes)?;
+            slabs = crate::slices::slabs(s, vol.bounds());
+            if vspec.render {
+                volume = Some((vol, data, tf));
+            } else {
+                hidden_bounds = Some(vol.bounds());
+            }
         }
     }
     let mut meshes = vec![];
@@ -456,6 +506,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         }
         let (sl, note) =
             crate::tube_sets::apply_selection(sl, t.select.as_ref(), &format!("tubes[{i}]"))?;
+        let sl = crate::slices::crop(&sl, &slabs, 2);
         notes.extend(note);
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
         if s.annotate.colorbar.as_deref() == Some(&format!("tubes.{i}")) {
@@ -470,12 +521,12 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     let mut lines = vec![];
     for (i, l) in s.lines.iter().enumerate() {
         let bar = s.annotate.colorbar.as_deref() == Some(&format!("lines.{i}"));
-        let (set, b) = line_set(i, l, &mut notes, bar)?;
+        let (set, b) = line_set(i, l, &mut notes, bar, &slabs)?;
         lines.push(set);
         colorbar = colorbar.or(b);
     }
     for (i, p) in s.points.iter().enumerate() {
-        lines.push(point_set(i, p, &mut notes)?);
+        lines.push(point_set(i, p, &mut notes, &slabs)?);
     }
     if let (Some(src), None) = (&s.annotate.colorbar, &colorbar) {
         return Err(format!(
@@ -488,6 +539,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         boxes.push(v.bounds());
     }
     if let Some(b) = iso_bounds {
+        boxes.push(b);
+    }
+    if let Some(b) = hidden_bounds {
         boxes.push(b);
     }
     let Some(first) = boxes.first().copied() else {
@@ -516,6 +570,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         volume,
         iso,
         meshes,
+        planes,
         lines,
         bounds,
         spacing,
@@ -532,6 +587,7 @@ fn line_set(
     l: &spec::LinesSpec,
     notes: &mut Vec<String>,
     want_bar: bool,
+    slabs: &[crate::slices::Slab],
 ) -> Result<(LineSet, Option<crate::annotate::ColorBar>), String> {
     let mut sl = tubes::load(&l.path).map_err(|e| format!("lines[{i}]: {e}"))?;
     if let Some(m) = l.transform {
@@ -540,6 +596,7 @@ fn line_set(
     }
     let (sl, note) =
         crate::tube_sets::apply_selection(sl, l.select.as_ref(), &format!("lines[{i}]"))?;
+    let sl = crate::slices::crop(&sl, slabs, 2);
     notes.extend(note);
     let bar = match want_bar {
         true => crate::tube_sets::color_bar(&sl, &l.color)
@@ -606,12 +663,18 @@ fn line_set(
 }
 
 /// The point cloud of `[[points]]` number `i` as a line set of discs (`LineSet::points`).
-fn point_set(i: usize, p: &spec::PointsSpec, notes: &mut Vec<String>) -> Result<LineSet, String> {
+fn point_set(
+    i: usize,
+    p: &spec::PointsSpec,
+    notes: &mut Vec<String>,
+    slabs: &[crate::slices::Slab],
+) -> Result<LineSet, String> {
     let mut sl = tubes::points::read(&p.path).map_err(|e| format!("points[{i}]: {e}"))?;
     if let Some(m) = p.transform {
         let key = format!("points[{i}].transform");
         sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);
     }
+    let sl = crate::slices::crop(&sl, slabs, 1);
     notes.extend(sl.warnings.iter().map(|w| format!("points[{i}]: {w}")));
     if sl.points.is_empty() {
         notes.push(format!("points[{i}] ({}): no points", p.path.display()));
@@ -802,6 +865,15 @@ pub fn cpu_refusal(s: &Scene, m: &Model) -> Option<String> {
             desc.name
         ));
     }
+    if let VolumeShading::Projection(_) = desc.volume {
+        return Some(format!(
+            "method {} (projections are drawn on the GPU)",
+            desc.name
+        ));
+    }
+    if m.planes.as_ref().is_some_and(|p| !p.planes.is_empty()) {
+        return Some("slices (drawn on the GPU)".into());
+    }
     let Some((_, _, tf)) = &m.volume else {
         return Some("no [volume]".into());
     };
@@ -897,9 +969,14 @@ pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, 
         color: i.color,
     });
     let renderer = Renderer::new(gpu);
-    let scene = renderer
+    let mut scene = renderer
         .upload(vi.as_ref(), &m.meshes, &m.lines, iso.as_ref())
         .map_err(|e| e.to_string())?;
+    if let Some(p) = &m.planes {
+        renderer
+            .upload_planes(&mut scene, &p.grid(), &p.planes)
+            .map_err(|e| format!("slices: {e}"))?;
+    }
     Ok(Uploaded {
         renderer,
         scene,

@@ -180,6 +180,84 @@ pub struct VolumeSpec {
     pub transfer: TransferSpec,
     /// Isosurface mode: the volume drawn as this isosurface instead of by its transfer function.
     pub iso: Option<IsoSpec>,
+    /// false: the volume is not drawn (its slices and overlays still use it and its grid).
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub render: bool,
+    /// `[lo, hi]`: the values the projections (`mip`, `minip`) and this volume's slices map
+    /// through `colormap` (default: the field's finite range).
+    pub window: Option<[f64; 2]>,
+    /// The projections' and slices' colour map (default `grey`).
+    pub colormap: Option<String>,
+    /// The projections' opacity in [0, 1] (default 1).
+    pub opacity: Option<f64>,
+}
+
+fn yes() -> bool {
+    true
+}
+fn is_true(b: &bool) -> bool {
+    *b
+}
+
+/// `[[slices]]`: a plane through the scene's volume or an overlay, drawn as a textured surface.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SliceSpec {
+    /// `axial`, `coronal` or `sagittal`: normal to world z, y or x (RAS+).
+    pub axis: Option<SliceAxis>,
+    /// An oblique plane's normal (instead of `axis`; normalised).
+    pub normal: Option<[f64; 3]>,
+    /// World units along the unit normal (default: the centre of the volume's bounds).
+    pub position: Option<f64>,
+    /// The volume the slice shows: the scene's `[volume]` (default) or an overlay's `name`.
+    pub volume: Option<String>,
+    /// `[lo, hi]` mapped to the colour map's ends (default: `volume.window`, else the field's
+    /// finite range).
+    pub window: Option<[f64; 2]>,
+    /// Default: `volume.colormap` for the scene's volume, else `grey`.
+    pub colormap: Option<String>,
+    #[serde(default = "one")]
+    pub opacity: f64,
+    /// Slab thickness, world units: tubes, lines and points are cropped to the slab
+    /// `|n . p - position| <= slab / 2` (of any slice that has one).
+    pub slab: Option<f64>,
+    /// Draw the scene's overlays over the slice (default true).
+    #[serde(default = "yes")]
+    pub overlays: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SliceAxis {
+    Axial,
+    Coronal,
+    Sagittal,
+}
+
+/// `[[overlays]]`: a second volume resampled into the scene volume's grid, shown over slices.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OverlaySpec {
+    /// The name slices use (`slices.volume`).
+    pub name: String,
+    pub path: PathBuf,
+    pub field: Option<String>,
+    /// Default `red-yellow` (scalars).
+    pub colormap: Option<String>,
+    /// `[lo, hi]`: values below `lo` are not shown, values above `hi` take the map's top; `lo >
+    /// hi` turns it round (negative statistics). Default: the field's finite range.
+    pub range: Option<[f64; 2]>,
+    #[serde(default = "one")]
+    pub opacity: f64,
+    /// Row-major 4x4 from the overlay's world to the scene's.
+    pub transform: Option<[f64; 16]>,
+    /// A label volume: nearest-neighbour resampling, colours from `lut`.
+    #[serde(default)]
+    pub labels: bool,
+    /// A FreeSurfer colour table (FreeSurferColorLUT.txt format); default: a colour per label.
+    pub lut: Option<PathBuf>,
+    /// The labels shown (default: every label in the table but 0).
+    pub show: Option<Vec<i64>>,
 }
 
 /// `[[tubes]]`.
@@ -887,6 +965,8 @@ pub struct ReferenceKey<'a> {
     pub tubes: &'a [TubesSpec],
     pub lines: &'a [LinesSpec],
     pub points: &'a [PointsSpec],
+    pub slices: &'a [SliceSpec],
+    pub overlays: &'a [OverlaySpec],
     pub clip: &'a [ClipSpec],
     pub light: &'a LightSpec,
     pub model: LightModel,
@@ -907,6 +987,10 @@ pub struct Scene {
     pub lines: Vec<LinesSpec>,
     #[serde(default)]
     pub points: Vec<PointsSpec>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub slices: Vec<SliceSpec>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub overlays: Vec<OverlaySpec>,
     #[serde(default)]
     pub clip: Vec<ClipSpec>,
     #[serde(default)]
@@ -967,6 +1051,8 @@ impl Scene {
             tubes,
             lines,
             points,
+            slices,
+            overlays,
             clip,
             light,
             render,
@@ -979,6 +1065,8 @@ impl Scene {
             tubes,
             lines,
             points,
+            slices,
+            overlays,
             clip,
             light,
             model: render.split().0,
@@ -1124,6 +1212,12 @@ pub fn to_toml(s: &Scene) -> Result<String, String> {
         p.path = abs(&p.path);
         abs_source(&mut p.color);
     }
+    for o in &mut s.overlays {
+        o.path = abs(&o.path);
+        if let Some(l) = &mut o.lut {
+            *l = abs(l);
+        }
+    }
     toml::to_string(&s).map_err(|e| format!("writing the scene as TOML: {e}"))
 }
 
@@ -1223,6 +1317,127 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
 }
 
 /// Checks a halo's ranges; `key` names it (`lines[0].halo`).
+/// `[[slices]]`, `[[overlays]]` and the volume's window keys: values, names and paths (made
+/// relative to `dir`).
+fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
+    let bad = |key: String, why: String| Err(format!("scene key {key}: {why}"));
+    let window = |key: String, w: Option<[f64; 2]>| match w {
+        Some(w) if !(w[0].is_finite() && w[1].is_finite() && w[0] != w[1]) => bad(
+            key,
+            format!("{w:?}: two different finite values are needed"),
+        ),
+        _ => Ok(()),
+    };
+    let cmap = |key: String, c: &Option<String>| match c {
+        Some(c) => c
+            .parse::<volume::colormap::Colormap>()
+            .map(|_| ())
+            .or_else(|e| bad(key, e)),
+        None => Ok(()),
+    };
+    let unit = |key: String, v: f64| {
+        if (0.0..=1.0).contains(&v) {
+            Ok(())
+        } else {
+            bad(key, format!("{v} is not in [0, 1]"))
+        }
+    };
+    if let Some(v) = &s.volume {
+        window("volume.window".into(), v.window)?;
+        cmap("volume.colormap".into(), &v.colormap)?;
+        if let Some(o) = v.opacity {
+            unit("volume.opacity".into(), o)?;
+        }
+    }
+    let mut names = std::collections::HashSet::new();
+    for (i, o) in s.overlays.iter_mut().enumerate() {
+        let key = |k: &str| format!("overlays[{i}].{k}");
+        if o.name.is_empty() || !names.insert(o.name.clone()) {
+            return bad(key("name"), format!("'{}' is empty or repeated", o.name));
+        }
+        if o.path.is_relative() {
+            o.path = dir.join(&o.path);
+        }
+        if let Some(l) = &mut o.lut {
+            if l.is_relative() {
+                *l = dir.join(&*l);
+            }
+        }
+        window(key("range"), o.range)?;
+        cmap(key("colormap"), &o.colormap)?;
+        unit(key("opacity"), o.opacity)?;
+        if let Some(m) = &o.transform {
+            crate::tube_sets::transform_matrix(m, &key("transform"))?;
+        }
+        if !o.labels && (o.lut.is_some() || o.show.is_some()) {
+            return bad(
+                key("lut"),
+                "lut and show are for label overlays (labels = true)".into(),
+            );
+        }
+        if o.labels && (o.range.is_some() || o.colormap.is_some()) {
+            return bad(
+                key("range"),
+                "a label overlay takes its colours from lut, not range or colormap".into(),
+            );
+        }
+    }
+    if (!s.slices.is_empty() || !s.overlays.is_empty())
+        && s.volume.as_ref().is_none_or(|v| v.iso.is_some())
+    {
+        return bad(
+            "slices".into(),
+            "slices and overlays need a [volume] drawn by its transfer function (its grid is theirs)"
+                .into(),
+        );
+    }
+    for (i, sl) in s.slices.iter().enumerate() {
+        let key = |k: &str| format!("slices[{i}].{k}");
+        match (&sl.axis, &sl.normal) {
+            (Some(_), Some(_)) | (None, None) => {
+                return bad(key("axis"), "give axis or normal (one of them)".into())
+            }
+            (None, Some(n)) => {
+                let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                if !(l.is_finite() && l > 1e-12) {
+                    return bad(key("normal"), format!("{n:?} is not a direction"));
+                }
+            }
+            _ => {}
+        }
+        if let Some(p) = sl.position {
+            if !(p.is_finite() && p.abs() <= volume::MAX_COORDINATE) {
+                return bad(key("position"), format!("{p} is not a finite position"));
+            }
+        }
+        if let Some(v) = &sl.volume {
+            if !s.overlays.iter().any(|o| &o.name == v) {
+                return bad(
+                    key("volume"),
+                    format!("'{v}' is not the name of an [[overlays]] entry"),
+                );
+            }
+        }
+        window(key("window"), sl.window)?;
+        cmap(key("colormap"), &sl.colormap)?;
+        if sl.opacity != 1.0 {
+            return bad(
+                key("opacity"),
+                format!(
+                    "{}: translucent slices are not drawn yet (slices are opaque; overlays take an opacity)",
+                    sl.opacity
+                ),
+            );
+        }
+        if let Some(w) = sl.slab {
+            if !(w.is_finite() && w > 0.0) {
+                return bad(key("slab"), format!("{w} is not a positive thickness"));
+            }
+        }
+    }
+    Ok(())
+}
+
 fn check_halo(h: &HaloSpec, key: &str) -> Result<(), String> {
     let bad = |k: &str, why: String| Err(format!("scene key {key}.{k}: {why}"));
     if !(h.width >= 1.0 && h.width <= 64.0) {
@@ -1533,6 +1748,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             );
         }
     }
+    check_slices(s, dir)?;
     if s.clip.len() > occlusion::emission_absorption::MAX_CLIP {
         return bad(
             "clip",
@@ -1586,6 +1802,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         cell: r.occlusion_cell,
         cone: r.occlusion_model == OcclusionModel::Cone,
         phong: false,
+        projection: None,
         column: r.geometry_shadow == GeometryShadow::Column,
         theta_deg: r.theta,
         blur_samples: r.blur_samples,

@@ -22,9 +22,11 @@
 //!   image, and [`load_series`] reads any other volume as a steady series of one frame.
 
 pub mod cfd_grid;
+pub mod colormap;
 pub mod distance_sweep;
 pub mod error;
 pub(crate) mod io_util;
+pub mod labels;
 pub(crate) mod lanes;
 pub mod metaimage;
 pub mod nifti;
@@ -32,6 +34,7 @@ pub mod nrrd;
 pub mod occlusion_shading;
 pub mod occlusion_sweep;
 pub mod plot3d;
+pub mod regrid;
 pub mod series;
 pub mod slc;
 pub mod synthetic;

@@ -675,7 +675,7 @@ pub fn write(path: &Path, vol: &Volume, field: &Field) -> Result<()> {
 /// `(nx, ny, nz, T, 3)` with intent VECTOR, float32, `pixdim[4]` the time step, `toffset` the
 /// first time, `xyzt_units` millimetres and seconds, and `descrip` `umbra time-periodic` for a
 /// periodic series (what [`read_series`] reads back). The field written is each frame's
-/// default field, which must have 3 components. A series of one frame is written as [`write`]
+/// default field, which must have 3 components. A series of one frame is written as [`write()`]
 /// writes a steady vector field.
 pub fn write_series(path: &Path, s: &VolumeSeries) -> Result<()> {
     s.validate()

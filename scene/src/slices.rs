@@ -1,0 +1,563 @@
+//! `[[slices]]` and `[[overlays]]` compiled into the renderer's slice planes
+//! (`engine::planes`): overlays read and resampled into the scene volume's grid (trilinear, or
+//! nearest for labels; `volume::regrid`), label tables (FreeSurfer colour tables or a colour
+//! per label), each slice's polygon (its plane cut by the volume's grid box) and layers, and
+//! the slabs that crop tubes, lines and points.
+
+use crate::spec::{OverlaySpec, Scene, SliceAxis, SliceSpec};
+use engine::planes::{LayerMap, PlaneInput, PlaneLayer, MAX_LABELS, MAX_LAYERS};
+use glam::{DMat4, DVec3, DVec4, Vec3};
+use volume::colormap::Colormap;
+use volume::regrid::Interp;
+
+/// The slices' model: the grid (the scene volume's), its fields (the volume's, then each
+/// overlay's resampled into the grid, in `[[overlays]]` order) and the slices.
+pub struct PlaneModel {
+    pub dims: [usize; 3],
+    pub affine: DMat4,
+    pub fields: Vec<Vec<f32>>,
+    pub planes: Vec<PlaneInput>,
+}
+
+impl PlaneModel {
+    /// The grid as the renderer takes it.
+    pub fn grid(&self) -> engine::planes::PlaneGrid<'_> {
+        engine::planes::PlaneGrid {
+            dims: self.dims,
+            affine: self.affine,
+            fields: self.fields.iter().map(Vec::as_slice).collect(),
+        }
+    }
+}
+
+/// A slab that crops geometry: the unit normal, the slice's position along it and half the
+/// thickness.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slab {
+    pub normal: DVec3,
+    pub position: f64,
+    pub half: f64,
+}
+
+impl Slab {
+    pub fn contains(&self, p: Vec3) -> bool {
+        let d = self.normal.dot(tubes::to_f64(p)) - self.position;
+        d.abs() <= self.half
+    }
+}
+
+/// A slice's unit normal.
+pub fn normal(s: &SliceSpec) -> DVec3 {
+    match (s.axis, s.normal) {
+        (Some(SliceAxis::Axial), _) => DVec3::Z,
+        (Some(SliceAxis::Coronal), _) => DVec3::Y,
+        (Some(SliceAxis::Sagittal), _) => DVec3::X,
+        (None, Some(n)) => DVec3::from(n).normalize(),
+        (None, None) => DVec3::Z,
+    }
+}
+
+/// A slice's position along its normal: as given, or the centre of `bounds`.
+pub fn position(s: &SliceSpec, bounds: [DVec3; 2]) -> f64 {
+    s.position
+        .unwrap_or_else(|| normal(s).dot(0.5 * (bounds[0] + bounds[1])))
+}
+
+/// The slabs of the slices that have one (`bounds`: the scene volume's).
+pub fn slabs(s: &Scene, bounds: [DVec3; 2]) -> Vec<Slab> {
+    s.slices
+        .iter()
+        .filter_map(|sl| {
+            sl.slab.map(|w| Slab {
+                normal: normal(sl),
+                position: position(sl, bounds),
+                half: 0.5 * w,
+            })
+        })
+        .collect()
+}
+
+/// The streamlines cropped to the slabs: every point outside all of them is removed and its
+/// streamline split there; pieces of fewer than `min_points` points are dropped; per-point
+/// attributes follow their points, per-streamline ones are repeated for each piece.
+pub fn crop(s: &tubes::Streamlines, slabs: &[Slab], min_points: usize) -> tubes::Streamlines {
+    if slabs.is_empty() {
+        return s.clone();
+    }
+    let inside = |p: Vec3| slabs.iter().any(|b| b.contains(p));
+    let mut out = tubes::Streamlines::new();
+    out.reference = s.reference.clone();
+    out.format = s.format.clone();
+    out.warnings = s.warnings.clone();
+    out.point_attributes = s
+        .point_attributes
+        .iter()
+        .map(|a| tubes::Attribute {
+            values: vec![],
+            ..a.clone()
+        })
+        .collect();
+    out.line_attributes = out_attrs(&s.line_attributes);
+    for i in 0..s.len() {
+        let (a, b) = (s.offsets[i], s.offsets[i + 1]);
+        let mut start = a;
+        while start < b {
+            while start < b && !inside(s.points[start]) {
+                start += 1;
+            }
+            let mut end = start;
+            while end < b && inside(s.points[end]) {
+                end += 1;
+            }
+            if end - start >= min_points.max(1) {
+                out.push(&s.points[start..end]);
+                for (o, src) in out.point_attributes.iter_mut().zip(&s.point_attributes) {
+                    let c = src.components.max(1);
+                    o.values.extend_from_slice(&src.values[start * c..end * c]);
+                }
+                for (o, src) in out.line_attributes.iter_mut().zip(&s.line_attributes) {
+                    let c = src.components.max(1);
+                    o.values.extend_from_slice(&src.values[i * c..(i + 1) * c]);
+                }
+            }
+            start = end;
+        }
+    }
+    out
+}
+
+fn out_attrs(a: &[tubes::Attribute]) -> Vec<tubes::Attribute> {
+    a.iter()
+        .map(|a| tubes::Attribute {
+            values: vec![],
+            ..a.clone()
+        })
+        .collect()
+}
+
+/// The polygon where the plane `normal . p = position` cuts the box of a grid's voxel
+/// centres (`dims`, index-to-world `affine`), in order around it; `None` when it misses.
+pub fn polygon(
+    dims: [usize; 3],
+    affine: DMat4,
+    normal: DVec3,
+    position: f64,
+) -> Option<Vec<DVec3>> {
+    let hi = dims.map(|d| d.saturating_sub(1) as f64);
+    let corner = |c: usize| {
+        let q = DVec3::new(
+            if c & 1 != 0 { hi[0] } else { 0.0 },
+            if c & 2 != 0 { hi[1] } else { 0.0 },
+            if c & 4 != 0 { hi[2] } else { 0.0 },
+        );
+        (affine * DVec4::from((q, 1.0))).truncate()
+    };
+    let mut pts: Vec<DVec3> = vec![];
+    for a in 0..8usize {
+        for bit in [1usize, 2, 4] {
+            if a & bit != 0 {
+                continue;
+            }
+            let (p, q) = (corner(a), corner(a | bit));
+            let (fa, fb) = (normal.dot(p) - position, normal.dot(q) - position);
+            let x = if fa == 0.0 {
+                p
+            } else if fb == 0.0 {
+                q
+            } else if (fa < 0.0) != (fb < 0.0) {
+                p + (q - p) * (fa / (fa - fb))
+            } else {
+                continue;
+            };
+            let scale = (p - q).length().max(1e-300);
+            if !pts.iter().any(|y| (*y - x).length() <= 1e-9 * scale) {
+                pts.push(x);
+            }
+        }
+    }
+    if pts.len() < 3 {
+        return None;
+    }
+    let c = pts.iter().copied().sum::<DVec3>() / pts.len() as f64;
+    let u = normal.any_orthonormal_vector();
+    let v = normal.cross(u);
+    pts.sort_by(|a, b| {
+        let (da, db) = (*a - c, *b - c);
+        da.dot(v)
+            .atan2(da.dot(u))
+            .total_cmp(&db.dot(v).atan2(db.dot(u)))
+    });
+    // A plane along a face of a flat grid: no area to draw.
+    let area: f64 = (1..pts.len() - 1)
+        .map(|k| (pts[k] - pts[0]).cross(pts[k + 1] - pts[0]).length())
+        .sum();
+    (area > 0.0).then_some(pts)
+}
+
+/// The polygon as a mesh (a fan of triangles about its first corner, normal `n`).
+fn polygon_mesh(pts: &[DVec3], n: DVec3) -> tubes::tube_mesh::TubeMesh {
+    let origin = pts.iter().copied().sum::<DVec3>() / pts.len() as f64;
+    tubes::tube_mesh::TubeMesh {
+        origin,
+        positions: pts.iter().map(|p| (*p - origin).as_vec3()).collect(),
+        normals: vec![n.as_vec3(); pts.len()],
+        colors: vec![[200, 200, 200]; pts.len()],
+        indices: (1..pts.len() as u32 - 1)
+            .flat_map(|k| [0, k, k + 1])
+            .collect(),
+        radius: 0.0,
+    }
+}
+
+/// The finite range of `data` (`None`: no finite value).
+fn range(data: &[f32]) -> Option<[f64; 2]> {
+    let mut r: Option<[f64; 2]> = None;
+    for &v in data.iter().filter(|v| v.is_finite() && **v > -1e30) {
+        let v = v as f64;
+        r = Some(r.map_or([v, v], |[a, b]| [a.min(v), b.max(v)]));
+    }
+    r
+}
+
+/// A window that can be mapped: equal ends are widened by one (a constant field).
+fn usable(w: [f64; 2]) -> [f64; 2] {
+    if w[0] == w[1] {
+        [w[0], w[0] + 1.0]
+    } else {
+        w
+    }
+}
+
+fn srgb_to_linear(c: u8) -> f32 {
+    let v = c as f64 / 255.0;
+    (if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }) as f32
+}
+
+/// An overlay read and resampled, with how its values become colours.
+struct Overlay {
+    field: Vec<f32>,
+    map: LayerMap,
+    opacity: f32,
+}
+
+/// Reads overlay `i` and resamples it into the grid; its colour mapping.
+fn overlay(
+    i: usize,
+    o: &OverlaySpec,
+    dims: [usize; 3],
+    affine: DMat4,
+    notes: &mut Vec<String>,
+) -> Result<Overlay, String> {
+    let key = |k: &str| format!("overlays[{i}].{k}");
+    let vol = volume::load(&o.path).map_err(|e| format!("{}: {e}", key("path")))?;
+    let sel = o
+        .field
+        .as_deref()
+        .map(str::parse::<volume::FieldSelector>)
+        .transpose()
+        .map_err(|e| format!("{}: {e}", key("field")))?;
+    let f = vol
+        .select(sel.as_ref())
+        .map_err(|e| format!("{}: {e}", key("field")))?;
+    if f.components != 1 {
+        return Err(format!(
+            "{} ({}): '{}' has {} components; choose NAME:magnitude or NAME:x|y|z",
+            key("field"),
+            o.path.display(),
+            f.name,
+            f.components
+        ));
+    }
+    let to_src = match &o.transform {
+        Some(m) => crate::tube_sets::transform_matrix(m, &key("transform"))?.inverse(),
+        None => DMat4::IDENTITY,
+    };
+    let interp = if o.labels {
+        Interp::Nearest
+    } else {
+        Interp::Linear
+    };
+    let field =
+        volume::regrid::into_grid(&f.data, vol.dims, vol.affine, to_src, dims, affine, interp)
+            .map_err(|e| format!("{} ({}): {e}", key("path"), o.path.display()))?;
+    if field.iter().all(|v| !v.is_finite()) {
+        notes.push(format!(
+            "overlays[{i}] ({}): no voxel of it falls inside the scene volume's grid",
+            o.path.display()
+        ));
+    }
+    let map = if o.labels {
+        labels_map(i, o, &field, notes)?
+    } else {
+        let cm: Colormap = o.colormap.as_deref().unwrap_or("red-yellow").parse()?;
+        let w = match o.range {
+            Some(r) => r,
+            None => usable(range(&f.data).ok_or_else(|| {
+                format!(
+                    "{} ({}): the field has no finite values",
+                    key("path"),
+                    o.path.display()
+                )
+            })?),
+        };
+        LayerMap::Scalar {
+            lo: w[0],
+            hi: w[1],
+            colors: cm.linear_table(),
+        }
+    };
+    Ok(Overlay {
+        field,
+        map,
+        opacity: o.opacity as f32,
+    })
+}
+
+/// A label overlay's colour table: the labels of the resampled field, coloured from the
+/// FreeSurfer table `lut` (labels it lacks are hidden, with a note) or a colour per label,
+/// shown when listed in `show` (default: all but 0).
+fn labels_map(
+    i: usize,
+    o: &OverlaySpec,
+    field: &[f32],
+    notes: &mut Vec<String>,
+) -> Result<LayerMap, String> {
+    let mut present = std::collections::BTreeSet::new();
+    for &v in field.iter().filter(|v| v.is_finite()) {
+        let l = v.round();
+        if l < 0.0 || l >= MAX_LABELS as f32 {
+            return Err(format!(
+                "overlays[{i}].labels ({}): label {v} is outside 0..{}",
+                o.path.display(),
+                MAX_LABELS - 1
+            ));
+        }
+        present.insert(l as i64);
+    }
+    let labels: Vec<i64> = present.into_iter().collect();
+    let table = match &o.lut {
+        Some(p) => volume::labels::read_lut(p).map_err(|e| format!("overlays[{i}].lut: {e}"))?,
+        None => volume::labels::default_colors(&labels),
+    };
+    let missing: Vec<i64> = labels
+        .iter()
+        .copied()
+        .filter(|l| *l != 0 && !table.entries.contains_key(l))
+        .collect();
+    if !missing.is_empty() {
+        notes.push(format!(
+            "overlays[{i}].lut: {} labels of {} are not in the table and are hidden (first: {:?})",
+            missing.len(),
+            o.path.display(),
+            &missing[..missing.len().min(8)]
+        ));
+    }
+    let top = labels.last().copied().unwrap_or(0).max(0) as usize;
+    let mut colors = vec![[0.0f32; 4]; top + 1];
+    for &l in &labels {
+        let shown = match &o.show {
+            Some(s) => s.contains(&l),
+            None => l != 0,
+        };
+        if let (true, Some(e)) = (shown, table.entries.get(&l)) {
+            let [r, g, b] = e.rgb.map(srgb_to_linear);
+            colors[l as usize] = [r, g, b, 1.0];
+        }
+    }
+    Ok(LayerMap::Labels { colors })
+}
+
+/// The slices of scene `s` over the volume `vol` (its field `data`, as the model holds it),
+/// with the overlays read and resampled into its grid.
+pub fn model(
+    s: &Scene,
+    vol: &volume::Volume,
+    data: &[f32],
+    notes: &mut Vec<String>,
+) -> Result<Option<PlaneModel>, String> {
+    if s.slices.is_empty() && s.overlays.is_empty() {
+        return Ok(None);
+    }
+    let vspec = s.volume.as_ref().ok_or("slices need a [volume]")?;
+    let (dims, affine) = (vol.dims, vol.affine);
+    let mut fields = vec![data.to_vec()];
+    let mut overlays = vec![];
+    for (i, o) in s.overlays.iter().enumerate() {
+        let mut ov = overlay(i, o, dims, affine, notes)?;
+        fields.push(std::mem::take(&mut ov.field));
+        overlays.push(ov);
+    }
+    let vrange = range(data).ok_or("volume: the field has no finite values")?;
+    let mut planes = vec![];
+    for (i, sl) in s.slices.iter().enumerate() {
+        let key = |k: &str| format!("slices[{i}].{k}");
+        let n = normal(sl);
+        let pos = position(sl, vol.bounds());
+        let pts = polygon(dims, affine, n, pos).ok_or_else(|| {
+            let ext = [0usize, 1, 2, 3, 4, 5, 6, 7].map(|c| {
+                let q = DVec3::new(
+                    if c & 1 != 0 { dims[0] as f64 - 1.0 } else { 0.0 },
+                    if c & 2 != 0 { dims[1] as f64 - 1.0 } else { 0.0 },
+                    if c & 4 != 0 { dims[2] as f64 - 1.0 } else { 0.0 },
+                );
+                n.dot((affine * DVec4::from((q, 1.0))).truncate())
+            });
+            let lo = ext.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = ext.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            format!(
+                "scene key {}: the plane at {pos} does not cut the volume (it spans {lo:.3} to {hi:.3} along the normal)",
+                key("position")
+            )
+        })?;
+        // The slice's own layer.
+        let base = match &sl.volume {
+            None => {
+                let cm: Colormap = sl
+                    .colormap
+                    .as_deref()
+                    .or(vspec.colormap.as_deref())
+                    .unwrap_or("grey")
+                    .parse()?;
+                let w = sl.window.or(vspec.window).unwrap_or(usable(vrange));
+                PlaneLayer {
+                    field: 0,
+                    map: LayerMap::Scalar {
+                        lo: w[0],
+                        hi: w[1],
+                        colors: cm.linear_table(),
+                    },
+                    opacity: 1.0,
+                }
+            }
+            Some(name) => {
+                let k = s
+                    .overlays
+                    .iter()
+                    .position(|o| &o.name == name)
+                    .ok_or_else(|| format!("scene key {}: no overlay '{name}'", key("volume")))?;
+                let mut map = overlays[k].map.clone();
+                if let LayerMap::Scalar { lo, hi, colors } = &mut map {
+                    if let Some(w) = sl.window {
+                        (*lo, *hi) = (w[0], w[1]);
+                    }
+                    if let Some(c) = &sl.colormap {
+                        *colors = c.parse::<Colormap>()?.linear_table();
+                    }
+                }
+                PlaneLayer {
+                    field: k + 1,
+                    map,
+                    opacity: 1.0,
+                }
+            }
+        };
+        let base_field = base.field;
+        let mut layers = vec![base];
+        if sl.overlays {
+            for (k, ov) in overlays.iter().enumerate() {
+                if k + 1 == base_field {
+                    continue;
+                }
+                layers.push(PlaneLayer {
+                    field: k + 1,
+                    map: ov.map.clone(),
+                    opacity: ov.opacity,
+                });
+            }
+        }
+        if layers.len() > MAX_LAYERS {
+            return Err(format!(
+                "scene key {}: {} overlays over one slice; at most {} (set overlays = false or show it as the slice's volume)",
+                key("overlays"),
+                layers.len() - 1,
+                MAX_LAYERS - 1
+            ));
+        }
+        planes.push(PlaneInput {
+            polygon: polygon_mesh(&pts, n),
+            layers,
+        });
+    }
+    Ok(Some(PlaneModel {
+        dims,
+        affine,
+        fields,
+        planes,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plane_through_a_box_is_its_cross_section() {
+        // A 3 x 5 x 9 grid of unit voxels: axial planes cut a 2 x 4 rectangle.
+        let (dims, affine) = ([3, 5, 9], DMat4::IDENTITY);
+        let p = polygon(dims, affine, DVec3::Z, 3.5).unwrap();
+        assert_eq!(p.len(), 4);
+        assert!(p.iter().all(|x| (x.z - 3.5).abs() < 1e-12));
+        let area: f64 = (1..p.len() - 1)
+            .map(|k| 0.5 * (p[k] - p[0]).cross(p[k + 1] - p[0]).length())
+            .sum();
+        assert!((area - 8.0).abs() < 1e-9, "{area}");
+        // An oblique plane through the centre perpendicular to (1,1,1) cuts a hexagon.
+        let c = DVec3::new(1.0, 2.0, 4.0);
+        let n = DVec3::ONE.normalize();
+        assert_eq!(polygon(dims, affine, n, n.dot(c)).unwrap().len(), 6);
+        // A plane beside the box misses it.
+        assert!(polygon(dims, affine, DVec3::Z, 8.5).is_none());
+        assert!(polygon(dims, affine, DVec3::Z, -0.1).is_none());
+    }
+
+    #[test]
+    fn cropping_removes_exactly_the_points_outside_the_slabs() {
+        let mut s = tubes::Streamlines::new();
+        let line: Vec<Vec3> = (0..21)
+            .map(|k| Vec3::new(0.1 * k as f32, 0.0, k as f32 - 10.0))
+            .collect();
+        s.push(&line);
+        s.point_attributes.push(tubes::Attribute {
+            name: "z".into(),
+            components: 1,
+            values: line.iter().map(|p| p.z).collect(),
+        });
+        let slabs = [
+            Slab {
+                normal: DVec3::Z,
+                position: -5.0,
+                half: 2.0,
+            },
+            Slab {
+                normal: DVec3::Z,
+                position: 6.0,
+                half: 1.5,
+            },
+        ];
+        let c = crop(&s, &slabs, 2);
+        // z in [-7, -3] and [4.5, 7.5]: two pieces of 5 and 3 points.
+        assert_eq!(c.len(), 2);
+        assert_eq!(c.line(0).len(), 5);
+        assert_eq!(c.line(1).len(), 3);
+        let kept: Vec<f32> = c.points.iter().map(|p| p.z).collect();
+        let want: Vec<f32> = line
+            .iter()
+            .map(|p| p.z)
+            .filter(|z| (z + 5.0).abs() <= 2.0 || (z - 6.0).abs() <= 1.5)
+            .collect();
+        assert_eq!(kept, want);
+        assert_eq!(c.point_attributes[0].values, want);
+        // Single points survive only where pieces of one point are asked for.
+        let thin = [Slab {
+            normal: DVec3::Z,
+            position: 0.0,
+            half: 0.25,
+        }];
+        assert_eq!(crop(&s, &thin, 2).len(), 0);
+        assert_eq!(crop(&s, &thin, 1).points, vec![line[10]]);
+    }
+}
