@@ -109,6 +109,7 @@ FOV_Y = 35.0
 BACKGROUND = (1.0, 1.0, 1.0)
 
 PEER_LABEL = {"umbra-ea": "umbra ea", "umbra-combined": "umbra combined",
+              "umbra-mip": "umbra mip", "umbra-minip": "umbra minip",
               "vtk-cpu": "VTK FixedPoint (CPU)", "vtk-gl": "VTK GPU (OpenGL)"}
 
 
@@ -260,6 +261,31 @@ def toml_list(v):
 
 
 def write_scene(path, vol, cam, tf, fxaa):
+    if "window" in tf:
+        txt = """# Written by bench/vtk_compare.py --blend: the projection VTK renders too.
+background = %s
+[camera]
+eye = %s
+target = %s
+up = %s
+fov_y = %.9g
+[volume]
+path = "%s"
+window = %s
+colormap = "grey"
+opacity = %.9g
+[render]
+method = "mip"
+width = 512
+height = 512
+msaa = 1
+fxaa = %s
+""" % (toml_list(BACKGROUND), toml_list(cam["eye"]), toml_list(cam["target"]),
+           toml_list(cam["up"]), cam["fov_y"], vol, toml_list(tf["window"]), tf["opacity"],
+           "true" if fxaa else "false")
+        with open(path, "w") as f:
+            f.write(txt)
+        return
     pts = ",\n  ".join("{ value = %.9g, color = %s, extinction = %.9g }" % (v, toml_list(c), s)
                        for v, c, s in tf["umbra_points"])
     txt = """# Written by bench/vtk_compare.py: the scene VTK renders too (explicit look-at camera).
@@ -325,12 +351,32 @@ def ramp(rng, lo_f, hi_f, sigma, c0, c1, n_vtk):
             "vtk_color": [(lo, c0), (hi, c1)], "lo": lo, "hi": hi, "sigma": sigma}
 
 
+def srgb_to_linear(v):
+    return v / 12.92 if v <= 0.04045 else ((v + 0.055) / 1.055) ** 2.4
+
+
+def projection_tf(rng, lo_f, hi_f, opacity):
+    """--blend mip/minip: umbra's projection of `volume.window` [lo, hi] through the `grey`
+    colour map (256 sRGB greys, decoded to linear, interpolated linearly) with opacity
+    `volume.opacity`, nothing below lo; VTK gets the same 256 colours and an opacity 0 up to
+    a millionth of the window below lo, `opacity` from lo (VTK's projections look the
+    extreme value up in both functions, without a unit-distance correction)."""
+    vmin, vmax = rng
+    lo = vmin + lo_f * (vmax - vmin)
+    hi = vmin + hi_f * (vmax - vmin)
+    cols = [(lo + (hi - lo) * k / 255.0, (srgb_to_linear(k / 255.0),) * 3) for k in range(256)]
+    eps = 1e-6 * (hi - lo)
+    opac = [(min(vmin, lo - 2 * eps), 0.0), (lo - eps, 0.0), (lo, opacity), (max(vmax, hi), opacity)]
+    return {"umbra_points": [], "window": (lo, hi), "opacity": opacity, "vtk_opacity": opac,
+            "vtk_color": cols, "lo": lo, "hi": hi, "sigma": opacity}
+
+
 # ---------------------------------------------------------------------------- VTK
 
 class VtkPeer:
     """One render window with one volume mapper (kind 'cpu' or 'gl')."""
 
-    def __init__(self, kind, image, user_matrix, tf, cam, d, threads, onscreen):
+    def __init__(self, kind, image, user_matrix, tf, cam, d, threads, onscreen, blend="composite"):
         import vtkmodules.all as vtk
         self.vtk = vtk
         self.kind = kind
@@ -367,7 +413,12 @@ class VtkPeer:
             self.raycast = None
         m.SetAutoAdjustSampleDistances(0)
         m.SetSampleDistance(d)
-        m.SetBlendModeToComposite()
+        if blend == "mip":
+            m.SetBlendModeToMaximumIntensity()
+        elif blend == "minip":
+            m.SetBlendModeToMinimumIntensity()
+        else:
+            m.SetBlendModeToComposite()
         m.SetInputData(image)
         self.mapper = m
 
@@ -561,6 +612,11 @@ def main():
     ap.add_argument("--tf-points", type=int, default=65, help="VTK opacity points on the ramp")
     ap.add_argument("--fxaa", action="store_true", help="umbra FXAA on (default off)")
     ap.add_argument("--offscreen", action="store_true", help="VTK offscreen, no X server")
+    ap.add_argument("--blend", default="composite", choices=["composite", "mip", "minip"],
+                    help="composite: emission-absorption (umbra ea/combined); mip/minip: the "
+                         "projections (umbra's methods of that name, VTK's blend modes), grey "
+                         "over the case's ramp window, opacity --opacity")
+    ap.add_argument("--opacity", type=float, default=1.0, help="--blend mip/minip: opacity")
     ap.add_argument("--sampling-check", action="store_true",
                     help="time VTK's mappers on the last case (headsq by default) at 2d, d, d/2")
     a = ap.parse_args()
@@ -586,7 +642,11 @@ def main():
         if c not in CASES:
             die("unknown case %s (of %s)" % (c, ", ".join(CASES)))
     sizes = [parse_size(s) for s in a.sizes.split(",")]
+    if a.blend != "composite" and a.methods == "ea,combined":
+        a.methods = a.blend
     methods = [m.strip() for m in a.methods.split(",") if m.strip()]
+    # The umbra image compared with VTK's: the first method's.
+    main_peer = "umbra-" + methods[0]
     peers = [p.strip() for p in a.peers.split(",") if p.strip()]
     for p in peers:
         if p not in ("cpu", "gl"):
@@ -603,7 +663,10 @@ def main():
         path = os.path.join(REPO, rel)
         info = umbra_info(umbra, path)
         d = 0.5 * min(info["spacing"])
-        tf = ramp(info["range"], lo_f, hi_f, sigma, c0, c1, a.tf_points)
+        if a.blend == "composite":
+            tf = ramp(info["range"], lo_f, hi_f, sigma, c0, c1, a.tf_points)
+        else:
+            tf = projection_tf(info["range"], lo_f, hi_f, a.opacity)
         cam = orbit_camera(info["bounds"], az, el, dist, FOV_Y, up)
         scene = os.path.join(os.path.abspath(a.out), case + ".toml")
         write_scene(scene, path, cam, tf, a.fxaa)
@@ -631,7 +694,7 @@ def main():
             if p == "gl" and not gl_ok:
                 continue
             try:
-                vpeers[p] = VtkPeer(p, img, um, tf, cam, d, a.threads, onscreen)
+                vpeers[p] = VtkPeer(p, img, um, tf, cam, d, a.threads, onscreen, a.blend)
             except Exception as e:  # pragma: no cover
                 notes.append("VTK %s mapper could not be set up: %s" % (p, e))
                 if p == "gl":
@@ -657,8 +720,8 @@ def main():
                     extra[peer] = "slices %s; passes %s" % (
                         t.get("slices"), ", ".join("%s %.0f" % kv for kv in sorted(
                             t.get("passes", {}).items(), key=lambda kv: -kv[1])))
-                    if m == "ea":
-                        imgs["umbra-ea"] = load_png(png)
+                    if peer == main_peer:
+                        imgs[main_peer] = load_png(png)
                     print("  %s %s round %d: %.1f ms (%s)" % (size, peer, rnd, t["total_ms"],
                                                              err.splitlines()[-1] if err else ""),
                           flush=True)
@@ -712,11 +775,11 @@ def main():
                              "cpu_ms": round(statistics.median(cpus[peer]), 1) if peer in cpus else "",
                              "rounds_ms": " ".join("%.1f" % x for x in times[peer]),
                              "notes": extra.get(peer, "")})
-            order = [k for k in ("umbra-ea", "vtk-cpu", "vtk-gl") if k in imgs]
+            order = [k for k in (main_peer, "vtk-cpu", "vtk-gl") if k in imgs]
             if order:
                 montage([imgs[k] for k in order], [peer_label(k) for k in order],
                         os.path.join(a.out, "%s_%s_montage.png" % (case, size)))
-            pairs = [("umbra-ea", "vtk-cpu"), ("umbra-ea", "vtk-gl"), ("vtk-cpu", "vtk-gl")]
+            pairs = [(main_peer, "vtk-cpu"), (main_peer, "vtk-gl"), ("vtk-cpu", "vtk-gl")]
             for x, y in pairs:
                 if x in imgs and y in imgs and imgs[x].shape == imgs[y].shape:
                     c = compare(imgs[x], imgs[y])
@@ -724,7 +787,7 @@ def main():
                     agree.append({"case": case, "size": size, "a": x, "b": y,
                                   "mean_a": round(mean(x), 2), "mean_b": round(mean(y), 2),
                                   **{k: round(v, 3) for k, v in c.items()}})
-                    if (x, y) == ("umbra-ea", "vtk-cpu"):
+                    if (x, y) == (main_peer, "vtk-cpu"):
                         dimg = np.clip(np.abs(imgs[x].astype(np.int16) - imgs[y].astype(np.int16)) * 4,
                                        0, 255).astype(np.uint8)
                         save_png(255 - dimg, os.path.join(a.out, "%s_%s_diff.png" % (case, size)))

@@ -461,12 +461,26 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                     vspec.path.display()
                 ));
             }
-            let tf = transfer(&vspec.transfer, [st.min, st.max])?;
+            // The projections show their value through the volume's window and colour map.
+            let projection = matches!(
+                s.render.method.desc().volume,
+                engine::method::VolumeShading::Projection(_)
+            );
+            let tf = match projection {
+                true => projection_transfer(vspec, [st.min, st.max])?,
+                false => transfer(&vspec.transfer, [st.min, st.max])?,
+            };
             if s.annotate.colorbar.as_deref() == Some("volume") {
-                let [lo, hi] = [st.min, st.max];
+                let (map, [lo, hi]) = match projection {
+                    true => (
+                        vspec.colormap.clone().unwrap_or_else(|| "grey".into()),
+                        vspec.window.unwrap_or([st.min, st.max]),
+                    ),
+                    false => ("transfer function".to_string(), [st.min, st.max]),
+                };
                 colorbar = Some(crate::annotate::ColorBar {
                     label: field.name.clone(),
-                    map: "transfer function".into(),
+                    map,
                     range: [lo, hi],
                     colors: (0..64)
                         .map(|k| {
@@ -477,14 +491,16 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 });
             }
             let data = emission_absorption::prepare(&field.data);
-            // The projections show their value through the volume's window and colour map.
-            let tf = match s.render.method.desc().volume {
-                engine::method::VolumeShading::Projection(_) => {
-                    projection_transfer(vspec, [st.min, st.max])?
-                }
-                _ => tf,
-            };
             planes = crate::slices::model(s, &vol, &data, &mut notes)?;
+            if let (Some(name), Some(p)) = (
+                s.annotate
+                    .colorbar
+                    .as_deref()
+                    .and_then(|c| c.strip_prefix("overlays.")),
+                &planes,
+            ) {
+                colorbar = p.color_bar(s, name);
+            }
             slabs = crate::slices::slabs(s, vol.bounds());
             if vspec.render {
                 volume = Some((vol, data, tf));

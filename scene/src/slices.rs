@@ -17,9 +17,33 @@ pub struct PlaneModel {
     pub affine: DMat4,
     pub fields: Vec<Vec<f32>>,
     pub planes: Vec<PlaneInput>,
+    /// Each overlay's colour mapping, in `[[overlays]]` order.
+    pub overlays: Vec<LayerMap>,
 }
 
 impl PlaneModel {
+    /// The colour bar of scalar overlay `name` (`annotate.colorbar = "overlays.NAME"`): its
+    /// colour map over its range.
+    pub fn color_bar(&self, s: &Scene, name: &str) -> Option<crate::annotate::ColorBar> {
+        let k = s.overlays.iter().position(|o| o.name == name)?;
+        let LayerMap::Scalar { lo, hi, .. } = self.overlays.get(k)? else {
+            return None;
+        };
+        let cm: Colormap = s.overlays[k]
+            .colormap
+            .as_deref()
+            .unwrap_or("red-yellow")
+            .parse()
+            .ok()?;
+        Some(crate::annotate::ColorBar {
+            label: name.to_string(),
+            map: cm.name().to_string(),
+            range: [*lo, *hi],
+            colors: (0..64)
+                .map(|i| cm.rgb((i as f64 + 0.5) / 64.0).map(|c| c as f32))
+                .collect(),
+        })
+    }
     /// The grid as the renderer takes it.
     pub fn grid(&self) -> engine::planes::PlaneGrid<'_> {
         engine::planes::PlaneGrid {
@@ -487,6 +511,7 @@ pub fn model(
         affine,
         fields,
         planes,
+        overlays: overlays.into_iter().map(|o| o.map).collect(),
     }))
 }
 
@@ -505,10 +530,18 @@ mod tests {
             .map(|k| 0.5 * (p[k] - p[0]).cross(p[k + 1] - p[0]).length())
             .sum();
         assert!((area - 8.0).abs() < 1e-9, "{area}");
-        // An oblique plane through the centre perpendicular to (1,1,1) cuts a hexagon.
-        let c = DVec3::new(1.0, 2.0, 4.0);
+        // An oblique plane through a cube's centre perpendicular to its diagonal cuts a regular
+        // hexagon (area (3 sqrt 3 / 4) a^2 for the cube of edge a = 4: side a / sqrt 2); the
+        // same plane through the elongated box cuts its four long edges only.
         let n = DVec3::ONE.normalize();
-        assert_eq!(polygon(dims, affine, n, n.dot(c)).unwrap().len(), 6);
+        let hex = polygon([5, 5, 5], affine, n, n.dot(DVec3::splat(2.0))).unwrap();
+        assert_eq!(hex.len(), 6);
+        let area: f64 = (1..hex.len() - 1)
+            .map(|k| 0.5 * (hex[k] - hex[0]).cross(hex[k + 1] - hex[0]).length())
+            .sum();
+        assert!((area - 0.75 * 3f64.sqrt() * 16.0).abs() < 1e-9, "{area}");
+        let quad = polygon(dims, affine, n, n.dot(DVec3::new(1.0, 2.0, 4.0))).unwrap();
+        assert_eq!(quad.len(), 4);
         // A plane beside the box misses it.
         assert!(polygon(dims, affine, DVec3::Z, 8.5).is_none());
         assert!(polygon(dims, affine, DVec3::Z, -0.1).is_none());

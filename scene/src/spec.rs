@@ -1304,19 +1304,19 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
                 .ok()
                 .and_then(|i| s.lines.get(i))
                 .is_some_and(|l| scalar(&l.color)),
+            Some(("overlays", name)) => s.overlays.iter().any(|o| o.name == name && !o.labels),
             _ => false,
         };
         if !ok {
             return bad(
                 "colorbar",
-                format!("'{src}': give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), or tubes.N / lines.N of an entry coloured by scalar:NAME or volume:PATH"),
+                format!("'{src}': give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), tubes.N / lines.N of an entry coloured by scalar:NAME or volume:PATH, or overlays.NAME of a scalar overlay"),
             );
         }
     }
     Ok(())
 }
 
-/// Checks a halo's ranges; `key` names it (`lines[0].halo`).
 /// `[[slices]]`, `[[overlays]]` and the volume's window keys: values, names and paths (made
 /// relative to `dir`).
 fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
@@ -1438,6 +1438,7 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Checks a halo's ranges; `key` names it (`lines[0].halo`).
 fn check_halo(h: &HaloSpec, key: &str) -> Result<(), String> {
     let bad = |k: &str, why: String| Err(format!("scene key {key}.{k}: {why}"));
     if !(h.width >= 1.0 && h.width <= 64.0) {

@@ -137,6 +137,8 @@ opacity = 0.5
 ambient = 1.0
 diffuse = 0.0
 specular = 0.0
+[annotate]
+colorbar = "overlays.stat"
 [render]
 method = "ea"
 width = 96
@@ -146,6 +148,11 @@ fxaa = false
 "#
         );
         let (img, m, s) = draw(&text, dir.path());
+        // The overlay's colour bar: its map over its range.
+        let bar = m.colorbar.as_ref().unwrap();
+        assert_eq!((bar.map.as_str(), bar.range), ("hot", [-1.0, 4.0]));
+        let hot = volume::colormap::Colormap::Hot.rgb(1.0 / 128.0);
+        assert!((0..3).all(|k| (bar.colors[0][k] as f64 - hot[k]).abs() < 1e-6));
         let planes = m.planes.as_ref().unwrap();
         let grid = planes.grid();
         let layers = &planes.planes[0].layers;
