@@ -586,11 +586,18 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
 // sample at the middles of the slabs' intervals kept by the clipping planes, over the whole
 // ray inside the grid (surfaces do not stop it); NaN gaps are skipped. Through the transfer
 // function: premultiplied colour and opacity (its extinction, clamped to [0, 1]); nothing
-// where no sample was taken. Occupancy bricks are not consulted (an empty brick for the
-// transfer function may still hold the extreme value).
+// where no sample was taken. Empty bricks (every value they span transparent: below the
+// window's low end, or above it for a reversed window - the transfer function's first point
+// then has extinction) change nothing when the transparent side is away from the extreme (a
+// MIP's value is then either taken elsewhere or transparent anyway), so they are skipped;
+// when it is towards the extreme, a sample there makes the whole ray transparent, so the ray
+// ends. The CPU twin takes every sample; the results are the same.
 fn projection(r: Ray) -> vec4<f32> {
     let kr = box_slices(r, 0.0);
     let hi = vec3<f32>(P.dims) - vec3<f32>(1.0);
+    // Transparent below the window (its first point has no extinction) or above it.
+    let clear_below = tf[4] <= 0.0;
+    let ends = (PROJECTION == 1u) != clear_below;
     var found = false;
     var m = 0.0;
     for (var k = kr.x; k < kr.y; k = k + 1u) {
@@ -606,9 +613,17 @@ fn projection(r: Ray) -> vec4<f32> {
         if (any(q < vec3<f32>(0.0)) || any(q > hi)) {
             continue;
         }
+        let br = min(vec3<u32>(q) / P.brick, P.bricks - vec3<u32>(1u));
+        let empty = occupied[br.x + P.bricks.x * (br.y + P.bricks.y * br.z)] == 0u;
+        if (empty && !ends) {
+            continue;
+        }
         let v = trilinear(q);
         if (v < -1e30) {
             continue;
+        }
+        if (empty) {
+            return vec4<f32>(0.0);
         }
         if (!found || (PROJECTION == 1u && v > m) || (PROJECTION == 2u && v < m)) {
             m = v;

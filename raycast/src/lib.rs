@@ -16,14 +16,16 @@
 //! threads, compiled for AVX2 and FMA where the CPU has them.
 //!
 //! Scope: volume-only scenes with 1-D transfer functions and clipping planes: `ea` (unshaded
-//! emission-absorption) and, with a light volume ([`light`]: Schott et al.'s occlusion
-//! buffer on cells, as the GPU's `light` pass), `dos` and `combined`. Phong shading, 2-D
-//! transfer functions, geometry and isosurfaces are drawn on the GPU.
+//! emission-absorption), with a light volume ([`light`]: Schott et al.'s occlusion buffer on
+//! cells, as the GPU's `light` pass) `dos` and `combined`, and the projections `mip` and
+//! `minip` ([`EaVolume::render_projection`], the model of `occlusion::projection`). Phong
+//! shading, 2-D transfer functions, geometry and isosurfaces are drawn on the GPU.
 
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use occlusion::emission_absorption::{
     occupancy_of, prepare, slab_interval, EaView, Transfer, BRICK,
 };
+use occlusion::projection::Extremum;
 use rayon::prelude::*;
 
 mod light;
@@ -81,6 +83,9 @@ pub struct EaVolume {
     /// The samples in `u8` or `u16` where they are integers in range (`None`: they are not,
     /// or they are stored so already), made at the first lit frame for the light sweep.
     sweep_samples: std::sync::OnceLock<Option<Samples>>,
+    /// The transfer function is transparent below its values (its first point has no
+    /// extinction) rather than above them: which side of the extreme empty blocks lie on.
+    clear_below: bool,
 }
 
 impl EaVolume {
@@ -144,10 +149,11 @@ impl EaVolume {
             blocks,
             occupied: occ.iter().map(|&o| o != 0).collect(),
             reach: reach_of(&occ, blocks),
-            tf: points,
             slopes,
             hi: vol.dims.map(|n| n as f32 - 1.0),
             sweep_samples: std::sync::OnceLock::new(),
+            clear_below: points.first().is_none_or(|p| p.2 <= 0.0),
+            tf: points,
             exp_table: (0..=EXP_N + 1)
                 .map(|i| (-(i as f64) / EXP_SCALE as f64).exp() as f32)
                 .collect(),
@@ -248,9 +254,27 @@ impl EaVolume {
     /// neighbouring rays read the voxels their neighbours just brought into the cache.
     pub fn render_frame(&self, v: &EaView, light: Option<&LightSettings>) -> Frame {
         match &self.data {
-            Samples::U8(d) => self.render_with(v, d, light),
-            Samples::U16(d) => self.render_with(v, d, light),
-            Samples::F32(d) => self.render_with(v, d, light),
+            Samples::U8(d) => self.render_with(v, d, light, 0),
+            Samples::U16(d) => self.render_with(v, d, light, 0),
+            Samples::F32(d) => self.render_with(v, d, light, 0),
+        }
+    }
+
+    /// A frame of the projection `which` (`mip`, `minip`; `occlusion::projection`): the
+    /// extreme sample along each ray (the slices' samples, clipping planes applied) through
+    /// the transfer function, premultiplied over the background. Empty blocks (every value
+    /// they span transparent) are stepped over where the transparent side is away from the
+    /// extreme, and end the ray transparent where it is towards it: the same image as taking
+    /// every sample.
+    pub fn render_projection(&self, v: &EaView, which: Extremum) -> Frame {
+        let mode = match which {
+            Extremum::Max => 1,
+            Extremum::Min => 2,
+        };
+        match &self.data {
+            Samples::U8(d) => self.render_with(v, d, None, mode),
+            Samples::U16(d) => self.render_with(v, d, None, mode),
+            Samples::F32(d) => self.render_with(v, d, None, mode),
         }
     }
 
@@ -259,6 +283,7 @@ impl EaVolume {
         v: &EaView,
         data: &[T],
         light: Option<&LightSettings>,
+        mode: u8,
     ) -> Frame {
         let (w, h) = (v.width as usize, v.height as usize);
         let mut out = vec![Pixel::default(); w * h];
@@ -302,6 +327,7 @@ impl EaVolume {
                     band,
                     rows,
                     light: lv.as_ref(),
+                    mode,
                 };
                 #[cfg(target_arch = "x86_64")]
                 if fma {
@@ -330,18 +356,22 @@ impl EaVolume {
     /// One band of `TILE` rows of the image: its packets of rays, marched and composited.
     #[inline(always)]
     fn band<T: Voxel>(&self, job: Band<'_, T>) {
-        match job.light {
-            Some(lv) => self.band_with::<T, true>(job, lv),
-            None => {
-                // Never read: the march without light does not look the light up.
-                let none = LightVolume::empty();
-                self.band_with::<T, false>(job, &none)
-            }
+        // Never read: the march without light does not look the light up.
+        let none = LightVolume::empty();
+        match (job.light, job.mode) {
+            (Some(lv), _) => self.band_with::<T, true, 0>(job, lv),
+            (None, 1) => self.band_with::<T, false, 1>(job, &none),
+            (None, 2) => self.band_with::<T, false, 2>(job, &none),
+            (None, _) => self.band_with::<T, false, 0>(job, &none),
         }
     }
 
     #[inline(always)]
-    fn band_with<T: Voxel, const LIT: bool>(&self, job: Band<'_, T>, lv: &LightVolume) {
+    fn band_with<T: Voxel, const LIT: bool, const MODE: u8>(
+        &self,
+        job: Band<'_, T>,
+        lv: &LightVolume,
+    ) {
         let Band {
             v,
             data,
@@ -378,12 +408,31 @@ impl EaVolume {
                 live = false;
                 for (_, r) in rays.iter_mut() {
                     if r.next().is_some() {
-                        self.advance::<T, LIT>(v, data, r, lv);
+                        self.advance::<T, LIT, MODE>(v, data, r, lv);
                         live = true;
                     }
                 }
             }
             for (i, r) in &rays {
+                if MODE != 0 {
+                    // The projection: the extreme's colour and opacity over the background.
+                    let (rgb, sigma) = match r.found {
+                        true => self.transfer(r.m),
+                        false => ([0.0; 3], 0.0),
+                    };
+                    let a = sigma.clamp(0.0, 1.0);
+                    rows[*i] = Pixel {
+                        rgba: [
+                            rgb[0] * a + (1.0 - a) * bg[0],
+                            rgb[1] * a + (1.0 - a) * bg[1],
+                            rgb[2] * a + (1.0 - a) * bg[2],
+                            a,
+                        ],
+                        volumetric: 1.0,
+                        half: 0.0,
+                    };
+                    continue;
+                }
                 let a = r.alpha;
                 rows[*i] = Pixel {
                     rgba: [
@@ -424,6 +473,8 @@ impl EaVolume {
             light: Footprint::default(),
             acc: [0.0; 2],
             half: 0.0,
+            m: 0.0,
+            found: false,
         };
         if cosine.is_nan() || cosine <= 1e-9 || v.slices == 0 {
             return r;
@@ -468,7 +519,7 @@ impl EaVolume {
     /// Takes the ray's next slice: skips it (outside the grid or clipped away), steps over
     /// the empty brick it falls in, or composites its sample; ends the ray when opaque.
     #[inline(always)]
-    fn advance<T: Voxel, const LIT: bool>(
+    fn advance<T: Voxel, const LIT: bool, const MODE: u8>(
         &self,
         v: &EaView,
         data: &[T],
@@ -500,6 +551,19 @@ impl EaVolume {
             return;
         }
         let (cell, brick, block, b) = self.cell(q);
+        // A projection's extreme lies towards the transparent side of empty blocks: a sample
+        // there makes the ray transparent (unless it is a gap).
+        let ends = MODE != 0 && (MODE == 1) != self.clear_below;
+        if !self.occupied[block] && ends {
+            r.k += 1;
+            let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
+            if EaVolume::trilinear(&self.corners(data, cell, brick), f) >= -1e30 {
+                r.found = false;
+                r.k1 = 0;
+                r.k = 1;
+            }
+            return;
+        }
         if !self.occupied[block] {
             // Step to the first slice past the empty cube of blocks around this one: the
             // samples before it are in empty blocks, transparent.
@@ -514,6 +578,13 @@ impl EaVolume {
         let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
         let val = EaVolume::trilinear(&self.corners(data, cell, brick), f);
         if val < -1e30 {
+            return;
+        }
+        if MODE != 0 {
+            if !r.found || (MODE == 1 && val > r.m) || (MODE == 2 && val < r.m) {
+                r.m = val;
+                r.found = true;
+            }
             return;
         }
         let (rgb, sigma) = self.transfer(val);
@@ -801,6 +872,8 @@ struct Band<'a, T> {
     band: usize,
     rows: &'a mut [Pixel],
     light: Option<&'a LightVolume>,
+    /// 0: emission-absorption; 1, 2: the maximum or minimum projection.
+    mode: u8,
 }
 
 /// What a ray leaves in its pixel.
@@ -834,6 +907,9 @@ struct Ray {
     acc: [f32; 2],
     /// The view depth where the opacity passed 0.5 (0: not yet).
     half: f32,
+    /// Projections: the extreme sample so far, and whether there is one.
+    m: f32,
+    found: bool,
 }
 
 impl Ray {
@@ -1046,6 +1122,71 @@ mod tests {
         assert_eq!(ev.exp_neg(0.0), 1.0);
         assert_eq!(ev.exp_neg(f32::NAN), 1.0);
         assert_eq!(ev.exp_neg(17.0), 0.0);
+    }
+
+    #[test]
+    fn projections_match_the_f64_twin() {
+        use occlusion::projection::{extreme, shade};
+        let vol = blob([40, 34, 30]);
+        let data = vol.select(None).unwrap().data;
+        let prepared = prepare(&data);
+        let w2i = vol.affine.inverse();
+        // A window whose low end leaves the margin's blocks empty, and one turned round
+        // (transparent above): both sides of the empty-block rules.
+        let ramp = |lo: f64, hi: f64| {
+            let mut points: Vec<(f64, [f64; 3], f64)> = (0..=8)
+                .map(|k| {
+                    let t = k as f64 / 8.0;
+                    (lo + (hi - lo) * t, [t, 0.5 * t, 1.0 - t], 0.9)
+                })
+                .collect();
+            points.push((lo - 1e-6 * (hi - lo), [0.0; 3], 0.0));
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            Transfer {
+                points,
+                rows: vec![],
+            }
+        };
+        let cam = Camera::orbit(vol.bounds(), 35.0, 25.0, 2.5, Some(40.0));
+        for (t, clip) in [
+            (ramp(0.2, 0.9), vec![]),
+            (ramp(0.2, 0.9), vec![([1.0, 0.2, 0.0], 2.0)]),
+            (ramp(0.3, 0.05), vec![]),
+        ] {
+            let ev = EaVolume::new(&vol, &data, &t).unwrap();
+            assert!(ev.occupied.iter().any(|o| !o), "some blocks are empty");
+            let mut v = EaView::new(&vol, cam, 40, 32, None, None, [0.1, 0.2, 0.3]).unwrap();
+            v.clip = clip;
+            for which in [Extremum::Max, Extremum::Min] {
+                let img = ev.render_projection(&v, which).image;
+                let (mut worst, mut shown) = (0.0f64, 0);
+                for y in 0..32usize {
+                    for x in 0..40usize {
+                        let (o, d) = v.camera.ray(x as f64, y as f64, 40, 32);
+                        let e = extreme(&prepared, vol.dims, &w2i, &v, o, d, which);
+                        let c = shade(&t, e);
+                        shown += (c[3] > 0.0) as usize;
+                        let px = img[x + 40 * y];
+                        for k in 0..3 {
+                            let want = c[k] + (1.0 - c[3]) * v.background[k];
+                            worst = worst.max((px[k] as f64 - want).abs());
+                        }
+                        worst = worst.max((px[3] as f64 - c[3]).abs());
+                    }
+                }
+                // A ray's minimum is in the empty margin (transparent below a window), its
+                // maximum in the blob (transparent above a turned-round one): the other two
+                // show the volume.
+                let below = t.points[0].2 == 0.0;
+                if below == (which == Extremum::Max) {
+                    assert!(shown > 50, "{which:?}: {shown} pixels show the volume");
+                }
+                assert!(
+                    worst < 2e-3,
+                    "{which:?}: CPU renderer and twin differ by {worst}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -870,20 +870,14 @@ pub struct Uploaded<'g> {
 
 /// Why the native CPU renderer cannot draw a frame of `s` with model `m` (`None`: it can):
 /// it draws volume-only scenes with a 1-D transfer function, unshaded or lit by the light
-/// volume (`ea`, `dos`, `combined` and the methods whose volume is `ea`'s), whose surface terms
-/// have no channels of their own.
+/// volume (`ea`, `dos`, `combined` and the methods whose volume is `ea`'s) or projected
+/// (`mip`, `minip`), whose surface terms have no channels of their own.
 pub fn cpu_refusal(s: &Scene, m: &Model) -> Option<String> {
     use engine::method::VolumeShading;
     let desc = s.render.method.desc();
     if desc.volume == VolumeShading::Phong {
         return Some(format!(
             "method {} (Phong volume shading is drawn on the GPU)",
-            desc.name
-        ));
-    }
-    if let VolumeShading::Projection(_) = desc.volume {
-        return Some(format!(
-            "method {} (projections are drawn on the GPU)",
             desc.name
         ));
     }
@@ -1010,6 +1004,7 @@ fn cpu_frame(
     v: &EaView,
     opts: DrawOptions,
     light: Option<&raycast::LightSettings>,
+    projection: Option<occlusion::projection::Extremum>,
     layers: &[(&'static str, Option<SurfaceAo>)],
 ) -> renderer::Output {
     let mut frames_ms = vec![];
@@ -1017,7 +1012,10 @@ fn cpu_frame(
     let mut frame = None;
     for _ in 0..opts.frames.max(1) {
         let t = std::time::Instant::now();
-        let f = ev.render_frame(v, light);
+        let f = match projection {
+            Some(which) => ev.render_projection(v, which),
+            None => ev.render_frame(v, light),
+        };
         frames_ms.push(t.elapsed().as_secs_f64() * 1e3);
         light_ms.push(f.light_ms);
         frame = Some(f);
@@ -1129,6 +1127,10 @@ impl Uploaded<'_> {
                 v,
                 opts,
                 cpu_light(s, v, limit)?.as_ref(),
+                match s.render.method.desc().volume {
+                    engine::method::VolumeShading::Projection(e) => Some(e),
+                    _ => None,
+                },
                 &layers,
             )),
             None => self
