@@ -17,7 +17,8 @@ struct Params {
     n_clip: u32,
     // LineAO's width code of the mesh's pixels (see `width_code` in VOut)
     width_code: f32,
-    pad1: u32,
+    // a translucent mesh's opacity (the peel passes; opaque meshes: 1)
+    opacity: f32,
     pad2: u32,
 };
 
@@ -792,4 +793,46 @@ fn fs_back_h(v: VOut) -> BackOutH {
     o.depth = back_value(v);
     o.frag = h.frag;
     return o;
+}
+
+// Translucent meshes and slices (Rust: gbuffer::Peel): depth peeling, one layer per pass, the
+// nearest first. A layer keeps, per pixel, the nearest translucent fragment behind the previous
+// layer's (strictly) and in front of the opaque surfaces; the march pass composites the layers
+// into the volume in depth order. Group 3: the previous layer's normal and depth (w; 0 where
+// none: the first pass reads a target that is never written) and the opaque front depth.
+@group(3) @binding(0) var peel_prev: texture_2d<f32>;
+@group(3) @binding(1) var peel_front: texture_2d<f32>;
+
+struct PeelOut {
+    // straight colour, and the mesh's opacity
+    @location(0) color: vec4<f32>,
+    // world normal facing the viewer, and the linear view depth
+    @location(1) nd: vec4<f32>,
+};
+
+fn peel_values(v: VOut, color: vec3<f32>) -> PeelOut {
+    let f = front_values(v);
+    let px = vec2<i32>(floor(v.clip.xy));
+    let z = f.depth.x;
+    let front = textureLoad(peel_front, px, 0).r;
+    if (front > 0.0 && z >= front) {
+        discard;
+    }
+    if (z <= textureLoad(peel_prev, px, 0).w) {
+        discard;
+    }
+    var o: PeelOut;
+    o.color = vec4<f32>(color, G.opacity);
+    o.nd = vec4<f32>(f.normal.xyz, z);
+    return o;
+}
+
+@fragment
+fn fs_peel(v: VOut) -> PeelOut {
+    return peel_values(v, v.color);
+}
+
+@fragment
+fn fs_peel_p(v: VOut) -> PeelOut {
+    return peel_values(v, plane_color(v.rel));
 }

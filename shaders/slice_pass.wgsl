@@ -67,7 +67,8 @@ struct Params {
     // occlusion-buffer cells per axis; a cell's edge in pixels
     cells: vec2<u32>,
     cell: u32,
-    pad: u32,
+    // translucent layers peeled by the G-buffer (gbuffer.wgsl fs_peel)
+    peel_layers: u32,
 };
 
 const NO_LAYER: u32 = 0xffffffffu;
@@ -105,6 +106,10 @@ struct Slice {
 @group(0) @binding(9) var<storage, read_write> cell_state: array<vec4<f32>>;
 // The surface terms' layers (see composite.wgsl): `march` writes the partial occlusion.
 @group(0) @binding(10) var<storage, read_write> terms: array<f32>;
+// Translucent layers, nearest first (gbuffer::Peel): straight colour and opacity; normal and
+// linear depth (w; 0: no layer).
+@group(0) @binding(11) var peel_color: texture_2d_array<f32>;
+@group(0) @binding(12) var peel_nd: texture_2d_array<f32>;
 @group(1) @binding(0) var<storage, read> S: Slice;
 // Light leaving the previous slice towards the next (L_{k-1} = O_{k-1} (1 - alpha_{k-1})),
 // and the same for this slice, per cell.
@@ -638,6 +643,32 @@ fn projection(r: Ray) -> vec4<f32> {
     return vec4<f32>(c.rgb * a, a);
 }
 
+// The depth of translucent layer l at pixel p (0: none; the layers after it are none too).
+fn layer_depth(p: vec2<i32>, l: u32) -> f32 {
+    if (l >= P.peel_layers) {
+        return 0.0;
+    }
+    return textureLoad(peel_nd, p, i32(l), 0).w;
+}
+
+// Composites translucent layer l over the eye buffer value `e` (front to back): its colour lit
+// by the head light as composite lights surfaces (no occlusion terms), weighted by its
+// opacity; `half` gets its depth when it takes the opacity past 0.5.
+fn composite_layer(e: ptr<function, vec4<f32>>, half: ptr<function, f32>, p: vec2<i32>, l: u32, r: Ray) {
+    let c = textureLoad(peel_color, p, i32(l), 0);
+    let nd = textureLoad(peel_nd, p, i32(l), 0);
+    let nl = max(dot(nd.xyz, -r.d), 0.0);
+    let rv = max(2.0 * nl * nl - 1.0, 0.0);
+    let spec = P.light.specular * pow(rv, P.light.shininess);
+    let lit = c.rgb * (P.light.ambient + P.light.diffuse * nl) + vec3<f32>(spec);
+    let w = (1.0 - (*e).a) * c.a;
+    let before = (*e).a;
+    *e = vec4<f32>((*e).rgb + w * lit, (*e).a + w);
+    if ((*e).a >= 0.5 && before < 0.5) {
+        *half = nd.w;
+    }
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     let w = P.frame.size.x;
@@ -650,10 +681,15 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     let r = pixel_ray(P.frame, px);
     let front = textureLoad(front_depth, vec2<i32>(id.xy), 0).r;
     if (PROJECTION != 0u) {
-        // Behind the surfaces: shown only where none is.
+        // The translucent layers, then behind the surfaces the projection, where none is.
         var e = vec4<f32>(0.0);
+        var h = 0.0;
+        for (var l = 0u; layer_depth(vec2<i32>(id.xy), l) > 0.0; l = l + 1u) {
+            composite_layer(&e, &h, vec2<i32>(id.xy), l, r);
+        }
         if (front <= 0.0 && P.has_volume != 0u) {
-            e = projection(r);
+            let m = projection(r);
+            e = vec4<f32>(e.rgb + (1.0 - e.a) * m.rgb, e.a + (1.0 - e.a) * m.a);
         }
         eye_buf[idx] = e;
         state[2u * idx] = vec4<f32>(1.0, 1.0, 0.0, 0.0);
@@ -670,25 +706,50 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     if (shifted) {
         cs = cell_shifts(px, r);
     }
+    // Translucent layers are composited where the ray reaches their depth: a slab they lie in
+    // is split there, each part sampled at its middle as clipping planes split slabs.
+    let pid = vec2<i32>(id.xy);
+    var next = 0u;
+    var zl = layer_depth(pid, 0u);
     for (var k = kr.x; k < kr.y; k = k + 1u) {
         let iv = slab_interval(r, k, front);
         if (iv.y <= iv.x) {
             continue;
         }
-        var grad = vec3<f32>(0.0);
-        let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
-        if (c.a > 0.0) {
-            var o = 1.0;
-            if (shifted) {
-                o = light_shifted(cs, k);
-            } else if (lit) {
-                o = light_at(px, k);
+        var o = 1.0;
+        if (shifted) {
+            o = light_shifted(cs, k);
+        } else if (lit) {
+            o = light_at(px, k);
+        }
+        var a = iv.x;
+        loop {
+            // The part of the slab up to the next layer in it, or to its end.
+            let in_slab = zl > 0.0 && zl <= iv.y;
+            let b = select(iv.y, zl, in_slab);
+            if (b > a) {
+                var grad = vec3<f32>(0.0);
+                let c = volume_sample(r, 0.5 * (a + b), &grad);
+                if (c.a > 0.0) {
+                    composite_eye(&e, &acc, &half, r, vec2<f32>(a, b), c, grad, o);
+                }
             }
-            composite_eye(&e, &acc, &half, r, iv, c, grad, o);
-            if (e.a > 0.999) {
+            if (!in_slab) {
                 break;
             }
+            composite_layer(&e, &half, pid, next, r);
+            a = max(a, zl);
+            next = next + 1u;
+            zl = layer_depth(pid, next);
         }
+        if (e.a > 0.999) {
+            break;
+        }
+    }
+    // Layers behind the volume (or with none), in front of the opaque surface.
+    for (; zl > 0.0; zl = layer_depth(pid, next)) {
+        composite_layer(&e, &half, pid, next, r);
+        next = next + 1u;
     }
     eye_buf[idx] = e;
     // Partial occlusion (eq. 1-3): a surface at z between z_{k-1} and z_k receives

@@ -30,6 +30,9 @@ pub(crate) const SHADER: &str = include_str!("../../shaders/gbuffer.wgsl");
 pub const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 pub const NORMAL: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 pub const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+/// Peeled translucent layers: straight colour and opacity; normal and linear depth.
+pub const PEEL_COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+pub const PEEL_ND: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 
 /// Bytes per vertex: position (3 f32), normal (3 f32), colour (4 unorm8).
 const STRIDE: u64 = 28;
@@ -48,7 +51,8 @@ pub struct GBufferParams {
     pub n_clip: u32,
     /// LineAO's width code of the mesh's pixels: minus the tubes' diameter, 0 when unknown.
     pub width_code: f32,
-    pub pad1: u32,
+    /// A translucent mesh's opacity (1 for opaque meshes).
+    pub opacity: f32,
     pub pad2: u32,
 }
 
@@ -63,6 +67,8 @@ pub struct GpuMesh {
     origin: DVec3,
     /// The tubes' nominal diameter, world units (0: unknown).
     diameter: f32,
+    /// Below 1: translucent (drawn by the peel passes, not the opaque ones).
+    opacity: f32,
 }
 
 impl GpuMesh {
@@ -98,6 +104,13 @@ impl GpuMesh {
             count: m.indices.len() as u32,
             origin: m.origin,
             diameter: (2.0 * m.radius.max(0.0)) as f32,
+            opacity: m.opacity.map_or(1.0, |o| {
+                if o.is_finite() {
+                    o.clamp(0.0, 1.0)
+                } else {
+                    1.0
+                }
+            }),
         }))
     }
 
@@ -109,6 +122,11 @@ impl GpuMesh {
     /// The tubes' nominal diameter, world units (0: unknown).
     pub fn diameter(&self) -> f32 {
         self.diameter
+    }
+
+    /// Whether the mesh is translucent (opacity below 1).
+    pub fn translucent(&self) -> bool {
+        self.opacity < 1.0
     }
 }
 
@@ -297,6 +315,68 @@ pub struct NdMap {
     lines: Vec<(wgpu::BindGroup, wgpu::BindGroup)>,
 }
 
+/// Translucent meshes and slices, peeled into depth-sorted layers (`fs_peel`): pass k keeps, per
+/// pixel, the nearest translucent fragment behind layer k - 1 and in front of the opaque
+/// surfaces, and is copied into layer k of two array textures, which the march pass reads to
+/// composite the layers into the volume in depth order (exact for up to `layers` translucent
+/// fragments on a pixel's ray; farther ones are left out).
+pub struct Peel {
+    /// Layers peeled (0: the frame has no translucent geometry).
+    pub layers: u32,
+    /// Layer k's straight colour and opacity (`PEEL_COLOR`), as an array view.
+    pub color: wgpu::TextureView,
+    /// Layer k's world normal facing the viewer and linear view depth (w; 0: none).
+    pub nd: wgpu::TextureView,
+    color_tex: wgpu::Texture,
+    nd_tex: wgpu::Texture,
+    /// The two targets passes alternate between (colour, normal-depth), each copied into its
+    /// layer after its pass.
+    targets: [(
+        wgpu::Texture,
+        wgpu::TextureView,
+        wgpu::Texture,
+        wgpu::TextureView,
+    ); 2],
+    z: wgpu::TextureView,
+    /// Per layer: the previous layer's normal-depth target and the opaque front depth.
+    binds: Vec<wgpu::BindGroup>,
+    draws: Vec<MeshDraw>,
+}
+
+/// A 2-D array texture of `layers` layers (copy destination, read by `textureLoad`), pooled by
+/// label, and its array view.
+fn target_array(
+    gpu: &Gpu,
+    label: &str,
+    format: wgpu::TextureFormat,
+    w: u32,
+    h: u32,
+    layers: u32,
+) -> (wgpu::Texture, wgpu::TextureView) {
+    let key = format!("target array {label} {format:?}");
+    gpu.sized_entry(key, (w, h, layers), || {
+        let t = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: layers,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        let v = t.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        (t, v)
+    })
+}
+
 /// The G-buffer's textures and the recorded draw of every mesh.
 pub struct GBuffer {
     /// Colour and normal: `samples` samples each.
@@ -315,6 +395,8 @@ pub struct GBuffer {
     pipes: Pipelines,
     meshes: Vec<MeshDraw>,
     lines: Vec<LineDraw>,
+    /// Translucent meshes and slices (no layers when there are none).
+    pub peel: Peel,
 }
 
 /// A pass's pipeline for meshes and for lines.
@@ -338,6 +420,10 @@ struct Pipelines {
     /// The colour pass of slices (`fs_front_p` or `fs_surface_p`): meshes whose colour is
     /// sampled from their layers.
     front_plane: wgpu::RenderPipeline,
+    /// Depth peeling of translucent meshes and slices (group 3: `peel_layout`).
+    peel_layout: wgpu::BindGroupLayout,
+    peel_mesh: wgpu::RenderPipeline,
+    peel_plane: wgpu::RenderPipeline,
     /// Multisampled only: the single-sample depth.
     depth: Option<PipelinePair>,
     /// LineAO's normal-depth map (single sample).
@@ -386,6 +472,21 @@ impl Pipelines {
         let pl_planes = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("gbuffer planes"),
             bind_group_layouts: &[Some(&layout), None, Some(&plane_layout)],
+            immediate_size: 0,
+        });
+        let peel_layout = gpu.layout(
+            "gbuffer peel",
+            wgpu::ShaderStages::FRAGMENT,
+            &[Slot::UnfilterableTexture, Slot::UnfilterableTexture],
+        );
+        let pl_peel = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("gbuffer peel"),
+            bind_group_layouts: &[Some(&layout), None, None, Some(&peel_layout)],
+            immediate_size: 0,
+        });
+        let pl_peel_planes = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("gbuffer peel planes"),
+            bind_group_layouts: &[Some(&layout), None, Some(&plane_layout), Some(&peel_layout)],
             immediate_size: 0,
         });
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Unorm8x4];
@@ -469,9 +570,13 @@ impl Pipelines {
                 1,
             )
         };
+        let peel_targets = [t(PEEL_COLOR), t(PEEL_ND)];
         Pipelines {
             front,
             front_plane,
+            peel_mesh: pipeline_in(&pl_peel, false, "fs_peel", &peel_targets, 1),
+            peel_plane: pipeline_in(&pl_peel_planes, false, "fs_peel_p", &peel_targets, 1),
+            peel_layout,
             plane_layout,
             depth: ms.then(|| pair("fs_depth", &[t(DEPTH)], 1)),
             nd: pair("fs_nd", &[t(DEPTH), t(NORMAL), t(NORMAL)], 1),
@@ -578,6 +683,7 @@ impl GBuffer {
         samples: u32,
         nd_guard: Option<u32>,
         trail_now: Option<f32>,
+        peel_layers: u32,
     ) -> GBuffer {
         let ms = samples > 1;
         let pipes = gpu.cached(format!("gbuffer pipelines {samples}"), || {
@@ -589,7 +695,7 @@ impl GBuffer {
         let f = camera.forward();
         let e = camera.eye;
         // The view of a set whose positions are relative to `origin`, through `vp`.
-        let view = |vp: DMat4, origin: DVec3, width_code: f32| {
+        let view = |vp: DMat4, origin: DVec3, width_code: f32, opacity: f32| {
             let offset: DVec3 = origin - e;
             let params = GBufferParams {
                 view_proj_rel: mat4(vp),
@@ -599,7 +705,7 @@ impl GBuffer {
                 clip: clip_planes(clip),
                 n_clip: clip.len().min(8) as u32,
                 width_code,
-                pad1: 0,
+                opacity,
                 pad2: 0,
             };
             let params = gpu.buffer(
@@ -701,24 +807,24 @@ impl GBuffer {
             r.extend(p.fields.iter().map(|f| f.as_entire_binding()));
             gpu.bind("gbuffer planes", &pipes.plane_layout, &r)
         };
-        // Slices are meshes (their polygons) with a colour of their own.
-        let meshes: Vec<(&GpuMesh, Option<&crate::planes::GpuPlane>)> = meshes
+        // Slices are meshes (their polygons) with a colour of their own; translucent ones are
+        // peeled, not drawn in the opaque passes.
+        let (meshes, translucent): (Vec<_>, Vec<_>) = meshes
             .iter()
             .map(|m| (m, None))
             .chain(planes.iter().map(|p| (&p.mesh, Some(p))))
-            .collect();
-        let mesh_draws = meshes
-            .iter()
-            .map(|(m, p)| MeshDraw {
-                mesh: (*m).clone(),
-                bind: view(vp_rel, m.origin, code(m)),
-                plane: p.map(plane_data),
-            })
-            .collect();
+            .partition(|(m, _): &(&GpuMesh, Option<&crate::planes::GpuPlane>)| !m.translucent());
+        let draw = |(m, p): &(&GpuMesh, Option<&crate::planes::GpuPlane>)| MeshDraw {
+            mesh: (*m).clone(),
+            bind: view(vp_rel, m.origin, code(m), m.opacity),
+            plane: p.map(plane_data),
+        };
+        let mesh_draws = meshes.iter().map(draw).collect();
+        let peel_draws: Vec<MeshDraw> = translucent.iter().map(draw).collect();
         let line_draws = lines
             .iter()
             .map(|l| LineDraw {
-                view: view(vp_rel, l.origin, 0.0),
+                view: view(vp_rel, l.origin, 0.0, 1.0),
                 data: line_data(l, p11, width, height),
                 segments: l.count,
                 halo: l.halo.is_some(),
@@ -747,16 +853,64 @@ impl GBuffer {
                 .1,
                 meshes: meshes
                     .iter()
-                    .map(|(m, _)| view(vp, m.origin, code(m)))
+                    .map(|(m, _)| view(vp, m.origin, code(m), 1.0))
                     .collect(),
                 lines: lines
                     .iter()
-                    .map(|l| (view(vp, l.origin, 0.0), line_data(l, p11g, nw, nh)))
+                    .map(|l| (view(vp, l.origin, 0.0, 1.0), line_data(l, p11g, nw, nh)))
                     .collect(),
             }
         });
         let depth = |l| target(gpu, l, wgpu::TextureFormat::Depth32Float, width, height).1;
         let (front_tex, front) = target(gpu, "gbuffer front depth", DEPTH, width, height);
+        let layers = if peel_draws.is_empty() {
+            0
+        } else {
+            peel_layers.clamp(1, MAX_PEEL_LAYERS)
+        };
+        let (pw, ph, pl) = if layers > 0 {
+            (width, height, layers)
+        } else {
+            (1, 1, 1)
+        };
+        let (color_tex, color) = target_array(gpu, "peel colour", PEEL_COLOR, pw, ph, pl);
+        let (nd_tex, nd_view) = target_array(gpu, "peel nd", PEEL_ND, pw, ph, pl);
+        let pair = |k: usize| {
+            let (ct, cv) = target(gpu, &format!("peel colour {k}"), PEEL_COLOR, pw, ph);
+            let (nt, nv) = target(gpu, &format!("peel nd {k}"), PEEL_ND, pw, ph);
+            (ct, cv, nt, nv)
+        };
+        let targets = [pair(0), pair(1)];
+        // Never written: the first layer's "previous" depth, 0 everywhere.
+        let none = target(gpu, "peel none", PEEL_ND, pw, ph).1;
+        let binds = (0..layers as usize)
+            .map(|k| {
+                let prev = if k == 0 {
+                    &none
+                } else {
+                    &targets[(k + 1) % 2].3
+                };
+                gpu.bind(
+                    "gbuffer peel",
+                    &pipes.peel_layout,
+                    &[
+                        wgpu::BindingResource::TextureView(prev),
+                        wgpu::BindingResource::TextureView(&front),
+                    ],
+                )
+            })
+            .collect();
+        let peel = Peel {
+            layers,
+            color,
+            nd: nd_view,
+            color_tex,
+            nd_tex,
+            z: depth("peel z"),
+            targets,
+            binds,
+            draws: peel_draws,
+        };
         GBuffer {
             color: target_ms(gpu, "gbuffer colour", COLOR, width, height, samples).1,
             normal: target_ms(gpu, "gbuffer normal", NORMAL, width, height, samples).1,
@@ -782,12 +936,17 @@ impl GBuffer {
             pipes,
             meshes: mesh_draws,
             lines: line_draws,
+            peel,
         }
     }
 
-    /// Triangles drawn per pass (two per line segment).
+    /// Triangles drawn per pass (two per line segment; translucent meshes once).
     pub fn triangles(&self) -> u64 {
-        self.meshes.iter().map(|m| m.mesh.triangles()).sum::<u64>()
+        self.meshes
+            .iter()
+            .chain(&self.peel.draws)
+            .map(|m| m.mesh.triangles())
+            .sum::<u64>()
             + self
                 .lines
                 .iter()
@@ -938,8 +1097,93 @@ impl GBuffer {
                 );
             }
         }
+        self.record_peel(enc);
+    }
+
+    /// The peel passes: layer k into the targets `k % 2`, then copied into layer k.
+    fn record_peel(&self, enc: &mut wgpu::CommandEncoder) {
+        let pl = &self.peel;
+        let p = &self.pipes;
+        for k in 0..pl.layers as usize {
+            let (ct, cv, nt, nv) = &pl.targets[k % 2];
+            let clear = |view| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })
+            };
+            {
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("gbuffer peel"),
+                    color_attachments: &[clear(cv), clear(nv)],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &pl.z,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Discard,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                for MeshDraw {
+                    mesh: m,
+                    bind,
+                    plane,
+                } in &pl.draws
+                {
+                    match plane {
+                        Some(g) => {
+                            pass.set_pipeline(&p.peel_plane);
+                            pass.set_bind_group(2, g, &[]);
+                        }
+                        None => pass.set_pipeline(&p.peel_mesh),
+                    }
+                    pass.set_bind_group(0, bind, &[]);
+                    pass.set_bind_group(3, &pl.binds[k], &[]);
+                    pass.set_vertex_buffer(0, m.vertices.slice(..));
+                    pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..m.count, 0, 0..1);
+                }
+            }
+            for (src, dst) in [(ct, &pl.color_tex), (nt, &pl.nd_tex)] {
+                enc.copy_texture_to_texture(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: src,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d::ZERO,
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::TexelCopyTextureInfo {
+                        texture: dst,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: 0,
+                            y: 0,
+                            z: k as u32,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::Extent3d {
+                        width: self.size.0,
+                        height: self.size.1,
+                        depth_or_array_layers: 1,
+                    },
+                );
+            }
+        }
     }
 }
+
+/// The most translucent layers a frame peels (`render.translucent_layers`).
+pub const MAX_PEEL_LAYERS: u32 = 8;
 
 #[cfg(test)]
 mod tests {
@@ -989,7 +1233,7 @@ mod tests {
                 clip,
                 n_clip,
                 width_code,
-                pad1,
+                opacity,
                 pad2,
             }
         );

@@ -64,6 +64,8 @@ pub enum Slot {
     Texture,
     /// A float 2-D texture read with `textureLoad` only (r32float and the like).
     UnfilterableTexture,
+    /// A float 2-D array texture read with `textureLoad` only.
+    UnfilterableTextureArray,
     /// A multisampled float 2-D texture (`textureLoad` per sample).
     MultisampledTexture,
     Sampler,
@@ -623,6 +625,11 @@ impl Gpu {
                     }
                     Slot::Texture => texture(true, false),
                     Slot::UnfilterableTexture => texture(false, false),
+                    Slot::UnfilterableTextureArray => wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
                     Slot::MultisampledTexture => texture(false, true),
                     Slot::Sampler => {
                         wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)

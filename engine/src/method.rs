@@ -250,6 +250,9 @@ pub struct Settings {
     pub trail_now: Option<f32>,
     /// The illustrative method's line and halo colours (linear RGB).
     pub illustrative: ([f64; 3], [f64; 3]),
+    /// Translucent layers peeled per pixel (1 to `gbuffer::MAX_PEEL_LAYERS`; used only when
+    /// the scene has translucent meshes or slices).
+    pub translucent_layers: u32,
 }
 
 /// How LineAO darkens the surfaces it occludes (`render.lineao.shading`).
@@ -306,6 +309,7 @@ impl Default for Settings {
             lineao: LineAo::default(),
             trail_now: None,
             illustrative: ([0.0; 3], [1.0; 3]),
+            translucent_layers: 4,
         }
     }
 }

@@ -466,6 +466,7 @@ impl Frame {
             samples,
             nd_guard,
             s.trail_now,
+            s.translucent_layers,
         );
         let layer = |name: &str| {
             layer_names

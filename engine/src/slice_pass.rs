@@ -114,7 +114,8 @@ pub struct SliceParams {
     pub cells: [u32; 2],
     /// A cell's edge in pixels.
     pub cell: u32,
-    pub pad: u32,
+    /// Translucent layers peeled by the G-buffer (`GBuffer::peel`), composited in depth order.
+    pub peel_layers: u32,
 }
 
 /// No layer (`SliceParams::partial_layer`).
@@ -323,6 +324,8 @@ impl SlicePass {
                 Slot::StorageRw,
                 Slot::StorageRw,
                 Slot::StorageRw,
+                Slot::UnfilterableTextureArray,
+                Slot::UnfilterableTextureArray,
             ],
         );
         let l1 = gpu.layout(
@@ -402,7 +405,7 @@ impl SlicePass {
             light: s.light.into(),
             cells: [cells.0, cells.1],
             cell,
-            pad: 0,
+            peel_layers: gbuf.peel.layers,
         };
         let params = gpu.buffer(
             "slice params",
@@ -434,6 +437,8 @@ impl SlicePass {
                 light.as_entire_binding(),
                 cell_state.as_entire_binding(),
                 terms.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&gbuf.peel.color),
+                wgpu::BindingResource::TextureView(&gbuf.peel.nd),
             ],
         );
         // Slice indices, one per dynamic-offset row.
@@ -612,7 +617,7 @@ mod tests {
                 light,
                 cells,
                 cell,
-                pad,
+                peel_layers,
             }
         );
         crate::prelude::assert_layout!(

@@ -349,6 +349,25 @@ pub fn clip_entry(v: &EaView, o: DVec3, d: DVec3) -> Option<f64> {
 /// The CPU twin of the shader, in f64: RGBA per pixel (rows top to bottom), alpha the
 /// volume's opacity. `data` as [`prepare`] returns it.
 pub fn reference(data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[f64; 4]> {
+    reference_with_layers(data, vol, tf, v, |_, _| vec![])
+}
+
+/// A translucent surface's fragment on a pixel's ray: linear view depth, lit colour
+/// (straight) and opacity.
+pub type Layer = (f64, [f64; 3], f64);
+
+/// [`reference`] with translucent layers (the G-buffer's peeled layers, `layers(x, y)` in
+/// increasing depth) composited where the ray reaches them, as the march pass does: a slab a
+/// layer lies in is split at its depth, each part sampled at its middle over its length, and
+/// the layer composited between them by its opacity; layers behind the volume come last.
+/// Alpha is the coverage of volume and layers.
+pub fn reference_with_layers(
+    data: &[f32],
+    vol: &Volume,
+    tf: &Transfer,
+    v: &EaView,
+    layers: impl Fn(usize, usize) -> Vec<Layer>,
+) -> Vec<[f64; 4]> {
     let w2i = world_to_index(vol);
     let f = v.camera.forward();
     let (w, h) = (v.width as usize, v.height as usize);
@@ -359,21 +378,18 @@ pub fn reference(data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[
             let cosine = d.dot(f);
             let o_depth = (o - v.camera.eye).dot(f);
             let (mut c, mut a) = ([0.0f64; 3], 0.0f64);
-            for k in 0..v.slices {
-                let (lo, hi) = slab_interval(v, o, d, k);
-                if hi <= lo {
-                    continue;
-                }
-                let depth = 0.5 * (lo + hi);
-                let s = (depth - o_depth) / cosine;
-                if s < 0.0 {
-                    continue;
+            let ls = layers(x, y);
+            let mut next = 0;
+            // The volume over depths [lo, hi], sampled at the middle.
+            let part = |lo: f64, hi: f64, c: &mut [f64; 3], a: &mut f64| {
+                let s = (0.5 * (lo + hi) - o_depth) / cosine;
+                if hi <= lo || s < 0.0 {
+                    return;
                 }
                 let seg = (hi - lo) / cosine;
-                let p = o + d * s;
-                let q = (w2i * DVec4::from((p, 1.0))).truncate();
+                let q = (w2i * DVec4::from((o + d * s, 1.0))).truncate();
                 let Some(val) = sample(data, vol.dims, q).filter(|&v| v >= -1e30) else {
-                    continue;
+                    return;
                 };
                 let g = if tf.rows.is_empty() {
                     0.0
@@ -383,12 +399,35 @@ pub fn reference(data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[
                 let (rgb, sigma) = tf.eval2(val, g);
                 let al = 1.0 - (-sigma.max(0.0) * seg).exp();
                 for i in 0..3 {
-                    c[i] += (1.0 - a) * al * rgb[i];
+                    c[i] += (1.0 - *a) * al * rgb[i];
                 }
-                a += (1.0 - a) * al;
+                *a += (1.0 - *a) * al;
+            };
+            let layer = |l: &Layer, c: &mut [f64; 3], a: &mut f64| {
+                for (ci, li) in c.iter_mut().zip(l.1) {
+                    *ci += (1.0 - *a) * l.2 * li;
+                }
+                *a += (1.0 - *a) * l.2;
+            };
+            for k in 0..v.slices {
+                let (lo, hi) = slab_interval(v, o, d, k);
+                if hi <= lo {
+                    continue;
+                }
+                let mut from = lo;
+                while next < ls.len() && ls[next].0 <= hi {
+                    part(from, ls[next].0, &mut c, &mut a);
+                    layer(&ls[next], &mut c, &mut a);
+                    from = from.max(ls[next].0);
+                    next += 1;
+                }
+                part(from, hi, &mut c, &mut a);
                 if a > 0.999 {
                     break;
                 }
+            }
+            for l in &ls[next..] {
+                layer(l, &mut c, &mut a);
             }
             let bg = v.background;
             out[x + w * y] = [

@@ -512,7 +512,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     let mut meshes = vec![];
     for (i, t) in s.tubes.iter().enumerate() {
         if is_mesh(&t.path) {
-            meshes.push(mesh_set(i, t)?);
+            let mut mesh = mesh_set(i, t)?;
+            mesh.opacity = (t.opacity < 1.0).then_some(t.opacity as f32);
+            meshes.push(mesh);
             continue;
         }
         let mut sl = tubes::load(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
@@ -532,6 +534,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         let args = crate::tube_sets::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
         let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
             .map_err(|e| format!("tubes[{i}].color ({}): {e}", t.path.display()))?;
+        let mut mesh = mesh;
+        mesh.opacity = (t.opacity < 1.0).then_some(t.opacity as f32);
         meshes.push(mesh);
     }
     let mut lines = vec![];
@@ -734,6 +738,7 @@ pub fn settings(s: &Scene) -> Settings {
             r.illustrative.line.rgb().unwrap_or([0.0; 3]),
             r.illustrative.halo.rgb().unwrap_or([1.0; 3]),
         ),
+        translucent_layers: r.translucent_layers,
     }
 }
 

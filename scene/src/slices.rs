@@ -230,6 +230,7 @@ fn polygon_mesh(pts: &[DVec3], n: DVec3) -> tubes::tube_mesh::TubeMesh {
             .flat_map(|k| [0, k, k + 1])
             .collect(),
         radius: 0.0,
+        opacity: None,
     }
 }
 
@@ -502,7 +503,11 @@ pub fn model(
             ));
         }
         planes.push(PlaneInput {
-            polygon: polygon_mesh(&pts, n),
+            polygon: {
+                let mut m = polygon_mesh(&pts, n);
+                m.opacity = (sl.opacity < 1.0).then_some(sl.opacity as f32);
+                m
+            },
             layers,
         });
     }

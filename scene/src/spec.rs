@@ -276,6 +276,9 @@ pub struct TubesSpec {
     /// Fitting tolerance, world units.
     #[serde(default = "default_tolerance")]
     pub tolerance: f64,
+    /// In [0, 1]; below 1 the tubes are translucent (depth-peeled, `render.translucent_layers`).
+    #[serde(default = "one")]
+    pub opacity: f64,
     /// Only the streamlines these ROIs and ranges select (in the scene's world, after
     /// `transform`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -793,6 +796,9 @@ pub struct RenderSpec {
     /// `auto`, `gpu` or `cpu`: who draws the frame (the native CPU renderer draws `ea`
     /// volumes; `auto` picks it on a CPU adapter where it can).
     pub device: Device,
+    /// Translucent layers peeled per pixel (1 to 8): translucent tubes and slices beyond
+    /// this many on a ray are not drawn.
+    pub translucent_layers: u32,
     /// World units between the eyes (default: `convergence / 30`).
     pub eye_separation: Option<f64>,
     /// View distance of the plane with no disparity, world units (default: the distance from
@@ -845,6 +851,7 @@ impl Default for RenderSpec {
             bits: 8,
             stereo: Stereo::None,
             device: Device::Auto,
+            translucent_layers: 4,
             eye_separation: None,
             convergence: None,
         }
@@ -887,6 +894,7 @@ pub struct Approximation {
     pub illustrative: IllustrativeSpec,
     pub bits: u32,
     pub device: Device,
+    pub translucent_layers: u32,
 }
 
 impl RenderSpec {
@@ -918,6 +926,7 @@ impl RenderSpec {
             bits,
             stereo,
             device,
+            translucent_layers,
             eye_separation,
             convergence,
         } = self.clone();
@@ -950,6 +959,7 @@ impl RenderSpec {
                 illustrative,
                 bits,
                 device,
+                translucent_layers,
             },
         )
     }
@@ -1420,15 +1430,7 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
         window(key("window"), sl.window)?;
         cmap(key("colormap"), &sl.colormap)?;
-        if sl.opacity != 1.0 {
-            return bad(
-                key("opacity"),
-                format!(
-                    "{}: translucent slices are not drawn yet (slices are opaque; overlays take an opacity)",
-                    sl.opacity
-                ),
-            );
-        }
+        unit(key("opacity"), sl.opacity)?;
         if let Some(w) = sl.slab {
             if !(w.is_finite() && w > 0.0) {
                 return bad(key("slab"), format!("{w} is not a positive thickness"));
@@ -1621,6 +1623,12 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 format!("{} is not positive", t.tolerance),
             );
         }
+        if !(0.0..=1.0).contains(&t.opacity) {
+            return bad(
+                &format!("tubes[{i}].opacity"),
+                format!("{} is not in [0, 1]", t.opacity),
+            );
+        }
         check_color_source(&t.color).map_err(|why| format!("scene key tubes[{i}].color: {why}"))?;
         if let Some(sel) = &mut t.select {
             check_select(sel, dir, &format!("tubes[{i}].select"))?;
@@ -1793,6 +1801,16 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             .is_some_and(|d| !(d.is_finite() && d > 0.0))
     {
         return bad("render.slices", "must be positive".into());
+    }
+    if !(1..=engine::gbuffer::MAX_PEEL_LAYERS).contains(&r.translucent_layers) {
+        return bad(
+            "render.translucent_layers",
+            format!(
+                "{} is not in 1..{}",
+                r.translucent_layers,
+                engine::gbuffer::MAX_PEEL_LAYERS
+            ),
+        );
     }
     if r.slices.is_some_and(|n| n > 16384) {
         return bad("render.slices", "at most 16384".into());

@@ -157,6 +157,7 @@ pub fn read(path: &Path) -> Result<TubeMesh> {
         },
         indices,
         radius: 0.0,
+        opacity: None,
     })
 }
 
@@ -520,6 +521,7 @@ mod read_tests {
             normals: vec![glam::Vec3::Z; 4],
             colors: vec![[255, 0, 0], [0, 255, 0], [0, 0, 255], [10, 20, 30]],
             indices: vec![0, 1, 2, 1, 3, 2],
+            opacity: None,
             radius: 0.0,
         }
     }

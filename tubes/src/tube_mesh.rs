@@ -184,6 +184,9 @@ pub struct TubeMesh {
     /// The tubes' nominal radius, world units (the mesher's `TubeOptions::radius`; 0 when
     /// unknown, as for meshes read from files): LineAO's `r0` of tubes (eq. 16).
     pub radius: f64,
+    /// The surface's opacity in [0, 1] (`None`: opaque); below 1 the renderer draws it
+    /// translucent.
+    pub opacity: Option<f32>,
 }
 
 impl TubeMesh {
