@@ -69,6 +69,19 @@ struct Params {
     cell: u32,
     // translucent layers peeled by the G-buffer (gbuffer.wgsl fs_peel)
     peel_layers: u32,
+    // an overlay blended into the volume's colour (slice_pass::GpuBlend): world to its grid's
+    // index, its grid, on/off, window, opacity, labels (1) and their count
+    blend_to_index: mat4x4<f32>,
+    blend_dims: vec3<u32>,
+    blend_on: u32,
+    blend_lo: f32,
+    blend_hi: f32,
+    blend_opacity: f32,
+    blend_labels: u32,
+    blend_count: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 };
 
 const NO_LAYER: u32 = 0xffffffffu;
@@ -110,6 +123,9 @@ struct Slice {
 // linear depth (w; 0: no layer).
 @group(0) @binding(11) var peel_color: texture_2d_array<f32>;
 @group(0) @binding(12) var peel_nd: texture_2d_array<f32>;
+// The blended overlay's field (NaN as -3e38) and colours (256, or one per label).
+@group(0) @binding(13) var<storage, read> blend_field: array<f32>;
+@group(0) @binding(14) var<storage, read> blend_lut: array<vec4<f32>>;
 @group(1) @binding(0) var<storage, read> S: Slice;
 // Light leaving the previous slice towards the next (L_{k-1} = O_{k-1} (1 - alpha_{k-1})),
 // and the same for this slice, per cell.
@@ -643,6 +659,47 @@ fn projection(r: Ray) -> vec4<f32> {
     return vec4<f32>(c.rgb * a, a);
 }
 
+fn blend_voxel(i: vec3<u32>) -> f32 {
+    return blend_field[i.x + P.blend_dims.x * (i.y + P.blend_dims.y * i.z)];
+}
+
+// The blended overlay's colour and coverage at world point p: the slices' mapping of an
+// overlay (engine::planes::layer_color; gbuffer.wgsl plane_layer_color).
+fn blend_color(p: vec3<f32>) -> vec4<f32> {
+    let hi = vec3<f32>(P.blend_dims) - vec3<f32>(1.0);
+    let c = clamp((P.blend_to_index * vec4<f32>(p, 1.0)).xyz, vec3<f32>(0.0), hi);
+    if (P.blend_labels != 0u) {
+        let v = blend_voxel(vec3<u32>(floor(c + vec3<f32>(0.5))));
+        if (!(v >= 0.0 && v < f32(P.blend_count))) {
+            return vec4<f32>(0.0);
+        }
+        return blend_lut[u32(floor(v + 0.5))];
+    }
+    let b = min(vec3<u32>(floor(c)), max(P.blend_dims, vec3<u32>(2u)) - vec3<u32>(2u));
+    let top = P.blend_dims - vec3<u32>(1u);
+    var vs: array<f32, 8>;
+    for (var k = 0u; k < 8u; k = k + 1u) {
+        vs[k] = blend_voxel(min(b + cell_corner(k), top));
+    }
+    let v = trilinear_mix(vs, c - vec3<f32>(b));
+    let t = (v - P.blend_lo) / (P.blend_hi - P.blend_lo);
+    if (v < -1e30 || !(t >= 0.0)) {
+        return vec4<f32>(0.0);
+    }
+    let x = min(t, 1.0) * 255.0;
+    let i = min(u32(floor(x)), 254u);
+    return vec4<f32>(mix(blend_lut[i], blend_lut[i + 1u], x - f32(i)).rgb, 1.0);
+}
+
+// A volume sample's colour with the blended overlay mixed in at depth `depth` along the ray.
+fn blended(c: vec4<f32>, r: Ray, depth: f32) -> vec4<f32> {
+    if (P.blend_on == 0u) {
+        return c;
+    }
+    let b = blend_color(r.o + r.d * ((depth - r.o_depth) / r.cosine));
+    return vec4<f32>(mix(c.rgb, b.rgb, b.a * P.blend_opacity), c.a);
+}
+
 // The depth of translucent layer l at pixel p (0: none; the layers after it are none too).
 fn layer_depth(p: vec2<i32>, l: u32) -> f32 {
     if (l >= P.peel_layers) {
@@ -731,7 +788,8 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
                 var grad = vec3<f32>(0.0);
                 let c = volume_sample(r, 0.5 * (a + b), &grad);
                 if (c.a > 0.0) {
-                    composite_eye(&e, &acc, &half, r, vec2<f32>(a, b), c, grad, o);
+                    let cb = blended(c, r, 0.5 * (a + b));
+                    composite_eye(&e, &acc, &half, r, vec2<f32>(a, b), cb, grad, o);
                 }
             }
             if (!in_slab) {

@@ -250,55 +250,62 @@ impl GpuPlane {
     }
 }
 
+/// A layer's colour (linear RGB) and coverage at world point `p` of `grid`, as the shaders map
+/// it (`plane_layer_color` in `gbuffer.wgsl`, `blend_color` in `slice_pass.wgsl`): `base`
+/// for a slice's own volume (opaque, the window clamped, gaps at its low end), else an overlay
+/// (nothing where `t < 0` or a gap). Samples are taken at `p`'s voxel index clamped into the
+/// grid: trilinear, or the nearest voxel for labels.
+pub fn layer_color(grid: &PlaneGrid, l: &PlaneLayer, p: DVec3, base: bool) -> ([f64; 3], f64) {
+    let q = (grid.affine.inverse() * DVec4::from((p, 1.0))).truncate();
+    let d = grid.dims;
+    let hi = DVec3::new(d[0] as f64 - 1.0, d[1] as f64 - 1.0, d[2] as f64 - 1.0);
+    let c = q.clamp(DVec3::ZERO, hi);
+    let f = grid.fields[l.field];
+    match &l.map {
+        LayerMap::Labels { colors } => {
+            let i = [0, 1, 2].map(|k| (c[k] + 0.5).floor() as usize);
+            let v = f[i[0] + d[0] * (i[1] + d[1] * i[2])] as f64;
+            if v.is_finite() && v >= 0.0 && v < colors.len() as f64 {
+                let e = colors[(v + 0.5).floor() as usize];
+                ([e[0] as f64, e[1] as f64, e[2] as f64], e[3] as f64)
+            } else {
+                ([0.0; 3], 0.0)
+            }
+        }
+        LayerMap::Scalar { lo, hi, colors } => {
+            let prepared = occlusion::emission_absorption::prepare(f);
+            let v = occlusion::emission_absorption::sample(&prepared, d, c).unwrap_or(-3e38);
+            let gap = v < -1e30;
+            let mut t = (v - lo) / (hi - lo);
+            let shown = if base {
+                t = if gap { 0.0 } else { t.clamp(0.0, 1.0) };
+                true
+            } else {
+                !gap && t >= 0.0
+            };
+            if !shown {
+                return ([0.0; 3], 0.0);
+            }
+            let x = t.min(1.0) * 255.0;
+            let i = (x.floor() as usize).min(254);
+            let (a, b) = (colors[i], colors[i + 1]);
+            let u = x - i as f64;
+            (
+                [0, 1, 2].map(|k| a[k] as f64 + (b[k] as f64 - a[k] as f64) * u),
+                1.0,
+            )
+        }
+    }
+}
+
 /// The CPU twin of the shader's slice colour at world point `p` (linear RGB): the layers'
 /// samples at `p`'s voxel index, mapped and blended as `plane_color` does, in f64. NaN and
 /// infinite samples (and trilinear samples next to one) are gaps: the slice's volume shows its
 /// map's low end there, an overlay nothing.
 pub fn plane_color(grid: &PlaneGrid, layers: &[PlaneLayer], p: DVec3) -> [f64; 3] {
-    let q = (grid.affine.inverse() * DVec4::from((p, 1.0))).truncate();
-    let d = grid.dims;
-    let hi = DVec3::new(d[0] as f64 - 1.0, d[1] as f64 - 1.0, d[2] as f64 - 1.0);
-    let c = q.clamp(DVec3::ZERO, hi);
-    let at = |f: &[f32], i: [usize; 3]| f[i[0] + d[0] * (i[1] + d[1] * i[2])] as f64;
     let mut out = [0.0f64; 3];
     for (li, l) in layers.iter().enumerate() {
-        let f = grid.fields[l.field];
-        let (rgb, a) = match &l.map {
-            LayerMap::Labels { colors } => {
-                let i = [0, 1, 2].map(|k| (c[k] + 0.5).floor() as usize);
-                let v = at(f, i);
-                if v.is_finite() && v >= 0.0 && v < colors.len() as f64 {
-                    let e = colors[(v + 0.5).floor() as usize];
-                    ([e[0] as f64, e[1] as f64, e[2] as f64], e[3] as f64)
-                } else {
-                    ([0.0; 3], 0.0)
-                }
-            }
-            LayerMap::Scalar { lo, hi, colors } => {
-                let prepared = occlusion::emission_absorption::prepare(f);
-                let v = occlusion::emission_absorption::sample(&prepared, d, c).unwrap_or(-3e38);
-                let gap = v < -1e30;
-                let mut t = (v - lo) / (hi - lo);
-                let shown = if li == 0 {
-                    t = if gap { 0.0 } else { t.clamp(0.0, 1.0) };
-                    true
-                } else {
-                    !gap && t >= 0.0
-                };
-                if shown {
-                    let x = t.min(1.0) * 255.0;
-                    let i = (x.floor() as usize).min(254);
-                    let (a, b) = (colors[i], colors[i + 1]);
-                    let u = x - i as f64;
-                    (
-                        [0, 1, 2].map(|k| a[k] as f64 + (b[k] as f64 - a[k] as f64) * u),
-                        1.0,
-                    )
-                } else {
-                    ([0.0; 3], 0.0)
-                }
-            }
-        };
+        let (rgb, a) = layer_color(grid, l, p, li == 0);
         if li == 0 {
             out = rgb.map(|x| x * a);
         } else {

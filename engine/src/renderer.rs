@@ -220,6 +220,8 @@ pub struct GpuScene {
     meshes: Vec<GpuMesh>,
     /// Slices of volumes ([`Renderer::upload_planes`]).
     planes: Vec<GpuPlane>,
+    /// An overlay blended into the volume ([`Renderer::upload_planes`]).
+    blend: Option<crate::slice_pass::GpuBlend>,
     lines: Vec<GpuLines>,
     iso: Option<GpuIso>,
 }
@@ -294,18 +296,24 @@ impl<'g> Renderer<'g> {
                 .collect::<Result<_, _>>()?,
             iso: iso.map(|i| GpuIso::upload(gpu, i)),
             planes: vec![],
+            blend: None,
         })
     }
 
     /// Adds slices of volumes to an uploaded scene (replacing any it had): their polygons and
     /// the fields of `grid` their layers read, each field uploaded once.
+    /// `blend`: a layer of `grid` blended into the volume rendering's colours.
     pub fn upload_planes(
         &self,
         scene: &mut GpuScene,
         grid: &PlaneGrid,
         planes: &[PlaneInput],
+        blend: Option<&crate::planes::PlaneLayer>,
     ) -> Result<(), GpuError> {
         scene.planes = GpuPlane::upload_all(self.gpu, grid, planes)?;
+        scene.blend = blend
+            .map(|b| crate::slice_pass::GpuBlend::upload(self.gpu, grid, b))
+            .transpose()?;
         Ok(())
     }
 
@@ -502,6 +510,7 @@ impl Frame {
                 light: s.light,
                 partial_layer: layer("partial"),
             },
+            scene.blend.as_ref(),
         )?;
         // The passes of the surface AO terms, from the term registry.
         let term_passes: Vec<(&'static str, Box<dyn TermPass>)> = layers

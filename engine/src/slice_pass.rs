@@ -116,6 +116,91 @@ pub struct SliceParams {
     pub cell: u32,
     /// Translucent layers peeled by the G-buffer (`GBuffer::peel`), composited in depth order.
     pub peel_layers: u32,
+    /// An overlay blended into the volume's colour ([`GpuBlend`]): world to its grid's index.
+    pub blend_to_index: [[f32; 4]; 4],
+    pub blend_dims: [u32; 3],
+    /// 1: a blended overlay.
+    pub blend_on: u32,
+    /// Its window (`t = (v - lo) / (hi - lo)`), opacity and kind (1: labels, `blend_count`
+    /// entries in its table; 0: 256 colours).
+    pub blend_lo: f32,
+    pub blend_hi: f32,
+    pub blend_opacity: f32,
+    pub blend_labels: u32,
+    pub blend_count: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
+}
+
+/// An overlay blended into the volume rendering (`overlays[].volume_blend`): each volume
+/// sample's colour is mixed with the overlay's colour at its world point by the overlay's
+/// coverage times its opacity (extinction unchanged); the mapping is the slices'
+/// (`engine::planes::layer_color`).
+#[derive(Clone)]
+pub struct GpuBlend {
+    field: wgpu::Buffer,
+    lut: wgpu::Buffer,
+    world_to_index: glam::DMat4,
+    dims: [usize; 3],
+    lo: f32,
+    hi: f32,
+    opacity: f32,
+    labels: bool,
+    count: u32,
+}
+
+impl GpuBlend {
+    /// Uploads field `layer.field` of `grid` with its mapping; an error naming the buffer when
+    /// it exceeds the adapter's binding limit.
+    pub fn upload(
+        gpu: &Gpu,
+        grid: &crate::planes::PlaneGrid,
+        layer: &crate::planes::PlaneLayer,
+    ) -> Result<GpuBlend, GpuError> {
+        use crate::planes::LayerMap;
+        let storage = wgpu::BufferUsages::STORAGE;
+        let f = grid.fields.get(layer.field).ok_or_else(|| {
+            GpuError::Operation(format!("the blended overlay names field {}", layer.field))
+        })?;
+        gpu.check_buffer("blended overlay", f.len() as u64 * 4, storage)?;
+        let f = occlusion::emission_absorption::prepare(f);
+        let (lut, lo, hi, labels): (Vec<[f32; 4]>, f64, f64, bool) = match &layer.map {
+            LayerMap::Scalar { lo, hi, colors } => (
+                colors.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect(),
+                *lo,
+                *hi,
+                false,
+            ),
+            LayerMap::Labels { colors } => (colors.clone(), 0.0, 1.0, true),
+        };
+        Ok(GpuBlend {
+            field: gpu.buffer("blended overlay", bytemuck::cast_slice(&f), storage),
+            lut: gpu.buffer(
+                "blended overlay colours",
+                bytemuck::cast_slice(&lut),
+                storage,
+            ),
+            world_to_index: grid.affine.inverse(),
+            dims: grid.dims,
+            lo: lo as f32,
+            hi: hi as f32,
+            opacity: layer.opacity,
+            labels,
+            count: lut.len() as u32,
+        })
+    }
+
+    /// The stand-in the pass binds without a blended overlay (never read).
+    fn none(gpu: &Gpu) -> (wgpu::Buffer, wgpu::Buffer) {
+        gpu.cached("no blend".into(), || {
+            let s = wgpu::BufferUsages::STORAGE;
+            (
+                gpu.buffer("no blend", &[0; 16], s),
+                gpu.buffer("no blend colours", &[0; 16], s),
+            )
+        })
+    }
 }
 
 /// No layer (`SliceParams::partial_layer`).
@@ -296,6 +381,7 @@ impl SlicePass {
         gbuf: &GBuffer,
         terms: &wgpu::Buffer,
         s: &SliceSettings,
+        blend: Option<&GpuBlend>,
     ) -> Result<SlicePass, GpuError> {
         let device = &gpu.device;
         s.check()
@@ -326,6 +412,8 @@ impl SlicePass {
                 Slot::StorageRw,
                 Slot::UnfilterableTextureArray,
                 Slot::UnfilterableTextureArray,
+                Slot::Storage,
+                Slot::Storage,
             ],
         );
         let l1 = gpu.layout(
@@ -406,6 +494,21 @@ impl SlicePass {
             cells: [cells.0, cells.1],
             cell,
             peel_layers: gbuf.peel.layers,
+            blend_to_index: mat4(blend.map_or(glam::DMat4::IDENTITY, |b| b.world_to_index)),
+            blend_dims: blend.map_or([1; 3], |b| u32x3(b.dims)),
+            blend_on: blend.is_some() as u32,
+            blend_lo: blend.map_or(0.0, |b| b.lo),
+            blend_hi: blend.map_or(1.0, |b| b.hi),
+            blend_opacity: blend.map_or(0.0, |b| b.opacity),
+            blend_labels: blend.is_some_and(|b| b.labels) as u32,
+            blend_count: blend.map_or(0, |b| b.count),
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
+        };
+        let (blend_field, blend_lut) = match blend {
+            Some(b) => (b.field.clone(), b.lut.clone()),
+            None => GpuBlend::none(gpu),
         };
         let params = gpu.buffer(
             "slice params",
@@ -439,6 +542,8 @@ impl SlicePass {
                 terms.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&gbuf.peel.color),
                 wgpu::BindingResource::TextureView(&gbuf.peel.nd),
+                blend_field.as_entire_binding(),
+                blend_lut.as_entire_binding(),
             ],
         );
         // Slice indices, one per dynamic-offset row.
@@ -618,6 +723,17 @@ mod tests {
                 cells,
                 cell,
                 peel_layers,
+                blend_to_index,
+                blend_dims,
+                blend_on,
+                blend_lo,
+                blend_hi,
+                blend_opacity,
+                blend_labels,
+                blend_count,
+                pad0,
+                pad1,
+                pad2,
             }
         );
         crate::prelude::assert_layout!(

@@ -368,6 +368,21 @@ pub fn reference_with_layers(
     v: &EaView,
     layers: impl Fn(usize, usize) -> Vec<Layer>,
 ) -> Vec<[f64; 4]> {
+    reference_blended(data, vol, tf, v, layers, |_| ([0.0; 3], 0.0))
+}
+
+/// [`reference_with_layers`] with a colour blended into every volume sample (an overlay,
+/// `overlays[].volume_blend`): `blend(p)` gives the colour at world point `p` and its weight
+/// (coverage times opacity); the sample's colour becomes `mix(colour, blend, weight)`, its
+/// extinction unchanged.
+pub fn reference_blended(
+    data: &[f32],
+    vol: &Volume,
+    tf: &Transfer,
+    v: &EaView,
+    layers: impl Fn(usize, usize) -> Vec<Layer>,
+    blend: impl Fn(DVec3) -> ([f64; 3], f64),
+) -> Vec<[f64; 4]> {
     let w2i = world_to_index(vol);
     let f = v.camera.forward();
     let (w, h) = (v.width as usize, v.height as usize);
@@ -387,7 +402,8 @@ pub fn reference_with_layers(
                     return;
                 }
                 let seg = (hi - lo) / cosine;
-                let q = (w2i * DVec4::from((o + d * s, 1.0))).truncate();
+                let p = o + d * s;
+                let q = (w2i * DVec4::from((p, 1.0))).truncate();
                 let Some(val) = sample(data, vol.dims, q).filter(|&v| v >= -1e30) else {
                     return;
                 };
@@ -398,8 +414,12 @@ pub fn reference_with_layers(
                 };
                 let (rgb, sigma) = tf.eval2(val, g);
                 let al = 1.0 - (-sigma.max(0.0) * seg).exp();
+                if al <= 0.0 {
+                    return;
+                }
+                let (bc, bw) = blend(p);
                 for i in 0..3 {
-                    c[i] += (1.0 - *a) * al * rgb[i];
+                    c[i] += (1.0 - *a) * al * (rgb[i] + (bc[i] - rgb[i]) * bw);
                 }
                 *a += (1.0 - *a) * al;
             };

@@ -889,6 +889,9 @@ pub fn cpu_refusal(s: &Scene, m: &Model) -> Option<String> {
     if m.planes.as_ref().is_some_and(|p| !p.planes.is_empty()) {
         return Some("slices (drawn on the GPU)".into());
     }
+    if m.planes.as_ref().is_some_and(|p| p.blend.is_some()) {
+        return Some("an overlay blended into the volume (drawn on the GPU)".into());
+    }
     let Some((_, _, tf)) = &m.volume else {
         return Some("no [volume]".into());
     };
@@ -989,7 +992,7 @@ pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, 
         .map_err(|e| e.to_string())?;
     if let Some(p) = &m.planes {
         renderer
-            .upload_planes(&mut scene, &p.grid(), &p.planes)
+            .upload_planes(&mut scene, &p.grid(), &p.planes, p.blend.as_ref())
             .map_err(|e| format!("slices: {e}"))?;
     }
     Ok(Uploaded {

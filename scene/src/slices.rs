@@ -19,6 +19,8 @@ pub struct PlaneModel {
     pub planes: Vec<PlaneInput>,
     /// Each overlay's colour mapping, in `[[overlays]]` order.
     pub overlays: Vec<LayerMap>,
+    /// The overlay blended into the volume rendering (`volume_blend`), as a layer of the grid.
+    pub blend: Option<PlaneLayer>,
 }
 
 impl PlaneModel {
@@ -516,6 +518,15 @@ pub fn model(
         affine,
         fields,
         planes,
+        blend: s
+            .overlays
+            .iter()
+            .position(|o| o.volume_blend)
+            .map(|k| PlaneLayer {
+                field: k + 1,
+                map: overlays[k].map.clone(),
+                opacity: overlays[k].opacity,
+            }),
         overlays: overlays.into_iter().map(|o| o.map).collect(),
     }))
 }

@@ -258,6 +258,9 @@ pub struct OverlaySpec {
     pub lut: Option<PathBuf>,
     /// The labels shown (default: every label in the table but 0).
     pub show: Option<Vec<i64>>,
+    /// Blend the overlay into the volume rendering's colours too (at most one overlay).
+    #[serde(default)]
+    pub volume_blend: bool,
 }
 
 /// `[[tubes]]`.
@@ -1391,6 +1394,13 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 "a label overlay takes its colours from lut, not range or colormap".into(),
             );
         }
+    }
+    if s.overlays.iter().filter(|o| o.volume_blend).count() > 1 {
+        return bad(
+            "overlays".into(),
+            "volume_blend is on for more than one overlay; at most one is blended into the volume"
+                .into(),
+        );
     }
     if (!s.slices.is_empty() || !s.overlays.is_empty())
         && s.volume.as_ref().is_none_or(|v| v.iso.is_some())

@@ -457,3 +457,74 @@ slice_distance = 0.5
         "{off} of {compared} pixels differ from the twin (worst {worst})"
     );
 }
+
+#[test]
+fn an_overlay_blended_into_the_volume_matches_the_cpu_twin() {
+    let dir = tempfile::tempdir().unwrap();
+    let anat = write(dir.path(), "anat.nii.gz", &anatomy());
+    let rot = DMat4::from_rotation_z(0.2)
+        * DMat4::from_cols_array(&[
+            2.5, 0.0, 0.0, 0.0, 0.0, 2.5, 0.0, 0.0, 0.0, 0.0, 2.5, 0.0, -22.0, -24.0, -25.0, 1.0,
+        ]);
+    let stat = write(
+        dir.path(),
+        "stat.nii.gz",
+        &volume_of([18, 20, 20], rot, |p| (0.3 * p.x - 0.2 * p.z) as f32),
+    );
+    let text = format!(
+        r#"
+background = [0.0, 0.0, 0.0]
+[camera]
+azimuth = 40.0
+elevation = 25.0
+[volume]
+path = "{anat}"
+[volume.transfer]
+points = [
+  {{ value = 60.0, color = [0.5, 0.5, 0.5], extinction = 0.0 }},
+  {{ value = 200.0, color = [0.9, 0.9, 0.9], extinction = 0.08 }},
+]
+[[overlays]]
+name = "stat"
+path = "{stat}"
+colormap = "red-yellow"
+range = [1.0, 6.0]
+opacity = 0.8
+volume_blend = true
+[render]
+method = "ea"
+width = 96
+height = 80
+fxaa = false
+slice_distance = 0.5
+"#
+    );
+    let (img, m, s) = draw(&text, dir.path());
+    let (vol, data, tf) = m.volume.as_ref().unwrap();
+    let view = scene::compile::view(&s, &m).unwrap();
+    let planes = m.planes.as_ref().unwrap();
+    let grid = planes.grid();
+    let layer = planes.blend.as_ref().unwrap();
+    let twin = occlusion::emission_absorption::reference_blended(
+        data,
+        vol,
+        tf,
+        &view,
+        |_, _| vec![],
+        |p| {
+            let (c, a) = engine::planes::layer_color(&grid, layer, p, false);
+            (c, a * layer.opacity as f64)
+        },
+    );
+    let plain = occlusion::emission_absorption::reference(data, vol, tf, &view);
+    let (mut worst, mut tinted) = (0.0f64, 0);
+    for (g, (c, p)) in img.iter().zip(twin.iter().zip(&plain)) {
+        for k in 0..3 {
+            worst = worst.max((g[k] as f64 - c[k]).abs());
+        }
+        // Where the blend changed the colour visibly (red-yellow over grey).
+        tinted += ((c[0] - c[2]) - (p[0] - p[2]) > 0.05) as usize;
+    }
+    assert!(tinted > 300, "{tinted} pixels tinted by the overlay");
+    assert!(worst < 3e-3, "GPU and CPU twin differ by {worst}");
+}
