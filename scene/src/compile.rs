@@ -107,6 +107,11 @@ pub fn transfer(spec: &TransferSpec, range: [f64; 2]) -> Result<Transfer, String
     })
 }
 
+/// A set's `colormap` key (checked when the scene was read; `None`: the built-in ramp).
+fn named_map(c: &Option<String>) -> Option<volume::colormap::Colormap> {
+    c.as_deref().and_then(|c| c.parse().ok())
+}
+
 /// The transfer function the projections (`mip`, `minip`) show their value through:
 /// `volume.colormap` (default grey) over `volume.window` `[lo, hi]` (default the field's
 /// `range`) as 256 points, each with extinction `volume.opacity` (default 1), which the
@@ -528,10 +533,11 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         notes.extend(note);
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
         if s.annotate.colorbar.as_deref() == Some(&format!("tubes.{i}")) {
-            colorbar = crate::tube_sets::color_bar(&sl, &t.color)
+            colorbar = crate::tube_sets::color_bar(&sl, &t.color, named_map(&t.colormap))
                 .map_err(|e| format!("tubes[{i}].color: {e}"))?;
         }
-        let args = crate::tube_sets::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
+        let mut args = crate::tube_sets::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
+        args.colormap = named_map(&t.colormap);
         let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
             .map_err(|e| format!("tubes[{i}].color ({}): {e}", t.path.display()))?;
         let mut mesh = mesh;
@@ -619,7 +625,7 @@ fn line_set(
     let sl = crate::slices::crop(&sl, slabs, 2);
     notes.extend(note);
     let bar = match want_bar {
-        true => crate::tube_sets::color_bar(&sl, &l.color)
+        true => crate::tube_sets::color_bar(&sl, &l.color, named_map(&l.colormap))
             .map_err(|e| format!("lines[{i}].color: {e}"))?,
         false => None,
     };
@@ -654,9 +660,10 @@ fn line_set(
                 .collect()
         }
     };
-    let mut set =
-        crate::tube_sets::with_color_mode(&sl, &l.color, |c| LineSet::new(&sl, c, width, cylinder))
-            .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))?;
+    let mut set = crate::tube_sets::with_color_map(&sl, &l.color, named_map(&l.colormap), |c| {
+        LineSet::new(&sl, c, width, cylinder)
+    })
+    .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))?;
     set.proxy_radius = proxy_radius;
     set.times = times;
     set.halo = l.halo.as_ref().and_then(|h| h.halo());
@@ -699,7 +706,7 @@ fn point_set(
     if sl.points.is_empty() {
         notes.push(format!("points[{i}] ({}): no points", p.path.display()));
     }
-    let mut set = crate::tube_sets::with_color_mode(&sl, &p.color, |c| {
+    let mut set = crate::tube_sets::with_color_map(&sl, &p.color, named_map(&p.colormap), |c| {
         LineSet::points(&sl, c, LineWidth::World(p.size))
     })
     .map_err(|e| format!("points[{i}].color ({}): {e}", p.path.display()))?;

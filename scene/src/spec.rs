@@ -274,6 +274,8 @@ pub struct TubesSpec {
     /// `direction`, `scalar:NAME`, `volume:PATH`, or a colour.
     #[serde(default = "default_color")]
     pub color: String,
+    /// The colour map of `scalar:NAME` / `volume:PATH` colours (default: the built-in ramp).
+    pub colormap: Option<String>,
     /// Row-major 4x4 applied to the points.
     pub transform: Option<[f64; 16]>,
     /// Fitting tolerance, world units.
@@ -365,6 +367,8 @@ pub struct LinesSpec {
     /// `direction`, `scalar:NAME`, `volume:PATH`, or a colour.
     #[serde(default = "default_color")]
     pub color: String,
+    /// The colour map of `scalar:NAME` / `volume:PATH` colours (default: the built-in ramp).
+    pub colormap: Option<String>,
     /// Row-major 4x4 applied to the points.
     pub transform: Option<[f64; 16]>,
     /// The line's width, in `width_unit`.
@@ -407,6 +411,8 @@ pub struct PointsSpec {
     /// `scalar:NAME`, `volume:PATH`, or a colour (default black).
     #[serde(default = "default_point_color")]
     pub color: String,
+    /// The colour map of `scalar:NAME` / `volume:PATH` colours (default: the built-in ramp).
+    pub colormap: Option<String>,
     /// Row-major 4x4 applied to the points.
     pub transform: Option<[f64; 16]>,
     /// The disc's diameter in world units.
@@ -1355,6 +1361,15 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
             bad(key, format!("{v} is not in [0, 1]"))
         }
     };
+    for (i, t) in s.tubes.iter().enumerate() {
+        cmap(format!("tubes[{i}].colormap"), &t.colormap)?;
+    }
+    for (i, l) in s.lines.iter().enumerate() {
+        cmap(format!("lines[{i}].colormap"), &l.colormap)?;
+    }
+    for (i, p) in s.points.iter().enumerate() {
+        cmap(format!("points[{i}].colormap"), &p.colormap)?;
+    }
     if let Some(v) = &s.volume {
         window("volume.window".into(), v.window)?;
         cmap("volume.colormap".into(), &v.colormap)?;

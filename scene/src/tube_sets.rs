@@ -25,6 +25,9 @@ pub struct TubesArgs {
     pub radius_mode: RadiusMode,
     /// `direction`, `scalar:NAME`, `volume:PATH`, or `#rrggbb`.
     pub color: String,
+    /// The colour map of `scalar:NAME` and `volume:PATH` (`None`: the built-in viridis-like
+    /// ramp, `tubes::tube_mesh::colormap`).
+    pub colormap: Option<volume::colormap::Colormap>,
     pub caps: bool,
     /// Row-major 4x4 applied to the points at load (e.g. the HCP1065 shift).
     pub transform: Option<[f64; 16]>,
@@ -47,6 +50,7 @@ impl TubesArgs {
             frame: FrameMethod::Rmf,
             radius_mode: RadiusMode::Local,
             color: color.to_string(),
+            colormap: None,
             caps: true,
             transform: None,
         }
@@ -150,6 +154,17 @@ pub fn with_color_mode<R>(
     color: &str,
     f: impl FnOnce(&ColorMode) -> R,
 ) -> Result<R, String> {
+    with_color_map(s, color, None, f)
+}
+
+/// [`with_color_mode`] with the colour map of `scalar:NAME` and `volume:PATH` colours (`None`:
+/// the built-in ramp).
+pub fn with_color_map<R>(
+    s: &tubes::Streamlines,
+    color: &str,
+    map: Option<volume::colormap::Colormap>,
+    f: impl FnOnce(&ColorMode) -> R,
+) -> Result<R, String> {
     let vol_field;
     let sampler;
     let mode = if color == "direction" {
@@ -168,7 +183,7 @@ pub fn with_color_mode<R>(
                 }
             ));
         }
-        ColorMode::Scalar(name.to_string())
+        ColorMode::Scalar(name.to_string(), map)
     } else if let Some(path) = color.strip_prefix("volume:") {
         let v = volume::load(std::path::Path::new(path)).map_err(|e| e.to_string())?;
         let fl = v.select(None).map_err(|e| e.to_string())?;
@@ -187,7 +202,7 @@ pub fn with_color_mode<R>(
             }
             f.data[v.index(q.x as usize, q.y as usize, q.z as usize)] as f64
         };
-        ColorMode::Field(&sampler, [st.min, st.max])
+        ColorMode::Field(&sampler, [st.min, st.max], map)
     } else {
         return Err(format!(
             "colour {color}: use direction, scalar:NAME, volume:PATH or #rrggbb"
@@ -199,7 +214,7 @@ pub fn with_color_mode<R>(
 /// The tube mesh of `s` with the options of `a` (its paths are not used): the colour source
 /// resolved ([`with_color_mode`]), then `tubes::tube_mesh::build`.
 pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, TubeStats), String> {
-    with_color_mode(s, &a.color, |color| {
+    with_color_map(s, &a.color, a.colormap, |color| {
         let opts = TubeOptions {
             radius: a.radius,
             sides: a.sides,
@@ -381,6 +396,7 @@ pub fn scene_key(key: &str, k: &str) -> String {
 pub fn color_bar(
     s: &tubes::Streamlines,
     color: &str,
+    map: Option<volume::colormap::Colormap>,
 ) -> Result<Option<crate::annotate::ColorBar>, String> {
     let label = color
         .strip_prefix("scalar:")
@@ -398,30 +414,31 @@ pub fn color_bar(
         return Ok(None);
     };
     let range = with_color_mode(s, color, |mode| match mode {
-        ColorMode::Scalar(name) => s
-            .point_attributes
-            .iter()
-            .find(|a| &a.name == name)
-            .map(|a| {
-                a.values
-                    .iter()
-                    .step_by(a.components)
-                    .filter(|v| v.is_finite())
-                    .fold([f64::INFINITY, f64::NEG_INFINITY], |[l, h], &x| {
-                        [l.min(x as f64), h.max(x as f64)]
-                    })
-            }),
-        ColorMode::Field(_, r) => Some(*r),
+        ColorMode::Scalar(name, _) => {
+            s.point_attributes
+                .iter()
+                .find(|a| &a.name == name)
+                .map(|a| {
+                    a.values
+                        .iter()
+                        .step_by(a.components)
+                        .filter(|v| v.is_finite())
+                        .fold([f64::INFINITY, f64::NEG_INFINITY], |[l, h], &x| {
+                            [l.min(x as f64), h.max(x as f64)]
+                        })
+                })
+        }
+        ColorMode::Field(_, r, _) => Some(*r),
         _ => None,
     })?;
     Ok(range
         .filter(|r| r[0] <= r[1])
         .map(|range| crate::annotate::ColorBar {
             label,
-            map: "viridis".into(),
+            map: map.map_or("viridis", |m| m.name()).into(),
             range,
             colors: (0..64)
-                .map(|k| tubes::tube_mesh::colormap((k as f64 + 0.5) / 64.0))
+                .map(|k| tubes::tube_mesh::map_color(map, (k as f64 + 0.5) / 64.0))
                 .collect(),
         }))
 }

@@ -528,3 +528,25 @@ slice_distance = 0.5
     assert!(tinted > 300, "{tinted} pixels tinted by the overlay");
     assert!(worst < 3e-3, "GPU and CPU twin differ by {worst}");
 }
+
+#[test]
+fn bad_slice_and_colour_map_keys_name_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let err = |text: &str| scene::spec::parse(text, "t.toml", dir.path(), &[]).unwrap_err();
+    let e = err("[[lines]]\npath = \"x.tck\"\ncolor = \"scalar:fa\"\ncolormap = \"jet\"\n");
+    assert!(
+        e.contains("lines[0].colormap") && e.contains("viridis"),
+        "{e}"
+    );
+    let e =
+        err("[volume]\npath = \"v.nii\"\n[[slices]]\naxis = \"axial\"\nnormal = [0.0, 0.0, 1.0]\n");
+    assert!(e.contains("slices[0].axis"), "{e}");
+    let e = err("[volume]\npath = \"v.nii\"\n[[slices]]\naxis = \"axial\"\nvolume = \"fa\"\n");
+    assert!(e.contains("slices[0].volume") && e.contains("'fa'"), "{e}");
+    let e = err("[volume]\npath = \"v.nii\"\n[[overlays]]\nname = \"a\"\npath = \"a.nii\"\nrange = [1.0, 1.0]\n");
+    assert!(e.contains("overlays[0].range"), "{e}");
+    let e = err("[[slices]]\naxis = \"axial\"\n");
+    assert!(e.contains("need a [volume]"), "{e}");
+    let e = err("[volume]\npath = \"v.nii\"\n[render]\ntranslucent_layers = 9\n");
+    assert!(e.contains("render.translucent_layers"), "{e}");
+}

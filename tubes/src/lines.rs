@@ -3,7 +3,7 @@
 //! (f32 position relative to an f64 origin, an RGBA8 colour) and one index per segment: 20
 //! bytes a point, with no vertex duplicated on the CPU.
 
-use crate::tube_mesh::{colormap, ColorMode};
+use crate::tube_mesh::{map_color, ColorMode};
 use crate::Streamlines;
 use glam::{DVec3, Vec3};
 
@@ -155,7 +155,7 @@ impl LineSet {
             .map(|[lo, hi]| ((lo + hi) * 0.5).as_dvec3())
             .unwrap_or(DVec3::ZERO);
         let scalar = match color {
-            ColorMode::Scalar(name) => s.point_attributes.iter().find(|a| &a.name == name),
+            ColorMode::Scalar(name, _) => s.point_attributes.iter().find(|a| &a.name == name),
             _ => None,
         };
         let range = scalar.map(|a| {
@@ -184,15 +184,15 @@ impl LineSet {
                         [t.x.abs(), t.y.abs(), t.z.abs()]
                     }
                     ColorMode::Constant(c) => *c,
-                    ColorMode::Scalar(_) => {
+                    ColorMode::Scalar(_, map) => {
                         let [lo, hi] = range.unwrap_or([0.0, 1.0]);
                         let v = scalar
                             .map(|a| a.values[(first + k) * a.components] as f64)
                             .unwrap_or(0.0);
-                        colormap((v - lo) / (hi - lo).max(1e-300))
+                        map_color(*map, (v - lo) / (hi - lo).max(1e-300))
                     }
-                    ColorMode::Field(f, [lo, hi]) => {
-                        colormap((f(world) - lo) / (hi - lo).max(1e-300))
+                    ColorMode::Field(f, [lo, hi], map) => {
+                        map_color(*map, (f(world) - lo) / (hi - lo).max(1e-300))
                     }
                 };
                 colors.push(rgba(c));
@@ -290,16 +290,29 @@ mod tests {
         });
         let l = LineSet::new(
             &s,
-            &ColorMode::Scalar("fa".into()),
+            &ColorMode::Scalar("fa".into(), None),
             LineWidth::World(0.1),
             true,
         );
-        let want = |v: f64| rgba(colormap(v));
+        let want = |v: f64| rgba(crate::tube_mesh::colormap(v));
         assert_eq!(l.colors[0], want(0.0));
         assert_eq!(l.colors[2], want(1.0));
         assert_eq!(l.colors[1], want(0.5));
         // A NaN value takes the colour map's NaN colour (its low end), not a panic.
         assert_eq!(l.colors[4], want(f64::NAN));
+        // A named map: its colours at the same positions.
+        let magma = volume::colormap::Colormap::Magma;
+        let l = LineSet::new(
+            &s,
+            &ColorMode::Scalar("fa".into(), Some(magma)),
+            LineWidth::World(0.1),
+            true,
+        );
+        let want = |v: f64| rgba(magma.rgb(v).map(|c| c as f32));
+        assert_eq!(l.colors[0], want(0.0));
+        assert_eq!(l.colors[1], want(0.5));
+        assert_eq!(l.colors[5], want(0.25));
+        assert_ne!(l.colors[1], rgba(crate::tube_mesh::colormap(0.5)));
     }
 }
 

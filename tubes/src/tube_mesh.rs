@@ -37,6 +37,7 @@ use crate::bspline_fit::{clean, fit, BSpline, FitOptions};
 use crate::Streamlines;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
+use volume::colormap::Colormap;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FrameMethod {
@@ -56,11 +57,24 @@ pub enum ColorMode<'a> {
     /// Absolute unit tangent as RGB (the usual directionally encoded colour).
     Direction,
     Constant([f32; 3]),
-    /// A per-point attribute of the streamlines (first component), through the colour map over
-    /// its range.
-    Scalar(String),
-    /// A scalar function of world position (a volume sampled along the tube), with its range.
-    Field(&'a (dyn Fn(DVec3) -> f64 + Sync), [f64; 2]),
+    /// A per-point attribute of the streamlines (first component), through a colour map over
+    /// its range (`None`: [`colormap`]).
+    Scalar(String, Option<Colormap>),
+    /// A scalar function of world position (a volume sampled along the tube), with its range,
+    /// through a colour map (`None`: [`colormap`]).
+    Field(
+        &'a (dyn Fn(DVec3) -> f64 + Sync),
+        [f64; 2],
+        Option<Colormap>,
+    ),
+}
+
+/// The colour at `t` in [0, 1] of colour map `map` (linear RGB; `None`: [`colormap`]).
+pub fn map_color(map: Option<Colormap>, t: f64) -> [f32; 3] {
+    match map {
+        Some(m) => m.rgb(t).map(|c| c as f32),
+        None => colormap(t),
+    }
 }
 
 /// Options of [`build`].
@@ -704,11 +718,13 @@ fn tube(
                 t[i].z.abs() as f32,
             ],
             ColorMode::Constant(c) => *c,
-            ColorMode::Scalar(_) => {
+            ColorMode::Scalar(_, map) => {
                 let [lo, hi] = attr.map(|a| a.1).unwrap_or([0.0, 1.0]);
-                colormap((attr_at(params[i]) - lo) / (hi - lo).max(1e-300))
+                map_color(*map, (attr_at(params[i]) - lo) / (hi - lo).max(1e-300))
             }
-            ColorMode::Field(func, [lo, hi]) => colormap((func(x[i]) - lo) / (hi - lo).max(1e-300)),
+            ColorMode::Field(func, [lo, hi], map) => {
+                map_color(*map, (func(x[i]) - lo) / (hi - lo).max(1e-300))
+            }
         };
         rings.color.push(rgb8(color));
         if i > 0 && !cut[i] && !cut[i - 1] {
@@ -773,7 +789,7 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
         .map(|[lo, hi]| ((lo + hi) * 0.5).as_dvec3())
         .unwrap_or(DVec3::ZERO);
     let scalar = match &o.color {
-        ColorMode::Scalar(name) => s.point_attributes.iter().find(|a| &a.name == name),
+        ColorMode::Scalar(name, _) => s.point_attributes.iter().find(|a| &a.name == name),
         _ => None,
     };
     let range = scalar.map(|a| {

@@ -46,6 +46,11 @@ pub struct Args {
     /// Colour: direction, scalar:NAME, volume:PATH, or #rrggbb.
     #[arg(long, default_value = "direction")]
     color: String,
+    /// Colour map of scalar:NAME and volume:PATH colours: grey, viridis, magma, inferno,
+    /// plasma, cool-warm, hot, red-yellow, blue-lightblue (default: the built-in viridis-like
+    /// ramp).
+    #[arg(long)]
+    colormap: Option<String>,
     /// Close the tube ends.
     #[arg(long)]
     caps: bool,
@@ -134,6 +139,11 @@ pub fn run(a: Args) -> Result<(), String> {
         frame: a.frame.into(),
         radius_mode: a.radius_mode.into(),
         color: a.color,
+        colormap: a
+            .colormap
+            .as_deref()
+            .map(|c| c.parse().map_err(|e| format!("--colormap: {e}")))
+            .transpose()?,
         caps: a.caps,
         transform: a.transform,
     };
