@@ -261,54 +261,34 @@ def toml_list(v):
 
 
 def write_scene(path, vol, cam, tf, fxaa):
+    head = """background = %s
+[camera]
+eye = %s
+target = %s
+up = %s
+fov_y = %.9g
+[volume]
+path = "%s"
+""" % (toml_list(BACKGROUND), toml_list(cam["eye"]), toml_list(cam["target"]),
+       toml_list(cam["up"]), cam["fov_y"], vol)
+    tail = """[render]
+method = "%s"
+width = 512
+height = 512
+msaa = 1
+fxaa = %s
+"""
+    fx = "true" if fxaa else "false"
     if "window" in tf:
-        txt = """# Written by bench/vtk_compare.py --blend: the projection VTK renders too.
-background = %s
-[camera]
-eye = %s
-target = %s
-up = %s
-fov_y = %.9g
-[volume]
-path = "%s"
-window = %s
-colormap = "grey"
-opacity = %.9g
-[render]
-method = "mip"
-width = 512
-height = 512
-msaa = 1
-fxaa = %s
-""" % (toml_list(BACKGROUND), toml_list(cam["eye"]), toml_list(cam["target"]),
-           toml_list(cam["up"]), cam["fov_y"], vol, toml_list(tf["window"]), tf["opacity"],
-           "true" if fxaa else "false")
-        with open(path, "w") as f:
-            f.write(txt)
-        return
-    pts = ",\n  ".join("{ value = %.9g, color = %s, extinction = %.9g }" % (v, toml_list(c), s)
-                       for v, c, s in tf["umbra_points"])
-    txt = """# Written by bench/vtk_compare.py: the scene VTK renders too (explicit look-at camera).
-background = %s
-[camera]
-eye = %s
-target = %s
-up = %s
-fov_y = %.9g
-[volume]
-path = "%s"
-[volume.transfer]
-points = [
-  %s,
-]
-[render]
-method = "ea"
-width = 512
-height = 512
-msaa = 1
-fxaa = %s
-""" % (toml_list(BACKGROUND), toml_list(cam["eye"]), toml_list(cam["target"]),
-       toml_list(cam["up"]), cam["fov_y"], vol, pts, "true" if fxaa else "false")
+        txt = ("# Written by bench/vtk_compare.py --blend: the projection VTK renders too.\n"
+               + head + "window = %s\ncolormap = \"grey\"\nopacity = %.9g\n"
+               % (toml_list(tf["window"]), tf["opacity"]) + tail % ("mip", fx))
+    else:
+        pts = ",\n  ".join("{ value = %.9g, color = %s, extinction = %.9g }"
+                           % (v, toml_list(c), s) for v, c, s in tf["umbra_points"])
+        txt = ("# Written by bench/vtk_compare.py: the scene VTK renders too (explicit look-at "
+               "camera).\n" + head + "[volume.transfer]\npoints = [\n  %s,\n]\n" % pts
+               + tail % ("ea", fx))
     with open(path, "w") as f:
         f.write(txt)
 
