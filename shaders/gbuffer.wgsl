@@ -503,7 +503,7 @@ fn plane_layer_color(y: PlaneLayer, v: f32) -> vec4<f32> {
         if (!(v >= 0.0 && v < f32(y.count))) {
             return vec4<f32>(0.0);
         }
-        return plane_lut[y.lut + u32(floor(v + 0.5))];
+        return plane_lut[y.lut + min(u32(floor(v + 0.5)), y.count - 1u)];
     }
     // Gaps (NaN voxels, as -3e38: engine::planes) show the low end under the slice's volume
     // and nothing of an overlay.

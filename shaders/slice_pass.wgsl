@@ -673,7 +673,7 @@ fn blend_color(p: vec3<f32>) -> vec4<f32> {
         if (!(v >= 0.0 && v < f32(P.blend_count))) {
             return vec4<f32>(0.0);
         }
-        return blend_lut[u32(floor(v + 0.5))];
+        return blend_lut[min(u32(floor(v + 0.5)), P.blend_count - 1u)];
     }
     let b = min(vec3<u32>(floor(c)), max(P.blend_dims, vec3<u32>(2u)) - vec3<u32>(2u));
     let top = P.blend_dims - vec3<u32>(1u);
@@ -700,7 +700,8 @@ fn blended(c: vec4<f32>, r: Ray, depth: f32) -> vec4<f32> {
     return vec4<f32>(mix(c.rgb, b.rgb, b.a * P.blend_opacity), c.a);
 }
 
-// The depth of translucent layer l at pixel p (0: none; the layers after it are none too).
+// The depth of translucent layer l at pixel p (0: none; the march stops at the first none, as
+// a pass after an empty layer may peel the nearest fragment again).
 fn layer_depth(p: vec2<i32>, l: u32) -> f32 {
     if (l >= P.peel_layers) {
         return 0.0;

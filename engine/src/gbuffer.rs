@@ -1,7 +1,7 @@
 //! The tubes' G-buffer (Schott et al., section 3.2.1), the one rasterised pass of the
 //! renderer. Shader: `shaders/gbuffer.wgsl`.
 //!
-//! Targets (all `width x height`, cleared to zero): surface colour (`rgba8unorm`, alpha 1 where
+//! Targets (all `width x height`, cleared to zero): surface colour (`rgba16float`, alpha 1 where
 //! a surface is), world-space normal facing the viewer (`rgba16float`), linear view depth of
 //! the nearest surface (`r32float`, the distance along the viewing direction, the same measure
 //! as the slices' depth; 0 where no surface is), and in a second pass the linear depth of the
@@ -27,7 +27,9 @@ use tubes::tube_mesh::TubeMesh;
 
 pub(crate) const SHADER: &str = include_str!("../../shaders/gbuffer.wgsl");
 
-pub const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// Surface colour: linear, so in 16-bit floats (8-bit linear steps band dark tones of slices
+/// once encoded as sRGB: the first step above black is sRGB 13/255).
+pub const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 pub const NORMAL: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 pub const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 /// Peeled translucent layers: straight colour and opacity; normal and linear depth.
@@ -906,7 +908,7 @@ impl GBuffer {
             nd: nd_view,
             color_tex,
             nd_tex,
-            z: depth("peel z"),
+            z: target(gpu, "peel z", wgpu::TextureFormat::Depth32Float, pw, ph).1,
             targets,
             binds,
             draws: peel_draws,

@@ -266,7 +266,7 @@ pub fn layer_color(grid: &PlaneGrid, l: &PlaneLayer, p: DVec3, base: bool) -> ([
             let i = [0, 1, 2].map(|k| (c[k] + 0.5).floor() as usize);
             let v = f[i[0] + d[0] * (i[1] + d[1] * i[2])] as f64;
             if v.is_finite() && v >= 0.0 && v < colors.len() as f64 {
-                let e = colors[(v + 0.5).floor() as usize];
+                let e = colors[((v + 0.5).floor() as usize).min(colors.len() - 1)];
                 ([e[0] as f64, e[1] as f64, e[2] as f64], e[3] as f64)
             } else {
                 ([0.0; 3], 0.0)

@@ -246,12 +246,13 @@ fn range(data: &[f32]) -> Option<[f64; 2]> {
     r
 }
 
-/// A window that can be mapped: equal ends are widened by one (a constant field).
+/// A window that can be mapped in single precision: ends too close for f32 (a constant field)
+/// are widened to a relative 1e-3 or by one.
 fn usable(w: [f64; 2]) -> [f64; 2] {
-    if w[0] == w[1] {
-        [w[0], w[0] + 1.0]
-    } else {
+    if (w[1] as f32) > (w[0] as f32) {
         w
+    } else {
+        [w[0], w[0] + (1e-3 * w[0].abs()).max(1.0)]
     }
 }
 

@@ -1340,10 +1340,11 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
 /// relative to `dir`).
 fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
     let bad = |key: String, why: String| Err(format!("scene key {key}: {why}"));
+    // The shaders map windows in f32: their ends and width must be finite and non-zero there.
     let window = |key: String, w: Option<[f64; 2]>| match w {
-        Some(w) if !(w[0].is_finite() && w[1].is_finite() && w[0] != w[1]) => bad(
+        Some(w) if !f32_window(w) => bad(
             key,
-            format!("{w:?}: two different finite values are needed"),
+            format!("{w:?}: two finite values that differ in single precision are needed"),
         ),
         _ => Ok(()),
     };
@@ -1410,6 +1411,38 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
             );
         }
     }
+    if let Some(v) = &s.volume {
+        if v.iso.is_some() && !v.render {
+            return bad(
+                "volume.render".into(),
+                "false with [volume.iso]: the isosurface is the volume's drawing; leave [volume.iso] out".into(),
+            );
+        }
+        if v.iso.is_some() {
+            if let Some(i) = s.tubes.iter().position(|t| t.opacity < 1.0) {
+                return bad(
+                    format!("tubes[{i}].opacity"),
+                    "translucent tubes are not drawn with an isosurface ([volume.iso])".into(),
+                );
+            }
+        }
+    }
+    if let Some(i) = s.overlays.iter().position(|o| o.volume_blend) {
+        let drawn = s
+            .volume
+            .as_ref()
+            .is_some_and(|v| v.render && v.iso.is_none());
+        let projection = matches!(
+            s.render.method.desc().volume,
+            engine::method::VolumeShading::Projection(_)
+        );
+        if !drawn || projection {
+            return bad(
+                format!("overlays[{i}].volume_blend"),
+                "needs the volume drawn by its transfer function (volume.render, not [volume.iso], not mip or minip)".into(),
+            );
+        }
+    }
     if s.overlays.iter().filter(|o| o.volume_blend).count() > 1 {
         return bad(
             "overlays".into(),
@@ -1455,6 +1488,16 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
         window(key("window"), sl.window)?;
         cmap(key("colormap"), &sl.colormap)?;
+        let shows_labels = sl
+            .volume
+            .as_ref()
+            .is_some_and(|v| s.overlays.iter().any(|o| &o.name == v && o.labels));
+        if shows_labels && (sl.window.is_some() || sl.colormap.is_some()) {
+            return bad(
+                key("window"),
+                "a slice showing a label overlay takes its colours from the overlay's lut, not window or colormap".into(),
+            );
+        }
         unit(key("opacity"), sl.opacity)?;
         if let Some(w) = sl.slab {
             if !(w.is_finite() && w > 0.0) {
@@ -1463,6 +1506,13 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// Whether `[lo, hi]` can be mapped in single precision: finite ends of different f32 values
+/// and a finite width.
+fn f32_window(w: [f64; 2]) -> bool {
+    let (a, b) = (w[0] as f32, w[1] as f32);
+    a.is_finite() && b.is_finite() && (b - a).is_finite() && b != a
 }
 
 /// Checks a halo's ranges; `key` names it (`lines[0].halo`).

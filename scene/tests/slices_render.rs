@@ -183,7 +183,7 @@ fxaa = false
                 let err = (0..3)
                     .map(|k| (px[k] as f64 - want[k]).abs())
                     .fold(0.0, f64::max);
-                // The G-buffer stores colour in 8 bits: within 1/255 and a little.
+                // f32 against f64 and the G-buffer's 16-bit colour: well within 1.5/255.
                 if err > 1.5 / 255.0 {
                     off += 1;
                 }
@@ -549,4 +549,16 @@ fn bad_slice_and_colour_map_keys_name_the_key() {
     assert!(e.contains("need a [volume]"), "{e}");
     let e = err("[volume]\npath = \"v.nii\"\n[render]\ntranslucent_layers = 9\n");
     assert!(e.contains("render.translucent_layers"), "{e}");
+    // A window too narrow for single precision.
+    let e = err("[volume]\npath = \"v.nii\"\nwindow = [1.0, 1.00000001]\n");
+    assert!(e.contains("volume.window"), "{e}");
+    // Blending needs a volume drawn by its transfer function.
+    let blend = "[volume]\npath = \"v.nii\"\n[[overlays]]\nname = \"a\"\npath = \"a.nii\"\nvolume_blend = true\n";
+    let e = err(&format!("{blend}[render]\nmethod = \"mip\"\n"));
+    assert!(e.contains("overlays[0].volume_blend"), "{e}");
+    // Translucent tubes with an isosurface, a label slice with a window.
+    let e = err("[volume]\npath = \"v.nii\"\n[volume.iso]\nvalue = 1.0\n[[tubes]]\npath = \"t.tck\"\nopacity = 0.5\n");
+    assert!(e.contains("tubes[0].opacity"), "{e}");
+    let e = err("[volume]\npath = \"v.nii\"\n[[overlays]]\nname = \"a\"\npath = \"a.nii\"\nlabels = true\n[[slices]]\naxis = \"axial\"\nvolume = \"a\"\nwindow = [0.0, 5.0]\n");
+    assert!(e.contains("slices[0].window"), "{e}");
 }
