@@ -1993,6 +1993,7 @@ mod tests {
             "demo.toml",
             "demo_lines.toml",
             "mni_ea.toml",
+            "slices.toml",
         ] {
             // Relative to the working directory, as `umbra render datasets/scenes/x.toml`.
             let s = load(&dir.join(name), &["camera.azimuth=-42.5".into()]).unwrap();

@@ -562,3 +562,47 @@ fn bad_slice_and_colour_map_keys_name_the_key() {
     let e = err("[volume]\npath = \"v.nii\"\n[[overlays]]\nname = \"a\"\npath = \"a.nii\"\nlabels = true\n[[slices]]\naxis = \"axial\"\nvolume = \"a\"\nwindow = [0.0, 5.0]\n");
     assert!(e.contains("slices[0].window"), "{e}");
 }
+
+#[test]
+fn the_bundled_slices_scene_shows_anatomy_overlay_and_cropped_tracts() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let path = root.join("datasets/scenes/slices.toml");
+    let s = scene::spec::load(
+        &path,
+        &["render.width=160".into(), "render.height=120".into()],
+    )
+    .unwrap();
+    let gpu = engine::gpu::Gpu::new().expect("a GPU adapter (lavapipe in CI)");
+    let m = model(&s).unwrap();
+    // Two slices; the axial one carries the white-matter overlay, the sagittal one does not.
+    let planes = m.planes.as_ref().unwrap();
+    assert_eq!(planes.planes.len(), 2);
+    assert_eq!(planes.planes[0].layers.len(), 2);
+    assert_eq!(planes.planes[1].layers.len(), 1);
+    // The tracts are cropped to the slab z in [-15, 35] (after their transform).
+    for mesh in &m.meshes {
+        let z: Vec<f64> = mesh
+            .positions
+            .iter()
+            .map(|p| p.z as f64 + mesh.origin.z)
+            .collect();
+        assert!(!z.is_empty());
+        // Tube radius 0.4: surfaces reach a little past the points.
+        assert!(
+            z.iter().all(|z| (-15.5..=35.5).contains(z)),
+            "{:?}",
+            z.iter()
+                .fold((f64::MAX, f64::MIN), |a, &z| (a.0.min(z), a.1.max(z)))
+        );
+    }
+    let up = upload(&gpu, &m).unwrap();
+    let (out, _) = up.draw(&s, &m, DrawOptions::default()).unwrap();
+    // Red-yellow overlay pixels (tinted: red well above blue) and grey anatomy pixels.
+    let warm = out.image.iter().filter(|p| p[0] - p[2] > 0.15).count();
+    let grey = out
+        .image
+        .iter()
+        .filter(|p| p[0] > 0.05 && (p[0] - p[2]).abs() < 0.01 && p[0] < 0.9)
+        .count();
+    assert!(warm > 200 && grey > 200, "warm {warm}, grey {grey}");
+}
