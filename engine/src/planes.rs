@@ -116,44 +116,50 @@ fn check(grid: &PlaneGrid, p: &PlaneInput, what: &str) -> Result<(), String> {
             MAX_LAYERS - 1
         ));
     }
-    let n: usize = grid.dims.iter().product();
     for (i, l) in p.layers.iter().enumerate() {
-        let Some(f) = grid.fields.get(l.field) else {
-            return Err(format!(
-                "{what}: layer {i} names field {} of {}",
-                l.field,
-                grid.fields.len()
-            ));
-        };
-        if f.len() != n {
-            return Err(format!(
-                "{what}: layer {i} has {} samples, the grid {n}",
-                f.len()
-            ));
-        }
-        match &l.map {
-            LayerMap::Scalar { lo, hi, colors } => {
-                if colors.len() != 256 || !(lo.is_finite() && hi.is_finite()) || lo == hi {
-                    return Err(format!(
-                        "{what}: layer {i}: the colour map needs 256 entries and a finite window of non-zero width"
-                    ));
-                }
+        check_layer(grid, l, &format!("{what}: layer {i}"))?;
+    }
+    Ok(())
+}
+
+/// Checks one layer against the grid (its field's length, a 256-entry colour map and a finite
+/// window of non-zero width in f32, a label table of 1 to [`MAX_LABELS`] entries, an opacity in
+/// [0, 1]); `what` names it in the error.
+pub fn check_layer(grid: &PlaneGrid, l: &PlaneLayer, what: &str) -> Result<(), String> {
+    let n: usize = grid.dims.iter().product();
+    let Some(f) = grid.fields.get(l.field) else {
+        return Err(format!(
+            "{what} names field {} of {}",
+            l.field,
+            grid.fields.len()
+        ));
+    };
+    if f.len() != n {
+        return Err(format!("{what} has {} samples, the grid {n}", f.len()));
+    }
+    match &l.map {
+        LayerMap::Scalar { lo, hi, colors } => {
+            let (a, b) = (*lo as f32, *hi as f32);
+            if colors.len() != 256
+                || !(a.is_finite() && b.is_finite() && (b - a).is_finite())
+                || a == b
+            {
+                return Err(format!(
+                    "{what}: the colour map needs 256 entries and a finite window of non-zero width"
+                ));
             }
-            LayerMap::Labels { colors } => {
-                if colors.is_empty() || colors.len() > MAX_LABELS {
-                    return Err(format!(
-                        "{what}: layer {i}: a label table of {} entries (1 to {MAX_LABELS})",
-                        colors.len()
-                    ));
-                }
+        }
+        LayerMap::Labels { colors } => {
+            if colors.is_empty() || colors.len() > MAX_LABELS {
+                return Err(format!(
+                    "{what}: a label table of {} entries (1 to {MAX_LABELS})",
+                    colors.len()
+                ));
             }
         }
-        if !(0.0..=1.0).contains(&l.opacity) {
-            return Err(format!(
-                "{what}: layer {i}: opacity {} is not in [0, 1]",
-                l.opacity
-            ));
-        }
+    }
+    if !(0.0..=1.0).contains(&l.opacity) {
+        return Err(format!("{what}: opacity {} is not in [0, 1]", l.opacity));
     }
     Ok(())
 }
@@ -254,7 +260,8 @@ impl GpuPlane {
 /// it (`plane_layer_color` in `gbuffer.wgsl`, `blend_color` in `slice_pass.wgsl`): `base`
 /// for a slice's own volume (opaque, the window clamped, gaps at its low end), else an overlay
 /// (nothing where `t < 0` or a gap). Samples are taken at `p`'s voxel index clamped into the
-/// grid: trilinear, or the nearest voxel for labels.
+/// grid: trilinear, or the nearest voxel for labels. `l` must be a layer [`check_layer`]
+/// accepts (as every uploaded one is).
 pub fn layer_color(grid: &PlaneGrid, l: &PlaneLayer, p: DVec3, base: bool) -> ([f64; 3], f64) {
     let q = (grid.affine.inverse() * DVec4::from((p, 1.0))).truncate();
     let d = grid.dims;

@@ -160,11 +160,11 @@ impl GpuBlend {
     ) -> Result<GpuBlend, GpuError> {
         use crate::planes::LayerMap;
         let storage = wgpu::BufferUsages::STORAGE;
-        let f = grid.fields.get(layer.field).ok_or_else(|| {
-            GpuError::Operation(format!("the blended overlay names field {}", layer.field))
-        })?;
+        let f = grid.fields[layer.field];
         gpu.check_buffer("blended overlay", f.len() as u64 * 4, storage)?;
         let f = occlusion::emission_absorption::prepare(f);
+        crate::planes::check_layer(grid, layer, "the blended overlay")
+            .map_err(GpuError::Operation)?;
         let (lut, lo, hi, labels): (Vec<[f32; 4]>, f64, f64, bool) = match &layer.map {
             LayerMap::Scalar { lo, hi, colors } => (
                 colors.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect(),

@@ -496,7 +496,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 });
             }
             let data = emission_absorption::prepare(&field.data);
-            planes = crate::slices::model(s, &vol, &data, &mut notes)?;
+            planes = crate::slices::model(s, &vol, &data, [st.min, st.max], &mut notes)?;
             if let (Some(name), Some(p)) = (
                 s.annotate
                     .colorbar

@@ -103,62 +103,26 @@ pub fn slabs(s: &Scene, bounds: [DVec3; 2]) -> Vec<Slab> {
         .collect()
 }
 
-/// The streamlines cropped to the slabs: every point outside all of them is removed and its
-/// streamline split there; pieces of fewer than `min_points` points are dropped; per-point
-/// attributes follow their points, per-streamline ones are repeated for each piece.
+/// The streamlines cropped to the slabs (mrview's crop to slab): every point outside all of
+/// them is removed and its streamline split there; pieces of fewer than `min_points` points
+/// are dropped; attributes follow (`tubes::select::crop`).
 pub fn crop(s: &tubes::Streamlines, slabs: &[Slab], min_points: usize) -> tubes::Streamlines {
     if slabs.is_empty() {
         return s.clone();
     }
-    let inside = |p: Vec3| slabs.iter().any(|b| b.contains(p));
-    let mut out = tubes::Streamlines::new();
-    out.reference = s.reference.clone();
-    out.format = s.format.clone();
-    out.warnings = s.warnings.clone();
-    out.point_attributes = s
-        .point_attributes
-        .iter()
-        .map(|a| tubes::Attribute {
-            values: vec![],
-            ..a.clone()
-        })
-        .collect();
-    out.line_attributes = out_attrs(&s.line_attributes);
-    for i in 0..s.len() {
-        let (a, b) = (s.offsets[i], s.offsets[i + 1]);
-        let mut start = a;
-        while start < b {
-            while start < b && !inside(s.points[start]) {
-                start += 1;
-            }
-            let mut end = start;
-            while end < b && inside(s.points[end]) {
-                end += 1;
-            }
-            if end - start >= min_points.max(1) {
-                out.push(&s.points[start..end]);
-                for (o, src) in out.point_attributes.iter_mut().zip(&s.point_attributes) {
-                    let c = src.components.max(1);
-                    o.values.extend_from_slice(&src.values[start * c..end * c]);
-                }
-                for (o, src) in out.line_attributes.iter_mut().zip(&s.line_attributes) {
-                    let c = src.components.max(1);
-                    o.values.extend_from_slice(&src.values[i * c..(i + 1) * c]);
-                }
-            }
-            start = end;
-        }
-    }
-    out
+    tubes::select::crop(s, |p| slabs.iter().any(|b| b.contains(p)), min_points)
 }
 
-fn out_attrs(a: &[tubes::Attribute]) -> Vec<tubes::Attribute> {
-    a.iter()
-        .map(|a| tubes::Attribute {
-            values: vec![],
-            ..a.clone()
-        })
-        .collect()
+/// Corner `c` (0..8, bit k set: the last index along axis k) of the box of a grid's voxel
+/// centres, in world.
+fn corner(dims: [usize; 3], affine: DMat4, c: usize) -> DVec3 {
+    let hi = dims.map(|d| d.saturating_sub(1) as f64);
+    let q = DVec3::new(
+        if c & 1 != 0 { hi[0] } else { 0.0 },
+        if c & 2 != 0 { hi[1] } else { 0.0 },
+        if c & 4 != 0 { hi[2] } else { 0.0 },
+    );
+    (affine * DVec4::from((q, 1.0))).truncate()
 }
 
 /// The polygon where the plane `normal . p = position` cuts the box of a grid's voxel
@@ -169,15 +133,7 @@ pub fn polygon(
     normal: DVec3,
     position: f64,
 ) -> Option<Vec<DVec3>> {
-    let hi = dims.map(|d| d.saturating_sub(1) as f64);
-    let corner = |c: usize| {
-        let q = DVec3::new(
-            if c & 1 != 0 { hi[0] } else { 0.0 },
-            if c & 2 != 0 { hi[1] } else { 0.0 },
-            if c & 4 != 0 { hi[2] } else { 0.0 },
-        );
-        (affine * DVec4::from((q, 1.0))).truncate()
-    };
+    let corner = |c: usize| corner(dims, affine, c);
     let mut pts: Vec<DVec3> = vec![];
     for a in 0..8usize {
         for bit in [1usize, 2, 4] {
@@ -236,16 +192,6 @@ fn polygon_mesh(pts: &[DVec3], n: DVec3) -> tubes::tube_mesh::TubeMesh {
     }
 }
 
-/// The finite range of `data` (`None`: no finite value).
-fn range(data: &[f32]) -> Option<[f64; 2]> {
-    let mut r: Option<[f64; 2]> = None;
-    for &v in data.iter().filter(|v| v.is_finite() && **v > -1e30) {
-        let v = v as f64;
-        r = Some(r.map_or([v, v], |[a, b]| [a.min(v), b.max(v)]));
-    }
-    r
-}
-
 /// A window that can be mapped in single precision: ends too close for f32 (a constant field)
 /// are widened to a relative 1e-3 or by one.
 fn usable(w: [f64; 2]) -> [f64; 2] {
@@ -254,15 +200,6 @@ fn usable(w: [f64; 2]) -> [f64; 2] {
     } else {
         [w[0], w[0] + (1e-3 * w[0].abs()).max(1.0)]
     }
-}
-
-fn srgb_to_linear(c: u8) -> f32 {
-    let v = c as f64 / 255.0;
-    (if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }) as f32
 }
 
 /// An overlay read and resampled, with how its values become colours.
@@ -324,13 +261,17 @@ fn overlay(
         let cm: Colormap = o.colormap.as_deref().unwrap_or("red-yellow").parse()?;
         let w = match o.range {
             Some(r) => r,
-            None => usable(range(&f.data).ok_or_else(|| {
-                format!(
-                    "{} ({}): the field has no finite values",
-                    key("path"),
-                    o.path.display()
-                )
-            })?),
+            None => {
+                let st = f.stats();
+                if !(st.min <= st.max) {
+                    return Err(format!(
+                        "{} ({}): the field has no finite values",
+                        key("path"),
+                        o.path.display()
+                    ));
+                }
+                usable([st.min, st.max])
+            }
         };
         LayerMap::Scalar {
             lo: w[0],
@@ -392,7 +333,9 @@ fn labels_map(
             None => l != 0,
         };
         if let (true, Some(e)) = (shown, table.entries.get(&l)) {
-            let [r, g, b] = e.rgb.map(srgb_to_linear);
+            let [r, g, b] = e
+                .rgb
+                .map(|c| volume::colormap::srgb_to_linear(c as f64 / 255.0) as f32);
             colors[l as usize] = [r, g, b, 1.0];
         }
     }
@@ -401,10 +344,12 @@ fn labels_map(
 
 /// The slices of scene `s` over the volume `vol` (its field `data`, as the model holds it),
 /// with the overlays read and resampled into its grid.
+/// `range`: the volume field's finite range (`Field::stats`).
 pub fn model(
     s: &Scene,
     vol: &volume::Volume,
     data: &[f32],
+    range: [f64; 2],
     notes: &mut Vec<String>,
 ) -> Result<Option<PlaneModel>, String> {
     if s.slices.is_empty() && s.overlays.is_empty() {
@@ -419,21 +364,14 @@ pub fn model(
         fields.push(std::mem::take(&mut ov.field));
         overlays.push(ov);
     }
-    let vrange = range(data).ok_or("volume: the field has no finite values")?;
+    let vrange = range;
     let mut planes = vec![];
     for (i, sl) in s.slices.iter().enumerate() {
         let key = |k: &str| format!("slices[{i}].{k}");
         let n = normal(sl);
         let pos = position(sl, vol.bounds());
         let pts = polygon(dims, affine, n, pos).ok_or_else(|| {
-            let ext = [0usize, 1, 2, 3, 4, 5, 6, 7].map(|c| {
-                let q = DVec3::new(
-                    if c & 1 != 0 { dims[0] as f64 - 1.0 } else { 0.0 },
-                    if c & 2 != 0 { dims[1] as f64 - 1.0 } else { 0.0 },
-                    if c & 4 != 0 { dims[2] as f64 - 1.0 } else { 0.0 },
-                );
-                n.dot((affine * DVec4::from((q, 1.0))).truncate())
-            });
+            let ext = [0usize, 1, 2, 3, 4, 5, 6, 7].map(|c| n.dot(corner(dims, affine, c)));
             let lo = ext.iter().copied().fold(f64::INFINITY, f64::min);
             let hi = ext.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             format!(

@@ -393,21 +393,35 @@ pub fn subsample(items: &[usize], n: usize, seed: u64) -> Vec<usize> {
 /// The streamlines `keep` (indices, increasing) of `s`, with their point and streamline
 /// attributes, reference space and format.
 pub fn subset(s: &Streamlines, keep: &[usize]) -> Streamlines {
+    let parts: Vec<(usize, usize, usize)> = keep
+        .iter()
+        .map(|&i| (i, s.offsets[i], s.offsets[i + 1]))
+        .collect();
+    pieces(s, &parts)
+}
+
+/// A piece of streamline `i`: points `a..b` of the whole set, `(i, a, b)`.
+pub type Piece = (usize, usize, usize);
+
+/// Streamlines made of pieces of `s`: `(i, a, b)` is points `a..b` (indices into `s.points`,
+/// within streamline `i`), in the order given, with their point attributes; each piece repeats
+/// its streamline's attributes; reference space and format kept.
+pub fn pieces(s: &Streamlines, parts: &[Piece]) -> Streamlines {
     let mut out = Streamlines::new();
-    let n_points: usize = keep.iter().map(|&i| s.offsets[i + 1] - s.offsets[i]).sum();
-    out.points.reserve(n_points);
-    for &i in keep {
-        out.push(s.line(i));
+    out.points
+        .reserve(parts.iter().map(|&(_, a, b)| b - a).sum());
+    for &(_, a, b) in parts {
+        out.push(&s.points[a..b]);
     }
-    // The values of streamlines `keep` of an attribute with `components` per item, the items
-    // of streamline i being `range(i)`.
-    let take = |a: &crate::Attribute, range: &dyn Fn(usize) -> (usize, usize)| crate::Attribute {
+    // The values of the pieces of an attribute with `components` per item, the items of a
+    // piece being `range(piece)`.
+    let take = |a: &crate::Attribute, range: &dyn Fn(&Piece) -> (usize, usize)| crate::Attribute {
         name: a.name.clone(),
         components: a.components,
-        values: keep
+        values: parts
             .iter()
-            .flat_map(|&i| {
-                let (lo, hi) = range(i);
+            .flat_map(|p| {
+                let (lo, hi) = range(p);
                 a.values[lo * a.components..hi * a.components]
                     .iter()
                     .copied()
@@ -417,17 +431,42 @@ pub fn subset(s: &Streamlines, keep: &[usize]) -> Streamlines {
     out.point_attributes = s
         .point_attributes
         .iter()
-        .map(|a| take(a, &|i| (s.offsets[i], s.offsets[i + 1])))
+        .map(|a| take(a, &|&(_, lo, hi)| (lo, hi)))
         .collect();
     out.line_attributes = s
         .line_attributes
         .iter()
-        .map(|a| take(a, &|i| (i, i + 1)))
+        .map(|a| take(a, &|&(i, _, _)| (i, i + 1)))
         .collect();
     out.reference = s.reference.clone();
     out.format = s.format.clone();
     out.warnings = s.warnings.clone();
     out
+}
+
+/// The streamlines cropped to the points `keep` accepts: every other point is removed and its
+/// streamline split there; pieces of fewer than `min_points` points (at least 1) are dropped
+/// ([`pieces`] keeps the attributes).
+pub fn crop(s: &Streamlines, keep: impl Fn(glam::Vec3) -> bool, min_points: usize) -> Streamlines {
+    let mut parts = vec![];
+    for i in 0..s.len() {
+        let (a, b) = (s.offsets[i], s.offsets[i + 1]);
+        let mut start = a;
+        while start < b {
+            while start < b && !keep(s.points[start]) {
+                start += 1;
+            }
+            let mut end = start;
+            while end < b && keep(s.points[end]) {
+                end += 1;
+            }
+            if end - start >= min_points.max(1) {
+                parts.push((i, start, end));
+            }
+            start = end;
+        }
+    }
+    pieces(s, &parts)
 }
 
 #[cfg(test)]
@@ -479,6 +518,38 @@ mod tests {
             values: lv,
         });
         s
+    }
+
+    #[test]
+    fn cropping_keeps_exactly_the_accepted_points_with_their_attributes() {
+        let s = random_lines(50, 7);
+        let keep = |p: Vec3| p.x > 0.0;
+        let c = crop(&s, keep, 2);
+        // Every kept point is accepted, and every run of 2 or more accepted points is kept, in
+        // order, with its point attribute and its streamline's attribute.
+        let mut want_pts = vec![];
+        let (mut want_fa, mut want_w) = (vec![], vec![]);
+        for i in 0..s.len() {
+            let (a, b) = (s.offsets[i], s.offsets[i + 1]);
+            let mut k = a;
+            while k < b {
+                let start = k;
+                while k < b && keep(s.points[k]) {
+                    k += 1;
+                }
+                if k - start >= 2 {
+                    want_pts.extend_from_slice(&s.points[start..k]);
+                    want_fa.extend_from_slice(&s.point_attributes[0].values[start..k]);
+                    want_w.push(s.line_attributes[0].values[i]);
+                }
+                k = k.max(start + 1);
+            }
+        }
+        assert!(c.len() > 20, "{} pieces", c.len());
+        assert_eq!(c.points, want_pts);
+        assert_eq!(c.point_attributes[0].values, want_fa);
+        assert_eq!(c.line_attributes[0].values, want_w);
+        c.validate().unwrap();
     }
 
     /// The rule of the module's doc, written out point by point without the ROI types.
