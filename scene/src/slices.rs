@@ -263,7 +263,7 @@ fn overlay(
             Some(r) => r,
             None => {
                 let st = f.stats();
-                if !(st.min <= st.max) {
+                if !(st.min.is_finite() && st.max.is_finite()) {
                     return Err(format!(
                         "{} ({}): the field has no finite values",
                         key("path"),
