@@ -338,15 +338,15 @@ def srgb_to_linear(v):
 def projection_tf(rng, lo_f, hi_f, opacity):
     """--blend mip/minip: umbra's projection of `volume.window` [lo, hi] through the `grey`
     colour map (256 sRGB greys, decoded to linear, interpolated linearly) with opacity
-    `volume.opacity`, nothing below lo; VTK gets the same 256 colours and an opacity 0 up to
-    a millionth of the window below lo, `opacity` from lo (VTK's projections look the
+    `volume.opacity`, nothing at or below lo; VTK gets the same 256 colours and an opacity 0
+    up to lo, `opacity` from a millionth of the window past it (VTK's projections look the
     extreme value up in both functions, without a unit-distance correction)."""
     vmin, vmax = rng
     lo = vmin + lo_f * (vmax - vmin)
     hi = vmin + hi_f * (vmax - vmin)
     cols = [(lo + (hi - lo) * k / 255.0, (srgb_to_linear(k / 255.0),) * 3) for k in range(256)]
     eps = 1e-6 * (hi - lo)
-    opac = [(min(vmin, lo - 2 * eps), 0.0), (lo - eps, 0.0), (lo, opacity), (max(vmax, hi), opacity)]
+    opac = [(min(vmin, lo - eps), 0.0), (lo, 0.0), (lo + eps, opacity), (max(vmax, hi), opacity)]
     return {"umbra_points": [], "window": (lo, hi), "opacity": opacity, "vtk_opacity": opac,
             "vtk_color": cols, "lo": lo, "hi": hi, "sigma": opacity}
 

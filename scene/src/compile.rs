@@ -115,9 +115,9 @@ fn named_map(c: &Option<String>) -> Option<volume::colormap::Colormap> {
 /// The transfer function the projections (`mip`, `minip`) show their value through:
 /// `volume.colormap` (default grey) over `volume.window` `[lo, hi]` (default the field's
 /// `range`) as 256 points, each with extinction `volume.opacity` (default 1), which the
-/// projection takes as its opacity; values before the window's `lo` end (below it, or above
-/// it when `lo > hi`) are transparent, as for overlays, and values past `hi` take the map's
-/// top.
+/// projection takes as its opacity; values up to the window's `lo` end (at or below it, or
+/// at or above it when `lo > hi`) are transparent - a field's minimum, the empty space of a
+/// default window, shows the background - and values past `hi` take the map's top.
 pub fn projection_transfer(v: &spec::VolumeSpec, range: [f64; 2]) -> Result<Transfer, String> {
     let cm: volume::colormap::Colormap = v.colormap.as_deref().unwrap_or("grey").parse()?;
     let mut w = v.window.unwrap_or(range);
@@ -125,19 +125,23 @@ pub fn projection_transfer(v: &spec::VolumeSpec, range: [f64; 2]) -> Result<Tran
         w[1] = w[0] + 1.0;
     }
     let opacity = v.opacity.unwrap_or(1.0);
-    // Points by increasing value (a reversed window reverses the table).
+    // Transparent up to `lo`, the map from a millionth of the window past it; points by
+    // increasing value (a reversed window reverses the table).
+    let eps = 1e-6 * (w[1] - w[0]);
     let mut points: Vec<(f64, [f64; 3], f64)> = cm
         .linear_table()
         .iter()
         .enumerate()
         .map(|(k, c)| {
             let x = w[0] + (w[1] - w[0]) * k as f64 / 255.0;
-            (x, c.map(|c| c as f64), opacity)
+            (
+                if k == 0 { x + eps } else { x },
+                c.map(|c| c as f64),
+                opacity,
+            )
         })
         .collect();
-    // Transparent before the window: a point a millionth of the window beyond `lo`.
-    let eps = 1e-6 * (w[1] - w[0]);
-    points.push((w[0] - eps, [0.0; 3], 0.0));
+    points.push((w[0], [0.0; 3], 0.0));
     points.sort_by(|a, b| a.0.total_cmp(&b.0));
     Ok(Transfer {
         points,
