@@ -12,6 +12,18 @@
 //! `fs_surface_p`), whose bind group 2 holds the layers.
 //!
 //! [`plane_color`] is the CPU twin of the shader's colour (tests compare the two per pixel).
+//!
+//! Index (issue 19; MIP/MinIP have theirs in `occlusion::projection`):
+//!
+//! | rule | CPU | WGSL | test |
+//! |---|---|---|---|
+//! | a layer's colour: window `t = (v - lo) / (hi - lo)`, 256-entry map at `255 t`, gaps, labels by the nearest voxel | [`layer_color`] | `gbuffer.wgsl` `plane_layer_color` | `scene/tests/slices_render.rs` `slices_sample_their_layers_exactly` |
+//! | a slice: its volume opaque, overlays mixed by coverage x opacity | [`plane_color`] | `gbuffer.wgsl` `plane_color` | the same |
+//! | the polygon: the plane cut by the grid's box | `scene::slices::polygon` | - (a mesh) | `scene::slices` unit test |
+//! | crop to slab | `tubes::select::crop` | - | `tubes::select` and `scene::slices` unit tests |
+//! | an overlay blended into the volume | `occlusion::emission_absorption::reference_blended` with [`layer_color`] | `slice_pass.wgsl` `blend_color`, `blended` | `an_overlay_blended_into_the_volume_matches_the_cpu_twin` |
+//! | translucent layers in depth order, slabs split at them | `occlusion::emission_absorption::reference_with_layers` | `gbuffer.wgsl` `fs_peel`; `slice_pass.wgsl` `march`, `composite_layer` | `translucent_slices_over_the_volume_match_the_cpu_twin` |
+//! | colour maps (Moreland 2009 for `cool-warm`) | `volume::colormap::Colormap::rgb` | the 256 entries interpolated as above | `volume::colormap` unit tests |
 
 use crate::gbuffer::GpuMesh;
 use crate::gpu::{Gpu, GpuError};
