@@ -5,7 +5,7 @@
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use volume::distance_sweep::{DistanceField, DistanceOptions, InitMethod, Inside};
+use volume::distance_sweep::{DistanceField, DistanceMethod, DistanceOptions, InitMethod, Inside};
 use volume::nrrd::{self, Array, ArrayData, WriteEncoding};
 use volume::occlusion_sweep::{sweep_fields, OcclusionOptions, OctantFields};
 use volume::{FieldSelector, ScalarType, Volume};
@@ -21,6 +21,8 @@ pub struct SweepArgs {
     pub field: Option<FieldSelector>,
     pub sdf_only: bool,
     pub init: InitMethod,
+    /// How the band's distances reach the rest of the grid.
+    pub method: DistanceMethod,
     pub tolerance: f32,
     pub subsurface_alpha: Option<f32>,
 }
@@ -38,6 +40,9 @@ pub struct Seconds {
 #[derive(Clone, Debug, Serialize)]
 pub struct SweepSummary {
     pub dims: [usize; 3],
+    /// `closest-point` or `sweeping`.
+    pub distance_method: &'static str,
+    /// Rounds of eight distance sweeps (0 for closest points).
     pub iterations: usize,
     pub converged: bool,
     pub seconds: Seconds,
@@ -192,6 +197,7 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
         iso: args.iso,
         inside: args.inside,
         init: args.init,
+        method: args.method,
         tolerance: args.tolerance,
         ..Default::default()
     };
@@ -249,6 +255,10 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
     let t_write = t2.elapsed().as_secs_f64();
     Ok(SweepSummary {
         dims: vol.dims,
+        distance_method: match args.method {
+            DistanceMethod::ClosestPoint => "closest-point",
+            DistanceMethod::Sweeping => "sweeping",
+        },
         iterations: df.iterations,
         converged: df.converged,
         seconds: Seconds {

@@ -72,12 +72,38 @@ pub enum Inside {
     Below,
 }
 
+/// How the distance is carried from the band to the rest of the grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum DistanceMethod {
+    /// The distance to the surface point of the nearest band voxel ([`crate::closest_point`]):
+    /// the default, one pass per axis whatever the content.
+    #[default]
+    ClosestPoint,
+    /// Fast sweeping (Zhao 2005), the paper's method: rounds of eight Gauss-Seidel sweeps.
+    Sweeping,
+}
+
+impl std::str::FromStr for DistanceMethod {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "closest-point" => Ok(DistanceMethod::ClosestPoint),
+            "sweeping" => Ok(DistanceMethod::Sweeping),
+            _ => Err(format!(
+                "unknown distance method '{s}' (closest-point, sweeping)"
+            )),
+        }
+    }
+}
+
 /// Options of the distance computation.
 #[derive(Clone, Copy, Debug)]
 pub struct DistanceOptions {
     pub iso: f32,
     pub inside: Inside,
     pub init: InitMethod,
+    /// How the band's distances reach the rest of the grid.
+    pub method: DistanceMethod,
     /// Convergence tolerance in voxels (of the smallest spacing).
     pub tolerance: f32,
     /// Upper bound on rounds of eight sweeps.
@@ -110,6 +136,7 @@ impl Default for DistanceOptions {
             iso: 0.0,
             inside: Inside::Above,
             init: InitMethod::Gradient,
+            method: DistanceMethod::ClosestPoint,
             tolerance: 1e-3,
             max_iterations: 100,
         }
@@ -121,15 +148,28 @@ impl Default for DistanceOptions {
 pub struct Initial {
     pub dims: [usize; 3],
     pub spacing: [f32; 3],
-    /// Padded `(nx+2)(ny+2)(nz+2)` grid: `+inf` away from the surface, band vertices frozen
-    /// (sign bit set, magnitude = distance estimate).
-    pub padded: Vec<f32>,
     /// Inside mask per voxel (unpadded, x fastest).
     pub inside: Vec<bool>,
     /// Number of band (initialised) vertices.
     pub band: usize,
     /// Number of NaN samples (treated as outside).
     pub nan_count: usize,
+    /// The band: its vertices in voxel order, with their initial distances and surface points.
+    pub surface: Vec<SurfacePoint>,
+}
+
+/// One band vertex and the point of the local surface its initial estimate measures to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePoint {
+    /// Unpadded voxel index (x fastest).
+    pub index: usize,
+    /// The initial distance estimate (world units, unsigned): the length of `offset`.
+    pub distance: f32,
+    /// From the voxel to its surface point, in world units along the grid's axes; its length
+    /// is the voxel's initial distance (`Gradient`: along the gradient; `Plane`: the foot on the
+    /// local plane; `Edge`, and wherever an estimate falls back to it: along the axis of the
+    /// nearest edge crossing).
+    pub offset: [f32; 3],
 }
 
 /// Result of the distance computation.
@@ -168,32 +208,59 @@ pub fn classify_and_initialise(
         -1.0
     };
     use rayon::prelude::*;
-    let g: Vec<f32> = values
-        .par_iter()
-        .map(|&v| {
-            if v.is_nan() {
-                f32::NAN
-            } else {
-                sign * (v - opts.iso)
+    // g >= 0 inside; NaN stays NaN (outside).
+    let gv = |v: f32| sign * (v - opts.iso);
+    let g = values;
+    let nan_count = values.par_iter().filter(|v| v.is_nan()).count();
+    let mut inside = crate::memory::zeroed(n, false);
+    inside
+        .par_chunks_mut(1 << 16)
+        .zip(values.par_chunks(1 << 16))
+        .for_each(|(o, v)| {
+            for (o, &v) in o.iter_mut().zip(v) {
+                *o = gv(v) >= 0.0; // NaN: outside
             }
-        })
-        .collect();
-    let nan_count = values.iter().filter(|v| v.is_nan()).count();
-    let inside: Vec<bool> = g.par_iter().map(|&x| x >= 0.0).collect(); // NaN compares false: outside
-    let (px, py, pz) = (nx + 2, ny + 2, nz + 2);
-    let mut padded = vec![f32::INFINITY; px * py * pz];
+        });
     let stride = [1isize, nx as isize, (nx * ny) as isize];
-    // Planes are independent: each writes its own padded plane.
-    let plane = |k: usize, out: &mut [f32]| -> usize {
-        let mut band = 0;
+    // Planes are independent.
+    let plane = |k: usize| -> Vec<SurfacePoint> {
+        let mut surface = Vec::new();
+        let mut candidate = vec![false; nx];
         for j in 0..ny {
-            for i in 0..nx {
-                let id = i + nx * (j + ny * k);
+            // Which voxels of the row have a neighbour on the other side (a cheap pass over the
+            // masks, vectorised; most rows have none); inside voxels on the grid's border too.
+            let r = nx * (j + ny * k);
+            let me_row = &inside[r..r + nx];
+            let on_border_yz = j == 0 || j + 1 == ny || k == 0 || k + 1 == nz;
+            for (c, &m) in candidate.iter_mut().zip(me_row) {
+                *c = m & on_border_yz;
+            }
+            let neighbours = [
+                (j > 0).then(|| r - nx),
+                (j + 1 < ny).then(|| r + nx),
+                (k > 0).then(|| r - nx * ny),
+                (k + 1 < nz).then(|| r + nx * ny),
+            ];
+            for q in neighbours.into_iter().flatten() {
+                for ((c, &m), &o) in candidate.iter_mut().zip(me_row).zip(&inside[q..q + nx]) {
+                    *c |= m != o;
+                }
+            }
+            for i in 1..nx {
+                let d = me_row[i] != me_row[i - 1];
+                candidate[i] |= d;
+                candidate[i - 1] |= d;
+            }
+            candidate[0] |= me_row[0];
+            candidate[nx - 1] |= me_row[nx - 1];
+            for i in (0..nx).filter(|&i| candidate[i]) {
+                let id = r + i;
                 let ijk = [i, j, k];
                 let me = inside[id];
-                let gp = g[id];
-                // Nearest crossing per axis.
+                let gp = gv(g[id]);
+                // Nearest crossing per axis, and on which side (-1 or +1) it lies.
                 let mut da = [f32::INFINITY; 3];
+                let mut side = [0.0f32; 3];
                 let mut any = false;
                 for a in 0..3 {
                     for dir in [-1isize, 1] {
@@ -203,7 +270,10 @@ pub fn classify_and_initialise(
                             // crossing half a spacing out (the NaN rule), so objects that touch
                             // the border are closed there.
                             if me {
-                                da[a] = da[a].min(0.5 * spacing[a]);
+                                if 0.5 * spacing[a] < da[a] {
+                                    da[a] = 0.5 * spacing[a];
+                                    side[a] = dir as f32;
+                                }
                                 any = true;
                             }
                             continue;
@@ -212,21 +282,35 @@ pub fn classify_and_initialise(
                         if inside[q] == me {
                             continue;
                         }
-                        let gq = g[q];
+                        let gq = gv(g[q]);
                         let t = if gp.is_finite() && gq.is_finite() && gp != gq {
                             (gp / (gp - gq)).clamp(0.0, 1.0)
                         } else {
                             0.5
                         };
-                        da[a] = da[a].min(t * spacing[a]);
+                        if t * spacing[a] < da[a] {
+                            da[a] = t * spacing[a];
+                            side[a] = dir as f32;
+                        }
                         any = true;
                     }
                 }
                 if !any {
                     continue;
                 }
-                band += 1;
                 let edge = da[0].min(da[1]).min(da[2]);
+                let amin = if da[0] == edge {
+                    0
+                } else if da[1] == edge {
+                    1
+                } else {
+                    2
+                };
+                let mut edge_offset = [0.0f32; 3];
+                edge_offset[amin] = side[amin] * edge;
+                // Offset to the surface point: the edge crossing's unless a method finds a
+                // nearer point.
+                let mut offset = edge_offset;
                 let d = match opts.init {
                     InitMethod::Edge => edge,
                     InitMethod::Plane => {
@@ -234,8 +318,11 @@ pub fn classify_and_initialise(
                         // crossing with the central slope (it lies beyond the neighbour, so at
                         // least one spacing away).
                         let mut inv2 = 0.0f32;
+                        // Foot of the plane through the crossings: offset_a = s_a d^2 / d_a.
+                        let mut foot = [0.0f32; 3];
                         for a in 0..3 {
                             let d_a = if da[a].is_finite() {
+                                foot[a] = side[a] / da[a];
                                 da[a]
                             } else {
                                 let c = ijk[a] as isize;
@@ -243,8 +330,8 @@ pub fn classify_and_initialise(
                                     if c < 0 || c >= dims[a] as isize {
                                         return None;
                                     }
-                                    let v = g[(id as isize + (c - ijk[a] as isize) * stride[a])
-                                        as usize];
+                                    let v = gv(g[(id as isize + (c - ijk[a] as isize) * stride[a])
+                                        as usize]);
                                     v.is_finite().then_some(v)
                                 };
                                 let slope = match (at(c - 1), at(c + 1)) {
@@ -254,13 +341,20 @@ pub fn classify_and_initialise(
                                     _ => 0.0,
                                 };
                                 let e = gp.abs() / slope.abs();
+                                // The surface lies where g falls to 0: downhill inside
+                                // (g > 0), uphill outside.
+                                let s_a = if (gp > 0.0) == (slope > 0.0) {
+                                    -1.0
+                                } else {
+                                    1.0
+                                };
                                 let interior = c > 0 && c + 1 < dims[a] as isize;
                                 if e.is_finite() {
-                                    if interior {
-                                        e.max(spacing[a])
-                                    } else {
-                                        e
+                                    let e = if interior { e.max(spacing[a]) } else { e };
+                                    if e > 0.0 {
+                                        foot[a] = s_a / e;
                                     }
+                                    e
                                 } else {
                                     f32::INFINITY
                                 }
@@ -272,13 +366,19 @@ pub fn classify_and_initialise(
                             };
                         }
                         if inv2.is_infinite() {
+                            offset = [0.0; 3];
                             0.0
                         } else {
-                            (1.0 / inv2.sqrt()).min(edge)
+                            let d = 1.0 / inv2.sqrt();
+                            if d < edge {
+                                offset = foot.map(|f| f * d * d);
+                            }
+                            d.min(edge)
                         }
                     }
                     InitMethod::Gradient => {
                         let mut grad2 = 0.0f32;
+                        let mut grad = [0.0f32; 3];
                         let mut ok = gp.is_finite();
                         for a in 0..3 {
                             let at = |c: isize| -> Option<f32> {
@@ -286,7 +386,8 @@ pub fn classify_and_initialise(
                                     return None;
                                 }
                                 let v =
-                                    g[(id as isize + (c - ijk[a] as isize) * stride[a]) as usize];
+                                    gv(g[(id as isize + (c - ijk[a] as isize) * stride[a])
+                                        as usize]);
                                 v.is_finite().then_some(v)
                             };
                             let c = ijk[a] as isize;
@@ -298,37 +399,40 @@ pub fn classify_and_initialise(
                                 (None, None) => 0.0,
                             };
                             ok &= der.is_finite();
+                            grad[a] = der;
                             grad2 += der * der;
                         }
                         let est = gp.abs() / grad2.sqrt();
                         if ok && est.is_finite() {
+                            if est < edge {
+                                // Downhill inside (g > 0), uphill outside.
+                                let k = if gp > 0.0 { -est } else { est } / grad2.sqrt();
+                                offset = grad.map(|g| g * k);
+                            }
                             est.min(edge)
                         } else {
                             edge
                         }
                     }
                 };
-                // Frozen: sign bit set (also for a distance of exactly 0).
-                out[(i + 1) + px * (j + 1)] = f32::from_bits(d.max(0.0).to_bits() | 0x8000_0000);
+                surface.push(SurfacePoint {
+                    index: id,
+                    distance: d.max(0.0),
+                    offset,
+                });
             }
         }
-        band
+        surface
     };
-    let band: usize = padded
-        .par_chunks_mut(px * py)
-        .enumerate()
-        .skip(1)
-        .take(nz)
-        .map(|(pk, out)| plane(pk - 1, out))
-        .sum();
-    let _ = pz;
+    let planes: Vec<Vec<SurfacePoint>> = (0..nz).into_par_iter().map(plane).collect();
+    let surface: Vec<SurfacePoint> = planes.concat();
     Initial {
         dims,
         spacing,
-        padded,
         inside,
-        band,
+        band: surface.len(),
         nan_count,
+        surface,
     }
 }
 
@@ -836,16 +940,39 @@ pub const SWEEP_DIRECTIONS: [[i32; 3]; 8] = [
     [-1, -1, -1],
 ];
 
+/// The signed distance from the initial band by the method of `opts`.
+pub fn distance_from_band(init: Initial, opts: &DistanceOptions) -> DistanceField {
+    match opts.method {
+        DistanceMethod::ClosestPoint => crate::closest_point::closest_point_distance(init),
+        DistanceMethod::Sweeping => sweep_distance(init, opts),
+    }
+}
+
+/// The padded `(nx+2)(ny+2)(nz+2)` grid the sweeps work on: `+inf` away from the surface, band
+/// vertices frozen (sign bit set, magnitude = distance estimate).
+fn frozen_band(dims: [usize; 3], surface: &[SurfacePoint]) -> Vec<f32> {
+    let [nx, ny, nz] = dims;
+    let mut padded = vec![f32::INFINITY; (nx + 2) * (ny + 2) * (nz + 2)];
+    for s in surface {
+        let (i, j, k) = (s.index % nx, (s.index / nx) % ny, s.index / (nx * ny));
+        // Frozen: sign bit set (also for a distance of exactly 0).
+        padded[pidx(dims, i, j, k)] = f32::from_bits(s.distance.to_bits() | 0x8000_0000);
+    }
+    padded
+}
+
 /// Sweeps the initial band out to the whole grid and applies the sign (step 3).
 pub fn sweep_distance(init: Initial, opts: &DistanceOptions) -> DistanceField {
     let Initial {
         dims,
         spacing,
-        mut padded,
         inside,
         band,
         nan_count,
+        surface,
     } = init;
+    let mut padded = frozen_band(dims, &surface);
+    drop(surface);
     let hmin = spacing.iter().cloned().fold(f32::INFINITY, f32::min);
     let tol = opts.tolerance * hmin;
     let mut iterations = 0;
@@ -885,14 +1012,14 @@ pub fn sweep_distance(init: Initial, opts: &DistanceOptions) -> DistanceField {
     }
 }
 
-/// Classification, initialisation and sweeps in one call.
+/// Classification, initialisation and the distance by `opts.method` in one call.
 pub fn signed_distance(
     values: &[f32],
     dims: [usize; 3],
     spacing: [f32; 3],
     opts: &DistanceOptions,
 ) -> DistanceField {
-    sweep_distance(classify_and_initialise(values, dims, spacing, opts), opts)
+    distance_from_band(classify_and_initialise(values, dims, spacing, opts), opts)
 }
 
 #[cfg(test)]
@@ -948,9 +1075,10 @@ mod tests {
             ..Default::default()
         };
         let init = classify_and_initialise(&v, dims, [1.0; 3], &opts);
+        let padded = frozen_band(dims, &init.surface);
         for (id, &f) in v.iter().enumerate() {
             let (i, j, k) = (id % 24, (id / 24) % 20, id / 480);
-            let p = init.padded[pidx(dims, i, j, k)];
+            let p = padded[pidx(dims, i, j, k)];
             // (Inside samples on the border are closed half a voxel out instead.)
             let border = i == 0 || j == 0 || k == 0 || i == 23 || j == 19 || k == 15;
             if p.is_sign_negative() && !border {

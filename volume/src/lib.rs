@@ -22,12 +22,14 @@
 //!   image, and [`load_series`] reads any other volume as a steady series of one frame.
 
 pub mod cfd_grid;
+pub mod closest_point;
 pub mod colormap;
 pub mod distance_sweep;
 pub mod error;
 pub(crate) mod io_util;
 pub mod labels;
 pub(crate) mod lanes;
+pub mod memory;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;

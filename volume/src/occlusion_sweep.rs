@@ -27,7 +27,10 @@
 //!   solution from neighbours at distance 0, `(sum_a h_a^-2)^(-1/2) >= h_min / sqrt(3) >
 //!   h_min / 2`, so there `tau` is exactly 0 (inside) or 1 (outside) whatever the sweeps do,
 //!   and in the band the values are frozen at their initial estimates. The octant sweeps therefore
-//!   read nothing that the distance sweeps write, and [`sweep_fields`] runs both at once.
+//!   read nothing that the distance sweeps write, and [`sweep_fields`] runs both at once. `tau`
+//!   is defined by this rule (the classification off the band, the band's estimates on it)
+//!   whichever distance method runs: closest points can give a voxel off the band a distance
+//!   below `h_min / 2` where the surface passes it diagonally, and `tau` stays 0 or 1 there.
 //! * **Eq. (8).** As printed, `tau_trans = 1 - (1 - tau)^alpha` makes a voxel *more* opaque as
 //!   `alpha` falls (and keeps the interior, `tau = 0`, opaque for every `alpha`), the opposite
 //!   of the text ("decreasing alpha values permit more light to penetrate"). The reading that
@@ -38,14 +41,18 @@
 //! # Storage and speed
 //! Octants are stored as `u8` (`round(255 V)`, quantisation error at most 1/510), 8 bytes per
 //! voxel; `tau` is quantised the same way for the sweeps. Each octant is swept plane by plane
-//! keeping only the previous plane (in `f32`, so quantisation does not accumulate); the four
-//! octants that share a z direction run in one pass in lockstep (their x and y orders differ, so
-//! their recurrences are independent and overlap in the CPU), and the two passes run in parallel.
+//! keeping only the previous plane (in `f32`, so quantisation does not accumulate). The four
+//! octants that share a z direction run in one pass as the four lanes of one vector: each lane
+//! sweeps its octant in coordinates mirrored so that all four go forwards, so one four-wide add
+//! and multiply per voxel serve all four (see `sweep_z_group`); the two passes run in parallel.
+//! `tau` comes from the classification and the band alone ([`transmittance`]), so the octants
+//! need nothing from the distance computation and run beside it ([`sweep_fields`]).
 
 use crate::distance_sweep::{
-    classify_and_initialise, sweep_distance, DistanceField, DistanceOptions, Initial,
+    classify_and_initialise, distance_from_band, DistanceField, DistanceOptions, Initial,
     SWEEP_DIRECTIONS,
 };
+use crate::lanes::F4;
 use glam::{DMat4, DVec3};
 
 /// Options of the occlusion sweeps.
@@ -99,36 +106,43 @@ impl OctantFields {
 /// Quantised transmittance per voxel (`round(255 tau)`, eq. 7 with `h = h_min`, or eq. 8 as
 /// derived when `alpha` is given), from the initialisation alone (see the module doc).
 pub fn transmittance(init: &Initial, alpha: Option<f32>) -> Vec<u8> {
-    let [nx, ny, nz] = init.dims;
+    use rayon::prelude::*;
     let h = init.spacing.iter().cloned().fold(f32::INFINITY, f32::min);
-    let mut tau = Vec::with_capacity(nx * ny * nz);
-    for k in 0..nz {
-        for j in 0..ny {
-            let row = 1 + (nx + 2) * ((j + 1) + (ny + 2) * (k + 1));
-            for i in 0..nx {
-                let id = i + nx * (j + ny * k);
-                let p = init.padded[row + i];
-                let t = if p.is_sign_negative() {
-                    // Band: frozen estimate, signed by the classification.
-                    let d = if init.inside[id] { -p.abs() } else { p.abs() };
-                    (d / h + 0.5).clamp(0.0, 1.0)
-                } else if init.inside[id] {
-                    0.0
-                } else {
-                    1.0
-                };
-                let t = match alpha {
-                    Some(a) => 1.0 - a.clamp(0.0, 1.0) * (1.0 - t),
-                    None => t,
-                };
-                tau.push((t * 255.0 + 0.5) as u8);
+    let quantise = |t: f32| -> u8 {
+        let t = match alpha {
+            Some(a) => 1.0 - a.clamp(0.0, 1.0) * (1.0 - t),
+            None => t,
+        };
+        (t * 255.0 + 0.5) as u8
+    };
+    let (t_in, t_out) = (quantise(0.0), quantise(1.0));
+    let mut tau = crate::memory::zeroed(init.inside.len(), 0u8);
+    tau.par_chunks_mut(1 << 16)
+        .zip(init.inside.par_chunks(1 << 16))
+        .for_each(|(t, i)| {
+            for (t, &i) in t.iter_mut().zip(i) {
+                *t = if i { t_in } else { t_out };
             }
-        }
+        });
+    // Band: frozen estimate, signed by the classification.
+    for s in &init.surface {
+        let d = if init.inside[s.index] {
+            -s.distance
+        } else {
+            s.distance
+        };
+        tau[s.index] = quantise((d / h + 0.5).clamp(0.0, 1.0));
     }
     tau
 }
 
-/// Sweeps the four octants with z direction `sz` (+1 or -1) in one lockstep pass.
+/// Sweeps the four octants with z direction `sz` (+1 or -1) in one pass, one octant per lane.
+///
+/// Each octant is swept in its own coordinates, mirrored in x and y so that all four go
+/// forwards: lane `o` at sweep position `(i, j)` is the voxel `(i_o, j_o)` with
+/// `i_o = i` or `nx - 1 - i` by the octant's x direction (likewise y). The recurrence is then the
+/// same for the four lanes, one four-wide add and multiply per voxel, and only the transmittance
+/// reads and the quantised writes go to the mirrored places.
 fn sweep_z_group(tau: &[u8], dims: [usize; 3], sz: i32) -> [(usize, Vec<u8>); 4] {
     let [nx, ny, nz] = dims;
     let plane = nx * ny;
@@ -140,44 +154,72 @@ fn sweep_z_group(tau: &[u8], dims: [usize; 3], sz: i32) -> [(usize, Vec<u8>); 4]
         .map(|(s, d)| (s, d[0], d[1]))
         .collect();
     assert_eq!(members.len(), 4);
-    let mut out: Vec<Vec<u8>> = (0..4).map(|_| vec![0u8; nx * ny * nz]).collect();
-    // W = V tau of the previous plane and of the current plane, per octant.
-    let mut prev: Vec<Vec<f32>> = (0..4).map(|_| vec![1.0f32; plane]).collect();
-    let mut cur: Vec<Vec<f32>> = (0..4).map(|_| vec![1.0f32; plane]).collect();
-    const LUT: [f32; 256] = {
+    let mut out: Vec<Vec<u8>> = (0..4)
+        .map(|_| crate::memory::zeroed(nx * ny * nz, 0u8))
+        .collect();
+    // tau / 3 per quantised value: W = V tau with V = (W_x + W_y + W_z) / 3, so the x
+    // recurrence is W_x' = (W_x + (W_y + W_z)) tau / 3, one add and one multiply long.
+    const TAU3: [f32; 256] = {
         let mut t = [0.0f32; 256];
         let mut i = 0;
         while i < 256 {
-            t[i] = i as f32 / 255.0;
+            t[i] = i as f32 / (255.0 * 3.0);
             i += 1;
         }
         t
     };
+    // W = V tau of the previous plane and of the current plane, in sweep coordinates, four
+    // lanes; the sky (1) before the first plane and the first row.
+    let mut prev = vec![[1.0f32; 4]; plane];
+    let mut cur = vec![[1.0f32; 4]; plane];
+    let sky = vec![[1.0f32; 4]; nx];
+    // Per lane: the first x of a row and the step along it.
+    let x0: [isize; 4] =
+        std::array::from_fn(|o| if members[o].1 > 0 { 0 } else { nx as isize - 1 });
+    let dx: [isize; 4] = std::array::from_fn(|o| if members[o].1 > 0 { 1 } else { -1 });
+    let quarter = F4::splat(255.0 / 3.0);
+    let half = F4::splat(0.5);
     for kk in 0..nz {
         let k = if sz > 0 { kk } else { nz - 1 - kk };
-        let tau_plane = &tau[k * plane..(k + 1) * plane];
-        for jj in 0..ny {
-            // Row j of each octant (its own y order) and the row before it in that order.
-            let rows: [usize; 4] =
-                std::array::from_fn(|o| if members[o].2 > 0 { jj } else { ny - 1 - jj });
-            let prev_rows: [Option<usize>; 4] = std::array::from_fn(|o| {
-                (jj > 0).then(|| if members[o].2 > 0 { jj - 1 } else { ny - jj })
+        for j in 0..ny {
+            // The voxel row of each lane.
+            let rows: [usize; 4] = std::array::from_fn(|o| {
+                let jo = if members[o].2 > 0 { j } else { ny - 1 - j };
+                k * plane + jo * nx
             });
-            let fwd: [bool; 4] = std::array::from_fn(|o| members[o].1 > 0);
-            let mut wx = [1.0f32; 4];
-            for ii in 0..nx {
+            let (before, rest) = cur.split_at_mut(j * nx);
+            let row = &mut rest[..nx];
+            let yrow: &[[f32; 4]] = if j > 0 { &before[(j - 1) * nx..] } else { &sky };
+            let prow = &prev[j * nx..(j + 1) * nx];
+            let tp: [*const u8; 4] = std::array::from_fn(|o| tau[rows[o]..rows[o] + nx].as_ptr());
+            let op: [*mut u8; 4] = {
+                let mut it = out.iter_mut().zip(rows);
+                std::array::from_fn(|_| {
+                    let (v, r) = it.next().unwrap();
+                    v[r..r + nx].as_mut_ptr()
+                })
+            };
+            let mut wx = F4::splat(1.0);
+            for (i, ((c, y), p)) in row.iter_mut().zip(&yrow[..nx]).zip(prow).enumerate() {
+                let at: [isize; 4] = std::array::from_fn(|o| x0[o] + dx[o] * i as isize);
+                // SAFETY: 0 <= at[o] < nx, and each pointer addresses a row of nx elements
+                // (sliced above); the four output rows belong to four different vectors.
+                let t = unsafe {
+                    F4::load(&[
+                        TAU3[*tp[0].offset(at[0]) as usize],
+                        TAU3[*tp[1].offset(at[1]) as usize],
+                        TAU3[*tp[2].offset(at[2]) as usize],
+                        TAU3[*tp[3].offset(at[3]) as usize],
+                    ])
+                };
+                let s = wx.add(F4::load(y).add(F4::load(p)));
+                wx = s.mul(t);
+                wx.store(c);
+                let mut v = [0.0f32; 4];
+                s.mul(quarter).add(half).store(&mut v);
                 for o in 0..4 {
-                    let i = if fwd[o] { ii } else { nx - 1 - ii };
-                    let at = rows[o] * nx + i;
-                    let wy = match prev_rows[o] {
-                        Some(pr) => cur[o][pr * nx + i],
-                        None => 1.0,
-                    };
-                    let v = (wx[o] + wy + prev[o][at]) * (1.0 / 3.0);
-                    let w = v * LUT[tau_plane[at] as usize];
-                    cur[o][at] = w;
-                    wx[o] = w;
-                    out[o][k * plane + at] = (v * 255.0 + 0.5) as u8;
+                    // SAFETY: as above.
+                    unsafe { *op[o].offset(at[o]) = v[o] as u8 };
                 }
             }
         }
@@ -216,10 +258,13 @@ pub fn sweep_fields(
 ) -> (DistanceField, Option<OctantFields>) {
     let init = classify_and_initialise(values, dims, spacing, dopts);
     if !octants {
-        return (sweep_distance(init, dopts), None);
+        return (distance_from_band(init, dopts), None);
     }
     let tau = transmittance(&init, oopts.subsurface_alpha);
-    let (df, oct) = rayon::join(|| sweep_distance(init, dopts), || sweep_octants(&tau, dims));
+    let (df, oct) = rayon::join(
+        || distance_from_band(init, dopts),
+        || sweep_octants(&tau, dims),
+    );
     (df, Some(oct))
 }
 

@@ -4,7 +4,7 @@
 use crate::output::{out, out_json};
 use crate::progress::Stages;
 use std::path::PathBuf;
-use volume::distance_sweep::InitMethod;
+use volume::distance_sweep::{DistanceMethod, InitMethod};
 use volume::FieldSelector;
 
 #[derive(clap::Args)]
@@ -38,7 +38,12 @@ pub struct Args {
         hide_possible_values = true
     )]
     init: Init,
-    /// Convergence tolerance of the distance sweeps, in voxels.
+    /// How the distance reaches the grid from the voxels next to the surface: closest-point (the
+    /// distance to the surface point of the nearest such voxel; one pass per axis) or sweeping
+    /// (the paper's fast sweeping, rounds of eight sweeps to --tolerance).
+    #[arg(long, value_enum, default_value = "closest-point")]
+    distance: Distance,
+    /// Convergence tolerance of the distance sweeps (--distance sweeping), in voxels.
     #[arg(long, default_value_t = 1e-3, value_parser = super::positive32)]
     tolerance: f32,
     /// Subsurface variant: per-voxel opacity alpha in [0, 1] for the octant sweeps.
@@ -55,6 +60,22 @@ enum Init {
     Gradient,
     Plane,
     Edge,
+}
+
+/// `--distance`.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum Distance {
+    ClosestPoint,
+    Sweeping,
+}
+
+impl From<Distance> for DistanceMethod {
+    fn from(d: Distance) -> Self {
+        match d {
+            Distance::ClosestPoint => DistanceMethod::ClosestPoint,
+            Distance::Sweeping => DistanceMethod::Sweeping,
+        }
+    }
 }
 
 impl From<Init> for InitMethod {
@@ -77,6 +98,7 @@ pub fn run(a: Args) -> Result<(), String> {
         field: a.field,
         sdf_only: a.sdf_only,
         init: a.init.into(),
+        method: a.distance.into(),
         tolerance: a.tolerance,
         subsurface_alpha: a.subsurface,
     };
@@ -97,15 +119,19 @@ pub fn run(a: Args) -> Result<(), String> {
         "grid:        {} x {} x {}",
         s.dims[0], s.dims[1], s.dims[2]
     ))?;
-    out(format!(
-        "iterations:  {} rounds of 8 sweeps ({})",
-        s.iterations,
-        if s.converged {
-            "converged"
-        } else {
-            "not converged"
-        }
-    ))?;
+    if s.distance_method == "sweeping" {
+        out(format!(
+            "iterations:  {} rounds of 8 sweeps ({})",
+            s.iterations,
+            if s.converged {
+                "converged"
+            } else {
+                "not converged"
+            }
+        ))?;
+    } else {
+        out("method:      closest points of the band (no rounds)".to_string())?;
+    }
     out(format!(
         "band:        {} voxels initialised next to the surface",
         s.band_voxels

@@ -1,0 +1,186 @@
+#!/usr/bin/env python3
+"""`umbra sweep` against the `edt` package's exact signed distance on scenes of different
+character, in one run (issue 16). For each scene and size N^3:
+
+  * umbra: `seconds.compute` of `umbra sweep --json` (initialisation + distance + the eight
+    octant fields, no --sdf-only, file I/O excluded), median of --repeat processes, for each
+    --distance method asked for (default closest-point, the default of `umbra sweep`);
+  * edt: `edt.sdf(mask, anisotropy=spacing, parallel=2)` on the same inside mask (values >= iso),
+    median of --repeat calls;
+  * copy: a plain copy of the bytes the sweep reads and writes (4 in, 12 out per voxel: the
+    float32 values, the float32 distance and the eight uint8 octants), numpy, median of --repeat.
+
+Scenes (inside = values >= iso):
+  three-solids  `umbra synth three-solids` (sphere, torus and box in the unit cube; smooth solids)
+  gyroid        a gyroid sheet 0.5 thick, |sin x cos y + sin y cos z + sin z cos x| <= 0.25 over
+                three periods (thin walls everywhere, one connected surface)
+  mni-wm        the MNI ICBM152 2009a white-matter probability map (../shared/data/mri), resampled
+                trilinearly to N^3 over its own extent (anisotropic spacing), iso 0.5 (a noisy
+                real isosurface)
+
+Prints one JSON line per measurement and a Markdown table at the end.
+Needs: pip install edt numpy scipy nibabel; umbra built (target/release/umbra).
+
+Usage: python3 bench/sweep_peers.py [--sizes 256,512] [--scenes three-solids,gyroid,mni-wm]
+                                    [--repeat 3] [--methods closest-point,sweeping]
+"""
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+UMBRA = os.environ.get("UMBRA", str(ROOT / "target" / "release" / "umbra"))
+SHARED = ROOT.parent / "shared" / "data"
+
+
+def write_nrrd(path, vol_zyx, spacing_xyz):
+    """float32 NRRD, x fastest (the array is indexed [z, y, x])."""
+    nz, ny, nx = vol_zyx.shape
+    hdr = (
+        "NRRD0004\ntype: float\ndimension: 3\n"
+        f"sizes: {nx} {ny} {nz}\n"
+        f"spacings: {spacing_xyz[0]!r} {spacing_xyz[1]!r} {spacing_xyz[2]!r}\n"
+        "encoding: raw\nendian: little\n\n"
+    )
+    with open(path, "wb") as f:
+        f.write(hdr.encode())
+        f.write(np.ascontiguousarray(vol_zyx, dtype="<f4").tobytes())
+
+
+def read_nrrd(path):
+    """The float32 NRRD written by umbra synth (raw, little endian), as [z, y, x] and spacing."""
+    data = Path(path).read_bytes()
+    head, _, body = data.partition(b"\n\n")
+    fields = {}
+    for line in head.decode().splitlines()[1:]:
+        if ":" in line and not line.startswith("#"):
+            k, v = line.split(":", 1)
+            fields[k.strip()] = v.strip()
+    sizes = [int(x) for x in fields["sizes"].split()]
+    assert fields["type"] in ("float", "float32") and fields["encoding"] == "raw", fields
+    if "space directions" in fields:
+        dirs = [d.strip("() ").split(",") for d in fields["space directions"].split(")")[:3]]
+        spacing = [float(np.linalg.norm([float(c) for c in d])) for d in dirs]
+    else:
+        spacing = [float(x) for x in fields.get("spacings", "1 1 1").split()]
+    a = np.frombuffer(body[: 4 * int(np.prod(sizes))], dtype="<f4")
+    return a.reshape(sizes[::-1]), spacing
+
+
+def scene(name, n, tmp):
+    """(path, iso, values [z, y, x], spacing xyz) of a scene at n^3."""
+    path = Path(tmp) / f"{name}_{n}.nrrd"
+    if name == "three-solids":
+        subprocess.run([UMBRA, "synth", "three-solids", "--n", str(n), "-o", str(path)],
+                       check=True, capture_output=True)
+        v, sp = read_nrrd(path)
+        return path, 0.0, v, sp
+    if name == "gyroid":
+        t = np.linspace(0.0, 6.0 * np.pi, n, dtype=np.float32)
+        z, y, x = np.meshgrid(t, t, t, indexing="ij", sparse=True)
+        g = np.sin(x) * np.cos(y) + np.sin(y) * np.cos(z) + np.sin(z) * np.cos(x)
+        v = (0.25 - np.abs(g)).astype(np.float32)
+        h = float(t[1] - t[0])
+        sp = [h, h, h]
+    elif name == "mni-wm":
+        import nibabel as nib
+        from scipy.ndimage import zoom
+        img = nib.load(str(SHARED / "mri" / "mni_icbm152_wm_tal_nlin_sym_09a.nii.gz"))
+        a = np.asarray(img.dataobj, dtype=np.float32)  # [x, y, z]
+        zooms = img.header.get_zooms()[:3]
+        f = [n / s for s in a.shape]
+        r = zoom(a, f, order=1)
+        v = np.ascontiguousarray(r.transpose(2, 1, 0))  # [z, y, x]
+        sp = [float(zooms[i]) * a.shape[i] / r.shape[i] for i in range(3)]
+        iso = 0.5
+        write_nrrd(path, v, sp)
+        return path, iso, v, sp
+    else:
+        raise SystemExit(f"unknown scene {name}")
+    write_nrrd(path, v, sp)
+    return path, 0.0, v, sp
+
+
+def umbra_sweep(path, iso, method, tmp, repeat):
+    out = []
+    info = None
+    for _ in range(repeat):
+        r = subprocess.run(
+            [UMBRA, "sweep", str(path), "--iso", repr(iso), "-o", str(Path(tmp) / "d.nrrd"),
+             "--distance", method, "--json"],
+            check=True, capture_output=True, text=True,
+            env={**os.environ, "XDG_RUNTIME_DIR": os.environ.get("XDG_RUNTIME_DIR", "/tmp")})
+        info = json.loads(r.stdout)
+        out.append(info["seconds"]["compute"])
+    return statistics.median(out), info
+
+
+def edt_sdf(v, iso, spacing, repeat):
+    import edt
+    mask = v >= iso
+    ts = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        d = edt.sdf(mask, anisotropy=(spacing[2], spacing[1], spacing[0]), parallel=2)
+        ts.append(time.perf_counter() - t)
+        del d
+    return statistics.median(ts)
+
+
+def copy_bytes(v, repeat):
+    ts = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        a = v.copy()
+        o = np.empty(v.size * 12, dtype=np.uint8)
+        o.fill(1)
+        ts.append(time.perf_counter() - t)
+        del a, o
+    return statistics.median(ts)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--sizes", default="256,512")
+    ap.add_argument("--scenes", default="three-solids,gyroid,mni-wm")
+    ap.add_argument("--methods", default="closest-point")
+    ap.add_argument("--repeat", type=int, default=3)
+    a = ap.parse_args()
+    rows = []
+    print(f"# machine: {os.cpu_count()} cores; date {time.strftime('%Y-%m-%dT%H:%MZ', time.gmtime())}")
+    with tempfile.TemporaryDirectory(dir=os.environ.get("TMPDIR", "/tmp")) as tmp:
+        for n in [int(s) for s in a.sizes.split(",")]:
+            for name in a.scenes.split(","):
+                path, iso, v, sp = scene(name, n, tmp)
+                rec = {"scene": name, "n": n, "spacing": sp, "inside_fraction": float((v >= iso).mean())}
+                for m in a.methods.split(","):
+                    s, info = umbra_sweep(path, iso, m, tmp, a.repeat)
+                    rec[f"umbra_{m}_s"] = s
+                    rec["band_voxels"] = info["band_voxels"]
+                    rec[f"umbra_{m}_peak_bytes"] = info["peak_bytes"]
+                rec["edt_s"] = edt_sdf(v, iso, sp, a.repeat)
+                rec["copy_s"] = copy_bytes(v, a.repeat)
+                print(json.dumps(rec), flush=True)
+                rows.append(rec)
+                os.remove(path)
+    methods = a.methods.split(",")
+    print()
+    print("| scene | N^3 | " + " | ".join(f"umbra {m} s" for m in methods)
+          + " | edt.sdf s | copy s | edt / umbra | umbra / copy |")
+    print("|---|---|" + "---|" * len(methods) + "---|---|---|---|")
+    for r in rows:
+        u = r[f"umbra_{methods[0]}_s"]
+        print(f"| {r['scene']} | {r['n']} | "
+              + " | ".join(f"{r[f'umbra_{m}_s']:.3f}" for m in methods)
+              + f" | {r['edt_s']:.3f} | {r['copy_s']:.3f} | {r['edt_s'] / u:.2f} | {u / r['copy_s']:.2f} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,548 @@
+//! Signed distance to an isosurface by closest points: the default distance of `umbra sweep`,
+//! with fast sweeping ([`crate::distance_sweep`]) kept as the paper's method.
+//!
+//! # Method
+//! 1. The band of [`crate::distance_sweep::classify_and_initialise`]: every voxel with a
+//!    neighbour on the other side of the surface, with the point `s_b = x_b + o_b` of the local
+//!    surface its initial estimate measures to ([`SurfacePoint`]: along the gradient for the
+//!    default `gradient` initialisation, so `|o_b|` is the band value fast sweeping starts from).
+//! 2. An exact Euclidean feature transform of the band voxels: for every voxel `x` the band
+//!    voxel `b(x)` nearest to it on the grid (weighted by the spacings), by three separable
+//!    passes (x: nearest band voxel in the row; y and z: the lower envelope of parabolas
+//!    `h_a^2 (p - q)^2 + f(q)` of Felzenszwalb and Huttenlocher, "Distance transforms of sampled
+//!    functions", Theory of Computing 8, 2012), carrying the band voxel's id.
+//! 3. `D(x) = |x - s_b(x)|`, negative inside. On band voxels `b(x) = x`, so the band keeps its
+//!    initial estimate exactly.
+//!
+//! # Accuracy (docs/accuracy.md measures it on analytic solids)
+//! Every `s_b` lies on the local linear surface, so `D(x)` is a distance to a point near the
+//! surface, not a first-order upwind solution: the point-source error of fast sweeping (one to
+//! one and a half voxels too far beside convex corners, where the distance field is that of a
+//! point) is absent. Its own error is the gap between the nearest band *voxel* and the band
+//! voxel with the nearest surface *point*: for a plane at `D` voxels, with the feet of
+//! neighbouring band voxels up to half a voxel apart laterally, `sqrt(D^2 + l^2) - D <= l^2 / 2D`
+//! with `l <= sqrt(2)/2`, largest just outside the band and falling as `1/D`. Where the band
+//! voxel's estimate is poor (thin features sampled by one voxel, noise), so is the distance
+//! behind it, as with sweeping.
+//!
+//! # Cost
+//! Three passes over the grid, each `O(N)` whatever the content (no rounds to convergence),
+//! each parallel over planes or rows; the band is a small fraction of the voxels.
+
+use crate::distance_sweep::{DistanceField, Initial};
+use rayon::prelude::*;
+
+/// Radius of the surface patch around each band voxel's surface point, in voxels of the
+/// smallest spacing (see the module doc; chosen by the measurements in docs/accuracy.md).
+pub const DISK_RADIUS: f32 = 0.7;
+
+/// No band voxel in this row/column (yet).
+const NONE: u32 = u32::MAX;
+
+/// A pointer shared by the threads of the last pass, each writing the rows of its own `j`.
+#[derive(Clone, Copy)]
+struct SharedOut(*mut u32);
+// SAFETY: threads write disjoint elements (see `pass_z`).
+unsafe impl Send for SharedOut {}
+unsafe impl Sync for SharedOut {}
+
+impl SharedOut {
+    /// The pointer (a method, so that closures capture the `Sync` wrapper, not the field).
+    fn ptr(self) -> *mut u32 {
+        self.0
+    }
+}
+
+/// A band voxel by id: its x and y on the grid (what the passes weigh).
+#[derive(Clone, Copy)]
+struct Site {
+    x: f32,
+    y: f32,
+}
+
+/// A band voxel's surface patch: the voxel on the grid, the offset from it to its surface point
+/// (world units) and the unit normal there (zero where the offset is). The distance from a voxel
+/// is computed from the index difference and the offset, so a band voxel's own distance is its
+/// estimate to the last bit, however small (an absolute surface point would round it away).
+#[derive(Clone, Copy)]
+struct Patch {
+    grid: [f32; 3],
+    offset: [f32; 3],
+    normal: [f32; 3],
+}
+
+/// Signed distance by closest points (see the module doc). Band voxels keep their initial
+/// estimate; with an empty band every distance is infinite (positive outside, negative inside),
+/// as with sweeping.
+pub fn closest_point_distance(init: Initial) -> DistanceField {
+    let Initial {
+        dims,
+        spacing,
+        inside,
+        band,
+        nan_count,
+        surface,
+    } = init;
+    let [nx, ny, nz] = dims;
+    let n = nx * ny * nz;
+    assert!(
+        surface.len() < NONE as usize,
+        "more band voxels than ids: {}",
+        surface.len()
+    );
+    let plane = nx * ny;
+    let (sites, patches): (Vec<Site>, Vec<Patch>) = surface
+        .par_iter()
+        .map(|s| {
+            let g = [s.index % nx, (s.index / nx) % ny, s.index / plane];
+            let o = s.offset;
+            let len = (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
+            (
+                Site {
+                    x: g[0] as f32,
+                    y: g[1] as f32,
+                },
+                Patch {
+                    grid: g.map(|g| g as f32),
+                    offset: o,
+                    normal: if len > 0.0 {
+                        o.map(|o| o / len)
+                    } else {
+                        [0.0; 3]
+                    },
+                },
+            )
+        })
+        .unzip();
+    // First band id of each row (ids are in voxel order): a count per row and a prefix sum.
+    let mut row_start = vec![0usize; ny * nz + 1];
+    for s in &surface {
+        row_start[s.index / nx + 1] += 1;
+    }
+    for r in 0..ny * nz {
+        row_start[r + 1] += row_start[r];
+    }
+    drop(surface);
+    // Zeroed pages come free; pass x writes every element.
+    let mut feature = crate::memory::zeroed(n, 0u32);
+    if n == 0 {
+        return DistanceField {
+            dims,
+            distance: Vec::new(),
+            iterations: 0,
+            converged: true,
+            band,
+            nan_count,
+            rows_processed: 0,
+        };
+    }
+    // Pass x: the nearest band voxel in each row.
+    feature.par_chunks_mut(nx).enumerate().for_each(|(r, row)| {
+        row.fill(NONE);
+        nearest_in_row(row, row_start[r] as u32..row_start[r + 1] as u32, &sites);
+    });
+    let h2 = spacing.map(|h| h as f64 * h as f64);
+    let radius = DISK_RADIUS * spacing.iter().cloned().fold(f32::INFINITY, f32::min);
+    // Passes y and z work on blocks of `BLOCK` adjacent columns: each element of a block is
+    // gathered from (and returned to) a contiguous run of a grid row, and the envelopes then
+    // run down the block's columns inside the cache.
+    // Pass y: per plane, the lower envelope down each column.
+    feature.par_chunks_mut(plane).for_each_init(
+        || (Envelope::new(ny), vec![NONE; ny * BLOCK]),
+        |(env, tile), out| {
+            for i0 in (0..nx).step_by(BLOCK) {
+                let w = BLOCK.min(nx - i0);
+                for j in 0..ny {
+                    tile[j * BLOCK..j * BLOCK + w]
+                        .copy_from_slice(&out[i0 + nx * j..i0 + nx * j + w]);
+                }
+                for c in 0..w {
+                    let i = (i0 + c) as f64;
+                    env.f.clear();
+                    env.f.extend((0..ny).map(|j| {
+                        let b = tile[j * BLOCK + c];
+                        if b == NONE {
+                            f64::INFINITY
+                        } else {
+                            let dx = i - sites[b as usize].x as f64;
+                            h2[0] * dx * dx
+                        }
+                    }));
+                    env.solve(h2[1]);
+                    for j in 0..ny {
+                        out[i0 + c + nx * j] = match env.winner[j] {
+                            NONE => NONE,
+                            q => tile[q as usize * BLOCK + c],
+                        };
+                    }
+                }
+            }
+        },
+    );
+    // Pass z: per y, the lower envelope along z; a task reads and writes only the elements of
+    // its own y.
+    let out = SharedOut(feature.as_mut_ptr());
+    let sites = &sites;
+    (0..ny).into_par_iter().for_each_init(
+        || {
+            (
+                Envelope::new(nz),
+                vec![NONE; nz * BLOCK],
+                vec![NONE; nz * BLOCK],
+            )
+        },
+        |(env, tile, win), j| {
+            let base = out.ptr();
+            for i0 in (0..nx).step_by(BLOCK) {
+                let w = BLOCK.min(nx - i0);
+                for k in 0..nz {
+                    let r = i0 + nx * (j + ny * k);
+                    // SAFETY: as below; the run is not being written while read.
+                    let run = unsafe { std::slice::from_raw_parts(base.add(r), w) };
+                    tile[k * BLOCK..k * BLOCK + w].copy_from_slice(run);
+                }
+                for c in 0..w {
+                    let i = i0 + c;
+                    env.f.clear();
+                    env.f.extend((0..nz).map(|k| {
+                        let b = tile[k * BLOCK + c];
+                        if b == NONE {
+                            f64::INFINITY
+                        } else {
+                            let s = &sites[b as usize];
+                            let dx = i as f64 - s.x as f64;
+                            let dy = j as f64 - s.y as f64;
+                            h2[0] * dx * dx + h2[1] * dy * dy
+                        }
+                    }));
+                    env.solve(h2[2]);
+                    for k in 0..nz {
+                        win[k * BLOCK + c] = match env.winner[k] {
+                            NONE => NONE,
+                            q => tile[q as usize * BLOCK + c],
+                        };
+                    }
+                }
+                for k in 0..nz {
+                    let r = i0 + nx * (j + ny * k);
+                    // SAFETY: this run of row (j, k) is written by the task of this j alone,
+                    // and lies inside the grid.
+                    let row = unsafe { std::slice::from_raw_parts_mut(base.add(r), w) };
+                    row.copy_from_slice(&win[k * BLOCK..k * BLOCK + w]);
+                }
+            }
+        },
+    );
+    // The distance to the winner's surface patch, row by row (neighbouring voxels have
+    // neighbouring winners, so the patches are read in order), in place as `f32` bits.
+    feature
+        .par_chunks_mut(nx)
+        .zip(inside.par_chunks(nx))
+        .enumerate()
+        .for_each(|(r, (row, ins))| {
+            let (j, k) = ((r % ny) as f32, (r / ny) as f32);
+            for (i, (o, &inside)) in row.iter_mut().zip(ins).enumerate() {
+                let d = match *o {
+                    NONE => f32::INFINITY,
+                    b => {
+                        let s = &patches[b as usize];
+                        let (g, o) = (s.grid, s.offset);
+                        let d = [
+                            (i as f32 - g[0]) * spacing[0] - o[0],
+                            (j - g[1]) * spacing[1] - o[1],
+                            (k - g[2]) * spacing[2] - o[2],
+                        ];
+                        patch_distance(d, s.normal, radius)
+                    }
+                };
+                *o = if inside { -d } else { d }.to_bits();
+            }
+        });
+    DistanceField {
+        dims,
+        distance: into_f32(feature),
+        iterations: 0,
+        converged: true,
+        band,
+        nan_count,
+        rows_processed: 0,
+    }
+}
+
+/// The buffer reinterpreted: every element holds the bits of an `f32`.
+fn into_f32(v: Vec<u32>) -> Vec<f32> {
+    let mut v = std::mem::ManuallyDrop::new(v);
+    // SAFETY: u32 and f32 have the same size and alignment and every bit pattern is a valid
+    // f32; the allocation changes owner, not layout.
+    unsafe { Vec::from_raw_parts(v.as_mut_ptr() as *mut f32, v.len(), v.capacity()) }
+}
+
+/// Columns per block in the passes along y and z.
+const BLOCK: usize = 16;
+
+/// The distance from a point at `d` from a band voxel's surface point to the surface patch
+/// there: a disk of radius `radius` about the point, normal to `normal` (a point where the
+/// normal is zero).
+#[inline(always)]
+fn patch_distance(d: [f32; 3], normal: [f32; 3], radius: f32) -> f32 {
+    let dn = d[0] * normal[0] + d[1] * normal[1] + d[2] * normal[2];
+    let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    if normal == [0.0; 3] {
+        return d2.sqrt();
+    }
+    let lateral = (d2 - dn * dn).max(0.0).sqrt();
+    let e = (lateral - radius).max(0.0);
+    (dn * dn + e * e).sqrt()
+}
+
+/// Fills `row` with the id of the nearest band voxel among `ids` (in ascending x, positions in
+/// `xs`); ties go to the lower x. A row without band voxels stays `NONE`.
+fn nearest_in_row(row: &mut [u32], ids: std::ops::Range<u32>, sites: &[Site]) {
+    if ids.is_empty() {
+        return;
+    }
+    let mut prev: Option<(u32, usize)> = None;
+    for id in ids {
+        let x = sites[id as usize].x as usize;
+        match prev {
+            None => row[..=x].fill(id),
+            Some((pid, px)) => {
+                // (px, x]: the lower half (ties included) to the previous voxel.
+                let mid = (px + x) / 2;
+                row[px + 1..=mid].fill(pid);
+                row[mid + 1..=x].fill(id);
+            }
+        }
+        prev = Some((id, x));
+    }
+    let (pid, px) = prev.unwrap();
+    row[px + 1..].fill(pid);
+}
+
+/// The lower envelope of the parabolas `w (p - q)^2 + f(q)` over a column (Felzenszwalb and
+/// Huttenlocher's algorithm), with its buffers.
+struct Envelope {
+    /// `f(q)`; infinite where the column has no band voxel.
+    f: Vec<f64>,
+    /// The parabola (position `q`) that is lowest at each `p`, or `NONE`.
+    winner: Vec<u32>,
+    v: Vec<u32>,
+    /// `f(q) + w q^2` of each parabola of `v`.
+    g: Vec<f64>,
+    /// Where each parabola of `v` starts to be lowest, as (numerator, positive denominator);
+    /// the first is minus infinity, (-1, 0).
+    z: Vec<(f64, f64)>,
+}
+
+impl Envelope {
+    fn new(n: usize) -> Self {
+        Envelope {
+            f: Vec::with_capacity(n),
+            winner: vec![NONE; n],
+            v: vec![0; n],
+            g: vec![0.0; n],
+            z: vec![(0.0, 0.0); n],
+        }
+    }
+
+    /// Fills `winner` for `f` and weight `w` (the squared spacing along the column).
+    ///
+    /// Division-free: the intersection of parabolas `q > v`,
+    /// `s = ((f(q) + w q^2) - (f(v) + w v^2)) / (2 w (q - v))`, is kept as numerator and
+    /// (positive) denominator and compared by cross-multiplication.
+    fn solve(&mut self, w: f64) {
+        let n = self.f.len();
+        self.winner.resize(n, NONE);
+        self.v.resize(n, 0);
+        self.g.resize(n, 0.0);
+        self.z.resize(n, (0.0, 0.0));
+        let (f, v, g, z) = (
+            &self.f[..n],
+            &mut self.v[..n],
+            &mut self.g[..n],
+            &mut self.z[..n],
+        );
+        let two_w = 2.0 * w;
+        // The envelope is v[..len]; z[k] = (numerator, positive denominator) of where parabola
+        // v[k] starts to be the lowest, z[0] = (-1, 0) standing for minus infinity.
+        let mut len = 0usize;
+        for (q, &fq) in f.iter().enumerate() {
+            if fq == f64::INFINITY {
+                continue;
+            }
+            let qf = q as f64;
+            let gq = fq + w * qf * qf;
+            let mut s = (-1.0f64, 0.0f64);
+            while len > 0 {
+                let k = len - 1;
+                let num = gq - g[k];
+                let den = two_w * (qf - v[k] as f64);
+                let (zn, zd) = z[k];
+                // num / den <= zn / zd (den > 0; zd = 0 is minus infinity: never).
+                if zd > 0.0 && num * zd <= zn * den {
+                    len = k;
+                } else {
+                    s = (num, den);
+                    break;
+                }
+            }
+            v[len] = q as u32;
+            g[len] = gq;
+            z[len] = s;
+            len += 1;
+        }
+        if len == 0 {
+            self.winner.fill(NONE);
+            return;
+        }
+        let mut k = 0;
+        let last = len - 1;
+        let mut next = if last > 0 { z[1] } else { (1.0, 0.0) };
+        for (p, win) in self.winner.iter_mut().enumerate() {
+            // z[k + 1] < p.
+            while k < last && next.0 < p as f64 * next.1 {
+                k += 1;
+                next = if k < last { z[k + 1] } else { (1.0, 0.0) };
+            }
+            *win = v[k];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::distance_sweep::{classify_and_initialise, DistanceOptions};
+
+    /// Brute force: for every voxel, the distances to the surface patches of all the band
+    /// voxels nearest to it on the grid (ties: all of them).
+    fn brute(init: &Initial) -> Vec<Vec<f32>> {
+        let [nx, ny, _] = init.dims;
+        let h = init.spacing;
+        let pos = |v: usize| {
+            [
+                (v % nx) as f32 * h[0],
+                ((v / nx) % ny) as f32 * h[1],
+                (v / (nx * ny)) as f32 * h[2],
+            ]
+        };
+        (0..init.inside.len())
+            .map(|v| {
+                let p = pos(v);
+                let g = |s: &crate::distance_sweep::SurfacePoint| -> f32 {
+                    let q = pos(s.index);
+                    (0..3).map(|a| (p[a] - q[a]).powi(2)).sum()
+                };
+                let best = init.surface.iter().map(g).fold(f32::INFINITY, f32::min);
+                init.surface
+                    .iter()
+                    .filter(|s| g(s) <= best * (1.0 + 1e-5))
+                    .map(|s| {
+                        let q = pos(s.index);
+                        let d: [f32; 3] = std::array::from_fn(|a| p[a] - q[a] - s.offset[a]);
+                        let normal = s.offset.map(|o| o / s.distance);
+                        let normal = if s.distance > 0.0 { normal } else { [0.0; 3] };
+                        patch_distance(d, normal, DISK_RADIUS * h[0].min(h[1]).min(h[2]))
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn blob(dims: [usize; 3]) -> Vec<f32> {
+        // Two spheres and a slab: several band components, rows without band voxels.
+        let mut v = Vec::new();
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let (x, y, z) = (i as f32, j as f32, k as f32);
+                    let a =
+                        5.0 - ((x - 6.0).powi(2) + (y - 7.0).powi(2) + (z - 5.0).powi(2)).sqrt();
+                    let b =
+                        3.2 - ((x - 15.0).powi(2) + (y - 4.0).powi(2) + (z - 9.0).powi(2)).sqrt();
+                    let c = 1.3 - (y + 0.4 * x - 16.0).abs();
+                    v.push(a.max(b).max(c));
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn the_feature_transform_finds_the_nearest_band_voxel() {
+        // Anisotropic spacing, odd sizes: the transform's distance to the winner's surface point
+        // is that of one of the band voxels nearest on the grid (ties: any of them).
+        let dims = [19, 13, 11];
+        let v = blob(dims);
+        for spacing in [[1.0f32, 1.0, 1.0], [0.7, 1.0, 1.6]] {
+            let init = classify_and_initialise(&v, dims, spacing, &DistanceOptions::default());
+            assert!(init.band > 100);
+            let want = brute(&init);
+            let inside = init.inside.clone();
+            let df = closest_point_distance(init);
+            for (i, (&got, w)) in df.distance.iter().zip(&want).enumerate() {
+                assert_eq!(got.is_sign_negative(), inside[i], "sign at {i}");
+                assert!(
+                    w.iter().any(|&w| (got.abs() - w).abs() < 1e-4),
+                    "voxel {i}: {got} is none of {w:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_patch_is_exact_for_its_plane_and_a_point_without_normal() {
+        let n = [0.6f32, 0.0, 0.8];
+        // Within the radius laterally: the distance to the plane.
+        let d = [0.6 * 2.0 + 0.3, 0.1, 0.8 * 2.0 - 0.225]; // 2 along n, (0.3, 0.1, -0.225) across
+        assert!((patch_distance(d, n, 0.7) - 2.0).abs() < 1e-5);
+        // Beyond it: to the disk's rim.
+        let d = [0.0, 3.0, 0.0];
+        assert!((patch_distance(d, n, 0.7) - 2.3).abs() < 1e-5);
+        // No normal: the distance to the point.
+        let d = [3.0, 4.0, 0.0];
+        assert!((patch_distance(d, [0.0; 3], 0.7) - 5.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn rows_fill_with_the_nearest_voxel() {
+        let xs: Vec<Site> = [2.0, 3.0, 9.0].map(|x| Site { x, y: 0.0 }).to_vec();
+        let mut row = [NONE; 12];
+        nearest_in_row(&mut row, 0..3, &xs);
+        assert_eq!(row, [0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 2]);
+        let mut empty = [NONE; 4];
+        nearest_in_row(&mut empty, 0..0, &xs);
+        assert_eq!(empty, [NONE; 4]);
+    }
+
+    #[test]
+    fn the_envelope_is_the_minimum_of_the_parabolas() {
+        let f = [
+            f64::INFINITY,
+            4.0,
+            f64::INFINITY,
+            0.5,
+            9.0,
+            f64::INFINITY,
+            0.0,
+            30.0,
+        ];
+        for w in [1.0, 0.3, 2.5] {
+            let mut e = Envelope::new(f.len());
+            e.f.extend_from_slice(&f);
+            e.solve(w);
+            for p in 0..f.len() {
+                let val = |q: usize| w * (p as f64 - q as f64).powi(2) + f[q];
+                let best = (0..f.len()).map(val).fold(f64::INFINITY, f64::min);
+                assert!(
+                    (val(e.winner[p] as usize) - best).abs() < 1e-12,
+                    "w {w} p {p}"
+                );
+            }
+        }
+        let mut none = Envelope::new(3);
+        none.f.extend_from_slice(&[f64::INFINITY; 3]);
+        none.solve(1.0);
+        assert_eq!(none.winner, vec![NONE; 3]);
+    }
+}
