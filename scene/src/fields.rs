@@ -5,9 +5,10 @@
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use volume::distance_sweep::classify_and_initialise;
 use volume::distance_sweep::{DistanceField, DistanceMethod, DistanceOptions, InitMethod, Inside};
 use volume::nrrd::{self, Array, ArrayData, WriteEncoding};
-use volume::occlusion_sweep::{sweep_fields, OcclusionOptions, OctantFields};
+use volume::occlusion_sweep::{fields_from_band, sweep_fields, OcclusionOptions, OctantFields};
 use volume::{FieldSelector, ScalarType, Volume};
 
 /// What `umbra sweep` is asked to do.
@@ -142,7 +143,6 @@ pub fn write_distance(path: &Path, vol: &Volume, df: &DistanceField) -> Result<(
 /// Writes the octants as a 4-D uint8 NRRD whose first axis (kind `list`) holds the eight
 /// octants in Table 1 order.
 pub fn write_octants(path: &Path, vol: &Volume, oct: &OctantFields) -> Result<(), String> {
-    let data = oct.interleaved();
     nrrd::write_array(
         path,
         &Array {
@@ -152,7 +152,8 @@ pub fn write_octants(path: &Path, vol: &Volume, oct: &OctantFields) -> Result<()
             components: 8,
             component_kind: "list",
             stored: ScalarType::U8,
-            data: ArrayData::U8(&data),
+            // Interleaved while streaming: no 8-bytes-a-voxel copy.
+            data: ArrayData::U8Planes(&oct.octants),
             content: "octant visibility x 255 (Table 1 order)",
         },
         WriteEncoding::Raw,
@@ -213,7 +214,7 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
     });
     volume::check_outputs(&[Some(args.output.as_path()), octants_path.as_deref()])?;
     stage("reading");
-    let vol = volume::load(&args.input).map_err(|e| e.to_string())?;
+    let mut vol = volume::load(&args.input).map_err(|e| e.to_string())?;
     let values = scalar_field(
         &vol,
         args.field.as_ref(),
@@ -221,13 +222,18 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
         args.inside,
         &args.input,
     )?;
+    // Only the grid's frame is needed from here on: the volume's own copy of the samples goes,
+    // and the selected samples go after the classification (peak memory, docs/benchmarks.md).
+    vol.fields = Vec::new();
     let mut warnings: Vec<String> = vol.warnings.clone();
     let t_read = t0.elapsed().as_secs_f64();
     stage("sweeping distance and octants");
     let sp = vol.spacing();
     let spacing = [sp[0] as f32, sp[1] as f32, sp[2] as f32];
     let t1 = Instant::now();
-    let (df, oct) = sweep_fields(&values, vol.dims, spacing, &dopts, &oopts, !args.sdf_only);
+    let init = classify_and_initialise(&values, vol.dims, spacing, &dopts);
+    drop(values);
+    let (df, oct) = fields_from_band(init, &dopts, &oopts, !args.sdf_only);
     let t_compute = t1.elapsed().as_secs_f64();
     if df.nan_count > 0 {
         warnings.push(format!(

@@ -540,7 +540,14 @@ pub fn parse_sizes(path: &Path, field: &str, s: &str, n: usize) -> Result<Vec<i6
 /// failure never leaves a half-written output. The temporary file is `.NAME.PID.tmp`
 /// ([`temp_name`]); one a killed process left behind is what [`remove_stale_temps`] removes.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    use std::io::Write;
+    write_atomic_with(path, |w| std::io::Write::write_all(w, bytes))
+}
+
+/// [`write_atomic`] with the contents streamed by `write` (through a buffer) instead of held.
+pub fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<()> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -550,8 +557,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .ok_or_else(|| VolumeError::Invalid(format!("{}: not a file path", path.display())))?;
     let tmp = dir.join(temp_name(&name.to_string_lossy(), std::process::id()));
     let res = (|| -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
+        let mut f = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&tmp)?);
+        write(&mut f)?;
+        let f = f.into_inner().map_err(|e| e.into_error())?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();

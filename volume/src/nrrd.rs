@@ -587,6 +587,9 @@ pub enum ArrayData<'a> {
     F32(&'a [f32]),
     /// Written as they are (the stored type must be `U8`).
     U8(&'a [u8]),
+    /// One `u8` plane per component (each a value per voxel), interleaved on writing (the stored
+    /// type must be `U8`; raw encoding streams them without an interleaved copy).
+    U8Planes(&'a [Vec<u8>]),
 }
 
 impl ArrayData<'_> {
@@ -594,6 +597,15 @@ impl ArrayData<'_> {
         match self {
             ArrayData::F32(d) => d.len(),
             ArrayData::U8(d) => d.len(),
+            ArrayData::U8Planes(p) => {
+                // Planes of unequal length are refused as a mismatched count.
+                let n = p.first().map_or(0, |x| x.len());
+                if p.iter().all(|x| x.len() == n) {
+                    n * p.len()
+                } else {
+                    usize::MAX
+                }
+            }
         }
     }
 }
@@ -695,20 +707,56 @@ pub fn write_array(path: &Path, a: &Array, encoding: WriteEncoding) -> Result<()
         WriteEncoding::Gzip => "encoding: gzip\n",
     };
     h += &format!("space origin: {}\n\n", vec3(a.affine.w_axis.truncate()));
-    let body = match a.data {
-        ArrayData::F32(d) => io_util::encode_samples(d, a.stored, false),
-        ArrayData::U8(d) if a.stored == ScalarType::U8 => d.to_vec(),
-        ArrayData::U8(_) => {
-            return Err(VolumeError::Invalid(format!(
-                "{}: u8 data must be stored as uint8",
-                path.display()
-            )))
-        }
-    };
-    let mut bytes = h.into_bytes();
-    match encoding {
-        WriteEncoding::Raw => bytes.extend_from_slice(&body),
-        WriteEncoding::Gzip => bytes.extend_from_slice(&io_util::gzip_bytes(&body)),
+    if matches!(a.data, ArrayData::U8(_) | ArrayData::U8Planes(_)) && a.stored != ScalarType::U8 {
+        return Err(VolumeError::Invalid(format!(
+            "{}: u8 data must be stored as uint8",
+            path.display()
+        )));
     }
-    io_util::write_atomic(path, &bytes)
+    match encoding {
+        // Streamed in blocks: no copy of the body is held (a 512^3 sweep writes 1.5 GB).
+        WriteEncoding::Raw => io_util::write_atomic_with(path, |w| {
+            std::io::Write::write_all(w, h.as_bytes())?;
+            write_body(w, &a.data, a.stored)
+        }),
+        WriteEncoding::Gzip => {
+            let mut body = Vec::new();
+            write_body(&mut body, &a.data, a.stored).map_err(|e| VolumeError::io(path, e))?;
+            let mut bytes = h.into_bytes();
+            bytes.extend_from_slice(&io_util::gzip_bytes(&body));
+            io_util::write_atomic(path, &bytes)
+        }
+    }
+}
+
+/// Writes the samples in the stored type, block by block.
+fn write_body(
+    w: &mut dyn std::io::Write,
+    data: &ArrayData,
+    stored: ScalarType,
+) -> std::io::Result<()> {
+    const BLOCK: usize = 1 << 18;
+    match data {
+        ArrayData::F32(d) => {
+            for c in d.chunks(BLOCK) {
+                w.write_all(&io_util::encode_samples(c, stored, false))?;
+            }
+        }
+        ArrayData::U8(d) => w.write_all(d)?,
+        ArrayData::U8Planes(p) => {
+            let n = p.first().map_or(0, |x| x.len());
+            let k = p.len();
+            let mut buf = vec![0u8; BLOCK * k];
+            for v0 in (0..n).step_by(BLOCK) {
+                let m = BLOCK.min(n - v0);
+                for (v, chunk) in buf[..m * k].chunks_exact_mut(k).enumerate() {
+                    for (c, plane) in chunk.iter_mut().zip(p.iter()) {
+                        *c = plane[v0 + v];
+                    }
+                }
+                w.write_all(&buf[..m * k])?;
+            }
+        }
+    }
+    Ok(())
 }

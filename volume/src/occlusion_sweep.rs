@@ -88,19 +88,6 @@ impl OctantFields {
     pub fn v(&self, s: usize, idx: usize) -> f32 {
         self.octants[s][idx] as f32 * (1.0 / 255.0)
     }
-
-    /// Interleaves the octants per voxel (`8 * voxel + s`), the layout of the NRRD output whose
-    /// first axis (kind `list`) holds the octants.
-    pub fn interleaved(&self) -> Vec<u8> {
-        let n = self.dims[0] * self.dims[1] * self.dims[2];
-        let mut out = vec![0u8; 8 * n];
-        for (v, chunk) in out.chunks_exact_mut(8).enumerate() {
-            for (c, o) in chunk.iter_mut().zip(&self.octants) {
-                *c = o[v];
-            }
-        }
-        out
-    }
 }
 
 /// Quantised transmittance per voxel (`round(255 tau)`, eq. 7 with `h = h_min`, or eq. 8 as
@@ -257,9 +244,21 @@ pub fn sweep_fields(
     octants: bool,
 ) -> (DistanceField, Option<OctantFields>) {
     let init = classify_and_initialise(values, dims, spacing, dopts);
+    fields_from_band(init, dopts, oopts, octants)
+}
+
+/// [`sweep_fields`] from the classification and band, so that a caller can free the samples
+/// before the fields are allocated (nothing after [`classify_and_initialise`] reads them).
+pub fn fields_from_band(
+    init: Initial,
+    dopts: &DistanceOptions,
+    oopts: &OcclusionOptions,
+    octants: bool,
+) -> (DistanceField, Option<OctantFields>) {
     if !octants {
         return (distance_from_band(init, dopts), None);
     }
+    let dims = init.dims;
     let tau = transmittance(&init, oopts.subsurface_alpha);
     let (df, oct) = rayon::join(
         || distance_from_band(init, dopts),
