@@ -4,9 +4,11 @@ character, in one run (issue 16). For each scene and size N^3:
 
   * umbra: `seconds.compute` of `umbra sweep --json` (initialisation + distance + the eight
     octant fields, no --sdf-only, file I/O excluded), median of --repeat processes, for each
-    --distance method asked for (default closest-point, the default of `umbra sweep`);
+    --distance method asked for (default closest-point, the default of `umbra sweep`), and the
+    peak resident memory the command reports;
   * edt: `edt.sdf(mask, anisotropy=spacing, parallel=2)` on the same inside mask (values >= iso),
-    median of --repeat calls;
+    median of --repeat calls, alternating with umbra's first method (this machine's speed drifts
+    by tens of percent within minutes, so the pairs are taken side by side);
   * copy: a plain copy of the bytes the sweep reads and writes (4 in, 12 out per voxel: the
     float32 values, the float32 distance and the eight uint8 octants), numpy, median of --repeat.
 
@@ -22,7 +24,7 @@ Prints one JSON line per measurement and a Markdown table at the end.
 Needs: pip install edt numpy scipy nibabel; umbra built (target/release/umbra).
 
 Usage: python3 bench/sweep_peers.py [--sizes 256,512] [--scenes three-solids,gyroid,mni-wm]
-                                    [--repeat 3] [--methods closest-point,sweeping]
+                                    [--repeat 5] [--methods closest-point,sweeping]
 """
 import argparse
 import json
@@ -151,7 +153,7 @@ def main():
     ap.add_argument("--sizes", default="256,512")
     ap.add_argument("--scenes", default="three-solids,gyroid,mni-wm")
     ap.add_argument("--methods", default="closest-point")
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=5)
     a = ap.parse_args()
     rows = []
     print(f"# machine: {os.cpu_count()} cores; date {time.strftime('%Y-%m-%dT%H:%MZ', time.gmtime())}")
@@ -160,12 +162,23 @@ def main():
             for name in a.scenes.split(","):
                 path, iso, v, sp = scene(name, n, tmp)
                 rec = {"scene": name, "n": n, "spacing": sp, "inside_fraction": float((v >= iso).mean())}
-                for m in a.methods.split(","):
+                methods = a.methods.split(",")
+                first, edt_t = [], []
+                info = None
+                for _ in range(a.repeat):
+                    s, info = umbra_sweep(path, iso, methods[0], tmp, 1)
+                    first.append(s)
+                    edt_t.append(edt_sdf(v, iso, sp, 1))
+                rec[f"umbra_{methods[0]}_s"] = statistics.median(first)
+                rec[f"umbra_{methods[0]}_all_s"] = first
+                rec["band_voxels"] = info["band_voxels"]
+                rec[f"umbra_{methods[0]}_peak_bytes"] = info["peak_bytes"]
+                rec["edt_s"] = statistics.median(edt_t)
+                rec["edt_all_s"] = edt_t
+                for m in methods[1:]:
                     s, info = umbra_sweep(path, iso, m, tmp, a.repeat)
                     rec[f"umbra_{m}_s"] = s
-                    rec["band_voxels"] = info["band_voxels"]
                     rec[f"umbra_{m}_peak_bytes"] = info["peak_bytes"]
-                rec["edt_s"] = edt_sdf(v, iso, sp, a.repeat)
                 rec["copy_s"] = copy_bytes(v, a.repeat)
                 print(json.dumps(rec), flush=True)
                 rows.append(rec)
@@ -173,13 +186,14 @@ def main():
     methods = a.methods.split(",")
     print()
     print("| scene | N^3 | " + " | ".join(f"umbra {m} s" for m in methods)
-          + " | edt.sdf s | copy s | edt / umbra | umbra / copy |")
-    print("|---|---|" + "---|" * len(methods) + "---|---|---|---|")
+          + " | edt.sdf s | copy s | edt / umbra | umbra / copy | umbra peak bytes / voxel |")
+    print("|---|---|" + "---|" * len(methods) + "---|---|---|---|---|")
     for r in rows:
         u = r[f"umbra_{methods[0]}_s"]
         print(f"| {r['scene']} | {r['n']} | "
               + " | ".join(f"{r[f'umbra_{m}_s']:.3f}" for m in methods)
-              + f" | {r['edt_s']:.3f} | {r['copy_s']:.3f} | {r['edt_s'] / u:.2f} | {u / r['copy_s']:.2f} |")
+              + f" | {r['edt_s']:.3f} | {r['copy_s']:.3f} | {r['edt_s'] / u:.2f} | {u / r['copy_s']:.2f} |"
+              + f" {r[f'umbra_{methods[0]}_peak_bytes'] / r['n'] ** 3:.1f} |")
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use volume::distance_sweep::classify_and_initialise;
+use volume::distance_sweep::classify_and_initialise_owned;
 use volume::distance_sweep::{DistanceField, DistanceMethod, DistanceOptions, InitMethod, Inside};
 use volume::nrrd::{self, Array, ArrayData, WriteEncoding};
 use volume::occlusion_sweep::{fields_from_band, sweep_fields, OcclusionOptions, OctantFields};
@@ -231,8 +231,7 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
     let sp = vol.spacing();
     let spacing = [sp[0] as f32, sp[1] as f32, sp[2] as f32];
     let t1 = Instant::now();
-    let init = classify_and_initialise(&values, vol.dims, spacing, &dopts);
-    drop(values);
+    let init = classify_and_initialise_owned(values, vol.dims, spacing, &dopts);
     let (df, oct) = fields_from_band(init, &dopts, &oopts, !args.sdf_only);
     let t_compute = t1.elapsed().as_secs_f64();
     if df.nan_count > 0 {

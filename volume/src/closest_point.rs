@@ -82,6 +82,7 @@ pub fn closest_point_distance(init: Initial) -> DistanceField {
         band,
         nan_count,
         surface,
+        scratch,
     } = init;
     let [nx, ny, nz] = dims;
     let n = nx * ny * nz;
@@ -124,7 +125,13 @@ pub fn closest_point_distance(init: Initial) -> DistanceField {
     }
     drop(surface);
     // Zeroed pages come free; pass x writes every element.
-    let mut feature = crate::memory::zeroed(n, 0u32);
+    // Pass x writes every element: the samples' old buffer serves, else zeroed pages.
+    let mut feature = if scratch.len() == n {
+        into_u32(scratch)
+    } else {
+        drop(scratch);
+        crate::memory::zeroed(n, 0u32)
+    };
     if n == 0 {
         return DistanceField {
             dims,
@@ -267,6 +274,13 @@ pub fn closest_point_distance(init: Initial) -> DistanceField {
         nan_count,
         rows_processed: 0,
     }
+}
+
+/// The buffer reinterpreted as ids (its contents are overwritten).
+fn into_u32(v: Vec<f32>) -> Vec<u32> {
+    let mut v = std::mem::ManuallyDrop::new(v);
+    // SAFETY: as in `into_f32`: same size and alignment, every bit pattern valid.
+    unsafe { Vec::from_raw_parts(v.as_mut_ptr() as *mut u32, v.len(), v.capacity()) }
 }
 
 /// The buffer reinterpreted: every element holds the bits of an `f32`.
