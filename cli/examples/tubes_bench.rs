@@ -1,8 +1,11 @@
 //! Stream-tube benchmark of docs/benchmarks.md: 10,000 smooth random polylines of 200 points in
 //! a 100^3 box (deterministic), the whole pipeline (fit + reduce + RMF + mesh, `compute` of
 //! `umbra tubes`, no I/O) at radius 0.2, 8 sides, tolerance 0.02, median of `repeat` runs.
-//! `cargo run --release -p umbra --example tubes_bench -- [lines] [repeat] [out.tck]`
-//! writes the polylines to `out.tck` for the VTK peer (bench/peers_tubes.py).
+//! `cargo run --release -p umbra --example tubes_bench -- [lines] [repeat] [out.tck] [kind]`
+//! writes the polylines to `out.tck` for the VTK peer (bench/peers_tubes.py). `kind`: `smooth`
+//! (default, the lines above) or `noisy-helix`: helices of radius 3 and pitch 4 (200 points,
+//! 0.5 apart along the helix, about 4.3 turns), randomly placed and oriented in the box, every
+//! point moved by uniform noise of +-0.1 per coordinate (5x the tolerance).
 use glam::DVec3;
 use std::time::Instant;
 use tubes::bspline_fit::{FitMethod, FitOptions};
@@ -46,12 +49,54 @@ fn polylines(n: usize, points: usize) -> Streamlines {
     s
 }
 
+fn noisy_helices(n: usize, points: usize) -> Streamlines {
+    let mut seed = 0x9E3779B97F4A7C15u64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (radius, pitch, step, noise) = (3.0, 4.0, 0.5, 0.1);
+    // Arc length per turn, and so the angle per step.
+    let turn = ((2.0 * std::f64::consts::PI * radius).powi(2) + pitch * pitch).sqrt();
+    let dphi = 2.0 * std::f64::consts::PI * step / turn;
+    let mut s = Streamlines::new();
+    for _ in 0..n {
+        let centre = DVec3::new(
+            20.0 + 60.0 * rnd(),
+            20.0 + 60.0 * rnd(),
+            20.0 + 60.0 * rnd(),
+        );
+        let axis = DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+        let u = axis.any_orthonormal_vector();
+        let v = axis.cross(u);
+        let phase = 2.0 * std::f64::consts::PI * rnd();
+        let line: Vec<glam::Vec3> = (0..points)
+            .map(|i| {
+                let phi = phase + dphi * i as f64;
+                let p = centre
+                    + (u * phi.cos() + v * phi.sin()) * radius
+                    + axis * (pitch * (phi - phase) / (2.0 * std::f64::consts::PI) - 8.0);
+                let jitter = DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * (2.0 * noise);
+                (p + jitter).as_vec3()
+            })
+            .collect();
+        s.push(&line);
+    }
+    s
+}
+
 fn main() {
     let a: Vec<String> = std::env::args().collect();
     let n: usize = a.get(1).and_then(|s| s.parse().ok()).unwrap_or(10_000);
     let repeat: usize = a.get(2).and_then(|s| s.parse().ok()).unwrap_or(3);
-    let s = polylines(n, 200);
-    if let Some(out) = a.get(3) {
+    let s = match a.get(4).map(String::as_str) {
+        None | Some("smooth") => polylines(n, 200),
+        Some("noisy-helix") => noisy_helices(n, 200),
+        Some(k) => panic!("unknown kind {k} (smooth, noisy-helix)"),
+    };
+    if let Some(out) = a.get(3).filter(|o| *o != "-") {
         tubes::save(std::path::Path::new(out), &s).unwrap();
     }
     let opts = TubeOptions {
@@ -96,7 +141,7 @@ fn main() {
     }
     let (verts, st) = last.unwrap();
     println!(
-        "{{\"lines\": {n}, \"points\": {}, \"compute_s\": {:.3}, \"triangles\": {}, \"vertices\": {verts}, \"control_points\": {}, \"max_deviation\": {:.5}, \"max_twist_deg\": {:.3}, \"min_section_ratio\": {:.4}, \"radius_clamps\": {}, \"splits\": {}, \"threads\": {}}}",
+        "{{\"lines\": {n}, \"points\": {}, \"compute_s\": {:.3}, \"triangles\": {}, \"vertices\": {verts}, \"control_points\": {}, \"max_deviation\": {:.5}, \"max_twist_deg\": {:.3}, \"min_section_ratio\": {:.4}, \"radius_clamps\": {}, \"splits\": {}, \"polyline_pieces\": {}, \"threads\": {}}}",
         st.points_in,
         times[times.len() / 2],
         st.triangles,
@@ -106,6 +151,7 @@ fn main() {
         st.min_section_ratio,
         st.radius_clamps,
         st.splits,
+        st.polyline_pieces,
         rayon::current_num_threads()
     );
 }

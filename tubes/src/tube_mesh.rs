@@ -33,7 +33,7 @@
 //! near-reversal), the rings there are left out and the tube is cut as well; both count as
 //! splits.
 
-use crate::bspline_fit::{clean, fit, BSpline, FitOptions};
+use crate::bspline_fit::{clean, fit, BSpline, FitMethod, FitOptions};
 use crate::Streamlines;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -224,6 +224,9 @@ pub struct TubeStats {
     pub splits: usize,
     pub dropped_points: usize,
     pub skipped_streamlines: usize,
+    /// Pieces meshed as their polyline (a ring at every point) because the fit could not
+    /// shorten them within the tolerance.
+    pub polyline_pieces: usize,
 }
 
 /// Splits a cleaned polyline where its direction reverses (turn > 179.9 degrees).
@@ -566,6 +569,32 @@ fn rgb8(c: [f32; 3]) -> [u8; 3] {
     c.map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
 }
 
+/// Whether a line is too rough for the fit to shorten: more than a quarter of its interior
+/// points lie more than twice the tolerance from the midpoint of their neighbours. Halving the
+/// control points drops every other point, so such a line fails the first halving, and the fit
+/// would only re-trace the polyline at full cost (measured on noisy helices,
+/// docs/benchmarks.md). A wrong guess costs triangles, never accuracy.
+fn too_rough(points: &[DVec3], tolerance: f64) -> bool {
+    let n = points.len();
+    if n < 8 {
+        return false;
+    }
+    let lim = (4.0 * tolerance) * (4.0 * tolerance);
+    let rough = points
+        .windows(3)
+        .filter(|w| (w[0] + w[2] - 2.0 * w[1]).length_squared() > lim)
+        .count();
+    rough * 4 > n - 2
+}
+
+/// Whether the polyline turns by more than 100 degrees at some point.
+fn sharp_turn(points: &[DVec3]) -> bool {
+    points.windows(3).any(|w| {
+        let (a, b) = (w[1] - w[0], w[2] - w[1]);
+        a.dot(b) < -0.17 * a.length() * b.length()
+    })
+}
+
 /// Builds the tube of one cleaned polyline piece.
 fn tube(
     points: &[DVec3],
@@ -577,47 +606,77 @@ fn tube(
         min_section_ratio: f64::INFINITY,
         ..Default::default()
     };
-    let f = fit(points, &o.fit);
-    st.control_points = f.curve.control.len();
-    st.max_deviation = f.max_deviation;
-    let curve = &f.curve;
-    let params = ring_params(curve, o.per_span, o.max_turn_deg, o.chordal);
+    // A line too rough for the fit to shorten (noise above the tolerance) is meshed as the
+    // polyline it is, a ring at every point (as vtkTubeFilter does): deviation 0, and no more
+    // rings than points, which the fit's refinement of its turning spans would exceed (2.4x
+    // vtkTubeFilter's triangles on noisy helices, docs/benchmarks.md). Decided before fitting
+    // when the points say so, or after it when the fit kept every point; not where the line
+    // turns sharply at a point (more than 100 degrees), whose rings would fold without the fit's
+    // refinement (hairpins, tests/tubes_stability.rs).
+    let rmf_iterative = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
+    let mut polyline = rmf_iterative && too_rough(points, o.fit.epsilon) && !sharp_turn(points);
+    let fitted = (!polyline).then(|| fit(points, &o.fit));
+    let mut fit_params = Vec::new();
+    if let Some(f) = &fitted {
+        fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
+        polyline = rmf_iterative && f.curve.control.len() >= points.len() && !sharp_turn(points);
+    }
     let sides = match o.chordal {
         Some(tol) => sides_for(o.radius, tol),
         None => o.sides.max(3),
     };
     let (mut x, mut t, mut k): (Vec<DVec3>, Vec<DVec3>, Vec<f64>) =
         (Vec::new(), Vec::new(), Vec::new());
-    let mut kept_params = Vec::with_capacity(params.len());
-    for (pi, &(u, c, d1, d2)) in params.iter().enumerate() {
-        // Rings closer than 1e-4 radius to the previous one (where the fitted curve all but
-        // stops, at the apex of a near-reversal) would give zero-area quads: skip them, but keep
-        // the last ring.
-        if let Some(&prev) = x.last() {
-            if (c - prev).length() < 1e-4 * o.radius {
-                if pi + 1 < params.len() {
-                    continue;
-                }
-                x.pop();
-                t.pop();
-                k.pop();
-                kept_params.pop();
-            }
+    let mut kept_params = Vec::with_capacity(fit_params.len().max(points.len()));
+    let (curve, sample_params): (Option<&BSpline>, Vec<f64>) = if polyline {
+        st.polyline_pieces = 1;
+        st.control_points = points.len();
+        st.max_deviation = 0.0;
+        let n = points.len();
+        for (i, &p) in points.iter().enumerate() {
+            let d = points[(i + 1).min(n - 1)] - points[i.saturating_sub(1)];
+            x.push(p);
+            t.push(d.normalize_or(if let Some(&q) = t.last() { q } else { DVec3::X }));
+            // The turn between rings is weighed by `kd` below.
+            k.push(0.0);
+            kept_params.push(i as f64);
         }
-        kept_params.push(u);
-        x.push(c);
-        t.push(d1.normalize_or(if let Some(&p) = t.last() { p } else { DVec3::X }));
-        let l = d1.length();
-        k.push(if l > 1e-300 {
-            d1.cross(d2).length() / (l * l * l)
-        } else {
-            0.0
-        });
-    }
+        (None, kept_params.clone())
+    } else {
+        let f = fitted.as_ref().expect("fitted");
+        st.control_points = f.curve.control.len();
+        st.max_deviation = f.max_deviation;
+        for (pi, &(u, c, d1, d2)) in fit_params.iter().enumerate() {
+            // Rings closer than 1e-4 radius to the previous one (where the fitted curve all
+            // but stops, at the apex of a near-reversal) would give zero-area quads: skip them,
+            // but keep the last ring.
+            if let Some(&prev) = x.last() {
+                if (c - prev).length() < 1e-4 * o.radius {
+                    if pi + 1 < fit_params.len() {
+                        continue;
+                    }
+                    x.pop();
+                    t.pop();
+                    k.pop();
+                    kept_params.pop();
+                }
+            }
+            kept_params.push(u);
+            x.push(c);
+            t.push(d1.normalize_or(if let Some(&p) = t.last() { p } else { DVec3::X }));
+            let l = d1.length();
+            k.push(if l > 1e-300 {
+                d1.cross(d2).length() / (l * l * l)
+            } else {
+                0.0
+            });
+        }
+        (Some(&f.curve), f.sample_params.clone())
+    };
     let params = kept_params;
     let frames = match o.frame {
         FrameMethod::Rmf => rmf(&x, &t),
-        FrameMethod::Frenet => frenet(curve, &params, &t),
+        FrameMethod::Frenet => frenet(curve.expect("Frenet frames come with a fit"), &params, &t),
     };
     // Discrete curvature between consecutive rings (turn over spacing): a ring may not be wider
     // than this allows either, or the inner side of the bend folds between two rings.
@@ -669,7 +728,7 @@ fn tube(
     // Scalar colour along the curve: interpolate the attribute at ring parameters.
     let attr_at = |u: f64| -> f64 {
         let Some((vals, _)) = attr else { return 0.0 };
-        let p = &f.sample_params;
+        let p = &sample_params;
         let j = p.partition_point(|&q| q < u).min(p.len() - 1);
         if j == 0 {
             vals[0] as f64
@@ -758,28 +817,6 @@ fn tube(
     st.triangles = rings.indices / 3;
     rings.stats = st;
     rings
-}
-
-/// Asks Linux to back a large fresh buffer with transparent huge pages (where the system allows
-/// it, `madvise` mode): a 255 MB mesh then costs about a hundred page faults instead of sixty
-/// thousand. Advice only: nothing changes if it is refused.
-fn advise_huge_pages<T>(buf: &mut [std::mem::MaybeUninit<T>]) {
-    #[cfg(target_os = "linux")]
-    {
-        const HUGE: usize = 2 << 20;
-        let start = buf.as_mut_ptr() as usize;
-        let end = start + std::mem::size_of_val(buf);
-        let (a, b) = (start.div_ceil(HUGE) * HUGE, end / HUGE * HUGE);
-        if b > a {
-            // SAFETY: [a, b) lies inside `buf`, which we own; MADV_HUGEPAGE does not change its
-            // contents or validity.
-            unsafe {
-                libc::madvise(a as *mut libc::c_void, b - a, libc::MADV_HUGEPAGE);
-            }
-        }
-    }
-    #[cfg(not(target_os = "linux"))]
-    let _ = buf;
 }
 
 /// Builds the tube mesh of all streamlines (in parallel) and its statistics.
@@ -879,6 +916,7 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
             stats.max_twist_deg = stats.max_twist_deg.max(p.stats.max_twist_deg);
             stats.radius_clamps += p.stats.radius_clamps;
             stats.splits += p.stats.splits;
+            stats.polyline_pieces += p.stats.polyline_pieces;
             flat.push(p);
         }
     }
@@ -894,10 +932,10 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
     let mut normals: Vec<Vec3> = Vec::with_capacity(nv);
     let mut colors: Vec<[u8; 3]> = Vec::with_capacity(nv);
     let mut indices: Vec<u32> = Vec::with_capacity(ni);
-    advise_huge_pages(positions.spare_capacity_mut());
-    advise_huge_pages(normals.spare_capacity_mut());
-    advise_huge_pages(colors.spare_capacity_mut());
-    advise_huge_pages(indices.spare_capacity_mut());
+    volume::memory::advise_huge(positions.spare_capacity_mut());
+    volume::memory::advise_huge(normals.spare_capacity_mut());
+    volume::memory::advise_huge(colors.spare_capacity_mut());
+    volume::memory::advise_huge(indices.spare_capacity_mut());
     {
         let mut jobs = Vec::with_capacity(flat.len());
         let (mut pos, mut nor, mut col, mut idx) = (

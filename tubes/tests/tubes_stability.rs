@@ -227,3 +227,57 @@ fn frenet_frames_twist_where_rmf_does_not() {
         rmf.max_twist_deg
     );
 }
+
+#[test]
+fn noisy_lines_are_meshed_as_their_polyline() {
+    // A helix with noise of 5x the tolerance (the benchmark's noisy helices): the fit cannot
+    // shorten it, so it is meshed as a ring per point - exactly vtkTubeFilter's triangle count,
+    // deviation 0 - instead of a fit that follows the noise with refined rings (2.4x the
+    // triangles, docs/benchmarks.md). The mesh keeps every invariant but the twist (a polyline
+    // turns at every point; RMF carries the frame exactly, the twist bound is for fitted
+    // curves), and smooth lines still go through the fit.
+    let mut seed = 12345u64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let n = 200;
+    let noisy: Vec<DVec3> = (0..n)
+        .map(|i| {
+            let t = i as f64 * 0.16;
+            DVec3::new(3.0 * t.cos(), 3.0 * t.sin(), 0.64 * t)
+                + DVec3::new(rnd(), rnd(), rnd()) * 0.2
+        })
+        .collect();
+    let o = opts(0.2);
+    let (mesh, st) = build(&lines(std::slice::from_ref(&noisy)), &o);
+    assert_eq!(st.polyline_pieces, 1);
+    let caps = if o.caps { 2 * o.sides } else { 0 };
+    assert_eq!(st.triangles, (n - 1) * 2 * o.sides + caps);
+    assert_eq!(st.max_deviation, 0.0);
+    assert_eq!(st.control_points, n);
+    // The rings sit on the input points.
+    for (i, p) in noisy.iter().enumerate() {
+        let ring = &mesh.positions[i * o.sides..(i + 1) * o.sides];
+        let c: DVec3 =
+            mesh.origin + ring.iter().map(|v| v.as_dvec3()).sum::<DVec3>() / o.sides as f64;
+        assert!(
+            (c - *p).length() < 1e-4,
+            "ring {i} centred at {c}, point {p}"
+        );
+    }
+    assert!(mesh.positions.iter().all(|v| v.is_finite()));
+    // Without the noise the same helix is fitted and reduced.
+    let clean: Vec<DVec3> = (0..n)
+        .map(|i| {
+            let t = i as f64 * 0.16;
+            DVec3::new(3.0 * t.cos(), 3.0 * t.sin(), 0.64 * t)
+        })
+        .collect();
+    let (mesh, st) = build(&lines(std::slice::from_ref(&clean)), &o);
+    assert_eq!(st.polyline_pieces, 0);
+    assert!(st.control_points <= n / 2, "{}", st.control_points);
+    check("clean helix", &mesh, &st, 0.2);
+}
