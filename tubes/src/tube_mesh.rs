@@ -610,7 +610,8 @@ fn tube(
     // polyline it is, a ring at every point (as vtkTubeFilter does): deviation 0, and no more
     // rings than points, which the fit's refinement of its turning spans would exceed (2.4x
     // vtkTubeFilter's triangles on noisy helices, docs/benchmarks.md). Decided before fitting
-    // when the points say so, or after it when the fit kept every point; not where the line
+    // when the points say so, or after it when the fit kept every point of a line of at least
+    // eight (shorter ones cost little to fit, and keep its curvature); not where the line
     // turns sharply at a point (more than 100 degrees), whose rings would fold without the fit's
     // refinement (hairpins, tests/tubes_stability.rs).
     let rmf_iterative = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
@@ -619,7 +620,10 @@ fn tube(
     let mut fit_params = Vec::new();
     if let Some(f) = &fitted {
         fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
-        polyline = rmf_iterative && f.curve.control.len() >= points.len() && !sharp_turn(points);
+        polyline = rmf_iterative
+            && points.len() >= 8
+            && f.curve.control.len() >= points.len()
+            && !sharp_turn(points);
     }
     let sides = match o.chordal {
         Some(tol) => sides_for(o.radius, tol),
