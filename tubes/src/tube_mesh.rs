@@ -587,12 +587,30 @@ fn too_rough(points: &[DVec3], tolerance: f64) -> bool {
     rough * 4 > n - 2
 }
 
+/// Whether the polyline turns by more than 100 degrees at the middle point of `w`.
+fn sharp(w: &[DVec3]) -> bool {
+    let (a, b) = (w[1] - w[0], w[2] - w[1]);
+    a.dot(b) < -0.17 * a.length() * b.length()
+}
+
 /// Whether the polyline turns by more than 100 degrees at some point.
 fn sharp_turn(points: &[DVec3]) -> bool {
-    points.windows(3).any(|w| {
-        let (a, b) = (w[1] - w[0], w[2] - w[1]);
-        a.dot(b) < -0.17 * a.length() * b.length()
-    })
+    points.windows(3).any(sharp)
+}
+
+/// `[a, b]` split at the points where the polyline turns by more than 100 degrees (neighbours
+/// share the point of the turn), as [`reversal_ranges`] splits at reversals.
+fn sharp_ranges(points: &[DVec3], a: usize, b: usize) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut start = a;
+    for i in a + 1..b {
+        if sharp(&points[i - 1..=i + 1]) {
+            out.push((start, i));
+            start = i;
+        }
+    }
+    out.push((start, b));
+    out
 }
 
 /// Builds the tube of one cleaned polyline piece.
@@ -611,9 +629,11 @@ fn tube(
     // rings than points, which the fit's refinement of its turning spans would exceed (2.4x
     // vtkTubeFilter's triangles on noisy helices, docs/benchmarks.md). Decided before fitting
     // when the points say so, or after it when the fit kept every point of a line of at least
-    // eight (shorter ones cost little to fit, and keep its curvature); not where the line
+    // eight or placed more rings than it has points (shorter lines cost little to fit, and keep
+    // their curvature); not where the line
     // turns sharply at a point (more than 100 degrees), whose rings would fold without the fit's
-    // refinement (hairpins, tests/tubes_stability.rs).
+    // refinement (hairpins, tests/tubes_stability.rs): rough lines are split there beforehand
+    // (`build`), so this holds for the fitted ones.
     let rmf_iterative = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
     let mut polyline = rmf_iterative && too_rough(points, o.fit.epsilon) && !sharp_turn(points);
     let fitted = (!polyline).then(|| fit(points, &o.fit));
@@ -622,7 +642,7 @@ fn tube(
         fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
         polyline = rmf_iterative
             && points.len() >= 8
-            && f.curve.control.len() >= points.len()
+            && (f.curve.control.len() >= points.len() || fit_params.len() > points.len())
             && !sharp_turn(points);
     }
     let sides = match o.chordal {
@@ -883,7 +903,23 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
                 st.skipped_streamlines = 1;
                 return (Vec::new(), st);
             }
-            let parts = reversal_ranges(&pts);
+            let mut parts = reversal_ranges(&pts);
+            // A line that will be meshed as its polyline is also split where it turns sharply
+            // (its rings would fold there; the fit's refinement is what a smooth line gets).
+            let polyline_eligible =
+                o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
+            if polyline_eligible {
+                parts = parts
+                    .into_iter()
+                    .flat_map(|(a, b)| {
+                        if too_rough(&pts[a..=b], o.fit.epsilon) {
+                            sharp_ranges(&pts, a, b)
+                        } else {
+                            vec![(a, b)]
+                        }
+                    })
+                    .collect();
+            }
             st.splits = parts.len() - 1;
             let mut out = Vec::with_capacity(parts.len());
             for &(a, b) in &parts {
