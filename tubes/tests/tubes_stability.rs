@@ -281,3 +281,46 @@ fn noisy_lines_are_meshed_as_their_polyline() {
     assert!(st.control_points <= n / 2, "{}", st.control_points);
     check("clean helix", &mesh, &st, 0.2);
 }
+
+#[test]
+fn a_rough_line_is_split_at_a_sharp_turn() {
+    // Noise above the tolerance and a 135-degree corner in the middle: meshed as two polylines
+    // sharing the corner point (a ring per point would fold there), no more triangles than a
+    // ring per input point, every mesh invariant kept but the fitted-curve twist bound.
+    let mut seed = 777u64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let a = 135f64.to_radians();
+    let d2 = DVec3::new(a.cos(), a.sin(), 0.0);
+    let mut pts: Vec<DVec3> = (0..=40)
+        .map(|i| DVec3::X * (0.5 * i as f64 - 20.0) + DVec3::new(rnd(), rnd(), rnd()) * 0.2)
+        .collect();
+    pts[40] = DVec3::ZERO;
+    pts.extend((1..=40).map(|i| d2 * (0.5 * i as f64) + DVec3::new(rnd(), rnd(), rnd()) * 0.2));
+    let mut o = opts(0.2);
+    o.caps = false;
+    let (mesh, st) = build(&lines(std::slice::from_ref(&pts)), &o);
+    assert!(st.splits >= 1, "splits {}", st.splits);
+    assert!(
+        st.polyline_pieces >= 2,
+        "polyline pieces {}",
+        st.polyline_pieces
+    );
+    assert!(
+        st.triangles <= (pts.len() - 1) * 2 * o.sides,
+        "{}",
+        st.triangles
+    );
+    assert!(mesh.positions.iter().all(|v| v.is_finite()));
+    for tri in mesh.indices.chunks_exact(3) {
+        let [p, q, r] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize].as_dvec3());
+        assert!(
+            (q - p).cross(r - p).length() > 0.0,
+            "degenerate triangle {tri:?}"
+        );
+    }
+}
