@@ -13,6 +13,8 @@ import time
 
 import numpy as np
 
+from tubes_peers import vtk_polydata
+
 
 def main():
     ap = argparse.ArgumentParser()
@@ -24,17 +26,7 @@ def main():
     from vtk.util import numpy_support as ns
 
     s = nib.streamlines.load(a.tck).streamlines
-    pts = np.concatenate([np.asarray(x) for x in s]).astype(np.float32)
-    lens = np.array([len(x) for x in s])
-    poly = vtk.vtkPolyData()
-    vp = vtk.vtkPoints()
-    vp.SetData(ns.numpy_to_vtk(pts, deep=True))
-    poly.SetPoints(vp)
-    offsets = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
-    conn = np.arange(len(pts), dtype=np.int64)
-    cells = vtk.vtkCellArray()
-    cells.SetData(ns.numpy_to_vtkIdTypeArray(offsets, deep=True), ns.numpy_to_vtkIdTypeArray(conn, deep=True))
-    poly.SetLines(cells)
+    poly = vtk_polydata([np.asarray(x, dtype=np.float32) for x in s])
 
     def tris(out):
         n = 0

@@ -12,14 +12,18 @@ use tubes::bspline_fit::{FitMethod, FitOptions};
 use tubes::tube_mesh::{build, ColorMode, FrameMethod, RadiusMode, TubeOptions};
 use tubes::Streamlines;
 
-fn polylines(n: usize, points: usize) -> Streamlines {
-    let mut seed = 0x2545F4914F6CDD1Du64;
-    let mut rnd = move || {
+/// Uniform numbers in [0, 1) by xorshift64 (deterministic, no dependency).
+fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
         seed ^= seed << 13;
         seed ^= seed >> 7;
         seed ^= seed << 17;
         (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    }
+}
+
+fn polylines(n: usize, points: usize) -> Streamlines {
+    let mut rnd = uniform(0x2545F4914F6CDD1Du64);
     let mut s = Streamlines::new();
     for _ in 0..n {
         let mut p = DVec3::new(
@@ -50,13 +54,7 @@ fn polylines(n: usize, points: usize) -> Streamlines {
 }
 
 fn noisy_helices(n: usize, points: usize) -> Streamlines {
-    let mut seed = 0x9E3779B97F4A7C15u64;
-    let mut rnd = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rnd = uniform(0x9E3779B97F4A7C15u64);
     let (radius, pitch, step, noise) = (3.0, 4.0, 0.5, 0.1);
     // Arc length per turn, and so the angle per step.
     let turn = ((2.0 * std::f64::consts::PI * radius).powi(2) + pitch * pitch).sqrt();

@@ -6,6 +6,17 @@
 use volume::distance_sweep::{signed_distance, DistanceMethod, DistanceOptions, InitMethod};
 use volume::synthetic::{cube_affine, sample_solid, three_solids, Solid};
 
+/// Grid sizes to measure: `SIZES=64,128,256` in the environment, else 64 and 128.
+fn sizes() -> Vec<usize> {
+    std::env::var("SIZES")
+        .map(|s| {
+            s.split(',')
+                .map(|x| x.parse().expect("SIZES: comma-separated integers"))
+                .collect()
+        })
+        .unwrap_or(vec![64, 128])
+}
+
 pub struct Errors {
     pub near_mean: f64,
     pub near_max: f64,
@@ -73,10 +84,7 @@ fn measure(
 #[test]
 fn plane_initialisation_beats_the_papers_edge_interpolation() {
     let solid = three_solids();
-    let sizes: Vec<usize> = std::env::var("SIZES")
-        .map(|s| s.split(',').map(|x| x.parse().unwrap()).collect())
-        .unwrap_or(vec![64, 128]);
-    for n in sizes {
+    for n in sizes() {
         let sw = DistanceMethod::Sweeping;
         let edge = measure(&solid, n, InitMethod::Edge, sw, 1.0);
         let plane = measure(&solid, n, InitMethod::Plane, sw, 1.0);
@@ -153,10 +161,7 @@ fn anisotropic_spacing_keeps_the_error_small() {
 #[test]
 fn closest_points_have_no_point_source_error() {
     let solid = three_solids();
-    let sizes: Vec<usize> = std::env::var("SIZES")
-        .map(|s| s.split(',').map(|x| x.parse().unwrap()).collect())
-        .unwrap_or(vec![64, 128]);
-    for n in sizes {
+    for n in sizes() {
         let cp = measure(
             &solid,
             n,
