@@ -54,6 +54,53 @@ impl Drop for Stages {
     }
 }
 
+/// Items of a long loop (streamlines written, points read): a bar on a terminal, else a line
+/// at every tenth of the way.
+pub struct Counter {
+    bar: Option<indicatif::ProgressBar>,
+    what: String,
+    total: u64,
+    shown: std::cell::Cell<u64>,
+}
+
+impl Counter {
+    pub fn new(what: &str, total: u64) -> Counter {
+        let bar = stderr_is_terminal().then(|| {
+            let b = indicatif::ProgressBar::new(total);
+            b.set_message(what.to_string());
+            b
+        });
+        Counter {
+            bar,
+            what: what.to_string(),
+            total,
+            shown: 0.into(),
+        }
+    }
+
+    /// `done` of the total are finished.
+    pub fn set(&self, done: u64) {
+        match &self.bar {
+            Some(b) => b.set_position(done),
+            None => {
+                let tenth = (done * 10) / self.total.max(1);
+                if tenth > self.shown.get() {
+                    self.shown.set(tenth);
+                    eprintln!("{}: {done} of {}", self.what, self.total);
+                }
+            }
+        }
+    }
+}
+
+impl Drop for Counter {
+    fn drop(&mut self) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+    }
+}
+
 /// Frames of a sequence: a bar on a terminal, else a line per frame.
 pub struct Frames {
     bar: Option<indicatif::ProgressBar>,

@@ -43,15 +43,63 @@ pub type Result<T> = std::result::Result<T, TubesError>;
 /// a `.tck`): beyond it reading stops with an error rather than exhausting memory.
 pub const MAX_GZ_DECODED: u64 = 2 << 30;
 
-/// Reads a regular file (devices, pipes and directories are refused; see
-/// `volume::open_regular`), decompressing gzip (by content, not name) up to
+/// A tractogram file opened for streaming: its decoded bytes from the first, whether it is
+/// gzip, and (plain files) its length.
+pub struct Source {
+    pub reader: Box<dyn std::io::Read>,
+    pub gzip: bool,
+    pub len: Option<u64>,
+}
+
+impl Source {
+    /// The error of a failed read: gzip failures (a broken stream, the decoded limit) name the
+    /// `gzip` field, others are I/O errors of the file.
+    pub fn error(&self, path: &Path, e: std::io::Error) -> TubesError {
+        if self.gzip {
+            TubesError::format(path, "gzip", e.to_string())
+        } else {
+            TubesError::io(path, e)
+        }
+    }
+}
+
+/// A gzip decoder that stops at [`MAX_GZ_DECODED`] bytes and says how far a broken stream got.
+struct GzGuard<R> {
+    inner: flate2::read::MultiGzDecoder<R>,
+    decoded: u64,
+}
+
+impl<R: std::io::BufRead> std::io::Read for GzGuard<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf).map_err(|e| {
+            std::io::Error::new(
+                e.kind(),
+                format!(
+                    "broken gzip stream after {} decoded bytes: {e}",
+                    self.decoded
+                ),
+            )
+        })?;
+        self.decoded += n as u64;
+        if self.decoded > MAX_GZ_DECODED {
+            return Err(std::io::Error::other(format!(
+                "the stream decodes to more than {MAX_GZ_DECODED} bytes, the most umbra \
+                 inflates; decompress it first (gunzip) to read it"
+            )));
+        }
+        Ok(n)
+    }
+}
+
+/// Opens a regular file (devices, pipes and directories are refused; see
+/// `volume::open_regular`) for streaming, decompressing gzip (by content, not name) up to
 /// [`MAX_GZ_DECODED`] bytes. The data (decoded) must start with `magic`, the format's
 /// signature, which is checked on the first decoded bytes before the rest is inflated: a
 /// gzip bomb of zeros is refused at once. An empty file is an error.
-pub fn read_maybe_gz(path: &Path, magic: &[u8], format: &str) -> Result<Vec<u8>> {
-    use std::io::Read;
-    let raw = volume::read_regular(path, None).map_err(|e| TubesError::io(path, e))?;
-    if raw.is_empty() {
+pub fn open_maybe_gz(path: &Path, magic: &[u8], format: &str) -> Result<Source> {
+    use std::io::{BufRead, Read};
+    let (f, len) = volume::open_regular(path).map_err(|e| TubesError::io(path, e))?;
+    if len == 0 {
         return Err(TubesError::format(
             path,
             "file",
@@ -76,38 +124,41 @@ pub fn read_maybe_gz(path: &Path, magic: &[u8], format: &str) -> Result<Vec<u8>>
             ))
         }
     };
-    if !raw.starts_with(&[0x1f, 0x8b]) {
-        check(&raw)?;
-        return Ok(raw);
+    let mut file = std::io::BufReader::with_capacity(1 << 20, f);
+    let head = file.fill_buf().map_err(|e| TubesError::io(path, e))?;
+    if !head.starts_with(&[0x1f, 0x8b]) {
+        check(head)?;
+        return Ok(Source {
+            reader: Box::new(file),
+            gzip: false,
+            len: Some(len),
+        });
     }
-    let broken = |n: usize, e: std::io::Error| {
-        TubesError::format(
-            path,
-            "gzip",
-            format!("broken gzip stream after {n} decoded bytes: {e}"),
-        )
+    let mut dec = GzGuard {
+        inner: flate2::read::MultiGzDecoder::new(file),
+        decoded: 0,
     };
-    let mut dec = flate2::read::MultiGzDecoder::new(&raw[..]);
-    let mut out = Vec::new();
+    let mut first = Vec::new();
     (&mut dec)
         .take(magic.len() as u64)
+        .read_to_end(&mut first)
+        .map_err(|e| TubesError::format(path, "gzip", e.to_string()))?;
+    check(&first)?;
+    Ok(Source {
+        reader: Box::new(std::io::Cursor::new(first).chain(dec)),
+        gzip: true,
+        len: None,
+    })
+}
+
+/// Reads a whole file as [`open_maybe_gz`] opens it.
+pub fn read_maybe_gz(path: &Path, magic: &[u8], format: &str) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let mut src = open_maybe_gz(path, magic, format)?;
+    let mut out = Vec::with_capacity(src.len.unwrap_or(0) as usize);
+    src.reader
         .read_to_end(&mut out)
-        .map_err(|e| broken(out.len(), e))?;
-    check(&out)?;
-    let res = dec
-        .take(MAX_GZ_DECODED + 1 - out.len() as u64)
-        .read_to_end(&mut out);
-    res.map_err(|e| broken(out.len(), e))?;
-    if out.len() as u64 > MAX_GZ_DECODED {
-        return Err(TubesError::format(
-            path,
-            "gzip",
-            format!(
-                "the stream decodes to more than {MAX_GZ_DECODED} bytes, the most umbra \
-                 inflates; decompress it first (gunzip) to read it"
-            ),
-        ));
-    }
+        .map_err(|e| src.error(path, e))?;
     Ok(out)
 }
 

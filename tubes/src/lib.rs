@@ -12,6 +12,7 @@ pub mod mesh_io;
 pub mod pathline;
 pub mod points;
 pub mod select;
+pub mod synthetic;
 pub mod tck;
 pub mod trace;
 pub mod trk;

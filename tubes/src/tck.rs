@@ -9,22 +9,46 @@
 //! datatype or data without the final Inf triplet are errors; a `count` that disagrees with the
 //! data gives a warning and the data win.
 
-use crate::error::{read_maybe_gz, write_atomic, Result, TubesError};
+use crate::error::{open_maybe_gz, Result, TubesError};
 use crate::Streamlines;
 use glam::Vec3;
 use std::path::Path;
 
-/// Reads a `.tck` or `.tck.gz` file.
+/// The longest header read before its `END` (MRtrix's command histories are kilobytes).
+const MAX_HEADER: usize = 64 << 20;
+
+/// Bytes read from the file at a time.
+const CHUNK: usize = 1 << 20;
+
+/// Reads a `.tck` or `.tck.gz` file, streamed: the file is read in chunks of 1 MiB, never
+/// whole, so reading needs the points (12 bytes each) and the offsets (8 bytes a streamline).
 pub fn read(path: &Path) -> Result<Streamlines> {
-    let bytes = read_maybe_gz(path, b"mrtrix tracks", "MRtrix .tck")?;
-    let magic = b"mrtrix tracks";
-    if !bytes.starts_with(magic) {
-        return Err(TubesError::format(
-            path,
-            "magic",
-            "the file does not start with 'mrtrix tracks'",
-        ));
-    }
+    use std::io::Read;
+    let mut src = open_maybe_gz(path, b"mrtrix tracks", "MRtrix .tck")?;
+    // Reads up to CHUNK more bytes onto `buf`; false at the end of the file.
+    let more = |src: &mut crate::error::Source, buf: &mut Vec<u8>| -> Result<bool> {
+        let start = buf.len();
+        buf.resize(start + CHUNK, 0);
+        let mut got = 0;
+        let res = loop {
+            match src.reader.read(&mut buf[start + got..]) {
+                Ok(0) => break Ok(()),
+                Ok(n) => {
+                    got += n;
+                    if got == CHUNK {
+                        break Ok(());
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => break Err(e),
+            }
+        };
+        buf.truncate(start + got);
+        res.map_err(|e| src.error(path, e))?;
+        Ok(got > 0)
+    };
+    let mut bytes: Vec<u8> = Vec::new();
+    let mut eof = !more(&mut src, &mut bytes)?;
     // Header lines up to END, read as nibabel reads them: lines are trimmed, blank ones
     // skipped, a line without ':' continues the last key's value, and a repeated key's values
     // are joined by newlines (MRtrix repeats command_history). Keys are indexed by a map, so
@@ -35,12 +59,31 @@ pub fn read(path: &Path) -> Result<Streamlines> {
     let mut last: Option<usize> = None;
     let mut ended = false;
     let mut first = true;
-    while pos < bytes.len() {
-        let end = bytes[pos..]
+    let mut searched = 0;
+    loop {
+        if bytes.len() > MAX_HEADER {
+            return Err(TubesError::format(
+                path,
+                "END",
+                format!(
+                    "no END line in the first {} MiB of the header",
+                    MAX_HEADER >> 20
+                ),
+            ));
+        }
+        let end = bytes[pos + searched..]
             .iter()
             .position(|&b| b == b'\n')
-            .map(|e| pos + e);
-        let Some(end) = end else { break };
+            .map(|e| pos + searched + e);
+        let Some(end) = end else {
+            if eof {
+                break;
+            }
+            searched = bytes.len() - pos;
+            eof = !more(&mut src, &mut bytes)?;
+            continue;
+        };
+        searched = 0;
         let line = String::from_utf8_lossy(&bytes[pos..end]).trim().to_string();
         pos = end + 1;
         if first {
@@ -132,16 +175,24 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             ))
         }
     };
-    if offset < pos || offset > bytes.len() {
+    // The bytes before the data are dropped as they are read.
+    let mut skipped = 0;
+    while skipped + bytes.len() < offset && !eof {
+        skipped += bytes.len();
+        bytes.clear();
+        eof = !more(&mut src, &mut bytes)?;
+    }
+    if offset < pos || offset > skipped + bytes.len() {
         return Err(TubesError::format(
             path,
             "file",
             format!(
                 "data offset {offset} is outside the file ({} bytes, header ends at {pos})",
-                bytes.len()
+                src.len.unwrap_or((skipped + bytes.len()) as u64)
             ),
         ));
     }
+    bytes.drain(..offset - skipped);
     // nibabel's rules: no datatype is Float32LE (with a warning), a datatype without BE is
     // little endian. Float64 is read too (nibabel refuses it).
     let datatype = get("datatype").map(first_value);
@@ -165,9 +216,8 @@ pub fn read(path: &Path) -> Result<Streamlines> {
             (4, false)
         }
     };
-    let data = &bytes[offset..];
     let triplet = 3 * size;
-    let value = |o: usize| -> f64 {
+    let value = |data: &[u8], o: usize| -> f64 {
         if size == 4 {
             let a: [u8; 4] = data[o..o + 4].try_into().unwrap();
             (if big {
@@ -186,63 +236,95 @@ pub fn read(path: &Path) -> Result<Streamlines> {
     };
     let mut s = Streamlines::new();
     s.warnings = warnings;
+    // A plain file's size bounds its points (a streamline's NaN triplet included): reserved
+    // once, the points are never copied to a larger buffer.
+    if let Some(len) = src.len {
+        s.points
+            .reserve_exact((len as usize).saturating_sub(offset) / triplet);
+    }
     let mut terminated = false;
     let mut open = 0usize; // points since the last delimiter
+    let mut consumed = 0usize; // data bytes before `bytes[0]`
     let mut o = 0;
     // A triplet of three NaNs ends a streamline, one of three infinities the data (as in
     // MRtrix and nibabel); a triplet with only some NaN or infinite components is a point
     // (non-finite: see `Streamlines::nonfinite_points`).
-    while o + triplet <= data.len() {
-        let (x, y, z) = (value(o), value(o + size), value(o + 2 * size));
-        o += triplet;
-        if x.is_nan() && y.is_nan() && z.is_nan() {
-            if open > 0 {
-                s.offsets.push(s.points.len());
+    'chunks: loop {
+        while o + triplet <= bytes.len() {
+            let (x, y, z) = (
+                value(&bytes, o),
+                value(&bytes, o + size),
+                value(&bytes, o + 2 * size),
+            );
+            o += triplet;
+            if x.is_nan() && y.is_nan() && z.is_nan() {
+                if open > 0 {
+                    s.offsets.push(s.points.len());
+                }
+                open = 0;
+                continue;
             }
-            open = 0;
-            continue;
-        }
-        if x.is_infinite() && y.is_infinite() && z.is_infinite() {
-            if open > 0 {
-                s.offsets.push(s.points.len());
+            if x.is_infinite() && y.is_infinite() && z.is_infinite() {
+                if open > 0 {
+                    s.offsets.push(s.points.len());
+                }
+                terminated = true;
+                let after = match src.len {
+                    Some(len) => len as usize - (offset + consumed + o),
+                    None => {
+                        let rest = std::io::copy(&mut src.reader, &mut std::io::sink())
+                            .map_err(|e| src.error(path, e))?;
+                        bytes.len() - o + rest as usize
+                    }
+                };
+                if after >= triplet {
+                    s.warnings.push(format!(
+                        "{after} bytes after the end marker 'inf inf inf' ignored"
+                    ));
+                }
+                break 'chunks;
             }
-            terminated = true;
-            if data.len() - o >= triplet {
-                s.warnings.push(format!(
-                    "{} bytes after the end marker 'inf inf inf' ignored",
-                    data.len() - o
+            let q = Vec3::new(x as f32, y as f32, z as f32);
+            if [x, y, z]
+                .iter()
+                .any(|v| v.is_finite() && !(*v as f32).is_finite())
+            {
+                // A Float64 value that is finite but beyond f32's range.
+                return Err(TubesError::format(
+                    path,
+                    "data",
+                    format!(
+                        "point {}: ({x:e}, {y:e}, {z:e}) is outside f32's range",
+                        s.points.len()
+                    ),
                 ));
             }
+            s.points.push(q);
+            open += 1;
+        }
+        // The partial triplet at the end waits for the next chunk.
+        consumed += o;
+        bytes.drain(..o);
+        o = 0;
+        if eof {
             break;
         }
-        let q = Vec3::new(x as f32, y as f32, z as f32);
-        if [x, y, z]
-            .iter()
-            .any(|v| v.is_finite() && !(*v as f32).is_finite())
-        {
-            // A Float64 value that is finite but beyond f32's range.
-            return Err(TubesError::format(
-                path,
-                "data",
-                format!(
-                    "point {}: ({x:e}, {y:e}, {z:e}) is outside f32's range",
-                    s.points.len()
-                ),
-            ));
-        }
-        s.points.push(q);
-        open += 1;
+        eof = !more(&mut src, &mut bytes)?;
     }
     if !terminated {
+        let total = consumed + bytes.len();
         return Err(TubesError::format(
             path,
             "data",
-            if data.len() % triplet != 0 {
-                format!("{} data bytes are not whole {triplet}-byte triplets and no 'inf inf inf' end marker was found", data.len())
+            if total % triplet != 0 {
+                format!("{total} data bytes are not whole {triplet}-byte triplets and no 'inf inf inf' end marker was found")
             } else {
                 "expecting the end-of-file marker 'inf inf inf'".to_string()
             },
         ));
+    }
+    if s.points.capacity() > s.points.len() + s.points.len() / 8 + 1024 {
+        s.points.shrink_to_fit();
     }
     if let Some(c) = get("count").map(first_value) {
         match c.trim().parse::<usize>() {
@@ -266,10 +348,21 @@ pub fn read(path: &Path) -> Result<Streamlines> {
 pub fn write(path: &Path, s: &Streamlines) -> Result<()> {
     s.validate()
         .map_err(|e| TubesError::Invalid(format!("{}: {e}", path.display())))?;
-    let mut header = format!(
-        "mrtrix tracks\ndatatype: Float32LE\ncount: {:010}\ntimestamp: 0\n",
-        s.len()
-    );
+    write_with(path, s.len(), |i, out| out.extend_from_slice(s.line(i)))
+}
+
+/// Writes `count` streamlines made one at a time - `line(i, out)` appends streamline `i`'s
+/// points to the empty `out` - as a `.tck` file (Float32LE; gzip when the name ends in
+/// `.gz`), streamed through a temporary file renamed at the end: memory does not grow with the
+/// tractogram.
+pub fn write_with(
+    path: &Path,
+    count: usize,
+    mut line: impl FnMut(usize, &mut Vec<Vec3>),
+) -> Result<()> {
+    use std::io::Write;
+    let mut header =
+        format!("mrtrix tracks\ndatatype: Float32LE\ncount: {count:010}\ntimestamp: 0\n");
     // `file: . OFFSET` with the offset of the data: the line's own length depends on it.
     let base = header.len() + "file: . \nEND\n".len();
     let mut digits = 1;
@@ -279,21 +372,36 @@ pub fn write(path: &Path, s: &Streamlines) -> Result<()> {
     let offset = base + digits;
     header += &format!("file: . {offset}\nEND\n");
     debug_assert_eq!(header.len(), offset);
-    let mut out = header.into_bytes();
-    out.reserve(12 * (s.points.len() + s.len() + 1));
-    // As MRtrix and nibabel: every streamline is followed by a NaN triplet.
-    for i in 0..s.len() {
-        for p in s.line(i) {
-            for v in [p.x, p.y, p.z] {
-                out.extend_from_slice(&v.to_le_bytes());
+    let gz = path.to_string_lossy().to_ascii_lowercase().ends_with(".gz");
+    let mut body = |w: &mut dyn Write| -> std::io::Result<()> {
+        w.write_all(header.as_bytes())?;
+        let mut points = Vec::new();
+        let mut bytes = Vec::new();
+        // As MRtrix and nibabel: every streamline is followed by a NaN triplet.
+        for i in 0..count {
+            points.clear();
+            line(i, &mut points);
+            bytes.clear();
+            for p in points.iter().chain(&[Vec3::NAN]) {
+                for v in [p.x, p.y, p.z] {
+                    bytes.extend_from_slice(&v.to_le_bytes());
+                }
             }
+            w.write_all(&bytes)?;
         }
         for _ in 0..3 {
-            out.extend_from_slice(&f32::NAN.to_le_bytes());
+            w.write_all(&f32::INFINITY.to_le_bytes())?;
         }
-    }
-    for _ in 0..3 {
-        out.extend_from_slice(&f32::INFINITY.to_le_bytes());
-    }
-    write_atomic(path, out)
+        Ok(())
+    };
+    volume::write_atomic_with(path, |w| {
+        if gz {
+            let mut enc = flate2::write::GzEncoder::new(w, flate2::Compression::new(6));
+            body(&mut enc)?;
+            enc.finish().map(|_| ())
+        } else {
+            body(w)
+        }
+    })
+    .map_err(TubesError::from)
 }

@@ -30,7 +30,8 @@ use volume::{Volume, VolumeSeries};
 const NOTES: &str = "\
 Scenes: validation, three-solids, abc, burgers, rotation (steady; NRRD, or NIfTI for .nii and \
 .nii.gz), double-gyre (a time-periodic 3-D double gyre on [0,2]x[0,1]x[0,1], period 10, as a 5-D \
-NIfTI time series: .nii or .nii.gz).";
+NIfTI time series: .nii or .nii.gz), bundles (a tractogram of --n streamlines in smooth twisted \
+bundles across a brain-sized box, written streaming as .tck or .tck.gz).";
 
 #[derive(clap::Args)]
 #[command(after_help = NOTES)]
@@ -45,9 +46,38 @@ pub struct Args {
     /// double-gyre: time frames over its period of 10 (default 20).
     #[arg(long)]
     frames: Option<usize>,
+    /// bundles: points a streamline (default 100).
+    #[arg(long)]
+    points: Option<usize>,
+    /// bundles: how many bundles the streamlines are dealt to (default 24).
+    #[arg(long)]
+    bundles: Option<usize>,
+    /// bundles: a bundle's cross-section radius in mm (default 6).
+    #[arg(long)]
+    radius: Option<f64>,
+    /// bundles: the random seed (default 1).
+    #[arg(long)]
+    seed: Option<u64>,
 }
 
 pub fn run(a: Args) -> Result<(), String> {
+    let bundle_keys = [
+        ("--points", a.points.is_some()),
+        ("--bundles", a.bundles.is_some()),
+        ("--radius", a.radius.is_some()),
+        ("--seed", a.seed.is_some()),
+    ];
+    if a.scene != "bundles" {
+        if let Some((k, _)) = bundle_keys.iter().find(|(_, set)| *set) {
+            return Err(format!("{k} is for bundles; {} is a volume", a.scene));
+        }
+    }
+    if a.scene == "bundles" {
+        if a.frames.is_some() {
+            return Err("--frames is for double-gyre; bundles is a tractogram".into());
+        }
+        return bundles(&a);
+    }
     if a.scene == "double-gyre" {
         let n = a.n.unwrap_or(33);
         let s = double_gyre(n, a.frames.unwrap_or(20))?;
@@ -93,6 +123,55 @@ pub fn run(a: Args) -> Result<(), String> {
     Ok(())
 }
 
+/// `umbra synth bundles`: streamlines made and written one at a time.
+fn bundles(a: &Args) -> Result<(), String> {
+    let d = tubes::synthetic::Bundles::default();
+    let b = tubes::synthetic::Bundles {
+        count: a.n.unwrap_or(d.count),
+        points: a.points.unwrap_or(d.points),
+        bundles: a.bundles.unwrap_or(d.bundles),
+        radius: a.radius.unwrap_or(d.radius),
+        seed: a.seed.unwrap_or(d.seed),
+    };
+    b.validate().map_err(|e| format!("bundles: {e}"))?;
+    let name = a.output.to_string_lossy().to_ascii_lowercase();
+    if !(name.ends_with(".tck") || name.ends_with(".tck.gz")) {
+        return Err(format!(
+            "{}: bundles are written as MRtrix .tck or .tck.gz (streamed; convert with `umbra tracts`)",
+            a.output.display()
+        ));
+    }
+    // The points must fit the u32 indices of the renderer's line sets.
+    if b.total_points() > u32::MAX as u64 {
+        return Err(format!(
+            "--n {} --points {}: {} points; at most {} are written",
+            b.count,
+            b.points,
+            b.total_points(),
+            u32::MAX
+        ));
+    }
+    let bar = crate::progress::Counter::new("streamlines", b.count as u64);
+    tubes::tck::write_with(&a.output, b.count, |i, out| {
+        if i % 4096 == 0 {
+            bar.set(i as u64);
+        }
+        b.line(i, out)
+    })
+    .map_err(|e| e.to_string())?;
+    bar.set(b.count as u64);
+    drop(bar);
+    eprintln!(
+        "wrote {} ({} streamlines of {} points in {} bundles of radius {} mm)",
+        a.output.display(),
+        b.count,
+        b.points,
+        b.bundles,
+        b.radius
+    );
+    Ok(())
+}
+
 fn is_nifti(p: &Path) -> bool {
     let name = p.to_string_lossy().to_ascii_lowercase();
     name.ends_with(".nii") || name.ends_with(".nii.gz")
@@ -106,6 +185,7 @@ pub const SCENES: &[&str] = &[
     "burgers",
     "rotation",
     "double-gyre",
+    "bundles",
 ];
 
 /// The double gyre sampled with `n` samples across y and z at `frames` times over its period
