@@ -157,28 +157,81 @@ pub struct GpuLines {
     cloud: bool,
 }
 
+/// Where a line set of `points` points is cut into parts of at most `per_part` points that fit
+/// the storage bindings: part `k` holds the points `[b[k], min(b[k + 1] + 1, points))` - next
+/// parts share a point, so that a segment (joining points `s` and `s + 1`) or a point of a
+/// cloud (`s` alone) lies whole in the part with `b[k] <= s < b[k + 1]`.
+pub fn line_parts(points: usize, per_part: usize) -> Vec<usize> {
+    let step = per_part.max(2) - 1;
+    let mut b: Vec<usize> = (0..points).step_by(step).collect();
+    b.push(points);
+    b
+}
+
 impl GpuLines {
-    /// Uploads `l` (`None` when it has no segment); an error naming the buffer when the set is
-    /// larger than the adapter's storage bindings.
-    pub fn upload(gpu: &Gpu, l: &LineSet) -> Result<Option<GpuLines>, GpuError> {
+    /// Uploads `l` (no part when it has no segment) in as many parts as the adapter's storage
+    /// bindings need (see [`line_parts`]; each part a draw of its own with the set's
+    /// settings), every buffer filled through bounded staging copies.
+    pub fn upload(gpu: &Gpu, l: &LineSet) -> Result<Vec<GpuLines>, GpuError> {
         if l.segments.is_empty() {
-            return Ok(None);
+            return Ok(vec![]);
         }
+        let n = l.positions.len();
+        // Positions are the widest per-point buffer (12 bytes; aux 8, the rest 4).
+        let per_part = (gpu.storage_limit() / 12).min(u32::MAX as u64) as usize;
+        let bounds = line_parts(n, per_part);
+        let mut parts = Vec::with_capacity(bounds.len() - 1);
+        // Segments are ordered by their first point: each part's are one run of them.
+        let mut seg = 0;
+        for w in bounds.windows(2) {
+            let (lo, hi) = (w[0], w[1]);
+            let first = seg;
+            while seg < l.segments.len() && (l.segments[seg] as usize) < hi {
+                seg += 1;
+            }
+            let segments: Vec<u32> = l.segments[first..seg]
+                .iter()
+                .map(|&s| s - lo as u32)
+                .collect();
+            if segments.is_empty() {
+                continue;
+            }
+            parts.push(GpuLines::upload_part(gpu, l, lo..(hi + 1).min(n), &segments)?);
+        }
+        if seg != l.segments.len() {
+            return Err(GpuError::Operation(format!(
+                "line segments: {} of {} are not in point order",
+                l.segments.len() - seg,
+                l.segments.len()
+            )));
+        }
+        Ok(parts)
+    }
+
+    /// Uploads points `range` of `l` with `segments` (relative to the range's start).
+    fn upload_part(
+        gpu: &Gpu,
+        l: &LineSet,
+        range: std::ops::Range<usize>,
+        segments: &[u32],
+    ) -> Result<GpuLines, GpuError> {
         let storage = wgpu::BufferUsages::STORAGE;
-        gpu.check_buffer("line points", l.positions.len() as u64 * 12, storage)?;
-        gpu.check_buffer("line segments", l.segments.len() as u64 * 4, storage)?;
-        let xyz: Vec<f32> = l.positions.iter().flat_map(|p| p.to_array()).collect();
-        Ok(Some(GpuLines {
-            points: gpu.buffer("line points", bytemuck::cast_slice(&xyz), storage),
-            colors: gpu.buffer("line colours", bytemuck::cast_slice(&l.colors), storage),
-            segments: gpu.buffer("line segments", bytemuck::cast_slice(&l.segments), storage),
-            count: l.segments.len() as u32,
+        let n = range.len();
+        let positions = &l.positions[range.clone()];
+        gpu.check_buffer("line points", n as u64 * 12, storage)?;
+        gpu.check_buffer("line segments", segments.len() as u64 * 4, storage)?;
+        let staged = |label: &str, bytes: &[u8]| gpu.buffer_staged(label, bytes, storage);
+        Ok(GpuLines {
+            points: staged("line points", bytemuck::cast_slice(positions))?,
+            colors: staged("line colours", bytemuck::cast_slice(&l.colors[range.clone()]))?,
+            segments: staged("line segments", bytemuck::cast_slice(segments))?,
+            count: segments.len() as u32,
             origin: l.origin,
             width: l.width,
             cylinder: l.cylinder,
             proxy_radius: l.proxy_radius.max(0.0),
             times: if l.times.len() == l.positions.len() {
-                gpu.buffer("line times", bytemuck::cast_slice(&l.times), storage)
+                staged("line times", bytemuck::cast_slice(&l.times[range.clone()]))?
             } else {
                 gpu.buffer("line times", &[0; 16], storage)
             },
@@ -188,10 +241,11 @@ impl GpuLines {
                 .filter(|_| l.times.len() == l.positions.len() && !l.points),
             halo: l.halo,
             aux: {
-                let n = l.positions.len();
-                let (tu, fl) = (l.taper_u.len() == n, l.filter.len() == n);
+                let total = l.positions.len();
+                let (tu, fl) = (l.taper_u.len() == total, l.filter.len() == total);
                 if tu || fl {
-                    let v: Vec<f32> = (0..n)
+                    let v: Vec<f32> = range
+                        .clone()
                         .flat_map(|i| {
                             [
                                 if tu { l.taper_u[i] } else { 0.5 },
@@ -199,7 +253,8 @@ impl GpuLines {
                             ]
                         })
                         .collect();
-                    gpu.buffer("line aux", bytemuck::cast_slice(&v), storage)
+                    gpu.check_buffer("line aux", v.len() as u64 * 4, storage)?;
+                    staged("line aux", bytemuck::cast_slice(&v))?
                 } else {
                     gpu.buffer("line aux", &[0; 16], storage)
                 }
@@ -212,7 +267,7 @@ impl GpuLines {
             filter: (l.filter.len() == l.positions.len() && !l.filter.is_empty() && !l.points)
                 .then_some((l.filter_min, l.filter_taper.max(0.0))),
             cloud: l.points,
-        }))
+        })
     }
 
     /// Segments drawn per pass.
@@ -1189,6 +1244,30 @@ pub const MAX_PEEL_LAYERS: u32 = 8;
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn line_parts_cover_every_segment_once_within_the_part_size() {
+        for (n, per) in [(1, 5), (2, 2), (7, 3), (1240, 100), (100, 100), (101, 100), (5, 1000)] {
+            let b = super::line_parts(n, per);
+            assert_eq!((b[0], *b.last().unwrap()), (0, n), "{n} {per}: {b:?}");
+            for w in b.windows(2) {
+                // Points [lo, min(hi + 1, n)): at most `per`, at least one.
+                let len = (w[1] + 1).min(n) - w[0];
+                assert!(w[0] < w[1] && len <= per.max(2), "{n} {per}: {b:?}");
+            }
+            // A segment s (points s, s + 1) lies in exactly one part, whole.
+            for s in 0..n {
+                let k: Vec<usize> = (0..b.len() - 1)
+                    .filter(|&k| b[k] <= s && s < b[k + 1])
+                    .collect();
+                assert_eq!(k.len(), 1, "{n} {per}: point {s}");
+                if s + 1 < n {
+                    assert!(s + 1 < (b[k[0] + 1] + 1).min(n), "{n} {per}: segment {s} cut");
+                }
+            }
+        }
+        assert_eq!(super::line_parts(1240, 100).len() - 1, 13);
+    }
+
     #[test]
     fn the_uniforms_match_their_wgsl_structs() {
         crate::prelude::assert_layout!(

@@ -91,7 +91,13 @@ pub struct Gpu {
     /// error): [`Gpu::wait`] returns it as an error instead of wgpu's default panic.
     /// (message, whether it stays: a lost device does, an error is reported once).
     fault: Arc<std::sync::Mutex<Option<(String, bool)>>>,
+    /// A storage binding limit below the adapter's (0: none), set by [`Gpu::limit_bindings`].
+    binding_cap: std::sync::atomic::AtomicU64,
 }
+
+/// The most bytes staged at once by [`Gpu::buffer_staged`] (64 MiB): large uploads go through
+/// wgpu's staging memory in pieces, each submitted and waited for before the next.
+pub const STAGING_BYTES: usize = 64 << 20;
 
 /// What [`Gpu::cached`] keeps: any clonable value by a key naming its description.
 #[derive(Default)]
@@ -426,6 +432,7 @@ impl Gpu {
             keep(&f, format!("GPU error: {e}"), false)
         }));
         Ok(Gpu {
+            binding_cap: 0.into(),
             adapter,
             device,
             queue,
@@ -749,10 +756,7 @@ impl Gpu {
     ) -> Result<(), GpuError> {
         let l = self.device.limits();
         let (most, what) = if usage.contains(wgpu::BufferUsages::STORAGE) {
-            (
-                l.max_storage_buffer_binding_size.min(l.max_buffer_size),
-                "storage binding",
-            )
+            (self.storage_limit(), "storage binding")
         } else {
             (l.max_buffer_size, "buffer")
         };
@@ -765,6 +769,63 @@ impl Gpu {
             )));
         }
         Ok(())
+    }
+
+    /// The largest storage binding data may use: the adapter's largest binding and buffer,
+    /// or less after [`Gpu::limit_bindings`].
+    pub fn storage_limit(&self) -> u64 {
+        let l = self.device.limits();
+        let most = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
+        match self.binding_cap.load(std::sync::atomic::Ordering::Relaxed) {
+            0 => most,
+            cap => cap.min(most),
+        }
+    }
+
+    /// Lowers the storage binding limit that data are split by to `bytes` (rounded down to a
+    /// multiple of 16, at least 64; `None`: the adapter's again), so that small data exercise
+    /// the split of large ones.
+    pub fn limit_bindings(&self, bytes: Option<u64>) {
+        let cap = bytes.map_or(0, |b| (b & !15).max(64));
+        self.binding_cap
+            .store(cap, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// A buffer holding `bytes`, filled through staging copies of at most [`STAGING_BYTES`]
+    /// each, submitted and waited for in turn: the transient memory of an upload stays
+    /// bounded whatever its size (`create_buffer_init` would stage all of it at once).
+    pub fn buffer_staged(
+        &self,
+        label: &str,
+        bytes: &[u8],
+        usage: wgpu::BufferUsages,
+    ) -> Result<wgpu::Buffer, GpuError> {
+        if bytes.len() <= STAGING_BYTES {
+            return Ok(self.buffer(label, bytes, usage));
+        }
+        let size = (bytes.len() as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut at = 0;
+        while at < bytes.len() {
+            let end = (at + STAGING_BYTES).min(bytes.len());
+            let piece = &bytes[at..end];
+            if piece.len() % 4 == 0 {
+                self.queue.write_buffer(&buf, at as u64, piece);
+            } else {
+                let mut padded = piece.to_vec();
+                padded.resize(piece.len().next_multiple_of(4), 0);
+                self.queue.write_buffer(&buf, at as u64, &padded);
+            }
+            self.queue.submit([]);
+            self.wait()?;
+            at = end;
+        }
+        Ok(buf)
     }
 
     pub fn buffer(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
@@ -893,6 +954,7 @@ mod tests {
             "{e}"
         );
         let most = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
+        assert_eq!(g.storage_limit(), most);
         assert!(g.check_buffer("line points", most, s).is_ok());
         let e = g
             .check_buffer("line points", most + 1, s)
@@ -902,6 +964,13 @@ mod tests {
             e.contains("line points") && e.contains("storage binding"),
             "{e}"
         );
+        // A lowered limit, rounded down to 16 bytes, and lifted again.
+        g.limit_bindings(Some(1000));
+        assert_eq!(g.storage_limit(), 992);
+        assert!(g.check_buffer("line points", 992, s).is_ok());
+        assert!(g.check_buffer("line points", 993, s).is_err());
+        g.limit_bindings(None);
+        assert_eq!(g.storage_limit(), most);
     }
 
     #[test]

@@ -236,6 +236,12 @@ impl GpuScene {
             .sum::<u64>()
             + self.lines.iter().map(|l| 2 * l.segments()).sum::<u64>()
     }
+
+    /// Line sets' parts on the GPU (a set larger than a storage binding is cut into several,
+    /// `gbuffer::line_parts`).
+    pub fn line_parts(&self) -> usize {
+        self.lines.len()
+    }
 }
 
 /// What a draw measures besides the image.
@@ -292,8 +298,11 @@ impl<'g> Renderer<'g> {
                 .collect::<Result<_, _>>()?,
             lines: lines
                 .iter()
-                .filter_map(|l| GpuLines::upload(gpu, l).transpose())
-                .collect::<Result<_, _>>()?,
+                .map(|l| GpuLines::upload(gpu, l))
+                .collect::<Result<Vec<_>, _>>()?
+                .into_iter()
+                .flatten()
+                .collect(),
             iso: iso.map(|i| GpuIso::upload(gpu, i)),
             planes: vec![],
             blend: None,

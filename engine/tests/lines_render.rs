@@ -702,3 +702,72 @@ fn depth_cueing_narrows_far_cores() {
     );
     assert!(far_c + 2 <= near_c, "{near_c} {far_c}");
 }
+
+/// A line set larger than a storage binding is cut into parts (the binding limit lowered here
+/// so that a small set is cut into many): the parts draw the same image as the whole, with
+/// per-point colours, tapers, filters and times sliced with their points, and point clouds
+/// likewise.
+#[test]
+fn a_set_cut_into_parts_draws_the_image_of_the_whole() {
+    let gpu = gpu();
+    let mut s = tubes::Streamlines::new();
+    for i in 0..40 {
+        let a = i as f32 * 0.157;
+        let pts: Vec<Vec3> = (0..=30)
+            .map(|k| {
+                let t = k as f32 / 30.0;
+                Vec3::new(
+                    (t * 20.0 - 10.0) * a.cos(),
+                    (t * 20.0 - 10.0) * a.sin(),
+                    3.0 * (t * 6.0 + a).sin(),
+                )
+            })
+            .collect();
+        s.push(&pts);
+    }
+    let n = s.points.len();
+    let mut set = LineSet::new(&s, &ColorMode::Direction, LineWidth::Pixels(3.0), true);
+    set.taper_u = (0..s.len())
+        .flat_map(|k| tubes::lines::taper_u(s.line(k).len(), 3, 0.2))
+        .collect();
+    set.taper_t = 0.2;
+    set.filter = (0..n).map(|k| (k % 31) as f32).collect();
+    set.filter_min = 2.0;
+    set.filter_taper = 1.0;
+    let cloud = LineSet::points(&s, &ColorMode::Direction, LineWidth::World(0.4));
+    for set in [set, cloud] {
+        let r = Renderer::new(&gpu);
+        let cam = top_camera(true);
+        let whole = r.upload(None, &[], std::slice::from_ref(&set), None).unwrap();
+        assert_eq!(whole.line_parts(), 1);
+        let a = r
+            .draw(&whole, &view(cam.clone()), &[], &settings(), DrawOptions::default())
+            .unwrap();
+        // 100 points a part (12 bytes each): the 1240 points in 13 parts.
+        gpu.limit_bindings(Some(1200));
+        let cut = r.upload(None, &[], std::slice::from_ref(&set), None);
+        gpu.limit_bindings(None);
+        let cut = cut.unwrap();
+        assert_eq!(cut.line_parts(), 13);
+        assert_eq!(cut.triangles(), whole.triangles());
+        let b = r
+            .draw(&cut, &view(cam), &[], &settings(), DrawOptions::default())
+            .unwrap();
+        let covered = a.aov.iter().filter(|p| p.depth > 0.0).count();
+        assert!(covered > 300, "the set covers {covered} pixels");
+        let diff: f64 = a
+            .image
+            .iter()
+            .zip(&b.image)
+            .map(|(p, q)| (0..3).map(|c| (p[c] - q[c]).abs() as f64).sum::<f64>() / 3.0)
+            .sum::<f64>()
+            / a.image.len() as f64;
+        let changed = a.image.iter().zip(&b.image).filter(|(p, q)| p != q).count();
+        assert!(
+            diff <= 0.1 / 255.0 && changed <= covered / 50,
+            "points: {}: mean difference {:.5}/255, {changed} pixels changed",
+            set.points,
+            diff * 255.0
+        );
+    }
+}
