@@ -196,7 +196,12 @@ impl GpuLines {
             if segments.is_empty() {
                 continue;
             }
-            parts.push(GpuLines::upload_part(gpu, l, lo..(hi + 1).min(n), &segments)?);
+            parts.push(GpuLines::upload_part(
+                gpu,
+                l,
+                lo..(hi + 1).min(n),
+                &segments,
+            )?);
         }
         if seg != l.segments.len() {
             return Err(GpuError::Operation(format!(
@@ -223,7 +228,10 @@ impl GpuLines {
         let staged = |label: &str, bytes: &[u8]| gpu.buffer_staged(label, bytes, storage);
         Ok(GpuLines {
             points: staged("line points", bytemuck::cast_slice(positions))?,
-            colors: staged("line colours", bytemuck::cast_slice(&l.colors[range.clone()]))?,
+            colors: staged(
+                "line colours",
+                bytemuck::cast_slice(&l.colors[range.clone()]),
+            )?,
             segments: staged("line segments", bytemuck::cast_slice(segments))?,
             count: segments.len() as u32,
             origin: l.origin,
@@ -1246,7 +1254,15 @@ pub const MAX_PEEL_LAYERS: u32 = 8;
 mod tests {
     #[test]
     fn line_parts_cover_every_segment_once_within_the_part_size() {
-        for (n, per) in [(1, 5), (2, 2), (7, 3), (1240, 100), (100, 100), (101, 100), (5, 1000)] {
+        for (n, per) in [
+            (1, 5),
+            (2, 2),
+            (7, 3),
+            (1240, 100),
+            (100, 100),
+            (101, 100),
+            (5, 1000),
+        ] {
             let b = super::line_parts(n, per);
             assert_eq!((b[0], *b.last().unwrap()), (0, n), "{n} {per}: {b:?}");
             for w in b.windows(2) {
@@ -1261,7 +1277,10 @@ mod tests {
                     .collect();
                 assert_eq!(k.len(), 1, "{n} {per}: point {s}");
                 if s + 1 < n {
-                    assert!(s + 1 < (b[k[0] + 1] + 1).min(n), "{n} {per}: segment {s} cut");
+                    assert!(
+                        s + 1 < (b[k[0] + 1] + 1).min(n),
+                        "{n} {per}: segment {s} cut"
+                    );
                 }
             }
         }

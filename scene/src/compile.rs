@@ -239,6 +239,21 @@ pub struct Model {
 }
 
 impl Model {
+    /// Frees the line sets' per-point data (positions, colours, segments, times, tapers,
+    /// filters) once they are on the GPU and nothing else will read them (a one-shot render):
+    /// a tractogram is then held once, not twice. The sets keep their settings; their bounds
+    /// are in `bounds` already.
+    pub fn release_line_points(&mut self) {
+        for l in &mut self.lines {
+            for v in [&mut l.times, &mut l.taper_u, &mut l.filter] {
+                *v = Vec::new();
+            }
+            l.positions = Vec::new();
+            l.colors = Vec::new();
+            l.segments = Vec::new();
+        }
+    }
+
     /// A 64-bit FNV-1a hash of the data the model holds: the volume's samples and grid (after
     /// the transfer function's NaN mapping) and every mesh's vertices, normals, colours and
     /// indices. Keys caches of results that depend on the data, not on file names.
@@ -533,7 +548,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         }
         let (sl, note) =
             crate::tube_sets::apply_selection(sl, t.select.as_ref(), &format!("tubes[{i}]"))?;
-        let sl = crate::slices::crop(&sl, &slabs, 2);
+        let sl = crate::slices::crop(sl, &slabs, 2);
         notes.extend(note);
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
         if s.annotate.colorbar.as_deref() == Some(&format!("tubes.{i}")) {
@@ -626,7 +641,7 @@ fn line_set(
     }
     let (sl, note) =
         crate::tube_sets::apply_selection(sl, l.select.as_ref(), &format!("lines[{i}]"))?;
-    let sl = crate::slices::crop(&sl, slabs, 2);
+    let sl = crate::slices::crop(sl, slabs, 2);
     notes.extend(note);
     let bar = match want_bar {
         true => crate::tube_sets::color_bar(&sl, &l.color, named_map(&l.colormap))
@@ -705,7 +720,7 @@ fn point_set(
         let key = format!("points[{i}].transform");
         sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);
     }
-    let sl = crate::slices::crop(&sl, slabs, 1);
+    let sl = crate::slices::crop(sl, slabs, 1);
     notes.extend(sl.warnings.iter().map(|w| format!("points[{i}]: {w}")));
     if sl.points.is_empty() {
         notes.push(format!("points[{i}] ({}): no points", p.path.display()));

@@ -428,9 +428,11 @@ pub(crate) fn run_on(
     // A killed run's temporary files of these outputs (no other process writes them).
     let files: Vec<&Path> = owned.iter().map(|(_, f)| f.as_path()).collect();
     volume::remove_stale_temps(&files);
-    let m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
     let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;
     let up = upload(gpu, &m).map_err(|e| format!("{}: {e}", path.display()))?;
+    // The frames read the lines from the GPU only.
+    m.release_line_points();
     let opts = DrawOptions {
         frames: a.frames.max(1),
         pass_timings: a.pass_timings,

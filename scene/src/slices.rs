@@ -106,11 +106,11 @@ pub fn slabs(s: &Scene, bounds: [DVec3; 2]) -> Vec<Slab> {
 /// The streamlines cropped to the slabs (mrview's crop to slab): every point outside all of
 /// them is removed and its streamline split there; pieces of fewer than `min_points` points
 /// are dropped; attributes follow (`tubes::select::crop`).
-pub fn crop(s: &tubes::Streamlines, slabs: &[Slab], min_points: usize) -> tubes::Streamlines {
+pub fn crop(s: tubes::Streamlines, slabs: &[Slab], min_points: usize) -> tubes::Streamlines {
     if slabs.is_empty() {
-        return s.clone();
+        return s;
     }
-    tubes::select::crop(s, |p| slabs.iter().any(|b| b.contains(p)), min_points)
+    tubes::select::crop(&s, |p| slabs.iter().any(|b| b.contains(p)), min_points)
 }
 
 /// Corner `c` (0..8, bit k set: the last index along axis k) of the box of a grid's voxel
@@ -526,7 +526,7 @@ mod tests {
                 half: 1.5,
             },
         ];
-        let c = crop(&s, &slabs, 2);
+        let c = crop(s.clone(), &slabs, 2);
         // z in [-7, -3] and [4.5, 7.5]: two pieces of 5 and 3 points.
         assert_eq!(c.len(), 2);
         assert_eq!(c.line(0).len(), 5);
