@@ -800,7 +800,18 @@ impl Gpu {
         bytes: &[u8],
         usage: wgpu::BufferUsages,
     ) -> Result<wgpu::Buffer, GpuError> {
-        if bytes.len() <= STAGING_BYTES {
+        self.buffer_staged_by(label, bytes, usage, STAGING_BYTES)
+    }
+
+    /// [`Gpu::buffer_staged`] with pieces of at most `piece` bytes (a multiple of 4).
+    fn buffer_staged_by(
+        &self,
+        label: &str,
+        bytes: &[u8],
+        usage: wgpu::BufferUsages,
+        piece: usize,
+    ) -> Result<wgpu::Buffer, GpuError> {
+        if bytes.len() <= piece {
             return Ok(self.buffer(label, bytes, usage));
         }
         let size = (bytes.len() as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
@@ -812,9 +823,9 @@ impl Gpu {
         });
         let mut at = 0;
         while at < bytes.len() {
-            let end = (at + STAGING_BYTES).min(bytes.len());
+            let end = (at + piece).min(bytes.len());
             let piece = &bytes[at..end];
-            if piece.len() % 4 == 0 {
+            if piece.len().is_multiple_of(4) {
                 self.queue.write_buffer(&buf, at as u64, piece);
             } else {
                 let mut padded = piece.to_vec();
@@ -971,6 +982,30 @@ mod tests {
         assert!(g.check_buffer("line points", 993, s).is_err());
         g.limit_bindings(None);
         assert_eq!(g.storage_limit(), most);
+    }
+
+    /// A buffer filled in pieces holds every byte, the last piece's odd length included.
+    #[test]
+    fn staged_buffers_hold_every_piece() {
+        let Ok(g) = Gpu::new() else {
+            eprintln!("skipped: no GPU adapter");
+            return;
+        };
+        let bytes: Vec<u8> = (0..10_003u32).map(|i| (i * 7 % 251) as u8).collect();
+        let usage = wgpu::BufferUsages::COPY_SRC;
+        let buf = g.buffer_staged_by("staged", &bytes, usage, 1000).unwrap();
+        let back = g.device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: buf.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = g.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(&buf, 0, &back, 0, buf.size());
+        g.queue.submit([enc.finish()]);
+        let got = g.read_buffer(&back).unwrap();
+        assert_eq!(buf.size(), 10_004);
+        assert_eq!(&got[..bytes.len()], &bytes[..]);
     }
 
     #[test]

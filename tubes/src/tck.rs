@@ -316,7 +316,7 @@ pub fn read(path: &Path) -> Result<Streamlines> {
         return Err(TubesError::format(
             path,
             "data",
-            if total % triplet != 0 {
+            if !total.is_multiple_of(triplet) {
                 format!("{total} data bytes are not whole {triplet}-byte triplets and no 'inf inf inf' end marker was found")
             } else {
                 "expecting the end-of-file marker 'inf inf inf'".to_string()
