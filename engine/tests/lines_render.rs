@@ -743,13 +743,7 @@ fn a_set_cut_into_parts_draws_the_image_of_the_whole() {
             .unwrap();
         assert_eq!(whole.line_parts(), 1);
         let a = r
-            .draw(
-                &whole,
-                &view(cam.clone()),
-                &[],
-                &settings(),
-                DrawOptions::default(),
-            )
+            .draw(&whole, &view(cam), &[], &settings(), DrawOptions::default())
             .unwrap();
         // 100 points a part (12 bytes each): the 1240 points in 13 parts.
         gpu.limit_bindings(Some(1200));

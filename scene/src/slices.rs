@@ -545,7 +545,7 @@ mod tests {
             position: 0.0,
             half: 0.25,
         }];
-        assert_eq!(crop(&s, &thin, 2).len(), 0);
-        assert_eq!(crop(&s, &thin, 1).points, vec![line[10]]);
+        assert_eq!(crop(s.clone(), &thin, 2).len(), 0);
+        assert_eq!(crop(s.clone(), &thin, 1).points, vec![line[10]]);
     }
 }
