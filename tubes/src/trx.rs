@@ -69,10 +69,13 @@ impl Dtype {
 
     /// Decodes little-endian values as f64.
     fn decode(self, b: &[u8]) -> Vec<f64> {
-        let n = b.len() / self.size();
-        let mut out = Vec::with_capacity(n);
-        for c in b.chunks_exact(self.size()) {
-            out.push(match self {
+        b.chunks_exact(self.size()).map(|c| self.value(c)).collect()
+    }
+
+    /// One little-endian element (`c` holds exactly [`Dtype::size`] bytes).
+    fn value(self, c: &[u8]) -> f64 {
+        {
+            match self {
                 Dtype::I8 => c[0] as i8 as f64,
                 Dtype::U8 => c[0] as f64,
                 Dtype::I16 => i16::from_le_bytes([c[0], c[1]]) as f64,
@@ -84,9 +87,8 @@ impl Dtype {
                 Dtype::I64 => i64::from_le_bytes(c.try_into().unwrap()) as f64,
                 Dtype::U64 => u64::from_le_bytes(c.try_into().unwrap()) as f64,
                 Dtype::F64 => f64::from_le_bytes(c.try_into().unwrap()),
-            });
+            }
         }
-        out
     }
 }
 
@@ -147,6 +149,59 @@ impl Container {
             ));
         }
         Ok(out)
+    }
+
+    /// Reads a member in pieces of about 1 MiB, handing `f` whole elements of `elem` bytes,
+    /// refusing more than `limit` bytes; returns the bytes read (a partial element at the end
+    /// is counted, not handed on).
+    fn stream(
+        &mut self,
+        path: &Path,
+        m: &Member,
+        limit: u64,
+        elem: usize,
+        mut f: impl FnMut(&[u8]),
+    ) -> Result<u64> {
+        let mut pump = |r: &mut dyn Read| -> std::io::Result<u64> {
+            let mut buf = vec![0u8; (1 << 20) / elem * elem + elem];
+            let (mut have, mut total) = (0usize, 0u64);
+            loop {
+                let n = r.read(&mut buf[have..])?;
+                if n == 0 {
+                    return Ok(total);
+                }
+                total += n as u64;
+                if total > limit {
+                    return Ok(total);
+                }
+                have += n;
+                let whole = have / elem * elem;
+                f(&buf[..whole]);
+                buf.copy_within(whole..have, 0);
+                have -= whole;
+            }
+        };
+        let got = match self {
+            Container::Zip(z) => {
+                let mut f = z.by_index(m.index).map_err(|e| {
+                    TubesError::format(path, &m.name, format!("cannot open the member: {e}"))
+                })?;
+                pump(&mut f)
+            }
+            Container::Dir(d) => {
+                std::fs::File::open(d.join(&m.name)).and_then(|mut f| pump(&mut f))
+            }
+        };
+        let total =
+            got.map_err(|e| TubesError::format(path, &m.name, format!("cannot read: {e}")))?;
+        if total > limit {
+            return Err(TubesError::format(
+                path,
+                &m.name,
+                format!("holds more than the {limit} bytes the header allows"),
+            ));
+        }
+        Ok(total)
     }
 }
 
@@ -315,33 +370,41 @@ pub fn read(path: &Path) -> Result<Streamlines> {
         ));
     }
     let need = (nv as u64) * 3 * dt.size() as u64;
-    let b = c.read(path, pm, need)?;
-    if b.len() as u64 != need {
+    // Streamed into the points (reserved once): the member's bytes are never held whole.
+    s.points.reserve_exact(nv);
+    let (mut xyz, mut k, mut bad) = ([0f64; 3], 0, None);
+    let points = &mut s.points;
+    let got = c.stream(path, pm, need, dt.size(), |piece| {
+        for e in piece.chunks_exact(dt.size()) {
+            let x = dt.value(e);
+            if bad.is_none() && x.is_finite() && !(x as f32).is_finite() {
+                bad = Some((points.len(), x));
+            }
+            xyz[k] = x;
+            k += 1;
+            if k == 3 {
+                points.push(Vec3::new(xyz[0] as f32, xyz[1] as f32, xyz[2] as f32));
+                k = 0;
+            }
+        }
+    })?;
+    if got != need {
         return Err(TubesError::format(
             path,
             &pm.name,
             format!(
-                "{} bytes; NB_VERTICES {nv} x 3 x {} need {need}",
-                b.len(),
+                "{got} bytes; NB_VERTICES {nv} x 3 x {} need {need}",
                 dt.size()
             ),
         ));
     }
-    let values = dt.decode(&b);
-    if let Some(i) = values
-        .iter()
-        .position(|&x| x.is_finite() && !(x as f32).is_finite())
-    {
+    if let Some((i, x)) = bad {
         return Err(TubesError::format(
             path,
             &pm.name,
-            format!("point {}: {:e} is outside f32's range", i / 3, values[i]),
+            format!("point {i}: {x:e} is outside f32's range"),
         ));
     }
-    s.points = values
-        .chunks_exact(3)
-        .map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
-        .collect();
     // Offsets.
     let offs = named("offsets");
     let [om] = offs.as_slice() else {
