@@ -113,6 +113,18 @@ impl Frames {
         }
     }
 
+    /// A long stage has started: its name beside the bar (a spinner until the first frame)
+    /// on a terminal; nothing in logs, which get a line per frame.
+    pub fn stage(&self, m: &str) {
+        if let Some(b) = self.bar(None) {
+            if b.length().is_none() {
+                b.set_style(indicatif::ProgressStyle::default_spinner());
+                b.enable_steady_tick(std::time::Duration::from_millis(120));
+            }
+            b.set_message(m.to_string());
+        }
+    }
+
     /// The bar, shown from the first frame on (so that a run with nothing to do shows none).
     fn bar(&self, n: Option<usize>) -> Option<&indicatif::ProgressBar> {
         let bar = self.bar.as_ref()?;
@@ -120,6 +132,10 @@ impl Frames {
             bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
         }
         if let Some(n) = n {
+            if bar.length().is_none() {
+                // From a stage's spinner to the frames' bar.
+                bar.set_style(indicatif::ProgressStyle::default_bar());
+            }
             bar.set_length(n as u64);
         }
         Some(bar)

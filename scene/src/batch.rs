@@ -352,6 +352,7 @@ pub fn run_manifest(
             }
             Progress::Skipped(o) => progress(Progress::Skipped(&named(o.clone()))),
             Progress::Failed(o) => progress(Progress::Failed(&named(o.clone()))),
+            Progress::Stage(m) => progress(Progress::Stage(&format!("{}: {m}", e.name))),
         });
         match got {
             Ok(rep) => {

@@ -98,6 +98,8 @@ pub enum Progress<'a> {
     Skipped(&'a FrameOutcome),
     /// A frame that failed (the others go on).
     Failed(&'a FrameOutcome),
+    /// A long stage has started (reading the scene's data, uploading it, drawing a frame).
+    Stage(&'a str),
 }
 
 /// One frame of a sequence.
@@ -428,8 +430,10 @@ pub(crate) fn run_on(
     // A killed run's temporary files of these outputs (no other process writes them).
     let files: Vec<&Path> = owned.iter().map(|(_, f)| f.as_path()).collect();
     volume::remove_stale_temps(&files);
+    progress(Progress::Stage("reading the scene's data"));
     let mut m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
     let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;
+    progress(Progress::Stage("uploading to the GPU"));
     let up = upload(gpu, &m).map_err(|e| format!("{}: {e}", path.display()))?;
     // The frames read the lines from the GPU only.
     m.release_line_points();
@@ -456,6 +460,7 @@ pub(crate) fn run_on(
         let mut sk = s.clone();
         sk.camera = cam.clone();
         let now = a.trail_range.map(|t| t.time(k as u32));
+        progress(Progress::Stage(&format!("drawing frame {k}")));
         let drawn = up
             .draw_at(&sk, &m, opts, now)
             .map_err(|e| format!("{}: frame {k}: {e}", path.display()))

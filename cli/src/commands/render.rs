@@ -221,6 +221,7 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
             &o.path,
             o.error.as_deref().unwrap_or(""),
         ),
+        Progress::Stage(m) => progress.stage(m),
     };
     let base = RenderArgs {
         scene: a.scene.clone().unwrap_or_default(),
