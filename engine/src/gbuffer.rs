@@ -462,6 +462,33 @@ pub struct GBuffer {
     lines: Vec<LineDraw>,
     /// Translucent meshes and slices (no layers when there are none).
     pub peel: Peel,
+    /// At most this many triangles a submission (see [`Gpu::batch_triangles`]), with the
+    /// device and queue that submit and wait for each batch.
+    batch: Option<(u64, wgpu::Device, wgpu::Queue)>,
+}
+
+/// The draws of a pass cut into batches of at most `budget` triangles (`None`: one batch):
+/// `sizes[i]` is draw `i`'s triangle count; each batch lists `(draw, first, end)` triangle
+/// ranges, in order, every triangle in exactly one. At least one batch (empty when nothing
+/// is drawn: the pass still clears its targets).
+pub fn batches(sizes: &[u64], budget: Option<u64>) -> Vec<Vec<(usize, u64, u64)>> {
+    let budget = budget.unwrap_or(u64::MAX).max(1);
+    let mut out = vec![vec![]];
+    let mut room = budget;
+    for (i, &n) in sizes.iter().enumerate() {
+        let mut at = 0;
+        while at < n {
+            if room == 0 {
+                out.push(vec![]);
+                room = budget;
+            }
+            let take = (n - at).min(room);
+            out.last_mut().unwrap().push((i, at, at + take));
+            at += take;
+            room -= take;
+        }
+    }
+    out
 }
 
 /// A pass's pipeline for meshes and for lines.
@@ -976,7 +1003,11 @@ impl GBuffer {
             binds,
             draws: peel_draws,
         };
+        let batch = gpu
+            .batch_triangles()
+            .map(|n| (n, gpu.device.clone(), gpu.queue.clone()));
         GBuffer {
+            batch,
             color: target_ms(gpu, "gbuffer colour", COLOR, width, height, samples).1,
             normal: target_ms(gpu, "gbuffer normal", NORMAL, width, height, samples).1,
             samples,
@@ -1084,56 +1115,92 @@ impl GBuffer {
             &self.depth_back,
         ));
         for (kind, pipe, targets, depth) in passes {
-            {
-                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("gbuffer"),
-                    color_attachments: &targets,
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: depth,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(1.0),
-                            store: wgpu::StoreOp::Discard,
-                        }),
-                        stencil_ops: None,
-                    }),
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
-                let nd = self.nd.as_ref().filter(|_| kind == Kind::Nd);
-                if !self.meshes.is_empty() {
-                    pass.set_pipeline(&pipe.mesh);
-                }
-                for (
-                    k,
-                    MeshDraw {
-                        mesh: m,
-                        bind,
-                        plane,
-                    },
-                ) in self.meshes.iter().enumerate()
+            let nd = self.nd.as_ref().filter(|_| kind == Kind::Nd);
+            // Lines have no back faces: the back-depth pass draws only those that stand for
+            // tubes in the volume's shadow.
+            let lines: Vec<(usize, &LineDraw)> = self
+                .lines
+                .iter()
+                .enumerate()
+                .filter(|(_, l)| kind != Kind::Back || l.proxy)
+                .collect();
+            let sizes: Vec<u64> = self
+                .meshes
+                .iter()
+                .map(|m| m.mesh.count as u64 / 3)
+                .chain(lines.iter().map(|(_, l)| 2 * l.segments as u64))
+                .collect();
+            let batches = batches(&sizes, self.batch.as_ref().map(|b| b.0));
+            for (b, batch) in batches.iter().enumerate() {
+                let (first, last) = (b == 0, b + 1 == batches.len());
+                // Later batches draw over what the earlier ones left.
+                let targets: Vec<_> = targets
+                    .iter()
+                    .map(|t| {
+                        t.clone().map(|mut a| {
+                            if !first {
+                                a.ops.load = wgpu::LoadOp::Load;
+                            }
+                            a
+                        })
+                    })
+                    .collect();
                 {
-                    match (plane, kind == Kind::Color) {
-                        (Some(g), true) => {
-                            pass.set_pipeline(&p.front_plane);
-                            pass.set_bind_group(2, g, &[]);
+                    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("gbuffer"),
+                        color_attachments: &targets,
+                        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                            view: depth,
+                            depth_ops: Some(wgpu::Operations {
+                                load: if first {
+                                    wgpu::LoadOp::Clear(1.0)
+                                } else {
+                                    wgpu::LoadOp::Load
+                                },
+                                store: if last {
+                                    wgpu::StoreOp::Discard
+                                } else {
+                                    wgpu::StoreOp::Store
+                                },
+                            }),
+                            stencil_ops: None,
+                        }),
+                        timestamp_writes: None,
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    });
+                    for &(i, t0, t1) in batch {
+                        if let Some(MeshDraw {
+                            mesh: m,
+                            bind,
+                            plane,
+                        }) = self.meshes.get(i)
+                        {
+                            match (plane, kind == Kind::Color) {
+                                (Some(g), true) => {
+                                    pass.set_pipeline(&p.front_plane);
+                                    pass.set_bind_group(2, g, &[]);
+                                }
+                                _ => pass.set_pipeline(&pipe.mesh),
+                            }
+                            pass.set_bind_group(0, nd.map_or(bind, |n| &n.meshes[i]), &[]);
+                            pass.set_vertex_buffer(0, m.vertices.slice(..));
+                            pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                            pass.draw_indexed(3 * t0 as u32..3 * t1 as u32, 0, 0..1);
+                        } else {
+                            let (k, l) = lines[i - self.meshes.len()];
+                            pass.set_pipeline(if l.halo { &pipe.line_halo } else { &pipe.line });
+                            let (v, d) =
+                                nd.map_or((&l.view, &l.data), |n| (&n.lines[k].0, &n.lines[k].1));
+                            pass.set_bind_group(0, v, &[]);
+                            pass.set_bind_group(1, d, &[]);
+                            // Six vertices a segment, two triangles: a triangle is 3 vertices.
+                            pass.draw(3 * t0 as u32..3 * t1 as u32, 0..1);
                         }
-                        _ => pass.set_pipeline(&pipe.mesh),
                     }
-                    pass.set_bind_group(0, nd.map_or(bind, |n| &n.meshes[k]), &[]);
-                    pass.set_vertex_buffer(0, m.vertices.slice(..));
-                    pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
-                    pass.draw_indexed(0..m.count, 0, 0..1);
                 }
-                // Lines have no back faces: the back-depth pass draws only those that stand
-                // for tubes in the volume's shadow.
-                let drawn = |l: &&LineDraw| kind != Kind::Back || l.proxy;
-                for (k, l) in self.lines.iter().enumerate().filter(|(_, l)| drawn(l)) {
-                    pass.set_pipeline(if l.halo { &pipe.line_halo } else { &pipe.line });
-                    let (v, d) = nd.map_or((&l.view, &l.data), |n| (&n.lines[k].0, &n.lines[k].1));
-                    pass.set_bind_group(0, v, &[]);
-                    pass.set_bind_group(1, d, &[]);
-                    pass.draw(0..l.segments.saturating_mul(6), 0..1);
+                if !last {
+                    self.flush(enc);
                 }
             }
             if let (Kind::Nd, Some(nd)) = (&kind, &self.nd) {
@@ -1163,6 +1230,17 @@ impl GBuffer {
             }
         }
         self.record_peel(enc);
+    }
+
+    /// Submits what `enc` holds and waits for it, continuing in a fresh encoder (between
+    /// batches; see [`batches`]).
+    fn flush(&self, enc: &mut wgpu::CommandEncoder) {
+        if let Some((_, device, queue)) = &self.batch {
+            let done = std::mem::replace(enc, device.create_command_encoder(&Default::default()));
+            queue.submit([done.finish()]);
+            // A failure shows in the frame's own wait (`Gpu::wait`).
+            let _ = device.poll(wgpu::PollType::wait_indefinitely());
+        }
     }
 
     /// The peel passes: layer k into the targets `k % 2`, then copied into layer k.
@@ -1252,6 +1330,34 @@ pub const MAX_PEEL_LAYERS: u32 = 8;
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn batches_hold_every_triangle_once_within_the_budget() {
+        let sizes = [5u64, 0, 12, 3, 7];
+        for budget in [None, Some(1), Some(4), Some(7), Some(27), Some(100)] {
+            let b = super::batches(&sizes, budget);
+            let cap = budget.unwrap_or(u64::MAX);
+            let mut seen = vec![0u64; sizes.len()];
+            let mut next = (0usize, 0u64);
+            for batch in &b {
+                let total: u64 = batch.iter().map(|(_, a, e)| e - a).sum();
+                assert!(total <= cap && total > 0, "{budget:?}: {b:?}");
+                for &(i, a, e) in batch {
+                    // In order, contiguous, no overlap.
+                    assert!(a < e && (i, a) >= next, "{budget:?}: {b:?}");
+                    let joined = if i == next.0 { a == next.1 } else { a == 0 };
+                    assert!(joined, "{budget:?}: gap before draw {i} at {a}");
+                    next = (i, e);
+                    seen[i] += e - a;
+                }
+            }
+            assert_eq!(seen, sizes, "{budget:?}: {b:?}");
+            // Full batches but the last: as few as the budget allows.
+            let want = 27u64.div_ceil(cap.min(27));
+            assert_eq!(b.len() as u64, want, "{budget:?}: {b:?}");
+        }
+        assert_eq!(super::batches(&[], Some(4)), vec![vec![]]);
+    }
+
     #[test]
     fn line_parts_cover_every_segment_once_within_the_part_size() {
         for (n, per) in [

@@ -93,7 +93,16 @@ pub struct Gpu {
     fault: Arc<std::sync::Mutex<Option<(String, bool)>>>,
     /// A storage binding limit below the adapter's (0: none), set by [`Gpu::limit_bindings`].
     binding_cap: std::sync::atomic::AtomicU64,
+    /// Triangles a G-buffer pass submits at once (0: the default, u64::MAX: no limit), set by
+    /// [`Gpu::set_batch_triangles`].
+    batch: std::sync::atomic::AtomicU64,
 }
+
+/// Triangles a G-buffer pass submits at once on a CPU adapter (2^19): lavapipe bins a
+/// submission's triangles in scenes faster than its threads rasterise them, about 550 bytes a
+/// triangle while they queue (1-3.5 GB for a whole-brain tractogram), so large draws are
+/// submitted in batches of this size, each waited for.
+pub const CPU_BATCH_TRIANGLES: u64 = 1 << 19;
 
 /// The most bytes staged at once by [`Gpu::buffer_staged`] (64 MiB): large uploads go through
 /// wgpu's staging memory in pieces, each submitted and waited for before the next.
@@ -433,6 +442,7 @@ impl Gpu {
         }));
         Ok(Gpu {
             binding_cap: 0.into(),
+            batch: 0.into(),
             adapter,
             device,
             queue,
@@ -789,6 +799,23 @@ impl Gpu {
         let cap = bytes.map_or(0, |b| (b & !15).max(64));
         self.binding_cap
             .store(cap, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// The most triangles a G-buffer pass submits at once: [`CPU_BATCH_TRIANGLES`] on a CPU
+    /// adapter, no limit on a GPU, or what [`Gpu::set_batch_triangles`] set.
+    pub fn batch_triangles(&self) -> Option<u64> {
+        match self.batch.load(std::sync::atomic::Ordering::Relaxed) {
+            0 => self.is_cpu().then_some(CPU_BATCH_TRIANGLES),
+            u64::MAX => None,
+            n => Some(n),
+        }
+    }
+
+    /// Sets the batch size of [`Gpu::batch_triangles`] (`Some(n)`: at most `n`, at least 1;
+    /// `None`: no limit); tests split small scenes this way.
+    pub fn set_batch_triangles(&self, n: Option<u64>) {
+        let v = n.map_or(u64::MAX, |n| n.clamp(1, u64::MAX - 1));
+        self.batch.store(v, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// A buffer holding `bytes`, filled through staging copies of at most [`STAGING_BYTES`]

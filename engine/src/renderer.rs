@@ -10,8 +10,10 @@
 //! (partial occlusion from `march`, the surface-AO slot from its pass), which composite folds
 //! by min or product without knowing who wrote them.
 //!
-//! Timings: `total_ms` is the median over frames of one frame's submit-to-completion time
-//! (everything recorded in one command buffer, then waited for). Per-pass times, when asked
+//! Timings: `total_ms` is the median over frames of one frame's record-to-completion time
+//! (everything recorded in one command buffer, then waited for; on a CPU adapter the G-buffer
+//! submits draws of more than `gpu::CPU_BATCH_TRIANGLES` triangles in batches, each waited
+//! for, which bounds lavapipe's memory). Per-pass times, when asked
 //! for, come from one more frame: GPU timestamps written between its passes where the adapter
 //! can and is not a CPU adapter (`PassClock::Timestamps`; see `Gpu::has_pass_timestamps`),
 //! else each pass submitted and waited for on its own (`PassClock::Fences`, which adds a
@@ -205,8 +207,10 @@ impl Frame {
 
 fn submit_and_wait(gpu: &Gpu, record: &dyn Fn(&mut wgpu::CommandEncoder)) -> Result<f64, GpuError> {
     let mut enc = gpu.device.create_command_encoder(&Default::default());
-    record(&mut enc);
+    // The clock starts before recording: on a CPU adapter the G-buffer submits large draws in
+    // batches while it records (`gbuffer::batches`).
     let t = Instant::now();
+    record(&mut enc);
     gpu.queue.submit([enc.finish()]);
     gpu.wait()?;
     Ok(t.elapsed().as_secs_f64() * 1e3)

@@ -773,3 +773,72 @@ fn a_set_cut_into_parts_draws_the_image_of_the_whole() {
         );
     }
 }
+
+/// On a CPU adapter large draws are submitted in batches (lavapipe queues a submission's
+/// triangles, about 550 bytes each): batches of 50 triangles - tubes and lines cut anywhere,
+/// a segment's two triangles included - draw the image of one submission, with LineAO's
+/// normal-depth pass and 4x MSAA (its extra depth pass) batched too.
+#[test]
+fn batched_submissions_draw_the_image_of_one() {
+    let gpu = gpu();
+    let mut s = tubes::Streamlines::new();
+    for i in 0..12 {
+        let a = i as f32 * 0.5;
+        let pts: Vec<Vec3> = (0..=20)
+            .map(|k| {
+                let t = k as f32 / 20.0 * 20.0 - 10.0;
+                Vec3::new(t * a.cos(), t * a.sin(), 2.0 * (t * 0.3 + a).sin())
+            })
+            .collect();
+        s.push(&pts);
+    }
+    let set = LineSet::new(&s, &ColorMode::Direction, LineWidth::Pixels(3.0), true);
+    let tube = tubes::tube_mesh::straight_tubes(
+        &[
+            [[0.0, -20.0, 4.0], [0.0, 20.0, 4.0]],
+            [[-20.0, 3.0, -3.0], [20.0, 3.0, -3.0]],
+        ],
+        1.5,
+        16,
+        [1.0, 0.3, 0.2],
+    );
+    let r = Renderer::new(&gpu);
+    let scene = r
+        .upload(
+            None,
+            std::slice::from_ref(&tube),
+            std::slice::from_ref(&set),
+            None,
+        )
+        .unwrap();
+    let cam = top_camera(true);
+    for method in [Method::Illuminated, Method::LineAo] {
+        let s = Settings {
+            method,
+            msaa: 4,
+            ..settings()
+        };
+        let mut draw = |batch: Option<u64>| {
+            gpu.set_batch_triangles(batch);
+            let o = r.draw(&scene, &view(cam), &[], &s, DrawOptions::default());
+            gpu.set_batch_triangles(None);
+            o.unwrap()
+        };
+        let one = draw(None);
+        let cut = draw(Some(50));
+        assert!(
+            scene.triangles() > 10 * 50,
+            "{} triangles",
+            scene.triangles()
+        );
+        let covered = one.aov.iter().filter(|p| p.depth > 0.0).count();
+        assert!(covered > 500, "{method:?}: {covered} pixels");
+        let worst = one
+            .image
+            .iter()
+            .zip(&cut.image)
+            .map(|(p, q)| (0..4).map(|c| (p[c] - q[c]).abs()).fold(0.0, f32::max))
+            .fold(0.0, f32::max);
+        assert!(worst <= 1e-6, "{method:?}: a pixel differs by {worst}");
+    }
+}
