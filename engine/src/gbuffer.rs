@@ -213,6 +213,60 @@ impl GpuLines {
         Ok(parts)
     }
 
+    /// [`GpuLines::upload`], freeing `l`'s per-point data as its parts go up (the last part
+    /// first, `l`'s vectors truncated behind it): the set is never held whole twice. `l` keeps
+    /// its settings and no points.
+    pub fn upload_freeing(gpu: &Gpu, l: &mut LineSet) -> Result<Vec<GpuLines>, GpuError> {
+        if l.segments.is_empty() {
+            return Ok(vec![]);
+        }
+        let n = l.positions.len();
+        let per_part = (gpu.storage_limit() / 12).min(u32::MAX as u64) as usize;
+        let bounds = line_parts(n, per_part);
+        if l.segments.windows(2).any(|w| w[1] < w[0]) {
+            return Err(GpuError::Operation(
+                "line segments: not in point order".to_string(),
+            ));
+        }
+        let mut parts = Vec::with_capacity(bounds.len() - 1);
+        for w in bounds.windows(2).rev() {
+            let (lo, hi) = (w[0], w[1]);
+            let first = l.segments.partition_point(|&s| (s as usize) < lo);
+            let segments: Vec<u32> = l.segments[first..].iter().map(|&s| s - lo as u32).collect();
+            if !segments.is_empty() {
+                parts.push(GpuLines::upload_part(
+                    gpu,
+                    l,
+                    lo..(hi + 1).min(n),
+                    &segments,
+                )?);
+            }
+            // What this part took: only the point it shares with the part before stays.
+            let keep = (lo + 1).min(n);
+            let held = l.positions.len();
+            l.segments.truncate(first);
+            for v in [&mut l.times, &mut l.taper_u, &mut l.filter] {
+                if v.len() == held {
+                    v.truncate(keep);
+                    v.shrink_to_fit();
+                }
+            }
+            l.positions.truncate(keep);
+            l.colors.truncate(keep);
+            l.segments.shrink_to_fit();
+            l.positions.shrink_to_fit();
+            l.colors.shrink_to_fit();
+        }
+        parts.reverse();
+        for v in [&mut l.times, &mut l.taper_u, &mut l.filter] {
+            *v = Vec::new();
+        }
+        l.positions = Vec::new();
+        l.colors = Vec::new();
+        l.segments = Vec::new();
+        Ok(parts)
+    }
+
     /// Uploads points `range` of `l` with `segments` (relative to the range's start).
     fn upload_part(
         gpu: &Gpu,

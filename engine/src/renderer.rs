@@ -313,6 +313,20 @@ impl<'g> Renderer<'g> {
         })
     }
 
+    /// Adds line sets to an uploaded scene, freeing each set's per-point data as its parts go
+    /// up ([`GpuLines::upload_freeing`]): for one-shot renders of tractograms too large to
+    /// hold twice. The sets keep their settings, no points.
+    pub fn upload_lines_freeing(
+        &self,
+        scene: &mut GpuScene,
+        lines: &mut [LineSet],
+    ) -> Result<(), GpuError> {
+        for l in lines {
+            scene.lines.extend(GpuLines::upload_freeing(self.gpu, l)?);
+        }
+        Ok(())
+    }
+
     /// Adds slices of volumes to an uploaded scene (replacing any it had): their polygons and
     /// the fields of `grid` their layers read, each field uploaded once.
     /// `blend`: a layer of `grid` blended into the volume rendering's colours.

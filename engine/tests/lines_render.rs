@@ -755,6 +755,24 @@ fn a_set_cut_into_parts_draws_the_image_of_the_whole() {
         let b = r
             .draw(&cut, &view(cam), &[], &settings(), DrawOptions::default())
             .unwrap();
+        // Uploaded part by part while the set's points are freed: the same parts, the same
+        // image, and nothing left of the points on the CPU.
+        let mut freed = set.clone();
+        let mut fr = r.upload(None, &[], &[], None).unwrap();
+        gpu.limit_bindings(Some(1200));
+        let got = r.upload_lines_freeing(&mut fr, std::slice::from_mut(&mut freed));
+        gpu.limit_bindings(None);
+        got.unwrap();
+        assert_eq!(fr.line_parts(), 13);
+        assert!(freed.positions.is_empty() && freed.segments.is_empty() && freed.filter.is_empty());
+        let c = r
+            .draw(&fr, &view(cam), &[], &settings(), DrawOptions::default())
+            .unwrap();
+        assert!(
+            c.image == b.image,
+            "points: {}: freeing changed the image",
+            set.points
+        );
         let covered = a.aov.iter().filter(|p| p.depth > 0.0).count();
         assert!(covered > 300, "the set covers {covered} pixels");
         let diff: f64 = a

@@ -239,21 +239,6 @@ pub struct Model {
 }
 
 impl Model {
-    /// Frees the line sets' per-point data (positions, colours, segments, times, tapers,
-    /// filters) once they are on the GPU and nothing else will read them (a one-shot render):
-    /// a tractogram is then held once, not twice. The sets keep their settings; their bounds
-    /// are in `bounds` already.
-    pub fn release_line_points(&mut self) {
-        for l in &mut self.lines {
-            for v in [&mut l.times, &mut l.taper_u, &mut l.filter] {
-                *v = Vec::new();
-            }
-            l.positions = Vec::new();
-            l.colors = Vec::new();
-            l.segments = Vec::new();
-        }
-    }
-
     /// A 64-bit FNV-1a hash of the data the model holds: the volume's samples and grid (after
     /// the transfer function's NaN mapping) and every mesh's vertices, normals, colours and
     /// indices. Keys caches of results that depend on the data, not on file names.
@@ -971,6 +956,24 @@ fn cpu_light(s: &Scene, v: &EaView, limit: u64) -> Result<Option<raycast::LightS
         theta_deg: r.theta,
         blur_samples: r.blur_samples,
     }))
+}
+
+/// [`upload`] for a one-shot render: the line sets' points are freed as they go up (the
+/// frames read them from the GPU only), so a tractogram is never held twice.
+pub fn upload_freeing_lines<'g>(
+    gpu: &'g engine::gpu::Gpu,
+    m: &mut Model,
+) -> Result<Uploaded<'g>, String> {
+    let mut lines = std::mem::take(&mut m.lines);
+    let up = upload(gpu, m);
+    let up = up.and_then(|mut up| {
+        up.renderer
+            .upload_lines_freeing(&mut up.scene, &mut lines)
+            .map_err(|e| e.to_string())?;
+        Ok(up)
+    });
+    m.lines = lines;
+    up
 }
 
 /// Uploads a model once: the volume (downsampled when the adapter cannot bind it, with a

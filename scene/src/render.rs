@@ -4,7 +4,7 @@
 
 use crate::batch::{complete_image, Shard};
 use crate::camera_path::{frame_path, CameraPath, Sequence};
-use crate::compile::{model, upload};
+use crate::compile::{model, upload_freeing_lines};
 use crate::image_io::write_exr;
 use crate::spec;
 use engine::gpu::{AdapterChoice, Gpu};
@@ -434,9 +434,8 @@ pub(crate) fn run_on(
     let mut m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
     let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;
     progress(Progress::Stage("uploading to the GPU"));
-    let up = upload(gpu, &m).map_err(|e| format!("{}: {e}", path.display()))?;
-    // The frames read the lines from the GPU only.
-    m.release_line_points();
+    // The frames read the lines from the GPU only: their points are freed as they go up.
+    let up = upload_freeing_lines(gpu, &mut m).map_err(|e| format!("{}: {e}", path.display()))?;
     let opts = DrawOptions {
         frames: a.frames.max(1),
         pass_timings: a.pass_timings,
