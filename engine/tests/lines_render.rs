@@ -836,7 +836,7 @@ fn batched_submissions_draw_the_image_of_one() {
             msaa: 4,
             ..settings()
         };
-        let mut draw = |batch: Option<u64>| {
+        let draw = |batch: Option<u64>| {
             gpu.set_batch_triangles(batch);
             let o = r.draw(&scene, &view(cam), &[], &s, DrawOptions::default());
             gpu.set_batch_triangles(None);
