@@ -664,22 +664,35 @@ fn line_set(
                 .collect()
         }
     };
-    let mut set = crate::tube_sets::with_color_map(&sl, &l.color, named_map(&l.colormap), |c| {
-        LineSet::new(&sl, c, width, cylinder)
-    })
-    .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))?;
+    // Everything that reads the streamlines comes first: the line set then takes their points
+    // (a whole-brain tractogram is not copied).
+    let taper_u = l.taper.as_ref().map(|t| {
+        (0..sl.len())
+            .flat_map(|k| tubes::lines::taper_u(sl.line(k).len(), t.vertices as usize, t.u as f32))
+            .collect()
+    });
+    let filter = l
+        .filter
+        .as_ref()
+        .map(|f| crate::tube_sets::point_values(&sl, f))
+        .transpose()
+        .map_err(|e| format!("lines[{i}].filter ({}): {e}", l.path.display()))?;
+    let names: Vec<String> = sl.point_attributes.iter().map(|a| a.name.clone()).collect();
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    let mut set =
+        crate::tube_sets::with_color_map_of(&names, &l.color, named_map(&l.colormap), |c| {
+            LineSet::from_streamlines(sl, c, width, cylinder)
+        })
+        .map_err(|e| format!("lines[{i}].color ({}): {e}", l.path.display()))?;
     set.proxy_radius = proxy_radius;
     set.times = times;
     set.halo = l.halo.as_ref().and_then(|h| h.halo());
-    if let Some(t) = &l.taper {
+    if let (Some(t), Some(u)) = (&l.taper, taper_u) {
         set.taper_t = t.u as f32;
-        set.taper_u = (0..sl.len())
-            .flat_map(|k| tubes::lines::taper_u(sl.line(k).len(), t.vertices as usize, t.u as f32))
-            .collect();
+        set.taper_u = u;
     }
-    if let Some(f) = &l.filter {
-        set.filter = crate::tube_sets::point_values(&sl, f)
-            .map_err(|e| format!("lines[{i}].filter ({}): {e}", l.path.display()))?;
+    if let Some(values) = filter {
+        set.filter = values;
         set.filter_min = l.filter_min as f32;
         set.filter_taper = l.filter_taper as f32;
     }

@@ -162,9 +162,10 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
 }
 
 /// Peak bytes `umbra tubes` holds per triangle of its mesh (vertices, normals, colours,
-/// indices and the mesher's per-thread pieces; measured: 10^6 synthetic streamlines of 100
-/// points, 148.9 M triangles, 10.47 GB peak with the 1.2 GB of points - 62 bytes a triangle).
-pub const MESH_BYTES_PER_TRIANGLE: u64 = 64;
+/// indices and the mesher's per-thread pieces; the file is streamed; measured: 10^6 synthetic
+/// streamlines of 100 points, 148.9 M triangles, 6.80 GB peak with the 1.2 GB of points - 37
+/// bytes a triangle), with a margin.
+pub const MESH_BYTES_PER_TRIANGLE: u64 = 40;
 
 /// Tractograms of fewer streamlines are meshed without an estimate.
 const ESTIMATE_ABOVE: usize = 20_000;
@@ -245,6 +246,18 @@ pub fn with_color_map<R>(
     map: Option<volume::colormap::Colormap>,
     f: impl FnOnce(&ColorMode) -> R,
 ) -> Result<R, String> {
+    let names: Vec<&str> = s.point_attributes.iter().map(|a| a.name.as_str()).collect();
+    with_color_map_of(&names, color, map, f)
+}
+
+/// [`with_color_map`] for streamlines whose per-point attributes are `names` (so that `f` may
+/// take the streamlines themselves).
+pub fn with_color_map_of<R>(
+    names: &[&str],
+    color: &str,
+    map: Option<volume::colormap::Colormap>,
+    f: impl FnOnce(&ColorMode) -> R,
+) -> Result<R, String> {
     let vol_field;
     let sampler;
     let mode = if color == "direction" {
@@ -252,8 +265,8 @@ pub fn with_color_map<R>(
     } else if color.starts_with('#') {
         ColorMode::Constant(parse_hex(color)?)
     } else if let Some(name) = color.strip_prefix("scalar:") {
-        if !s.point_attributes.iter().any(|x| x.name == name) {
-            let have: Vec<&str> = s.point_attributes.iter().map(|x| x.name.as_str()).collect();
+        if !names.contains(&name) {
+            let have = names;
             return Err(format!(
                 "colour scalar:{name}: the tractogram has no per-point '{name}' (it has: {})",
                 if have.is_empty() {

@@ -150,6 +150,62 @@ impl LineSet {
     /// field of world position; a constant). Lines of one point have no segment; a segment
     /// between two equal points is kept (the renderer gives it a pixel, without NaN).
     pub fn new(s: &Streamlines, color: &ColorMode, width: LineWidth, cylinder: bool) -> LineSet {
+        let (origin, colors, segments) = Self::colors_and_segments(s, color);
+        let positions = s
+            .points
+            .iter()
+            .map(|p| (p.as_dvec3() - origin).as_vec3())
+            .collect();
+        Self::with(origin, positions, colors, segments, width, cylinder)
+    }
+
+    /// [`LineSet::new`] taking the streamlines: their points become the positions in place
+    /// (20 bytes a point at the peak instead of 32: a whole-brain tractogram is not copied).
+    pub fn from_streamlines(
+        s: Streamlines,
+        color: &ColorMode,
+        width: LineWidth,
+        cylinder: bool,
+    ) -> LineSet {
+        let (origin, colors, segments) = Self::colors_and_segments(&s, color);
+        let mut positions = s.points;
+        for p in &mut positions {
+            *p = (p.as_dvec3() - origin).as_vec3();
+        }
+        Self::with(origin, positions, colors, segments, width, cylinder)
+    }
+
+    fn with(
+        origin: DVec3,
+        positions: Vec<Vec3>,
+        colors: Vec<[u8; 4]>,
+        segments: Vec<u32>,
+        width: LineWidth,
+        cylinder: bool,
+    ) -> LineSet {
+        LineSet {
+            origin,
+            positions,
+            colors,
+            segments,
+            width,
+            cylinder,
+            proxy_radius: 0.0,
+            times: vec![],
+            trail: None,
+            halo: None,
+            taper_u: vec![],
+            taper_t: 0.0,
+            filter: vec![],
+            filter_min: 0.0,
+            filter_taper: 0.0,
+            points: false,
+        }
+    }
+
+    /// The set's origin (the centre of the points' bounds), a colour per point and the
+    /// segments.
+    fn colors_and_segments(s: &Streamlines, color: &ColorMode) -> (DVec3, Vec<[u8; 4]>, Vec<u32>) {
         let origin = s
             .bounds()
             .map(|[lo, hi]| ((lo + hi) * 0.5).as_dvec3())
@@ -167,7 +223,6 @@ impl LineSet {
                     [l.min(x as f64), h.max(x as f64)]
                 })
         });
-        let mut positions = Vec::with_capacity(s.points.len());
         let mut colors = Vec::with_capacity(s.points.len());
         let mut segments = Vec::with_capacity(s.points.len());
         for i in 0..s.len() {
@@ -175,7 +230,6 @@ impl LineSet {
             let line = s.line(i);
             for (k, p) in line.iter().enumerate() {
                 let world = p.as_dvec3();
-                positions.push((world - origin).as_vec3());
                 let c = match color {
                     ColorMode::Direction => {
                         let a = line[k.saturating_sub(1)];
@@ -202,24 +256,7 @@ impl LineSet {
                 }
             }
         }
-        LineSet {
-            origin,
-            positions,
-            colors,
-            segments,
-            width,
-            cylinder,
-            proxy_radius: 0.0,
-            times: vec![],
-            trail: None,
-            halo: None,
-            taper_u: vec![],
-            taper_t: 0.0,
-            filter: vec![],
-            filter_min: 0.0,
-            filter_taper: 0.0,
-            points: false,
-        }
+        (origin, colors, segments)
     }
 
     /// Every point of `s` as a disc of diameter `width` (a point cloud: the lines' order and

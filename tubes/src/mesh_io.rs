@@ -4,18 +4,19 @@
 //! written as `float` (absolute) unless the mesh's origin is far from zero (|origin| > 1e4),
 //! where `float` would round away the tube's shape: then they are `double`.
 
-use crate::error::{write_atomic, Result, TubesError};
+use crate::error::{Result, TubesError};
 use crate::tube_mesh::TubeMesh;
-use std::fmt::Write as _;
 use std::path::Path;
 
-/// Writes `.ply` (binary little endian) or `.obj` by the file name.
+/// Writes `.ply` (binary little endian) or `.obj` by the file name, streamed through a
+/// temporary file (the file's bytes are never held whole: a mesh of 10^8 triangles would
+/// need another 1.3 GB).
 pub fn write(path: &Path, mesh: &TubeMesh) -> Result<()> {
     let name = path.to_string_lossy().to_ascii_lowercase();
     if name.ends_with(".ply") {
-        write_atomic(path, ply_bytes(mesh))
+        volume::write_atomic_with(path, |w| write_ply(w, mesh)).map_err(TubesError::from)
     } else if name.ends_with(".obj") {
-        write_atomic(path, obj_bytes(mesh).into_bytes())
+        volume::write_atomic_with(path, |w| write_obj(w, mesh)).map_err(TubesError::from)
     } else {
         Err(TubesError::Invalid(format!(
             "{}: mesh format unknown (use .ply or .obj)",
@@ -30,6 +31,13 @@ fn wide(mesh: &TubeMesh) -> bool {
 
 /// Binary PLY bytes.
 pub fn ply_bytes(mesh: &TubeMesh) -> Vec<u8> {
+    let mut out = Vec::with_capacity(mesh.positions.len() * 27 + mesh.triangles() * 13 + 400);
+    write_ply(&mut out, mesh).expect("writing to memory");
+    out
+}
+
+/// Binary PLY to `w`, in pieces of about 1 MiB.
+pub fn write_ply(w: &mut dyn std::io::Write, mesh: &TubeMesh) -> std::io::Result<()> {
     let double = wide(mesh);
     let ty = if double { "double" } else { "float" };
     let header = format!(
@@ -37,8 +45,8 @@ pub fn ply_bytes(mesh: &TubeMesh) -> Vec<u8> {
         mesh.positions.len(),
         mesh.triangles()
     );
-    let mut out = header.into_bytes();
-    out.reserve(mesh.positions.len() * 27 + mesh.triangles() * 13);
+    w.write_all(header.as_bytes())?;
+    let mut out: Vec<u8> = Vec::with_capacity(1 << 20);
     for i in 0..mesh.positions.len() {
         let p = mesh.positions[i].as_dvec3() + mesh.origin;
         if double {
@@ -55,24 +63,38 @@ pub fn ply_bytes(mesh: &TubeMesh) -> Vec<u8> {
             out.extend_from_slice(&v.to_le_bytes());
         }
         out.extend_from_slice(&mesh.colors[i]);
+        if out.len() >= 1 << 20 {
+            w.write_all(&out)?;
+            out.clear();
+        }
     }
     for tri in mesh.indices.chunks_exact(3) {
         out.push(3);
         for &i in tri {
             out.extend_from_slice(&(i as i32).to_le_bytes());
         }
+        if out.len() >= 1 << 20 {
+            w.write_all(&out)?;
+            out.clear();
+        }
     }
-    out
+    w.write_all(&out)
 }
 
 /// OBJ text (vertex colours as the common `v x y z r g b` extension).
 pub fn obj_bytes(mesh: &TubeMesh) -> String {
-    let mut s = String::with_capacity(mesh.positions.len() * 80);
-    s.push_str("# written by umbra\n");
+    let mut out = Vec::with_capacity(mesh.positions.len() * 80);
+    write_obj(&mut out, mesh).expect("writing to memory");
+    String::from_utf8(out).expect("OBJ text is ASCII")
+}
+
+/// OBJ text to `w`.
+pub fn write_obj(w: &mut dyn std::io::Write, mesh: &TubeMesh) -> std::io::Result<()> {
+    writeln!(w, "# written by umbra")?;
     for (p, c) in mesh.positions.iter().zip(&mesh.colors) {
         let p = p.as_dvec3() + mesh.origin;
-        let _ = writeln!(
-            s,
+        writeln!(
+            w,
             "v {} {} {} {:.4} {:.4} {:.4}",
             p.x,
             p.y,
@@ -80,21 +102,21 @@ pub fn obj_bytes(mesh: &TubeMesh) -> String {
             c[0] as f32 / 255.0,
             c[1] as f32 / 255.0,
             c[2] as f32 / 255.0
-        );
+        )?;
     }
     for n in &mesh.normals {
-        let _ = writeln!(s, "vn {} {} {}", n.x, n.y, n.z);
+        writeln!(w, "vn {} {} {}", n.x, n.y, n.z)?;
     }
     for t in mesh.indices.chunks_exact(3) {
-        let _ = writeln!(
-            s,
+        writeln!(
+            w,
             "f {a}//{a} {b}//{b} {c}//{c}",
             a = t[0] + 1,
             b = t[1] + 1,
             c = t[2] + 1
-        );
+        )?;
     }
-    s
+    Ok(())
 }
 
 /// Reads a triangle mesh: `.ply` (ASCII, binary little or big endian; vertex `x y z`, optional
