@@ -79,7 +79,8 @@ struct Params {
     blend_opacity: f32,
     blend_labels: u32,
     blend_count: u32,
-    pad0: u32,
+    // samples in each of the field's parts (see `voxel`)
+    part_len: u32,
     pad1: u32,
     pad2: u32,
 };
@@ -253,8 +254,32 @@ fn light_shifted(cs: CellShift, k: u32) -> f32 {
     return mix(mix(v0, v1, cs.f.x), mix(v2, v3, cs.f.x), cs.f.y);
 }
 
+// A volume larger than one storage binding is split into up to eight parts of `part_len`
+// samples (in file order): `field` holds the first, `field1`..`field7` the rest.
+@group(2) @binding(0) var<storage, read> field1: array<f32>;
+@group(2) @binding(1) var<storage, read> field2: array<f32>;
+@group(2) @binding(2) var<storage, read> field3: array<f32>;
+@group(2) @binding(3) var<storage, read> field4: array<f32>;
+@group(2) @binding(4) var<storage, read> field5: array<f32>;
+@group(2) @binding(5) var<storage, read> field6: array<f32>;
+@group(2) @binding(6) var<storage, read> field7: array<f32>;
+
 fn voxel(i: vec3<u32>) -> f32 {
-    return field[i.x + P.dims.x * (i.y + P.dims.y * i.z)];
+    let l = i.x + P.dims.x * (i.y + P.dims.y * i.z);
+    if (l < P.part_len) {
+        return field[l];
+    }
+    let part = l / P.part_len;
+    let k = l - part * P.part_len;
+    switch part {
+        case 1u: { return field1[k]; }
+        case 2u: { return field2[k]; }
+        case 3u: { return field3[k]; }
+        case 4u: { return field4[k]; }
+        case 5u: { return field5[k]; }
+        case 6u: { return field6[k]; }
+        default: { return field7[k]; }
+    }
 }
 
 // Trilinear sample at index-space position q (inside the grid).

@@ -128,7 +128,9 @@ pub struct SliceParams {
     pub blend_opacity: f32,
     pub blend_labels: u32,
     pub blend_count: u32,
-    pub pad0: u32,
+    /// Samples in each part of the field (the first part is all of a volume that fits one
+    /// storage binding).
+    pub part_len: u32,
     pub pad1: u32,
     pub pad2: u32,
 }
@@ -225,11 +227,27 @@ pub struct SliceRow {
 /// Bytes of one slice's record.
 const SLICE_BYTES: u64 = std::mem::size_of::<SliceRow>() as u64;
 
+/// The most parts a volume's samples are split into, each within a storage binding (the
+/// slice shader's `field`, `field1`..`field7`).
+pub const VOLUME_PARTS: usize = 8;
+
+/// Samples a part of a volume holds on `gpu` (its storage binding limit, in f32).
+pub fn part_samples(gpu: &Gpu) -> usize {
+    (gpu.storage_limit() / 4).min(u32::MAX as u64) as usize
+}
+
+/// The most samples a volume may have on `gpu` at full resolution.
+pub fn max_volume_samples(gpu: &Gpu) -> usize {
+    VOLUME_PARTS * part_samples(gpu)
+}
+
 /// A volume on the GPU: its samples, its transfer function (1-D points, then the 2-D rows'
 /// ranges) and the brick occupancy of [`occupancy`], uploaded once and read by every frame.
 #[derive(Clone)]
 pub struct GpuVolume {
-    field: wgpu::Buffer,
+    /// The samples in parts of `part_len` (the last may be shorter), at most [`VOLUME_PARTS`].
+    field: Vec<wgpu::Buffer>,
+    part_len: u32,
     tf: wgpu::Buffer,
     occ: wgpu::Buffer,
     dims: [usize; 3],
@@ -267,13 +285,15 @@ fn transfer_floats(tf: &Transfer) -> Vec<f32> {
 impl GpuVolume {
     /// Uploads `vi`; an error when its samples exceed the adapter's storage binding limit.
     pub fn upload(gpu: &Gpu, vi: &VolumeInput) -> Result<GpuVolume, GpuError> {
-        let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
-        if vi.data.len() * 4 > limit {
+        let most = max_volume_samples(gpu);
+        if vi.data.len() > most {
             return Err(GpuError::Operation(format!(
-                "the volume has {} samples; this adapter binds at most {} bytes ({} samples)",
+                "the volume has {} samples ({} MB as f32); this adapter binds at most {} in \
+                 {VOLUME_PARTS} parts of {} MB: downsample it",
                 vi.data.len(),
-                limit,
-                limit / 4
+                vi.data.len() * 4 >> 20,
+                most,
+                part_samples(gpu) * 4 >> 20
             )));
         }
         let tfb = transfer_floats(vi.tf);
@@ -327,8 +347,13 @@ impl GpuVolume {
         (tf_points, tf_rows): (u32, u32),
     ) -> GpuVolume {
         let storage = wgpu::BufferUsages::STORAGE;
+        let part_len = part_samples(gpu).max(1);
         GpuVolume {
-            field: gpu.buffer("slice field", bytemuck::cast_slice(field), storage),
+            field: field
+                .chunks(part_len)
+                .map(|c| gpu.buffer("slice field", bytemuck::cast_slice(c), storage))
+                .collect(),
+            part_len: part_len.min(u32::MAX as usize) as u32,
             tf: gpu.buffer("slice transfer", bytemuck::cast_slice(tf), storage),
             occ: gpu.buffer("slice occupancy", bytemuck::cast_slice(occ), storage),
             dims,
@@ -360,6 +385,8 @@ pub struct SlicePass {
     light_pipe: wgpu::ComputePipeline,
     march_pipe: wgpu::ComputePipeline,
     group0: wgpu::BindGroup,
+    /// The volume's further parts.
+    group2: wgpu::BindGroup,
     /// Ping-pong: slice k uses `group1[k % 2]`.
     group1: [wgpu::BindGroup; 2],
     stride: u32,
@@ -421,7 +448,12 @@ impl SlicePass {
             wgpu::ShaderStages::COMPUTE,
             &[Slot::StorageDynamic, Slot::Storage, Slot::StorageRw],
         );
-        let pl = gpu.pipeline_layout("slice", &[&l0, &l1]);
+        let l2 = gpu.layout(
+            "slice group 2",
+            wgpu::ShaderStages::COMPUTE,
+            &[Slot::Storage; VOLUME_PARTS - 1],
+        );
+        let pl = gpu.pipeline_layout("slice", &[&l0, &l1, &l2]);
         let light_pipe = gpu.compute_pipeline_constants(
             &module,
             "light",
@@ -502,7 +534,7 @@ impl SlicePass {
             blend_opacity: blend.map_or(0.0, |b| b.opacity),
             blend_labels: blend.is_some_and(|b| b.labels) as u32,
             blend_count: blend.map_or(0, |b| b.count),
-            pad0: 0,
+            part_len: vol.part_len,
             pad1: 0,
             pad2: 0,
         };
@@ -530,7 +562,7 @@ impl SlicePass {
             &l0,
             &[
                 params.as_entire_binding(),
-                vol.field.as_entire_binding(),
+                vol.field[0].as_entire_binding(),
                 vol.tf.as_entire_binding(),
                 vol.occ.as_entire_binding(),
                 eye.as_entire_binding(),
@@ -546,6 +578,16 @@ impl SlicePass {
                 blend_lut.as_entire_binding(),
             ],
         );
+        // The field's further parts (unused bindings repeat the first part; never read).
+        let parts: Vec<wgpu::BindingResource> = (1..VOLUME_PARTS)
+            .map(|k| {
+                vol.field
+                    .get(k)
+                    .unwrap_or(&vol.field[0])
+                    .as_entire_binding()
+            })
+            .collect();
+        let group2 = gpu.bind("slice group 2", &l2, &parts);
         // Slice indices, one per dynamic-offset row.
         // A storage buffer, not a uniform one: lavapipe inlines uniform values into the shader
         // and recompiles it for every new offset (2.5 ms a dispatch here).
@@ -595,6 +637,7 @@ impl SlicePass {
             light_pipe,
             march_pipe,
             group0,
+            group2,
             group1,
             stride,
             eye,
@@ -622,6 +665,7 @@ impl SlicePass {
             timestamp_writes: None,
         });
         pass.set_bind_group(0, &self.group0, &[]);
+        pass.set_bind_group(2, &self.group2, &[]);
         let (gx, gy) = (self.cells.0.div_ceil(8), self.cells.1.div_ceil(8));
         pass.set_pipeline(&self.light_pipe);
         for k in 0..self.slices {
@@ -637,6 +681,7 @@ impl SlicePass {
             timestamp_writes: None,
         });
         pass.set_bind_group(0, &self.group0, &[]);
+        pass.set_bind_group(2, &self.group2, &[]);
         pass.set_pipeline(&self.march_pipe);
         pass.set_bind_group(1, &self.group1[0], &[0]);
         pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
@@ -731,7 +776,7 @@ mod tests {
                 blend_opacity,
                 blend_labels,
                 blend_count,
-                pad0,
+                part_len,
                 pad1,
                 pad2,
             }

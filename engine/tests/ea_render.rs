@@ -149,3 +149,60 @@ fn a_two_dimensional_transfer_function_matches_the_cpu_reference() {
     let alpha: f64 = c.iter().map(|p| p[3]).sum();
     assert!(alpha > 1.0, "{alpha}");
 }
+
+/// Issue 18: a volume larger than a storage binding is split into parts (here the binding
+/// limit is lowered so that the blob's 7,680 samples take 8 parts of 1,024): the image equals
+/// the whole volume's exactly, with emission-absorption and with the light volume of the
+/// occlusion methods; a volume needing more than 8 parts is an error that says what to do.
+#[test]
+fn a_volume_split_into_parts_renders_as_the_whole() {
+    let gpu = Gpu::new().expect("a GPU adapter (CI installs mesa-vulkan-drivers for lavapipe)");
+    let vol = blob();
+    let data = vol.select(None).unwrap().data;
+    let cam = Camera::orbit(vol.bounds(), 40.0, 25.0, 2.5, Some(40.0));
+    let view = EaView::new(&vol, cam, 48, 40, None, None, [1.0; 3]).unwrap();
+    let tf = tf();
+    let vi = VolumeInput {
+        vol: &vol,
+        data: &data,
+        tf: &tf,
+    };
+    for method in [Method::Ea, Method::Combined] {
+        let settings = Settings {
+            method,
+            fxaa: false,
+            ..Default::default()
+        };
+        let draw = |limit: Option<u64>| {
+            gpu.limit_bindings(limit);
+            let out = renderer::render(&gpu, Some(&vi), &[], &[], None, &view, &settings, 1);
+            gpu.limit_bindings(None);
+            out.unwrap().image
+        };
+        let whole = draw(None);
+        let parts = draw(Some(4096));
+        let seen = whole.iter().filter(|p| p[3] > 0.05).count();
+        assert!(seen > 200, "{method:?}: the blob covers {seen} pixels");
+        assert!(whole == parts, "{method:?}: the parts' image differs");
+    }
+    gpu.limit_bindings(Some(2048));
+    let r = renderer::render(
+        &gpu,
+        Some(&vi),
+        &[],
+        &[],
+        None,
+        &view,
+        &Settings {
+            method: Method::Ea,
+            ..Default::default()
+        },
+        1,
+    );
+    gpu.limit_bindings(None);
+    let e = r.err().expect("15 parts are refused").to_string();
+    assert!(
+        e.contains("7680 samples") && e.contains("downsample"),
+        "{e}"
+    );
+}

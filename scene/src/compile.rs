@@ -842,7 +842,7 @@ pub fn fit_volume(
         d = out;
     }
     let note = format!(
-        "the volume ({} x {} x {}, {} MB as f32) exceeds this adapter's storage binding limit ({} MB): downsampled by 2x2x2 box filtering to {} x {} x {}",
+        "the volume ({} x {} x {}, {} MB as f32) exceeds the {} MB this adapter binds (eight storage bindings): downsampled by 2x2x2 box filtering to {} x {} x {}",
         vol.dims[0],
         vol.dims[1],
         vol.dims[2],
@@ -863,7 +863,7 @@ pub fn fit_volume(
 }
 
 /// Renders a loaded scene: the frame and the view it was seen through. A volume larger than
-/// the adapter's storage binding limit is downsampled first ([`fit_volume`], with a note on
+/// eight of the adapter's storage bindings is downsampled first ([`fit_volume`], with a note on
 /// standard error).
 pub fn render_scene(
     gpu: &engine::gpu::Gpu,
@@ -989,14 +989,17 @@ pub fn upload_freeing_lines<'g>(
     up
 }
 
-/// Uploads a model once: the volume (downsampled when the adapter cannot bind it, with a
-/// note), its transfer function, the tube meshes and the isosurface's fields.
+/// Uploads a model once: the volume (split over up to eight storage bindings; downsampled
+/// when even those cannot hold it, with a note), its transfer function, the tube meshes and the isosurface's fields.
 pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, String> {
-    let limit = gpu.device.limits().max_storage_buffer_binding_size;
+    let limit = gpu.storage_limit();
+    // A volume is split over up to eight storage bindings (engine::slice_pass::VOLUME_PARTS);
+    // only beyond that is it downsampled.
+    let capacity = engine::slice_pass::max_volume_samples(gpu) as u64 * 4;
     let fitted = m
         .volume
         .as_ref()
-        .and_then(|(vol, data, _)| fit_volume(vol, data, limit));
+        .and_then(|(vol, data, _)| fit_volume(vol, data, capacity));
     let mut notes = vec![];
     if let Some((_, _, note)) = &fitted {
         notes.push(note.clone());
