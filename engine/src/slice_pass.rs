@@ -291,9 +291,9 @@ impl GpuVolume {
                 "the volume has {} samples ({} MB as f32); this adapter binds at most {} in \
                  {VOLUME_PARTS} parts of {} MB: downsample it",
                 vi.data.len(),
-                vi.data.len() * 4 >> 20,
+                (vi.data.len() * 4) >> 20,
                 most,
-                part_samples(gpu) * 4 >> 20
+                (part_samples(gpu) * 4) >> 20
             )));
         }
         let tfb = transfer_floats(vi.tf);
