@@ -298,7 +298,7 @@ impl GpuVolume {
         }
         let tfb = transfer_floats(vi.tf);
         let (bricks, occ) = occupancy(vi.data, vi.vol.dims, vi.tf);
-        Ok(Self::make(
+        Self::make(
             gpu,
             vi.data,
             &tfb,
@@ -307,7 +307,7 @@ impl GpuVolume {
             vi.vol.affine.inverse(),
             bricks,
             (vi.tf.points.len() as u32, vi.tf.rows.len() as u32),
-        ))
+        )
     }
 
     /// Replaces the transfer function (and the brick occupancy, which depends on it) of an
@@ -345,14 +345,15 @@ impl GpuVolume {
         world_to_index: glam::DMat4,
         bricks: [usize; 3],
         (tf_points, tf_rows): (u32, u32),
-    ) -> GpuVolume {
+    ) -> Result<GpuVolume, GpuError> {
         let storage = wgpu::BufferUsages::STORAGE;
         let part_len = part_samples(gpu).max(1);
-        GpuVolume {
+        Ok(GpuVolume {
+            // Staged in pieces of at most 64 MiB (a 128 MiB part would stage all at once).
             field: field
                 .chunks(part_len)
-                .map(|c| gpu.buffer("slice field", bytemuck::cast_slice(c), storage))
-                .collect(),
+                .map(|c| gpu.buffer_staged("slice field", bytemuck::cast_slice(c), storage))
+                .collect::<Result<_, _>>()?,
             part_len: part_len.min(u32::MAX as usize) as u32,
             tf: gpu.buffer("slice transfer", bytemuck::cast_slice(tf), storage),
             occ: gpu.buffer("slice occupancy", bytemuck::cast_slice(occ), storage),
@@ -361,7 +362,7 @@ impl GpuVolume {
             bricks,
             tf_points,
             tf_rows,
-        }
+        })
     }
 
     /// The stand-in the passes bind when a scene has no volume (never sampled).
@@ -377,6 +378,8 @@ impl GpuVolume {
                 [1, 1, 1],
                 (0, 0),
             )
+            // Eight samples are uploaded at once, without a wait that could fail.
+            .expect("a 32-byte volume needs no staging")
         })
     }
 }

@@ -295,9 +295,17 @@ pub fn gradient(data: &[f32], dims: [usize; 3], world_to_index: &DMat4, q: DVec3
 /// resampled CFD mesh) become -3e38, which the pass skips together with every sample it
 /// touches through interpolation.
 pub fn prepare(data: &[f32]) -> Vec<f32> {
-    data.iter()
-        .map(|&v| if v.is_finite() { v } else { -3e38 })
-        .collect()
+    prepare_owned(data.to_vec())
+}
+
+/// [`prepare`] in place (no second copy of a large volume).
+pub fn prepare_owned(mut data: Vec<f32>) -> Vec<f32> {
+    for v in &mut data {
+        if !v.is_finite() {
+            *v = -3e38;
+        }
+    }
+    data
 }
 
 /// The depth interval of slice `k`'s slab that the ray `o + s d` keeps behind the clipping

@@ -499,7 +499,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                         .collect(),
                 });
             }
-            let data = emission_absorption::prepare(&field.data);
+            let data = emission_absorption::prepare_owned(field.data);
             planes = crate::slices::model(s, &vol, &data, [st.min, st.max], &mut notes)?;
             if let (Some(name), Some(p)) = (
                 s.annotate
