@@ -32,6 +32,11 @@ override TF2D: bool = false;
 // none, 1 the largest value along the ray (MIP), 2 the smallest (MinIP). CPU twin:
 // occlusion::projection.
 override PROJECTION: u32 = 0u;
+// How the field's samples are stored (see `voxel`): 0 f32, 1 two 16-bit integers a word, 2
+// four 8-bit integers; SPLIT when they span more than one binding. Pipeline constants, so a
+// volume in one f32 binding reads it as directly as ever (a run-time switch cost lavapipe 1.7x).
+override PACKING: u32 = 0u;
+override SPLIT: bool = false;
 
 // Keep in sync with `slice_pass::SliceParams`.
 struct Params {
@@ -79,10 +84,12 @@ struct Params {
     blend_opacity: f32,
     blend_labels: u32,
     blend_count: u32,
-    // samples in each of the field's parts (see `voxel`)
+    // 32-bit words in each of the field's parts (see `voxel`)
     part_len: u32,
-    pad1: u32,
-    pad2: u32,
+    // how samples are packed: 0 f32, 1 two 16-bit integers a word, 2 four 8-bit integers
+    packing: u32,
+    // added to a packed integer to give the sample's value
+    value_offset: f32,
 };
 
 const NO_LAYER: u32 = 0xffffffffu;
@@ -101,7 +108,7 @@ struct Slice {
 };
 
 @group(0) @binding(0) var<uniform> P: Params;
-@group(0) @binding(1) var<storage, read> field: array<f32>;
+@group(0) @binding(1) var<storage, read> field: array<u32>;
 // Transfer function points: (value, r, g, b, extinction, 0, 0, 0) each.
 @group(0) @binding(2) var<storage, read> tf: array<f32>;
 @group(0) @binding(3) var<storage, read> occupied: array<u32>;
@@ -255,22 +262,23 @@ fn light_shifted(cs: CellShift, k: u32) -> f32 {
 }
 
 // A volume larger than one storage binding is split into up to eight parts of `part_len`
-// samples (in file order): `field` holds the first, `field1`..`field7` the rest.
-@group(2) @binding(0) var<storage, read> field1: array<f32>;
-@group(2) @binding(1) var<storage, read> field2: array<f32>;
-@group(2) @binding(2) var<storage, read> field3: array<f32>;
-@group(2) @binding(3) var<storage, read> field4: array<f32>;
-@group(2) @binding(4) var<storage, read> field5: array<f32>;
-@group(2) @binding(5) var<storage, read> field6: array<f32>;
-@group(2) @binding(6) var<storage, read> field7: array<f32>;
+// words (in file order): `field` holds the first, `field1`..`field7` the rest. A word is an
+// f32 sample, or two 16-bit or four 8-bit integers of an integer-valued volume (the value is
+// the integer + `value_offset`): 2x or 4x less memory and bandwidth, the same values.
+@group(2) @binding(0) var<storage, read> field1: array<u32>;
+@group(2) @binding(1) var<storage, read> field2: array<u32>;
+@group(2) @binding(2) var<storage, read> field3: array<u32>;
+@group(2) @binding(3) var<storage, read> field4: array<u32>;
+@group(2) @binding(4) var<storage, read> field5: array<u32>;
+@group(2) @binding(5) var<storage, read> field6: array<u32>;
+@group(2) @binding(6) var<storage, read> field7: array<u32>;
 
-fn voxel(i: vec3<u32>) -> f32 {
-    let l = i.x + P.dims.x * (i.y + P.dims.y * i.z);
-    if (l < P.part_len) {
-        return field[l];
+fn field_word(w: u32) -> u32 {
+    if (!SPLIT || w < P.part_len) {
+        return field[w];
     }
-    let part = l / P.part_len;
-    let k = l - part * P.part_len;
+    let part = w / P.part_len;
+    let k = w - part * P.part_len;
     switch part {
         case 1u: { return field1[k]; }
         case 2u: { return field2[k]; }
@@ -280,6 +288,19 @@ fn voxel(i: vec3<u32>) -> f32 {
         case 6u: { return field6[k]; }
         default: { return field7[k]; }
     }
+}
+
+fn voxel(i: vec3<u32>) -> f32 {
+    let l = i.x + P.dims.x * (i.y + P.dims.y * i.z);
+    if (PACKING == 0u) {
+        return bitcast<f32>(field_word(l));
+    }
+    if (PACKING == 1u) {
+        let w = field_word(l >> 1u);
+        return f32((w >> ((l & 1u) * 16u)) & 0xFFFFu) + P.value_offset;
+    }
+    let w = field_word(l >> 2u);
+    return f32((w >> ((l & 3u) * 8u)) & 0xFFu) + P.value_offset;
 }
 
 // Trilinear sample at index-space position q (inside the grid).

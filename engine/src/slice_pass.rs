@@ -128,11 +128,13 @@ pub struct SliceParams {
     pub blend_opacity: f32,
     pub blend_labels: u32,
     pub blend_count: u32,
-    /// Samples in each part of the field (the first part is all of a volume that fits one
-    /// storage binding).
+    /// 32-bit words in each part of the field (the first part is all of a volume that fits
+    /// one storage binding).
     pub part_len: u32,
-    pub pad1: u32,
-    pub pad2: u32,
+    /// How samples are packed in a word ([`Packing`]): 0 f32, 1 two u16, 2 four u8.
+    pub packing: u32,
+    /// Added to a packed integer to give the sample's value.
+    pub value_offset: f32,
 }
 
 /// An overlay blended into the volume rendering (`overlays[].volume_blend`): each volume
@@ -231,23 +233,104 @@ const SLICE_BYTES: u64 = std::mem::size_of::<SliceRow>() as u64;
 /// slice shader's `field`, `field1`..`field7`).
 pub const VOLUME_PARTS: usize = 8;
 
-/// Samples a part of a volume holds on `gpu` (its storage binding limit, in f32).
-pub fn part_samples(gpu: &Gpu) -> usize {
+/// 32-bit words a part of a volume holds on `gpu` (its storage binding limit).
+pub fn part_words(gpu: &Gpu) -> usize {
     (gpu.storage_limit() / 4).min(u32::MAX as u64) as usize
 }
 
-/// The most samples a volume may have on `gpu` at full resolution.
-pub fn max_volume_samples(gpu: &Gpu) -> usize {
-    VOLUME_PARTS * part_samples(gpu)
+/// How a volume's samples are stored on the GPU: f32, or integers in 16 or 8 bits plus an
+/// offset when every sample is an integer within 65,536 (or 256) of the smallest one - the
+/// stored type of most scanner and CT volumes, read back exactly.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Packing {
+    F32,
+    U16 { offset: f32 },
+    U8 { offset: f32 },
+}
+
+impl Packing {
+    /// The packing `data` allows (NaN, infinite, fractional or out-of-range samples: f32).
+    pub fn of(data: &[f32]) -> Packing {
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for &v in data {
+            // Integers exactly representable in f32 only.
+            if !(v.abs() < 16_777_216.0 && v == v.trunc()) {
+                return Packing::F32;
+            }
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        match hi - lo {
+            r if r < 256.0 => Packing::U8 { offset: lo },
+            r if r < 65_536.0 => Packing::U16 { offset: lo },
+            _ => Packing::F32,
+        }
+    }
+
+    /// Samples a 32-bit word holds.
+    pub fn per_word(self) -> usize {
+        match self {
+            Packing::F32 => 1,
+            Packing::U16 { .. } => 2,
+            Packing::U8 { .. } => 4,
+        }
+    }
+
+    fn code(self) -> u32 {
+        match self {
+            Packing::F32 => 0,
+            Packing::U16 { .. } => 1,
+            Packing::U8 { .. } => 2,
+        }
+    }
+
+    fn offset(self) -> f32 {
+        match self {
+            Packing::F32 => 0.0,
+            Packing::U16 { offset } | Packing::U8 { offset } => offset,
+        }
+    }
+
+    /// The words of `data` packed.
+    fn words(self, data: &[f32]) -> std::borrow::Cow<'_, [u32]> {
+        let o = self.offset();
+        match self {
+            Packing::F32 => std::borrow::Cow::Borrowed(bytemuck::cast_slice(data)),
+            Packing::U16 { .. } => data
+                .chunks(2)
+                .map(|c| {
+                    c.iter()
+                        .enumerate()
+                        .fold(0u32, |w, (k, &v)| w | (((v - o) as u32) << (16 * k)))
+                })
+                .collect(),
+            Packing::U8 { .. } => data
+                .chunks(4)
+                .map(|c| {
+                    c.iter()
+                        .enumerate()
+                        .fold(0u32, |w, (k, &v)| w | (((v - o) as u32) << (8 * k)))
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The most samples a volume packed as `packing` may have on `gpu` at full resolution.
+pub fn max_volume_samples(gpu: &Gpu, packing: Packing) -> usize {
+    VOLUME_PARTS * part_words(gpu) * packing.per_word()
 }
 
 /// A volume on the GPU: its samples, its transfer function (1-D points, then the 2-D rows'
 /// ranges) and the brick occupancy of [`occupancy`], uploaded once and read by every frame.
 #[derive(Clone)]
 pub struct GpuVolume {
-    /// The samples in parts of `part_len` (the last may be shorter), at most [`VOLUME_PARTS`].
+    /// The samples' words in parts of `part_len` (the last may be shorter), at most
+    /// [`VOLUME_PARTS`].
     field: Vec<wgpu::Buffer>,
     part_len: u32,
+    packing: Packing,
+    value_offset: f32,
     tf: wgpu::Buffer,
     occ: wgpu::Buffer,
     dims: [usize; 3],
@@ -285,15 +368,17 @@ fn transfer_floats(tf: &Transfer) -> Vec<f32> {
 impl GpuVolume {
     /// Uploads `vi`; an error when its samples exceed the adapter's storage binding limit.
     pub fn upload(gpu: &Gpu, vi: &VolumeInput) -> Result<GpuVolume, GpuError> {
-        let most = max_volume_samples(gpu);
+        let packing = Packing::of(vi.data);
+        let most = max_volume_samples(gpu, packing);
         if vi.data.len() > most {
             return Err(GpuError::Operation(format!(
-                "the volume has {} samples ({} MB as f32); this adapter binds at most {} in \
+                "the volume has {} samples ({} MB as {:?}); this adapter binds at most {} in \
                  {VOLUME_PARTS} parts of {} MB: downsample it",
                 vi.data.len(),
-                (vi.data.len() * 4) >> 20,
+                (vi.data.len() * 4 / packing.per_word()) >> 20,
+                packing,
                 most,
-                (part_samples(gpu) * 4) >> 20
+                (part_words(gpu) * 4) >> 20
             )));
         }
         let tfb = transfer_floats(vi.tf);
@@ -347,14 +432,18 @@ impl GpuVolume {
         (tf_points, tf_rows): (u32, u32),
     ) -> Result<GpuVolume, GpuError> {
         let storage = wgpu::BufferUsages::STORAGE;
-        let part_len = part_samples(gpu).max(1);
+        let part_len = part_words(gpu).max(1);
+        let packing = Packing::of(field);
+        let words = packing.words(field);
         Ok(GpuVolume {
             // Staged in pieces of at most 64 MiB (a 128 MiB part would stage all at once).
-            field: field
+            field: words
                 .chunks(part_len)
                 .map(|c| gpu.buffer_staged("slice field", bytemuck::cast_slice(c), storage))
                 .collect::<Result<_, _>>()?,
             part_len: part_len.min(u32::MAX as usize) as u32,
+            packing,
+            value_offset: packing.offset(),
             tf: gpu.buffer("slice transfer", bytemuck::cast_slice(tf), storage),
             occ: gpu.buffer("slice occupancy", bytemuck::cast_slice(occ), storage),
             dims,
@@ -425,6 +514,10 @@ impl SlicePass {
         let limit = device.limits().max_storage_buffer_binding_size as usize;
         let module = gpu.shader("slice_pass.wgsl", &with_prelude(SHADER));
         let tf2d = volume.is_some_and(|vi| vi.tf_rows > 0);
+        // The field's packing and whether it spans several bindings, as pipeline constants.
+        let field_layout = volume.map_or((0.0, 0.0), |vi| {
+            (vi.packing.code() as f64, (vi.field.len() > 1) as u32 as f64)
+        });
         let l0 = gpu.layout(
             "slice group 0",
             wgpu::ShaderStages::COMPUTE,
@@ -465,6 +558,8 @@ impl SlicePass {
             &[
                 ("CONE", if s.cone { 1.0 } else { 0.0 }),
                 ("TF2D", if tf2d { 1.0 } else { 0.0 }),
+                ("PACKING", field_layout.0),
+                ("SPLIT", field_layout.1),
             ],
         );
         let march_pipe = gpu.compute_pipeline_constants(
@@ -475,6 +570,8 @@ impl SlicePass {
             &[
                 ("PHONG", if s.phong { 1.0 } else { 0.0 }),
                 ("TF2D", if tf2d { 1.0 } else { 0.0 }),
+                ("PACKING", field_layout.0),
+                ("SPLIT", field_layout.1),
                 (
                     "PROJECTION",
                     match s.projection {
@@ -538,8 +635,8 @@ impl SlicePass {
             blend_labels: blend.is_some_and(|b| b.labels) as u32,
             blend_count: blend.map_or(0, |b| b.count),
             part_len: vol.part_len,
-            pad1: 0,
-            pad2: 0,
+            packing: vol.packing.code(),
+            value_offset: vol.value_offset,
         };
         let (blend_field, blend_lut) = match blend {
             Some(b) => (b.field.clone(), b.lut.clone()),
@@ -692,6 +789,53 @@ impl SlicePass {
 }
 
 #[cfg(test)]
+mod packing_tests {
+    use super::Packing;
+
+    /// The shader's `voxel`, on the CPU: sample `l` of the packed words.
+    fn unpack(p: Packing, words: &[u32], l: usize) -> f32 {
+        match p {
+            Packing::F32 => f32::from_bits(words[l]),
+            Packing::U16 { offset } => ((words[l / 2] >> (16 * (l % 2))) & 0xFFFF) as f32 + offset,
+            Packing::U8 { offset } => ((words[l / 4] >> (8 * (l % 4))) & 0xFF) as f32 + offset,
+        }
+    }
+
+    #[test]
+    fn integer_volumes_pack_into_8_or_16_bits_and_read_back_exactly() {
+        let u8s: Vec<f32> = (0..1001).map(|i| (i * 37 % 256) as f32 - 40.0).collect();
+        let u16s: Vec<f32> = (0..1001)
+            .map(|i| (i * 977 % 65_536) as f32 + 1000.0)
+            .collect();
+        let floats: Vec<f32> = (0..1001).map(|i| i as f32 * 0.5).collect();
+        let wide: Vec<f32> = vec![0.0, 65_536.0];
+        let gaps: Vec<f32> = vec![1.0, -3e38, 2.0];
+        assert_eq!(Packing::of(&u8s), Packing::U8 { offset: -40.0 });
+        assert_eq!(Packing::of(&u16s), Packing::U16 { offset: 1000.0 });
+        assert_eq!(Packing::of(&floats), Packing::F32);
+        assert_eq!(Packing::of(&wide), Packing::F32);
+        assert_eq!(
+            Packing::of(&gaps),
+            Packing::F32,
+            "the NaN stand-in stays f32"
+        );
+        assert_eq!(
+            Packing::of(&[2.0e7, 2.0e7 + 2.0]),
+            Packing::F32,
+            "beyond 2^24"
+        );
+        for data in [&u8s, &u16s, &floats] {
+            let p = Packing::of(data);
+            let words = p.words(data);
+            assert_eq!(words.len(), data.len().div_ceil(p.per_word()));
+            for (l, &v) in data.iter().enumerate() {
+                assert_eq!(unpack(p, &words, l), v, "{p:?} sample {l}");
+            }
+        }
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
 
@@ -780,8 +924,8 @@ mod tests {
                 blend_labels,
                 blend_count,
                 part_len,
-                pad1,
-                pad2,
+                packing,
+                value_offset,
             }
         );
         crate::prelude::assert_layout!(

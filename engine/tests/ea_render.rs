@@ -206,3 +206,50 @@ fn a_volume_split_into_parts_renders_as_the_whole() {
         "{e}"
     );
 }
+
+/// Issue 18: an integer-valued volume (the stored type of most scans) goes to the GPU as 8- or
+/// 16-bit integers (`slice_pass::Packing`): its image equals, within float rounding, that of
+/// the same volume shifted by a quarter (which stays f32) under the transfer function shifted
+/// alike; packed volumes split into parts render as the whole.
+#[test]
+fn integer_volumes_packed_in_8_and_16_bits_render_as_f32() {
+    use engine::slice_pass::Packing;
+    let gpu = Gpu::new().expect("a GPU adapter (CI installs mesa-vulkan-drivers for lavapipe)");
+    let vol = blob();
+    let blob = vol.select(None).unwrap().data;
+    let cam = Camera::orbit(vol.bounds(), 40.0, 25.0, 2.5, Some(40.0));
+    let view = EaView::new(&vol, cam, 48, 40, None, None, [1.0; 3]).unwrap();
+    for (scale, offset, want) in [
+        (200.0f32, -20.0f32, Packing::U8 { offset: -20.0 }),
+        (5000.0, 100.0, Packing::U16 { offset: 100.0 }),
+    ] {
+        let ints: Vec<f32> = blob.iter().map(|v| (v * scale).round() + offset).collect();
+        assert_eq!(Packing::of(&ints), want);
+        let shifted: Vec<f32> = ints.iter().map(|v| v + 0.25).collect();
+        assert_eq!(Packing::of(&shifted), Packing::F32);
+        let tf_at = |d: f64| Transfer {
+            points: tf()
+                .points
+                .iter()
+                .map(|&(v, c, e)| (v * scale as f64 + offset as f64 + d, c, e))
+                .collect(),
+            rows: vec![],
+        };
+        let (tf0, tf1) = (tf_at(0.0), tf_at(0.25));
+        let packed = render(&gpu, &ints, &vol, &tf0, &view);
+        let float = render(&gpu, &shifted, &vol, &tf1, &view);
+        let seen = packed.iter().filter(|p| p[3] > 0.05).count();
+        assert!(seen > 200, "{want:?}: the blob covers {seen} pixels");
+        let worst = packed
+            .iter()
+            .zip(&float)
+            .map(|(p, q)| (0..4).map(|c| (p[c] - q[c]).abs()).fold(0.0, f32::max))
+            .fold(0.0, f32::max);
+        assert!(worst < 1e-3, "{want:?}: differs from f32 by {worst}");
+        // 1,024 samples a part: eight parts.
+        gpu.limit_bindings(Some(4096 / want.per_word() as u64));
+        let parts = render(&gpu, &ints, &vol, &tf0, &view);
+        gpu.limit_bindings(None);
+        assert!(parts == packed, "{want:?}: the parts' image differs");
+    }
+}

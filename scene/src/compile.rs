@@ -995,11 +995,11 @@ pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, 
     let limit = gpu.storage_limit();
     // A volume is split over up to eight storage bindings (engine::slice_pass::VOLUME_PARTS);
     // only beyond that is it downsampled.
-    let capacity = engine::slice_pass::max_volume_samples(gpu) as u64 * 4;
-    let fitted = m
-        .volume
-        .as_ref()
-        .and_then(|(vol, data, _)| fit_volume(vol, data, capacity));
+    let fitted = m.volume.as_ref().and_then(|(vol, data, _)| {
+        let packing = engine::slice_pass::Packing::of(data);
+        let capacity = engine::slice_pass::max_volume_samples(gpu, packing) as u64 * 4;
+        fit_volume(vol, data, capacity)
+    });
     let mut notes = vec![];
     if let Some((_, _, note)) = &fitted {
         notes.push(note.clone());
