@@ -1,4 +1,5 @@
-# Usage: python3 bench/hcp_concat.py [OUT.tck] [HCP1065_DIR] (from the repository root).
+# Usage: python3 bench/scale/hcp_concat.py [OUT.tck] [HCP1065_DIR] (from the repository root;
+# bench/scale/hcp10x.toml reads bench/scale/hcp10x.tck).
 # Concatenates the ten HCP1065 bundles (shifted into MNI space as demo_lines.toml does) ten
 # times, each copy shifted by a different sub-millimetre offset, into one .tck.
 import glob, sys, numpy as np, nibabel as nib

@@ -1,0 +1,28 @@
+#!/bin/bash
+# lines.sh OUT N POINTS: writes N synthetic streamlines of POINTS points (umbra synth bundles)
+# and renders them as 1-pixel LineAO lines at 1024 x 768 under an 8 GB address-space limit,
+# with /usr/bin/time's peak and memwatch.sh's samples: OUT/render.log, OUT/render.log.out.
+# From the repository root after `cargo build --release`.
+set -e
+OUT=$1; N=$2; P=$3
+U=$(pwd)/target/release/umbra
+HERE=$(cd "$(dirname "$0")" && pwd)
+mkdir -p "$OUT"
+$U synth bundles --n "$N" --points "$P" -o "$OUT/bundles.tck"
+cat > "$OUT/bundles.toml" <<SCENE
+background = [1.0, 1.0, 1.0]
+[camera]
+azimuth = -125.0
+elevation = 30.0
+[[lines]]
+path = "bundles.tck"
+color = "direction"
+width = 1.0
+[render]
+method = "lineao"
+width = 1024
+height = 768
+SCENE
+XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp} "$HERE/memwatch.sh" "$OUT/render.log" \
+  /usr/bin/time -f "%e s %M KB" prlimit --as=8000000000 "$U" render "$OUT/bundles.toml" -o "$OUT/bundles.png"
+tail -3 "$OUT/render.log.out"
