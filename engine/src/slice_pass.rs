@@ -251,6 +251,9 @@ pub enum Packing {
 impl Packing {
     /// The packing `data` allows (NaN, infinite, fractional or out-of-range samples: f32).
     pub fn of(data: &[f32]) -> Packing {
+        if data.is_empty() {
+            return Packing::F32;
+        }
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for &v in data {
             // Integers exactly representable in f32 only.

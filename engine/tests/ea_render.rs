@@ -17,15 +17,28 @@ fn blob() -> Volume {
 
 /// The `ea` method of the renderer, no tubes, no FXAA.
 fn render(gpu: &Gpu, data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[f32; 4]> {
+    let vi = VolumeInput { vol, data, tf };
+    draw(gpu, &vi, v, Method::Ea, None).unwrap()
+}
+
+/// `method` (no tubes, no FXAA) with the storage binding limit lowered to `limit` bytes for
+/// the draw (`None`: the adapter's).
+fn draw(
+    gpu: &Gpu,
+    vi: &VolumeInput,
+    v: &EaView,
+    method: Method,
+    limit: Option<u64>,
+) -> Result<Vec<[f32; 4]>, engine::gpu::GpuError> {
     let settings = Settings {
-        method: Method::Ea,
+        method,
         fxaa: false,
         ..Default::default()
     };
-    let vi = VolumeInput { vol, data, tf };
-    renderer::render(gpu, Some(&vi), &[], &[], None, v, &settings, 1)
-        .unwrap()
-        .image
+    gpu.limit_bindings(limit);
+    let out = renderer::render(gpu, Some(vi), &[], &[], None, v, &settings, 1);
+    gpu.limit_bindings(None);
+    out.map(|o| o.image)
 }
 
 fn tf() -> Transfer {
@@ -168,39 +181,14 @@ fn a_volume_split_into_parts_renders_as_the_whole() {
         tf: &tf,
     };
     for method in [Method::Ea, Method::Combined] {
-        let settings = Settings {
-            method,
-            fxaa: false,
-            ..Default::default()
-        };
-        let draw = |limit: Option<u64>| {
-            gpu.limit_bindings(limit);
-            let out = renderer::render(&gpu, Some(&vi), &[], &[], None, &view, &settings, 1);
-            gpu.limit_bindings(None);
-            out.unwrap().image
-        };
-        let whole = draw(None);
-        let parts = draw(Some(4096));
+        let whole = draw(&gpu, &vi, &view, method, None).unwrap();
+        let parts = draw(&gpu, &vi, &view, method, Some(4096)).unwrap();
         let seen = whole.iter().filter(|p| p[3] > 0.05).count();
         assert!(seen > 200, "{method:?}: the blob covers {seen} pixels");
         assert!(whole == parts, "{method:?}: the parts' image differs");
     }
-    gpu.limit_bindings(Some(2048));
-    let r = renderer::render(
-        &gpu,
-        Some(&vi),
-        &[],
-        &[],
-        None,
-        &view,
-        &Settings {
-            method: Method::Ea,
-            ..Default::default()
-        },
-        1,
-    );
-    gpu.limit_bindings(None);
-    let e = r.err().expect("15 parts are refused").to_string();
+    let r = draw(&gpu, &vi, &view, Method::Ea, Some(2048));
+    let e = r.expect_err("15 parts are refused").to_string();
     assert!(
         e.contains("7680 samples") && e.contains("downsample"),
         "{e}"
@@ -247,9 +235,19 @@ fn integer_volumes_packed_in_8_and_16_bits_render_as_f32() {
             .fold(0.0, f32::max);
         assert!(worst < 1e-3, "{want:?}: differs from f32 by {worst}");
         // 1,024 samples a part: eight parts.
-        gpu.limit_bindings(Some(4096 / want.per_word() as u64));
-        let parts = render(&gpu, &ints, &vol, &tf0, &view);
-        gpu.limit_bindings(None);
+        let vi = VolumeInput {
+            vol: &vol,
+            data: &ints,
+            tf: &tf0,
+        };
+        let parts = draw(
+            &gpu,
+            &vi,
+            &view,
+            Method::Ea,
+            Some(4096 / want.per_word() as u64),
+        )
+        .unwrap();
         assert!(parts == packed, "{want:?}: the parts' image differs");
     }
 }

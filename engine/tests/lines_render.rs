@@ -703,6 +703,24 @@ fn depth_cueing_narrows_far_cores() {
     assert!(far_c + 2 <= near_c, "{near_c} {far_c}");
 }
 
+/// `lines` lines of `points` points through the origin, line `i` along the direction at
+/// `i turn` radians in the x-y plane over [-10, 10], waving in z as
+/// `amp sin(0.3 u + phase + i turn)` at the distance `u` along it.
+fn wavy_fan(lines: usize, points: usize, turn: f32, amp: f32, phase: f32) -> tubes::Streamlines {
+    let mut s = tubes::Streamlines::new();
+    for i in 0..lines {
+        let a = i as f32 * turn;
+        let pts: Vec<Vec3> = (0..points)
+            .map(|k| {
+                let u = k as f32 / (points - 1) as f32 * 20.0 - 10.0;
+                Vec3::new(u * a.cos(), u * a.sin(), amp * (0.3 * u + phase + a).sin())
+            })
+            .collect();
+        s.push(&pts);
+    }
+    s
+}
+
 /// A line set larger than a storage binding is cut into parts (the binding limit lowered here
 /// so that a small set is cut into many): the parts draw the same image as the whole, with
 /// per-point colours, tapers, filters and times sliced with their points, and point clouds
@@ -710,21 +728,7 @@ fn depth_cueing_narrows_far_cores() {
 #[test]
 fn a_set_cut_into_parts_draws_the_image_of_the_whole() {
     let gpu = gpu();
-    let mut s = tubes::Streamlines::new();
-    for i in 0..40 {
-        let a = i as f32 * 0.157;
-        let pts: Vec<Vec3> = (0..=30)
-            .map(|k| {
-                let t = k as f32 / 30.0;
-                Vec3::new(
-                    (t * 20.0 - 10.0) * a.cos(),
-                    (t * 20.0 - 10.0) * a.sin(),
-                    3.0 * (t * 6.0 + a).sin(),
-                )
-            })
-            .collect();
-        s.push(&pts);
-    }
+    let s = wavy_fan(40, 31, 0.157, 3.0, 3.0);
     let n = s.points.len();
     let mut set = LineSet::new(&s, &ColorMode::Direction, LineWidth::Pixels(3.0), true);
     set.taper_u = (0..s.len())
@@ -799,17 +803,7 @@ fn a_set_cut_into_parts_draws_the_image_of_the_whole() {
 #[test]
 fn batched_submissions_draw_the_image_of_one() {
     let gpu = gpu();
-    let mut s = tubes::Streamlines::new();
-    for i in 0..12 {
-        let a = i as f32 * 0.5;
-        let pts: Vec<Vec3> = (0..=20)
-            .map(|k| {
-                let t = k as f32 / 20.0 * 20.0 - 10.0;
-                Vec3::new(t * a.cos(), t * a.sin(), 2.0 * (t * 0.3 + a).sin())
-            })
-            .collect();
-        s.push(&pts);
-    }
+    let s = wavy_fan(12, 21, 0.5, 2.0, 0.0);
     let set = LineSet::new(&s, &ColorMode::Direction, LineWidth::Pixels(3.0), true);
     let tube = tubes::tube_mesh::straight_tubes(
         &[

@@ -270,7 +270,8 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                 }
                 terminated = true;
                 let after = match src.len {
-                    Some(len) => len as usize - (offset + consumed + o),
+                    // (saturating: a file that changed size while it was read)
+                    Some(len) => (len as usize).saturating_sub(offset + consumed + o),
                     None => {
                         let rest = std::io::copy(&mut src.reader, &mut std::io::sink())
                             .map_err(|e| src.error(path, e))?;
