@@ -24,6 +24,23 @@ pub struct Errors {
     pub iterations: usize,
 }
 
+impl Errors {
+    /// Prints the three errors of `what` and asserts each below its bound (voxels).
+    fn assert_below(&self, what: &str, near_mean: f64, near_max: f64, all_max: f64) {
+        eprintln!(
+            "{what}: near mean {:.4} max {:.3} all max {:.3}",
+            self.near_mean, self.near_max, self.all_max
+        );
+        assert!(
+            self.near_mean < near_mean && self.near_max < near_max && self.all_max < all_max,
+            "{what}: near mean {}, near max {}, overall max {}",
+            self.near_mean,
+            self.near_max,
+            self.all_max
+        );
+    }
+}
+
 fn measure(
     solid: &Solid,
     n: usize,
@@ -139,18 +156,8 @@ fn anisotropic_spacing_keeps_the_error_small() {
         DistanceMethod::Sweeping,
         2.0,
     );
-    eprintln!(
-        "anisotropic 64x64x32: near mean {:.4} max {:.3} all max {:.3}",
-        e.near_mean, e.near_max, e.all_max
-    );
     // Measured 0.066 / 1.49 / 2.26 (docs/accuracy.md).
-    assert!(
-        e.near_mean < 0.09 && e.near_max < 1.7 && e.all_max < 2.5,
-        "{} {} {}",
-        e.near_mean,
-        e.near_max,
-        e.all_max
-    );
+    e.assert_below("anisotropic 64x64x32", 0.09, 1.7, 2.5);
 }
 
 /// The default distance, closest points of the band (`volume::closest_point`), on the same
@@ -276,15 +283,5 @@ fn a_512_grid_stays_within_the_256_bounds() {
         DistanceMethod::ClosestPoint,
         1.0,
     );
-    eprintln!(
-        "n=512: closest point near mean {:.4} max {:.3} all max {:.3}",
-        cp.near_mean, cp.near_max, cp.all_max
-    );
-    assert!(
-        cp.near_mean < 0.0057 && cp.near_max < 0.85 && cp.all_max < 1.51,
-        "512^3: near mean {}, near max {}, overall max {}",
-        cp.near_mean,
-        cp.near_max,
-        cp.all_max
-    );
+    cp.assert_below("512^3, closest points", 0.0057, 0.85, 1.51);
 }
