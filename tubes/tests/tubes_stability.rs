@@ -228,6 +228,16 @@ fn frenet_frames_twist_where_rmf_does_not() {
     );
 }
 
+/// Uniform noise in [-0.5, 0.5) from an xorshift64 stream seeded by `seed`.
+fn noise(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+}
+
 #[test]
 fn noisy_lines_are_meshed_as_their_polyline() {
     // A helix with noise of 5x the tolerance (the benchmark's noisy helices): the fit cannot
@@ -236,13 +246,7 @@ fn noisy_lines_are_meshed_as_their_polyline() {
     // triangles, docs/benchmarks.md). The mesh keeps every invariant but the twist (a polyline
     // turns at every point; RMF carries the frame exactly, the twist bound is for fitted
     // curves), and smooth lines still go through the fit.
-    let mut seed = 12345u64;
-    let mut rnd = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut rnd = noise(12345u64);
     let n = 200;
     let noisy: Vec<DVec3> = (0..n)
         .map(|i| {
@@ -287,13 +291,7 @@ fn a_rough_line_is_split_at_a_sharp_turn() {
     // Noise above the tolerance and a 135-degree corner in the middle: meshed as two polylines
     // sharing the corner point (a ring per point would fold there), no more triangles than a
     // ring per input point, every mesh invariant kept but the fitted-curve twist bound.
-    let mut seed = 777u64;
-    let mut rnd = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut rnd = noise(777u64);
     let a = 135f64.to_radians();
     let d2 = DVec3::new(a.cos(), a.sin(), 0.0);
     let mut pts: Vec<DVec3> = (0..=40)
