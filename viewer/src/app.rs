@@ -39,6 +39,8 @@ pub struct App {
     /// Objects left out of the drawn scene, and the "open" field.
     hidden: crate::objects::Hidden,
     open_path: String,
+    /// The file dialog ("browse").
+    browser: crate::objects::Browser,
     /// Camera keys recorded for a camera path.
     keys: Vec<Orbit>,
     /// The last save's outcome.
@@ -88,6 +90,7 @@ impl App {
             hidden: Default::default(),
             shown_scenes: Default::default(),
             open_path: String::new(),
+            browser: Default::default(),
             keys: vec![],
             message: None,
             on_first_image,
@@ -103,6 +106,16 @@ impl App {
     /// The level of the image on screen (none yet: `None`).
     pub fn shown_level(&self) -> Option<Level> {
         self.shown.as_ref().map(|i| i.level)
+    }
+
+    /// The objects panel's "open" field (the file dialog starts in its folder).
+    pub fn set_open_field(&mut self, path: &str) {
+        self.open_path = path.into();
+    }
+
+    /// Whether the file dialog is open.
+    pub fn browsing(&self) -> bool {
+        self.browser.is_open()
     }
 
     /// The last save's outcome, as the panel shows it.
@@ -424,6 +437,8 @@ impl App {
                     .show(ui, |ui| changed |= e.ui(ui, &mut v.transfer));
             }
         }
+        let mut browse = false;
+        let pivot = self.orbit.target.to_array();
         egui::CollapsingHeader::new("objects")
             .default_open(false)
             .show(ui, |ui| {
@@ -433,8 +448,14 @@ impl App {
                     &mut self.hidden,
                     &mut self.open_path,
                     &mut self.message,
+                    pivot,
+                    &mut browse,
                 )
             });
+        if browse {
+            self.browser
+                .open(std::path::Path::new(self.open_path.trim()));
+        }
         let centre = ((self.bounds[0] + self.bounds[1]) * 0.5).to_array();
         changed |= crate::settings::panel(ui, &mut self.scene, centre);
         ui.separator();
@@ -522,14 +543,15 @@ impl App {
         }
         self.receive(&ctx);
         let mut changed = false;
-        // Files dropped on the window join the scene.
-        let dropped: Vec<std::path::PathBuf> = ctx.input(|i| {
+        // Files dropped on the window or chosen in the file dialog join the scene.
+        let mut dropped: Vec<std::path::PathBuf> = ctx.input(|i| {
             i.raw
                 .dropped_files
                 .iter()
                 .map(|f| f.path().to_path_buf())
                 .collect()
         });
+        dropped.extend(self.browser.show(&ctx));
         for p in dropped {
             match crate::objects::open(&mut self.scene, &p) {
                 Ok(m) => {

@@ -9,6 +9,7 @@ pub mod controls;
 pub mod objects;
 pub mod settings;
 pub mod transfer;
+pub mod transform;
 pub mod worker;
 
 use std::path::PathBuf;

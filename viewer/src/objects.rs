@@ -1,6 +1,6 @@
 //! The scene's objects in the viewer: the volume, `[[tubes]]`, `[[lines]]` and `[[points]]`,
 //! each shown or hidden, with its size and colour editable, removable; and files opened into
-//! the scene (typed or dropped on the window): a volume replaces the scene's volume, a
+//! the scene (typed, chosen in the file dialog or dropped on the window): a volume replaces the scene's volume, a
 //! tractogram is added as `[[lines]]`, a mesh as `[[tubes]]`. A hidden object is left out of the
 //! scene the renderer draws and the saved scene (what you see is what you save).
 
@@ -22,8 +22,7 @@ pub fn classify(path: &Path) -> Result<Kind, String> {
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    let stem = name.strip_suffix(".gz").unwrap_or(&name);
-    let ext = stem.rsplit_once('.').map_or("", |(_, e)| e);
+    let ext = extension(&name);
     if !path.is_file() {
         return Err(format!("{}: no such file", path.display()));
     }
@@ -47,6 +46,147 @@ pub fn classify(path: &Path) -> Result<Kind, String> {
             ))
         }
     })
+}
+
+/// A lower-case name's extension, `.gz` looked through.
+fn extension(name: &str) -> &str {
+    let stem = name.strip_suffix(".gz").unwrap_or(name);
+    stem.rsplit_once('.').map_or("", |(_, e)| e)
+}
+
+/// The extensions `classify` knows (the file dialog lists these files and every folder).
+const OPENABLE: &[&str] = &[
+    "nii", "hdr", "nrrd", "nhdr", "vti", "mhd", "mha", "slc", "trk", "tck", "trx", "ply", "obj",
+    "vtk",
+];
+
+/// Whether the file dialog lists `path`: a folder, or a file with an extension of `OPENABLE`.
+pub fn listed(path: &Path) -> bool {
+    path.is_dir()
+        || path.file_name().is_some_and(|n| {
+            OPENABLE.contains(&extension(&n.to_string_lossy().to_ascii_lowercase()))
+        })
+}
+
+/// The file dialog ("browse"): an egui window over one folder at a time, listing its folders
+/// (with a trailing `/`) and the files `classify` knows, "..", and open/cancel. Drawn by egui
+/// itself, so it needs no GTK or desktop portal and works under Xvfb and in the UI tests.
+#[derive(Default)]
+pub struct Browser {
+    /// The folder shown and the chosen file in it, while open.
+    state: Option<(std::path::PathBuf, Option<std::path::PathBuf>)>,
+}
+
+/// A folder's entries the dialog lists: folders first, then files, each by name.
+pub fn entries(dir: &Path) -> std::io::Result<Vec<std::path::PathBuf>> {
+    let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(dir)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            listed(p)
+                && !p
+                    .file_name()
+                    .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        })
+        .collect();
+    v.sort_by_key(|p| (!p.is_dir(), p.file_name().map(|n| n.to_ascii_lowercase())));
+    Ok(v)
+}
+
+impl Browser {
+    /// Opens the dialog in `start` when it is a folder, in the folder of `start` when it is a
+    /// file's path, else in the working directory.
+    pub fn open(&mut self, start: &Path) {
+        let dir = if start.is_dir() {
+            Some(start.to_path_buf())
+        } else {
+            start
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty() && p.is_dir())
+                .map(Path::to_path_buf)
+        };
+        let dir = dir
+            .or_else(|| std::env::current_dir().ok())
+            .unwrap_or_else(|| ".".into());
+        self.state = Some((std::path::absolute(&dir).unwrap_or(dir), None));
+    }
+
+    pub fn is_open(&self) -> bool {
+        self.state.is_some()
+    }
+
+    /// Shows the dialog while it is open; the chosen file, once.
+    pub fn show(&mut self, ctx: &egui::Context) -> Option<std::path::PathBuf> {
+        let (dir, chosen) = self.state.as_mut()?;
+        let mut open = true;
+        let mut done = None;
+        let mut go_to = None;
+        let mut cancel = false;
+        egui::Window::new("open a volume, tractogram or mesh")
+            .open(&mut open)
+            .collapsible(false)
+            .default_size([420.0, 360.0])
+            .show(ctx, |ui| {
+                ui.horizontal(|ui| {
+                    if ui.button("..").on_hover_text("the parent folder").clicked() {
+                        go_to = dir.parent().map(Path::to_path_buf);
+                    }
+                    ui.label(dir.display().to_string());
+                });
+                ui.separator();
+                egui::ScrollArea::vertical()
+                    .max_height(260.0)
+                    .show(ui, |ui| match entries(dir) {
+                        Ok(list) if list.is_empty() => {
+                            ui.label("no folders or files to open here");
+                        }
+                        Ok(list) => {
+                            for p in list {
+                                let name = p
+                                    .file_name()
+                                    .map(|n| n.to_string_lossy().into_owned())
+                                    .unwrap_or_default();
+                                if p.is_dir() {
+                                    if ui.selectable_label(false, format!("{name}/")).clicked() {
+                                        go_to = Some(p);
+                                    }
+                                } else {
+                                    let r = ui.selectable_label(chosen.as_ref() == Some(&p), name);
+                                    if r.double_clicked() {
+                                        done = Some(p.clone());
+                                    }
+                                    if r.clicked() {
+                                        *chosen = Some(p);
+                                    }
+                                }
+                            }
+                        }
+                        Err(e) => {
+                            ui.colored_label(egui::Color32::RED, format!("{}: {e}", dir.display()));
+                        }
+                    });
+                ui.separator();
+                ui.horizontal(|ui| {
+                    if ui
+                        .add_enabled(chosen.is_some(), egui::Button::new("open file"))
+                        .clicked()
+                    {
+                        done = chosen.clone();
+                    }
+                    cancel |= ui.button("cancel").clicked();
+                });
+            });
+        if let Some(d) = go_to {
+            *dir = d;
+            *chosen = None;
+        }
+        if cancel {
+            done = None;
+        }
+        if done.is_some() || cancel || !open || ctx.input(|i| i.key_pressed(egui::Key::Escape)) {
+            self.state = None;
+        }
+        done
+    }
 }
 
 /// Adds the file at `path` to scene `s` (with the scene keys' defaults); what was done.
@@ -124,25 +264,6 @@ impl Hidden {
     }
 }
 
-/// The translation of a row-major 4 x 4 `transform` (entries 3, 7, 11) as three fields; the
-/// identity is written when the object had none and a field moves.
-fn translation(ui: &mut egui::Ui, t: &mut Option<[f64; 16]>) {
-    let mut m = t.unwrap_or([
-        1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
-    ]);
-    let before = m;
-    ui.horizontal(|ui| {
-        let l = ui.label("  transform t");
-        for i in [3, 7, 11] {
-            ui.add(egui::DragValue::new(&mut m[i]).speed(0.5))
-                .labelled_by(l.id);
-        }
-    });
-    if m != before {
-        *t = Some(m);
-    }
-}
-
 /// One row of an object: shown, its name, a size and a colour, remove. True when removed.
 fn row(
     ui: &mut egui::Ui,
@@ -183,6 +304,8 @@ pub fn panel(
     hidden: &mut Hidden,
     open_path: &mut String,
     message: &mut Option<String>,
+    pivot: [f64; 3],
+    browse: &mut bool,
 ) -> bool {
     hidden.fit(s);
     let before = (
@@ -212,7 +335,7 @@ pub fn panel(
         ) {
             remove = Some(("tubes", i));
         }
-        translation(ui, &mut t.transform);
+        crate::transform::editor(ui, &format!("tubes[{i}]"), &mut t.transform, pivot);
         hidden.tubes[i] = !shown;
     }
     for (i, l) in s.lines.iter_mut().enumerate() {
@@ -228,7 +351,7 @@ pub fn panel(
         ) {
             remove = Some(("lines", i));
         }
-        translation(ui, &mut l.transform);
+        crate::transform::editor(ui, &format!("lines[{i}]"), &mut l.transform, pivot);
         hidden.lines[i] = !shown;
     }
     for (i, p) in s.points.iter_mut().enumerate() {
@@ -244,7 +367,7 @@ pub fn panel(
         ) {
             remove = Some(("points", i));
         }
-        translation(ui, &mut p.transform);
+        crate::transform::editor(ui, &format!("points[{i}]"), &mut p.transform, pivot);
         hidden.points[i] = !shown;
     }
     match remove {
@@ -265,13 +388,14 @@ pub fn panel(
     ui.horizontal(|ui| {
         let l = ui.label("open");
         let r = ui.text_edit_singleline(open_path).labelled_by(l.id);
+        *browse |= ui.button("browse…").clicked();
         let go = ui.button("add").clicked()
             || (r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)));
         if go && !open_path.trim().is_empty() {
             *message = Some(open(s, Path::new(open_path.trim())).unwrap_or_else(|e| e));
         }
     });
-    ui.label(egui::RichText::new("or drop a file on the window").small());
+    ui.label(egui::RichText::new("a path, the file dialog, or drop a file on the window").small());
     hidden.fit(s);
     before
         != (

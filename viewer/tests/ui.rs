@@ -111,3 +111,89 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
         "screenshot and headless render differ by {diff} levels"
     );
 }
+
+/// The file dialog lists folders and the files the viewer can open (not others), opening a
+/// tractogram adds it as `[[lines]]`, and its rotation widgets turn it about the camera's target.
+#[test]
+fn the_file_dialog_opens_a_tractogram_and_its_rotation_turns_it_about_the_pivot() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = test_support::headsq_scene(dir.path(), "", "bone", "method = \"ea\"\n");
+    let files = dir.path().join("files");
+    std::fs::create_dir(&files).unwrap();
+    std::fs::create_dir(files.join("sub")).unwrap();
+    std::fs::copy(
+        test_support::fixtures().join("tracts/dipy/tracks300.trk"),
+        files.join("tracks300.trk"),
+    )
+    .unwrap();
+    std::fs::write(files.join("notes.txt"), "not data").unwrap();
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let bounds = m.bounds;
+    let worker = umbra_viewer::worker::start(m, &s, || {});
+    let quit = Arc::new(AtomicBool::new(false));
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(900.0, 800.0))
+        .build_ui_state(
+            |ui, app: &mut App| app.show_ui(ui),
+            App::new(s.clone(), bounds, worker, quit, None),
+        );
+    h.run_steps(2);
+    h.get_by_label("objects").click_accesskit();
+    h.run_steps(2);
+    h.state_mut().set_open_field(files.to_str().unwrap());
+    h.get_by_label("browse…").click_accesskit();
+    h.run_steps(3);
+    assert!(h.state().browsing());
+    assert!(h.query_by_label("sub/").is_some(), "folders are listed");
+    assert!(
+        h.query_by_label("notes.txt").is_none(),
+        "other files are not"
+    );
+    h.get_by_label("tracks300.trk").click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("open file").click_accesskit();
+    h.run_steps(3);
+    assert!(!h.state().browsing());
+    assert_eq!(h.state().scene.lines.len(), 1);
+    assert!(
+        h.state().message().is_some_and(|m| m.contains("lines[0]")),
+        "{:?}",
+        h.state().message()
+    );
+    assert_eq!(h.state().scene.lines[0].transform, None);
+    // 30 steps of 1 degree about z, then 10 about x: a pose turned about the camera's target.
+    let rotate = h
+        .get_all_by_label("  lines[0] rotate °")
+        .collect::<Vec<_>>();
+    assert_eq!(rotate.len(), 3, "x, y, z");
+    for _ in 0..30 {
+        rotate[2].increment_accesskit();
+    }
+    drop(rotate);
+    h.run_steps(2);
+    let rotate = h
+        .get_all_by_label("  lines[0] rotate °")
+        .collect::<Vec<_>>();
+    for _ in 0..10 {
+        rotate[0].increment_accesskit();
+    }
+    drop(rotate);
+    h.run_steps(2);
+    let m = h.state().scene.lines[0].transform.expect("a transform");
+    let pose = umbra_viewer::transform::decompose(&m).expect("a pose");
+    assert!(
+        (pose.angles[0] - 10.0).abs() < 1e-6
+            && pose.angles[1].abs() < 1e-6
+            && (pose.angles[2] - 30.0).abs() < 1e-6,
+        "{:?}",
+        pose.angles
+    );
+    let p = h.state().orbit.target;
+    let moved = [0, 1, 2]
+        .map(|r| m[r * 4] * p.x + m[r * 4 + 1] * p.y + m[r * 4 + 2] * p.z + m[r * 4 + 3] - p[r]);
+    assert!(
+        moved.iter().all(|d| d.abs() < 1e-9),
+        "the target moved by {moved:?}"
+    );
+}
