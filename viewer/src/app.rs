@@ -208,9 +208,10 @@ impl App {
         self.error = None;
         if let Some(r) = &img.rebuilt {
             self.bounds = r.bounds;
-            self.editor = r
-                .volume
-                .then(|| crate::transfer::Editor::new(r.range, r.histogram.clone()));
+            self.editor = r.volume.then(|| {
+                crate::transfer::Editor::new(r.range, r.histogram.clone())
+                    .with_2d(r.histogram2d.clone())
+            });
         }
         match &img.saved {
             Some(Ok(p)) => self.message = Some(format!("wrote {}", p.display())),

@@ -43,7 +43,8 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     let m = scene::compile::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let bounds = m.bounds;
     let range = worker::data_range(&m);
-    let editor = transfer::Editor::new(range, worker::histogram(&m, range, 128));
+    let editor = transfer::Editor::new(range, worker::histogram(&m, range, 128))
+        .with_2d(worker::histogram2d(&m, range, 128, 64));
     let quit = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, quit.clone())

@@ -4,7 +4,11 @@
 //! world unit), shown as the extinction curve over the histogram (linear or log scale) with
 //! each point a handle: drag it to move its value and extinction, or type them in the list.
 //! 2-D functions (`points (2-D)`: rows of points by gradient magnitude) show a curve per row
-//! and a gradient column in the list.
+//! and a gradient column in the list, and are drawn in the second tab, "value × gradient", over
+//! the data's value x gradient-magnitude histogram: a row is a line of handles at its gradient
+//! (handle size follows extinction); drag a handle sideways to move its value, up or down to
+//! move its whole row's gradient (kept between the neighbouring rows); click empty space to
+//! add a row there (a copy of the nearest row); right-click a handle to remove its row.
 
 use eframe::egui;
 use scene::spec::{Color, TfPoint, TransferSpec};
@@ -23,12 +27,93 @@ pub fn is_2d(spec: &TransferSpec) -> bool {
 /// The lowest extinction the log scale shows, as a fraction of the largest.
 const LOG_FLOOR: f64 = 1e-3;
 
-/// The editor's view state: the log scale and the data it draws over.
+/// Counts over value x gradient magnitude (`worker::histogram2d`): `counts[iv + bins[0] * ig]`,
+/// values over the editor's range, gradients (value units per world unit) over `[0, gmax]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Histogram2d {
+    pub bins: [usize; 2],
+    pub counts: Vec<u64>,
+    pub gmax: f64,
+}
+
+/// The editor's tabs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tab {
+    OneD,
+    ValueGradient,
+}
+
+/// The distinct gradients of a 2-D function's rows, increasing.
+pub fn rows(spec: &TransferSpec) -> Vec<f64> {
+    let mut g: Vec<f64> = spec.points.iter().filter_map(|p| p.gradient).collect();
+    g.sort_by(f64::total_cmp);
+    g.dedup();
+    g
+}
+
+/// Moves the row at gradient `from` to `to`, kept at least 0 and strictly between the rows
+/// beside it (rows never merge or swap); the gradient it went to.
+pub fn move_row(spec: &mut TransferSpec, from: f64, to: f64) -> f64 {
+    let r = rows(spec);
+    let Some(i) = r.iter().position(|&g| g == from) else {
+        return from;
+    };
+    let top = r.last().copied().unwrap_or(1.0).max(to.abs()).max(1e-12);
+    let eps = 1e-6 * top;
+    let lo = if i > 0 { r[i - 1] + eps } else { 0.0 };
+    let hi = r.get(i + 1).map_or(f64::INFINITY, |g| g - eps);
+    let g = if lo <= hi { to.clamp(lo, hi) } else { from };
+    for p in &mut spec.points {
+        if p.gradient == Some(from) {
+            p.gradient = Some(g);
+        }
+    }
+    g
+}
+
+/// Adds a row at gradient `g`, a copy of the row nearest to it (nothing when `g` is a row).
+pub fn add_row(spec: &mut TransferSpec, g: f64) {
+    let r = rows(spec);
+    let Some(&near) = r
+        .iter()
+        .min_by(|a, b| (*a - g).abs().total_cmp(&(*b - g).abs()))
+    else {
+        return;
+    };
+    if r.contains(&g) || !(g >= 0.0 && g.is_finite()) {
+        return;
+    }
+    let copy: Vec<TfPoint> = spec
+        .points
+        .iter()
+        .filter(|p| p.gradient == Some(near))
+        .map(|p| TfPoint {
+            gradient: Some(g),
+            ..p.clone()
+        })
+        .collect();
+    spec.points.extend(copy);
+    spec.points.sort_by(|a, b| a.value.total_cmp(&b.value));
+}
+
+/// Removes the row at gradient `g` unless it is the only one.
+pub fn remove_row(spec: &mut TransferSpec, g: f64) {
+    if rows(spec).len() > 1 {
+        spec.points.retain(|p| p.gradient != Some(g));
+    }
+}
+
+/// The editor's view state: the log scale, the tab and the data it draws over.
 pub struct Editor {
     pub log: bool,
     pub range: [f64; 2],
     pub histogram: Vec<u64>,
+    pub tab: Tab,
+    pub histogram2d: Option<Histogram2d>,
     dragging: Option<usize>,
+    /// The row (its gradient) and the handle's place in it, while one is dragged.
+    dragging2d: Option<(f64, usize)>,
+    texture: Option<egui::TextureHandle>,
 }
 
 impl Editor {
@@ -37,8 +122,18 @@ impl Editor {
             log: false,
             range,
             histogram,
+            tab: Tab::OneD,
+            histogram2d: None,
             dragging: None,
+            dragging2d: None,
+            texture: None,
         }
+    }
+
+    /// With the value x gradient histogram (the second tab).
+    pub fn with_2d(mut self, h: Histogram2d) -> Editor {
+        self.histogram2d = Some(h);
+        self
     }
 
     /// The points of `spec` as the renderer evaluates them (a preset's ramp made explicit).
@@ -104,7 +199,28 @@ impl Editor {
                 {
                     spec.points = self.points_of(spec);
                 }
+                if ui.selectable_label(current == TWO_D, TWO_D).clicked() && !is_2d(spec) {
+                    *spec = self.two_d(spec);
+                }
             });
+        if self.histogram2d.is_some() {
+            ui.horizontal(|ui| {
+                ui.selectable_value(&mut self.tab, Tab::OneD, "1-D");
+                ui.selectable_value(&mut self.tab, Tab::ValueGradient, "value × gradient");
+            });
+        }
+        if self.tab == Tab::ValueGradient && self.histogram2d.is_some() {
+            if is_2d(spec) {
+                self.plot2d(ui, spec);
+                self.list(ui, spec);
+            } else {
+                ui.label("the function is 1-D: make it 2-D to edit it over value and gradient");
+                if ui.button("make 2-D").clicked() {
+                    *spec = self.two_d(spec);
+                }
+            }
+            return *spec != before;
+        }
         if spec.points.is_empty() {
             ui.horizontal(|ui| {
                 ui.add(
@@ -250,6 +366,155 @@ impl Editor {
         }
     }
 
+    /// The value x gradient plot: the 2-D histogram (log counts), each row of the function a
+    /// line of handles at its gradient.
+    fn plot2d(&mut self, ui: &mut egui::Ui, spec: &mut TransferSpec) {
+        let Some(h) = &self.histogram2d else {
+            return;
+        };
+        let [nv, ng] = h.bins;
+        let size = egui::vec2(ui.available_width().max(120.0), 160.0);
+        let (rect, response) = ui.allocate_exact_size(size, egui::Sense::click_and_drag());
+        response.widget_info(|| {
+            egui::WidgetInfo::labeled(egui::Role::Canvas, true, "value x gradient plot")
+        });
+        let painter = ui.painter_at(rect);
+        painter.rect_filled(rect, 2.0, egui::Color32::from_gray(28));
+        let r = rows(spec);
+        let gtop = h
+            .gmax
+            .max(r.last().copied().unwrap_or(0.0) * 1.1)
+            .max(1e-9 * (self.range[1] - self.range[0]).abs())
+            .max(1e-30);
+        let texture = self.texture.get_or_insert_with(|| {
+            let cmax = h.counts.iter().copied().max().unwrap_or(1).max(1) as f64;
+            let mut img = egui::ColorImage::filled([nv, ng], egui::Color32::from_gray(28));
+            for ig in 0..ng {
+                for iv in 0..nv {
+                    let c = h.counts[iv + nv * ig];
+                    if c > 0 {
+                        let f = (1.0 + c as f64).ln() / (1.0 + cmax).ln();
+                        // Row 0 of the image is the top: the highest gradients.
+                        img[(iv, ng - 1 - ig)] = egui::Color32::from_gray((40.0 + 180.0 * f) as u8);
+                    }
+                }
+            }
+            ui.ctx().load_texture(
+                "value x gradient histogram",
+                img,
+                egui::TextureOptions::NEAREST,
+            )
+        });
+        // The histogram spans [0, gmax] of the plot's [0, gtop].
+        let frac = (h.gmax / gtop).clamp(0.0, 1.0) as f32;
+        let hist_rect = egui::Rect::from_min_max(
+            egui::pos2(rect.left(), rect.bottom() - rect.height() * frac),
+            rect.max,
+        );
+        painter.image(
+            texture.id(),
+            hist_rect,
+            egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+            egui::Color32::WHITE,
+        );
+        let [lo, hi] = self.range;
+        let w = (hi - lo).max(1e-30);
+        let to_x = |v: f64| rect.left() + rect.width() * ((v - lo) / w).clamp(0.0, 1.0) as f32;
+        let from_x = |x: f32| lo + w * ((x - rect.left()) / rect.width()).clamp(0.0, 1.0) as f64;
+        let to_y = |g: f64| rect.bottom() - rect.height() * (g / gtop).clamp(0.0, 1.0) as f32;
+        let from_y = |y: f32| gtop * ((rect.bottom() - y) / rect.height()).clamp(0.0, 1.0) as f64;
+        let emax = spec
+            .points
+            .iter()
+            .map(|p| p.extinction)
+            .fold(0.0f64, f64::max)
+            .max(1e-12);
+        // Handles: (row gradient, place in the row, position).
+        let mut handles: Vec<(f64, usize, egui::Pos2)> = vec![];
+        for &g in &r {
+            let row: Vec<&TfPoint> = spec
+                .points
+                .iter()
+                .filter(|p| p.gradient == Some(g))
+                .collect();
+            let line: Vec<egui::Pos2> = row
+                .iter()
+                .map(|p| egui::pos2(to_x(p.value), to_y(g)))
+                .collect();
+            painter.add(egui::Shape::line(
+                line.clone(),
+                egui::Stroke::new(1.0, egui::Color32::from_gray(200)),
+            ));
+            for (k, (p, pos)) in row.iter().zip(&line).enumerate() {
+                let c = p.color.rgb().unwrap_or([1.0; 3]);
+                let fill = egui::Color32::from_rgb(
+                    (c[0] * 255.0) as u8,
+                    (c[1] * 255.0) as u8,
+                    (c[2] * 255.0) as u8,
+                );
+                let radius = 3.0 + 5.0 * (p.extinction / emax) as f32;
+                painter.circle(
+                    *pos,
+                    radius,
+                    fill,
+                    egui::Stroke::new(1.0, egui::Color32::BLACK),
+                );
+                handles.push((g, k, *pos));
+            }
+        }
+        let near = |at: egui::Pos2| {
+            handles
+                .iter()
+                .map(|&(g, k, p)| (g, k, p.distance(at)))
+                .filter(|h| h.2 < 10.0)
+                .min_by(|a, b| a.2.total_cmp(&b.2))
+                .map(|(g, k, _)| (g, k))
+        };
+        if response.drag_started() {
+            let origin = ui.input(|i| i.pointer.press_origin());
+            self.dragging2d = origin.or(response.interact_pointer_pos()).and_then(near);
+        }
+        if let (Some((g, k)), Some(at)) = (self.dragging2d, response.interact_pointer_pos()) {
+            if response.dragged() {
+                let idx: Vec<usize> = (0..spec.points.len())
+                    .filter(|&i| spec.points[i].gradient == Some(g))
+                    .collect();
+                if let Some(&i) = idx.get(k) {
+                    let a = if k > 0 {
+                        spec.points[idx[k - 1]].value
+                    } else {
+                        lo
+                    };
+                    let b = idx.get(k + 1).map_or(hi, |&j| spec.points[j].value);
+                    spec.points[i].value = from_x(at.x).clamp(a.min(b), a.max(b));
+                    let g2 = move_row(spec, g, from_y(at.y));
+                    self.dragging2d = Some((g2, k));
+                }
+            }
+        }
+        if response.drag_stopped() {
+            self.dragging2d = None;
+        }
+        if response.clicked() {
+            if let Some(at) = response.interact_pointer_pos() {
+                if near(at).is_none() {
+                    add_row(spec, from_y(at.y));
+                }
+            }
+        }
+        if response.secondary_clicked() {
+            if let Some((g, _)) = response.interact_pointer_pos().and_then(near) {
+                remove_row(spec, g);
+            }
+        }
+        ui.label(
+            egui::RichText::new(format!(
+                "value {lo:.4} .. {hi:.4} across, gradient 0 .. {gtop:.4} / world unit up"
+            ))
+            .small(),
+        );
+    }
+
     /// The points as rows of widgets: value, colour, extinction, remove; and "add point".
     fn list(&mut self, ui: &mut egui::Ui, spec: &mut TransferSpec) {
         let [lo, hi] = self.range;
@@ -336,6 +601,46 @@ mod tests {
                 assert!((0..3).all(|k| (ca[k] - cb[k]).abs() < 1e-12));
             }
         }
+    }
+
+    fn two_rows() -> TransferSpec {
+        let e = Editor::new([0.0, 200.0], vec![1; 16]);
+        e.two_d(&TransferSpec {
+            preset: "bone".into(),
+            extinction: 0.3,
+            points: vec![],
+        })
+    }
+
+    #[test]
+    fn rows_move_between_their_neighbours_and_are_added_and_removed_whole() {
+        let mut s = two_rows();
+        assert_eq!(rows(&s), [0.0, 20.0]);
+        let per_row = s.points.len() / 2;
+        // Row 20 cannot pass below row 0; row 0 cannot go negative or past 20.
+        let g = move_row(&mut s, 20.0, -5.0);
+        assert!(g > 0.0 && g < 1e-3, "{g}");
+        let g = move_row(&mut s, g, 35.0);
+        assert_eq!(g, 35.0);
+        assert_eq!(move_row(&mut s, 0.0, -1.0), 0.0);
+        let g0 = move_row(&mut s, 0.0, 50.0);
+        assert!(g0 < 35.0 && g0 > 34.99, "{g0}");
+        assert_eq!(rows(&s), [g0, 35.0]);
+        // A row added at 80 copies the nearest (35); the renderer takes the function.
+        add_row(&mut s, 80.0);
+        assert_eq!(rows(&s), [g0, 35.0, 80.0]);
+        assert_eq!(s.points.len(), 3 * per_row);
+        let t = scene::compile::transfer(&s, [0.0, 200.0]).unwrap();
+        assert_eq!(t.rows.len(), 3);
+        assert_eq!(t.eval2(120.0, 80.0), t.eval2(120.0, 35.0));
+        add_row(&mut s, 80.0);
+        add_row(&mut s, f64::NAN);
+        assert_eq!(s.points.len(), 3 * per_row);
+        remove_row(&mut s, 35.0);
+        assert_eq!(rows(&s), [g0, 80.0]);
+        remove_row(&mut s, g0);
+        remove_row(&mut s, 80.0);
+        assert_eq!(rows(&s), [80.0], "the last row stays");
     }
 
     #[test]

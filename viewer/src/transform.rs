@@ -160,11 +160,11 @@ pub fn editor(ui: &mut egui::Ui, key: &str, t: &mut Option<[f64; 16]>, pivot: [f
                         .labelled_by(l.id);
                 }
             });
-            if p.angles != pose.angles || p.scale != pose.scale {
-                if p.scale.iter().all(|s| s.is_finite() && s.abs() > 1e-6) {
-                    let new = compose(&p);
-                    m = about_pivot(&m, &new, pivot).unwrap_or(new);
-                }
+            if (p.angles != pose.angles || p.scale != pose.scale)
+                && p.scale.iter().all(|s| s.is_finite() && s.abs() > 1e-6)
+            {
+                let new = compose(&p);
+                m = about_pivot(&m, &new, pivot).unwrap_or(new);
             }
         }
         None => {

@@ -197,3 +197,73 @@ fn the_file_dialog_opens_a_tractogram_and_its_rotation_turns_it_about_the_pivot(
         "the target moved by {moved:?}"
     );
 }
+
+/// The value x gradient tab: a 1-D function made 2-D, a row added by a click on the
+/// histogram, a row dragged up, and the renderer drawing the result.
+#[test]
+fn the_value_gradient_tab_adds_and_moves_rows_over_the_histogram() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = test_support::headsq_scene(dir.path(), "", "bone", "method = \"ea\"\n");
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let bounds = m.bounds;
+    let range = umbra_viewer::worker::data_range(&m);
+    let h2 = umbra_viewer::worker::histogram2d(&m, range, 128, 64);
+    assert!(h2.gmax > 0.0 && h2.counts.iter().sum::<u64>() > 100_000);
+    let editor =
+        umbra_viewer::transfer::Editor::new(range, umbra_viewer::worker::histogram(&m, range, 64))
+            .with_2d(h2);
+    let worker = umbra_viewer::worker::start(m, &s, || {});
+    let quit = Arc::new(AtomicBool::new(false));
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(900.0, 900.0))
+        .build_ui_state(
+            |ui, app: &mut App| app.show_ui(ui),
+            App::new(s.clone(), bounds, worker, quit, None).with_editor(editor),
+        );
+    h.run_steps(2);
+    h.get_by_label("value × gradient").click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("make 2-D").click_accesskit();
+    h.run_steps(2);
+    let tf = |h: &Harness<App>| h.state().scene.volume.as_ref().unwrap().transfer.clone();
+    let rows0 = umbra_viewer::transfer::rows(&tf(&h));
+    assert_eq!(rows0.len(), 2);
+    // A click at the plot's middle (between the rows' handles) adds a row there.
+    let plot = h.get_by_label("value x gradient plot").rect();
+    h.get_by_label("value x gradient plot").click();
+    h.run_steps(2);
+    let rows1 = umbra_viewer::transfer::rows(&tf(&h));
+    assert_eq!(rows1.len(), 3, "{rows1:?}");
+    let added = *rows1.iter().find(|g| !rows0.contains(g)).unwrap();
+    // Its first handle sits at the left edge (the lowest value): drag it 30 points up.
+    let at = egui::pos2(plot.left() + 1.0, plot.center().y);
+    h.drag_at(at);
+    h.run_steps(1);
+    for dy in [10.0, 20.0, 30.0] {
+        h.hover_at(at - egui::vec2(0.0, dy));
+        h.run_steps(1);
+    }
+    h.drop_at(at - egui::vec2(0.0, 30.0));
+    h.run_steps(2);
+    let rows2 = umbra_viewer::transfer::rows(&tf(&h));
+    assert_eq!(rows2.len(), 3);
+    // The dragged row went up (to a higher gradient, still below the row above it); the
+    // others stayed.
+    let moved: Vec<f64> = rows2
+        .iter()
+        .copied()
+        .filter(|g| !rows1.contains(g))
+        .collect();
+    assert!(
+        moved.len() == 1 && moved[0] > added && rows2.len() == 3,
+        "{rows1:?} -> {rows2:?}"
+    );
+    // The worker draws the 2-D function (its full image, no error).
+    let t = Instant::now();
+    while h.state().shown_level() != Some(Level::Full) && t.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(50));
+        h.run_steps(1);
+    }
+    assert_eq!(h.state().shown_level(), Some(Level::Full));
+}
