@@ -21,14 +21,65 @@ pub enum Level {
 /// Slices a draft draws at most.
 pub const DRAFT_SLICES: u32 = 128;
 
-/// The scene a frame of `level` draws for scene state `s`.
+/// The time a draft aims at (ms): 10 frames a second with room for the window's own frame.
+pub const DRAFT_TARGET_MS: f64 = 60.0;
+/// The least a draft keeps of the geometry (triangles and segments) and of the slices.
+pub const DRAFT_MIN_PRIMITIVES: usize = 10_000;
+pub const DRAFT_MIN_SLICES: u32 = 16;
+
+/// What a draft draws at most: triangles and segments (a share of the geometry above it), and
+/// slices. It adapts to the drafts' times: a draft slower than 1.25 x [`DRAFT_TARGET_MS`]
+/// scales both down by target / time (at most 4x, at least 1.25x at once), one faster than half
+/// the target scales them up by 1.5, within [`DRAFT_MIN_PRIMITIVES`]..[`DRAFT_PRIMITIVES`] and
+/// [`DRAFT_MIN_SLICES`]..[`DRAFT_SLICES`]; in between it stays (no oscillation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DraftBudget {
+    pub primitives: usize,
+    pub slices: u32,
+}
+
+impl Default for DraftBudget {
+    fn default() -> Self {
+        DraftBudget {
+            primitives: DRAFT_PRIMITIVES,
+            slices: DRAFT_SLICES,
+        }
+    }
+}
+
+impl DraftBudget {
+    /// The budget after a draft that took `ms`.
+    pub fn adapt(&mut self, ms: f64) {
+        if !(ms.is_finite() && ms > 0.0) {
+            return;
+        }
+        let f = if ms > 1.25 * DRAFT_TARGET_MS {
+            (DRAFT_TARGET_MS / ms).clamp(0.25, 0.8)
+        } else if ms < 0.5 * DRAFT_TARGET_MS {
+            1.5
+        } else {
+            return;
+        };
+        self.primitives =
+            ((self.primitives as f64 * f) as usize).clamp(DRAFT_MIN_PRIMITIVES, DRAFT_PRIMITIVES);
+        self.slices =
+            ((self.slices as f64 * f).round() as u32).clamp(DRAFT_MIN_SLICES, DRAFT_SLICES);
+    }
+}
+
+/// The scene a frame of `level` draws for scene state `s` (drafts at most [`DRAFT_SLICES`]).
 pub fn at_level(s: &Scene, level: Level) -> Scene {
+    at_level_with(s, level, DRAFT_SLICES)
+}
+
+/// [`at_level`] with drafts of at most `slices` slices.
+pub fn at_level_with(s: &Scene, level: Level, slices: u32) -> Scene {
     let mut d = s.clone();
     if level == Level::Draft {
         d.render.width = (s.render.width / 4).max(16);
         d.render.height = (s.render.height / 4).max(16);
         d.render.method = engine::method::Method::Ea;
-        d.render.slices = Some(s.render.slices.unwrap_or(DRAFT_SLICES).min(DRAFT_SLICES));
+        d.render.slices = Some(s.render.slices.unwrap_or(slices).min(slices));
         d.render.slice_distance = None;
         d.render.msaa = 1;
         d.render.fxaa = false;
@@ -79,7 +130,9 @@ pub struct Session {
     data: DataKey,
     /// The upload drafts draw when the geometry is heavy ([`DRAFT_PRIMITIVES`]), made at the
     /// first draft after the model or its transfer function changed.
-    draft: Option<scene::compile::Uploaded<'static>>,
+    draft: Option<(usize, scene::compile::Uploaded<'static>)>,
+    /// What drafts draw, adapted to their times.
+    budget: DraftBudget,
 }
 
 /// Triangles and line segments above which a draft draws a share of the geometry: every
@@ -257,6 +310,7 @@ impl Session {
             transfer,
             data: data_key(s),
             draft: None,
+            budget: DraftBudget::default(),
         })
     }
 
@@ -297,11 +351,12 @@ impl Session {
             self.transfer = tf;
         }
         let heavy = primitives(&self.model);
-        if req.level == Level::Draft && heavy > DRAFT_PRIMITIVES {
-            if self.draft.is_none() {
-                // The model with a share of its geometry, uploaded once; the full geometry
-                // goes back into the model.
-                let k = heavy.div_ceil(DRAFT_PRIMITIVES);
+        let budget = self.budget;
+        let k = heavy.div_ceil(budget.primitives.max(1));
+        if req.level == Level::Draft && k > 1 {
+            if self.draft.as_ref().is_none_or(|d| d.0 != k) {
+                // The model with a share of its geometry, uploaded once per share; the full
+                // geometry goes back into the model.
                 let meshes: Vec<_> = self
                     .model
                     .meshes
@@ -327,18 +382,24 @@ impl Session {
                 let up = upload(self.gpu, &self.model);
                 self.model.meshes = full_meshes;
                 self.model.lines = full_lines;
-                self.draft = Some(up?);
+                self.draft = Some((k, up?));
             }
-            let mut img = draw(self.draft.as_ref().expect("made above"), &self.model, req)?;
+            let up = &self.draft.as_ref().expect("made above").1;
+            let mut img = draw_with(up, &self.model, req, budget.slices)?;
             img.rebuilt = rebuilt;
             img.notes.push(format!(
-                "draft: 1 block of {DRAFT_BLOCK} triangles or segments in {} of the geometry",
-                heavy.div_ceil(DRAFT_PRIMITIVES)
+                "draft: 1 block of {DRAFT_BLOCK} triangles or segments in {k} of the geometry, \
+                 at most {} slices",
+                budget.slices
             ));
+            self.budget.adapt(img.total_ms);
             return Ok(img);
         }
-        let mut img = draw(&self.up, &self.model, req)?;
+        let mut img = draw_with(&self.up, &self.model, req, budget.slices)?;
         img.rebuilt = rebuilt;
+        if req.level == Level::Draft {
+            self.budget.adapt(img.total_ms);
+        }
         Ok(img)
     }
 }
@@ -356,13 +417,24 @@ pub struct Rebuilt {
 /// Draws `s` (the scene state, any level already applied) with the uploaded model into an
 /// [`Image`]: the same frame `umbra render` writes as PNG for that scene.
 pub fn draw(up: &scene::compile::Uploaded, m: &Model, req: &Request) -> Result<Image, String> {
-    let s = at_level(&req.scene, req.level);
+    draw_with(up, m, req, DRAFT_SLICES)
+}
+
+/// [`draw`] with drafts of at most `slices` slices.
+pub fn draw_with(
+    up: &scene::compile::Uploaded,
+    m: &Model,
+    req: &Request,
+    slices: u32,
+) -> Result<Image, String> {
+    let s = at_level_with(&req.scene, req.level, slices);
     let (out, v) = up.draw(
         &s,
         m,
         DrawOptions {
             frames: 1,
-            pass_timings: true,
+            // Timing each pass draws it again: full images only (drafts show their total).
+            pass_timings: req.level == Level::Full,
         },
     )?;
     let saved = req.save.as_ref().map(|(path, aov)| {
@@ -459,6 +531,44 @@ mod tests {
         assert_eq!(every_kth_block(&idx, 3, 1), idx);
         let segs: Vec<u32> = (0..1000).collect();
         assert_eq!(every_kth_block(&segs, 1, 4).len(), 256);
+    }
+
+    #[test]
+    fn draft_budgets_shrink_to_the_target_and_grow_back() {
+        // A draft costing 30 ms + 1 us a primitive + 1 ms a slice (lavapipe's order of
+        // magnitude on the demo): the budget comes within 1.25 x the target in a few drafts.
+        let cost = |b: &DraftBudget| 30.0 + 1e-3 * b.primitives as f64 + b.slices as f64;
+        let mut b = DraftBudget::default();
+        assert!(cost(&b) > 300.0);
+        let mut n = 0;
+        while cost(&b) > 1.25 * DRAFT_TARGET_MS && n < 20 {
+            b.adapt(cost(&b));
+            n += 1;
+        }
+        assert!(n <= 6, "{n} drafts");
+        assert!(b.primitives >= DRAFT_MIN_PRIMITIVES && b.slices >= DRAFT_MIN_SLICES);
+        // Steady within the band.
+        let c = b;
+        b.adapt(cost(&b));
+        assert_eq!(b, c);
+        // A cheap scene grows back to the defaults, never past them.
+        for _ in 0..20 {
+            b.adapt(5.0);
+        }
+        assert_eq!(b, DraftBudget::default());
+        // Out of reach (a fixed cost above the target): the floor, no lower.
+        for _ in 0..20 {
+            b.adapt(1000.0);
+        }
+        assert_eq!(
+            b,
+            DraftBudget {
+                primitives: DRAFT_MIN_PRIMITIVES,
+                slices: DRAFT_MIN_SLICES
+            }
+        );
+        b.adapt(f64::NAN);
+        assert_eq!(b.slices, DRAFT_MIN_SLICES);
     }
 
     #[test]
