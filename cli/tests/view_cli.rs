@@ -153,6 +153,36 @@ fn umbra_view_shows_a_first_image_under_xvfb_and_ends_on_sigterm() {
     let status = ends_within_5_s(&mut child);
     let said: Vec<String> = log.try_iter().collect();
     assert!(status.success(), "status {status}: {}", said.join("\n"));
+    // The frame log (--frame-log, beside the scene): its header, window frames, and the
+    // drag's drafts and the full image at rest, each with its size and time.
+    let frames = std::fs::read_to_string(s.with_file_name("frames.csv")).unwrap();
+    let mut lines = frames.lines();
+    assert_eq!(
+        lines.next(),
+        Some("seconds,event,level,width,height,total_ms")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert!(rows.iter().all(|r| r.len() == 6), "{frames}");
+    let count = |event: &str, level: &str| {
+        rows.iter()
+            .filter(|r| r[1] == event && r[2] == level)
+            .count()
+    };
+    assert!(count("frame", "") > 10, "{frames}");
+    assert!(
+        count("image", "draft") >= 1 && count("image", "full") >= 1,
+        "{frames}"
+    );
+    let t: Vec<f64> = rows.iter().map(|r| r[0].parse().unwrap()).collect();
+    assert!(t.windows(2).all(|w| w[0] <= w[1]), "times in order");
+    for r in rows.iter().filter(|r| r[1] == "image") {
+        let (w, h, ms): (u32, u32, f64) = (
+            r[3].parse().unwrap(),
+            r[4].parse().unwrap(),
+            r[5].parse().unwrap(),
+        );
+        assert!(w >= 16 && h >= 16 && ms > 0.0, "{r:?}");
+    }
 }
 
 /// Starts the viewer on display `d` with a window of `size` and waits for its first image
@@ -163,6 +193,7 @@ fn start_viewer(
     size: [u32; 2],
 ) -> (std::process::Child, std::sync::mpsc::Receiver<String>) {
     let (w, h) = (size[0].to_string(), size[1].to_string());
+    let frame_log = scene.with_file_name("frames.csv");
     let mut child = Command::new(env!("CARGO_BIN_EXE_umbra"))
         .args([
             "view",
@@ -171,6 +202,8 @@ fn start_viewer(
             &w,
             "--height",
             &h,
+            "--frame-log",
+            frame_log.to_str().unwrap(),
         ])
         .env("DISPLAY", d)
         .env("XDG_RUNTIME_DIR", std::env::temp_dir())

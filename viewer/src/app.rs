@@ -47,6 +47,8 @@ pub struct App {
     message: Option<String>,
     /// Called once with the first image shown (the command line reports it).
     on_first_image: Option<crate::OnFirstImage>,
+    /// Told of every window frame and shown image.
+    on_event: Option<crate::OnEvent>,
 }
 
 /// What the shown image was.
@@ -94,7 +96,14 @@ impl App {
             keys: vec![],
             message: None,
             on_first_image,
+            on_event: None,
         }
+    }
+
+    /// With `f` told of every window frame and every image shown.
+    pub fn with_events(mut self, f: crate::OnEvent) -> App {
+        self.on_event = Some(f);
+        self
     }
 
     /// With the transfer-function editor over the volume's data.
@@ -220,6 +229,13 @@ impl App {
         }
         if let Some(f) = self.on_first_image.take() {
             f(&img.device);
+        }
+        if let Some(f) = &mut self.on_event {
+            f(&crate::ViewEvent::Image {
+                level: img.level,
+                size: img.size,
+                total_ms: img.total_ms,
+            });
         }
         let scene = self
             .shown_scenes
@@ -600,5 +616,8 @@ impl App {
         }
         // Keep ticking: the rest timer, the quit flag.
         ctx.request_repaint_after(Duration::from_millis(100));
+        if let Some(f) = &mut self.on_event {
+            f(&crate::ViewEvent::Frame);
+        }
     }
 }

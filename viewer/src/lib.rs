@@ -19,6 +19,20 @@ use std::sync::Arc;
 /// Called once when the first image is shown, with the renderer's adapter.
 pub type OnFirstImage = Box<dyn FnOnce(&str)>;
 
+/// What the window did: a frame of its own painted, or a rendered image shown in it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ViewEvent {
+    Frame,
+    Image {
+        level: worker::Level,
+        size: [usize; 2],
+        total_ms: f64,
+    },
+}
+
+/// Called at every [`ViewEvent`] (the command line's frame log).
+pub type OnEvent = Box<dyn FnMut(&ViewEvent)>;
+
 /// What `umbra view` was asked for.
 pub struct ViewArgs {
     pub scene: PathBuf,
@@ -27,6 +41,7 @@ pub struct ViewArgs {
     /// The window's inner size in logical points.
     pub window: [f32; 2],
     pub on_first_image: Option<OnFirstImage>,
+    pub on_event: Option<OnEvent>,
 }
 
 /// Opens the viewer and returns when its window has closed; an error when the scene cannot
@@ -63,6 +78,7 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
         ..Default::default()
     };
     let on_first = a.on_first_image;
+    let on_event = a.on_event;
     // A window destroyed by another X client (`xdotool windowclose`) makes winit 0.30 panic on
     // its next request about the window (BadWindow, BadDrawable): that is the window closing,
     // so it ends the viewer with success, without the panic's message.
@@ -79,9 +95,11 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
             Box::new(move |cc| {
                 let ctx = cc.egui_ctx.clone();
                 let worker = worker::start(m, &s, move || ctx.request_repaint());
-                Ok(Box::new(
-                    app::App::new(s, bounds, worker, quit, on_first).with_editor(editor),
-                ))
+                let mut app = app::App::new(s, bounds, worker, quit, on_first).with_editor(editor);
+                if let Some(f) = on_event {
+                    app = app.with_events(f);
+                }
+                Ok(Box::new(app))
             }),
         )
     }));

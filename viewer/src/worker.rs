@@ -25,7 +25,7 @@ pub const DRAFT_SLICES: u32 = 128;
 pub const DRAFT_TARGET_MS: f64 = 60.0;
 /// The least a draft keeps of the geometry (triangles and segments) and of the slices.
 pub const DRAFT_MIN_PRIMITIVES: usize = 10_000;
-pub const DRAFT_MIN_SLICES: u32 = 16;
+pub const DRAFT_MIN_SLICES: u32 = 32;
 
 /// What a draft draws at most: triangles and segments (a share of the geometry above it), and
 /// slices. It adapts to the drafts' times: a draft slower than 1.25 x [`DRAFT_TARGET_MS`]

@@ -5,8 +5,9 @@ use std::path::PathBuf;
 /// Open a scene in a window: drag to orbit, right-drag to pan, wheel to zoom; arrows
 /// (orbit) and shift+arrows (pan), + and - (zoom), L R A P S I (standard views of RAS data:
 /// from the left, right, front, back, top, bottom), O (orthographic/perspective), Home or 0
-/// (reset). A draft (a quarter of the resolution, ea, at most 128 slices) while you
-/// interact, the scene's full image when the view rests. Closes with the window, Ctrl+C or
+/// (reset). A draft (a quarter of the resolution, ea, at most 128 slices, fewer slices and
+/// less geometry when drafts run slower than 60 ms) while you interact, the scene's full
+/// image when the view rests. Closes with the window, Ctrl+C or
 /// SIGTERM (status 0). Needs an X display (DISPLAY; xvfb-run works).
 #[derive(clap::Args)]
 pub struct Args {
@@ -21,6 +22,11 @@ pub struct Args {
     /// Override a scene key by its dotted path (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Write a CSV line for every window frame and every image shown to this file:
+    /// seconds (since the start), event (frame or image), level (draft or full), width,
+    /// height, total_ms (the image's render time); a benchmark's record of interaction.
+    #[arg(long, value_name = "FILE")]
+    frame_log: Option<PathBuf>,
 }
 
 /// A window side: a finite number of logical pixels in [200, 16384].
@@ -31,9 +37,49 @@ fn window_side(s: &str) -> Result<f32, String> {
     }
 }
 
+/// The frame log's writer: the header now, a line per event (each line written whole).
+fn frame_log(
+    path: &std::path::Path,
+    started: std::time::Instant,
+) -> Result<umbra_viewer::OnEvent, String> {
+    use std::io::Write;
+    let f = std::fs::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut out = std::io::LineWriter::new(f);
+    writeln!(out, "seconds,event,level,width,height,total_ms")
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(Box::new(move |e: &umbra_viewer::ViewEvent| {
+        let t = started.elapsed().as_secs_f64();
+        // A full disk ends the log, not the viewer.
+        let _ = match e {
+            umbra_viewer::ViewEvent::Frame => writeln!(out, "{t:.4},frame,,,,"),
+            umbra_viewer::ViewEvent::Image {
+                level,
+                size,
+                total_ms,
+            } => {
+                let level = match level {
+                    umbra_viewer::worker::Level::Draft => "draft",
+                    umbra_viewer::worker::Level::Full => "full",
+                };
+                writeln!(
+                    out,
+                    "{t:.4},image,{level},{},{},{total_ms:.2}",
+                    size[0], size[1]
+                )
+            }
+        };
+    }))
+}
+
 pub fn run(a: Args) -> Result<(), String> {
     let started = std::time::Instant::now();
+    let on_event = a
+        .frame_log
+        .as_deref()
+        .map(|p| frame_log(p, started))
+        .transpose()?;
     umbra_viewer::run(umbra_viewer::ViewArgs {
+        on_event,
         scene: a.scene,
         overrides: a.set,
         window: [a.width, a.height],
