@@ -217,10 +217,20 @@ impl App {
         self.error = None;
         if let Some(r) = &img.rebuilt {
             self.bounds = r.bounds;
-            self.editor = r.volume.then(|| {
-                crate::transfer::Editor::new(r.range, r.histogram.clone())
-                    .with_2d(r.histogram2d.clone())
-            });
+            match &mut self.editor {
+                // The same volume's data (other objects changed): the editor keeps its tab
+                // and scale, with the histograms of the rebuilt model.
+                Some(e) if r.volume && e.range == r.range => {
+                    e.histogram = r.histogram.clone();
+                    e.set_2d(r.histogram2d.clone());
+                }
+                _ => {
+                    self.editor = r.volume.then(|| {
+                        crate::transfer::Editor::new(r.range, r.histogram.clone())
+                            .with_2d(r.histogram2d.clone())
+                    })
+                }
+            }
         }
         match &img.saved {
             Some(Ok(p)) => self.message = Some(format!("wrote {}", p.display())),

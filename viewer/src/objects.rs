@@ -73,23 +73,64 @@ pub fn listed(path: &Path) -> bool {
 /// itself, so it needs no GTK or desktop portal and works under Xvfb and in the UI tests.
 #[derive(Default)]
 pub struct Browser {
-    /// The folder shown and the chosen file in it, while open.
-    state: Option<(std::path::PathBuf, Option<std::path::PathBuf>)>,
+    state: Option<Shown>,
 }
 
-/// A folder's entries the dialog lists: folders first, then files, each by name.
-pub fn entries(dir: &Path) -> std::io::Result<Vec<std::path::PathBuf>> {
-    let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(dir)?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            listed(p)
-                && !p
-                    .file_name()
-                    .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+/// The open dialog: its folder (canonical), that folder's listing (read once per folder) and
+/// the chosen file.
+struct Shown {
+    dir: std::path::PathBuf,
+    listing: Result<Vec<Entry>, String>,
+    chosen: Option<std::path::PathBuf>,
+}
+
+/// An entry of the dialog's listing.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Entry {
+    pub path: std::path::PathBuf,
+    pub dir: bool,
+}
+
+/// A folder's entries the dialog lists (hidden ones left out): folders first, then files, each
+/// by name, case-insensitively.
+pub fn entries(dir: &Path) -> std::io::Result<Vec<Entry>> {
+    let mut v: Vec<Entry> = std::fs::read_dir(dir)?
+        .filter_map(|e| e.ok())
+        .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
+        .map(|e| {
+            let path = e.path();
+            // A link is listed as what it points to.
+            let dir = match e.file_type() {
+                Ok(t) if !t.is_symlink() => t.is_dir(),
+                _ => path.is_dir(),
+            };
+            Entry { path, dir }
         })
+        .filter(|e| e.dir || listed(&e.path))
         .collect();
-    v.sort_by_key(|p| (!p.is_dir(), p.file_name().map(|n| n.to_ascii_lowercase())));
+    v.sort_by_cached_key(|e| {
+        (
+            !e.dir,
+            e.path
+                .file_name()
+                .map(|n| n.to_string_lossy().to_lowercase()),
+        )
+    });
     Ok(v)
+}
+
+impl Shown {
+    fn at(dir: std::path::PathBuf) -> Shown {
+        let dir = std::fs::canonicalize(&dir)
+            .or_else(|_| std::path::absolute(&dir))
+            .unwrap_or(dir);
+        let listing = entries(&dir).map_err(|e| format!("{}: {e}", dir.display()));
+        Shown {
+            dir,
+            listing,
+            chosen: None,
+        }
+    }
 }
 
 impl Browser {
@@ -107,7 +148,7 @@ impl Browser {
         let dir = dir
             .or_else(|| std::env::current_dir().ok())
             .unwrap_or_else(|| ".".into());
-        self.state = Some((std::path::absolute(&dir).unwrap_or(dir), None));
+        self.state = Some(Shown::at(dir));
     }
 
     pub fn is_open(&self) -> bool {
@@ -116,7 +157,7 @@ impl Browser {
 
     /// Shows the dialog while it is open; the chosen file, once.
     pub fn show(&mut self, ctx: &egui::Context) -> Option<std::path::PathBuf> {
-        let (dir, chosen) = self.state.as_mut()?;
+        let shown = self.state.as_mut()?;
         let mut open = true;
         let mut done = None;
         let mut go_to = None;
@@ -128,56 +169,59 @@ impl Browser {
             .show(ctx, |ui| {
                 ui.horizontal(|ui| {
                     if ui.button("..").on_hover_text("the parent folder").clicked() {
-                        go_to = dir.parent().map(Path::to_path_buf);
+                        go_to = shown.dir.parent().map(Path::to_path_buf);
                     }
-                    ui.label(dir.display().to_string());
+                    ui.label(shown.dir.display().to_string());
                 });
                 ui.separator();
                 egui::ScrollArea::vertical()
                     .max_height(260.0)
-                    .show(ui, |ui| match entries(dir) {
+                    .show(ui, |ui| match &shown.listing {
                         Ok(list) if list.is_empty() => {
                             ui.label("no folders or files to open here");
                         }
                         Ok(list) => {
-                            for p in list {
-                                let name = p
+                            for e in list {
+                                let name = e
+                                    .path
                                     .file_name()
                                     .map(|n| n.to_string_lossy().into_owned())
                                     .unwrap_or_default();
-                                if p.is_dir() {
+                                if e.dir {
                                     if ui.selectable_label(false, format!("{name}/")).clicked() {
-                                        go_to = Some(p);
+                                        go_to = Some(e.path.clone());
                                     }
                                 } else {
-                                    let r = ui.selectable_label(chosen.as_ref() == Some(&p), name);
+                                    let r = ui.selectable_label(
+                                        shown.chosen.as_ref() == Some(&e.path),
+                                        name,
+                                    );
                                     if r.double_clicked() {
-                                        done = Some(p.clone());
+                                        done = Some(e.path.clone());
                                     }
                                     if r.clicked() {
-                                        *chosen = Some(p);
+                                        shown.chosen = Some(e.path.clone());
                                     }
                                 }
                             }
                         }
                         Err(e) => {
-                            ui.colored_label(egui::Color32::RED, format!("{}: {e}", dir.display()));
+                            ui.colored_label(egui::Color32::RED, e);
                         }
                     });
                 ui.separator();
                 ui.horizontal(|ui| {
                     if ui
-                        .add_enabled(chosen.is_some(), egui::Button::new("open file"))
+                        .add_enabled(shown.chosen.is_some(), egui::Button::new("open file"))
                         .clicked()
                     {
-                        done = chosen.clone();
+                        done = shown.chosen.clone();
                     }
                     cancel |= ui.button("cancel").clicked();
                 });
             });
         if let Some(d) = go_to {
-            *dir = d;
-            *chosen = None;
+            *shown = Shown::at(d);
         }
         if cancel {
             done = None;

@@ -103,6 +103,20 @@ pub fn remove_row(spec: &mut TransferSpec, g: f64) {
     }
 }
 
+/// A handle dragged in the value x gradient plot: its row's gradient now and its place in the
+/// row; where the drag started (the pointer, the value and the row's gradient) and the plot's
+/// gradient extent then, kept for the drag (the handle moves by the pointer's movement, and a
+/// top row dragged up does not stretch the axis under the pointer).
+#[derive(Clone, Copy, Debug)]
+struct Drag2d {
+    g: f64,
+    k: usize,
+    at0: egui::Pos2,
+    v0: f64,
+    g0: f64,
+    gtop: f64,
+}
+
 /// The editor's view state: the log scale, the tab and the data it draws over.
 pub struct Editor {
     pub log: bool,
@@ -111,8 +125,8 @@ pub struct Editor {
     pub tab: Tab,
     pub histogram2d: Option<Histogram2d>,
     dragging: Option<usize>,
-    /// The row (its gradient) and the handle's place in it, while one is dragged.
-    dragging2d: Option<(f64, usize)>,
+    /// The handle dragged in the value x gradient plot.
+    dragging2d: Option<Drag2d>,
     texture: Option<egui::TextureHandle>,
 }
 
@@ -132,8 +146,16 @@ impl Editor {
 
     /// With the value x gradient histogram (the second tab).
     pub fn with_2d(mut self, h: Histogram2d) -> Editor {
-        self.histogram2d = Some(h);
+        self.set_2d(h);
         self
+    }
+
+    /// Replaces the value x gradient histogram (its image is made again when it differs).
+    pub fn set_2d(&mut self, h: Histogram2d) {
+        if self.histogram2d.as_ref() != Some(&h) {
+            self.histogram2d = Some(h);
+            self.texture = None;
+        }
     }
 
     /// The points of `spec` as the renderer evaluates them (a preset's ramp made explicit).
@@ -381,11 +403,15 @@ impl Editor {
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 2.0, egui::Color32::from_gray(28));
         let r = rows(spec);
-        let gtop = h
-            .gmax
-            .max(r.last().copied().unwrap_or(0.0) * 1.1)
-            .max(1e-9 * (self.range[1] - self.range[0]).abs())
-            .max(1e-30);
+        let gtop = self.dragging2d.map_or_else(
+            || {
+                h.gmax
+                    .max(r.last().copied().unwrap_or(0.0) * 1.1)
+                    .max(1e-9 * (self.range[1] - self.range[0]).abs())
+                    .max(1e-30)
+            },
+            |d| d.gtop,
+        );
         let texture = self.texture.get_or_insert_with(|| {
             let cmax = h.counts.iter().copied().max().unwrap_or(1).max(1) as f64;
             let mut img = egui::ColorImage::filled([nv, ng], egui::Color32::from_gray(28));
@@ -470,25 +496,42 @@ impl Editor {
                 .min_by(|a, b| a.2.total_cmp(&b.2))
                 .map(|(g, k, _)| (g, k))
         };
+        let row_index = |spec: &TransferSpec, g: f64| -> Vec<usize> {
+            (0..spec.points.len())
+                .filter(|&i| spec.points[i].gradient == Some(g))
+                .collect()
+        };
         if response.drag_started() {
             let origin = ui.input(|i| i.pointer.press_origin());
-            self.dragging2d = origin.or(response.interact_pointer_pos()).and_then(near);
+            let at0 = origin.or(response.interact_pointer_pos());
+            self.dragging2d = at0.and_then(|at0| {
+                let (g, k) = near(at0)?;
+                let i = *row_index(spec, g).get(k)?;
+                Some(Drag2d {
+                    g,
+                    k,
+                    at0,
+                    v0: spec.points[i].value,
+                    g0: g,
+                    gtop,
+                })
+            });
         }
-        if let (Some((g, k)), Some(at)) = (self.dragging2d, response.interact_pointer_pos()) {
+        if let (Some(d), Some(at)) = (self.dragging2d, response.interact_pointer_pos()) {
             if response.dragged() {
-                let idx: Vec<usize> = (0..spec.points.len())
-                    .filter(|&i| spec.points[i].gradient == Some(g))
-                    .collect();
-                if let Some(&i) = idx.get(k) {
-                    let a = if k > 0 {
-                        spec.points[idx[k - 1]].value
+                let idx = row_index(spec, d.g);
+                if let Some(&i) = idx.get(d.k) {
+                    let a = if d.k > 0 {
+                        spec.points[idx[d.k - 1]].value
                     } else {
                         lo
                     };
-                    let b = idx.get(k + 1).map_or(hi, |&j| spec.points[j].value);
-                    spec.points[i].value = from_x(at.x).clamp(a.min(b), a.max(b));
-                    let g2 = move_row(spec, g, from_y(at.y));
-                    self.dragging2d = Some((g2, k));
+                    let b = idx.get(d.k + 1).map_or(hi, |&j| spec.points[j].value);
+                    let v = d.v0 + from_x(at.x) - from_x(d.at0.x);
+                    spec.points[i].value = v.clamp(a.min(b), a.max(b));
+                    let g = d.g0 + from_y(at.y) - from_y(d.at0.y);
+                    let g2 = move_row(spec, d.g, g.max(0.0));
+                    self.dragging2d = Some(Drag2d { g: g2, ..d });
                 }
             }
         }
@@ -497,7 +540,8 @@ impl Editor {
         }
         if response.clicked() {
             if let Some(at) = response.interact_pointer_pos() {
-                if near(at).is_none() {
+                // Not on a handle, nor within 6 points of a row (no near-copies of it).
+                if near(at).is_none() && r.iter().all(|&g| (to_y(g) - at.y).abs() > 6.0) {
                     add_row(spec, from_y(at.y));
                 }
             }

@@ -52,7 +52,7 @@ pub fn rotation(angles: [f64; 3]) -> DMat3 {
     DMat3::from_rotation_z(z) * DMat3::from_rotation_y(y) * DMat3::from_rotation_x(x)
 }
 
-/// The pose of `m`, or `None` when it is not `T R S` within 1e-9 relative (shear, a projective
+/// The pose of `m`, or `None` when it is not `T R S` within 1e-5 (shear, a projective
 /// row, a zero or non-finite scale): then only its entries are editable.
 pub fn decompose(m: &[f64; 16]) -> Option<Pose> {
     if m.iter().any(|v| !v.is_finite()) || m[12..] != [0.0, 0.0, 0.0, 1.0] {
@@ -68,8 +68,9 @@ pub fn decompose(m: &[f64; 16]) -> Option<Pose> {
         s[0] = -s[0];
         r = DMat3::from_cols(-r.x_axis, r.y_axis, r.z_axis);
     }
-    // Orthonormal columns (no shear)?
-    let tol = 1e-9;
+    // Orthonormal columns (no shear)? Within 1e-5: registration tools store f32 matrices or
+    // print about six digits; an edit rebuilds the matrix exactly from the pose.
+    let tol = 1e-5;
     if (r.transpose() * r - DMat3::IDENTITY)
         .to_cols_array()
         .iter()
@@ -155,9 +156,14 @@ pub fn editor(ui: &mut egui::Ui, key: &str, t: &mut Option<[f64; 16]>, pivot: [f
             });
             ui.horizontal(|ui| {
                 let l = ui.label(format!("  {key} scale"));
-                for s in &mut p.scale {
-                    ui.add(egui::DragValue::new(s).speed(0.01))
-                        .labelled_by(l.id);
+                for (i, s) in p.scale.iter_mut().enumerate() {
+                    // A reflection is the x scale's sign; y and z stay positive.
+                    let v = if i == 0 {
+                        egui::DragValue::new(s).speed(0.01)
+                    } else {
+                        egui::DragValue::new(s).speed(0.01).range(1e-6..=1e12)
+                    };
+                    ui.add(v).labelled_by(l.id);
                 }
             });
             if (p.angles != pose.angles || p.scale != pose.scale)
@@ -262,6 +268,21 @@ mod tests {
         let q = decompose(&m).unwrap();
         assert_eq!(q.angles[0], 0.0);
         assert!(close(&compose(&q), &m, 1e-9));
+    }
+
+    #[test]
+    fn a_rotation_stored_in_f32_is_a_pose() {
+        let m = compose(&Pose {
+            translation: [1.5, -2.0, 30.0],
+            angles: [12.0, -33.0, 71.0],
+            scale: [1.0; 3],
+        });
+        let f32ed = m.map(|v| v as f32 as f64);
+        let q = decompose(&f32ed).expect("a pose within f32 rounding");
+        assert!(close(&q.angles, &[12.0, -33.0, 71.0], 1e-4));
+        // Six printed digits too.
+        let printed = m.map(|v| format!("{v:.6}").parse::<f64>().unwrap());
+        assert!(decompose(&printed).is_some());
     }
 
     #[test]

@@ -352,7 +352,9 @@ impl Session {
         }
         let heavy = primitives(&self.model);
         let budget = self.budget;
-        let k = heavy.div_ceil(budget.primitives.max(1));
+        // Shares of 1 in a power of two: a budget that moves re-uploads the draft's geometry
+        // only when the share halves or doubles.
+        let k = heavy.div_ceil(budget.primitives.max(1)).next_power_of_two();
         if req.level == Level::Draft && k > 1 {
             if self.draft.as_ref().is_none_or(|d| d.0 != k) {
                 // The model with a share of its geometry, uploaded once per share; the full
