@@ -18,7 +18,7 @@ trap 'kill $VPID $XPID 2>/dev/null || true' EXIT
 sleep 1
 DISPLAY=$D XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp} WINIT_X11_SCALE_FACTOR=1 \
   "$U" view "$SCENE" --width 900 --height 600 --frame-log "$OUT/log.csv" 2>"$OUT/stderr.txt" & VPID=$!
-fulls() { grep -c ',image,full,' "$OUT/log.csv" 2>/dev/null || true; }
+fulls() { local n; n=$(grep -c ',image,full,' "$OUT/log.csv" 2>/dev/null); echo "${n:-0}"; }
 wait_full() { # wait_full N: until the log has more than N full images (at most 300 s)
   for _ in $(seq 600); do [ "$(fulls)" -gt "$1" ] && return 0; sleep 0.5; done
   echo "no full image in 300 s" >&2; return 1
