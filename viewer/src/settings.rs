@@ -1,12 +1,104 @@
 //! The settings panel: the scene's `[render]` keys, `[light]`, `background` and `[[clip]]`
 //! planes as widgets, each labelled with its scene key and unit and kept in the range the
 //! renderer accepts, so that any state the panel makes is a scene `umbra render` draws.
-//! Keys the panel does not show yet keep their scene values: `render.lineao.*`,
-//! `render.illustrative.*`, `render.width`/`height` (the view's size) and `render.bits`.
+//! "LineAO" edits `[render.lineao]` and "illustrative" `[render.illustrative]`. Keys the panel
+//! does not show keep their scene values: `render.width`/`height` (the view's size) and
+//! `render.bits`.
 
 use eframe::egui;
-use engine::method::{Combine, GeometryShadow, OcclusionModel, SurfaceAo};
-use scene::spec::{ClipSpec, Color, Device, Scene, Stereo};
+use engine::method::{Combine, GeometryShadow, LineAoShading, OcclusionModel, SurfaceAo};
+use scene::spec::{
+    AoAlignment, AoLevels, AoVisibility, ClipSpec, Color, Device, Falloff, Scene, Stereo,
+};
+
+/// A colour key as a colour button; true when it changed.
+fn colour(ui: &mut egui::Ui, key: &str, c: &mut Color) -> bool {
+    let mut rgb = c.rgb().unwrap_or([1.0; 3]).map(|x| x as f32);
+    ui.horizontal(|ui| {
+        let changed = ui.color_edit_button_rgb(&mut rgb).changed();
+        ui.label(key);
+        if changed {
+            *c = Color::Rgb(rgb.map(|x| x as f64));
+        }
+        changed
+    })
+    .inner
+}
+
+/// `[render.lineao]` (Eichelbaum et al. 2013; anisotropic: Köhler et al. 2011), each key in the
+/// range the renderer accepts.
+fn lineao(ui: &mut egui::Ui, a: &mut scene::spec::LineAoSpec) {
+    ui.add(
+        egui::Slider::new(&mut a.samples, 1..=1024)
+            .logarithmic(true)
+            .text("samples (s_h)"),
+    );
+    ui.add(egui::Slider::new(&mut a.levels, 1..=8).text("levels (s_r)"));
+    number(ui, "r0", &mut a.r0, 1e-3..=1e3, " line widths");
+    number(
+        ui,
+        "radius_step",
+        &mut a.radius_step,
+        0.0..=1e4,
+        " world units",
+    );
+    ui.horizontal(|ui| {
+        ui.add(
+            egui::DragValue::new(&mut a.delta0)
+                .range(0.0..=0.5)
+                .speed(1e-5)
+                .max_decimals(6),
+        );
+        ui.label("delta0 (normalised depth)");
+    });
+    menu(
+        ui,
+        "falloff",
+        &mut a.falloff,
+        &[(Falloff::Paper, "paper"), (Falloff::Constant, "constant")],
+    );
+    menu(
+        ui,
+        "levels_combine",
+        &mut a.levels_combine,
+        &[(AoLevels::Sum, "sum"), (AoLevels::Mean, "mean")],
+    );
+    menu(
+        ui,
+        "visibility",
+        &mut a.visibility,
+        &[
+            (AoVisibility::Plane, "plane"),
+            (AoVisibility::Height, "height"),
+        ],
+    );
+    ui.add(egui::Slider::new(&mut a.light_intensity, 0.0..=1.0).text("light_intensity (I_s)"));
+    ui.checkbox(&mut a.anisotropic, "anisotropic");
+    if a.anisotropic {
+        menu(
+            ui,
+            "alignment",
+            &mut a.alignment,
+            &[
+                (AoAlignment::Invariant, "invariant"),
+                (AoAlignment::Paper, "paper"),
+            ],
+        );
+        number(ui, "intensity (I)", &mut a.intensity, 0.0..=1e4, "");
+        ui.add(egui::Slider::new(&mut a.floor, 0.0..=1.0).text("floor (A0)"));
+    }
+    ui.add(egui::Slider::new(&mut a.guard, 0..=1024).text("guard (px)"));
+    menu(
+        ui,
+        "shading",
+        &mut a.shading,
+        &[
+            (LineAoShading::Phong, "phong"),
+            (LineAoShading::Paper, "paper"),
+        ],
+    );
+    number(ui, "seed", &mut a.seed, 0..=u32::MAX, "");
+}
 
 /// A menu of the values of an enumeration; true when it changed.
 fn menu<T: PartialEq + Copy>(ui: &mut egui::Ui, key: &str, v: &mut T, all: &[(T, &str)]) -> bool {
@@ -190,6 +282,15 @@ pub fn panel(ui: &mut egui::Ui, s: &mut Scene, centre: [f64; 3]) -> bool {
                     " world units",
                 );
             }
+        });
+    egui::CollapsingHeader::new("LineAO")
+        .default_open(false)
+        .show(ui, |ui| lineao(ui, &mut s.render.lineao));
+    egui::CollapsingHeader::new("illustrative")
+        .default_open(false)
+        .show(ui, |ui| {
+            colour(ui, "illustrative.line", &mut s.render.illustrative.line);
+            colour(ui, "illustrative.halo", &mut s.render.illustrative.halo);
         });
     egui::CollapsingHeader::new("light and background")
         .default_open(false)

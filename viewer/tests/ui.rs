@@ -267,3 +267,45 @@ fn the_value_gradient_tab_adds_and_moves_rows_over_the_histogram() {
     }
     assert_eq!(h.state().shown_level(), Some(Level::Full));
 }
+
+/// The LineAO section edits `[render.lineao]` (here: anisotropic on, its alignment menu appears,
+/// the levels slider), and the saved scene carries the keys back through the scene parser.
+#[test]
+fn the_lineao_section_edits_render_lineao_and_the_saved_scene_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = test_support::headsq_scene(dir.path(), "", "bone", "method = \"ea\"\n");
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let bounds = m.bounds;
+    let worker = umbra_viewer::worker::start(m, &s, || {});
+    let quit = Arc::new(AtomicBool::new(false));
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(900.0, 1400.0))
+        .build_ui_state(
+            |ui, app: &mut App| app.show_ui(ui),
+            App::new(s.clone(), bounds, worker, quit, None),
+        );
+    h.run_steps(2);
+    h.get_by_label("LineAO").click_accesskit();
+    h.run_steps(2);
+    assert!(
+        h.query_by_label("alignment").is_none(),
+        "shown only when anisotropic"
+    );
+    h.get_by_label("anisotropic").click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().scene.render.lineao.anisotropic);
+    assert!(h.query_by_label("alignment").is_some());
+    h.get_by_role_and_label(egui::accesskit::Role::Slider, "levels (s_r)")
+        .increment_accesskit();
+    h.run_steps(2);
+    let levels = h.state().scene.render.lineao.levels;
+    assert_eq!(levels, scene::spec::LineAoSpec::default().levels + 1);
+    let prefix = dir.path().join("saved");
+    h.state_mut().set_prefix(prefix.to_str().unwrap());
+    h.get_by_label("scene .toml").click_accesskit();
+    h.run_steps(2);
+    let saved = scene::spec::load(&dir.path().join("saved.toml"), &[]).unwrap();
+    assert!(saved.render.lineao.anisotropic);
+    assert_eq!(saved.render.lineao.levels, levels);
+}
