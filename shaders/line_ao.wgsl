@@ -244,12 +244,24 @@ fn g_depth(dd: f32, delta_l: f32) -> f32 {
 }
 
 // occlusion::line_ao::plane_rise: P's tangent plane's rise towards the eye at an offset of
-// `o` pixels (view axes), in normalised depth
-fn plane_rise(n: vec3<f32>, o: vec2<f32>, zoom: f32) -> f32 {
+// `o` pixels (view axes), in normalised depth, its slope along the ray `ray` (unit depth)
+fn plane_rise(n: vec3<f32>, o: vec2<f32>, zoom: f32, ray: vec2<f32>) -> f32 {
     if (!(zoom > 0.0)) {
         return 0.0;
     }
-    return -(n.x * o.x + n.y * o.y) / (zoom * max(n.z, 0.1) * (L.far - L.near));
+    let a = n.z - n.x * ray.x - n.y * ray.y;
+    return -(n.x * o.x + n.y * o.y) / (zoom * max(a, 0.1) * (L.far - L.near));
+}
+
+// occlusion::line_ao::pixel_ray: the ray at unit depth through `c` (ND-map pixels, y down) of
+// a perspective camera with the focal length zoom_scale (the principal point the map's centre);
+// zero for an orthographic camera
+fn ao_pixel_ray(c: vec2<f32>) -> vec2<f32> {
+    if (L.perspective == 0u || !(L.zoom_scale > 0.0)) {
+        return vec2<f32>(0.0, 0.0);
+    }
+    let half = 0.5 * vec2<f32>(f32(L.nd_width), f32(L.nd_height));
+    return vec2<f32>(c.x - half.x, half.y - c.y) / L.zoom_scale;
 }
 
 // occlusion::line_ao::alignment_difference and g_align (eq. 10-11)
@@ -355,7 +367,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             if (L.plane != 0u) {
                 // Between the two texels' centres (level-0 pixels, view y up).
                 let texels = vec2<f32>(f32(qj.x) - f32(pj.x), f32(pj.y) - f32(qj.y));
-                dd = dd - plane_rise(n_p, texels * f32(1u << j), zoom);
+                // The slope along the ray through P's texel's centre (level-0 pixels).
+                let ray = ao_pixel_ray((vec2<f32>(pj) + 0.5) * f32(1u << j));
+                dd = dd - plane_rise(n_p, texels * f32(1u << j), zoom, ray);
             }
             // eq. 8, strict (occlusion::line_ao::occludes)
             let occ = select(0.0, 1.0, tq.w > 0.0 && dd > L.delta0);

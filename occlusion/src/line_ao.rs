@@ -14,7 +14,7 @@
 //! | eq. 7 radii `r0 + j z(P)`; §3.2.3 `r0 = 1.5 x` line width; eq. 16 `r0 = 1.5 z t_s` (tubes) | [`level_radius`], [`LineAoSettings::r0_pixels`], [`LineWidth`] | `main` (the width code of `fs_nd`), `engine::line_ao::guard_pixels` | `radii_follow_eq_7_and_eq_16` |
 //! | §3.4 random vectors `R1` (per pixel), `R2` (per sample and level) | [`rotation_angle`], [`pcg_hash`], [`sample_offset`], [`hemisphere_direction`] | `rotation_angle`, `pcg_hash`, `sample_offset`, `hemisphere_direction` | `the_rotation_is_a_fixed_function_of_pixel_and_seed`, `sample_offsets_fill_the_disc_and_differ_between_levels`, `hemisphere_directions_are_unit_and_face_the_normal` |
 //! | GPU against CPU, pixel for pixel | | | `engine/tests/line_ao_render.rs::the_gpu_kernel_agrees_with_its_cpu_twin` |
-//! | eq. 8 visibility (strict: `Δd > delta_0`; tangent plane) | [`occludes`], [`plane_rise`], [`Visibility`] | `main`, `plane_rise` | `an_isolated_line_on_an_empty_background_is_not_occluded` |
+//! | eq. 8 visibility (strict: `Δd > delta_0`; tangent plane, its slope along P's own ray) | [`occludes`], [`plane_rise`], [`pixel_ray`], [`Visibility`] | `main`, `plane_rise`, `ao_pixel_ray` | `an_isolated_line_on_an_empty_background_is_not_occluded`, `an_oblique_plane_in_perspective_does_not_occlude_itself` |
 //! | eq. 10-13 `g_depth` (eq. 12 with `Δd_l`), `delta(l) = (1 - l / s_r)^2`, `h(x) = 3x^2 - 2x^3` | [`delta`], [`LineAoSettings::delta`], [`smoothstep_h`], [`g_depth`] | `delta`, `smoothstep`, `g_depth` | `delta_is_1_4_9ths_1_9th_for_three_levels`, `g_depth_follows_eq_12`, `a_pixel_behind_a_uniform_wall_gets_1_minus_h_per_level` |
 //! | eq. 14-15 `g_light = 1 - min(1, Σ BRDF(L_s, I_s, n_l(P), ω))` | [`phong_brdf`], [`g_light`] | `phong_brdf`, `main` | `g_light_follows_eq_15_and_a_head_light_of_one_zeroes_it`, `a_pixel_behind_a_uniform_wall_gets_1_minus_h_per_level` |
 //! | eq. 4-7, 9: the level averages summed, clamped to [0, 1] | [`line_ao`], [`line_ao_image`], [`LineAoTerms`] | `main` (layer and factor channels) | the wall, `an_isolated_line_on_an_empty_background_is_not_occluded`, `all_samples_off_screen_and_one_level_give_finite_values` |
@@ -248,6 +248,10 @@ pub struct LineAoSettings {
     /// tangent plane's rise, in world units, becomes a normalised depth. Set by the pass from
     /// the camera; 1 by default.
     pub depth_range: f32,
+    /// The camera's focal length in pixels of the normal-depth map (perspective: `0.5 P11 H`;
+    /// its principal point the map's centre), or 0 for an orthographic camera (the default):
+    /// the tangent plane's slope at P follows P's own ray ([`plane_rise`]).
+    pub ray_focal: f32,
 }
 
 impl Default for LineAoSettings {
@@ -272,6 +276,7 @@ impl Default for LineAoSettings {
             intensity: 15.0,
             floor: 0.1,
             depth_range: 1.0,
+            ray_focal: 0.0,
         }
     }
 }
@@ -339,6 +344,9 @@ impl LineAoSettings {
         )?;
         require(finite_pos(self.depth_range), "depth_range", || {
             format!("{} is not a positive length", self.depth_range)
+        })?;
+        require(finite_nonneg(self.ray_focal), "ray_focal", || {
+            format!("{} is not a focal length in pixels (or 0)", self.ray_focal)
         })?;
         Ok(())
     }
@@ -461,15 +469,39 @@ pub fn phong_brdf(
 
 /// How far P's tangent plane (unit view-space normal `n`, facing the viewer) rises towards the
 /// eye at the screen offset `offset_px` (view axes: x right, y up; pixels), in normalised depth:
-/// `-(n.x o.x + n.y o.y) / (zoom max(n.z, 0.1) depth_range)` with `o` in world units `offset /
-/// zoom`. The nearest a sample's surface may be without occluding is the plane's depth there,
-/// `d(P) - rise`. `n.z` is kept at least 0.1 so a silhouette's plane, nearly along the view ray,
-/// stays finite; `zoom` not positive gives 0 (no plane).
-pub fn plane_rise(n: Vec3, offset_px: Vec2, zoom: f32, depth_range: f32) -> f32 {
+/// `-(n.x o.x + n.y o.y) / (zoom max(a, 0.1) depth_range)` with `o` in world units `offset /
+/// zoom` and `a = n.z - n.x r.x - n.y r.y`, `r` P's ray at unit depth (the eye looks along -z:
+/// the ray is `(r.x, r.y, -1)`; `r = 0` on the axis and for an orthographic camera).
+///
+/// Derivation: the plane through P = d r_P (d its depth along the axis) holds the points `t
+/// r_o` with `t = d a_P / a_o`, `a_o = -n . r_o`; on the screen, `r_o = r_P + o / f` (f the
+/// focal length in pixels, `zoom = f / d`), so `a_o = a_P - (n.x o.x + n.y o.y) / f` and, to
+/// first order in `o`, the plane's depth is `d - (n.x o.x + n.y o.y) / (zoom a_P)`. The
+/// exact depth lies beyond that line (`t` is convex in `o`), so a plane never occludes itself.
+/// Dividing by `n.z` instead of `a_P`, as before, is right only on the axis: a slice seen in
+/// perspective far off the axis darkened by itself. The nearest a sample's surface may be
+/// without occluding is the plane's depth there, `d(P) - rise`. `a` is kept at least 0.1 so a
+/// silhouette's plane, nearly along the ray, stays finite; `zoom` not positive gives 0.
+pub fn plane_rise(n: Vec3, offset_px: Vec2, zoom: f32, depth_range: f32, ray: Vec2) -> f32 {
     if !(zoom > 0.0 && zoom.is_finite()) {
         return 0.0;
     }
-    -(n.x * offset_px.x + n.y * offset_px.y) / (zoom * n.z.max(0.1) * depth_range)
+    let a = n.z - n.x * ray.x - n.y * ray.y;
+    -(n.x * offset_px.x + n.y * offset_px.y) / (zoom * a.max(0.1) * depth_range)
+}
+
+/// P's ray at unit depth for pixel centre `centre` of a `w x h` normal-depth map: `((x - w/2) /
+/// f, (h/2 - y) / f)` (view y up) with `f` = `ray_focal`; zero for an orthographic camera
+/// (`ray_focal` 0).
+pub fn pixel_ray(centre: Vec2, w: f32, h: f32, ray_focal: f32) -> Vec2 {
+    if ray_focal > 0.0 && ray_focal.is_finite() {
+        Vec2::new(
+            (centre.x - 0.5 * w) / ray_focal,
+            (0.5 * h - centre.y) / ray_focal,
+        )
+    } else {
+        Vec2::ZERO
+    }
 }
 
 /// A line's screen tangent as the pyramid stores it: `(cos 2θ, sin 2θ, |t.x|, 1)` for the unit
@@ -829,7 +861,11 @@ pub fn line_ao(
                 // Between the two texels' centres, where their depths hold (level-0 pixels,
                 // view y up).
                 let texels = Vec2::new(qx as f32 - pxj as f32, pyj as f32 - qy as f32);
-                dd -= plane_rise(n_p, texels * (1u32 << j) as f32, zoom, s.depth_range);
+                // The slope along the ray through P's texel's centre (level-0 pixels), where
+                // its depth and normal hold.
+                let tc = Vec2::new(pxj as f32 + 0.5, pyj as f32 + 0.5) * (1u32 << j) as f32;
+                let ray = pixel_ray(tc, w, h, s.ray_focal);
+                dd -= plane_rise(n_p, texels * (1u32 << j) as f32, zoom, s.depth_range, ray);
             }
             let occ = if occludes(lvl.is_surface(qx, qy), dd, s.delta0) {
                 1.0
@@ -1306,9 +1342,67 @@ mod tests {
             Vec2::new(8.0, 0.0),
             8.0,
             2.0,
+            Vec2::ZERO,
         );
         assert!((r - 0.5).abs() < 1e-6, "{r}");
-        assert_eq!(plane_rise(Vec3::Z, Vec2::new(3.0, 4.0), 0.0, 1.0), 0.0);
+        assert_eq!(
+            plane_rise(Vec3::Z, Vec2::new(3.0, 4.0), 0.0, 1.0, Vec2::ZERO),
+            0.0
+        );
+    }
+
+    /// An oblique plane seen in perspective (f = 100 px, a 128 x 128 map: 65 degrees across)
+    /// fills the map: its pixels' tangent planes, extrapolated along the rays through their
+    /// texels' centres, are never behind the plane's samples, so it is open (the exact depth of
+    /// a plane in perspective lies beyond the first-order extrapolation). With the axis' slope
+    /// for every pixel (`ray_focal` 0, the formula before) most of it darkens. At a grazing
+    /// tilt a few pixels keep some AO: a coarse level's texel takes P's zoom, not its own.
+    #[test]
+    fn an_oblique_plane_in_perspective_does_not_occlude_itself() {
+        let (w, f, near, far) = (128u32, 100.0f32, 1.0f32, 101.0f32);
+        let run = |n: Vec3, ray_focal: f32| {
+            let n = n.normalize();
+            let mut nd = NormalDepth::empty(w, w);
+            let mut zoom = vec![0.0f32; (w * w) as usize];
+            for y in 0..w {
+                for x in 0..w {
+                    let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                    let r = pixel_ray(c, w as f32, w as f32, f);
+                    // The plane through (0, 0, -10): depth t = 10 n.z / (n.z - n.x r.x - n.y r.y).
+                    let t = 10.0 * n.z / (n.z - n.x * r.x - n.y * r.y);
+                    assert!(t > 0.0 && t < far);
+                    nd.set(x, y, normalised_depth(t, near, far), n.into());
+                    zoom[(x + w * y) as usize] = f / t;
+                }
+            }
+            let s = LineAoSettings {
+                depth_range: far - near,
+                ray_focal,
+                ..Default::default()
+            };
+            let img = line_ao_image(&nd, |x, y| zoom[(x + w * y) as usize], &s);
+            let worst = img.iter().map(|t| t.ao).fold(0.0f32, f32::max);
+            let mean = img.iter().map(|t| t.ao).sum::<f32>() / img.len() as f32;
+            let dark = img.iter().filter(|t| t.ao > 0.01).count();
+            (worst, mean, dark)
+        };
+        let oblique = Vec3::new(0.5, 0.25, 0.83);
+        let (worst, _, _) = run(oblique, f);
+        assert!(worst < 1e-3, "the plane occludes itself: AO up to {worst}");
+        let (_, mean, dark) = run(oblique, 0.0);
+        assert!(
+            mean > 0.3 && dark > 10_000,
+            "the axis' slope: mean {mean}, {dark} dark"
+        );
+        // Grazing (n . ray down to 0.2 in a corner): at most 0.1% of the pixels above 0.01.
+        let grazing = Vec3::new(0.6, 0.3, 0.74);
+        let (_, mean, dark) = run(grazing, f);
+        assert!(
+            mean < 1e-3 && dark <= 16,
+            "grazing: mean {mean}, {dark} dark"
+        );
+        let (_, mean_old, _) = run(grazing, 0.0);
+        assert!(mean_old > 0.5, "{mean_old}");
     }
 
     #[test]

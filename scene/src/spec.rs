@@ -713,7 +713,9 @@ impl LineAoSpec {
                 },
                 intensity: self.intensity as f32,
                 floor: self.floor as f32,
+                // Camera quantities: the pass takes them from the camera.
                 depth_range: 1.0,
+                ray_focal: 0.0,
             },
             guard: self.guard,
             shading: self.shading,
