@@ -200,6 +200,26 @@ fn trace_follows_a_synthetic_field_into_a_tractogram() {
     }
 }
 
+/// A negative bundle radius reaches the generator's check (not clap's "unexpected argument"),
+/// which names the key and the value, and nothing is written.
+#[test]
+fn a_negative_bundle_radius_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let tck = dir.path().join("b.tck");
+    let out = umbra()
+        .args(["synth", "bundles", "--n", "10", "--radius", "-1", "-o"])
+        .arg(&tck)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("radius -1") && err.contains(">= 0") && !err.contains("unexpected"),
+        "{err}"
+    );
+    assert!(!tck.exists());
+}
+
 /// Issue 18: a tractogram whose tube mesh would not fit is refused before meshing, with the
 /// memory it would need (estimated from a mesh of 1000 of its streamlines): 30,000 synthetic
 /// streamlines with 64-sided tubes need about 3 GB; under a 1 GB address-space limit

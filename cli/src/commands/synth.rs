@@ -53,7 +53,7 @@ pub struct Args {
     #[arg(long)]
     bundles: Option<usize>,
     /// bundles: a bundle's cross-section radius in mm (default 6).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     radius: Option<f64>,
     /// bundles: the random seed (default 1).
     #[arg(long)]
