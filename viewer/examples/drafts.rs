@@ -39,6 +39,7 @@ fn main() -> Result<(), String> {
             scene: s.clone(),
             level: Level::Draft,
             save: None,
+            pass_timings: false,
         })?;
         println!(
             "draft {i:3}: {:7.1} ms frame ({}), {:7.1} ms call, {} x {}; {}",
@@ -59,6 +60,7 @@ fn main() -> Result<(), String> {
         scene: s.clone(),
         level: Level::Full,
         save: None,
+        pass_timings: false,
     })?;
     println!(
         "full: {:.1} ms, {} x {}",

@@ -49,6 +49,8 @@ pub struct App {
     on_first_image: Option<crate::OnFirstImage>,
     /// Told of every window frame and shown image.
     on_event: Option<crate::OnEvent>,
+    /// Whether full images time each pass (drawing them twice on lavapipe).
+    time_passes: bool,
 }
 
 /// What the shown image was.
@@ -97,6 +99,7 @@ impl App {
             message: None,
             on_first_image,
             on_event: None,
+            time_passes: false,
         }
     }
 
@@ -154,6 +157,7 @@ impl App {
             scene,
             level,
             save,
+            pass_timings: self.time_passes,
         });
         self.asked = Some((self.next_id, level));
     }
@@ -501,6 +505,17 @@ impl App {
             ));
             for (p, ms) in &i.passes {
                 ui.label(format!("  {p} {ms:.1} ms"));
+            }
+            if ui
+                .checkbox(&mut self.time_passes, "time each pass")
+                .on_hover_text(
+                    "the full image's passes timed one by one: on adapters without timestamp \
+                     queries (lavapipe) the renderer draws the image a second time",
+                )
+                .changed()
+                && self.time_passes
+            {
+                self.full_pending = true;
             }
             ui.label(format!("on {}", i.device));
             for n in &i.notes {

@@ -95,6 +95,9 @@ pub struct Request {
     pub scene: Scene,
     pub level: Level,
     pub save: Option<(std::path::PathBuf, bool)>,
+    /// Time each pass of a full image (the renderer draws it a second time pass by pass, on
+    /// adapters without timestamp queries); drafts never do.
+    pub pass_timings: bool,
 }
 
 /// A drawn frame: 8-bit sRGB RGBA (rows top to bottom), what it took and what the renderer
@@ -435,8 +438,8 @@ pub fn draw_with(
         m,
         DrawOptions {
             frames: 1,
-            // Timing each pass draws it again: full images only (drafts show their total).
-            pass_timings: req.level == Level::Full,
+            // Timing each pass draws it again: full images only, when asked for.
+            pass_timings: req.pass_timings && req.level == Level::Full,
         },
     )?;
     let saved = req.save.as_ref().map(|(path, aov)| {

@@ -27,6 +27,7 @@ fn frame(
         scene: scene.clone(),
         level,
         save: None,
+        pass_timings: false,
     };
     draw(up, m, &req).unwrap()
 }
@@ -112,6 +113,27 @@ fn the_orbit_draws_the_scene_with_those_camera_keys_and_drafts_are_cheap() {
     let draft = frame(&up, &m, &state, Level::Draft);
     assert_eq!(draft.size, [24, 18]);
     assert_eq!(draft.rgba.len(), 24 * 18 * 4);
+    // Passes are timed only for a full image that asks for it (drafts never: on lavapipe the
+    // timing draws every pass again); the image is the same.
+    assert!(full.passes.is_empty() && draft.passes.is_empty());
+    let timed = |level| {
+        draw(
+            &up,
+            &m,
+            &Request {
+                id: 1,
+                scene: state.clone(),
+                level,
+                save: None,
+                pass_timings: true,
+            },
+        )
+        .unwrap()
+    };
+    let t = timed(Level::Full);
+    assert!(!t.passes.is_empty(), "{:?}", t.passes);
+    assert_eq!(t.rgba, full.rgba);
+    assert!(timed(Level::Draft).passes.is_empty());
 }
 
 #[test]
@@ -134,6 +156,7 @@ fn a_screenshot_is_what_umbra_render_draws_of_the_saved_scene() {
             scene: state.clone(),
             level: Level::Full,
             save: Some((shot.clone(), false)),
+            pass_timings: false,
         },
     )
     .unwrap();
@@ -162,6 +185,7 @@ fn a_screenshot_is_what_umbra_render_draws_of_the_saved_scene() {
             scene: state,
             level: Level::Full,
             save: Some((dir.path().join("blocker/x.png"), false)),
+            pass_timings: false,
         },
     )
     .unwrap();
@@ -186,6 +210,7 @@ fn the_session_rebuilds_for_opened_files_and_survives_bad_settings() {
             scene: scene.clone(),
             level: Level::Full,
             save: None,
+            pass_timings: false,
         })
     };
     let first = frame(&mut session, &s).unwrap();
