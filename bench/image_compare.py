@@ -1,0 +1,46 @@
+"""Compare PNG images as the docs quote them (docs/gallery.md, README).
+
+  python3 bench/image_compare.py diff A.png B.png
+      mean and 99th percentile of the per-pixel mean absolute RGB difference, in 8-bit levels,
+      and how many pixels differ by more than 8 levels.
+  python3 bench/image_compare.py darkened REF.png IMG.png [--background 250]
+      the pixels of REF darker than BACKGROUND in grey (what is drawn on a white background),
+      and how many of them IMG draws at less than half REF's grey level (darkened)."""
+import argparse
+import numpy as np
+from PIL import Image
+
+
+def load(path, mode):
+    return np.asarray(Image.open(path).convert(mode), dtype=float)
+
+
+def main():
+    p = argparse.ArgumentParser()
+    sub = p.add_subparsers(dest='what', required=True)
+    d = sub.add_parser('diff')
+    d.add_argument('a')
+    d.add_argument('b')
+    k = sub.add_parser('darkened')
+    k.add_argument('ref')
+    k.add_argument('img')
+    k.add_argument('--background', type=float, default=250.0)
+    a = p.parse_args()
+    if a.what == 'diff':
+        x, y = load(a.a, 'RGB'), load(a.b, 'RGB')
+        if x.shape != y.shape:
+            raise SystemExit(f'{a.a} is {x.shape[1]} x {x.shape[0]}, {a.b} {y.shape[1]} x {y.shape[0]}')
+        e = np.abs(x - y).mean(axis=2)
+        print(f'mean {e.mean():.2f} levels, 99th percentile {np.percentile(e, 99):.1f}, '
+              f'{int((e > 8).sum())} of {e.size} pixels differ by more than 8')
+    else:
+        ref, img = load(a.ref, 'L'), load(a.img, 'L')
+        if ref.shape != img.shape:
+            raise SystemExit(f'{a.ref} and {a.img} differ in size')
+        drawn = ref < a.background
+        dark = (img < 0.5 * ref) & drawn
+        print(f'{int(dark.sum())} of {int(drawn.sum())} drawn pixels darkened below half')
+
+
+if __name__ == '__main__':
+    main()
