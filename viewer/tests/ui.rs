@@ -14,6 +14,44 @@ use std::time::{Duration, Instant};
 use umbra_viewer::app::App;
 use umbra_viewer::worker::Level;
 
+/// The transfer-function editor a test window gets.
+enum WithEditor {
+    No,
+    OneD,
+    /// With the value x gradient histogram (checked not empty).
+    TwoD,
+}
+
+/// The window on the scene file `path`, `size` points, its worker started as `umbra view`
+/// starts it, with the editor `editor` asks for (64 value bins, 128 x 64 for the 2-D one).
+fn window(path: &std::path::Path, size: [f32; 2], editor: WithEditor) -> Harness<'static, App> {
+    let s = scene::spec::load(path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let bounds = m.bounds;
+    let range = umbra_viewer::worker::data_range(&m);
+    let one_d = || {
+        umbra_viewer::transfer::Editor::new(range, umbra_viewer::worker::histogram(&m, range, 64))
+    };
+    let editor = match editor {
+        WithEditor::No => None,
+        WithEditor::OneD => Some(one_d()),
+        WithEditor::TwoD => {
+            let h2 = umbra_viewer::worker::histogram2d(&m, range, 128, 64);
+            assert!(h2.gmax > 0.0 && h2.counts.iter().sum::<u64>() > 100_000);
+            Some(one_d().with_2d(h2))
+        }
+    };
+    let worker = umbra_viewer::worker::start(m, &s, || {});
+    let quit = Arc::new(AtomicBool::new(false));
+    let mut app = App::new(s, bounds, worker, quit, None);
+    if let Some(e) = editor {
+        app = app.with_editor(e);
+    }
+    Harness::builder()
+        .with_size(egui::vec2(size[0], size[1]))
+        .build_ui_state(|ui, app: &mut App| app.show_ui(ui), app)
+}
+
 #[test]
 fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_image() {
     let dir = tempfile::tempdir().unwrap();
@@ -23,20 +61,7 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
         "bone",
         "method = \"ea\"\nfxaa = false\n",
     );
-    let s = scene::spec::load(&path, &[]).unwrap();
-    let m = scene::compile::model(&s).unwrap();
-    let bounds = m.bounds;
-    let range = umbra_viewer::worker::data_range(&m);
-    let editor =
-        umbra_viewer::transfer::Editor::new(range, umbra_viewer::worker::histogram(&m, range, 64));
-    let worker = umbra_viewer::worker::start(m, &s, || {});
-    let quit = Arc::new(AtomicBool::new(false));
-    let mut h = Harness::builder()
-        .with_size(egui::vec2(900.0, 800.0))
-        .build_ui_state(
-            |ui, app: &mut App| app.show_ui(ui),
-            App::new(s.clone(), bounds, worker, quit, None).with_editor(editor),
-        );
+    let mut h = window(&path, [900.0, 800.0], WithEditor::OneD);
     h.run_steps(3);
     let az0 = h.state().orbit.azimuth;
     // A drag of 100 points to the right over the view turns the azimuth by -40 degrees.
@@ -127,17 +152,7 @@ fn the_file_dialog_opens_a_tractogram_and_its_rotation_turns_it_about_the_pivot(
     )
     .unwrap();
     std::fs::write(files.join("notes.txt"), "not data").unwrap();
-    let s = scene::spec::load(&path, &[]).unwrap();
-    let m = scene::compile::model(&s).unwrap();
-    let bounds = m.bounds;
-    let worker = umbra_viewer::worker::start(m, &s, || {});
-    let quit = Arc::new(AtomicBool::new(false));
-    let mut h = Harness::builder()
-        .with_size(egui::vec2(900.0, 800.0))
-        .build_ui_state(
-            |ui, app: &mut App| app.show_ui(ui),
-            App::new(s.clone(), bounds, worker, quit, None),
-        );
+    let mut h = window(&path, [900.0, 800.0], WithEditor::No);
     h.run_steps(2);
     h.get_by_label("objects").click_accesskit();
     h.run_steps(2);
@@ -204,23 +219,7 @@ fn the_file_dialog_opens_a_tractogram_and_its_rotation_turns_it_about_the_pivot(
 fn the_value_gradient_tab_adds_and_moves_rows_over_the_histogram() {
     let dir = tempfile::tempdir().unwrap();
     let path = test_support::headsq_scene(dir.path(), "", "bone", "method = \"ea\"\n");
-    let s = scene::spec::load(&path, &[]).unwrap();
-    let m = scene::compile::model(&s).unwrap();
-    let bounds = m.bounds;
-    let range = umbra_viewer::worker::data_range(&m);
-    let h2 = umbra_viewer::worker::histogram2d(&m, range, 128, 64);
-    assert!(h2.gmax > 0.0 && h2.counts.iter().sum::<u64>() > 100_000);
-    let editor =
-        umbra_viewer::transfer::Editor::new(range, umbra_viewer::worker::histogram(&m, range, 64))
-            .with_2d(h2);
-    let worker = umbra_viewer::worker::start(m, &s, || {});
-    let quit = Arc::new(AtomicBool::new(false));
-    let mut h = Harness::builder()
-        .with_size(egui::vec2(900.0, 900.0))
-        .build_ui_state(
-            |ui, app: &mut App| app.show_ui(ui),
-            App::new(s.clone(), bounds, worker, quit, None).with_editor(editor),
-        );
+    let mut h = window(&path, [900.0, 900.0], WithEditor::TwoD);
     h.run_steps(2);
     h.get_by_label("value × gradient").click_accesskit();
     h.run_steps(2);
@@ -274,17 +273,7 @@ fn the_value_gradient_tab_adds_and_moves_rows_over_the_histogram() {
 fn the_lineao_section_edits_render_lineao_and_the_saved_scene_keeps_it() {
     let dir = tempfile::tempdir().unwrap();
     let path = test_support::headsq_scene(dir.path(), "", "bone", "method = \"ea\"\n");
-    let s = scene::spec::load(&path, &[]).unwrap();
-    let m = scene::compile::model(&s).unwrap();
-    let bounds = m.bounds;
-    let worker = umbra_viewer::worker::start(m, &s, || {});
-    let quit = Arc::new(AtomicBool::new(false));
-    let mut h = Harness::builder()
-        .with_size(egui::vec2(900.0, 1400.0))
-        .build_ui_state(
-            |ui, app: &mut App| app.show_ui(ui),
-            App::new(s.clone(), bounds, worker, quit, None),
-        );
+    let mut h = window(&path, [900.0, 1400.0], WithEditor::No);
     h.run_steps(2);
     h.get_by_label("LineAO").click_accesskit();
     h.run_steps(2);
