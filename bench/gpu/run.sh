@@ -18,6 +18,7 @@ export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
 LOG=$OUT/log.txt
 TAR=$OUT/results.tar
 exec > >(tee -a "$LOG") 2>&1
+. "$(dirname "$0")/../bundles_scene.sh"
 
 say() { echo "== $(date -u +%T) t=${SECONDS}s $*"; }
 # left N: true when at least N seconds are left before the deadline
@@ -67,21 +68,7 @@ fi
 # 2. LineAO (Eichelbaum et al. 2013, Table 1: GTX 480, 1280 x 1024): illuminated against LineAO
 if left 100 "lineao table"; then
   for n in 1000 3600; do
-    "$U" synth bundles --n 1000 --points $n -o "$W/syn_1000x$n.tck" > /dev/null
-    cat > "$W/syn_1000x$n.toml" <<SCENE
-background = [1.0, 1.0, 1.0]
-[camera]
-azimuth = -125.0
-elevation = 30.0
-[[lines]]
-path = "syn_1000x$n.tck"
-color = "direction"
-width = 2.0
-[render]
-method = "lineao"
-width = 1280
-height = 1024
-SCENE
+    bundles_scene "$U" "$W" "syn_1000x$n" 1000 $n 2.0 1280 1024
   done
   for m in illuminated lineao; do
     frame "eich_hcp10_$m" bench/scenes/hcp1065_lineao.toml --method $m --width 1280 --height 1024
@@ -135,21 +122,7 @@ fi
 
 # 5. Issue 18 at GPU scale: 10^8 points (10^6 streamlines x 100) as LineAO lines, 1024 x 768
 if left 120 "lines 1e8"; then
-  "$U" synth bundles --n 1000000 --points 100 -o "$W/b1e8.tck" > /dev/null
-  cat > "$W/b1e8.toml" <<SCENE
-background = [1.0, 1.0, 1.0]
-[camera]
-azimuth = -125.0
-elevation = 30.0
-[[lines]]
-path = "b1e8.tck"
-color = "direction"
-width = 1.0
-[render]
-method = "lineao"
-width = 1024
-height = 768
-SCENE
+  bundles_scene "$U" "$W" b1e8 1000000 100 1.0 1024 768
   peak "lines_1e8" 110 "$U" render "$W/b1e8.toml" -o "$W/b1e8.png" --frames 3 --timings-json "$W/b1e8.json"
   cat "$W/b1e8.json" | tr -d '\n '; echo
   keep b1e8.json

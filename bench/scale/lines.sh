@@ -8,21 +8,8 @@ OUT=$1; N=$2; P=$3
 U=$(pwd)/target/release/umbra
 HERE=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$OUT"
-$U synth bundles --n "$N" --points "$P" -o "$OUT/bundles.tck"
-cat > "$OUT/bundles.toml" <<SCENE
-background = [1.0, 1.0, 1.0]
-[camera]
-azimuth = -125.0
-elevation = 30.0
-[[lines]]
-path = "bundles.tck"
-color = "direction"
-width = 1.0
-[render]
-method = "lineao"
-width = 1024
-height = 768
-SCENE
+. "$HERE/../bundles_scene.sh"
+bundles_scene "$U" "$OUT" bundles "$N" "$P" 1.0 1024 768
 XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp} "$HERE/memwatch.sh" "$OUT/render.log" \
   /usr/bin/time -f "%e s %M KB" prlimit --as=8000000000 "$U" render "$OUT/bundles.toml" -o "$OUT/bundles.png"
 tail -3 "$OUT/render.log.out"
