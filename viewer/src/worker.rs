@@ -244,7 +244,8 @@ pub fn value_gradient_histogram(
         gmax: 0.0,
     };
     let [nx, ny, nz] = dims;
-    if nx * ny * nz != data.len() || data.is_empty() || affine.determinant() == 0.0 {
+    let det = affine.determinant();
+    if nx * ny * nz != data.len() || data.is_empty() || !(det.is_finite() && det != 0.0) {
         return h;
     }
     let jt = glam::DMat3::from_mat4(affine.inverse()).transpose();
@@ -611,6 +612,10 @@ mod tests {
         let h2 = value_gradient_histogram([n; 3], affine, &gap, [lo, hi], 32, 16);
         assert_eq!(h2.counts.iter().sum::<u64>(), (n * n * n - 7) as u64);
         // No volume, a flat one: nothing, gradient range 0.
+        let mut bad = affine;
+        bad.x_axis.x = f64::NAN;
+        let nan = value_gradient_histogram([n; 3], bad, &data, [lo, hi], 8, 8);
+        assert_eq!((nan.counts.iter().sum::<u64>(), nan.gmax), (0, 0.0));
         let none = value_gradient_histogram([0; 3], glam::DMat4::IDENTITY, &[], [0.0, 1.0], 8, 8);
         assert_eq!((none.counts.iter().sum::<u64>(), none.gmax), (0, 0.0));
         let flat = value_gradient_histogram([4; 3], affine, &[1.0; 64], [0.0, 2.0], 8, 8);
