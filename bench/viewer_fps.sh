@@ -6,10 +6,10 @@
 # go, waits for the full image of the new view, and prints from the log: drafts shown a second
 # and window frames a second while the drafts came, and the time from the last draft to the
 # full image. From the repository root after `cargo build --release`; needs Xvfb and xdotool
-# (scripts/setup.sh).
+# (scripts/setup.sh). UMBRA_BIN=PATH runs another build of umbra (A/B runs).
 set -e
 SCENE=$1; OUT=$2; DRAG=${3:-6}
-U=$(pwd)/target/release/umbra
+U=${UMBRA_BIN:-$(pwd)/target/release/umbra}
 mkdir -p "$OUT"
 rm -f "$OUT/log.csv" "$OUT/stderr.txt"
 D=:$((90 + RANDOM % 100))
@@ -27,7 +27,8 @@ wait_full 0
 n=$(fulls)
 export DISPLAY=$D
 xdotool mousemove 600 300 mousedown 1
-for _ in $(seq $((DRAG * 20))); do xdotool mousemove_relative -- 3 1; sleep 0.05; done
+# One xdotool process for the whole drag (a process a step took about a third of the CPU).
+xdotool $(for _ in $(seq $((DRAG * 20))); do printf 'mousemove_relative -- 3 1 sleep 0.05 '; done)
 xdotool mouseup 1
 wait_full "$n"
 kill $VPID; wait $VPID 2>/dev/null || true

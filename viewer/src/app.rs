@@ -51,6 +51,10 @@ pub struct App {
     on_event: Option<crate::OnEvent>,
     /// Whether full images time each pass (drawing them twice on lavapipe).
     time_passes: bool,
+    /// The shortest time between window frames that show no new image (see [`App::paced`]),
+    /// and when the last frame began.
+    pace: Option<Duration>,
+    last_frame: Instant,
 }
 
 /// What the shown image was.
@@ -98,6 +102,8 @@ impl App {
             keys: vec![],
             message: None,
             on_first_image,
+            pace: None,
+            last_frame: Instant::now(),
             on_event: None,
             time_passes: false,
         }
@@ -106,6 +112,17 @@ impl App {
     /// With `f` told of every window frame and every image shown.
     pub fn with_events(mut self, f: crate::OnEvent) -> App {
         self.on_event = Some(f);
+        self
+    }
+
+    /// Window frames that show no new image at most every `interval`: a frame waits (up to
+    /// the rest of `interval` since the last one) for the worker's next image. For windows
+    /// drawn by a CPU adapter, where a window frame takes as much of the machine as a draft
+    /// (egui's layers on llvmpipe: about 100 ns a pixel, 55 ms of CPU at 900 x 600): eframe
+    /// draws a frame for every input event, and unpaced frames took the cores the drafts
+    /// need (docs/benchmarks.md, "Interactive viewer").
+    pub fn paced(mut self, interval: Duration) -> App {
+        self.pace = Some(interval);
         self
     }
 
@@ -200,13 +217,22 @@ impl App {
         self.ask(Level::Draft);
     }
 
-    fn receive(&mut self, ctx: &egui::Context) {
-        while let Ok(r) = self.worker.images.try_recv() {
+    /// Takes the worker's finished images, waiting up to `wait` for one when none is there;
+    /// whether one came.
+    fn receive(&mut self, ctx: &egui::Context, wait: Duration) -> bool {
+        let mut next = match wait.is_zero() {
+            true => self.worker.images.try_recv().ok(),
+            false => self.worker.images.recv_timeout(wait).ok(),
+        };
+        let got = next.is_some();
+        while let Some(r) = next.take() {
+            next = self.worker.images.try_recv().ok();
             match r {
                 Err(e) => self.error = Some(e),
                 Ok(img) => self.show(ctx, img),
             }
         }
+        got
     }
 
     fn show(&mut self, ctx: &egui::Context, img: Image) {
@@ -583,7 +609,8 @@ impl App {
         if self.quit.load(Ordering::Relaxed) {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
         }
-        self.receive(&ctx);
+        let start = Instant::now();
+        let fresh = self.receive(&ctx, Duration::ZERO);
         let mut changed = false;
         // Files dropped on the window or chosen in the file dialog join the scene.
         let mut dropped: Vec<std::path::PathBuf> = ctx.input(|i| {
@@ -608,39 +635,58 @@ impl App {
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| changed |= self.panel(ui));
             });
-        egui::CentralPanel::default().show(ui, |ui| {
-            let rect = ui.available_rect_before_wrap();
-            let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
-            if let Some(t) = &self.texture {
-                ui.painter().image(
-                    t.id(),
-                    rect,
-                    egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
-                    egui::Color32::WHITE,
+        // No fill under the view (the image covers it): on a CPU adapter every layer of the
+        // window's pixels costs as much as the image, about 25 ms a frame at 900 x 600.
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ui, |ui| {
+                let rect = ui.available_rect_before_wrap();
+                let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+                if let Some(t) = &self.texture {
+                    ui.painter().image(
+                        t.id(),
+                        rect,
+                        egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                        egui::Color32::WHITE,
+                    );
+                }
+                self.triad(ui.painter(), rect);
+                // The render follows the view's size in physical pixels.
+                let ppp = ctx.pixels_per_point();
+                let (w, h) = (
+                    ((rect.width() * ppp).round() as u32).max(16),
+                    ((rect.height() * ppp).round() as u32).max(16),
                 );
-            }
-            self.triad(ui.painter(), rect);
-            // The render follows the view's size in physical pixels.
-            let ppp = ctx.pixels_per_point();
-            let (w, h) = (
-                ((rect.width() * ppp).round() as u32).max(16),
-                ((rect.height() * ppp).round() as u32).max(16),
-            );
-            if (w, h) != (self.scene.render.width, self.scene.render.height) {
-                self.scene.render.width = w;
-                self.scene.render.height = h;
-                changed = true;
-            }
-            changed |= self.input(ui, &response);
-        });
+                if (w, h) != (self.scene.render.width, self.scene.render.height) {
+                    self.scene.render.width = w;
+                    self.scene.render.height = h;
+                    changed = true;
+                }
+                changed |= self.input(ui, &response);
+            });
         if changed {
             self.changed();
         } else if self.full_pending && self.last_input.elapsed() >= REST {
             self.full_pending = false;
             self.ask(Level::Full);
         }
-        // Keep ticking: the rest timer, the quit flag.
-        ctx.request_repaint_after(Duration::from_millis(100));
+        // A frame only when something waits: the rest timer here, new images through the
+        // worker's wake, the quit flag through its watcher (lib.rs), input through eframe. On
+        // a CPU adapter a window frame costs about 140 ns a pixel (egui's shader on llvmpipe:
+        // 76 ms at 900 x 600), so ticking while idle took CPU from the renders.
+        if self.full_pending {
+            ctx.request_repaint_after(REST.saturating_sub(self.last_input.elapsed()));
+        }
+        // Paced (a CPU adapter): the request of this frame's input is on its way; a frame
+        // without a new image waits for the one being drawn (up to the pace since the last
+        // frame) and is drawn with it, so that the window and the worker take turns on the
+        // cores rather than slowing each other (each spreads its work over all of them).
+        let drawing = !self.shown_scenes.is_empty();
+        if let (Some(pace), false, true) = (self.pace, fresh, drawing) {
+            let since = self.last_frame.min(start).elapsed();
+            self.receive(&ctx, pace.saturating_sub(since));
+        }
+        self.last_frame = start;
         if let Some(f) = &mut self.on_event {
             f(&crate::ViewEvent::Frame);
         }

@@ -94,8 +94,15 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
             options,
             Box::new(move |cc| {
                 let ctx = cc.egui_ctx.clone();
+                watch_quit(quit.clone(), ctx.clone());
                 let worker = worker::start(m, &s, move || ctx.request_repaint());
                 let mut app = app::App::new(s, bounds, worker, quit, on_first).with_editor(editor);
+                let cpu = cc.wgpu_render_state.as_ref().is_some_and(|r| {
+                    r.adapter.get_info().device_type == eframe::wgpu::DeviceType::Cpu
+                });
+                if cpu {
+                    app = app.paced(PACE_CPU);
+                }
                 if let Some(f) = on_event {
                     app = app.with_events(f);
                 }
@@ -109,6 +116,23 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
         Err(p) if window_gone(&panic_text(&*p)) => Ok(()),
         Err(p) => std::panic::resume_unwind(p),
     }
+}
+
+/// The shortest time between window frames without a new image when the window is drawn
+/// by a CPU adapter ([`app::App::paced`]).
+pub const PACE_CPU: std::time::Duration = std::time::Duration::from_millis(100);
+
+/// Wakes the window once SIGINT or SIGTERM set `quit` (the window draws frames only when
+/// something happens; its next frame closes it), polling the flag every 100 ms.
+fn watch_quit(quit: Arc<AtomicBool>, ctx: eframe::egui::Context) {
+    let _ = std::thread::Builder::new()
+        .name("umbra quit".into())
+        .spawn(move || loop {
+            if quit.load(std::sync::atomic::Ordering::Relaxed) {
+                ctx.request_repaint();
+            }
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        });
 }
 
 /// A panic's message, where it is text.
