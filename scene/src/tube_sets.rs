@@ -130,12 +130,12 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
             ));
         }
     }
-    let (mesh, st) = build_mesh(&s, a)?;
+    let mut warnings = std::mem::take(&mut s.warnings);
+    let (mesh, st) = build_mesh_owned(s, a)?;
     let t_compute = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
     tubes::mesh_io::write(&a.output, &mesh).map_err(|e| e.to_string())?;
     let t_write = t2.elapsed().as_secs_f64();
-    let mut warnings = s.warnings.clone();
     if st.dropped_points > 0 {
         warnings.push(format!(
             "{} NaN or repeated points were dropped",
@@ -307,7 +307,29 @@ pub fn with_color_map_of<R>(
 /// The tube mesh of `s` with the options of `a` (its paths are not used): the colour source
 /// resolved ([`with_color_mode`]), then `tubes::tube_mesh::build`.
 pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, TubeStats), String> {
-    with_color_map(s, &a.color, a.colormap, |color| {
+    let names: Vec<String> = s.point_attributes.iter().map(|x| x.name.clone()).collect();
+    mesh_with(&names, a, |opts| build(s, opts))
+}
+
+/// [`build_mesh`] taking the streamlines: their points are freed before the mesh is allocated
+/// (`tubes::tube_mesh::build_owned`), which lowers the peak memory of `umbra tubes`.
+pub fn build_mesh_owned(
+    s: tubes::Streamlines,
+    a: &TubesArgs,
+) -> Result<(TubeMesh, TubeStats), String> {
+    let names: Vec<String> = s.point_attributes.iter().map(|x| x.name.clone()).collect();
+    mesh_with(&names, a, |opts| tubes::tube_mesh::build_owned(s, opts))
+}
+
+/// The options of `a` for streamlines with per-point attributes `names`, given to `mesh`, and
+/// the check of what it made.
+fn mesh_with(
+    names: &[String],
+    a: &TubesArgs,
+    mesh: impl FnOnce(&TubeOptions) -> (TubeMesh, TubeStats),
+) -> Result<(TubeMesh, TubeStats), String> {
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    with_color_map_of(&names, &a.color, a.colormap, |color| {
         let opts = TubeOptions {
             radius: a.radius,
             sides: a.sides,
@@ -325,7 +347,7 @@ pub fn build_mesh(s: &tubes::Streamlines, a: &TubesArgs) -> Result<(TubeMesh, Tu
             color: color.clone(),
         };
         opts.check()?;
-        let (mesh, st) = build(s, &opts);
+        let (mesh, st) = mesh(&opts);
         // A non-empty input that gives no triangle: the radius is beyond what the lines'
         // curvature allows everywhere (the mesher cuts a tube where even 1/1000 of the radius
         // would fold), or every line is degenerate; say so rather than write an empty mesh.

@@ -845,6 +845,28 @@ fn tube(
 
 /// Builds the tube mesh of all streamlines (in parallel) and its statistics.
 pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
+    prepare(s, o).emit(o)
+}
+
+/// [`build`] taking the streamlines: their points are freed once every tube's rings are
+/// known, before the mesh buffers are allocated, so the points and the mesh are never held
+/// together (the peak is the rings and the mesh).
+pub fn build_owned(s: Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
+    let p = prepare(&s, o);
+    drop(s);
+    p.emit(o)
+}
+
+/// Every tube piece's rings, and the statistics so far: what [`Prepared::emit`] writes.
+struct Prepared {
+    origin: DVec3,
+    flat: Vec<Rings>,
+    stats: TubeStats,
+}
+
+/// The first half of [`build`]: cleans, splits and fits every streamline (in parallel) into
+/// the rings of its tube pieces.
+fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
     let origin = s
         .bounds()
         .map(|[lo, hi]| ((lo + hi) * 0.5).as_dvec3())
@@ -932,11 +954,6 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
             (out, st)
         })
         .collect();
-    let mut mesh = TubeMesh {
-        origin,
-        radius: o.radius,
-        ..Default::default()
-    };
     let mut stats = TubeStats {
         min_section_ratio: f64::INFINITY,
         ..Default::default()
@@ -960,62 +977,84 @@ pub fn build(s: &Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
             flat.push(p);
         }
     }
-    // Write every piece straight into the mesh buffers, in parallel: each piece gets its own
-    // disjoint parts of the (uninitialised) buffers, found by prefix sums of its counts.
-    let nv: usize = flat.iter().map(|p| p.vertices).sum();
-    let ni: usize = flat.iter().map(|p| p.indices).sum();
-    assert!(
-        nv <= u32::MAX as usize,
-        "{nv} vertices do not fit 32-bit indices"
-    );
-    let mut positions: Vec<Vec3> = Vec::with_capacity(nv);
-    let mut normals: Vec<Vec3> = Vec::with_capacity(nv);
-    let mut colors: Vec<[u8; 3]> = Vec::with_capacity(nv);
-    let mut indices: Vec<u32> = Vec::with_capacity(ni);
-    volume::memory::advise_huge(positions.spare_capacity_mut());
-    volume::memory::advise_huge(normals.spare_capacity_mut());
-    volume::memory::advise_huge(colors.spare_capacity_mut());
-    volume::memory::advise_huge(indices.spare_capacity_mut());
-    {
-        let mut jobs = Vec::with_capacity(flat.len());
-        let (mut pos, mut nor, mut col, mut idx) = (
-            &mut positions.spare_capacity_mut()[..nv],
-            &mut normals.spare_capacity_mut()[..nv],
-            &mut colors.spare_capacity_mut()[..nv],
-            &mut indices.spare_capacity_mut()[..ni],
+    Prepared {
+        origin,
+        flat,
+        stats,
+    }
+}
+
+impl Prepared {
+    /// The second half of [`build`]: the mesh buffers, allocated once, every piece written
+    /// straight into them.
+    fn emit(self, o: &TubeOptions) -> (TubeMesh, TubeStats) {
+        let Prepared {
+            origin,
+            flat,
+            mut stats,
+        } = self;
+        let mut mesh = TubeMesh {
+            origin,
+            radius: o.radius,
+            ..Default::default()
+        };
+        // Write every piece straight into the mesh buffers, in parallel: each piece gets its own
+        // disjoint parts of the (uninitialised) buffers, found by prefix sums of its counts.
+        let nv: usize = flat.iter().map(|p| p.vertices).sum();
+        let ni: usize = flat.iter().map(|p| p.indices).sum();
+        assert!(
+            nv <= u32::MAX as usize,
+            "{nv} vertices do not fit 32-bit indices"
         );
-        let mut first = 0u32;
-        for p in &flat {
-            let (a, rest) = std::mem::take(&mut pos).split_at_mut(p.vertices);
-            pos = rest;
-            let (b, rest) = std::mem::take(&mut nor).split_at_mut(p.vertices);
-            nor = rest;
-            let (c, rest) = std::mem::take(&mut col).split_at_mut(p.vertices);
-            col = rest;
-            let (d, rest) = std::mem::take(&mut idx).split_at_mut(p.indices);
-            idx = rest;
-            jobs.push((p, first, a, b, c, d));
-            first += p.vertices as u32;
+        let mut positions: Vec<Vec3> = Vec::with_capacity(nv);
+        let mut normals: Vec<Vec3> = Vec::with_capacity(nv);
+        let mut colors: Vec<[u8; 3]> = Vec::with_capacity(nv);
+        let mut indices: Vec<u32> = Vec::with_capacity(ni);
+        volume::memory::advise_huge(positions.spare_capacity_mut());
+        volume::memory::advise_huge(normals.spare_capacity_mut());
+        volume::memory::advise_huge(colors.spare_capacity_mut());
+        volume::memory::advise_huge(indices.spare_capacity_mut());
+        {
+            let mut jobs = Vec::with_capacity(flat.len());
+            let (mut pos, mut nor, mut col, mut idx) = (
+                &mut positions.spare_capacity_mut()[..nv],
+                &mut normals.spare_capacity_mut()[..nv],
+                &mut colors.spare_capacity_mut()[..nv],
+                &mut indices.spare_capacity_mut()[..ni],
+            );
+            let mut first = 0u32;
+            for p in &flat {
+                let (a, rest) = std::mem::take(&mut pos).split_at_mut(p.vertices);
+                pos = rest;
+                let (b, rest) = std::mem::take(&mut nor).split_at_mut(p.vertices);
+                nor = rest;
+                let (c, rest) = std::mem::take(&mut col).split_at_mut(p.vertices);
+                col = rest;
+                let (d, rest) = std::mem::take(&mut idx).split_at_mut(p.indices);
+                idx = rest;
+                jobs.push((p, first, a, b, c, d));
+                first += p.vertices as u32;
+            }
+            stats.min_section_ratio = jobs
+                .into_par_iter()
+                .map(|(p, first, a, b, c, d)| p.emit(first, a, b, c, d))
+                .reduce(|| f64::INFINITY, f64::min);
         }
-        stats.min_section_ratio = jobs
-            .into_par_iter()
-            .map(|(p, first, a, b, c, d)| p.emit(first, a, b, c, d))
-            .reduce(|| f64::INFINITY, f64::min);
+        // SAFETY: the pieces cover 0..nv and 0..ni exactly (the slices above are split by their
+        // counts), and `emit` writes every element of its slices (it asserts its counts).
+        unsafe {
+            positions.set_len(nv);
+            normals.set_len(nv);
+            colors.set_len(nv);
+            indices.set_len(ni);
+        }
+        mesh.positions = positions;
+        mesh.normals = normals;
+        mesh.colors = colors;
+        mesh.indices = indices;
+        if !stats.min_section_ratio.is_finite() {
+            stats.min_section_ratio = 1.0;
+        }
+        (mesh, stats)
     }
-    // SAFETY: the pieces cover 0..nv and 0..ni exactly (the slices above are split by their
-    // counts), and `emit` writes every element of its slices (it asserts its counts).
-    unsafe {
-        positions.set_len(nv);
-        normals.set_len(nv);
-        colors.set_len(nv);
-        indices.set_len(ni);
-    }
-    mesh.positions = positions;
-    mesh.normals = normals;
-    mesh.colors = colors;
-    mesh.indices = indices;
-    if !stats.min_section_ratio.is_finite() {
-        stats.min_section_ratio = 1.0;
-    }
-    (mesh, stats)
 }
