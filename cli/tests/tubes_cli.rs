@@ -259,7 +259,7 @@ fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
         "{err}"
     );
     // The estimate: 2 to 4 GB (the mesh took 3.7 GB at its peak here while the PLY file was
-    // built in memory; 40 bytes a triangle now).
+    // built in memory; 30 bytes a triangle now).
     let gb: f64 = err
         .split("would need about ")
         .nth(1)

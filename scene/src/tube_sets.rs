@@ -161,11 +161,11 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     })
 }
 
-/// Peak bytes `umbra tubes` holds per triangle of its mesh (vertices, normals, colours,
-/// indices and the mesher's per-thread pieces; the file is streamed; measured: 10^6 synthetic
-/// streamlines of 100 points, 148.9 M triangles, 6.80 GB peak with the 1.2 GB of points - 37
-/// bytes a triangle), with a margin.
-pub const MESH_BYTES_PER_TRIANGLE: u64 = 40;
+/// Peak bytes `umbra tubes` holds per triangle of its mesh (vertices, normals, colours and
+/// indices, 27 bytes, and the block of rings being written; the points are freed before the
+/// mesh is allocated and the file is streamed; measured: 10^6 synthetic streamlines of 100
+/// points, 148.9 M triangles, 4.02 GB peak - 27.0 bytes a triangle), with a margin.
+pub const MESH_BYTES_PER_TRIANGLE: u64 = 30;
 
 /// Tractograms of fewer streamlines are meshed without an estimate.
 const ESTIMATE_ABOVE: usize = 20_000;

@@ -418,20 +418,28 @@ pub fn colormap(v: f64) -> [f32; 3] {
     [0, 1, 2].map(|c| A[i][c] + (A[i + 1][c] - A[i][c]) * f)
 }
 
-/// One tube piece, ready to be written: its rings (frame, radius, colour) and what it needs in
-/// the output buffers. Vertices are written straight into the mesh by [`Rings::emit`], so no
-/// per-piece vertex buffers are built and concatenated.
+/// One ring of a tube piece: what [`emit`] needs to write its vertices.
+#[derive(Clone, Copy, Debug)]
+struct Ring {
+    /// The centre relative to the mesh origin (not used where `cut`).
+    centre: DVec3,
+    /// Frame vectors (unit; f32 is ample for directions and halves the memory).
+    r: Vec3,
+    b: Vec3,
+    t: Vec3,
+    radius: f64,
+    drds: f64,
+    color: [u8; 3],
+    /// The tube is cut here (no ring).
+    cut: bool,
+}
+
+/// One tube piece, ready to be written: its rings and what it needs in the output buffers.
+/// Vertices are written straight into the mesh by [`emit`], so no per-piece vertex buffers are
+/// built and concatenated.
 struct Rings {
     sides: usize,
-    /// Ring centres relative to the mesh origin; `None` where the tube is cut.
-    centre: Vec<Option<DVec3>>,
-    /// Frame vectors (unit; f32 is ample for directions and halves the memory).
-    r: Vec<Vec3>,
-    b: Vec<Vec3>,
-    t: Vec<Vec3>,
-    radius: Vec<f64>,
-    drds: Vec<f64>,
-    color: Vec<[u8; 3]>,
+    rings: Vec<Ring>,
     /// Runs of kept rings `(first, last)` that get end caps.
     caps: Vec<(usize, usize)>,
     vertices: usize,
@@ -439,130 +447,131 @@ struct Rings {
     stats: TubeStats,
 }
 
-impl Rings {
-    /// Writes the vertices and triangles into the given parts of the mesh buffers (exactly
-    /// `self.vertices` and `self.indices` long); `first` is the index of the first vertex.
-    /// Returns the smallest section ratio: the stored ring polygon's area, projected on the
-    /// plane normal to its tangent, over the ideal polygon's.
-    fn emit(
-        &self,
-        first: u32,
-        pos: &mut [std::mem::MaybeUninit<Vec3>],
-        nor: &mut [std::mem::MaybeUninit<Vec3>],
-        col: &mut [std::mem::MaybeUninit<[u8; 3]>],
-        idx: &mut [std::mem::MaybeUninit<u32>],
-    ) -> f64 {
-        let sides = self.sides;
-        let step = std::f64::consts::TAU / sides as f64;
-        let trig: Vec<(f64, f64)> = (0..sides)
-            .map(|j| ((step * j as f64).cos(), (step * j as f64).sin()))
-            .collect();
-        let ideal = |r: f64| 0.5 * sides as f64 * r * r * step.sin();
-        let mut min_ratio = f64::INFINITY;
-        let mut v = 0usize;
-        let mut base: Vec<Option<u32>> = Vec::with_capacity(self.centre.len());
-        for i in 0..self.centre.len() {
-            let Some(centre) = self.centre[i] else {
-                base.push(None);
-                continue;
+/// Writes the vertices and triangles of a tube piece of `sides`-gons through `rings` (with end
+/// caps on the runs `caps`) into the given parts of the mesh buffers (exactly `vertices` and
+/// `indices` long); `first` is the index of the first vertex. Returns the smallest section
+/// ratio: the stored ring polygon's area, projected on the plane normal to its tangent, over
+/// the ideal polygon's.
+#[allow(clippy::too_many_arguments)]
+fn emit(
+    sides: usize,
+    rings: &[Ring],
+    caps: &[(usize, usize)],
+    (vertices, indices): (usize, usize),
+    first: u32,
+    pos: &mut [std::mem::MaybeUninit<Vec3>],
+    nor: &mut [std::mem::MaybeUninit<Vec3>],
+    col: &mut [std::mem::MaybeUninit<[u8; 3]>],
+    idx: &mut [std::mem::MaybeUninit<u32>],
+) -> f64 {
+    let step = std::f64::consts::TAU / sides as f64;
+    let trig: Vec<(f64, f64)> = (0..sides)
+        .map(|j| ((step * j as f64).cos(), (step * j as f64).sin()))
+        .collect();
+    let ideal = |r: f64| 0.5 * sides as f64 * r * r * step.sin();
+    let mut min_ratio = f64::INFINITY;
+    let mut v = 0usize;
+    let mut base: Vec<Option<u32>> = Vec::with_capacity(rings.len());
+    for g in rings {
+        if g.cut {
+            base.push(None);
+            continue;
+        }
+        base.push(Some(first + v as u32));
+        let (centre, r, b, t, radius, drds) = (
+            g.centre,
+            g.r.as_dvec3(),
+            g.b.as_dvec3(),
+            g.t.as_dvec3(),
+            g.radius,
+            g.drds,
+        );
+        for &(ca, sa) in &trig {
+            let radial = r * ca + b * sa;
+            let p = (centre + radial * radius).as_vec3();
+            pos[v].write(p);
+            // The radial direction is a unit vector; only a changing radius tilts it.
+            let n = if drds == 0.0 {
+                radial
+            } else {
+                (radial - t * drds).normalize()
             };
-            base.push(Some(first + v as u32));
-            let (r, b, t, radius, drds) = (
-                self.r[i].as_dvec3(),
-                self.b[i].as_dvec3(),
-                self.t[i].as_dvec3(),
-                self.radius[i],
-                self.drds[i],
-            );
-            for &(ca, sa) in &trig {
-                let radial = r * ca + b * sa;
-                let p = (centre + radial * radius).as_vec3();
+            nor[v].write(n.as_vec3());
+            col[v].write(g.color);
+            v += 1;
+        }
+        // Section ratio in the stored precision (a fan about the ring's first vertex).
+        let ring = v - sides;
+        // SAFETY: the ring's vertices were written just above.
+        let at = |j: usize| unsafe { pos[ring + j].assume_init() }.as_dvec3();
+        let p0 = at(0);
+        let mut area = 0.0;
+        let mut prev = at(1) - p0;
+        for j in 2..sides {
+            let q = at(j) - p0;
+            area += 0.5 * prev.cross(q).dot(t);
+            prev = q;
+        }
+        let ratio = if radius > 0.0 {
+            area / ideal(radius)
+        } else {
+            1.0
+        };
+        min_ratio = min_ratio.min(ratio);
+    }
+    // Quads between consecutive rings, counter-clockwise seen from outside.
+    let mut k = 0usize;
+    let mut put = |i: u32, k: &mut usize| {
+        idx[*k].write(i);
+        *k += 1;
+    };
+    let s32 = sides as u32;
+    for w in base.windows(2) {
+        let (Some(r0), Some(r1)) = (w[0], w[1]) else {
+            continue;
+        };
+        for j in 0..s32 {
+            let (a, b) = (r0 + j, r0 + (j + 1) % s32);
+            let (c, d) = (r1 + j, r1 + (j + 1) % s32);
+            for i in [a, b, d, a, d, c] {
+                put(i, &mut k);
+            }
+        }
+    }
+    for &(first_ring, last_ring) in caps {
+        for (ring, dir, flip) in [
+            (first_ring, -rings[first_ring].t.as_dvec3(), true),
+            (last_ring, rings[last_ring].t.as_dvec3(), false),
+        ] {
+            let rb = (base[ring].unwrap() - first) as usize;
+            let centre = first + v as u32;
+            pos[v].write(rings[ring].centre.as_vec3());
+            nor[v].write(dir.as_vec3());
+            col[v].write(rings[ring].color);
+            v += 1;
+            let rim = first + v as u32;
+            for j in 0..sides {
+                // SAFETY: vertex rb + j of this piece was written above.
+                let p = unsafe { pos[rb + j].assume_init() };
                 pos[v].write(p);
-                // The radial direction is a unit vector; only a changing radius tilts it.
-                let n = if drds == 0.0 {
-                    radial
-                } else {
-                    (radial - t * drds).normalize()
-                };
-                nor[v].write(n.as_vec3());
-                col[v].write(self.color[i]);
+                nor[v].write(dir.as_vec3());
+                col[v].write(rings[ring].color);
                 v += 1;
             }
-            // Section ratio in the stored precision (a fan about the ring's first vertex).
-            let ring = v - sides;
-            // SAFETY: the ring's vertices were written just above.
-            let at = |j: usize| unsafe { pos[ring + j].assume_init() }.as_dvec3();
-            let p0 = at(0);
-            let mut area = 0.0;
-            let mut prev = at(1) - p0;
-            for j in 2..sides {
-                let q = at(j) - p0;
-                area += 0.5 * prev.cross(q).dot(t);
-                prev = q;
-            }
-            let ratio = if radius > 0.0 {
-                area / ideal(radius)
-            } else {
-                1.0
-            };
-            min_ratio = min_ratio.min(ratio);
-        }
-        // Quads between consecutive rings, counter-clockwise seen from outside.
-        let mut k = 0usize;
-        let mut put = |i: u32, k: &mut usize| {
-            idx[*k].write(i);
-            *k += 1;
-        };
-        let s32 = sides as u32;
-        for w in base.windows(2) {
-            let (Some(r0), Some(r1)) = (w[0], w[1]) else {
-                continue;
-            };
             for j in 0..s32 {
-                let (a, b) = (r0 + j, r0 + (j + 1) % s32);
-                let (c, d) = (r1 + j, r1 + (j + 1) % s32);
-                for i in [a, b, d, a, d, c] {
+                let (p, q) = (rim + j, rim + (j + 1) % s32);
+                let tri = if flip { [centre, q, p] } else { [centre, p, q] };
+                for i in tri {
                     put(i, &mut k);
                 }
             }
         }
-        for &(first_ring, last_ring) in &self.caps {
-            for (ring, dir, flip) in [
-                (first_ring, -self.t[first_ring].as_dvec3(), true),
-                (last_ring, self.t[last_ring].as_dvec3(), false),
-            ] {
-                let rb = (base[ring].unwrap() - first) as usize;
-                let centre = first + v as u32;
-                pos[v].write(self.centre[ring].unwrap().as_vec3());
-                nor[v].write(dir.as_vec3());
-                col[v].write(self.color[ring]);
-                v += 1;
-                let rim = first + v as u32;
-                for j in 0..sides {
-                    // SAFETY: vertex rb + j of this piece was written above.
-                    let p = unsafe { pos[rb + j].assume_init() };
-                    pos[v].write(p);
-                    nor[v].write(dir.as_vec3());
-                    col[v].write(self.color[ring]);
-                    v += 1;
-                }
-                for j in 0..s32 {
-                    let (p, q) = (rim + j, rim + (j + 1) % s32);
-                    let tri = if flip { [centre, q, p] } else { [centre, p, q] };
-                    for i in tri {
-                        put(i, &mut k);
-                    }
-                }
-            }
-        }
-        assert!(
-            v == self.vertices && k == self.indices,
-            "tube piece wrote {v} vertices and {k} indices, {} and {} counted",
-            self.vertices,
-            self.indices
-        );
-        min_ratio
     }
+    assert!(
+        v == vertices && k == indices,
+        "tube piece wrote {v} vertices and {k} indices, {vertices} and {indices} counted"
+    );
+    min_ratio
 }
 
 fn rgb8(c: [f32; 3]) -> [u8; 3] {
@@ -764,13 +773,7 @@ fn tube(
     };
     let mut rings = Rings {
         sides,
-        centre: Vec::with_capacity(n),
-        r: Vec::with_capacity(n),
-        b: Vec::with_capacity(n),
-        t: Vec::with_capacity(n),
-        radius: radii.clone(),
-        drds: Vec::with_capacity(n),
-        color: Vec::with_capacity(n),
+        rings: Vec::with_capacity(n),
         caps: Vec::new(),
         vertices: 0,
         indices: 0,
@@ -779,10 +782,6 @@ fn tube(
     let mut min_twist_cos = 1.0f64;
     for i in 0..n {
         let r_vec = frames[i];
-        rings.centre.push((!cut[i]).then(|| x[i] - origin));
-        rings.r.push(r_vec.as_vec3());
-        rings.b.push(t[i].cross(r_vec).as_vec3());
-        rings.t.push(t[i].as_vec3());
         let drds = if n > 1 {
             let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
             if s[b] > s[a] {
@@ -793,7 +792,6 @@ fn tube(
         } else {
             0.0
         };
-        rings.drds.push(drds);
         let color = match &o.color {
             ColorMode::Direction => [
                 t[i].x.abs() as f32,
@@ -809,7 +807,16 @@ fn tube(
                 map_color(*map, (func(x[i]) - lo) / (hi - lo).max(1e-300))
             }
         };
-        rings.color.push(rgb8(color));
+        rings.rings.push(Ring {
+            centre: x[i] - origin,
+            r: r_vec.as_vec3(),
+            b: t[i].cross(r_vec).as_vec3(),
+            t: t[i].as_vec3(),
+            radius: radii[i],
+            drds,
+            color: rgb8(color),
+            cut: cut[i],
+        });
         if i > 0 && !cut[i] && !cut[i - 1] {
             min_twist_cos = min_twist_cos.min(twist_cos(t[i - 1], t[i], frames[i - 1], frames[i]));
         }
@@ -857,11 +864,54 @@ pub fn build_owned(s: Streamlines, o: &TubeOptions) -> (TubeMesh, TubeStats) {
     p.emit(o)
 }
 
-/// Every tube piece's rings, and the statistics so far: what [`Prepared::emit`] writes.
+/// Every tube piece's rings, by blocks of streamlines, and the statistics so far: what
+/// [`Prepared::emit`] writes.
 struct Prepared {
     origin: DVec3,
-    flat: Vec<Rings>,
+    blocks: Vec<Block>,
     stats: TubeStats,
+}
+
+/// Streamlines whose rings make one [`Block`]: about ten rings of 80 bytes a streamline, so a
+/// whole block is one allocation of some 50 MB, which the allocator maps on its own (glibc's
+/// mmap threshold is at most 32 MB) and gives back to the system as soon as the block has been
+/// written into the mesh: the rings and the mesh are never all resident together.
+const BLOCK_STREAMLINES: usize = 1 << 16;
+
+/// Streamlines meshed in parallel at once, within a block.
+const BATCH_STREAMLINES: usize = 1 << 12;
+
+/// The rings of the tube pieces of a block of streamlines, in one allocation, and each piece's
+/// part of them.
+struct Block {
+    rings: Vec<Ring>,
+    caps: Vec<(usize, usize)>,
+    pieces: Vec<Piece>,
+}
+
+/// A tube piece in its [`Block`]: its polygons' sides, the ranges of its rings and caps, and
+/// what it writes.
+struct Piece {
+    sides: usize,
+    rings: std::ops::Range<usize>,
+    caps: std::ops::Range<usize>,
+    vertices: usize,
+    indices: usize,
+}
+
+impl Block {
+    fn push(&mut self, p: Rings) {
+        let (r0, c0) = (self.rings.len(), self.caps.len());
+        self.rings.extend_from_slice(&p.rings);
+        self.caps.extend_from_slice(&p.caps);
+        self.pieces.push(Piece {
+            sides: p.sides,
+            rings: r0..self.rings.len(),
+            caps: c0..self.caps.len(),
+            vertices: p.vertices,
+            indices: p.indices,
+        });
+    }
 }
 
 /// The first half of [`build`]: cleans, splits and fits every streamline (in parallel) into
@@ -886,100 +936,115 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
         });
         [lo, hi]
     });
-    let pieces: Vec<(Vec<Rings>, TubeStats)> = (0..s.len())
-        .into_par_iter()
-        .map(|i| {
-            let mut st = TubeStats {
-                streamlines_in: 1,
-                points_in: s.line(i).len(),
-                min_section_ratio: f64::INFINITY,
-                ..Default::default()
-            };
-            let line = s.line(i);
-            let vals: Option<Vec<f32>> = scalar.map(|a| {
-                (s.offsets[i]..s.offsets[i + 1])
-                    .map(|p| a.values[p * a.components])
-                    .collect()
-            });
-            // Clean as `clean` does, keeping attribute values aligned with the kept points.
-            let mut pts: Vec<DVec3> = Vec::with_capacity(line.len());
-            let mut kept_vals = Vec::new();
-            for (j, p) in line.iter().enumerate() {
-                let p = p.as_dvec3();
-                let dup = pts.last().is_some_and(|q: &DVec3| {
-                    (p - *q).length() <= 1e-9 * (1.0 + p.abs().max_element())
-                });
-                if p.is_finite() && !dup {
-                    pts.push(p);
-                    if let Some(v) = &vals {
-                        kept_vals.push(v[j]);
+    let piece_of = |i: usize| {
+        let mut st = TubeStats {
+            streamlines_in: 1,
+            points_in: s.line(i).len(),
+            min_section_ratio: f64::INFINITY,
+            ..Default::default()
+        };
+        let line = s.line(i);
+        let vals: Option<Vec<f32>> = scalar.map(|a| {
+            (s.offsets[i]..s.offsets[i + 1])
+                .map(|p| a.values[p * a.components])
+                .collect()
+        });
+        // Clean as `clean` does, keeping attribute values aligned with the kept points.
+        let mut pts: Vec<DVec3> = Vec::with_capacity(line.len());
+        let mut kept_vals = Vec::new();
+        for (j, p) in line.iter().enumerate() {
+            let p = p.as_dvec3();
+            let dup = pts
+                .last()
+                .is_some_and(|q: &DVec3| (p - *q).length() <= 1e-9 * (1.0 + p.abs().max_element()));
+            if p.is_finite() && !dup {
+                pts.push(p);
+                if let Some(v) = &vals {
+                    kept_vals.push(v[j]);
+                }
+            }
+        }
+        debug_assert_eq!(
+            pts,
+            clean(&line.iter().map(|p| p.as_dvec3()).collect::<Vec<_>>()).0
+        );
+        st.dropped_points = line.len() - pts.len();
+        if pts.len() < 2 {
+            st.skipped_streamlines = 1;
+            return (Vec::new(), st);
+        }
+        let mut parts = reversal_ranges(&pts);
+        // A line that will be meshed as its polyline is also split where it turns sharply
+        // (its rings would fold there; the fit's refinement is what a smooth line gets).
+        let polyline_eligible = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
+        if polyline_eligible {
+            parts = parts
+                .into_iter()
+                .flat_map(|(a, b)| {
+                    if too_rough(&pts[a..=b], o.fit.epsilon) {
+                        sharp_ranges(&pts, a, b)
+                    } else {
+                        vec![(a, b)]
                     }
-                }
+                })
+                .collect();
+        }
+        st.splits = parts.len() - 1;
+        let mut out = Vec::with_capacity(parts.len());
+        for &(a, b) in &parts {
+            if b == a {
+                continue;
             }
-            debug_assert_eq!(
-                pts,
-                clean(&line.iter().map(|p| p.as_dvec3()).collect::<Vec<_>>()).0
-            );
-            st.dropped_points = line.len() - pts.len();
-            if pts.len() < 2 {
-                st.skipped_streamlines = 1;
-                return (Vec::new(), st);
-            }
-            let mut parts = reversal_ranges(&pts);
-            // A line that will be meshed as its polyline is also split where it turns sharply
-            // (its rings would fold there; the fit's refinement is what a smooth line gets).
-            let polyline_eligible =
-                o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
-            if polyline_eligible {
-                parts = parts
-                    .into_iter()
-                    .flat_map(|(a, b)| {
-                        if too_rough(&pts[a..=b], o.fit.epsilon) {
-                            sharp_ranges(&pts, a, b)
-                        } else {
-                            vec![(a, b)]
-                        }
-                    })
-                    .collect();
-            }
-            st.splits = parts.len() - 1;
-            let mut out = Vec::with_capacity(parts.len());
-            for &(a, b) in &parts {
-                if b == a {
-                    continue;
-                }
-                let av = vals.as_ref().map(|_| &kept_vals[a..=b]);
-                out.push(tube(&pts[a..=b], av.zip(range), o, origin));
-            }
-            (out, st)
-        })
-        .collect();
+            let av = vals.as_ref().map(|_| &kept_vals[a..=b]);
+            out.push(tube(&pts[a..=b], av.zip(range), o, origin));
+        }
+        (out, st)
+    };
     let mut stats = TubeStats {
         min_section_ratio: f64::INFINITY,
         ..Default::default()
     };
-    let mut flat: Vec<Rings> = Vec::new();
-    for (parts, st) in pieces {
-        stats.streamlines_in += st.streamlines_in;
-        stats.points_in += st.points_in;
-        stats.dropped_points += st.dropped_points;
-        stats.skipped_streamlines += st.skipped_streamlines;
-        stats.splits += st.splits;
-        for p in parts {
-            stats.streamlines_out += 1 + p.stats.splits;
-            stats.control_points += p.stats.control_points;
-            stats.triangles += p.stats.triangles;
-            stats.max_deviation = stats.max_deviation.max(p.stats.max_deviation);
-            stats.max_twist_deg = stats.max_twist_deg.max(p.stats.max_twist_deg);
-            stats.radius_clamps += p.stats.radius_clamps;
-            stats.splits += p.stats.splits;
-            stats.polyline_pieces += p.stats.polyline_pieces;
-            flat.push(p);
+    let mut blocks = Vec::new();
+    for start in (0..s.len()).step_by(BLOCK_STREAMLINES) {
+        let end = (start + BLOCK_STREAMLINES).min(s.len());
+        let mut block = Block {
+            rings: Vec::new(),
+            caps: Vec::new(),
+            pieces: Vec::new(),
+        };
+        // The pieces of a block are made a batch at a time: each piece's own buffers (freed
+        // once copied into the block) stay a few MB, not a block's worth, in the allocator's
+        // heap (which keeps what it held).
+        for batch in (start..end).step_by(BATCH_STREAMLINES) {
+            let pieces: Vec<(Vec<Rings>, TubeStats)> = (batch
+                ..(batch + BATCH_STREAMLINES).min(end))
+                .into_par_iter()
+                .map(piece_of)
+                .collect();
+            for (parts, st) in pieces {
+                stats.streamlines_in += st.streamlines_in;
+                stats.points_in += st.points_in;
+                stats.dropped_points += st.dropped_points;
+                stats.skipped_streamlines += st.skipped_streamlines;
+                stats.splits += st.splits;
+                for p in parts {
+                    stats.streamlines_out += 1 + p.stats.splits;
+                    stats.control_points += p.stats.control_points;
+                    stats.triangles += p.stats.triangles;
+                    stats.max_deviation = stats.max_deviation.max(p.stats.max_deviation);
+                    stats.max_twist_deg = stats.max_twist_deg.max(p.stats.max_twist_deg);
+                    stats.radius_clamps += p.stats.radius_clamps;
+                    stats.splits += p.stats.splits;
+                    stats.polyline_pieces += p.stats.polyline_pieces;
+                    block.push(p);
+                }
+            }
         }
+        blocks.push(block);
     }
     Prepared {
         origin,
-        flat,
+        blocks,
         stats,
     }
 }
@@ -990,7 +1055,7 @@ impl Prepared {
     fn emit(self, o: &TubeOptions) -> (TubeMesh, TubeStats) {
         let Prepared {
             origin,
-            flat,
+            blocks,
             mut stats,
         } = self;
         let mut mesh = TubeMesh {
@@ -999,9 +1064,18 @@ impl Prepared {
             ..Default::default()
         };
         // Write every piece straight into the mesh buffers, in parallel: each piece gets its own
-        // disjoint parts of the (uninitialised) buffers, found by prefix sums of its counts.
-        let nv: usize = flat.iter().map(|p| p.vertices).sum();
-        let ni: usize = flat.iter().map(|p| p.indices).sum();
+        // disjoint parts of the (uninitialised) buffers, found by prefix sums of its counts;
+        // block by block, each block's rings freed once written.
+        let nv: usize = blocks
+            .iter()
+            .flat_map(|b| &b.pieces)
+            .map(|p| p.vertices)
+            .sum();
+        let ni: usize = blocks
+            .iter()
+            .flat_map(|b| &b.pieces)
+            .map(|p| p.indices)
+            .sum();
         assert!(
             nv <= u32::MAX as usize,
             "{nv} vertices do not fit 32-bit indices"
@@ -1014,8 +1088,8 @@ impl Prepared {
         volume::memory::advise_huge(normals.spare_capacity_mut());
         volume::memory::advise_huge(colors.spare_capacity_mut());
         volume::memory::advise_huge(indices.spare_capacity_mut());
+        stats.min_section_ratio = f64::INFINITY;
         {
-            let mut jobs = Vec::with_capacity(flat.len());
             let (mut pos, mut nor, mut col, mut idx) = (
                 &mut positions.spare_capacity_mut()[..nv],
                 &mut normals.spare_capacity_mut()[..nv],
@@ -1023,22 +1097,38 @@ impl Prepared {
                 &mut indices.spare_capacity_mut()[..ni],
             );
             let mut first = 0u32;
-            for p in &flat {
-                let (a, rest) = std::mem::take(&mut pos).split_at_mut(p.vertices);
-                pos = rest;
-                let (b, rest) = std::mem::take(&mut nor).split_at_mut(p.vertices);
-                nor = rest;
-                let (c, rest) = std::mem::take(&mut col).split_at_mut(p.vertices);
-                col = rest;
-                let (d, rest) = std::mem::take(&mut idx).split_at_mut(p.indices);
-                idx = rest;
-                jobs.push((p, first, a, b, c, d));
-                first += p.vertices as u32;
+            for block in blocks {
+                let mut jobs = Vec::with_capacity(block.pieces.len());
+                for p in &block.pieces {
+                    let (a, rest) = std::mem::take(&mut pos).split_at_mut(p.vertices);
+                    pos = rest;
+                    let (b, rest) = std::mem::take(&mut nor).split_at_mut(p.vertices);
+                    nor = rest;
+                    let (c, rest) = std::mem::take(&mut col).split_at_mut(p.vertices);
+                    col = rest;
+                    let (d, rest) = std::mem::take(&mut idx).split_at_mut(p.indices);
+                    idx = rest;
+                    jobs.push((p, first, a, b, c, d));
+                    first += p.vertices as u32;
+                }
+                let ratio = jobs
+                    .into_par_iter()
+                    .map(|(p, first, a, b, c, d)| {
+                        emit(
+                            p.sides,
+                            &block.rings[p.rings.clone()],
+                            &block.caps[p.caps.clone()],
+                            (p.vertices, p.indices),
+                            first,
+                            a,
+                            b,
+                            c,
+                            d,
+                        )
+                    })
+                    .reduce(|| f64::INFINITY, f64::min);
+                stats.min_section_ratio = stats.min_section_ratio.min(ratio);
             }
-            stats.min_section_ratio = jobs
-                .into_par_iter()
-                .map(|(p, first, a, b, c, d)| p.emit(first, a, b, c, d))
-                .reduce(|| f64::INFINITY, f64::min);
         }
         // SAFETY: the pieces cover 0..nv and 0..ni exactly (the slices above are split by their
         // counts), and `emit` writes every element of its slices (it asserts its counts).
