@@ -2,10 +2,10 @@
 # lines.sh OUT N POINTS: writes N synthetic streamlines of POINTS points (umbra synth bundles)
 # and renders them as 1-pixel LineAO lines at 1024 x 768 under an 8 GB address-space limit,
 # with /usr/bin/time's peak and memwatch.sh's samples: OUT/render.log, OUT/render.log.out.
-# From the repository root after `cargo build --release`.
+# From the repository root after `cargo build --release`; UMBRA_BIN=PATH runs another build.
 set -e
 OUT=$1; N=$2; P=$3
-U=$(pwd)/target/release/umbra
+U=${UMBRA_BIN:-$(pwd)/target/release/umbra}
 HERE=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$OUT"
 . "$HERE/../bundles_scene.sh"

@@ -521,6 +521,20 @@ pub struct GBuffer {
     batch: Option<(u64, wgpu::Device, wgpu::Queue)>,
 }
 
+/// The least triangles a batch of [`batch_for`] holds (2^16).
+pub const MIN_BATCH_TRIANGLES: u64 = 1 << 16;
+
+/// The batch size of a pass drawing `total` triangles on an adapter that takes at most `budget`
+/// a submission: `total / 16`, within [`MIN_BATCH_TRIANGLES`]..`budget`. Lavapipe queues about
+/// 550 bytes a triangle of a batch while it draws, so a batch in proportion to the scene keeps
+/// that queue at most about 35 bytes a triangle drawn (issue 18's bound of 64 bytes a point, a
+/// line segment being 2 triangles, holds the lines' 20 bytes on the GPU, their staging and this)
+/// wherever the batch is above the floor; scenes of more than 4.2 M triangles get the full
+/// budget (docs/benchmarks.md, "Whole-brain tractograms").
+pub fn batch_for(total: u64, budget: u64) -> u64 {
+    (total / 16).clamp(MIN_BATCH_TRIANGLES.min(budget), budget)
+}
+
 /// The draws of a pass cut into batches of at most `budget` triangles (`None`: one batch):
 /// `sizes[i]` is draw `i`'s triangle count; each batch lists `(draw, first, end)` triangle
 /// ranges, in order, every triangle in exactly one. At least one batch (empty when nothing
@@ -1184,7 +1198,8 @@ impl GBuffer {
                 .map(|m| m.mesh.count as u64 / 3)
                 .chain(lines.iter().map(|(_, l)| 2 * l.segments as u64))
                 .collect();
-            let batches = batches(&sizes, self.batch.as_ref().map(|b| b.0));
+            let total = sizes.iter().sum();
+            let batches = batches(&sizes, self.batch.as_ref().map(|b| batch_for(total, b.0)));
             for (b, batch) in batches.iter().enumerate() {
                 let (first, last) = (b == 0, b + 1 == batches.len());
                 // Later batches draw over what the earlier ones left.
@@ -1410,6 +1425,24 @@ mod tests {
             assert_eq!(b.len() as u64, want, "{budget:?}: {b:?}");
         }
         assert_eq!(super::batches(&[], Some(4)), vec![vec![]]);
+    }
+
+    #[test]
+    fn batches_follow_the_scene_between_the_floor_and_the_budget() {
+        use super::{batch_for, MIN_BATCH_TRIANGLES as MIN};
+        let budget = crate::gpu::CPU_BATCH_TRIANGLES;
+        // Small scenes: the floor (a few batches at most).
+        assert_eq!(batch_for(0, budget), MIN);
+        assert_eq!(batch_for(100_000, budget), MIN);
+        // 10^6 line points (2 x 10^6 triangles): an eighth of the scene, queue <= 35 B/tri.
+        let b = batch_for(2_000_000, budget);
+        assert_eq!(b, 125_000);
+        assert!(550 * b <= 35 * 2_000_000);
+        // Large scenes: the adapter's budget, never more.
+        assert_eq!(batch_for(16 * budget, budget), budget);
+        assert_eq!(batch_for(u64::MAX, budget), budget);
+        // A budget below the floor (tests set tiny ones) is kept.
+        assert_eq!(batch_for(1_000_000, 5), 5);
     }
 
     #[test]

@@ -101,9 +101,10 @@ pub struct Gpu {
 /// Triangles a G-buffer pass submits at once on a CPU adapter (2^18): lavapipe bins a
 /// submission's triangles in scenes faster than its threads rasterise them, about 550 bytes a
 /// triangle while they queue (1-3.5 GB for a whole-brain tractogram), so large draws are
-/// submitted in batches of this size, each waited for. Chosen by measurement (10^6 and 10^7
-/// points, docs/benchmarks.md): 2^17 saves 0.1 GB and costs 10%; 2^19 and 2^20 cost 0.1-0.3 GB
-/// more for 0-5%; no batches are slower as well as larger.
+/// submitted in batches of at most this size, each waited for (smaller in smaller scenes:
+/// `gbuffer::batch_for`). Chosen by measurement (10^6 and 10^7 points, docs/benchmarks.md):
+/// 2^17 saves 0.1 GB and costs 10%; 2^19 and 2^20 cost 0.1-0.3 GB more for 0-5%; no batches
+/// are slower as well as larger.
 pub const CPU_BATCH_TRIANGLES: u64 = 1 << 18;
 
 /// The most bytes staged at once by [`Gpu::buffer_staged`] (64 MiB): large uploads go through
