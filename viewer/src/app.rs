@@ -225,10 +225,14 @@ impl App {
             false => self.worker.images.recv_timeout(wait).ok(),
         };
         let got = next.is_some();
-        while let Some(r) = next.take() {
+        while let Some((id, r)) = next.take() {
             next = self.worker.images.try_recv().ok();
             match r {
-                Err(e) => self.error = Some(e),
+                Err(e) => {
+                    // That request is done with: frames stop waiting for it.
+                    self.shown_scenes.retain(|k, _| *k > id);
+                    self.error = Some(e);
+                }
                 Ok(img) => self.show(ctx, img),
             }
         }

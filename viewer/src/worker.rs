@@ -480,7 +480,8 @@ pub fn draw_with(
 /// The worker's ends: requests in, images (or an error naming what failed) out.
 pub struct Worker {
     pub requests: Sender<Request>,
-    pub images: Receiver<Result<Image, String>>,
+    /// Each drawn request's id with its image or error (id 0: the renderer could not start).
+    pub images: Receiver<(u64, Result<Image, String>)>,
 }
 
 /// Starts the worker for model `m` of scene `s`; `wake` is called after each image (the window
@@ -495,7 +496,7 @@ pub fn start(m: Model, s: &Scene, wake: impl Fn() + Send + 'static) -> Worker {
             let mut session = match Session::new(m, &s) {
                 Ok(s) => s,
                 Err(e) => {
-                    let _ = img_tx.send(Err(e));
+                    let _ = img_tx.send((0, Err(e)));
                     wake();
                     return;
                 }
@@ -504,7 +505,7 @@ pub fn start(m: Model, s: &Scene, wake: impl Fn() + Send + 'static) -> Worker {
                 while let Ok(newer) = req_rx.try_recv() {
                     req = newer;
                 }
-                if img_tx.send(session.frame(&req)).is_err() {
+                if img_tx.send((req.id, session.frame(&req))).is_err() {
                     break;
                 }
                 wake();

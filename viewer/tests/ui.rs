@@ -298,3 +298,46 @@ fn the_lineao_section_edits_render_lineao_and_the_saved_scene_keeps_it() {
     assert!(saved.render.lineao.anisotropic);
     assert_eq!(saved.render.lineao.levels, levels);
 }
+
+#[test]
+fn a_paced_window_stops_waiting_for_a_request_the_worker_failed() {
+    // A window paced as on a CPU adapter waits (up to the pace) for the image of a request
+    // still being drawn; a request the worker answered with an error is done with, so later
+    // frames neither wait for it nor lose the error. The worker here is the test: it receives
+    // the requests and answers by hand.
+    let dir = tempfile::tempdir().unwrap();
+    let path = test_support::headsq_scene(dir.path(), "", "bone", "method = \"ea\"\n");
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let bounds = [glam::DVec3::splat(-1.0), glam::DVec3::splat(1.0)];
+    let (req_tx, req_rx) = std::sync::mpsc::channel();
+    let (img_tx, img_rx) = std::sync::mpsc::channel();
+    let worker = umbra_viewer::worker::Worker {
+        requests: req_tx,
+        images: img_rx,
+    };
+    let pace = Duration::from_millis(600);
+    let app = App::new(s, bounds, worker, Arc::new(AtomicBool::new(false)), None).paced(pace);
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(600.0, 400.0))
+        .build_ui_state(|ui, app: &mut App| app.show_ui(ui), app);
+    // The first frame (the harness's) asked for a draft at the view's size and waited for it
+    // (the pace); the next, after the rest, asks for the full image. A frame right after
+    // another waits while the request is being drawn.
+    h.step();
+    let req: umbra_viewer::worker::Request = req_rx.try_iter().last().expect("requests");
+    assert_eq!(req.level, Level::Full);
+    let t = Instant::now();
+    h.step();
+    assert!(t.elapsed() >= pace * 9 / 10, "{:?}", t.elapsed());
+    img_tx
+        .send((req.id, Err("the renderer said no".to_string())))
+        .unwrap();
+    // The error comes in; nothing is being drawn any more: no frame waits.
+    for _ in 0..3 {
+        let t = Instant::now();
+        h.step();
+        assert!(t.elapsed() < pace / 2, "a frame waited {:?}", t.elapsed());
+    }
+    assert!(h.state().shown_level().is_none());
+    assert!(req_rx.try_recv().is_err(), "no request was made again");
+}
