@@ -355,3 +355,53 @@ fn meshing_owned_streamlines_gives_the_same_mesh() {
     assert_eq!(a.colors, b.colors);
     assert_eq!(a.indices, b.indices);
 }
+
+#[test]
+fn many_streamlines_mesh_as_each_alone_across_batches_and_blocks() {
+    // 65,539 short curved streamlines: more than one batch (4,096) and one block (65,536) of
+    // the mesher. The mesh of all of them is each one's own mesh, in order: the same world
+    // positions (f32 about another origin: within 1e-4), normals and colours, its indices
+    // shifted by the vertices before it; the statistics add up.
+    let n = 65_536 + 3;
+    let curve = |i: usize| -> Vec<DVec3> {
+        let c = DVec3::new((i % 256) as f64, (i / 256) as f64, 0.0) * 3.0;
+        let b = 0.2 + 0.3 * ((i * 7919) % 13) as f64 / 13.0;
+        (0..4)
+            .map(|k| c + DVec3::new(k as f64 * 0.5, b * (k * k) as f64 * 0.1, 0.0))
+            .collect()
+    };
+    let curves: Vec<Vec<DVec3>> = (0..n).map(curve).collect();
+    let o = opts(0.1);
+    let (all, st) = tubes::tube_mesh::build_owned(lines(&curves), &o);
+    assert_eq!(st.streamlines_in, n);
+    let (mut v0, mut i0, mut triangles) = (0usize, 0usize, 0usize);
+    // Every 97th streamline and those at the batch and block edges, compared in full.
+    let check: Vec<usize> = (0..n)
+        .filter(|&i| i % 97 == 0 || [4095, 4096, 65_535, 65_536, n - 1].contains(&i))
+        .collect();
+    for i in 0..n {
+        let (one, s1) = build(&lines(std::slice::from_ref(&curves[i])), &o);
+        let (nv, ni) = (one.positions.len(), one.indices.len());
+        assert!(nv > 0, "streamline {i} has no tube");
+        if check.binary_search(&i).is_ok() {
+            for k in 0..nv {
+                let a = all.origin + all.positions[v0 + k].as_dvec3();
+                let b = one.origin + one.positions[k].as_dvec3();
+                assert!(
+                    (a - b).length() < 1e-4,
+                    "streamline {i} vertex {k}: {a} {b}"
+                );
+                assert!((all.normals[v0 + k] - one.normals[k]).length() < 1e-5);
+                assert_eq!(all.colors[v0 + k], one.colors[k]);
+            }
+            for k in 0..ni {
+                assert_eq!(all.indices[i0 + k] as usize, one.indices[k] as usize + v0);
+            }
+        }
+        v0 += nv;
+        i0 += ni;
+        triangles += s1.triangles;
+    }
+    assert_eq!((v0, i0), (all.positions.len(), all.indices.len()));
+    assert_eq!(triangles, st.triangles);
+}
