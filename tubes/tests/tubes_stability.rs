@@ -379,8 +379,8 @@ fn many_streamlines_mesh_as_each_alone_across_batches_and_blocks() {
     let check: Vec<usize> = (0..n)
         .filter(|&i| i % 97 == 0 || [4095, 4096, 65_535, 65_536, n - 1].contains(&i))
         .collect();
-    for i in 0..n {
-        let (one, s1) = build(&lines(std::slice::from_ref(&curves[i])), &o);
+    for (i, c) in curves.iter().enumerate() {
+        let (one, s1) = build(&lines(std::slice::from_ref(c)), &o);
         let (nv, ni) = (one.positions.len(), one.indices.len());
         assert!(nv > 0, "streamline {i} has no tube");
         if check.binary_search(&i).is_ok() {
