@@ -11,6 +11,7 @@
 //!   a pit, a flat top, contact creases and an overhang.
 //! * [`three_solids`]: a sphere, a torus and a box in the unit cube: the distance-accuracy and
 //!   performance scene (`n^3` samples).
+//! * [`shepp_logan`]: the 3-D Shepp-Logan head phantom in 16-bit integers (memory benchmarks).
 //! * [`VectorField`]s with known streamlines: [`RigidRotation`] (circles), [`AbcFlow`]
 //!   (Arnold-Beltrami-Childress, a steady Euler solution with chaotic streamlines) and
 //!   [`BurgersVortex`] (a tornado-like exact Navier-Stokes vortex with inflow and updraft).
@@ -261,6 +262,67 @@ pub fn validation_scene(n: usize) -> Volume {
         [n, n, n],
         cube_affine([n, n, n], 0.0, 100.0),
     )
+}
+
+/// The modified 3-D Shepp-Logan head phantom (Kak & Slaney's ellipsoids with Toft's
+/// contrasts, each rotated about z only) on an `n^3` grid spanning `[-1, 1]^3`, stored as
+/// `uint16`: each ellipsoid adds its contrast x 1000 (skull 1000, brain 200, ventricles 0,
+/// small lesions 300), plus a deterministic integer noise of -8..=8 inside the skull (none
+/// outside, so the empty margin stays empty). Integer samples in 16 bits: the stored-type
+/// scene of the renderers' memory benchmarks.
+pub fn shepp_logan(n: usize) -> Volume {
+    // (contrast, semi-axes a b c, centre x y z, rotation about z in degrees)
+    const E: [(f64, [f64; 3], [f64; 3], f64); 10] = [
+        (1.0, [0.69, 0.92, 0.81], [0.0, 0.0, 0.0], 0.0),
+        (-0.8, [0.6624, 0.874, 0.78], [0.0, -0.0184, 0.0], 0.0),
+        (-0.2, [0.11, 0.31, 0.22], [0.22, 0.0, 0.0], -18.0),
+        (-0.2, [0.16, 0.41, 0.28], [-0.22, 0.0, 0.0], 18.0),
+        (0.1, [0.21, 0.25, 0.41], [0.0, 0.35, -0.15], 0.0),
+        (0.1, [0.046, 0.046, 0.05], [0.0, 0.1, 0.25], 0.0),
+        (0.1, [0.046, 0.046, 0.05], [0.0, -0.1, 0.25], 0.0),
+        (0.1, [0.046, 0.023, 0.05], [-0.08, -0.605, 0.0], 0.0),
+        (0.1, [0.023, 0.023, 0.02], [0.0, -0.606, 0.0], 0.0),
+        (0.1, [0.023, 0.046, 0.02], [0.06, -0.605, 0.0], 0.0),
+    ];
+    let n = n.max(2);
+    let dims = [n; 3];
+    let affine = cube_affine(dims, -1.0, 1.0);
+    use rayon::prelude::*;
+    let data = (0..n * n * n)
+        .into_par_iter()
+        .map(|i| {
+            let p = (affine
+                * DVec4::new(
+                    (i % n) as f64,
+                    ((i / n) % n) as f64,
+                    (i / (n * n)) as f64,
+                    1.0,
+                ))
+            .truncate();
+            let mut v = 0.0;
+            for (a, s, c, phi) in E {
+                let (sn, cs) = phi.to_radians().sin_cos();
+                let d = p - DVec3::from(c);
+                let q = DVec3::new(cs * d.x + sn * d.y, -sn * d.x + cs * d.y, d.z);
+                if (q / DVec3::from(s)).length_squared() <= 1.0 {
+                    v += a;
+                }
+            }
+            let v = (v * 1000.0).round().max(0.0);
+            if v == 0.0 {
+                return 0.0;
+            }
+            // A 64-bit mix of the index: noise without a random-number crate.
+            let mut h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            h ^= h >> 31;
+            h = h.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            h ^= h >> 29;
+            (v + (h % 17) as f64 - 8.0).max(0.0) as f32
+        })
+        .collect();
+    let mut vol = synthetic_volume(dims, affine, "density", 1, data);
+    vol.fields[0].stored = ScalarType::U16;
+    vol
 }
 
 /// A steady velocity field with known behaviour.

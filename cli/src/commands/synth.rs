@@ -21,15 +21,15 @@
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 use volume::synthetic::{
-    cube_affine, double_gyre_grid, sample_series, sample_solid, sample_vector, three_solids,
-    validation_scene, AbcFlow, BurgersVortex, DoubleGyre3d, RigidRotation,
+    cube_affine, double_gyre_grid, sample_series, sample_solid, sample_vector, shepp_logan,
+    three_solids, validation_scene, AbcFlow, BurgersVortex, DoubleGyre3d, RigidRotation,
 };
 use volume::{Volume, VolumeSeries};
 
 /// What `umbra synth --help` adds below the options.
 const NOTES: &str = "\
-Scenes: validation, three-solids, abc, burgers, rotation (steady; NRRD, or NIfTI for .nii and \
-.nii.gz), double-gyre (a time-periodic 3-D double gyre on [0,2]x[0,1]x[0,1], period 10, as a 5-D \
+Scenes: validation, three-solids, phantom (the 3-D Shepp-Logan head in uint16), abc, burgers, \
+rotation (steady; NRRD, or NIfTI for .nii and .nii.gz), double-gyre (a time-periodic 3-D double gyre on [0,2]x[0,1]x[0,1], period 10, as a 5-D \
 NIfTI time series: .nii or .nii.gz), bundles (a tractogram of --n streamlines in smooth twisted \
 bundles across a brain-sized box, written streaming as .tck or .tck.gz).";
 
@@ -181,6 +181,7 @@ fn is_nifti(p: &Path) -> bool {
 pub const SCENES: &[&str] = &[
     "validation",
     "three-solids",
+    "phantom",
     "abc",
     "burgers",
     "rotation",
@@ -227,6 +228,7 @@ pub fn scene(name: &str, n: usize) -> Result<Volume, String> {
     Ok(match name {
         "validation" => validation_scene(n),
         "three-solids" => sample_solid(&three_solids(), dims, cube_affine(dims, 0.0, 1.0)),
+        "phantom" => shepp_logan(n),
         "abc" => sample_vector(
             &AbcFlow::default(),
             dims,
