@@ -111,6 +111,10 @@ pub const CPU_BATCH_TRIANGLES: u64 = 1 << 18;
 /// wgpu's staging memory in pieces, each submitted and waited for before the next.
 pub const STAGING_BYTES: usize = 64 << 20;
 
+/// The most bytes staged at once for a volume's samples (16 MiB): on a CPU adapter the staging
+/// copy is host memory beside the model's samples and the GPU's, so it is kept small.
+pub const VOLUME_STAGING_BYTES: usize = 16 << 20;
+
 /// What [`Gpu::cached`] keeps: any clonable value by a key naming its description.
 #[derive(Default)]
 struct Pool {
@@ -834,7 +838,7 @@ impl Gpu {
     }
 
     /// [`Gpu::buffer_staged`] with pieces of at most `piece` bytes (a multiple of 4).
-    fn buffer_staged_by(
+    pub fn buffer_staged_by(
         &self,
         label: &str,
         bytes: &[u8],

@@ -11,7 +11,7 @@ use crate::gpu::{Gpu, GpuError, Slot};
 use crate::method::{require, SettingError};
 use crate::prelude::{clip_planes, mat4, with_prelude, FrameUniform, LightUniform};
 use occlusion::combined::{blur_rows, light_cell, BlurRow};
-use occlusion::emission_absorption::{occupancy, EaView, Transfer, BRICK, MAX_CLIP};
+use occlusion::emission_absorption::{occupancy_packed, EaView, Transfer, BRICK, MAX_CLIP};
 use volume::Volume;
 
 const SHADER: &str = include_str!("../../shaders/slice_pass.wgsl");
@@ -70,8 +70,9 @@ impl SliceSettings {
 /// A volume as the pass reads it.
 pub struct VolumeInput<'a> {
     pub vol: &'a Volume,
-    /// As `ea_pass::prepare` returns it (NaN as -3e38).
-    pub data: &'a [f32],
+    /// Packed (`Samples::pack` of the field as `emission_absorption::prepare` returns it: NaN
+    /// as -3e38); uploaded as they are.
+    pub data: &'a Samples,
     pub tf: &'a Transfer,
 }
 
@@ -238,86 +239,9 @@ pub fn part_words(gpu: &Gpu) -> usize {
     (gpu.storage_limit() / 4).min(u32::MAX as u64) as usize
 }
 
-/// How a volume's samples are stored on the GPU: f32, or integers in 16 or 8 bits plus an
-/// offset when every sample is an integer within 65,536 (or 256) of the smallest one - the
-/// stored type of most scanner and CT volumes, read back exactly.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Packing {
-    F32,
-    U16 { offset: f32 },
-    U8 { offset: f32 },
-}
-
-impl Packing {
-    /// The packing `data` allows (NaN, infinite, fractional or out-of-range samples: f32).
-    pub fn of(data: &[f32]) -> Packing {
-        if data.is_empty() {
-            return Packing::F32;
-        }
-        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-        for &v in data {
-            // Integers exactly representable in f32 only.
-            if !(v.abs() < 16_777_216.0 && v == v.trunc()) {
-                return Packing::F32;
-            }
-            lo = lo.min(v);
-            hi = hi.max(v);
-        }
-        match hi - lo {
-            r if r < 256.0 => Packing::U8 { offset: lo },
-            r if r < 65_536.0 => Packing::U16 { offset: lo },
-            _ => Packing::F32,
-        }
-    }
-
-    /// Samples a 32-bit word holds.
-    pub fn per_word(self) -> usize {
-        match self {
-            Packing::F32 => 1,
-            Packing::U16 { .. } => 2,
-            Packing::U8 { .. } => 4,
-        }
-    }
-
-    fn code(self) -> u32 {
-        match self {
-            Packing::F32 => 0,
-            Packing::U16 { .. } => 1,
-            Packing::U8 { .. } => 2,
-        }
-    }
-
-    fn offset(self) -> f32 {
-        match self {
-            Packing::F32 => 0.0,
-            Packing::U16 { offset } | Packing::U8 { offset } => offset,
-        }
-    }
-
-    /// The words of `data` packed.
-    fn words(self, data: &[f32]) -> std::borrow::Cow<'_, [u32]> {
-        let o = self.offset();
-        match self {
-            Packing::F32 => std::borrow::Cow::Borrowed(bytemuck::cast_slice(data)),
-            Packing::U16 { .. } => data
-                .chunks(2)
-                .map(|c| {
-                    c.iter()
-                        .enumerate()
-                        .fold(0u32, |w, (k, &v)| w | (((v - o) as u32) << (16 * k)))
-                })
-                .collect(),
-            Packing::U8 { .. } => data
-                .chunks(4)
-                .map(|c| {
-                    c.iter()
-                        .enumerate()
-                        .fold(0u32, |w, (k, &v)| w | (((v - o) as u32) << (8 * k)))
-                })
-                .collect(),
-        }
-    }
-}
+/// How a volume's samples are stored on the GPU (and by the model on the CPU: one layout,
+/// `volume::samples`).
+pub use volume::samples::{Packing, Samples};
 
 /// The most samples a volume packed as `packing` may have on `gpu` at full resolution.
 pub fn max_volume_samples(gpu: &Gpu, packing: Packing) -> usize {
@@ -371,21 +295,21 @@ fn transfer_floats(tf: &Transfer) -> Vec<f32> {
 impl GpuVolume {
     /// Uploads `vi`; an error when its samples exceed the adapter's storage binding limit.
     pub fn upload(gpu: &Gpu, vi: &VolumeInput) -> Result<GpuVolume, GpuError> {
-        let packing = Packing::of(vi.data);
+        let packing = vi.data.packing();
         let most = max_volume_samples(gpu, packing);
         if vi.data.len() > most {
             return Err(GpuError::Operation(format!(
                 "the volume has {} samples ({} MB as {:?}); this adapter binds at most {} in \
                  {VOLUME_PARTS} parts of {} MB: downsample it",
                 vi.data.len(),
-                (vi.data.len() * 4 / packing.per_word()) >> 20,
+                vi.data.bytes() >> 20,
                 packing,
                 most,
                 (part_words(gpu) * 4) >> 20
             )));
         }
         let tfb = transfer_floats(vi.tf);
-        let (bricks, occ) = occupancy(vi.data, vi.vol.dims, vi.tf);
+        let (bricks, occ) = occupancy_packed(vi.data, vi.vol.dims, vi.tf, BRICK);
         Self::make(
             gpu,
             vi.data,
@@ -410,7 +334,7 @@ impl GpuVolume {
             )));
         }
         let storage = wgpu::BufferUsages::STORAGE;
-        let (bricks, occ) = occupancy(vi.data, vi.vol.dims, vi.tf);
+        let (bricks, occ) = occupancy_packed(vi.data, vi.vol.dims, vi.tf, BRICK);
         self.tf = gpu.buffer(
             "slice transfer",
             bytemuck::cast_slice(&transfer_floats(vi.tf)),
@@ -426,7 +350,7 @@ impl GpuVolume {
     #[allow(clippy::too_many_arguments)]
     fn make(
         gpu: &Gpu,
-        field: &[f32],
+        field: &Samples,
         tf: &[f32],
         occ: &[u32],
         dims: [usize; 3],
@@ -436,13 +360,20 @@ impl GpuVolume {
     ) -> Result<GpuVolume, GpuError> {
         let storage = wgpu::BufferUsages::STORAGE;
         let part_len = part_words(gpu).max(1);
-        let packing = Packing::of(field);
-        let words = packing.words(field);
+        let packing = field.packing();
+        let words = field.words();
         Ok(GpuVolume {
-            // Staged in pieces of at most 64 MiB (a 128 MiB part would stage all at once).
+            // Staged in pieces of at most 16 MiB (a 128 MiB part would stage all at once).
             field: words
                 .chunks(part_len)
-                .map(|c| gpu.buffer_staged("slice field", bytemuck::cast_slice(c), storage))
+                .map(|c| {
+                    gpu.buffer_staged_by(
+                        "slice field",
+                        bytemuck::cast_slice(c),
+                        storage,
+                        crate::gpu::VOLUME_STAGING_BYTES,
+                    )
+                })
                 .collect::<Result<_, _>>()?,
             part_len: part_len.min(u32::MAX as usize) as u32,
             packing,
@@ -462,7 +393,7 @@ impl GpuVolume {
         gpu.cached("no volume".into(), || {
             Self::make(
                 gpu,
-                &[0.0; 8],
+                &Samples::f32(vec![0.0; 8]),
                 &[0.0; 8],
                 &[0],
                 [2, 2, 2],
@@ -788,53 +719,6 @@ impl SlicePass {
         pass.set_pipeline(&self.march_pipe);
         pass.set_bind_group(1, &self.group1[0], &[0]);
         pass.dispatch_workgroups(self.size.0.div_ceil(8), self.size.1.div_ceil(8), 1);
-    }
-}
-
-#[cfg(test)]
-mod packing_tests {
-    use super::Packing;
-
-    /// The shader's `voxel`, on the CPU: sample `l` of the packed words.
-    fn unpack(p: Packing, words: &[u32], l: usize) -> f32 {
-        match p {
-            Packing::F32 => f32::from_bits(words[l]),
-            Packing::U16 { offset } => ((words[l / 2] >> (16 * (l % 2))) & 0xFFFF) as f32 + offset,
-            Packing::U8 { offset } => ((words[l / 4] >> (8 * (l % 4))) & 0xFF) as f32 + offset,
-        }
-    }
-
-    #[test]
-    fn integer_volumes_pack_into_8_or_16_bits_and_read_back_exactly() {
-        let u8s: Vec<f32> = (0..1001).map(|i| (i * 37 % 256) as f32 - 40.0).collect();
-        let u16s: Vec<f32> = (0..1001)
-            .map(|i| (i * 977 % 65_536) as f32 + 1000.0)
-            .collect();
-        let floats: Vec<f32> = (0..1001).map(|i| i as f32 * 0.5).collect();
-        let wide: Vec<f32> = vec![0.0, 65_536.0];
-        let gaps: Vec<f32> = vec![1.0, -3e38, 2.0];
-        assert_eq!(Packing::of(&u8s), Packing::U8 { offset: -40.0 });
-        assert_eq!(Packing::of(&u16s), Packing::U16 { offset: 1000.0 });
-        assert_eq!(Packing::of(&floats), Packing::F32);
-        assert_eq!(Packing::of(&wide), Packing::F32);
-        assert_eq!(
-            Packing::of(&gaps),
-            Packing::F32,
-            "the NaN stand-in stays f32"
-        );
-        assert_eq!(
-            Packing::of(&[2.0e7, 2.0e7 + 2.0]),
-            Packing::F32,
-            "beyond 2^24"
-        );
-        for data in [&u8s, &u16s, &floats] {
-            let p = Packing::of(data);
-            let words = p.words(data);
-            assert_eq!(words.len(), data.len().div_ceil(p.per_word()));
-            for (l, &v) in data.iter().enumerate() {
-                assert_eq!(unpack(p, &words, l), v, "{p:?} sample {l}");
-            }
-        }
     }
 }
 

@@ -4,7 +4,7 @@
 use engine::gpu::Gpu;
 use engine::method::Method;
 use engine::renderer::{self, Settings};
-use engine::slice_pass::VolumeInput;
+use engine::slice_pass::{Samples, VolumeInput};
 use glam::DVec3;
 use occlusion::camera::Camera;
 use occlusion::emission_absorption::{reference, EaView, Transfer};
@@ -17,7 +17,12 @@ fn blob() -> Volume {
 
 /// The `ea` method of the renderer, no tubes, no FXAA.
 fn render(gpu: &Gpu, data: &[f32], vol: &Volume, tf: &Transfer, v: &EaView) -> Vec<[f32; 4]> {
-    let vi = VolumeInput { vol, data, tf };
+    let data = Samples::pack(data.to_vec());
+    let vi = VolumeInput {
+        vol,
+        data: &data,
+        tf,
+    };
     draw(gpu, &vi, v, Method::Ea, None).unwrap()
 }
 
@@ -175,6 +180,7 @@ fn a_volume_split_into_parts_renders_as_the_whole() {
     let cam = Camera::orbit(vol.bounds(), 40.0, 25.0, 2.5, Some(40.0));
     let view = EaView::new(&vol, cam, 48, 40, None, None, [1.0; 3]).unwrap();
     let tf = tf();
+    let data = Samples::pack(data);
     let vi = VolumeInput {
         vol: &vol,
         data: &data,
@@ -235,6 +241,8 @@ fn integer_volumes_packed_in_8_and_16_bits_render_as_f32() {
             .fold(0.0, f32::max);
         assert!(worst < 1e-3, "{want:?}: differs from f32 by {worst}");
         // 1,024 samples a part: eight parts.
+        let ints = Samples::pack(ints);
+        assert_eq!(ints.packing(), want);
         let vi = VolumeInput {
             vol: &vol,
             data: &ints,

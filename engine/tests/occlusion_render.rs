@@ -11,7 +11,7 @@ use common::{gpu, top_camera};
 use engine::gpu::Gpu;
 use engine::method::{Combine, Method};
 use engine::renderer::{self, Output, Settings};
-use engine::slice_pass::VolumeInput;
+use engine::slice_pass::{Samples, VolumeInput};
 use glam::{DMat4, DVec3, DVec4};
 use occlusion::camera::Camera;
 use occlusion::emission_absorption::{EaView, Transfer};
@@ -72,17 +72,21 @@ fn view(cam: Camera) -> EaView {
 
 struct Scene {
     vol: Option<(Volume, Vec<f32>, Transfer)>,
+    /// The volume's samples as the renderer takes them.
+    packed: Option<Samples>,
     meshes: Vec<TubeMesh>,
     tube_clip: Vec<([f64; 3], f64)>,
 }
 
 impl Scene {
     fn new(vol: Option<(Volume, Transfer)>, meshes: Vec<TubeMesh>) -> Scene {
+        let vol = vol.map(|(v, t)| {
+            let d = occlusion::emission_absorption::prepare(&v.select(None).unwrap().data);
+            (v, d, t)
+        });
         Scene {
-            vol: vol.map(|(v, t)| {
-                let d = occlusion::emission_absorption::prepare(&v.select(None).unwrap().data);
-                (v, d, t)
-            }),
+            packed: vol.as_ref().map(|(_, d, _)| Samples::pack(d.clone())),
+            vol,
             meshes,
             tube_clip: vec![],
         }
@@ -92,7 +96,8 @@ impl Scene {
         let vi = self
             .vol
             .as_ref()
-            .map(|(vol, data, tf)| VolumeInput { vol, data, tf });
+            .zip(self.packed.as_ref())
+            .map(|((vol, _, tf), data)| VolumeInput { vol, data, tf });
         renderer::render(
             gpu,
             vi.as_ref(),
@@ -666,7 +671,8 @@ fn a_long_lived_renderer_draws_new_cameras_without_compiling_or_uploading() {
         Some((cube(|p| (p.length() < 8.0) as u8 as f32), medium(0.2))),
         vec![tubes(&[[[-9.0, 0.0, 4.0], [9.0, 0.0, 4.0]]], 1.0)],
     );
-    let (vol, data, tf) = s.vol.as_ref().unwrap();
+    let (vol, _, tf) = s.vol.as_ref().unwrap();
+    let data = s.packed.as_ref().unwrap();
     let r = renderer::Renderer::new(&gpu);
     let scene = r
         .upload(Some(&VolumeInput { vol, data, tf }), &s.meshes, &[], None)
@@ -770,7 +776,9 @@ fn lines_shadow_the_volume_through_their_proxy_radius_and_lineao_folds_with_part
     let gpu = gpu();
     let cam = top_camera(false);
     let vol = cube(|_| 1.0);
-    let data = occlusion::emission_absorption::prepare(&vol.select(None).unwrap().data);
+    let data = Samples::pack(occlusion::emission_absorption::prepare(
+        &vol.select(None).unwrap().data,
+    ));
     let tf = medium(0.1);
     let input = VolumeInput {
         vol: &vol,

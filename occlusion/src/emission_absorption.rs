@@ -475,13 +475,29 @@ pub const BRICK: usize = 8;
 /// Bricks per axis and, per brick, whether any value its voxels span (the brick's cells,
 /// voxels `b B ..= b B + B`) has extinction; data as [`prepare`] returns it.
 pub fn occupancy(data: &[f32], dims: [usize; 3], tf: &Transfer) -> ([usize; 3], Vec<u32>) {
-    occupancy_of(data, dims, tf, BRICK)
+    occupancy_of(data, 0.0, dims, tf, BRICK)
+}
+
+/// [`occupancy`] of packed samples (in their stored type: no `f32` copy).
+pub fn occupancy_packed(
+    data: &volume::samples::Samples,
+    dims: [usize; 3],
+    tf: &Transfer,
+    brick: usize,
+) -> ([usize; 3], Vec<u32>) {
+    use volume::samples::View;
+    match data.view() {
+        View::F32(d) => occupancy_of(d, 0.0, dims, tf, brick),
+        View::U16(d, o) => occupancy_of(d, o, dims, tf, brick),
+        View::U8(d, o) => occupancy_of(d, o, dims, tf, brick),
+    }
 }
 
 /// [`occupancy`] for bricks of `brick^3` cells (the CPU renderer skips finer bricks than the
-/// GPU pass reads).
-pub fn occupancy_of(
-    data: &[f32],
+/// GPU pass reads), of samples `data` plus `offset` in any stored type.
+pub fn occupancy_of<T: volume::samples::Sample>(
+    data: &[T],
+    offset: f32,
     dims: [usize; 3],
     tf: &Transfer,
     brick: usize,
@@ -494,12 +510,12 @@ pub fn occupancy_of(
         .into_par_iter()
         .map(|n| {
             let (bx, by, bz) = (n % nb[0], (n / nb[0]) % nb[1], n / (nb[0] * nb[1]));
-            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
             for k in r(bz, 2) {
                 for j in r(by, 1) {
                     let row = dims[0] * (j + dims[1] * k);
                     for &v in &data[row + bx * b_..=row + ((bx + 1) * b_).min(dims[0] - 1)] {
-                        let v = v as f64;
+                        let v = v.value();
                         if v >= -1e30 {
                             lo = lo.min(v);
                             hi = hi.max(v);
@@ -507,6 +523,7 @@ pub fn occupancy_of(
                     }
                 }
             }
+            let (lo, hi) = (lo as f64 + offset as f64, hi as f64 + offset as f64);
             (lo <= hi && !tf.transparent_over(lo, hi)) as u32
         })
         .collect();

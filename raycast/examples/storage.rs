@@ -1,5 +1,8 @@
-//! What the stored sample type buys the CPU renderer: a volume rendered alternately with its
-//! narrow storage (u8/u16 where exact) and as f32, paired medians of frame times.
+//! What the stored sample type and the layout cost the CPU renderer: a volume rendered in turn
+//! from a copy in bricks in its narrow storage (u8/u16 where exact), from a copy in f32 bricks,
+//! and from the packed samples where they are (the grid's layout, no copy:
+//! `EaVolume::in_place`, what `EaVolume::shared` reads above `COPY_AT_MOST`); medians of
+//! frame times and the ratios to the f32 bricks, paired.
 //! `cargo run --release -p raycast --example storage -- VOLUME [SIZE] [PAIRS]`
 //! (a ramp transfer function over the data's range, transparent below 10% of it, extinction
 //! 0.15 per world unit at the top; slices half the smallest spacing apart; the MNI demo view).
@@ -32,6 +35,8 @@ fn main() -> Result<(), String> {
     };
     let narrow = raycast::EaVolume::with_storage(&vol, &field.data, &tf, true)?;
     let wide = raycast::EaVolume::with_storage(&vol, &field.data, &tf, false)?;
+    let packed = std::sync::Arc::new(volume::samples::Samples::pack(field.data.clone()));
+    let flat = raycast::EaVolume::in_place(&vol, packed, &tf)?;
     let h = vol.spacing().iter().cloned().fold(f64::INFINITY, f64::min);
     let cam = Camera::orbit(vol.bounds(), 120.0, 15.0, 2.5, Some(30.0));
     let view = EaView::new(&vol, cam, size, size, None, Some(0.5 * h), [1.0; 3])?;
@@ -42,24 +47,32 @@ fn main() -> Result<(), String> {
     };
     time(&narrow);
     time(&wide);
+    time(&flat);
     let (mut a, mut b, mut r) = (vec![], vec![], vec![]);
+    let (mut c, mut rc) = (vec![], vec![]);
     for _ in 0..pairs {
-        let (x, y) = (time(&narrow), time(&wide));
+        let (x, y, z) = (time(&narrow), time(&wide), time(&flat));
         a.push(x);
         b.push(y);
         r.push(x / y);
+        c.push(z);
+        rc.push(z / y);
     }
     let med = |v: &mut Vec<f64>| {
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
     println!(
-        "{path}: {size}^2, {} slices; {} storage {:.1} ms, f32 {:.1} ms, paired ratio {:.3}",
+        "{path}: {size}^2, {} slices; {} bricks {:.1} ms, f32 bricks {:.1} ms, {} in place {:.1} \
+         ms; paired ratios to f32 bricks {:.3} and {:.3}",
         view.slices,
         narrow.storage(),
         med(&mut a),
         med(&mut b),
-        med(&mut r)
+        flat.storage(),
+        med(&mut c),
+        med(&mut r),
+        med(&mut rc)
     );
     Ok(())
 }

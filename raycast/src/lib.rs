@@ -10,7 +10,8 @@
 //! where the ray is inside the grid are solved for once; empty blocks of 4^3 cells
 //! (`occlusion::emission_absorption::occupancy_of`) are stepped over whole, to the first
 //! slice past the block, instead of sample by sample; rays end when the opacity passes 0.999
-//! (as the shader); the samples are stored by 9^3 bricks (a cell's corners in one); rays
+//! (as the shader); the samples are read where the model keeps them, in their stored type
+//! (`volume::samples`: `u8`/`u16` plus an offset, or `f32`; shared, not copied); rays
 //! march in packets of 4 x 4; the transfer function is evaluated exactly (piecewise linear,
 //! not a table) and the exponential from a table (within 8e-6); bands of rows run on rayon's
 //! threads, compiled for AVX2 and FMA where the CPU has them.
@@ -23,10 +24,12 @@
 
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use occlusion::emission_absorption::{
-    occupancy_of, prepare, slab_interval, EaView, Transfer, BRICK,
+    occupancy_packed, prepare, slab_interval, EaView, Transfer, BRICK,
 };
 use occlusion::projection::Extremum;
 use rayon::prelude::*;
+use std::sync::Arc;
+use volume::samples::{Packing, Sample as Voxel, Samples, View};
 
 mod light;
 pub use light::LightSettings;
@@ -57,13 +60,22 @@ pub(crate) fn pixel_ray(inv: &DMat4, v: &EaView, px: [f64; 2]) -> (DVec3, DVec3)
 }
 
 /// A volume ready to ray cast: its samples as the passes read them (NaN as a gap), its grid,
-/// its empty-space bricks and its transfer function.
+/// its empty-space blocks and its transfer function.
 pub struct EaVolume {
     dims: [usize; 3],
-    data: Samples,
+    /// The samples, x fastest (shared with the model that holds them).
+    data: Arc<Samples>,
+    /// What is added to a stored sample to give its value (`Packing::offset`).
+    offset: f32,
+    /// Offsets of a cell's eight corners from its first, x fastest, then y, then z, in the
+    /// whole grid's layout (`bricks` `None`).
+    corner: [usize; 8],
+    /// The layout of `data`: bricks of `BRICK^3` cells per axis, each `APRON^3` samples with
+    /// its far faces so that a cell's corners are in one brick (`Some`: a copy the volume
+    /// made, read 20-25% faster than the grid's layout on the MNI T1), or the grid's own
+    /// layout, x fastest (`None`: the model's samples, shared).
+    bricks: Option<[usize; 3]>,
     world_to_index: DMat4,
-    /// Bricks of the sample layout (`BRICK^3` cells) per axis.
-    bricks: [usize; 3],
     /// Blocks of `SKIP^3` cells per axis, and whether each has extinction anywhere
     /// (`occupancy_of`): the empty ones are stepped over.
     blocks: [usize; 3],
@@ -80,8 +92,9 @@ pub struct EaVolume {
     hi: [f32; 3],
     /// `exp(-x)` at `x = i / EXP_SCALE` (see [`EaVolume::exp_neg`]).
     exp_table: Vec<f32>,
-    /// The samples in `u8` or `u16` where they are integers in range (`None`: they are not,
-    /// or they are stored so already), made at the first lit frame for the light sweep.
+    /// `f32` samples in `u8` or `u16` where they are integers from 0 to 255 or 65,535
+    /// (`None`: they are not, or they are stored narrow already), made at the first lit frame
+    /// for the light sweep.
     sweep_samples: std::sync::OnceLock<Option<Samples>>,
     /// The transfer function is transparent below its values (its first point has no
     /// extinction) rather than above them: which side of the extreme empty blocks lie on.
@@ -100,12 +113,54 @@ impl EaVolume {
     }
 
     /// [`EaVolume::new`] with the storage chosen: `narrow` keeps integer data in `u8` or
-    /// `u16`, else `f32`.
+    /// `u16` (plus an offset), else `f32`.
     pub fn with_storage(
         vol: &volume::Volume,
         data: &[f32],
         tf: &Transfer,
         narrow: bool,
+    ) -> Result<EaVolume, String> {
+        let data = prepare(data);
+        let packing = match narrow {
+            true => Packing::of(&data),
+            false => Packing::F32,
+        };
+        EaVolume::build(vol, Arc::new(Samples::f32(data)), tf, Some(packing))
+    }
+
+    /// A volume reading the packed samples `data` of `vol` (as `emission_absorption::prepare`
+    /// leaves them: gaps below -1e30): where a copy of them in `f32` bricks would take at most
+    /// [`COPY_AT_MOST`] bytes the volume keeps one, which frames read fastest (the narrow
+    /// types cost 4-9% a frame, the grid's layout 20-35%); larger volumes are read where they
+    /// are, shared and not copied, in their stored type and the grid's layout - rendering
+    /// then holds no more than the model's samples.
+    pub fn shared(
+        vol: &volume::Volume,
+        data: Arc<Samples>,
+        tf: &Transfer,
+    ) -> Result<EaVolume, String> {
+        let bricks = data.len() as f64 * 4.0 * (APRON as f64 / BRICK as f64).powi(3);
+        let copy = (bricks <= COPY_AT_MOST as f64).then_some(Packing::F32);
+        EaVolume::build(vol, data, tf, copy)
+    }
+
+    /// [`EaVolume::shared`] that always reads the samples where they are (no copy at any
+    /// size).
+    pub fn in_place(
+        vol: &volume::Volume,
+        data: Arc<Samples>,
+        tf: &Transfer,
+    ) -> Result<EaVolume, String> {
+        EaVolume::build(vol, data, tf, None)
+    }
+
+    /// The volume of samples `data` on `vol`'s grid (x fastest), read where they are
+    /// (`bricked` `None`) or from a copy in bricks packed as `bricked`.
+    fn build(
+        vol: &volume::Volume,
+        data: Arc<Samples>,
+        tf: &Transfer,
+        bricked_as: Option<Packing>,
     ) -> Result<EaVolume, String> {
         if !tf.rows.is_empty() {
             return Err(
@@ -122,9 +177,15 @@ impl EaVolume {
                 vol.dims[2]
             ));
         }
-        let data = prepare(data);
-        let bricks = vol.dims.map(|d| d.saturating_sub(1).max(1).div_ceil(BRICK));
-        let (blocks, occ) = occupancy_of(&data, vol.dims, tf, SKIP);
+        let (blocks, occ) = occupancy_packed(&data, vol.dims, tf, SKIP);
+        let (data, bricks) = match bricked_as {
+            Some(packing) => {
+                let bricks = vol.dims.map(|d| d.saturating_sub(1).max(1).div_ceil(BRICK));
+                let b = bricked(&data.to_f32(), vol.dims, bricks, |v| v);
+                (Arc::new(Samples::pack_as(b, packing)), Some(bricks))
+            }
+            None => (data, None),
+        };
         let points: Vec<(f32, [f32; 3], f32)> = tf
             .points
             .iter()
@@ -141,11 +202,14 @@ impl EaVolume {
                 (inv, [0, 1, 2].map(|k| b.1[k] - a.1[k]), b.2 - a.2)
             })
             .collect();
+        let (sy, sz) = (vol.dims[0], vol.dims[0] * vol.dims[1]);
         Ok(EaVolume {
             dims: vol.dims,
-            data: Samples::new(&data, vol.dims, bricks, narrow),
-            world_to_index: vol.affine.inverse(),
+            offset: data.packing().offset(),
+            data,
+            corner: [0, 1, sy, sy + 1, sz, sz + 1, sz + sy, sz + sy + 1],
             bricks,
+            world_to_index: vol.affine.inverse(),
             blocks,
             occupied: occ.iter().map(|&o| o != 0).collect(),
             reach: reach_of(&occ, blocks),
@@ -190,32 +254,39 @@ impl EaVolume {
     /// 5-8% more time a frame (the conversion to float per corner), so they are used only
     /// where the memory matters.
     pub fn storage(&self) -> &'static str {
-        match self.data {
-            Samples::U8(_) => "u8",
-            Samples::U16(_) => "u16",
-            Samples::F32(_) => "f32",
+        match self.data.packing() {
+            Packing::U8 { .. } => "u8",
+            Packing::U16 { .. } => "u16",
+            Packing::F32 => "f32",
         }
     }
 
-    /// The eight corners of cell `c` (in brick `brick`; see `Samples`): x fastest, then y,
-    /// then z. Below -1e30 next to a gap.
+    /// The eight corners of cell `c` as stored (add [`EaVolume::offset`] for values): x
+    /// fastest, then y, then z. Below -1e30 next to a gap.
     #[inline(always)]
-    fn corners<T: Voxel>(&self, d: &[T], c: [usize; 3], brick: usize) -> [f32; 8] {
+    fn corners<T: Voxel>(&self, d: &[T], c: [usize; 3]) -> [f32; 8] {
         let [cx, cy, cz] = c;
+        let Some(bricks) = self.bricks else {
+            let i = cx + self.dims[0] * (cy + self.dims[1] * cz);
+            // One bounds check for the cell's last corner; the others are below it.
+            let d = &d[i..=i + self.corner[7]];
+            return self.corner.map(|o| d[o].value());
+        };
+        let brick = cx / BRICK + bricks[0] * (cy / BRICK + bricks[1] * (cz / BRICK));
         // One bounds check for the brick; the corners' offsets within it are below APRON^3
         // by construction (local cells 0..BRICK), which the compiler sees.
         let d = &d[brick * APRON.pow(3)..][..APRON.pow(3)];
         let i = cx % BRICK + APRON * (cy % BRICK + APRON * (cz % BRICK));
         let (sy, sz) = (APRON, APRON * APRON);
         [
-            d[i].f(),
-            d[i + 1].f(),
-            d[i + sy].f(),
-            d[i + sy + 1].f(),
-            d[i + sz].f(),
-            d[i + sz + 1].f(),
-            d[i + sz + sy].f(),
-            d[i + sz + sy + 1].f(),
+            d[i].value(),
+            d[i + 1].value(),
+            d[i + sy].value(),
+            d[i + sy + 1].value(),
+            d[i + sz].value(),
+            d[i + sz + 1].value(),
+            d[i + sz + sy].value(),
+            d[i + sz + sy + 1].value(),
         ]
     }
 
@@ -230,16 +301,14 @@ impl EaVolume {
         lerp(lerp(x00, x10, f[1]), lerp(x01, x11, f[1]), f[2])
     }
 
-    /// The cell holding `q` (inside the grid; the last cell for the far faces), its brick's
-    /// index in the sample layout, and its skip block's index and per-axis position.
+    /// The cell holding `q` (inside the grid; the last cell for the far faces), and its skip
+    /// block's index and per-axis position.
     #[inline(always)]
-    fn cell(&self, q: [f32; 3]) -> ([usize; 3], usize, usize, [usize; 3]) {
+    fn cell(&self, q: [f32; 3]) -> ([usize; 3], usize, [usize; 3]) {
         let c = [0, 1, 2].map(|a| (q[a] as usize).min(self.dims[a].max(2) - 2));
-        let b = c.map(|x| x / BRICK);
-        let i = b[0] + self.bricks[0] * (b[1] + self.bricks[1] * b[2]);
         let s = c.map(|x| x / SKIP);
         let j = s[0] + self.blocks[0] * (s[1] + self.blocks[1] * s[2]);
-        (c, i, j, s)
+        (c, j, s)
     }
 
     /// The image of `v` (rows top to bottom): RGBA with the background composited under the
@@ -253,10 +322,10 @@ impl EaVolume {
     /// Rays are marched in packets of `TILE x TILE` pixels, a step of each in turn, so that
     /// neighbouring rays read the voxels their neighbours just brought into the cache.
     pub fn render_frame(&self, v: &EaView, light: Option<&LightSettings>) -> Frame {
-        match &self.data {
-            Samples::U8(d) => self.render_with(v, d, light, 0),
-            Samples::U16(d) => self.render_with(v, d, light, 0),
-            Samples::F32(d) => self.render_with(v, d, light, 0),
+        match self.data.view() {
+            View::U8(d, _) => self.render_with(v, d, light, 0),
+            View::U16(d, _) => self.render_with(v, d, light, 0),
+            View::F32(d) => self.render_with(v, d, light, 0),
         }
     }
 
@@ -271,10 +340,10 @@ impl EaVolume {
             Extremum::Max => 1,
             Extremum::Min => 2,
         };
-        match &self.data {
-            Samples::U8(d) => self.render_with(v, d, None, mode),
-            Samples::U16(d) => self.render_with(v, d, None, mode),
-            Samples::F32(d) => self.render_with(v, d, None, mode),
+        match self.data.view() {
+            View::U8(d, _) => self.render_with(v, d, None, mode),
+            View::U16(d, _) => self.render_with(v, d, None, mode),
+            View::F32(d) => self.render_with(v, d, None, mode),
         }
     }
 
@@ -303,10 +372,13 @@ impl EaVolume {
         // samples are integers it reads them in their narrow type, 2-4 times fewer bytes
         // (the same values; measured: the sweep is bound by the plane's cache misses).
         let lv = light.map(
-            |s| match self.sweep_samples.get_or_init(|| self.data.narrowed()) {
-                Some(Samples::U8(d)) => self.sweep(v, d.as_slice(), s, inv),
-                Some(Samples::U16(d)) => self.sweep(v, d.as_slice(), s, inv),
-                _ => self.sweep(v, data, s, inv),
+            |s| match self.sweep_samples.get_or_init(|| narrowed(&self.data)) {
+                Some(n) => match n.view() {
+                    View::U8(d, _) => self.sweep(v, d, s, inv),
+                    View::U16(d, _) => self.sweep(v, d, s, inv),
+                    View::F32(d) => self.sweep(v, d, s, inv),
+                },
+                None => self.sweep(v, data, s, inv),
             },
         );
         let light_ms = if lv.is_some() {
@@ -550,14 +622,14 @@ impl EaVolume {
             r.k += 1;
             return;
         }
-        let (cell, brick, block, b) = self.cell(q);
+        let (cell, block, b) = self.cell(q);
         // A projection's extreme lies towards the transparent side of empty blocks: a sample
         // there makes the ray transparent (unless it is a gap).
         let ends = MODE != 0 && (MODE == 1) != self.clear_below;
         if !self.occupied[block] && ends {
             r.k += 1;
             let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
-            if EaVolume::trilinear(&self.corners(data, cell, brick), f) >= -1e30 {
+            if EaVolume::trilinear(&self.corners(data, cell), f) >= -1e30 {
                 r.found = false;
                 r.k1 = 0;
                 r.k = 1;
@@ -576,7 +648,7 @@ impl EaVolume {
         // four samples a cell takes, measured 1.3x slower on headsq: the copies cost more
         // than the loads from L1.)
         let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
-        let val = EaVolume::trilinear(&self.corners(data, cell, brick), f);
+        let val = EaVolume::trilinear(&self.corners(data, cell), f) + self.offset;
         if val < -1e30 {
             return;
         }
@@ -655,14 +727,14 @@ impl EaVolume {
         if (0..3).any(|a| !(q[a] >= 0.0 && q[a] <= hi[a])) {
             return (0.0, next);
         }
-        let (cell, brick, block, b) = self.cell(q);
+        let (cell, block, b) = self.cell(q);
         if !self.occupied[block] {
             let d = self.reach[block] as usize;
             let skip = if clipped { 1 } else { r.past_block(q, b, d) };
             return (0.0, k.saturating_add(skip));
         }
         let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
-        let val = EaVolume::trilinear(&self.corners(data, cell, brick), f);
+        let val = EaVolume::trilinear(&self.corners(data, cell), f) + self.offset;
         if val < -1e30 {
             return (0.0, next);
         }
@@ -749,63 +821,22 @@ fn reach_of(occ: &[u32], nb: [usize; 3]) -> Vec<u8> {
     reach
 }
 
+/// Bytes of `f32` samples beyond which integer data is kept in `u8` or `u16`.
+pub const NARROW_ABOVE: usize = 256 << 20;
+
+/// The largest copy of a shared volume's samples in `f32` bricks [`EaVolume::shared`] makes
+/// (the MNI T1 template's is 50 MB; a 256^3 volume's would be 95 MB).
+pub const COPY_AT_MOST: usize = 64 << 20;
+
 /// Samples per brick edge in memory: a brick of `BRICK^3` cells with its far faces, so that
 /// every cell's eight corners are in one brick.
 const APRON: usize = BRICK + 1;
 
-/// The samples in the narrowest type that holds them exactly, by bricks: the bricks of
-/// `occupancy` (cells `[b B, (b + 1) B]` per axis) one after the other, x fastest, each
-/// `APRON^3` samples, x fastest within (faces shared by two bricks are stored twice; samples
-/// beyond the grid repeat its last). A trilinear sample then reads two cache lines for the
-/// bytes of a brick's slice instead of four rows of the whole grid, and a ray's next samples
-/// mostly fall in the same brick.
-enum Samples {
-    U8(Vec<u8>),
-    U16(Vec<u16>),
-    F32(Vec<f32>),
-}
-
-/// Bytes of `f32` samples beyond which integer data is kept in `u8` or `u16`.
-pub const NARROW_ABOVE: usize = 256 << 20;
-
-impl Samples {
-    /// `f32` samples in `u8` or `u16` where every one is an integer in range (the same
-    /// layout); `None` otherwise or when already narrow.
-    fn narrowed(&self) -> Option<Samples> {
-        let Samples::F32(d) = self else {
-            return None;
-        };
-        let fits = |max: f32| {
-            d.par_iter()
-                .all(|&v| v >= 0.0 && v <= max && v == v.trunc())
-        };
-        if fits(255.0) {
-            Some(Samples::U8(d.par_iter().map(|&v| v as u8).collect()))
-        } else if fits(65535.0) {
-            Some(Samples::U16(d.par_iter().map(|&v| v as u16).collect()))
-        } else {
-            None
-        }
-    }
-
-    fn new(data: &[f32], dims: [usize; 3], bricks: [usize; 3], narrow: bool) -> Samples {
-        let fits = |max: f32| {
-            data.par_iter()
-                .all(|&v| v >= 0.0 && v <= max && v == v.trunc())
-        };
-        if !narrow {
-            Samples::F32(bricked(data, dims, bricks, |v| v))
-        } else if fits(255.0) {
-            Samples::U8(bricked(data, dims, bricks, |v| v as u8))
-        } else if fits(65535.0) {
-            Samples::U16(bricked(data, dims, bricks, |v| v as u16))
-        } else {
-            Samples::F32(bricked(data, dims, bricks, |v| v))
-        }
-    }
-}
-
-/// `data` (x fastest) in the brick layout of [`Samples`].
+/// `data` (x fastest) in bricks: the bricks of `occupancy` (cells `[b B, (b + 1) B]` per
+/// axis) one after the other, x fastest, each `APRON^3` samples, x fastest within (faces
+/// shared by two bricks are stored twice; samples beyond the grid repeat its last). A
+/// trilinear sample then reads two cache lines for the bytes of a brick's slice instead of
+/// four rows of the whole grid, and a ray's next samples mostly fall in the same brick.
 fn bricked<T: Voxel>(
     data: &[f32],
     dims: [usize; 3],
@@ -836,30 +867,22 @@ fn bricked<T: Voxel>(
     out
 }
 
-/// A stored sample type.
-trait Voxel: Copy + Send + Sync {
-    fn f(self) -> f32;
-}
-
-impl Voxel for u8 {
-    #[inline(always)]
-    fn f(self) -> f32 {
-        self as f32
-    }
-}
-
-impl Voxel for u16 {
-    #[inline(always)]
-    fn f(self) -> f32 {
-        self as f32
-    }
-}
-
-impl Voxel for f32 {
-    #[inline(always)]
-    fn f(self) -> f32 {
-        self
-    }
+/// `f32` samples in `u8` or `u16` (offset 0) where every one is an integer from 0 to 255 or
+/// 65,535, for the light sweep; `None` otherwise or when they are narrow already.
+fn narrowed(data: &Samples) -> Option<Samples> {
+    let View::F32(d) = data.view() else {
+        return None;
+    };
+    let fits = |max: f32| {
+        d.par_iter()
+            .all(|&v| v >= 0.0 && v <= max && v == v.trunc())
+    };
+    let packing = match () {
+        _ if fits(255.0) => Packing::U8 { offset: 0.0 },
+        _ if fits(65535.0) => Packing::U16 { offset: 0.0 },
+        _ => return None,
+    };
+    Some(Samples::pack_as(d.to_vec(), packing))
 }
 
 /// A band of rows to render: the view, the samples, the inverse view-projection, the
@@ -1061,6 +1084,83 @@ mod tests {
                 assert!(worst < 2e-3, "{storage}: {worst}");
             }
         }
+    }
+
+    #[test]
+    fn shared_samples_in_their_stored_type_render_as_a_copy_in_f32_bricks() {
+        // A CT-like int16 volume: integers from -1024 (air) up, packed as u16 above -1024.
+        let dims = [29, 23, 19];
+        let blob = blob(dims);
+        let data: Vec<f32> = blob.fields[0]
+            .data
+            .iter()
+            .map(|&v| {
+                if v.is_nan() {
+                    -1024.0
+                } else {
+                    (v * 2500.0).round() - 1024.0
+                }
+            })
+            .collect();
+        let field = Field {
+            name: "ct".into(),
+            components: 1,
+            stored: ScalarType::I16,
+            data: data.clone(),
+        };
+        let vol = Volume::new(dims, blob.affine, Space::File, field).unwrap();
+        let tf = Transfer::ramp(-500.0, 1476.0, [1.0, 0.8, 0.6], 0.6);
+        let packed = Arc::new(Samples::pack(data.clone()));
+        assert_eq!(packed.packing(), Packing::U16 { offset: -1024.0 });
+        let shared = EaVolume::in_place(&vol, packed.clone(), &tf).unwrap();
+        assert!(Arc::ptr_eq(&shared.data, &packed), "not copied");
+        assert_eq!((shared.storage(), shared.bricks), ("u16", None));
+        let copy = EaVolume::new(&vol, &data, &tf).unwrap();
+        assert_eq!(copy.storage(), "f32");
+        assert!(copy.bricks.is_some());
+        let small = EaVolume::shared(&vol, packed.clone(), &tf).unwrap();
+        assert!(
+            small.bricks.is_some(),
+            "small volumes are copied to f32 bricks"
+        );
+        let cam = Camera::orbit(vol.bounds(), 25.0, 35.0, 2.0, Some(45.0));
+        let view = EaView::new(&vol, cam, 32, 24, None, None, [1.0; 3]).unwrap();
+        let light = LightSettings {
+            cell: 2,
+            cone: false,
+            theta_deg: 25.0,
+            blur_samples: 3,
+        };
+        let diff = |a: &[[f32; 4]], b: &[[f32; 4]]| {
+            a.iter()
+                .zip(b)
+                .flat_map(|(g, c)| (0..4).map(move |k| (g[k] - c[k]).abs()))
+                .fold(0.0f32, f32::max)
+        };
+        let (a, b) = (shared.render(&view), copy.render(&view));
+        assert!(
+            a.iter().any(|p| p[3] > 0.3),
+            "the test needs an opaque part"
+        );
+        assert!(diff(&a, &b) < 1e-5, "ea: {}", diff(&a, &b));
+        let (a, b) = (
+            shared.render_frame(&view, Some(&light)).image,
+            copy.render_frame(&view, Some(&light)).image,
+        );
+        assert!(diff(&a, &b) < 1e-5, "lit: {}", diff(&a, &b));
+        let (a, b) = (
+            shared.render_projection(&view, Extremum::Max).image,
+            copy.render_projection(&view, Extremum::Max).image,
+        );
+        assert!(diff(&a, &b) < 1e-5, "mip: {}", diff(&a, &b));
+        let twin = reference(&data, &vol, &tf, &view);
+        let worst = shared
+            .render(&view)
+            .iter()
+            .zip(&twin)
+            .flat_map(|(g, c)| (0..4).map(move |k| (g[k] as f64 - c[k]).abs()))
+            .fold(0.0, f64::max);
+        assert!(worst < 2e-3, "against the twin: {worst}");
     }
 
     #[test]

@@ -6,7 +6,7 @@
 use crate::spec::{self, ProjectionKind, Scene, TransferSpec};
 use engine::method::SurfaceAo;
 use engine::renderer::{self, DrawOptions, GpuScene, Renderer, Settings};
-use engine::slice_pass::VolumeInput;
+use engine::slice_pass::{Samples, VolumeInput};
 use glam::DVec3;
 use occlusion::camera::{Camera, Projection};
 use occlusion::emission_absorption::{self, EaView, Transfer};
@@ -221,7 +221,10 @@ pub struct IsoModel {
 /// A scene's model on the CPU: the volume as the passes read it (or its isosurface), and the
 /// tube meshes.
 pub struct Model {
-    pub volume: Option<(volume::Volume, Vec<f32>, Transfer)>,
+    /// The volume's grid (its fields' samples moved out), its selected field's samples
+    /// packed in their stored type (`Samples::pack`: 8 or 16 bits where the values allow; NaN
+    /// as -3e38 otherwise), shared with the CPU renderer, and its transfer function.
+    pub volume: Option<(volume::Volume, std::sync::Arc<Samples>, Transfer)>,
     pub iso: Option<IsoModel>,
     pub meshes: Vec<TubeMesh>,
     /// `[[slices]]` and `[[overlays]]`: the grid, its fields and the slices' planes.
@@ -248,7 +251,8 @@ impl Model {
         if let Some((v, data, _)) = &self.volume {
             eat(bytemuck::cast_slice(&v.dims.map(|d| d as u64)));
             eat(bytemuck::cast_slice(&v.affine.to_cols_array()));
-            eat(bytemuck::cast_slice(data));
+            eat(format!("{:?}", data.packing()).as_bytes());
+            eat(bytemuck::cast_slice(data.words()));
         }
         for l in &self.lines {
             eat(bytemuck::cast_slice(&l.origin.to_array()));
@@ -289,7 +293,7 @@ fn mesh_bounds(m: &TubeMesh) -> Option<[DVec3; 2]> {
 /// points whose colour or extinction differ, not both transparent) spans two samples along the 95th-percentile gradient:
 /// `w_min / (2 g95)` - but not below an eighth of the spacing (cost bound). Cost follows
 /// content: a smooth transfer function on coarse data gets few slices.
-pub fn slice_distance(vol: &volume::Volume, data: &[f32], tf: &Transfer) -> (f64, String) {
+pub fn slice_distance(vol: &volume::Volume, data: &Samples, tf: &Transfer) -> (f64, String) {
     let sp = vol.spacing();
     let h = sp.iter().cloned().fold(f64::INFINITY, f64::min).max(1e-12);
     let base = 0.5 * h;
@@ -306,7 +310,7 @@ pub fn slice_distance(vol: &volume::Volume, data: &[f32], tf: &Transfer) -> (f64
     // Gradient magnitudes (central differences, world units) on a sparse lattice of voxels.
     let [nx, ny, nz] = vol.dims;
     let step = ((nx * ny * nz) as f64 / 200_000.0).cbrt().max(1.0) as usize;
-    let at = |i: usize, j: usize, k: usize| data[i + nx * (j + ny * k)] as f64;
+    let at = |i: usize, j: usize, k: usize| data.get(i + nx * (j + ny * k)) as f64;
     let mut g = vec![];
     for k in (1..nz.saturating_sub(1)).step_by(step) {
         for j in (1..ny.saturating_sub(1)).step_by(step) {
@@ -387,8 +391,6 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     // Slices and overlays; the slabs that crop geometry; the bounds of a volume not drawn.
     let (mut planes, mut slabs, mut hidden_bounds) = (None, vec![], None);
     if let Some(vspec) = &s.volume {
-        let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
-        space = Some(vol.space);
         let sel = vspec
             .field
             .as_deref()
@@ -396,6 +398,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             .transpose()
             .map_err(|e| e.to_string())?;
         if let Some(ispec) = &vspec.iso {
+            let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
+            space = Some(vol.space);
             let inside = if ispec.inside == spec::IsoInside::Below {
                 volume::distance_sweep::Inside::Below
             } else {
@@ -447,23 +451,22 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 color: ispec.color.rgb()?,
             });
         } else {
-            let field = vol
-                .select(sel.as_ref())
-                .map_err(|e| format!("volume.field: {e}"))?;
-            if field.components != 1 {
-                return Err(format!(
-                    "volume.field: '{}' has {} components; choose NAME:magnitude or NAME:x|y|z",
-                    field.name, field.components
-                ));
-            }
-            let st = field.stats();
+            // The field alone, in its stored type where it is 8 or 16-bit integers (a 16-bit
+            // volume is held in 2 bytes a voxel, never as f32).
+            let field = volume::load_scalar(&vspec.path, sel.as_ref()).map_err(|e| match e {
+                volume::VolumeError::Invalid(_) => format!("volume.field: {e}"),
+                e => e.to_string(),
+            })?;
+            let vol = field.volume;
+            space = Some(vol.space);
+            let st = field.samples.stats();
             if !(st.min.is_finite() && st.max.is_finite()) {
                 return Err(format!(
                     "{}: the field has no finite values",
                     vspec.path.display()
                 ));
             }
-            let bad = field.data.iter().filter(|v| !v.is_finite()).count();
+            let bad = st.nonfinite;
             if bad > 0 {
                 notes.push(format!(
                     "{}: {bad} NaN or infinite samples are rendered as gaps",
@@ -499,7 +502,14 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                         .collect(),
                 });
             }
-            let data = emission_absorption::prepare_owned(field.data);
+            // Shared by the GPU upload and the CPU renderer; f32 samples with NaN as -3e38,
+            // packed in place when they are integers after all.
+            let data = std::sync::Arc::new(match field.samples.packing() {
+                engine::slice_pass::Packing::F32 => {
+                    Samples::pack(emission_absorption::prepare_owned(field.samples.into_f32()))
+                }
+                _ => field.samples,
+            });
             planes = crate::slices::model(s, &vol, &data, [st.min, st.max], &mut notes)?;
             if let (Some(name), Some(p)) = (
                 s.annotate
@@ -803,14 +813,22 @@ pub fn tube_clip(s: &Scene) -> Vec<([f64; 3], f64)> {
 /// half an old voxel. Returns the volume (geometry only: an empty field), its data, and a note.
 pub fn fit_volume(
     vol: &volume::Volume,
-    data: &[f32],
+    data: &Samples,
     max_bytes: u64,
 ) -> Option<(volume::Volume, Vec<f32>, String)> {
     if (data.len() as u64) * 4 <= max_bytes {
         return None;
     }
-    let (mut dims, mut affine, mut d) = (vol.dims, vol.affine, data.to_vec());
-    while (d.len() as u64) * 4 > max_bytes && dims.iter().any(|&n| n > 1) {
+    // The first halving reads the samples where they are (no f32 copy of the whole volume).
+    let (mut dims, mut affine) = (vol.dims, vol.affine);
+    let mut d: Option<Vec<f32>> = None;
+    while (d.as_ref().map_or(data.len(), Vec::len) as u64) * 4 > max_bytes
+        && dims.iter().any(|&n| n > 1)
+    {
+        let get = |i: usize| match &d {
+            Some(d) => d[i],
+            None => data.get(i),
+        };
         let nd = dims.map(|n| n.div_ceil(2));
         let mut out = vec![0.0f32; nd[0] * nd[1] * nd[2]];
         for k in 0..nd[2] {
@@ -820,7 +838,7 @@ pub fn fit_volume(
                     for c in 0..8 {
                         let (x, y, z) = (2 * i + (c & 1), 2 * j + (c >> 1 & 1), 2 * k + (c >> 2));
                         if x < dims[0] && y < dims[1] && z < dims[2] {
-                            let v = d[x + dims[0] * (y + dims[1] * z)];
+                            let v = get(x + dims[0] * (y + dims[1] * z));
                             if v > -1e30 {
                                 sum += v as f64;
                                 n += 1;
@@ -839,8 +857,9 @@ pub fn fit_volume(
             * glam::DMat4::from_translation(DVec3::splat(0.5))
             * glam::DMat4::from_scale(DVec3::splat(2.0));
         dims = nd;
-        d = out;
+        d = Some(out);
     }
+    let d = d.unwrap_or_else(|| data.to_f32().into_owned());
     let note = format!(
         "the volume ({} x {} x {}, {} MB as f32) exceeds the {} MB this adapter binds (eight storage bindings): downsampled by 2x2x2 box filtering to {} x {} x {}",
         vol.dims[0],
@@ -852,13 +871,22 @@ pub fn fit_volume(
         dims[1],
         dims[2]
     );
-    let field = volume::Field {
-        name: "downsampled".into(),
-        components: 1,
-        stored: volume::ScalarType::F32,
-        data: vec![0.0; d.len()],
+    volume::check_frame(dims, affine).ok()?;
+    // The grid only (the samples are `d`).
+    let v = volume::Volume {
+        format: vol.format.clone(),
+        dims,
+        affine,
+        space: vol.space,
+        fields: vec![volume::Field {
+            name: "downsampled".into(),
+            components: 1,
+            stored: volume::ScalarType::F32,
+            data: vec![],
+        }],
+        default_field: 0,
+        warnings: vec![],
     };
-    let v = volume::Volume::new(dims, affine, vol.space, field).ok()?;
     Some((v, d, note))
 }
 
@@ -895,6 +923,19 @@ pub struct Uploaded<'g> {
     pub notes: Vec<String>,
     /// The volume for the native CPU renderer (`render.device`), prepared at its first frame.
     cpu: std::sync::OnceLock<Result<raycast::EaVolume, String>>,
+    /// Whether the volume went to the GPU ([`upload_for`] leaves it on the CPU when the
+    /// native CPU renderer draws every frame).
+    volume_on_gpu: bool,
+}
+
+/// Whether the native CPU renderer draws the frames of `s` with model `m` on `gpu`
+/// (`render.device`: `cpu`, or `auto` on a CPU adapter, and nothing it refuses).
+pub fn drawn_on_cpu(s: &Scene, m: &Model, gpu: &engine::gpu::Gpu) -> bool {
+    match (s.render.device, cpu_refusal(s, m)) {
+        (spec::Device::Cpu, None) => true,
+        (spec::Device::Auto, None) => gpu.is_cpu(),
+        _ => false,
+    }
 }
 
 /// Why the native CPU renderer cannot draw a frame of `s` with model `m` (`None`: it can):
@@ -973,12 +1014,15 @@ fn cpu_light(s: &Scene, v: &EaView, limit: u64) -> Result<Option<raycast::LightS
 
 /// [`upload`] for a one-shot render: the line sets' points are freed as they go up (the
 /// frames read them from the GPU only), so a tractogram is never held twice.
+/// With `volume_on_gpu` false the volume stays on the CPU (for frames the native CPU renderer
+/// draws: [`drawn_on_cpu`]): no GPU copy, and no downsampling to fit the adapter.
 pub fn upload_freeing_lines<'g>(
     gpu: &'g engine::gpu::Gpu,
     m: &mut Model,
+    volume_on_gpu: bool,
 ) -> Result<Uploaded<'g>, String> {
     let mut lines = std::mem::take(&mut m.lines);
-    let up = upload(gpu, m);
+    let up = upload_for(gpu, m, volume_on_gpu);
     let up = up.and_then(|mut up| {
         up.renderer
             .upload_lines_freeing(&mut up.scene, &mut lines)
@@ -992,25 +1036,42 @@ pub fn upload_freeing_lines<'g>(
 /// Uploads a model once: the volume (split over up to eight storage bindings; downsampled
 /// when even those cannot hold it, with a note), its transfer function, the tube meshes and the isosurface's fields.
 pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, String> {
+    upload_for(gpu, m, true)
+}
+
+/// [`upload`], the volume left on the CPU unless `volume_on_gpu` (see
+/// [`upload_freeing_lines`]).
+pub fn upload_for<'g>(
+    gpu: &'g engine::gpu::Gpu,
+    m: &Model,
+    volume_on_gpu: bool,
+) -> Result<Uploaded<'g>, String> {
     let limit = gpu.storage_limit();
+    let gpu_volume = m.volume.as_ref().filter(|_| volume_on_gpu);
     // A volume is split over up to eight storage bindings (engine::slice_pass::VOLUME_PARTS);
     // only beyond that is it downsampled.
-    let fitted = m.volume.as_ref().and_then(|(vol, data, _)| {
-        let packing = engine::slice_pass::Packing::of(data);
-        let capacity = engine::slice_pass::max_volume_samples(gpu, packing) as u64 * 4;
-        fit_volume(vol, data, capacity)
+    let fitted = gpu_volume.and_then(|(vol, data, _)| {
+        let capacity = engine::slice_pass::max_volume_samples(gpu, data.packing()) as u64 * 4;
+        if data.len() as u64 * 4 <= capacity {
+            return None;
+        }
+        fit_volume(vol, data, capacity).map(|(v, d, note)| (v, Samples::pack(d), note))
     });
     let mut notes = vec![];
     if let Some((_, _, note)) = &fitted {
         notes.push(note.clone());
     }
-    let vi = m.volume.as_ref().map(|(vol, data, tf)| match &fitted {
+    let vi = gpu_volume.map(|(vol, data, tf)| match &fitted {
         Some((fv, fd, _)) => VolumeInput {
             vol: fv,
             data: fd,
             tf,
         },
-        None => VolumeInput { vol, data, tf },
+        None => VolumeInput {
+            vol,
+            data: data.as_ref(),
+            tf,
+        },
     });
     if let Some(i) = &m.iso {
         let bytes = (i.g.len() as u64) * 8;
@@ -1045,6 +1106,7 @@ pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, 
         scene,
         notes,
         cpu: std::sync::OnceLock::new(),
+        volume_on_gpu,
     })
 }
 
@@ -1155,12 +1217,19 @@ impl Uploaded<'_> {
             (spec::Device::Auto, None) => self.renderer.gpu().is_cpu(),
             _ => false,
         };
+        if !cpu && !self.volume_on_gpu && m.volume.is_some() {
+            return Err(
+                "the volume was left on the CPU for the CPU renderer, which cannot draw this \
+                 frame (render.device)"
+                    .into(),
+            );
+        }
         let cpu = match cpu {
             true => Some(
                 self.cpu
                     .get_or_init(|| {
                         let (vol, data, tf) = m.volume.as_ref().expect("checked by cpu_refusal");
-                        raycast::EaVolume::new(vol, data, tf)
+                        raycast::EaVolume::shared(vol, data.clone(), tf)
                     })
                     .as_ref()
                     .map_err(|e| format!("the CPU renderer: {e}"))?,
@@ -1264,7 +1333,9 @@ mod tests {
             "ramp",
             |p: DVec3| p.x,
         );
-        let data = vol.select(None).unwrap().data;
+        // Packed in 8 bits (integers 0..31): the distance reads the stored type.
+        let data = Samples::pack(vol.select(None).unwrap().data);
+        assert_ne!(data.packing(), engine::slice_pass::Packing::F32);
         let smooth = Transfer::ramp(0.0, 31.0, [1.0; 3], 1.0);
         assert_eq!(slice_distance(&vol, &data, &smooth).0, 0.5);
         let narrow = Transfer {
@@ -1286,8 +1357,9 @@ mod tests {
     fn oversized_volumes_are_halved_until_they_fit() {
         let vol = volume::synthetic::validation_scene(33);
         let data = vol.select(None).unwrap().data;
-        assert!(fit_volume(&vol, &data, data.len() as u64 * 4).is_none());
-        let (v, d, note) = fit_volume(&vol, &data, 20_000).unwrap();
+        let samples = Samples::f32(data.clone());
+        assert!(fit_volume(&vol, &samples, data.len() as u64 * 4).is_none());
+        let (v, d, note) = fit_volume(&vol, &samples, 20_000).unwrap();
         assert_eq!(v.dims, [17, 17, 17]);
         assert!(d.len() * 4 <= 20_000, "{}", d.len());
         assert!(
@@ -1308,5 +1380,14 @@ mod tests {
             sum += data[vol.index(6 + (c & 1), 8 + (c >> 1 & 1), 10 + (c >> 2))] as f64;
         }
         assert!((d[3 + 17 * (4 + 17 * 5)] as f64 - sum / 8.0).abs() < 1e-4);
+        // Integer samples are halved from their stored type as from f32, twice over when
+        // once is not enough.
+        let ints: Vec<f32> = data.iter().map(|v| (v * 100.0).round()).collect();
+        let packed = Samples::pack(ints.clone());
+        assert_ne!(packed.packing(), engine::slice_pass::Packing::F32);
+        let (v1, d1, _) = fit_volume(&vol, &packed, 4_000).unwrap();
+        let (v2, d2, _) = fit_volume(&vol, &Samples::f32(ints), 4_000).unwrap();
+        assert_eq!((v1.dims, v2.dims), ([9, 9, 9], [9, 9, 9]));
+        assert_eq!(d1, d2);
     }
 }

@@ -435,7 +435,10 @@ pub(crate) fn run_on(
     let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;
     progress(Progress::Stage("uploading to the GPU"));
     // The frames read the lines from the GPU only: their points are freed as they go up.
-    let up = upload_freeing_lines(gpu, &mut m).map_err(|e| format!("{}: {e}", path.display()))?;
+    // A volume the CPU renderer draws stays on the CPU only (no GPU copy, full resolution).
+    let on_gpu = !crate::compile::drawn_on_cpu(&s, &m, gpu);
+    let up = upload_freeing_lines(gpu, &mut m, on_gpu)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     let opts = DrawOptions {
         frames: a.frames.max(1),
         pass_timings: a.pass_timings,

@@ -348,7 +348,7 @@ fn labels_map(
 pub fn model(
     s: &Scene,
     vol: &volume::Volume,
-    data: &[f32],
+    data: &volume::samples::Samples,
     range: [f64; 2],
     notes: &mut Vec<String>,
 ) -> Result<Option<PlaneModel>, String> {
@@ -357,7 +357,7 @@ pub fn model(
     }
     let vspec = s.volume.as_ref().ok_or("slices need a [volume]")?;
     let (dims, affine) = (vol.dims, vol.affine);
-    let mut fields = vec![data.to_vec()];
+    let mut fields = vec![data.to_f32().into_owned()];
     let mut overlays = vec![];
     for (i, o) in s.overlays.iter().enumerate() {
         let mut ov = overlay(i, o, dims, affine, notes)?;

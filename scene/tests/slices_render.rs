@@ -313,6 +313,8 @@ fxaa = false
         );
         let (img, m, s) = draw(&text, dir.path());
         let (vol, data, tf) = m.volume.as_ref().unwrap();
+        let data = data.to_f32();
+        let data: &[f32] = &data;
         // Some bricks are empty (every value below the window): the GPU skips them (MIP) or
         // ends the ray there (MinIP), the CPU twin samples everything. On a continuous field
         // ending and skipping give the same image, so this checks that the empty-brick rules
@@ -396,6 +398,8 @@ slice_distance = 0.5
     );
     let (img, m, s) = draw(&text, dir.path());
     let (vol, data, tf) = m.volume.as_ref().unwrap();
+    let data = data.to_f32();
+    let data: &[f32] = &data;
     let view = scene::compile::view(&s, &m).unwrap();
     let planes = m.planes.as_ref().unwrap();
     let grid = planes.grid();
@@ -503,6 +507,8 @@ slice_distance = 0.5
     );
     let (img, m, s) = draw(&text, dir.path());
     let (vol, data, tf) = m.volume.as_ref().unwrap();
+    let data = data.to_f32();
+    let data: &[f32] = &data;
     let view = scene::compile::view(&s, &m).unwrap();
     let planes = m.planes.as_ref().unwrap();
     let grid = planes.grid();

@@ -5,6 +5,7 @@
 
 use engine::renderer::DrawOptions;
 use scene::compile::{upload, Model};
+use volume::samples::Samples;
 
 use scene::spec::Scene;
 use std::sync::mpsc::{channel, Receiver, Sender};
@@ -181,9 +182,9 @@ pub fn data_range(m: &Model) -> [f64; 2] {
         return [0.0, 1.0];
     };
     let (lo, hi) = data
-        .iter()
-        .filter(|v| v.is_finite() && **v > -1e30)
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+        .values()
+        .filter(|v| v.is_finite() && *v > -1e30)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
             (a.min(v as f64), b.max(v as f64))
         });
     if lo <= hi {
@@ -199,7 +200,7 @@ pub fn histogram(m: &Model, range: [f64; 2], bins: usize) -> Vec<u64> {
     let mut h = vec![0u64; bins.max(1)];
     if let Some((_, data, _)) = &m.volume {
         let w = (range[1] - range[0]).max(1e-30);
-        for &v in data.iter().filter(|v| v.is_finite() && **v > -1e30) {
+        for v in data.values().filter(|v| v.is_finite() && *v > -1e30) {
             let i = (((v as f64 - range[0]) / w) * bins as f64) as usize;
             h[i.min(bins - 1)] += 1;
         }
@@ -223,7 +224,14 @@ pub fn histogram2d(
 ) -> crate::transfer::Histogram2d {
     match &m.volume {
         Some((vol, data, _)) => value_gradient_histogram(vol.dims, vol.affine, data, range, nv, ng),
-        None => value_gradient_histogram([0; 3], glam::DMat4::IDENTITY, &[], range, nv, ng),
+        None => value_gradient_histogram(
+            [0; 3],
+            glam::DMat4::IDENTITY,
+            &Samples::f32(vec![]),
+            range,
+            nv,
+            ng,
+        ),
     }
 }
 
@@ -232,7 +240,7 @@ pub fn histogram2d(
 pub fn value_gradient_histogram(
     dims: [usize; 3],
     affine: glam::DMat4,
-    data: &[f32],
+    data: &Samples,
     range: [f64; 2],
     nv: usize,
     ng: usize,
@@ -251,7 +259,7 @@ pub fn value_gradient_histogram(
     let jt = glam::DMat3::from_mat4(affine.inverse()).transpose();
     let n = (nx * ny * nz) as f64;
     let s = ((n / 1e6).cbrt().ceil() as usize).max(1);
-    let at = |i: usize, j: usize, k: usize| data[i + nx * (j + ny * k)] as f64;
+    let at = |i: usize, j: usize, k: usize| data.get(i + nx * (j + ny * k)) as f64;
     let good = |v: f64| v.is_finite() && v > -1e30;
     let mut samples: Vec<(f32, f32)> = Vec::with_capacity((n / (s * s * s) as f64) as usize + 8);
     for k in (0..nz).step_by(s) {
@@ -601,7 +609,14 @@ mod tests {
                 }
             }
         }
-        let h = value_gradient_histogram([n; 3], affine, &data, [lo, hi], 32, 16);
+        let h = value_gradient_histogram(
+            [n; 3],
+            affine,
+            &Samples::f32(data.clone()),
+            [lo, hi],
+            32,
+            16,
+        );
         assert!((h.gmax - 3.0).abs() < 1e-4, "gmax {}", h.gmax);
         assert_eq!(h.counts.iter().sum::<u64>(), (n * n * n) as u64);
         // Every interior voxel in the top gradient row (3 = gmax).
@@ -610,16 +625,30 @@ mod tests {
         // A gap (-3e38) takes its neighbours out.
         let mut gap = data.clone();
         gap[10 + n * (10 + n * 10)] = -3e38;
-        let h2 = value_gradient_histogram([n; 3], affine, &gap, [lo, hi], 32, 16);
+        let h2 = value_gradient_histogram([n; 3], affine, &Samples::f32(gap), [lo, hi], 32, 16);
         assert_eq!(h2.counts.iter().sum::<u64>(), (n * n * n - 7) as u64);
         // No volume, a flat one: nothing, gradient range 0.
         let mut bad = affine;
         bad.x_axis.x = f64::NAN;
-        let nan = value_gradient_histogram([n; 3], bad, &data, [lo, hi], 8, 8);
+        let nan = value_gradient_histogram([n; 3], bad, &Samples::f32(data), [lo, hi], 8, 8);
         assert_eq!((nan.counts.iter().sum::<u64>(), nan.gmax), (0, 0.0));
-        let none = value_gradient_histogram([0; 3], glam::DMat4::IDENTITY, &[], [0.0, 1.0], 8, 8);
+        let none = value_gradient_histogram(
+            [0; 3],
+            glam::DMat4::IDENTITY,
+            &Samples::f32(vec![]),
+            [0.0, 1.0],
+            8,
+            8,
+        );
         assert_eq!((none.counts.iter().sum::<u64>(), none.gmax), (0, 0.0));
-        let flat = value_gradient_histogram([4; 3], affine, &[1.0; 64], [0.0, 2.0], 8, 8);
+        let flat = value_gradient_histogram(
+            [4; 3],
+            affine,
+            &Samples::f32(vec![1.0; 64]),
+            [0.0, 2.0],
+            8,
+            8,
+        );
         assert_eq!((flat.counts[4], flat.gmax), (64, 0.0));
     }
 }

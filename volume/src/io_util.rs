@@ -335,6 +335,49 @@ pub fn take_samples(
     decode_samples(path, field, &bytes[..need], ty, big_endian)
 }
 
+/// [`take_samples`] for 8 and 16-bit integers, kept in their stored type
+/// ([`crate::samples::Samples::from_stored`], no `f32`); `None` for other types.
+pub fn take_stored(
+    path: &Path,
+    field: &str,
+    bytes: &[u8],
+    count: usize,
+    ty: ScalarType,
+    big_endian: bool,
+) -> Result<Option<crate::samples::Samples>> {
+    if !matches!(
+        ty,
+        ScalarType::U8 | ScalarType::I8 | ScalarType::U16 | ScalarType::I16
+    ) {
+        return Ok(None);
+    }
+    let need = count
+        .checked_mul(ty.size())
+        .ok_or_else(|| VolumeError::format(path, field, "data size overflows"))?;
+    if bytes.len() != need {
+        return Err(VolumeError::format(
+            path,
+            field,
+            format!(
+                "{} data bytes, the header's dims and type ({count} x {}) need {need}",
+                bytes.len(),
+                ty.name()
+            ),
+        ));
+    }
+    crate::samples::Samples::from_stored(bytes, ty, big_endian).map_err(|_| {
+        VolumeError::format(
+            path,
+            field,
+            format!(
+                "not enough memory for {count} samples ({} MiB as {})",
+                (need as u64) >> 20,
+                ty.name()
+            ),
+        )
+    })
+}
+
 /// Encodes `f32` samples as `ty` (values must be representable; floats round to nearest).
 pub fn encode_samples(data: &[f32], ty: ScalarType, big_endian: bool) -> Vec<u8> {
     let mut out = Vec::with_capacity(data.len() * ty.size());

@@ -37,6 +37,7 @@ pub mod occlusion_shading;
 pub mod occlusion_sweep;
 pub mod plot3d;
 pub mod regrid;
+pub mod samples;
 pub mod series;
 pub mod slc;
 pub mod synthetic;
@@ -338,6 +339,35 @@ impl Volume {
         self.fields.iter().map(|f| f.name.clone()).collect()
     }
 
+    /// [`Volume::select`] that leaves the volume a grid: the selected field's samples are
+    /// moved out (not copied) and every field's samples are dropped, so that a large volume
+    /// is held once.
+    pub fn take_field(&mut self, selector: Option<&FieldSelector>) -> Result<Field> {
+        let whole = match selector {
+            None => Some(self.default_field),
+            Some(sel) if sel.part == FieldPart::Whole => {
+                self.fields.iter().position(|f| f.name == sel.name)
+            }
+            Some(_) => None,
+        };
+        let field = match whole {
+            Some(i) if i < self.fields.len() => {
+                let f = &mut self.fields[i];
+                Field {
+                    name: f.name.clone(),
+                    components: f.components,
+                    stored: f.stored,
+                    data: std::mem::take(&mut f.data),
+                }
+            }
+            _ => self.select(selector)?,
+        };
+        for f in &mut self.fields {
+            f.data = Vec::new();
+        }
+        Ok(field)
+    }
+
     /// Selects a field (or a derived scalar of a vector field); `None` gives the default field.
     pub fn select(&self, selector: Option<&FieldSelector>) -> Result<Field> {
         let Some(sel) = selector else {
@@ -549,6 +579,81 @@ pub fn load(path: &Path) -> Result<Volume> {
     vol.validate()
         .map_err(|e| VolumeError::format(path, "data", e.to_string()))?;
     Ok(vol)
+}
+
+/// A volume's scalar field as the renderers take it: the grid (`volume`, every field's
+/// samples dropped), the field's name and stored type, and its samples - in their stored type
+/// when they are 8 or 16-bit integers read from NIfTI, NRRD or MetaImage (never converted to
+/// `f32`: a 16-bit volume is held in 2 bytes a voxel), else `f32`.
+#[derive(Debug)]
+pub struct ScalarField {
+    pub volume: Volume,
+    pub name: String,
+    pub stored: ScalarType,
+    pub samples: samples::Samples,
+}
+
+/// Loads the scalar field `selector` (`None`: the default field) of the volume at `path` for
+/// rendering ([`ScalarField`]): a scalar field of 8 or 16-bit integers in NIfTI (steady, not
+/// scaled), NRRD or MetaImage is read in its stored type; every other field as [`load`]
+/// reads it, moved out of the volume (no copy). Errors for a vector field (select
+/// `NAME:magnitude` or a component).
+pub fn load_scalar(path: &Path, selector: Option<&FieldSelector>) -> Result<ScalarField> {
+    let (mut vol, stored) = match extension(path).as_str() {
+        "nii" | "hdr" => nifti::read_stored(path)?,
+        "nrrd" | "nhdr" => nrrd::read_stored(path)?,
+        "mhd" | "mha" => metaimage::read_stored(path)?,
+        _ => (load(path)?, None),
+    };
+    let default = selector.is_none_or(|s| {
+        s.part == FieldPart::Whole
+            && vol
+                .fields
+                .get(vol.default_field)
+                .is_some_and(|f| f.name == s.name)
+    });
+    if let (Some(samples), true) = (stored, default) {
+        // The stored samples are the default field's; the rest of the volume is checked as
+        // `load` checks it.
+        let f = &vol.fields[vol.default_field];
+        let n = checked_voxels(vol.dims)
+            .and_then(|n| check_frame(vol.dims, vol.affine).map(|_| n))
+            .map_err(|e| VolumeError::format(path, "data", e.to_string()))?;
+        if samples.len() != n {
+            return Err(VolumeError::format(
+                path,
+                "data",
+                format!("{} samples for {n} voxels", samples.len()),
+            ));
+        }
+        let (name, stored) = (f.name.clone(), f.stored);
+        return Ok(ScalarField {
+            volume: vol,
+            name,
+            stored,
+            samples,
+        });
+    }
+    if vol.fields.iter().any(|f| f.data.is_empty()) {
+        // A field read in its stored type but another selected: read again as f32.
+        vol = load(path)?;
+    } else {
+        vol.validate()
+            .map_err(|e| VolumeError::format(path, "data", e.to_string()))?;
+    }
+    let field = vol.take_field(selector)?;
+    if field.components != 1 {
+        return Err(VolumeError::Invalid(format!(
+            "'{}' has {} components; choose NAME:magnitude or NAME:x|y|z",
+            field.name, field.components
+        )));
+    }
+    Ok(ScalarField {
+        volume: vol,
+        name: field.name,
+        stored: field.stored,
+        samples: samples::Samples::f32(field.data),
+    })
 }
 
 /// Reads a volume as a time series: a NIfTI file with a time axis (5-D, intent VECTOR, `dim[4]`

@@ -14,6 +14,7 @@
 //! own frame (`space: file`).
 
 use crate::io_util::{self, checked_count, take_samples};
+use crate::samples::Samples;
 use crate::{Result, ScalarType, Space, Volume, VolumeError};
 use glam::{DMat3, DMat4, DVec3};
 use std::path::{Path, PathBuf};
@@ -54,7 +55,18 @@ fn boolean(path: &Path, key: &str, s: &str) -> Result<bool> {
 
 /// Reads a `.mhd` or `.mha` file.
 pub fn read(path: &Path) -> Result<Volume> {
-    let raw = io_util::read_file(path)?;
+    read_as(path, false).map(|(v, _)| v)
+}
+
+/// [`read`] keeping a scalar image of 8 or 16-bit integers in its stored type: the samples
+/// are returned beside the volume, whose field then has no `f32` data (`None`: the image is
+/// not such, its samples are in the volume as `f32`).
+pub(crate) fn read_stored(path: &Path) -> Result<(Volume, Option<Samples>)> {
+    read_as(path, true)
+}
+
+fn read_as(path: &Path, keep_stored: bool) -> Result<(Volume, Option<Samples>)> {
+    let mut raw = io_util::read_file(path)?;
     let mut cur = io_util::Cursor::new(&raw);
     let mut kv: Vec<(String, String)> = Vec::new();
     let mut data_start = None;
@@ -192,10 +204,11 @@ pub fn read(path: &Path) -> Result<Volume> {
     let count = checked_count(path, "DimSize", &factors)?;
     let nbytes = count * ty.size();
     let (dpath, bytes): (PathBuf, Vec<u8>) = if data_file.eq_ignore_ascii_case("LOCAL") {
-        (
-            path.to_path_buf(),
-            raw[data_start.unwrap_or(raw.len())..].to_vec(),
-        )
+        // The body cut from the file's bytes in place (no second copy).
+        let start = data_start.unwrap_or(raw.len());
+        let mut bytes = std::mem::take(&mut raw);
+        bytes.drain(..start);
+        (path.to_path_buf(), bytes)
     } else {
         if data_file.starts_with("LIST") || data_file.split_whitespace().count() > 1 {
             return Err(VolumeError::format(
@@ -223,7 +236,9 @@ pub fn read(path: &Path) -> Result<Volume> {
                 format!("{} bytes, {nbytes} needed", bytes.len()),
             ));
         }
-        bytes[bytes.len() - nbytes..].to_vec()
+        let mut bytes = bytes;
+        bytes.drain(..bytes.len() - nbytes);
+        bytes
     } else if header_size < 0 || header_size as usize > bytes.len() {
         return Err(VolumeError::format(
             path,
@@ -234,9 +249,19 @@ pub fn read(path: &Path) -> Result<Volume> {
             ),
         ));
     } else {
-        bytes[header_size as usize..].to_vec()
+        let mut bytes = bytes;
+        bytes.drain(..header_size as usize);
+        bytes
     };
-    let mut data = take_samples(&dpath, "data", &body, count, ty, big_endian, false)?;
+    let stored = match keep_stored && channels == 1 {
+        true => io_util::take_stored(&dpath, "data", &body, count, ty, big_endian)?,
+        false => None,
+    };
+    let mut data = match stored {
+        Some(_) => Vec::new(),
+        None => take_samples(&dpath, "data", &body, count, ty, big_endian, false)?,
+    };
+    drop(body);
     if channels == 3 && lps {
         for v in data.chunks_exact_mut(3) {
             v[0] = -v[0];
@@ -245,7 +270,7 @@ pub fn read(path: &Path) -> Result<Volume> {
     }
     let mut fields = Vec::new();
     crate::vtk_common::push_field(&mut fields, "data".into(), channels, ty, data);
-    Ok(Volume {
+    let vol = Volume {
         format: "metaimage".into(),
         dims,
         affine,
@@ -253,5 +278,6 @@ pub fn read(path: &Path) -> Result<Volume> {
         fields,
         default_field: 0,
         warnings: vec![],
-    })
+    };
+    Ok((vol, stored))
 }

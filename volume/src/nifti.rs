@@ -25,6 +25,7 @@
 //! directions (to f32 rounding). The same convention applies to `intent VECTOR` files.
 
 use crate::io_util::{self, checked_count, take_samples};
+use crate::samples::Samples;
 use crate::{Field, Result, ScalarType, Space, Volume, VolumeError, VolumeSeries};
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
 use std::path::{Path, PathBuf};
@@ -375,7 +376,11 @@ fn transform_vectors(data: &mut [f32], m: DMat3) {
 /// Reads a `.nii`, `.nii.gz` or `.hdr`/`.img` pair. A time series of vector fields (5-D,
 /// `dim[4] > 1`: [`read_series`]) gives its first frame, with a warning.
 pub fn read(path: &Path) -> Result<Volume> {
-    let mut s = read_series(path)?;
+    read_series(path).map(first_frame)
+}
+
+/// A series' first frame, with a warning when there are more.
+fn first_frame(mut s: VolumeSeries) -> Volume {
     let n = s.frames.len();
     let mut v = s.frames.swap_remove(0);
     if n > 1 {
@@ -387,7 +392,7 @@ pub fn read(path: &Path) -> Result<Volume> {
             if s.periodic { ", periodic" } else { "" }
         ));
     }
-    Ok(v)
+    v
 }
 
 /// Reads a NIfTI file as a time series ([`VolumeSeries`]).
@@ -401,6 +406,19 @@ pub fn read(path: &Path) -> Result<Volume> {
 /// (3-D scalar, 4-D with 3 components, 5-D VECTOR with `dim[4] == 1`) is a steady series of one
 /// frame.
 pub fn read_series(path: &Path) -> Result<VolumeSeries> {
+    read_series_as(path, false).map(|(s, _)| s)
+}
+
+/// [`read`] keeping a steady scalar image of 8 or 16-bit integers without scaling
+/// (`scl_slope` 0 or 1, `scl_inter` 0) in its stored type: the samples are returned beside
+/// the volume, whose field then has no `f32` data (`None`: the image is not such, its samples
+/// are in the volume as `f32`).
+pub(crate) fn read_stored(path: &Path) -> Result<(Volume, Option<Samples>)> {
+    let (s, stored) = read_series_as(path, true)?;
+    Ok((first_frame(s), stored))
+}
+
+fn read_series_as(path: &Path, keep_stored: bool) -> Result<(VolumeSeries, Option<Samples>)> {
     let raw = io_util::read_file(path)?;
     let gz = raw.starts_with(&[0x1f, 0x8b]);
     // Decode just enough of a gzip stream to see the header first.
@@ -493,8 +511,10 @@ pub fn read_series(path: &Path) -> Result<VolumeSeries> {
             ));
         }
         let off = off as usize;
-        let all = if gz {
-            io_util::gunzip(path, "gzip data", &raw, Some(off + nbytes))?
+        let mut all = if gz {
+            let all = io_util::gunzip(path, "gzip data", &raw, Some(off + nbytes))?;
+            drop(raw);
+            all
         } else {
             raw
         };
@@ -521,7 +541,9 @@ pub fn read_series(path: &Path) -> Result<VolumeSeries> {
                 ),
             ));
         }
-        (all[off..].to_vec(), "data".into())
+        // The header's bytes removed in place (no second copy of the image).
+        all.drain(..off);
+        (all, "data".into())
     } else {
         let img = pair_image(path)?;
         let ibytes = io_util::read_file(&img)?;
@@ -532,15 +554,6 @@ pub fn read_series(path: &Path) -> Result<VolumeSeries> {
         };
         (ibytes, format!("image file {}", img.display()))
     };
-    let mut data = take_samples(
-        path,
-        &data_field,
-        &data_bytes,
-        total,
-        ty,
-        h.big_endian,
-        false,
-    )?;
     let slope = h.scl_slope;
     let inter = if h.scl_inter.is_finite() {
         h.scl_inter
@@ -548,6 +561,23 @@ pub fn read_series(path: &Path) -> Result<VolumeSeries> {
         0.0
     };
     let scaled = slope.is_finite() && slope != 0.0 && (slope != 1.0 || inter != 0.0);
+    let stored = match keep_stored && components == 1 && frames == 1 && !scaled {
+        true => io_util::take_stored(path, &data_field, &data_bytes, total, ty, h.big_endian)?,
+        false => None,
+    };
+    let mut data = match stored {
+        Some(_) => Vec::new(),
+        None => take_samples(
+            path,
+            &data_field,
+            &data_bytes,
+            total,
+            ty,
+            h.big_endian,
+            false,
+        )?,
+    };
+    drop(data_bytes);
     if scaled {
         for v in &mut data {
             *v = (*v as f64 * slope + inter) as f32;
@@ -593,13 +623,14 @@ pub fn read_series(path: &Path) -> Result<VolumeSeries> {
         && h.descrip
             .split(|c: char| !c.is_ascii_alphanumeric() && c != '-')
             .any(|w| w.eq_ignore_ascii_case("periodic") || w.eq_ignore_ascii_case("time-periodic"));
-    Ok(VolumeSeries {
+    let series = VolumeSeries {
         frames: volumes,
         t0,
         dt: if frames > 1 { dt } else { 1.0 },
         periodic,
         warnings: vec![],
-    })
+    };
+    Ok((series, stored))
 }
 
 fn pair_image(path: &Path) -> Result<PathBuf> {

@@ -18,6 +18,7 @@
 //! (`list` of 8 octants, say) is split into scalar fields named `NAME[i]`.
 
 use crate::io_util::{self, checked_count, take_samples};
+use crate::samples::Samples;
 use crate::{Field, Result, ScalarType, Space, Volume, VolumeError};
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use std::path::Path;
@@ -111,7 +112,18 @@ fn is_domain_kind(k: &str) -> bool {
 
 /// Reads a `.nrrd` or `.nhdr` file.
 pub fn read(path: &Path) -> Result<Volume> {
-    let raw = io_util::read_file(path)?;
+    read_as(path, false).map(|(v, _)| v)
+}
+
+/// [`read`] keeping a scalar field of 8 or 16-bit integers in its stored type: the samples
+/// are returned beside the volume, whose field then has no `f32` data (`None`: the field is
+/// not such, its samples are in the volume as `f32`).
+pub(crate) fn read_stored(path: &Path) -> Result<(Volume, Option<Samples>)> {
+    read_as(path, true)
+}
+
+fn read_as(path: &Path, keep_stored: bool) -> Result<(Volume, Option<Samples>)> {
+    let mut raw = io_util::read_file(path)?;
     let mut cur = io_util::Cursor::new(&raw);
     let magic = cur.line().unwrap_or_default();
     if !magic.starts_with(b"NRRD000") || magic.len() != 8 || !(b'1'..=b'9').contains(&magic[7]) {
@@ -413,7 +425,9 @@ pub fn read(path: &Path) -> Result<Volume> {
                     "no blank line ends the header and no 'data file' is named",
                 ));
             }
-            (path.to_path_buf(), raw.clone(), cur.pos)
+            // The body is read where it lies in the file's bytes (no copy).
+            let pos = cur.pos;
+            (path.to_path_buf(), std::mem::take(&mut raw), pos)
         }
     };
     let mut dc = io_util::Cursor::new(&file_bytes);
@@ -456,11 +470,23 @@ pub fn read(path: &Path) -> Result<Volume> {
         })?;
         dc.rest()
     };
-    let mut data = match encoding {
-        Encoding::Raw => take_samples(&data_path, "data", body, total, ty, big_endian, false)?,
+    // A scalar field of 8/16-bit integers kept in its type (`read_stored`), else f32.
+    let decode = |bytes: &[u8]| -> Result<(Vec<f32>, Option<Samples>)> {
+        if keep_stored && ncomp == 1 {
+            if let Some(s) = io_util::take_stored(&data_path, "data", bytes, total, ty, big_endian)?
+            {
+                return Ok((Vec::new(), Some(s)));
+            }
+        }
+        let v = take_samples(&data_path, "data", bytes, total, ty, big_endian, false)?;
+        Ok((v, None))
+    };
+    let (mut data, stored) = match encoding {
+        Encoding::Raw => decode(body)?,
         Encoding::Gzip => {
             let bytes = io_util::gunzip(&data_path, "gzip data", body, Some(nbytes))?;
-            take_samples(&data_path, "data", &bytes, total, ty, big_endian, false)?
+            drop(file_bytes);
+            decode(&bytes)?
         }
         Encoding::Ascii => {
             let (v, used) = io_util::parse_ascii(&data_path, "ascii data", body, total)?;
@@ -471,7 +497,7 @@ pub fn read(path: &Path) -> Result<Volume> {
                     format!("more values than sizes give ({total})"),
                 ));
             }
-            v
+            (v, None)
         }
     };
     let name = get("content").unwrap_or("data").to_string();
@@ -559,7 +585,7 @@ pub fn read(path: &Path) -> Result<Volume> {
             });
         }
     }
-    Ok(Volume {
+    let vol = Volume {
         format: if data_path == path {
             "nrrd".into()
         } else {
@@ -571,7 +597,8 @@ pub fn read(path: &Path) -> Result<Volume> {
         fields: out_fields,
         default_field: 0,
         warnings: vec![],
-    })
+    };
+    Ok((vol, stored))
 }
 
 /// NRRD data encodings the writer produces.

@@ -240,7 +240,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
         // Without a volume the reference sees an empty one (all transparent).
         let empty;
         let (vol, data, tf) = match m.volume.as_ref() {
-            Some((v, d, t)) => (v, d, t),
+            Some((v, d, t)) => (v, d.to_f32(), t),
             None => {
                 let [lo, hi] = m.bounds;
                 let affine = glam::DMat4::from_cols(
@@ -265,7 +265,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
                         rows: vec![],
                     },
                 );
-                (&empty.0, &empty.1, &empty.2)
+                (&empty.0, std::borrow::Cow::Borrowed(&empty.1[..]), &empty.2)
             }
         };
         let view = compile::view(&s, &m)?;
@@ -301,7 +301,11 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
                     column: column.as_ref(),
                 });
                 let img = reference::render(
-                    &RefVolume { vol, data, tf },
+                    &RefVolume {
+                        vol,
+                        data: &data,
+                        tf,
+                    },
                     tubes.as_ref(),
                     &view,
                     &RefSettings {

@@ -1,0 +1,147 @@
+//! Issue 18: a 16-bit volume is rendered in its stored type. A child process (this test binary
+//! again, in child mode) loads a scene of the 3-D Shepp-Logan phantom (`uint16`, 320^3 = 62.5 MiB
+//! stored) or of the same phantom at 8^3, uploads and draws it on each device path, and
+//! reports its peak resident memory (`VmHWM`); the large scene may take at most 2.5 times the
+//! volume's stored size more than the small one (the process, lavapipe and the images are the
+//! same in both). Converted to f32 as before (4 bytes a voxel, twice held, plus the CPU
+//! renderer's copy in f32 bricks) it took about 9 times.
+
+use std::path::Path;
+
+const CHILD: &str = "UMBRA_VOLUME_MEMORY_CHILD";
+
+fn peak_resident_bytes() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let line = status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .expect("VmHWM in /proc/self/status");
+    let kb: u64 = line
+        .split_whitespace()
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .unwrap();
+    kb * 1024
+}
+
+/// `combined` on the CPU renderer (its light volume is as small as the GPU's on this image);
+/// `ea` on the GPU, whose light volume would count against the samples here.
+fn scene_text(volume: &Path, device: &str) -> String {
+    let method = if device == "cpu" { "combined" } else { "ea" };
+    format!(
+        r##"
+[volume]
+path = "{}"
+[volume.transfer]
+points = [
+  {{ value = 190.0, color = "#000000", extinction = 0.0 }},
+  {{ value = 215.0, color = "#d9a066", extinction = 0.4 }},
+  {{ value = 290.0, color = "#ff3030", extinction = 80.0 }},
+  {{ value = 1010.0, color = "#ffffff", extinction = 1.0 }},
+]
+[render]
+method = "{method}"
+device = "{device}"
+width = 96
+height = 96
+"##,
+        volume.display()
+    )
+}
+
+/// Child: the scene at `volume` on `device`, drawn once; prints the peak and the image's mean
+/// opacity.
+fn child(volume: &Path, device: &str) {
+    let dir = volume.parent().unwrap();
+    let s = scene::spec::parse(&scene_text(volume, device), "test.toml", dir, &[]).unwrap();
+    let gpu = engine::gpu::Gpu::new().expect("a GPU adapter (lavapipe in CI)");
+    let mut m = scene::compile::model(&s).unwrap();
+    let (_, samples, _) = m.volume.as_ref().unwrap();
+    assert_eq!(
+        samples.packing(),
+        engine::slice_pass::Packing::U16 { offset: 0.0 },
+        "kept in 16 bits"
+    );
+    let on_gpu = !scene::compile::drawn_on_cpu(&s, &m, &gpu);
+    assert_eq!(on_gpu, device == "gpu");
+    let up = scene::compile::upload_freeing_lines(&gpu, &mut m, on_gpu).unwrap();
+    let (out, _) = up
+        .draw(
+            &s,
+            &m,
+            engine::renderer::DrawOptions {
+                frames: 1,
+                pass_timings: false,
+            },
+        )
+        .unwrap();
+    let alpha = out.image.iter().map(|p| p[3] as f64).sum::<f64>() / out.image.len() as f64;
+    println!("PEAK {} ALPHA {alpha}", peak_resident_bytes());
+}
+
+/// Runs the child on `volume` and `device`: its peak and mean opacity.
+fn run(volume: &Path, device: &str) -> (u64, f64) {
+    let exe = std::env::current_exe().unwrap();
+    let out = std::process::Command::new(exe)
+        .args([
+            "sixteen_bit_volumes_render_within_their_stored_size",
+            "--exact",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env(CHILD, format!("{}\n{device}", volume.display()))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "child on {device}: {text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The harness prints the test's name on the same line.
+    let line = text
+        .split("PEAK ")
+        .nth(1)
+        .and_then(|t| t.lines().next())
+        .unwrap_or_else(|| panic!("no peak in {text}"));
+    let (peak, alpha) = line.split_once(" ALPHA ").unwrap();
+    (peak.parse().unwrap(), alpha.parse().unwrap())
+}
+
+#[test]
+#[cfg(target_os = "linux")]
+fn sixteen_bit_volumes_render_within_their_stored_size() {
+    if let Ok(args) = std::env::var(CHILD) {
+        let (volume, device) = args.split_once('\n').unwrap();
+        child(Path::new(volume), device);
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    let write = |n: usize| {
+        let vol = volume::synthetic::shepp_logan(n);
+        let path = d.path().join(format!("phantom{n}.nrrd"));
+        volume::nrrd::write(&path, &vol, vol.default(), volume::nrrd::WriteEncoding::Raw).unwrap();
+        path
+    };
+    let (small, big) = (write(8), write(320));
+    let stored = 2 * 320u64.pow(3);
+    for device in ["cpu", "gpu"] {
+        let (base, _) = run(&small, device);
+        let (peak, alpha) = run(&big, device);
+        let growth = peak.saturating_sub(base);
+        eprintln!(
+            "{device}: peak {} MiB, 8^3 scene {} MiB: {:.2} x the stored {} MiB; mean opacity {alpha:.3}",
+            peak >> 20,
+            base >> 20,
+            growth as f64 / stored as f64,
+            stored >> 20
+        );
+        assert!(alpha > 0.05, "{device}: the phantom is drawn ({alpha})");
+        assert!(
+            growth as f64 <= 2.5 * stored as f64,
+            "{device}: {} MiB over the small scene for a volume of {} MiB stored",
+            growth >> 20,
+            stored >> 20
+        );
+    }
+}
