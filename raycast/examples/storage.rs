@@ -35,7 +35,9 @@ fn main() -> Result<(), String> {
     };
     let narrow = raycast::EaVolume::with_storage(&vol, &field.data, &tf, true)?;
     let wide = raycast::EaVolume::with_storage(&vol, &field.data, &tf, false)?;
-    let packed = std::sync::Arc::new(volume::samples::Samples::pack(field.data.clone()));
+    let packed = std::sync::Arc::new(volume::samples::Samples::pack(
+        occlusion::emission_absorption::prepare(&field.data),
+    ));
     let flat = raycast::EaVolume::in_place(&vol, packed, &tf)?;
     let h = vol.spacing().iter().cloned().fold(f64::INFINITY, f64::min);
     let cam = Camera::orbit(vol.bounds(), 120.0, 15.0, 2.5, Some(30.0));

@@ -202,12 +202,17 @@ impl EaVolume {
                 (inv, [0, 1, 2].map(|k| b.1[k] - a.1[k]), b.2 - a.2)
             })
             .collect();
-        let (sy, sz) = (vol.dims[0], vol.dims[0] * vol.dims[1]);
+        // An axis of one sample has one corner along it (offset 0), as the bricks repeat
+        // their last sample.
+        let [nx, ny, nz] = vol.dims;
+        let sx = (nx > 1) as usize;
+        let sy = if ny > 1 { nx } else { 0 };
+        let sz = if nz > 1 { nx * ny } else { 0 };
         Ok(EaVolume {
             dims: vol.dims,
             offset: data.packing().offset(),
             data,
-            corner: [0, 1, sy, sy + 1, sz, sz + 1, sz + sy, sz + sy + 1],
+            corner: [0, sx, sy, sy + sx, sz, sz + sx, sz + sy, sz + sy + sx],
             bricks,
             world_to_index: vol.affine.inverse(),
             blocks,
@@ -1161,6 +1166,60 @@ mod tests {
             .flat_map(|(g, c)| (0..4).map(move |k| (g[k] as f64 - c[k]).abs()))
             .fold(0.0, f64::max);
         assert!(worst < 2e-3, "against the twin: {worst}");
+    }
+
+    #[test]
+    fn samples_read_in_place_on_grids_one_sample_thick_repeat_the_last_sample() {
+        // A single slice (a 2-D image), a single column and a single row: along an axis of
+        // one sample a cell's far corners are its near ones, as in the bricks.
+        for dims in [[4, 3, 1], [1, 3, 4], [4, 1, 3], [2, 2, 2]] {
+            let n: usize = dims.iter().product();
+            let field = Field {
+                name: "index".into(),
+                components: 1,
+                stored: ScalarType::U16,
+                data: (0..n).map(|i| i as f32).collect(),
+            };
+            let vol = Volume::new(dims, DMat4::IDENTITY, Space::File, field).unwrap();
+            let data = vol.fields[0].data.clone();
+            let tf = Transfer::ramp(0.0, n as f64, [1.0; 3], 1.0);
+            let flat =
+                EaVolume::in_place(&vol, Arc::new(Samples::pack(data.clone())), &tf).unwrap();
+            let bricked = EaVolume::new(&vol, &data, &tf).unwrap();
+            // The last cell, reached at the grid's far corner.
+            let q = dims.map(|d| d as f32 - 1.0);
+            let (cell, _, _) = flat.cell(q);
+            let want = {
+                let View::F32(d) = bricked.data.view() else {
+                    panic!("f32 bricks")
+                };
+                bricked.corners(d, cell)
+            };
+            let View::U8(d, _) = flat.data.view() else {
+                panic!("u8 in place")
+            };
+            let got = flat.corners(d, cell);
+            assert_eq!(got, want, "{dims:?}");
+            let at = |x: usize, y: usize, z: usize| {
+                let c = |v: usize, a: usize| v.min(dims[a] - 1);
+                (c(x, 0) + dims[0] * (c(y, 1) + dims[1] * c(z, 2))) as f32
+            };
+            let [x, y, z] = cell;
+            assert_eq!(
+                got,
+                [
+                    at(x, y, z),
+                    at(x + 1, y, z),
+                    at(x, y + 1, z),
+                    at(x + 1, y + 1, z),
+                    at(x, y, z + 1),
+                    at(x + 1, y, z + 1),
+                    at(x, y + 1, z + 1),
+                    at(x + 1, y + 1, z + 1),
+                ],
+                "{dims:?}"
+            );
+        }
     }
 
     #[test]

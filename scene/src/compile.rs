@@ -1051,11 +1051,13 @@ pub fn upload_for<'g>(
     // A volume is split over up to eight storage bindings (engine::slice_pass::VOLUME_PARTS);
     // only beyond that is it downsampled.
     let fitted = gpu_volume.and_then(|(vol, data, _)| {
-        let capacity = engine::slice_pass::max_volume_samples(gpu, data.packing()) as u64 * 4;
-        if data.len() as u64 * 4 <= capacity {
+        let capacity = |p| engine::slice_pass::max_volume_samples(gpu, p) as u64 * 4;
+        if data.len() as u64 * 4 <= capacity(data.packing()) {
             return None;
         }
-        fit_volume(vol, data, capacity).map(|(v, d, note)| (v, Samples::pack(d), note))
+        // The means of a downsampled volume are f32: fit its f32 capacity.
+        let f32_capacity = capacity(engine::slice_pass::Packing::F32);
+        fit_volume(vol, data, f32_capacity).map(|(v, d, note)| (v, Samples::pack(d), note))
     });
     let mut notes = vec![];
     if let Some((_, _, note)) = &fitted {

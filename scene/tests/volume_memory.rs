@@ -1,10 +1,12 @@
-//! Issue 18: a 16-bit volume is rendered in its stored type. A child process (this test binary
+//! Issue 18: 8 and 16-bit volumes are rendered in their stored type. A child process (this test binary
 //! again, in child mode) loads a scene of the 3-D Shepp-Logan phantom (`uint16`, 320^3 = 62.5 MiB
 //! stored) or of the same phantom at 8^3, uploads and draws it on each device path, and
 //! reports its peak resident memory (`VmHWM`); the large scene may take at most 2.5 times the
 //! volume's stored size more than the small one (the process, lavapipe and the images are the
 //! same in both). Converted to f32 as before (4 bytes a voxel, twice held, plus the CPU
 //! renderer's copy in f32 bricks) it took about 9 times.
+//! A second test: a 16-bit volume past the adapter's bindings is halved until its f32 means
+//! fit, and drawn.
 
 use std::path::Path;
 
@@ -144,4 +146,43 @@ fn sixteen_bit_volumes_render_within_their_stored_size() {
             stored >> 20
         );
     }
+}
+
+/// A 16-bit volume past the adapter's bindings is downsampled until its f32 means fit (the
+/// bindings lowered to 4 KiB each: 8,192 f32 samples in eight parts, 16,384 in 16 bits): 48^3
+/// halves to 24^3 (13,824 samples, which would fit as 16-bit but not as the f32 means they
+/// are) and again to 12^3, and the frame is drawn.
+#[test]
+fn integer_volumes_past_the_bindings_are_halved_until_their_means_fit() {
+    let d = tempfile::tempdir().unwrap();
+    let vol = volume::synthetic::shepp_logan(48);
+    let path = d.path().join("phantom48.nrrd");
+    volume::nrrd::write(&path, &vol, vol.default(), volume::nrrd::WriteEncoding::Raw).unwrap();
+    let text = scene_text(&path, "gpu");
+    let s = scene::spec::parse(&text, "test.toml", d.path(), &[]).unwrap();
+    let gpu = engine::gpu::Gpu::new().expect("a GPU adapter (lavapipe in CI)");
+    let m = scene::compile::model(&s).unwrap();
+    gpu.limit_bindings(Some(4096));
+    let up = scene::compile::upload(&gpu, &m);
+    let drawn = up.as_ref().map(|up| {
+        up.draw(
+            &s,
+            &m,
+            engine::renderer::DrawOptions {
+                frames: 1,
+                pass_timings: false,
+            },
+        )
+    });
+    gpu.limit_bindings(None);
+    let notes = &up.as_ref().unwrap().notes;
+    assert!(
+        notes.iter().any(|n| n.contains("to 12 x 12 x 12")),
+        "{notes:?}"
+    );
+    let (out, _) = drawn.unwrap().unwrap();
+    assert!(
+        out.image.iter().any(|p| p[3] > 0.05),
+        "the phantom is drawn"
+    );
 }
