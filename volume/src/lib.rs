@@ -9,7 +9,9 @@
 //! * Samples are stored as `f32` whatever the file stores (the stored type is kept in
 //!   [`Field::stored`] and reported by `umbra info`). Integer data up to 2^24 and all 8/16-bit data
 //!   convert exactly; 32/64-bit integers beyond 2^24 and `f64` data are rounded to the nearest
-//!   `f32`. NIfTI `scl_slope`/`scl_inter` are applied at load.
+//!   `f32`. NIfTI `scl_slope`/`scl_inter` are applied at load. The renderers' loader,
+//!   [`load_scalar`], is the exception: a scalar field of 8 or 16-bit integers (NIfTI, NRRD,
+//!   MetaImage) stays in its stored type ([`samples::Samples`], the layout the GPU binds).
 //! * Index order: x fastest, then y, then z; a vector field interleaves its three components
 //!   per voxel (`data[3 * voxel + c]`).
 //! * [`Volume::affine`] maps voxel indices `(i, j, k, 1)` to world coordinates. The world frame is

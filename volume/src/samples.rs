@@ -198,6 +198,9 @@ impl Samples {
         let n = len.div_ceil(packing.per_word());
         let mut words: Vec<u32> = Vec::new();
         words.try_reserve_exact(n)?;
+        // Huge pages before the first touch: a ray's samples in the grid's layout lie a plane
+        // apart (512 KiB at 512^2 x 16 bits), one 4 KiB page each without them.
+        crate::memory::advise_huge(words.spare_capacity_mut());
         words.resize(n, 0);
         let out: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
         let bytes = &bytes[..len * size];

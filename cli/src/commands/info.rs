@@ -79,17 +79,27 @@ pub fn run(a: Args) -> Result<(), String> {
     let (grid, warnings) = if volume::is_grid(&file) || a.q.is_some() {
         volume::load_grid(&file, a.q.as_deref()).map_err(|e| e.to_string())?
     } else {
+        let sel = a.field.as_ref();
+        // A scalar field alone, in its stored type where it is 8/16-bit (a 1024^3 uint16 volume
+        // is described in 2 GiB, not 10); vector fields and bad selections as before.
+        match volume::load_scalar(&file, sel) {
+            Ok(f) => {
+                warn(&f.volume.warnings);
+                let stats = f.samples.stats();
+                let j = volume_json_of(&f.volume, &f.name, 1, f.stored, stats);
+                let text = volume_text(&name, &f.volume, &j);
+                return print(j, if a.json { String::new() } else { text });
+            }
+            Err(volume::VolumeError::Invalid(_)) => {}
+            Err(e) if volume::has_volume_extension(&file) => return Err(e.to_string()),
+            Err(_) => {}
+        }
         match volume::load(&file) {
             Ok(vol) => {
                 warn(&vol.warnings);
-                let sel = a.field.as_ref();
                 let j = volume_json(&vol, sel).map_err(|e| e.to_string())?;
-                let text = if a.json {
-                    String::new()
-                } else {
-                    volume_text(&name, &vol, sel).map_err(|e| e.to_string())?
-                };
-                return print(j, text);
+                let text = volume_text(&name, &vol, &j);
+                return print(j, if a.json { String::new() } else { text });
             }
             Err(e) if volume::has_volume_extension(&file) => return Err(e.to_string()),
             Err(e) => volume::plot3d::read(&file, None).map_err(|_| e.to_string())?,
@@ -129,17 +139,35 @@ fn gpu(json: bool) -> Result<(), String> {
 pub fn volume_json(vol: &Volume, sel: Option<&FieldSelector>) -> Result<Value, VolumeError> {
     let field = vol.select(sel)?;
     let stats = field.stats();
+    Ok(volume_json_of(
+        vol,
+        &field.name,
+        field.components,
+        field.stored,
+        stats,
+    ))
+}
+
+/// [`volume_json`] of the grid `vol` and the described field's name, components, stored type
+/// and statistics.
+pub fn volume_json_of(
+    vol: &Volume,
+    name: &str,
+    components: usize,
+    stored: volume::ScalarType,
+    stats: volume::FieldStats,
+) -> Value {
     let a = vol.affine;
     let rows: Vec<Vec<f64>> = (0..4)
         .map(|r| (0..4).map(|c| a.col(c)[r]).collect())
         .collect();
     let [lo, hi] = vol.bounds();
     let num = |v: f64| if v.is_finite() { json!(v) } else { Value::Null };
-    Ok(json!({
+    json!({
         "format": vol.format,
         "dims": vol.dims,
-        "components": field.components,
-        "type": field.stored.name(),
+        "components": components,
+        "type": stored.name(),
         "spacing": vol.spacing(),
         "affine": rows,
         "space": vol.space.name(),
@@ -147,17 +175,12 @@ pub fn volume_json(vol: &Volume, sel: Option<&FieldSelector>) -> Result<Value, V
         "range": [num(stats.min), num(stats.max)],
         "nonfinite": stats.nonfinite,
         "fields": vol.field_names(),
-        "field": field.name,
-    }))
+        "field": name,
+    })
 }
 
 /// The same facts as lines of text for a person.
-pub fn volume_text(
-    path: &str,
-    vol: &Volume,
-    sel: Option<&FieldSelector>,
-) -> Result<String, VolumeError> {
-    let j = volume_json(vol, sel)?;
+pub fn volume_text(path: &str, vol: &Volume, j: &Value) -> String {
     let mut s = String::new();
     let f3 = |v: &Value| {
         v.as_array()
@@ -212,7 +235,7 @@ pub fn volume_text(
     );
     s += &format!("range:      {} .. {}\n", j["range"][0], j["range"][1]);
     s += &format!("non-finite: {} voxels\n", j["nonfinite"]);
-    Ok(s)
+    s
 }
 
 /// The JSON description of a tractogram: `format`, `streamlines`, `points`, `bounds` (world,
