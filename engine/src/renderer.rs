@@ -313,6 +313,23 @@ impl<'g> Renderer<'g> {
         })
     }
 
+    /// A scene drawing `base`'s volume, slices, overlay and isosurface - shared with it on the
+    /// GPU, not uploaded again - with the geometry `meshes` and `lines` uploaded: a viewer's
+    /// draft with a share of the geometry costs the upload of that share only.
+    pub fn upload_geometry(
+        &self,
+        base: &GpuScene,
+        meshes: &[TubeMesh],
+        lines: &[LineSet],
+    ) -> Result<GpuScene, GpuError> {
+        let mut scene = self.upload(None, meshes, lines, None)?;
+        scene.volume = base.volume.clone();
+        scene.planes = base.planes.clone();
+        scene.blend = base.blend.clone();
+        scene.iso = base.iso.clone();
+        Ok(scene)
+    }
+
     /// Adds line sets to an uploaded scene, freeing each set's per-point data as its parts go
     /// up ([`GpuLines::upload_freeing`]): for one-shot renders of tractograms too large to
     /// hold twice. The sets keep their settings, no points.

@@ -1186,6 +1186,29 @@ fn cpu_frame(
     }
 }
 
+impl<'g> Uploaded<'g> {
+    /// This upload with other geometry (a share of the model's tube meshes and line sets):
+    /// the volume, slices and isosurface are shared with it on the GPU, only the geometry is
+    /// uploaded. Frames of it take a model with that geometry.
+    pub fn with_geometry(
+        &self,
+        meshes: &[TubeMesh],
+        lines: &[LineSet],
+    ) -> Result<Uploaded<'g>, String> {
+        let renderer = Renderer::new(self.renderer.gpu());
+        let scene = renderer
+            .upload_geometry(&self.scene, meshes, lines)
+            .map_err(|e| e.to_string())?;
+        Ok(Uploaded {
+            renderer,
+            scene,
+            notes: self.notes.clone(),
+            cpu: std::sync::OnceLock::new(),
+            volume_on_gpu: self.volume_on_gpu,
+        })
+    }
+}
+
 impl Uploaded<'_> {
     /// One frame of scene `s` (its camera, clipping planes, settings and size; its data must
     /// be the uploaded model `m`'s).

@@ -132,9 +132,12 @@ pub struct Session {
     transfer: Option<scene::spec::TransferSpec>,
     /// The scene's data as modelled: its objects, without the transfer function.
     data: DataKey,
-    /// The upload drafts draw when the geometry is heavy ([`DRAFT_PRIMITIVES`]), made at the
-    /// first draft after the model or its transfer function changed.
-    draft: Option<(usize, scene::compile::Uploaded<'static>)>,
+    /// The uploads drafts draw when the geometry is heavy ([`DRAFT_PRIMITIVES`]), by share
+    /// (1 in k), the last used first; made at the first draft of a share after the model or
+    /// its transfer function changed, the volume shared with the full upload's. The last
+    /// [`DRAFT_SHARES_KEPT`] are kept, so a budget that moves between two shares uploads
+    /// nothing.
+    draft: Vec<(usize, scene::compile::Uploaded<'static>)>,
     /// What drafts draw, adapted to their times.
     budget: DraftBudget,
 }
@@ -142,6 +145,8 @@ pub struct Session {
 /// Triangles and line segments above which a draft draws a share of the geometry: every
 /// k-th block of [`DRAFT_BLOCK`] triangles or segments, k chosen to keep about this many.
 pub const DRAFT_PRIMITIVES: usize = 150_000;
+/// Draft uploads kept (by share of the geometry).
+pub const DRAFT_SHARES_KEPT: usize = 2;
 /// Triangles (tubes) or segments (lines) per block a draft keeps or drops whole.
 pub const DRAFT_BLOCK: usize = 256;
 
@@ -321,7 +326,7 @@ impl Session {
             up,
             transfer,
             data: data_key(s),
-            draft: None,
+            draft: vec![],
             budget: DraftBudget::default(),
         })
     }
@@ -344,7 +349,7 @@ impl Session {
             self.up = upload(self.gpu, &self.model)?;
             self.data = key;
             self.transfer = tf.clone();
-            self.draft = None;
+            self.draft.clear();
             rebuilt = Some(Rebuilt {
                 bounds: self.model.bounds,
                 range: self.range,
@@ -358,7 +363,7 @@ impl Session {
                 vol.2 = scene::compile::transfer(spec, self.range)
                     .map_err(|e| format!("scene key {e}"))?;
                 self.up = upload(self.gpu, &self.model)?;
-                self.draft = None;
+                self.draft.clear();
             }
             self.transfer = tf;
         }
@@ -368,9 +373,12 @@ impl Session {
         // only when the share halves or doubles.
         let k = heavy.div_ceil(budget.primitives.max(1)).next_power_of_two();
         if req.level == Level::Draft && k > 1 {
-            if self.draft.as_ref().is_none_or(|d| d.0 != k) {
-                // The model with a share of its geometry, uploaded once per share; the full
-                // geometry goes back into the model.
+            if let Some(i) = self.draft.iter().position(|d| d.0 == k) {
+                let d = self.draft.remove(i);
+                self.draft.insert(0, d);
+            } else {
+                // A share of the model's geometry, uploaded once per share beside the full
+                // upload's volume.
                 let meshes: Vec<_> = self
                     .model
                     .meshes
@@ -391,14 +399,11 @@ impl Session {
                         d
                     })
                     .collect();
-                let full_meshes = std::mem::replace(&mut self.model.meshes, meshes);
-                let full_lines = std::mem::replace(&mut self.model.lines, lines);
-                let up = upload(self.gpu, &self.model);
-                self.model.meshes = full_meshes;
-                self.model.lines = full_lines;
-                self.draft = Some((k, up?));
+                let up = self.up.with_geometry(&meshes, &lines)?;
+                self.draft.insert(0, (k, up));
+                self.draft.truncate(DRAFT_SHARES_KEPT);
             }
-            let up = &self.draft.as_ref().expect("made above").1;
+            let up = &self.draft[0].1;
             let mut img = draw_with(up, &self.model, req, budget.slices)?;
             img.rebuilt = rebuilt;
             img.notes.push(format!(

@@ -248,3 +248,55 @@ fn the_session_rebuilds_for_opened_files_and_survives_bad_settings() {
     assert!(img.rebuilt.is_some());
     assert!(session.model().lines.is_empty());
 }
+
+/// A draft's share of the geometry is uploaded beside the full upload's volume
+/// (`Uploaded::with_geometry`): its frames equal those of the same share uploaded with its
+/// own copy of the volume.
+#[test]
+fn a_share_of_the_lines_drawn_with_the_shared_volume_equals_its_own_upload() {
+    let dir = tempfile::tempdir().unwrap();
+    // Streamlines across the head (headsq spans about 0..205 x 0..205 x 0..140 mm).
+    let mut sl = tubes::Streamlines::new();
+    for i in 0..40 {
+        let y = 20.0 + 4.0 * i as f32;
+        let pts: Vec<glam::Vec3> = (0..60)
+            .map(|k| glam::Vec3::new(3.5 * k as f32, y, 40.0 + 0.5 * i as f32))
+            .collect();
+        sl.push(&pts);
+    }
+    let tck = dir.path().join("lines.tck");
+    tubes::tck::write(&tck, &sl).unwrap();
+    let path = test_support::headsq_scene(
+        dir.path(),
+        "",
+        "bone",
+        &format!(
+            "method = \"combined\"\nwidth = 64\nheight = 48\n[[lines]]\npath = \"{}\"\ncolor = \"#ff0000\"\nwidth = 2.0\n",
+            tck.display()
+        ),
+    );
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let gpu: &'static engine::gpu::Gpu = Box::leak(Box::new(engine::gpu::Gpu::new().unwrap()));
+    let up = scene::compile::upload(gpu, &m).unwrap();
+    // Every other segment.
+    let mut share = m.lines.clone();
+    share[0].segments = share[0].segments.iter().step_by(2).copied().collect();
+    let mut own = scene::compile::model(&s).unwrap();
+    own.lines = share.clone();
+    let own_up = scene::compile::upload(gpu, &own).unwrap();
+    let shared_up = up.with_geometry(&m.meshes, &share).unwrap();
+    let a = frame(&shared_up, &own, &s, Level::Full);
+    let b = frame(&own_up, &own, &s, Level::Full);
+    assert_eq!(a.rgba, b.rgba, "the shared volume draws as its own copy");
+    // And the share is not the whole: the full lines draw another image.
+    let full = frame(&up, &m, &s, Level::Full);
+    assert!(
+        changed(&full.rgba, &a.rgba) > 0,
+        "half the segments look the same"
+    );
+    assert!(
+        a.rgba.chunks(4).any(|p| p[0] > 150 && p[1] < 80),
+        "red lines are drawn"
+    );
+}
