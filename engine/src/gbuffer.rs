@@ -71,6 +71,8 @@ pub struct GpuMesh {
     diameter: f32,
     /// Below 1: translucent (drawn by the peel passes, not the opaque ones).
     opacity: f32,
+    /// The mesh's index in the list it was uploaded from ([`crate::renderer::Renderer::upload`]).
+    pub(crate) source: usize,
 }
 
 impl GpuMesh {
@@ -105,6 +107,7 @@ impl GpuMesh {
             ),
             count: m.indices.len() as u32,
             origin: m.origin,
+            source: 0,
             diameter: (2.0 * m.radius.max(0.0)) as f32,
             opacity: m.opacity.map_or(1.0, |o| {
                 if o.is_finite() {
@@ -113,6 +116,28 @@ impl GpuMesh {
                     1.0
                 }
             }),
+        }))
+    }
+
+    /// This mesh's vertices (shared on the GPU, not uploaded again) with other triangles:
+    /// `indices` into the same vertices (a share of the mesh's). `None` when there are none.
+    pub fn with_indices(&self, gpu: &Gpu, indices: &[u32]) -> Result<Option<GpuMesh>, GpuError> {
+        if indices.is_empty() {
+            return Ok(None);
+        }
+        gpu.check_buffer(
+            "tube indices",
+            indices.len() as u64 * 4,
+            wgpu::BufferUsages::INDEX,
+        )?;
+        Ok(Some(GpuMesh {
+            indices: gpu.buffer(
+                "tube indices",
+                bytemuck::cast_slice(indices),
+                wgpu::BufferUsages::INDEX,
+            ),
+            count: indices.len() as u32,
+            ..self.clone()
         }))
     }
 
@@ -155,6 +180,11 @@ pub struct GpuLines {
     filter: Option<(f32, f32)>,
     /// A point cloud: each segment entry is a point.
     cloud: bool,
+    /// The set's index in the list it was uploaded from, and the segments (first points, in
+    /// the whole set) this part draws: `first <= s < end`; its points start at `first`.
+    pub(crate) source: usize,
+    first: u32,
+    end: u32,
 }
 
 /// Where a line set of `points` points is cut into parts of at most `per_part` points that fit
@@ -200,6 +230,7 @@ impl GpuLines {
                 gpu,
                 l,
                 lo..(hi + 1).min(n),
+                hi,
                 &segments,
             )?);
         }
@@ -238,6 +269,7 @@ impl GpuLines {
                     gpu,
                     l,
                     lo..(hi + 1).min(n),
+                    hi,
                     &segments,
                 )?);
             }
@@ -267,11 +299,13 @@ impl GpuLines {
         Ok(parts)
     }
 
-    /// Uploads points `range` of `l` with `segments` (relative to the range's start).
+    /// Uploads points `range` of `l` with `segments` (relative to the range's start; the
+    /// part's segments are those from `range.start` to `end`, excluded).
     fn upload_part(
         gpu: &Gpu,
         l: &LineSet,
         range: std::ops::Range<usize>,
+        end: usize,
         segments: &[u32],
     ) -> Result<GpuLines, GpuError> {
         let storage = wgpu::BufferUsages::STORAGE;
@@ -329,7 +363,29 @@ impl GpuLines {
             filter: (l.filter.len() == l.positions.len() && !l.filter.is_empty() && !l.points)
                 .then_some((l.filter_min, l.filter_taper.max(0.0))),
             cloud: l.points,
+            source: 0,
+            first: range.start as u32,
+            end: end as u32,
         })
+    }
+
+    /// This part's points (shared on the GPU, not uploaded again) with other segments: those
+    /// of `segments` (first points in the whole set, in point order: a share of the set's) that
+    /// fall in this part. `None` when none does.
+    pub fn with_segments(&self, gpu: &Gpu, segments: &[u32]) -> Result<Option<GpuLines>, GpuError> {
+        let a = segments.partition_point(|&s| s < self.first);
+        let b = segments.partition_point(|&s| s < self.end);
+        if a >= b {
+            return Ok(None);
+        }
+        let local: Vec<u32> = segments[a..b].iter().map(|&s| s - self.first).collect();
+        let storage = wgpu::BufferUsages::STORAGE;
+        gpu.check_buffer("line segments", local.len() as u64 * 4, storage)?;
+        Ok(Some(GpuLines {
+            segments: gpu.buffer_staged("line segments", bytemuck::cast_slice(&local), storage)?,
+            count: local.len() as u32,
+            ..self.clone()
+        }))
     }
 
     /// Segments drawn per pass.

@@ -298,14 +298,30 @@ impl<'g> Renderer<'g> {
             volume: volume.map(|v| GpuVolume::upload(gpu, v)).transpose()?,
             meshes: meshes
                 .iter()
-                .filter_map(|m| GpuMesh::upload(gpu, m).transpose())
+                .enumerate()
+                .filter_map(|(i, m)| {
+                    GpuMesh::upload(gpu, m)
+                        .map(|g| {
+                            g.map(|mut g| {
+                                g.source = i;
+                                g
+                            })
+                        })
+                        .transpose()
+                })
                 .collect::<Result<_, _>>()?,
             lines: lines
                 .iter()
                 .map(|l| GpuLines::upload(gpu, l))
                 .collect::<Result<Vec<_>, _>>()?
                 .into_iter()
-                .flatten()
+                .enumerate()
+                .flat_map(|(i, parts)| {
+                    parts.into_iter().map(move |mut p| {
+                        p.source = i;
+                        p
+                    })
+                })
                 .collect(),
             iso: iso.map(|i| GpuIso::upload(gpu, i)),
             planes: vec![],
@@ -313,21 +329,44 @@ impl<'g> Renderer<'g> {
         })
     }
 
-    /// A scene drawing `base`'s volume, slices, overlay and isosurface - shared with it on the
-    /// GPU, not uploaded again - with the geometry `meshes` and `lines` uploaded: a viewer's
-    /// draft with a share of the geometry costs the upload of that share only.
-    pub fn upload_geometry(
+    /// A scene drawing `base`'s volume, slices, overlay and isosurface and a share of its
+    /// geometry, all shared with it on the GPU: per tube mesh the triangles `indices[i]`
+    /// (into mesh `i`'s vertices), per line set the segments `segments[i]` (first points in
+    /// set `i`, in point order). Only those lists are uploaded: a viewer's draft with a share
+    /// of the geometry. An error when `base` has a mesh or set the lists do not cover.
+    pub fn upload_shares(
         &self,
         base: &GpuScene,
-        meshes: &[TubeMesh],
-        lines: &[LineSet],
+        indices: &[Vec<u32>],
+        segments: &[Vec<u32>],
     ) -> Result<GpuScene, GpuError> {
-        let mut scene = self.upload(None, meshes, lines, None)?;
-        scene.volume = base.volume.clone();
-        scene.planes = base.planes.clone();
-        scene.blend = base.blend.clone();
-        scene.iso = base.iso.clone();
-        Ok(scene)
+        let missing = |what: &str, i: usize| {
+            GpuError::Operation(format!(
+                "a share of the geometry has no list for {what} {i}"
+            ))
+        };
+        let mut meshes = vec![];
+        for m in &base.meshes {
+            let ix = indices
+                .get(m.source)
+                .ok_or_else(|| missing("mesh", m.source))?;
+            meshes.extend(m.with_indices(self.gpu, ix)?);
+        }
+        let mut lines = vec![];
+        for l in &base.lines {
+            let sg = segments
+                .get(l.source)
+                .ok_or_else(|| missing("line set", l.source))?;
+            lines.extend(l.with_segments(self.gpu, sg)?);
+        }
+        Ok(GpuScene {
+            volume: base.volume.clone(),
+            meshes,
+            planes: base.planes.clone(),
+            blend: base.blend.clone(),
+            lines,
+            iso: base.iso.clone(),
+        })
     }
 
     /// Adds line sets to an uploaded scene, freeing each set's per-point data as its parts go
@@ -338,8 +377,13 @@ impl<'g> Renderer<'g> {
         scene: &mut GpuScene,
         lines: &mut [LineSet],
     ) -> Result<(), GpuError> {
-        for l in lines {
-            scene.lines.extend(GpuLines::upload_freeing(self.gpu, l)?);
+        let sets = scene.lines.last().map_or(0, |p| p.source + 1);
+        for (i, l) in lines.iter_mut().enumerate() {
+            let parts = GpuLines::upload_freeing(self.gpu, l)?;
+            scene.lines.extend(parts.into_iter().map(|mut p| {
+                p.source = sets + i;
+                p
+            }));
         }
         Ok(())
     }

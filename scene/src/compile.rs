@@ -1187,17 +1187,18 @@ fn cpu_frame(
 }
 
 impl<'g> Uploaded<'g> {
-    /// This upload with other geometry (a share of the model's tube meshes and line sets):
-    /// the volume, slices and isosurface are shared with it on the GPU, only the geometry is
-    /// uploaded. Frames of it take a model with that geometry.
-    pub fn with_geometry(
+    /// This upload drawing a share of its geometry: per tube mesh of the model the triangles
+    /// `indices[i]`, per line set the segments `segments[i]` (in point order). The volume,
+    /// slices, isosurface, vertices and points are shared with it on the GPU; only the two
+    /// lists are uploaded. Frames of it take the model it was uploaded from.
+    pub fn with_shares(
         &self,
-        meshes: &[TubeMesh],
-        lines: &[LineSet],
+        indices: &[Vec<u32>],
+        segments: &[Vec<u32>],
     ) -> Result<Uploaded<'g>, String> {
         let renderer = Renderer::new(self.renderer.gpu());
         let scene = renderer
-            .upload_geometry(&self.scene, meshes, lines)
+            .upload_shares(&self.scene, indices, segments)
             .map_err(|e| e.to_string())?;
         Ok(Uploaded {
             renderer,

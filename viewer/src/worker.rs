@@ -377,29 +377,21 @@ impl Session {
                 let d = self.draft.remove(i);
                 self.draft.insert(0, d);
             } else {
-                // A share of the model's geometry, uploaded once per share beside the full
-                // upload's volume.
-                let meshes: Vec<_> = self
+                // A share of the model's geometry: its triangle and segment lists only, the
+                // volume, vertices and points shared with the full upload on the GPU.
+                let indices: Vec<Vec<u32>> = self
                     .model
                     .meshes
                     .iter()
-                    .map(|t| {
-                        let mut d = t.clone();
-                        d.indices = every_kth_block(&t.indices, 3, k);
-                        d
-                    })
+                    .map(|t| every_kth_block(&t.indices, 3, k))
                     .collect();
-                let lines: Vec<_> = self
+                let segments: Vec<Vec<u32>> = self
                     .model
                     .lines
                     .iter()
-                    .map(|l| {
-                        let mut d = l.clone();
-                        d.segments = every_kth_block(&l.segments, 1, k);
-                        d
-                    })
+                    .map(|l| every_kth_block(&l.segments, 1, k))
                     .collect();
-                let up = self.up.with_geometry(&meshes, &lines)?;
+                let up = self.up.with_shares(&indices, &segments)?;
                 self.draft.insert(0, (k, up));
                 self.draft.truncate(DRAFT_SHARES_KEPT);
             }

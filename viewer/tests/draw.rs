@@ -249,9 +249,9 @@ fn the_session_rebuilds_for_opened_files_and_survives_bad_settings() {
     assert!(session.model().lines.is_empty());
 }
 
-/// A draft's share of the geometry is uploaded beside the full upload's volume
-/// (`Uploaded::with_geometry`): its frames equal those of the same share uploaded with its
-/// own copy of the volume.
+/// A draft's share of the geometry is drawn from the full upload's volume and points with only
+/// its segment list uploaded (`Uploaded::with_shares`): its frames equal those of the same
+/// share uploaded whole, with its own copy of the volume and of the points.
 #[test]
 fn a_share_of_the_lines_drawn_with_the_shared_volume_equals_its_own_upload() {
     let dir = tempfile::tempdir().unwrap();
@@ -271,24 +271,54 @@ fn a_share_of_the_lines_drawn_with_the_shared_volume_equals_its_own_upload() {
         "",
         "bone",
         &format!(
-            "method = \"combined\"\nwidth = 64\nheight = 48\n[[lines]]\npath = \"{}\"\ncolor = \"#ff0000\"\nwidth = 2.0\n",
+            "method = \"combined\"\nwidth = 64\nheight = 48\n[[lines]]\npath = \"{}\"\ncolor = \"#ff0000\"\nwidth = 2.0\n[[tubes]]\npath = \"{}\"\nradius = 1.5\ncolor = \"#0000ff\"\ntransform = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 30.0, 0.0, 0.0, 0.0, 1.0]\n",
+            tck.display(),
             tck.display()
         ),
     );
     let s = scene::spec::load(&path, &[]).unwrap();
     let m = scene::compile::model(&s).unwrap();
     let gpu: &'static engine::gpu::Gpu = Box::leak(Box::new(engine::gpu::Gpu::new().unwrap()));
-    let up = scene::compile::upload(gpu, &m).unwrap();
-    // Every other segment.
+    // Every other segment and every other triangle.
     let mut share = m.lines.clone();
     share[0].segments = share[0].segments.iter().step_by(2).copied().collect();
+    let tris: Vec<u32> = m.meshes[0]
+        .indices
+        .chunks(3)
+        .step_by(2)
+        .flatten()
+        .copied()
+        .collect();
     let mut own = scene::compile::model(&s).unwrap();
     own.lines = share.clone();
-    let own_up = scene::compile::upload(gpu, &own).unwrap();
-    let shared_up = up.with_geometry(&m.meshes, &share).unwrap();
-    let a = frame(&shared_up, &own, &s, Level::Full);
-    let b = frame(&own_up, &own, &s, Level::Full);
-    assert_eq!(a.rgba, b.rgba, "the shared volume draws as its own copy");
+    own.meshes[0].indices = tris.clone();
+    // The set in one part, and cut into eight (storage bindings of 4 KiB: 341 points a part).
+    for (limit, parts) in [(None, 1), (Some(4096), 8)] {
+        gpu.limit_bindings(limit);
+        let up = scene::compile::upload(gpu, &m).unwrap();
+        assert_eq!(up.scene.line_parts(), parts);
+        let own_up = scene::compile::upload(gpu, &own).unwrap();
+        let shared_up = up
+            .with_shares(std::slice::from_ref(&tris), &[share[0].segments.clone()])
+            .unwrap();
+        let a = frame(&shared_up, &own, &s, Level::Full);
+        let b = frame(&own_up, &own, &s, Level::Full);
+        gpu.limit_bindings(None);
+        assert_eq!(
+            a.rgba, b.rgba,
+            "{parts} parts: the shared volume and points draw as their own copies"
+        );
+    }
+    let up = scene::compile::upload(gpu, &m).unwrap();
+    let a = frame(
+        &up.with_shares(std::slice::from_ref(&tris), &[share[0].segments.clone()])
+            .unwrap(),
+        &own,
+        &s,
+        Level::Full,
+    );
+    // A share list for a set the upload does not have, or none for one it has: an error.
+    assert!(up.with_shares(&[], &[]).is_err());
     // And the share is not the whole: the full lines draw another image.
     let full = frame(&up, &m, &s, Level::Full);
     assert!(
@@ -298,5 +328,9 @@ fn a_share_of_the_lines_drawn_with_the_shared_volume_equals_its_own_upload() {
     assert!(
         a.rgba.chunks(4).any(|p| p[0] > 150 && p[1] < 80),
         "red lines are drawn"
+    );
+    assert!(
+        a.rgba.chunks(4).any(|p| p[2] > 150 && p[0] < 80),
+        "blue tubes are drawn"
     );
 }
