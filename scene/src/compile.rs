@@ -238,6 +238,8 @@ pub struct Model {
     pub space: Option<volume::Space>,
     /// Twice the default slice distance (`EaView::span` halves it): see [`slice_distance`].
     pub spacing: f64,
+    /// `volume.downsample`: a volume past the GPU's bindings may be halved until it fits.
+    pub downsample: bool,
     pub notes: Vec<String>,
 }
 
@@ -614,6 +616,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         lines,
         bounds,
         spacing,
+        downsample: s.volume.as_ref().is_some_and(|v| v.downsample),
         notes,
         colorbar,
         space,
@@ -1055,10 +1058,24 @@ pub fn upload_for<'g>(
         if data.len() as u64 * 4 <= capacity(data.packing()) {
             return None;
         }
+        if !m.downsample {
+            return Some(Err(format!(
+                "scene key volume.downsample: the volume ({} x {} x {}, {} MB) exceeds the {} MB \
+                 this adapter binds in eight storage bindings; set volume.downsample = true to \
+                 draw it halved until it fits (volume-only scenes draw it whole with \
+                 render.device = \"cpu\")",
+                vol.dims[0],
+                vol.dims[1],
+                vol.dims[2],
+                data.bytes() >> 20,
+                (engine::slice_pass::VOLUME_PARTS as u64 * gpu.storage_limit()) >> 20
+            )));
+        }
         // The means of a downsampled volume are f32: fit its f32 capacity.
         let f32_capacity = capacity(engine::slice_pass::Packing::F32);
-        fit_volume(vol, data, f32_capacity).map(|(v, d, note)| (v, Samples::pack(d), note))
+        fit_volume(vol, data, f32_capacity).map(|(v, d, note)| Ok((v, Samples::pack(d), note)))
     });
+    let fitted = fitted.transpose()?;
     let mut notes = vec![];
     if let Some((_, _, note)) = &fitted {
         notes.push(note.clone());

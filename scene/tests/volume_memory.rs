@@ -148,7 +148,8 @@ fn sixteen_bit_volumes_render_within_their_stored_size() {
     }
 }
 
-/// A 16-bit volume past the adapter's bindings is downsampled until its f32 means fit (the
+/// A 16-bit volume past the adapter's bindings is refused unless `volume.downsample` asks for
+/// it to be halved; then it is halved until its f32 means fit (the
 /// bindings lowered to 4 KiB each: 8,192 f32 samples in eight parts, 16,384 in 16 bits): 48^3
 /// halves to 24^3 (13,824 samples, which would fit as 16-bit but not as the f32 means they
 /// are) and again to 12^3, and the frame is drawn.
@@ -159,8 +160,25 @@ fn integer_volumes_past_the_bindings_are_halved_until_their_means_fit() {
     let path = d.path().join("phantom48.nrrd");
     volume::nrrd::write(&path, &vol, vol.default(), volume::nrrd::WriteEncoding::Raw).unwrap();
     let text = scene_text(&path, "gpu");
-    let s = scene::spec::parse(&text, "test.toml", d.path(), &[]).unwrap();
     let gpu = engine::gpu::Gpu::new().expect("a GPU adapter (lavapipe in CI)");
+    // Not asked for: an error naming the key.
+    let s = scene::spec::parse(&text, "test.toml", d.path(), &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    gpu.limit_bindings(Some(4096));
+    let e = scene::compile::upload(&gpu, &m).err();
+    gpu.limit_bindings(None);
+    let e = e.expect("refused without volume.downsample");
+    assert!(
+        e.contains("volume.downsample") && e.contains("48 x 48 x 48"),
+        "{e}"
+    );
+    let s = scene::spec::parse(
+        &text,
+        "test.toml",
+        d.path(),
+        &["volume.downsample=true".into()],
+    )
+    .unwrap();
     let m = scene::compile::model(&s).unwrap();
     gpu.limit_bindings(Some(4096));
     let up = scene::compile::upload(&gpu, &m);
