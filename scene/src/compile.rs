@@ -894,8 +894,8 @@ pub fn fit_volume(
 }
 
 /// Renders a loaded scene: the frame and the view it was seen through. A volume larger than
-/// eight of the adapter's storage bindings is downsampled first ([`fit_volume`], with a note on
-/// standard error).
+/// eight of the adapter's storage bindings is downsampled first when `volume.downsample` asks
+/// for it ([`fit_volume`], with a note), else a GPU frame of it is an error naming the key.
 pub fn render_scene(
     gpu: &engine::gpu::Gpu,
     s: &Scene,
@@ -929,6 +929,9 @@ pub struct Uploaded<'g> {
     /// Whether the volume went to the GPU ([`upload_for`] leaves it on the CPU when the
     /// native CPU renderer draws every frame).
     volume_on_gpu: bool,
+    /// Why the volume is not on the GPU when it was to be (too large for the bindings without
+    /// `volume.downsample`): the error of a frame the GPU would draw.
+    refused: Option<String>,
 }
 
 /// Whether the native CPU renderer draws the frames of `s` with model `m` on `gpu`
@@ -1036,8 +1039,9 @@ pub fn upload_freeing_lines<'g>(
     up
 }
 
-/// Uploads a model once: the volume (split over up to eight storage bindings; downsampled
-/// when even those cannot hold it, with a note), its transfer function, the tube meshes and the isosurface's fields.
+/// Uploads a model once: the volume (split over up to eight storage bindings; when even those
+/// cannot hold it, downsampled with a note if `volume.downsample` asks for it, else left off
+/// the GPU), its transfer function, the tube meshes and the isosurface's fields.
 pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, String> {
     upload_for(gpu, m, true)
 }
@@ -1050,16 +1054,18 @@ pub fn upload_for<'g>(
     volume_on_gpu: bool,
 ) -> Result<Uploaded<'g>, String> {
     let limit = gpu.storage_limit();
-    let gpu_volume = m.volume.as_ref().filter(|_| volume_on_gpu);
+    let capacity = |p| engine::slice_pass::max_volume_samples(gpu, p) as u64 * 4;
     // A volume is split over up to eight storage bindings (engine::slice_pass::VOLUME_PARTS);
-    // only beyond that is it downsampled.
-    let fitted = gpu_volume.and_then(|(vol, data, _)| {
-        let capacity = |p| engine::slice_pass::max_volume_samples(gpu, p) as u64 * 4;
-        if data.len() as u64 * 4 <= capacity(data.packing()) {
-            return None;
-        }
-        if !m.downsample {
-            return Some(Err(format!(
+    // beyond that it is halved when `volume.downsample` asks for it, else left on the CPU
+    // (the CPU renderer draws it whole; a GPU frame is an error naming the key).
+    let refused = m
+        .volume
+        .as_ref()
+        .filter(|(_, data, _)| {
+            volume_on_gpu && !m.downsample && data.len() as u64 * 4 > capacity(data.packing())
+        })
+        .map(|(vol, data, _)| {
+            format!(
                 "scene key volume.downsample: the volume ({} x {} x {}, {} MB) exceeds the {} MB \
                  this adapter binds in eight storage bindings; set volume.downsample = true to \
                  draw it halved until it fits (volume-only scenes draw it whole with \
@@ -1069,13 +1075,18 @@ pub fn upload_for<'g>(
                 vol.dims[2],
                 data.bytes() >> 20,
                 (engine::slice_pass::VOLUME_PARTS as u64 * gpu.storage_limit()) >> 20
-            )));
+            )
+        });
+    let volume_on_gpu = volume_on_gpu && refused.is_none();
+    let gpu_volume = m.volume.as_ref().filter(|_| volume_on_gpu);
+    let fitted = gpu_volume.and_then(|(vol, data, _)| {
+        if data.len() as u64 * 4 <= capacity(data.packing()) {
+            return None;
         }
         // The means of a downsampled volume are f32: fit its f32 capacity.
         let f32_capacity = capacity(engine::slice_pass::Packing::F32);
-        fit_volume(vol, data, f32_capacity).map(|(v, d, note)| Ok((v, Samples::pack(d), note)))
+        fit_volume(vol, data, f32_capacity).map(|(v, d, note)| (v, Samples::pack(d), note))
     });
-    let fitted = fitted.transpose()?;
     let mut notes = vec![];
     if let Some((_, _, note)) = &fitted {
         notes.push(note.clone());
@@ -1126,6 +1137,7 @@ pub fn upload_for<'g>(
         notes,
         cpu: std::sync::OnceLock::new(),
         volume_on_gpu,
+        refused,
     })
 }
 
@@ -1223,6 +1235,7 @@ impl<'g> Uploaded<'g> {
             notes: self.notes.clone(),
             cpu: std::sync::OnceLock::new(),
             volume_on_gpu: self.volume_on_gpu,
+            refused: self.refused.clone(),
         })
     }
 }
@@ -1261,6 +1274,9 @@ impl Uploaded<'_> {
             _ => false,
         };
         if !cpu && !self.volume_on_gpu && m.volume.is_some() {
+            if let Some(why) = &self.refused {
+                return Err(why.clone());
+            }
             return Err(
                 "the volume was left on the CPU for the CPU renderer, which cannot draw this \
                  frame (render.device)"

@@ -161,17 +161,29 @@ fn integer_volumes_past_the_bindings_are_halved_until_their_means_fit() {
     volume::nrrd::write(&path, &vol, vol.default(), volume::nrrd::WriteEncoding::Raw).unwrap();
     let text = scene_text(&path, "gpu");
     let gpu = engine::gpu::Gpu::new().expect("a GPU adapter (lavapipe in CI)");
-    // Not asked for: an error naming the key.
+    // Not asked for: a GPU frame is an error naming the key.
     let s = scene::spec::parse(&text, "test.toml", d.path(), &[]).unwrap();
     let m = scene::compile::model(&s).unwrap();
     gpu.limit_bindings(Some(4096));
-    let e = scene::compile::upload(&gpu, &m).err();
+    // The upload keeps the volume off the GPU (a CPU frame draws it whole); a GPU frame is the
+    // error.
+    let up = scene::compile::upload(&gpu, &m).unwrap();
+    let opts = engine::renderer::DrawOptions {
+        frames: 1,
+        pass_timings: false,
+    };
+    let e = up.draw(&s, &m, opts).err();
+    let mut on_cpu = s.clone();
+    on_cpu.render.device = scene::spec::Device::Cpu;
+    let cpu = up.draw(&on_cpu, &m, opts).map(|(out, _)| out);
     gpu.limit_bindings(None);
     let e = e.expect("refused without volume.downsample");
     assert!(
         e.contains("volume.downsample") && e.contains("48 x 48 x 48"),
         "{e}"
     );
+    let cpu = cpu.expect("the CPU renderer draws it whole");
+    assert!(cpu.image.iter().any(|p| p[3] > 0.05));
     let s = scene::spec::parse(
         &text,
         "test.toml",

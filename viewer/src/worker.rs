@@ -344,9 +344,13 @@ impl Session {
         let mut rebuilt = None;
         if key != self.data {
             // Other objects (opened, removed, hidden, resized, recoloured): the model anew.
-            self.model = scene::compile::model(&req.scene)?;
+            // Both made before either is kept: a failed upload leaves model and upload as
+            // they were, in step (drafts take lists from the one into the other's buffers).
+            let model = scene::compile::model(&req.scene)?;
+            let up = upload(self.gpu, &model)?;
+            self.model = model;
+            self.up = up;
             self.range = data_range(&self.model);
-            self.up = upload(self.gpu, &self.model)?;
             self.data = key;
             self.transfer = tf.clone();
             self.draft.clear();
