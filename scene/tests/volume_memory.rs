@@ -12,20 +12,6 @@ use std::path::Path;
 
 const CHILD: &str = "UMBRA_VOLUME_MEMORY_CHILD";
 
-fn peak_resident_bytes() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap();
-    let line = status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .expect("VmHWM in /proc/self/status");
-    let kb: u64 = line
-        .split_whitespace()
-        .nth(1)
-        .and_then(|v| v.parse().ok())
-        .unwrap();
-    kb * 1024
-}
-
 /// `combined` on the CPU renderer (its light volume is as small as the GPU's on this image);
 /// `ea` on the GPU, whose light volume would count against the samples here.
 fn scene_text(volume: &Path, device: &str) -> String {
@@ -78,7 +64,7 @@ fn child(volume: &Path, device: &str) {
         )
         .unwrap();
     let alpha = out.image.iter().map(|p| p[3] as f64).sum::<f64>() / out.image.len() as f64;
-    println!("PEAK {} ALPHA {alpha}", peak_resident_bytes());
+    println!("PEAK {} ALPHA {alpha}", test_support::peak_resident_bytes());
 }
 
 /// Runs the child on `volume` and `device`: its peak and mean opacity.

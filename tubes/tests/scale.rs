@@ -19,20 +19,6 @@ fn bundles() -> tubes::synthetic::Bundles {
     }
 }
 
-fn peak_resident_bytes() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap();
-    let line = status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .expect("VmHWM in /proc/self/status");
-    let kb: u64 = line
-        .split_whitespace()
-        .nth(1)
-        .and_then(|v| v.parse().ok())
-        .unwrap();
-    kb * 1024
-}
-
 fn same_bytes(a: &Path, b: &Path) -> bool {
     let (mut fa, mut fb) = (
         std::fs::File::open(a).unwrap(),
@@ -74,7 +60,7 @@ fn ten_million_points_round_trip_with_bounded_memory() {
             assert_eq!(s.line(i), &line[..], "streamline {i}");
         }
         tubes::tck::write(Path::new(output), &s).unwrap();
-        println!("PEAK {}", peak_resident_bytes());
+        println!("PEAK {}", test_support::peak_resident_bytes());
         return;
     }
     let d = tempfile::tempdir().unwrap();
@@ -86,7 +72,10 @@ fn ten_million_points_round_trip_with_bounded_memory() {
     let data = 12 * (b.total_points() + b.count as u64 + 1);
     assert!(len > data && len < data + 200, "{len}");
     // The writer holds one streamline at a time.
-    assert!(peak_resident_bytes() < len, "writing held the file");
+    assert!(
+        test_support::peak_resident_bytes() < len,
+        "writing held the file"
+    );
 
     let exe = std::env::current_exe().unwrap();
     let out = std::process::Command::new(exe)

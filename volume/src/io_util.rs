@@ -318,6 +318,20 @@ pub fn take_samples(
     big_endian: bool,
     allow_trailing: bool,
 ) -> Result<Vec<f32>> {
+    let need = data_bytes(path, field, bytes, count, ty, allow_trailing)?;
+    decode_samples(path, field, &bytes[..need], ty, big_endian)
+}
+
+/// The bytes `count` samples of `ty` take, checked against `bytes` (which may be longer only
+/// when `allow_trailing`): an error naming the sizes otherwise.
+fn data_bytes(
+    path: &Path,
+    field: &str,
+    bytes: &[u8],
+    count: usize,
+    ty: ScalarType,
+    allow_trailing: bool,
+) -> Result<usize> {
     let need = count
         .checked_mul(ty.size())
         .ok_or_else(|| VolumeError::format(path, field, "data size overflows"))?;
@@ -332,7 +346,7 @@ pub fn take_samples(
             ),
         ));
     }
-    decode_samples(path, field, &bytes[..need], ty, big_endian)
+    Ok(need)
 }
 
 /// [`take_samples`] for 8 and 16-bit integers, kept in their stored type
@@ -351,20 +365,7 @@ pub fn take_stored(
     ) {
         return Ok(None);
     }
-    let need = count
-        .checked_mul(ty.size())
-        .ok_or_else(|| VolumeError::format(path, field, "data size overflows"))?;
-    if bytes.len() != need {
-        return Err(VolumeError::format(
-            path,
-            field,
-            format!(
-                "{} data bytes, the header's dims and type ({count} x {}) need {need}",
-                bytes.len(),
-                ty.name()
-            ),
-        ));
-    }
+    let need = data_bytes(path, field, bytes, count, ty, false)?;
     crate::samples::Samples::from_stored(bytes, ty, big_endian).map_err(|_| {
         VolumeError::format(
             path,

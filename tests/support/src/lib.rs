@@ -57,3 +57,19 @@ pub fn shared_or_skip(test: &str) -> Option<PathBuf> {
 pub fn close(a: f64, b: f64, rel: f64, abs: f64) -> bool {
     (a - b).abs() <= abs.max(rel * a.abs().max(b.abs()))
 }
+
+/// This process's peak resident memory in bytes (`VmHWM` of /proc/self/status, Linux): what
+/// the memory tests' child processes report.
+pub fn peak_resident_bytes() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").expect("/proc/self/status");
+    let line = status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .expect("VmHWM in /proc/self/status");
+    let kb: u64 = line
+        .split_whitespace()
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .expect("VmHWM in kB");
+    kb * 1024
+}
