@@ -33,10 +33,10 @@ override TF2D: bool = false;
 // occlusion::projection.
 override PROJECTION: u32 = 0u;
 // How the field's samples are stored (see `voxel`): 0 f32, 1 two 16-bit integers a word, 2
-// four 8-bit integers; SPLIT when they span more than one binding. Pipeline constants, so a
-// volume in one f32 binding reads it as directly as ever (a run-time switch cost lavapipe 1.7x).
+// four 8-bit integers. A pipeline constant, so a volume in f32 reads it as directly as ever (a
+// run-time switch cost lavapipe 1.7x); how many bindings they span is written into the shader
+// (`field_word`, below).
 override PACKING: u32 = 0u;
-override SPLIT: bool = false;
 
 // Keep in sync with `slice_pass::SliceParams`.
 struct Params {
@@ -261,34 +261,14 @@ fn light_shifted(cs: CellShift, k: u32) -> f32 {
     return mix(mix(v0, v1, cs.f.x), mix(v2, v3, cs.f.x), cs.f.y);
 }
 
-// A volume larger than one storage binding is split into up to eight parts of `part_len`
-// words (in file order): `field` holds the first, `field1`..`field7` the rest. A word is an
-// f32 sample, or two 16-bit or four 8-bit integers of an integer-valued volume (the value is
-// the integer + `value_offset`): 2x or 4x less memory and bandwidth, the same values.
-@group(2) @binding(0) var<storage, read> field1: array<u32>;
-@group(2) @binding(1) var<storage, read> field2: array<u32>;
-@group(2) @binding(2) var<storage, read> field3: array<u32>;
-@group(2) @binding(3) var<storage, read> field4: array<u32>;
-@group(2) @binding(4) var<storage, read> field5: array<u32>;
-@group(2) @binding(5) var<storage, read> field6: array<u32>;
-@group(2) @binding(6) var<storage, read> field7: array<u32>;
-
-fn field_word(w: u32) -> u32 {
-    if (!SPLIT || w < P.part_len) {
-        return field[w];
-    }
-    let part = w / P.part_len;
-    let k = w - part * P.part_len;
-    switch part {
-        case 1u: { return field1[k]; }
-        case 2u: { return field2[k]; }
-        case 3u: { return field3[k]; }
-        case 4u: { return field4[k]; }
-        case 5u: { return field5[k]; }
-        case 6u: { return field6[k]; }
-        default: { return field7[k]; }
-    }
-}
+// A volume larger than one storage binding is split into parts of `part_len` words (in file
+// order): `field` holds the first, `field1`, `field2`, ... (group 2) the rest, as many as the
+// adapter binds (`slice_pass::volume_parts`). Their declarations and `field_word`, which picks
+// the part of word w, are written by `slice_pass::field_parts_wgsl` in place of the next line.
+// A word is an f32 sample, or two 16-bit or four 8-bit integers of an integer-valued volume
+// (the value is the integer + `value_offset`): 2x or 4x less memory and bandwidth, the same
+// values.
+//@field-parts
 
 fn voxel(i: vec3<u32>) -> f32 {
     let l = i.x + P.dims.x * (i.y + P.dims.y * i.z);

@@ -4,7 +4,7 @@
 # under an 8 GB address-space limit (render.method METHOD, default ea; render.device DEVICE,
 # default auto; WIDTH x WIDTH pixels, default 512) and prints /usr/bin/time's peak resident
 # memory of both, and the large one's over the tiny one's as a multiple of the stored size
-# (`volume.downsample = true`: the GPU passes halve what passes their eight bindings).
+# (`volume.downsample = true`: the GPU passes halve what passes their bindings).
 # From the repository root after `cargo build --release`; UMBRA_BIN=PATH runs another build
 # (the phantom is written by this checkout's build).
 set -e

@@ -142,6 +142,7 @@ pub struct GpuReport {
     pub max_texture_2d: u32,
     pub max_buffer_size: u64,
     pub max_storage_buffer_binding_size: u64,
+    pub max_storage_buffers_per_stage: u32,
     pub max_compute_workgroup_invocations: u32,
     pub timestamp_queries: bool,
     pub msaa_rgba16f: Vec<u32>,
@@ -161,6 +162,11 @@ impl fmt::Display for GpuReport {
             f,
             "max storage buffer: {} bytes",
             self.max_storage_buffer_binding_size
+        )?;
+        writeln!(
+            f,
+            "storage buffers:    {} a shader stage",
+            self.max_storage_buffers_per_stage
         )?;
         writeln!(
             f,
@@ -472,6 +478,7 @@ impl Gpu {
             max_texture_2d: l.max_texture_dimension_2d,
             max_buffer_size: l.max_buffer_size,
             max_storage_buffer_binding_size: l.max_storage_buffer_binding_size,
+            max_storage_buffers_per_stage: l.max_storage_buffers_per_shader_stage,
             max_compute_workgroup_invocations: l.max_compute_invocations_per_workgroup,
             timestamp_queries: self
                 .device

@@ -230,9 +230,84 @@ pub struct SliceRow {
 /// Bytes of one slice's record.
 const SLICE_BYTES: u64 = std::mem::size_of::<SliceRow>() as u64;
 
-/// The most parts a volume's samples are split into, each within a storage binding (the
-/// slice shader's `field`, `field1`..`field7`).
-pub const VOLUME_PARTS: usize = 8;
+/// The most parts a volume's samples are ever split into (the shader's `field`, `field1`, ...):
+/// 32 parts of lavapipe's 128 MiB bindings hold 4 GiB, 1024^3 samples in f32.
+pub const MAX_VOLUME_PARTS: usize = 32;
+
+/// The slice pass's bind groups 0 and 1 (group 2 holds the volume's further parts).
+const GROUP0: [Slot; 15] = [
+    Slot::Uniform,
+    Slot::Storage,
+    Slot::Storage,
+    Slot::Storage,
+    Slot::StorageRw,
+    Slot::StorageRw,
+    Slot::UnfilterableTexture,
+    Slot::UnfilterableTexture,
+    Slot::StorageRw,
+    Slot::StorageRw,
+    Slot::StorageRw,
+    Slot::UnfilterableTextureArray,
+    Slot::UnfilterableTextureArray,
+    Slot::Storage,
+    Slot::Storage,
+];
+const GROUP1: [Slot; 3] = [Slot::StorageDynamic, Slot::Storage, Slot::StorageRw];
+
+/// How many parts a volume's samples may be split into on `gpu`: every storage binding a
+/// compute stage has left after the slice pass's own (groups 0 and 1, the first part among
+/// them), at most [`MAX_VOLUME_PARTS`], at least 1. lavapipe binds 32 storage buffers a stage:
+/// 20 parts of 128 MiB, 2.5 GiB (1024^3 samples in 16 bits).
+pub fn volume_parts(gpu: &Gpu) -> usize {
+    let storage = |s: &&Slot| matches!(s, Slot::Storage | Slot::StorageDynamic | Slot::StorageRw);
+    let own = GROUP0.iter().chain(&GROUP1).filter(storage).count();
+    let stage = gpu.device.limits().max_storage_buffers_per_shader_stage as usize;
+    (stage + 1).saturating_sub(own).clamp(1, MAX_VOLUME_PARTS)
+}
+
+/// The WGSL of a volume split into `parts` (at least 1): the further parts' declarations
+/// (group 2, `field1`.. `field{parts - 1}`) and `field_word(w)`, the volume's word `w` read
+/// from its part. Written into `slice_pass.wgsl` at its `//@field-parts` line for each
+/// volume's part count, so the shader declares exactly the bindings the volume has (WGSL has
+/// no arrays of storage buffers without a native-only feature) and a volume in one binding
+/// reads it directly. The part is found by halving `[0, parts)` with comparisons of `w` (no
+/// division; lavapipe runs every case of a `switch` its SIMD lanes reach: a 20-case switch
+/// doubled a two-part volume's frame).
+pub fn field_parts_wgsl(parts: usize) -> String {
+    fn find(lo: usize, hi: usize, indent: usize, s: &mut String) {
+        let pad = " ".repeat(indent);
+        if hi - lo == 1 {
+            *s += &match lo {
+                0 => format!("{pad}return field[w];\n"),
+                _ => format!("{pad}return field{lo}[w - {lo}u * P.part_len];\n"),
+            };
+            return;
+        }
+        let mid = (lo + hi) / 2;
+        *s += &format!("{pad}if (w < {mid}u * P.part_len) {{\n");
+        find(lo, mid, indent + 4, s);
+        *s += &format!("{pad}}} else {{\n");
+        find(mid, hi, indent + 4, s);
+        *s += &format!("{pad}}}\n");
+    }
+    let parts = parts.max(1);
+    let mut s = String::new();
+    for k in 1..parts {
+        s += &format!(
+            "@group(2) @binding({}) var<storage, read> field{k}: array<u32>;\n",
+            k - 1
+        );
+    }
+    s += "fn field_word(w: u32) -> u32 {\n";
+    find(0, parts, 4, &mut s);
+    s += "}\n";
+    s
+}
+
+/// `slice_pass.wgsl` for a volume in at most `parts` parts (the prelude not yet prepended).
+fn source(parts: usize) -> String {
+    SHADER.replace("//@field-parts", &field_parts_wgsl(parts))
+}
 
 /// 32-bit words a part of a volume holds on `gpu` (its storage binding limit).
 pub fn part_words(gpu: &Gpu) -> usize {
@@ -245,7 +320,7 @@ pub use volume::samples::{Packing, Samples};
 
 /// The most samples a volume packed as `packing` may have on `gpu` at full resolution.
 pub fn max_volume_samples(gpu: &Gpu, packing: Packing) -> usize {
-    VOLUME_PARTS * part_words(gpu) * packing.per_word()
+    volume_parts(gpu) * part_words(gpu) * packing.per_word()
 }
 
 /// A volume on the GPU: its samples, its transfer function (1-D points, then the 2-D rows'
@@ -253,7 +328,7 @@ pub fn max_volume_samples(gpu: &Gpu, packing: Packing) -> usize {
 #[derive(Clone)]
 pub struct GpuVolume {
     /// The samples' words in parts of `part_len` (the last may be shorter), at most
-    /// [`VOLUME_PARTS`].
+    /// [`volume_parts`].
     field: Vec<wgpu::Buffer>,
     part_len: u32,
     packing: Packing,
@@ -300,11 +375,12 @@ impl GpuVolume {
         if vi.data.len() > most {
             return Err(GpuError::Operation(format!(
                 "the volume has {} samples ({} MB as {:?}); this adapter binds at most {} in \
-                 {VOLUME_PARTS} parts of {} MB: downsample it",
+                 {} parts of {} MB: downsample it",
                 vi.data.len(),
                 vi.data.bytes() >> 20,
                 packing,
                 most,
+                volume_parts(gpu),
                 (part_words(gpu) * 4) >> 20
             )));
         }
@@ -446,42 +522,18 @@ impl SlicePass {
             )));
         }
         let limit = device.limits().max_storage_buffer_binding_size as usize;
-        let module = gpu.shader("slice_pass.wgsl", &with_prelude(SHADER));
+        // The volume's parts (the stand-in of a scene without one has one).
+        let parts = volume.map_or(1, |vi| vi.field.len());
+        let module = gpu.shader("slice_pass.wgsl", &with_prelude(&source(parts)));
         let tf2d = volume.is_some_and(|vi| vi.tf_rows > 0);
-        // The field's packing and whether it spans several bindings, as pipeline constants.
-        let field_layout = volume.map_or((0.0, 0.0), |vi| {
-            (vi.packing.code() as f64, (vi.field.len() > 1) as u32 as f64)
-        });
-        let l0 = gpu.layout(
-            "slice group 0",
-            wgpu::ShaderStages::COMPUTE,
-            &[
-                Slot::Uniform,
-                Slot::Storage,
-                Slot::Storage,
-                Slot::Storage,
-                Slot::StorageRw,
-                Slot::StorageRw,
-                Slot::UnfilterableTexture,
-                Slot::UnfilterableTexture,
-                Slot::StorageRw,
-                Slot::StorageRw,
-                Slot::StorageRw,
-                Slot::UnfilterableTextureArray,
-                Slot::UnfilterableTextureArray,
-                Slot::Storage,
-                Slot::Storage,
-            ],
-        );
-        let l1 = gpu.layout(
-            "slice group 1",
-            wgpu::ShaderStages::COMPUTE,
-            &[Slot::StorageDynamic, Slot::Storage, Slot::StorageRw],
-        );
+        // The field's packing, a pipeline constant.
+        let packing = volume.map_or(0.0, |vi| vi.packing.code() as f64);
+        let l0 = gpu.layout("slice group 0", wgpu::ShaderStages::COMPUTE, &GROUP0);
+        let l1 = gpu.layout("slice group 1", wgpu::ShaderStages::COMPUTE, &GROUP1);
         let l2 = gpu.layout(
             "slice group 2",
             wgpu::ShaderStages::COMPUTE,
-            &[Slot::Storage; VOLUME_PARTS - 1],
+            &vec![Slot::Storage; parts - 1],
         );
         let pl = gpu.pipeline_layout("slice", &[&l0, &l1, &l2]);
         let light_pipe = gpu.compute_pipeline_constants(
@@ -492,8 +544,7 @@ impl SlicePass {
             &[
                 ("CONE", if s.cone { 1.0 } else { 0.0 }),
                 ("TF2D", if tf2d { 1.0 } else { 0.0 }),
-                ("PACKING", field_layout.0),
-                ("SPLIT", field_layout.1),
+                ("PACKING", packing),
             ],
         );
         let march_pipe = gpu.compute_pipeline_constants(
@@ -504,8 +555,7 @@ impl SlicePass {
             &[
                 ("PHONG", if s.phong { 1.0 } else { 0.0 }),
                 ("TF2D", if tf2d { 1.0 } else { 0.0 }),
-                ("PACKING", field_layout.0),
-                ("SPLIT", field_layout.1),
+                ("PACKING", packing),
                 (
                     "PROJECTION",
                     match s.projection {
@@ -613,7 +663,7 @@ impl SlicePass {
             ],
         );
         // The field's further parts (unused bindings repeat the first part; never read).
-        let parts: Vec<wgpu::BindingResource> = (1..VOLUME_PARTS)
+        let parts: Vec<wgpu::BindingResource> = (1..parts)
             .map(|k| {
                 vol.field
                     .get(k)
@@ -773,10 +823,33 @@ mod tests {
         );
     }
 
+    /// The shader parses and validates with the volume in one part, two and the most, and
+    /// declares exactly `parts - 1` further bindings (group 2).
+    #[test]
+    fn the_shader_declares_the_parts_it_is_written_for() {
+        for parts in [1, 2, 20, MAX_VOLUME_PARTS] {
+            let wgsl = crate::prelude::with_prelude(&source(parts));
+            let module = naga::front::wgsl::parse_str(&wgsl)
+                .unwrap_or_else(|e| panic!("{parts} parts: {}", e.emit_to_string(&wgsl)));
+            naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                naga::valid::Capabilities::all(),
+            )
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{parts} parts: {e:?}"));
+            let group2 = module
+                .global_variables
+                .iter()
+                .filter(|(_, g)| g.binding.as_ref().is_some_and(|b| b.group == 2))
+                .count();
+            assert_eq!(group2, parts - 1, "{parts} parts");
+        }
+    }
+
     #[test]
     fn the_uniforms_match_their_wgsl_structs() {
         crate::prelude::assert_layout!(
-            SHADER,
+            &source(2),
             "Params",
             SliceParams {
                 frame,
@@ -816,7 +889,7 @@ mod tests {
             }
         );
         crate::prelude::assert_layout!(
-            SHADER,
+            &source(2),
             "Slice",
             SliceRow {
                 k,

@@ -864,7 +864,7 @@ pub fn fit_volume(
     }
     let d = d.unwrap_or_else(|| data.to_f32().into_owned());
     let note = format!(
-        "the volume ({} x {} x {}, {} MB as f32) exceeds the {} MB this adapter binds (eight storage bindings): downsampled by 2x2x2 box filtering to {} x {} x {}",
+        "the volume ({} x {} x {}, {} MB as f32) exceeds the {} MB this adapter binds in its storage bindings: downsampled by 2x2x2 box filtering to {} x {} x {}",
         vol.dims[0],
         vol.dims[1],
         vol.dims[2],
@@ -1039,9 +1039,9 @@ pub fn upload_freeing_lines<'g>(
     up
 }
 
-/// Uploads a model once: the volume (split over up to eight storage bindings; when even those
-/// cannot hold it, downsampled with a note if `volume.downsample` asks for it, else left off
-/// the GPU), its transfer function, the tube meshes and the isosurface's fields.
+/// Uploads a model once: the volume (split over the storage bindings the adapter has left, 20
+/// on lavapipe; when even those cannot hold it, downsampled with a note if `volume.downsample`
+/// asks for it, else left off the GPU), its transfer function, the tube meshes and the isosurface's fields.
 pub fn upload<'g>(gpu: &'g engine::gpu::Gpu, m: &Model) -> Result<Uploaded<'g>, String> {
     upload_for(gpu, m, true)
 }
@@ -1055,7 +1055,7 @@ pub fn upload_for<'g>(
 ) -> Result<Uploaded<'g>, String> {
     let limit = gpu.storage_limit();
     let capacity = |p| engine::slice_pass::max_volume_samples(gpu, p) as u64 * 4;
-    // A volume is split over up to eight storage bindings (engine::slice_pass::VOLUME_PARTS);
+    // A volume is split over the storage bindings the adapter has (slice_pass::volume_parts);
     // beyond that it is halved when `volume.downsample` asks for it, else left on the CPU
     // (the CPU renderer draws it whole; a GPU frame is an error naming the key).
     let refused = m
@@ -1067,14 +1067,15 @@ pub fn upload_for<'g>(
         .map(|(vol, data, _)| {
             format!(
                 "scene key volume.downsample: the volume ({} x {} x {}, {} MB) exceeds the {} MB \
-                 this adapter binds in eight storage bindings; set volume.downsample = true to \
+                 this adapter binds in {} storage bindings; set volume.downsample = true to \
                  draw it halved until it fits (volume-only scenes draw it whole with \
                  render.device = \"cpu\")",
                 vol.dims[0],
                 vol.dims[1],
                 vol.dims[2],
                 data.bytes() >> 20,
-                (engine::slice_pass::VOLUME_PARTS as u64 * gpu.storage_limit()) >> 20
+                (engine::slice_pass::volume_parts(gpu) as u64 * gpu.storage_limit()) >> 20,
+                engine::slice_pass::volume_parts(gpu)
             )
         });
     let volume_on_gpu = volume_on_gpu && refused.is_none();

@@ -190,7 +190,7 @@ pub struct VolumeSpec {
     pub colormap: Option<String>,
     /// The projections' opacity in [0, 1] (default 1).
     pub opacity: Option<f64>,
-    /// true: a volume larger than the GPU's eight storage bindings hold is halved (2x2x2 box
+    /// true: a volume larger than the GPU passes' storage bindings hold is halved (2x2x2 box
     /// filter) until it fits, with a note; false (default): that is an error naming this key.
     #[serde(default, skip_serializing_if = "is_false")]
     pub downsample: bool,

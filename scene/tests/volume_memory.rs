@@ -135,8 +135,8 @@ fn sixteen_bit_volumes_render_within_their_stored_size() {
 }
 
 /// A 16-bit volume past the adapter's bindings is refused unless `volume.downsample` asks for
-/// it to be halved; then it is halved until its f32 means fit (the
-/// bindings lowered to 4 KiB each: 8,192 f32 samples in eight parts, 16,384 in 16 bits): 48^3
+/// it to be halved; then it is halved until its f32 means fit (the bindings lowered so that
+/// all the adapter's parts hold just under 13,824 f32 samples, twice that in 16 bits): 48^3
 /// halves to 24^3 (13,824 samples, which would fit as 16-bit but not as the f32 means they
 /// are) and again to 12^3, and the frame is drawn.
 #[test]
@@ -147,10 +147,12 @@ fn integer_volumes_past_the_bindings_are_halved_until_their_means_fit() {
     volume::nrrd::write(&path, &vol, vol.default(), volume::nrrd::WriteEncoding::Raw).unwrap();
     let text = scene_text(&path, "gpu");
     let gpu = engine::gpu::Gpu::new().expect("a GPU adapter (lavapipe in CI)");
+    let parts = engine::slice_pass::volume_parts(&gpu) as u64;
+    let binding = (13_823 / parts * 4) & !15;
     // Not asked for: a GPU frame is an error naming the key.
     let s = scene::spec::parse(&text, "test.toml", d.path(), &[]).unwrap();
     let m = scene::compile::model(&s).unwrap();
-    gpu.limit_bindings(Some(4096));
+    gpu.limit_bindings(Some(binding));
     // The upload keeps the volume off the GPU (a CPU frame draws it whole); a GPU frame is the
     // error.
     let up = scene::compile::upload(&gpu, &m).unwrap();
@@ -178,7 +180,7 @@ fn integer_volumes_past_the_bindings_are_halved_until_their_means_fit() {
     )
     .unwrap();
     let m = scene::compile::model(&s).unwrap();
-    gpu.limit_bindings(Some(4096));
+    gpu.limit_bindings(Some(binding));
     let up = scene::compile::upload(&gpu, &m);
     let drawn = up.as_ref().map(|up| {
         up.draw(
