@@ -227,6 +227,8 @@ pub struct GpuScene {
     /// An overlay blended into the volume ([`Renderer::upload_planes`]).
     blend: Option<crate::slice_pass::GpuBlend>,
     lines: Vec<GpuLines>,
+    /// Line sets uploaded (a set without segments has no part in `lines`).
+    line_sets: usize,
     iso: Option<GpuIso>,
 }
 
@@ -323,6 +325,7 @@ impl<'g> Renderer<'g> {
                     })
                 })
                 .collect(),
+            line_sets: lines.len(),
             iso: iso.map(|i| GpuIso::upload(gpu, i)),
             planes: vec![],
             blend: None,
@@ -365,6 +368,7 @@ impl<'g> Renderer<'g> {
             planes: base.planes.clone(),
             blend: base.blend.clone(),
             lines,
+            line_sets: base.line_sets,
             iso: base.iso.clone(),
         })
     }
@@ -377,13 +381,14 @@ impl<'g> Renderer<'g> {
         scene: &mut GpuScene,
         lines: &mut [LineSet],
     ) -> Result<(), GpuError> {
-        let sets = scene.lines.last().map_or(0, |p| p.source + 1);
-        for (i, l) in lines.iter_mut().enumerate() {
+        for l in lines.iter_mut() {
             let parts = GpuLines::upload_freeing(self.gpu, l)?;
+            let source = scene.line_sets;
             scene.lines.extend(parts.into_iter().map(|mut p| {
-                p.source = sets + i;
+                p.source = source;
                 p
             }));
+            scene.line_sets += 1;
         }
         Ok(())
     }

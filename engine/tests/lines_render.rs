@@ -854,3 +854,46 @@ fn batched_submissions_draw_the_image_of_one() {
         assert!(worst <= 1e-6, "{method:?}: a pixel differs by {worst}");
     }
 }
+
+/// Sets added to an uploaded scene (`Renderer::upload_lines_freeing`) are numbered after every
+/// set the scene has, also when its last set has no segments (and so no part on the GPU): a
+/// share listing each set's segments (`Renderer::upload_shares`, the viewer's drafts) draws
+/// what the scene draws. Numbered from the last part instead, the added set took the empty
+/// set's number and the share left it out.
+#[test]
+fn sets_added_after_an_empty_set_keep_their_number() {
+    let gpu = gpu();
+    let r = Renderer::new(&gpu);
+    let first = LineSet::new(
+        &wavy_fan(12, 31, 0.157, 3.0, 3.0),
+        &ColorMode::Direction,
+        LineWidth::Pixels(3.0),
+        true,
+    );
+    let mut empty = first.clone();
+    empty.segments.clear();
+    let mut added = LineSet::new(
+        &wavy_fan(12, 31, 0.4, 1.0, 0.5),
+        &ColorMode::Direction,
+        LineWidth::Pixels(3.0),
+        true,
+    );
+    let lists = vec![first.segments.clone(), vec![], added.segments.clone()];
+    let mut scene = r.upload(None, &[], &[first, empty], None).unwrap();
+    assert_eq!(scene.line_parts(), 1);
+    r.upload_lines_freeing(&mut scene, std::slice::from_mut(&mut added))
+        .unwrap();
+    assert_eq!(scene.line_parts(), 2);
+    let share = r.upload_shares(&scene, &[], &lists).unwrap();
+    assert_eq!(share.triangles(), scene.triangles());
+    let cam = top_camera(true);
+    let whole = r
+        .draw(&scene, &view(cam), &[], &settings(), DrawOptions::default())
+        .unwrap();
+    let shared = r
+        .draw(&share, &view(cam), &[], &settings(), DrawOptions::default())
+        .unwrap();
+    let covered = whole.aov.iter().filter(|p| p.depth > 0.0).count();
+    assert!(covered > 300, "the sets cover {covered} pixels");
+    assert!(whole.image == shared.image, "the share draws another image");
+}
