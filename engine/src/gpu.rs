@@ -23,6 +23,13 @@ pub enum GpuError {
     Device { adapter: String, reason: String },
     #[error("GPU operation failed: {0}")]
     Operation(String),
+    /// The GPU (on lavapipe: the process) could not allocate memory for `what`.
+    #[error("the GPU ran out of memory for {what} ({} MB): {detail}", bytes >> 20)]
+    OutOfMemory {
+        what: String,
+        bytes: u64,
+        detail: String,
+    },
     #[error("GPU check failed: {0}")]
     Check(String),
 }
@@ -830,6 +837,34 @@ impl Gpu {
     pub fn set_batch_triangles(&self, n: Option<u64>) {
         let v = n.map_or(u64::MAX, |n| n.clamp(1, u64::MAX - 1));
         self.batch.store(v, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// Runs `make`, which allocates GPU memory for `what` (`bytes` in all), and returns the GPU
+    /// running out of memory meanwhile as [`GpuError::OutOfMemory`] naming it. Without this a
+    /// buffer that could not be allocated surfaces later as a validation error about an
+    /// invalid buffer (or the first write to it does), which names nothing a user can change.
+    pub fn allocating<T>(
+        &self,
+        what: &str,
+        bytes: u64,
+        make: impl FnOnce() -> Result<T, GpuError>,
+    ) -> Result<T, GpuError> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let valid = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = make();
+        let invalid = pollster::block_on(valid.pop());
+        let short = pollster::block_on(oom.pop());
+        if let Some(e) = short {
+            return Err(GpuError::OutOfMemory {
+                what: what.to_string(),
+                bytes,
+                detail: e.to_string(),
+            });
+        }
+        if let Some(e) = invalid {
+            return Err(GpuError::Operation(format!("{what}: {e}")));
+        }
+        out
     }
 
     /// A buffer holding `bytes`, filled through staging copies of at most [`STAGING_BYTES`]

@@ -232,6 +232,18 @@ pub struct GpuScene {
     iso: Option<GpuIso>,
 }
 
+/// About the GPU memory of a tube mesh: positions, normals and colours per vertex (12 + 12 + 4
+/// bytes), 4 bytes an index.
+fn mesh_bytes(m: &TubeMesh) -> u64 {
+    m.positions.len() as u64 * 28 + m.indices.len() as u64 * 4
+}
+
+/// About the GPU memory of a line set: 20 bytes a point (position, colour, times and the
+/// taper/filter pair where set are less or more), 4 a segment.
+fn line_bytes(l: &LineSet) -> u64 {
+    l.positions.len() as u64 * 20 + l.segments.len() as u64 * 4
+}
+
 impl GpuScene {
     /// Triangles drawn per G-buffer pass (two per line segment).
     pub fn triangles(&self) -> u64 {
@@ -297,24 +309,37 @@ impl<'g> Renderer<'g> {
     ) -> Result<GpuScene, GpuError> {
         let gpu = self.gpu;
         Ok(GpuScene {
-            volume: volume.map(|v| GpuVolume::upload(gpu, v)).transpose()?,
+            volume: volume
+                .map(|v| {
+                    gpu.allocating("the volume's samples", v.data.bytes() as u64, || {
+                        GpuVolume::upload(gpu, v)
+                    })
+                })
+                .transpose()?,
             meshes: meshes
                 .iter()
                 .enumerate()
                 .filter_map(|(i, m)| {
-                    GpuMesh::upload(gpu, m)
-                        .map(|g| {
-                            g.map(|mut g| {
-                                g.source = i;
-                                g
-                            })
+                    gpu.allocating(&format!("tube mesh {i}"), mesh_bytes(m), || {
+                        GpuMesh::upload(gpu, m)
+                    })
+                    .map(|g| {
+                        g.map(|mut g| {
+                            g.source = i;
+                            g
                         })
-                        .transpose()
+                    })
+                    .transpose()
                 })
                 .collect::<Result<_, _>>()?,
             lines: lines
                 .iter()
-                .map(|l| GpuLines::upload(gpu, l))
+                .enumerate()
+                .map(|(i, l)| {
+                    gpu.allocating(&format!("line set {i}"), line_bytes(l), || {
+                        GpuLines::upload(gpu, l)
+                    })
+                })
                 .collect::<Result<Vec<_>, _>>()?
                 .into_iter()
                 .enumerate()
@@ -382,8 +407,12 @@ impl<'g> Renderer<'g> {
         lines: &mut [LineSet],
     ) -> Result<(), GpuError> {
         for l in lines.iter_mut() {
-            let parts = GpuLines::upload_freeing(self.gpu, l)?;
             let source = scene.line_sets;
+            let parts =
+                self.gpu
+                    .allocating(&format!("line set {source}"), line_bytes(l), || {
+                        GpuLines::upload_freeing(self.gpu, l)
+                    })?;
             scene.lines.extend(parts.into_iter().map(|mut p| {
                 p.source = source;
                 p

@@ -1032,11 +1032,23 @@ pub fn upload_freeing_lines<'g>(
     let up = up.and_then(|mut up| {
         up.renderer
             .upload_lines_freeing(&mut up.scene, &mut lines)
-            .map_err(|e| e.to_string())?;
+            .map_err(out_of_memory_hint)?;
         Ok(up)
     });
     m.lines = lines;
     up
+}
+
+/// A GPU error as text; running out of GPU memory adds the scene keys that need less.
+fn out_of_memory_hint(e: engine::gpu::GpuError) -> String {
+    match e {
+        engine::gpu::GpuError::OutOfMemory { .. } => format!(
+            "{e}; scene keys that need less: volume.downsample = true (a volume halved until it \
+             fits), render.device = \"cpu\" (a volume-only scene drawn without the GPU), fewer \
+             streamlines (select.subsample of [[tubes]] and [[lines]])"
+        ),
+        e => e.to_string(),
+    }
 }
 
 /// Uploads a model once: the volume (split over the storage bindings the adapter has left, 20
@@ -1126,7 +1138,7 @@ pub fn upload_for<'g>(
     let renderer = Renderer::new(gpu);
     let mut scene = renderer
         .upload(vi.as_ref(), &m.meshes, &m.lines, iso.as_ref())
-        .map_err(|e| e.to_string())?;
+        .map_err(out_of_memory_hint)?;
     if let Some(p) = &m.planes {
         renderer
             .upload_planes(&mut scene, &p.grid(), &p.planes, p.blend.as_ref())
