@@ -11,7 +11,9 @@ Prints one JSON line per input and a Markdown table.
 Needs: pip install vtk nibabel numpy; umbra built (target/release/umbra).
 
 Usage: python3 bench/tubes_peers.py NAME=FILE.tck [NAME=FILE.tck ...] [--radius 0.2]
-       [--tolerance 0.02] [--repeat 3]
+       [--tolerance 0.02] [--repeat 3] [--vtk-max-points P]
+       (inputs of more than P points are timed with umbra alone: vtkTubeFilter's output for
+       10^8 points, 1.6 G triangles, does not fit this machine's memory)
        python3 bench/tubes_peers.py --merge OUT.tck BUNDLE.trk.gz [...]   (merge bundles)
 """
 import argparse
@@ -105,6 +107,7 @@ def main():
     ap.add_argument("--radius", type=float, default=0.2)
     ap.add_argument("--tolerance", type=float, default=0.02)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--vtk-max-points", type=int, default=None)
     a = ap.parse_args()
     if a.merge:
         merge(a.merge, a.inputs)
@@ -115,15 +118,21 @@ def main():
         for item in a.inputs:
             name, path = item.split("=", 1)
             lines = load_lines(path)
-            poly = vtk_polydata(lines)
-            ut, vt, st, ntri = [], [], None, 0
+            points = int(sum(len(l) for l in lines))
+            with_vtk = a.vtk_max_points is None or points <= a.vtk_max_points
+            poly = vtk_polydata(lines) if with_vtk else None
+            n_lines = len(lines)
+            del lines
+            ut, vt, st, ntri = [], [], None, None
             for _ in range(a.repeat):
                 st = umbra_tubes(path, a.radius, a.tolerance, tmp)
                 ut.append(st["seconds"]["compute"] if "seconds" in st else st["compute_s"])
-                dt, ntri = vtk_tube(poly, a.radius)
-                vt.append(dt)
-            rec = {"input": name, "streamlines": len(lines), "points": int(sum(len(l) for l in lines)),
-                   "umbra_s": statistics.median(ut), "umbra_all_s": ut, "vtk_s": statistics.median(vt),
+                if with_vtk:
+                    dt, ntri = vtk_tube(poly, a.radius)
+                    vt.append(dt)
+            rec = {"input": name, "streamlines": n_lines, "points": points,
+                   "umbra_s": statistics.median(ut), "umbra_all_s": ut,
+                   "vtk_s": statistics.median(vt) if vt else None,
                    "vtk_all_s": vt, "umbra_triangles": st["triangles"], "vtk_triangles": ntri,
                    "max_deviation": st["max_deviation"], "polyline_pieces": st.get("polyline_pieces"),
                    "control_points": st["control_points"]}
@@ -133,8 +142,10 @@ def main():
     print("| input | streamlines | points | umbra s | vtkTubeFilter s | ratio | umbra triangles | VTK triangles | max deviation | polyline pieces |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['input']} | {r['streamlines']} | {r['points']} | {r['umbra_s']:.3f} | {r['vtk_s']:.3f} | "
-              f"{r['umbra_s'] / r['vtk_s']:.2f} | {r['umbra_triangles']} | {r['vtk_triangles']} | "
+        vtk_s = f"{r['vtk_s']:.3f}" if r["vtk_s"] is not None else "-"
+        ratio = f"{r['umbra_s'] / r['vtk_s']:.2f}" if r["vtk_s"] is not None else "-"
+        print(f"| {r['input']} | {r['streamlines']} | {r['points']} | {r['umbra_s']:.3f} | {vtk_s} | "
+              f"{ratio} | {r['umbra_triangles']} | {r['vtk_triangles'] or '-'} | "
               f"{r['max_deviation']:.4f} | {r['polyline_pieces']} |")
 
 
