@@ -222,8 +222,10 @@ fn a_negative_bundle_radius_is_refused_by_name() {
 
 /// Issue 18: a tractogram whose tube mesh would not fit is refused before meshing, with the
 /// memory it would need (estimated from a mesh of 1000 of its streamlines): 30,000 synthetic
-/// streamlines with 64-sided tubes need about 2 GB (the estimate at 30 bytes a triangle); under a 1 GB address-space limit
-/// (`prlimit --as`, as a cluster job would set it) `umbra tubes` stops at once, writing nothing.
+/// streamlines with 64-sided tubes need about 2 GB as an OBJ, whose mesh is held whole (the
+/// estimate at 30 bytes a triangle); under a 1 GB address-space limit (`prlimit --as`, as a
+/// cluster job would set it) `umbra tubes` stops at once, writing nothing. A PLY of the same
+/// tubes is written part by part (`tube_mesh::build_streamed`) and is not refused.
 #[test]
 fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
     let dir = tempfile::tempdir().unwrap();
@@ -238,14 +240,14 @@ fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let ply = dir.path().join("t.ply");
+    let obj = dir.path().join("t.obj");
     let out = Command::new("prlimit")
         .arg("--as=1000000000")
         .arg(env!("CARGO_BIN_EXE_umbra"))
         .arg("tubes")
         .arg(&tck)
         .arg("-o")
-        .arg(&ply)
+        .arg(&obj)
         .args(["--sides", "64", "--radius", "0.2"])
         .output()
         .expect("prlimit (util-linux) runs umbra under an address-space limit");
@@ -267,5 +269,56 @@ fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
         .and_then(|v| v.parse().ok())
         .unwrap();
     assert!((1.5..3.0).contains(&gb), "{gb} GB: {err}");
-    assert!(!ply.exists());
+    assert!(!obj.exists());
+}
+
+/// Issue 18: a PLY is meshed and written part by part (`tube_mesh::build_streamed`), so
+/// `umbra tubes` holds the points, the rings and one part, not the mesh: 30,000 streamlines
+/// as 16-sided tubes (17 M triangles, a 465 MB file; held whole, the mesh alone takes 30
+/// bytes a triangle, 0.5 GB) are written under a 500 MB address-space limit, in which the
+/// same tubes as an OBJ (whose mesh is held whole) are refused.
+#[test]
+fn a_ply_larger_than_the_memory_limit_is_written_part_by_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let tck = dir.path().join("bundles.tck");
+    let out = umbra()
+        .args(["synth", "bundles", "--n", "30000", "--points", "20", "-o"])
+        .arg(&tck)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let run = |path: &std::path::Path| {
+        Command::new("prlimit")
+            .arg("--as=500000000")
+            .arg(env!("CARGO_BIN_EXE_umbra"))
+            .arg("tubes")
+            .arg(&tck)
+            .arg("-o")
+            .arg(path)
+            .args(["--sides", "16", "--radius", "0.2"])
+            // The address space of threads and their malloc arenas grows with the cores.
+            .env("RAYON_NUM_THREADS", "2")
+            .env("MALLOC_ARENA_MAX", "2")
+            .output()
+            .expect("prlimit (util-linux) runs umbra under an address-space limit")
+    };
+    let ply = dir.path().join("t.ply");
+    let out = run(&ply);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let m = tubes::mesh_io::read(&ply).unwrap();
+    assert!(m.triangles() > 16_000_000, "{} triangles", m.triangles());
+    let n = m.positions.len() as u32;
+    assert!(
+        m.indices.iter().all(|&i| i < n),
+        "an index past the {n} vertices"
+    );
+    let obj = dir.path().join("t.obj");
+    let out = run(&obj);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("would need about"),
+        "{err}"
+    );
+    assert!(!obj.exists());
 }

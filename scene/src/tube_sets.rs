@@ -115,6 +115,29 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     }
     let t_read = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
+    let ply = a
+        .output
+        .to_string_lossy()
+        .to_ascii_lowercase()
+        .ends_with(".ply");
+    if ply {
+        // Meshed and written part by part: the peak is the points, the rings and one part.
+        let mut warnings = std::mem::take(&mut s.warnings);
+        let (st, vertices, t_write) = tubes_to_ply(s, a)?;
+        let t_compute = t1.elapsed().as_secs_f64() - t_write;
+        push_mesh_warnings(&mut warnings, &st);
+        return Ok(TubesSummary {
+            stats: st,
+            vertices,
+            seconds: Seconds {
+                read: t_read,
+                compute: t_compute,
+                write: t_write,
+                total: t0.elapsed().as_secs_f64(),
+            },
+            warnings,
+        });
+    }
     if let (Some(need), Some((budget, what))) = (mesh_memory_estimate(&s, a)?, memory_budget()) {
         if need > budget {
             return Err(format!(
@@ -136,6 +159,22 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     let t2 = Instant::now();
     tubes::mesh_io::write(&a.output, &mesh).map_err(|e| e.to_string())?;
     let t_write = t2.elapsed().as_secs_f64();
+    push_mesh_warnings(&mut warnings, &st);
+    Ok(TubesSummary {
+        stats: st,
+        vertices: mesh.positions.len(),
+        seconds: Seconds {
+            read: t_read,
+            compute: t_compute,
+            write: t_write,
+            total: t0.elapsed().as_secs_f64(),
+        },
+        warnings,
+    })
+}
+
+/// The warnings of a mesh's statistics.
+fn push_mesh_warnings(warnings: &mut Vec<String>, st: &TubeStats) {
     if st.dropped_points > 0 {
         warnings.push(format!(
             "{} NaN or repeated points were dropped",
@@ -148,17 +187,6 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
             st.skipped_streamlines
         ));
     }
-    Ok(TubesSummary {
-        stats: st,
-        vertices: mesh.positions.len(),
-        seconds: Seconds {
-            read: t_read,
-            compute: t_compute,
-            write: t_write,
-            total: t0.elapsed().as_secs_f64(),
-        },
-        warnings,
-    })
 }
 
 /// Peak bytes `umbra tubes` holds per triangle of its mesh (vertices, normals, colours and
@@ -328,6 +356,19 @@ fn mesh_with(
     a: &TubesArgs,
     mesh: impl FnOnce(&TubeOptions) -> (TubeMesh, TubeStats),
 ) -> Result<(TubeMesh, TubeStats), String> {
+    with_options(names, a, |opts| {
+        let (mesh, st) = mesh(opts);
+        not_empty(mesh.indices.len(), &st, a.radius)?;
+        Ok((mesh, st))
+    })
+}
+
+/// `f` given the mesher's options of `a` for streamlines with per-point attributes `names`.
+fn with_options<R>(
+    names: &[String],
+    a: &TubesArgs,
+    f: impl FnOnce(&TubeOptions) -> Result<R, String>,
+) -> Result<R, String> {
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     with_color_map_of(&names, &a.color, a.colormap, |color| {
         let opts = TubeOptions {
@@ -347,23 +388,63 @@ fn mesh_with(
             color: color.clone(),
         };
         opts.check()?;
-        let (mesh, st) = mesh(&opts);
-        // A non-empty input that gives no triangle: the radius is beyond what the lines'
-        // curvature allows everywhere (the mesher cuts a tube where even 1/1000 of the radius
-        // would fold), or every line is degenerate; say so rather than write an empty mesh.
-        if mesh.indices.is_empty()
-            && st.streamlines_in > 0
-            && st.skipped_streamlines < st.streamlines_in
-        {
-            return Err(format!(
-                "radius {}: no tube could be built (the tubes would fold on themselves at \
-                 every ring of the {} streamlines); use a radius below the lines' radius of \
-                 curvature",
-                a.radius, st.streamlines_in
-            ));
-        }
-        Ok((mesh, st))
+        f(&opts)
     })?
+}
+
+/// A non-empty input that gives no triangle (`indices` 0): the radius is beyond what the
+/// lines' curvature allows everywhere (the mesher cuts a tube where even 1/1000 of the radius
+/// would fold), or every line is degenerate; said rather than an empty mesh written.
+fn not_empty(indices: usize, st: &TubeStats, radius: f64) -> Result<(), String> {
+    if indices == 0 && st.streamlines_in > 0 && st.skipped_streamlines < st.streamlines_in {
+        return Err(format!(
+            "radius {radius}: no tube could be built (the tubes would fold on themselves at \
+             every ring of the {} streamlines); use a radius below the lines' radius of \
+             curvature",
+            st.streamlines_in
+        ));
+    }
+    Ok(())
+}
+
+/// A PLY stream that refuses an empty mesh before writing anything ([`not_empty`]).
+struct CheckedPly<'a> {
+    ply: &'a mut tubes::mesh_io::PlyStream,
+    radius: f64,
+}
+
+impl tubes::tube_mesh::MeshSink for CheckedPly<'_> {
+    fn begin(
+        &mut self,
+        origin: glam::DVec3,
+        vertices: usize,
+        indices: usize,
+        stats: &TubeStats,
+    ) -> tubes::Result<()> {
+        not_empty(indices, stats, self.radius).map_err(tubes::TubesError::Invalid)?;
+        self.ply.begin(origin, vertices, indices, stats)
+    }
+
+    fn part(&mut self, part: &tubes::tube_mesh::MeshPart<'_>) -> tubes::Result<()> {
+        self.ply.part(part)
+    }
+}
+
+/// `umbra tubes` to a PLY file: meshed and written part by part
+/// ([`tubes::tube_mesh::build_streamed`]); the statistics, the vertex count and the seconds
+/// spent writing.
+fn tubes_to_ply(s: tubes::Streamlines, a: &TubesArgs) -> Result<(TubeStats, usize, f64), String> {
+    let names: Vec<String> = s.point_attributes.iter().map(|x| x.name.clone()).collect();
+    let mut ply = tubes::mesh_io::PlyStream::create(&a.output).map_err(|e| e.to_string())?;
+    let (st, vertices) = with_options(&names, a, |opts| {
+        let mut sink = CheckedPly {
+            ply: &mut ply,
+            radius: a.radius,
+        };
+        tubes::tube_mesh::build_streamed(s, opts, &mut sink).map_err(|e| e.to_string())
+    })?;
+    let seconds = ply.finish().map_err(|e| e.to_string())?;
+    Ok((st, vertices, seconds))
 }
 
 /// A value per point of `s` from `source`: `scalar:NAME` (a per-point attribute) or

@@ -36,19 +36,33 @@ pub fn ply_bytes(mesh: &TubeMesh) -> Vec<u8> {
     out
 }
 
-/// Binary PLY to `w`, in pieces of about 1 MiB.
-pub fn write_ply(w: &mut dyn std::io::Write, mesh: &TubeMesh) -> std::io::Result<()> {
-    let double = wide(mesh);
+/// The binary PLY header of a mesh of `vertices` vertices and `triangles` triangles, positions
+/// in `double` when `double`.
+fn ply_header(vertices: usize, triangles: usize, double: bool) -> String {
     let ty = if double { "double" } else { "float" };
-    let header = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment written by umbra\nelement vertex {}\nproperty {ty} x\nproperty {ty} y\nproperty {ty} z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        mesh.positions.len(),
-        mesh.triangles()
-    );
-    w.write_all(header.as_bytes())?;
-    let mut out: Vec<u8> = Vec::with_capacity(1 << 20);
-    for i in 0..mesh.positions.len() {
-        let p = mesh.positions[i].as_dvec3() + mesh.origin;
+    format!(
+        "ply\nformat binary_little_endian 1.0\ncomment written by umbra\nelement vertex {vertices}\nproperty {ty} x\nproperty {ty} y\nproperty {ty} z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face {triangles}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+}
+
+/// Bytes of a PLY vertex record (positions in `double` or `float`, three float normals, three
+/// colour bytes) and of a triangle record (a count byte and three `int`s).
+fn record_bytes(double: bool) -> (u64, u64) {
+    (if double { 24 } else { 12 } + 12 + 3, 13)
+}
+
+/// Vertex records of `positions` (relative to `origin`), `normals`, `colors` to `w`, in pieces
+/// of about 1 MiB through `out`.
+fn write_vertices(
+    w: &mut dyn std::io::Write,
+    out: &mut Vec<u8>,
+    origin: glam::DVec3,
+    double: bool,
+    (positions, normals, colors): (&[glam::Vec3], &[glam::Vec3], &[[u8; 3]]),
+) -> std::io::Result<()> {
+    out.clear();
+    for i in 0..positions.len() {
+        let p = positions[i].as_dvec3() + origin;
         if double {
             for v in [p.x, p.y, p.z] {
                 out.extend_from_slice(&v.to_le_bytes());
@@ -58,27 +72,167 @@ pub fn write_ply(w: &mut dyn std::io::Write, mesh: &TubeMesh) -> std::io::Result
                 out.extend_from_slice(&(v as f32).to_le_bytes());
             }
         }
-        let n = mesh.normals[i];
+        let n = normals[i];
         for v in [n.x, n.y, n.z] {
             out.extend_from_slice(&v.to_le_bytes());
         }
-        out.extend_from_slice(&mesh.colors[i]);
+        out.extend_from_slice(&colors[i]);
         if out.len() >= 1 << 20 {
-            w.write_all(&out)?;
+            w.write_all(out)?;
             out.clear();
         }
     }
-    for tri in mesh.indices.chunks_exact(3) {
+    w.write_all(out)
+}
+
+/// Triangle records of `indices` to `w`, in pieces of about 1 MiB through `out`.
+fn write_faces(
+    w: &mut dyn std::io::Write,
+    out: &mut Vec<u8>,
+    indices: &[u32],
+) -> std::io::Result<()> {
+    out.clear();
+    for tri in indices.chunks_exact(3) {
         out.push(3);
         for &i in tri {
             out.extend_from_slice(&(i as i32).to_le_bytes());
         }
         if out.len() >= 1 << 20 {
-            w.write_all(&out)?;
+            w.write_all(out)?;
             out.clear();
         }
     }
-    w.write_all(&out)
+    w.write_all(out)
+}
+
+/// Binary PLY to `w`, in pieces of about 1 MiB.
+pub fn write_ply(w: &mut dyn std::io::Write, mesh: &TubeMesh) -> std::io::Result<()> {
+    let double = wide(mesh);
+    w.write_all(ply_header(mesh.positions.len(), mesh.triangles(), double).as_bytes())?;
+    let mut out: Vec<u8> = Vec::with_capacity(1 << 20);
+    let v = (&mesh.positions[..], &mesh.normals[..], &mesh.colors[..]);
+    write_vertices(w, &mut out, mesh.origin, double, v)?;
+    write_faces(w, &mut out, &mesh.indices)
+}
+
+/// A binary PLY written part by part as [`crate::tube_mesh::build_streamed`] meshes it: the
+/// header once the mesh's size is known, then each part's vertex and triangle records at
+/// their places in the file (the records have fixed sizes, so a part's offsets follow from
+/// its first vertex and index), through a temporary file renamed by [`PlyStream::finish`]
+/// (removed when the stream is dropped unfinished). The same bytes as [`write_ply`] of the
+/// whole mesh.
+pub struct PlyStream {
+    path: std::path::PathBuf,
+    tmp: std::path::PathBuf,
+    file: std::fs::File,
+    origin: glam::DVec3,
+    double: bool,
+    header: u64,
+    vertices: u64,
+    out: Vec<u8>,
+    finished: bool,
+    /// Seconds spent writing so far (the mesher's time is the rest).
+    pub seconds: f64,
+}
+
+impl PlyStream {
+    /// Creates the temporary file beside `path`.
+    pub fn create(path: &Path) -> Result<PlyStream> {
+        let dir = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = path
+            .file_name()
+            .ok_or_else(|| TubesError::Invalid(format!("{}: not a file path", path.display())))?;
+        let tmp = dir.join(volume::temp_name(
+            &name.to_string_lossy(),
+            std::process::id(),
+        ));
+        let file = std::fs::File::create(&tmp).map_err(|e| TubesError::io(path, e))?;
+        Ok(PlyStream {
+            path: path.to_path_buf(),
+            tmp,
+            file,
+            origin: glam::DVec3::ZERO,
+            double: false,
+            header: 0,
+            vertices: 0,
+            out: Vec::with_capacity(1 << 20),
+            finished: false,
+            seconds: 0.0,
+        })
+    }
+
+    /// Writes `bytes` (through `write`) at `offset` of the temporary file.
+    fn write_at(
+        &mut self,
+        offset: u64,
+        write: impl FnOnce(&mut dyn std::io::Write, &mut Vec<u8>) -> std::io::Result<()>,
+    ) -> Result<()> {
+        use std::io::Seek;
+        let t = std::time::Instant::now();
+        let res = (|| {
+            self.file.seek(std::io::SeekFrom::Start(offset))?;
+            write(&mut self.file, &mut self.out)
+        })();
+        self.seconds += t.elapsed().as_secs_f64();
+        res.map_err(|e| TubesError::io(&self.path, e))
+    }
+
+    /// Flushes the file to disk and renames it to its path; the seconds spent writing in all.
+    pub fn finish(mut self) -> Result<f64> {
+        let t = std::time::Instant::now();
+        let res = self
+            .file
+            .sync_all()
+            .and_then(|_| std::fs::rename(&self.tmp, &self.path));
+        self.seconds += t.elapsed().as_secs_f64();
+        res.map_err(|e| TubesError::io(&self.path, e))?;
+        self.finished = true;
+        Ok(self.seconds)
+    }
+}
+
+impl Drop for PlyStream {
+    fn drop(&mut self) {
+        if !self.finished {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+impl crate::tube_mesh::MeshSink for PlyStream {
+    fn begin(
+        &mut self,
+        origin: glam::DVec3,
+        vertices: usize,
+        indices: usize,
+        _stats: &crate::tube_mesh::TubeStats,
+    ) -> Result<()> {
+        self.origin = origin;
+        self.double = origin.abs().max_element() > 1e4;
+        self.vertices = vertices as u64;
+        let header = ply_header(vertices, indices / 3, self.double);
+        self.header = header.len() as u64;
+        let (vb, fb) = record_bytes(self.double);
+        let total = self.header + vertices as u64 * vb + (indices / 3) as u64 * fb;
+        self.write_at(0, |w, _| w.write_all(header.as_bytes()))?;
+        // The file at its final size at once: the parts fill it in.
+        self.file
+            .set_len(total)
+            .map_err(|e| TubesError::io(&self.path, e))
+    }
+
+    fn part(&mut self, p: &crate::tube_mesh::MeshPart<'_>) -> Result<()> {
+        let (vb, fb) = record_bytes(self.double);
+        let (origin, double) = (self.origin, self.double);
+        self.write_at(self.header + p.first_vertex as u64 * vb, |w, out| {
+            write_vertices(w, out, origin, double, (p.positions, p.normals, p.colors))
+        })?;
+        let faces = self.header + self.vertices * vb + (p.first_index / 3) as u64 * fb;
+        self.write_at(faces, |w, out| write_faces(w, out, p.indices))
+    }
 }
 
 /// OBJ text (vertex colours as the common `v x y z r g b` extension).
@@ -614,5 +768,108 @@ mod read_tests {
             let e = read(&p).unwrap_err().to_string();
             assert!(e.contains(name) && e.contains(needle), "{name}: {e}");
         }
+    }
+}
+
+#[cfg(test)]
+mod stream_tests {
+    use super::*;
+    use crate::tube_mesh::{
+        build_owned, build_streamed_by, MeshPart, MeshSink, TubeOptions, TubeStats,
+    };
+
+    /// 300 streamlines of 40 points in bundles, far from the origin on one side so that the
+    /// PLY of the second test carries `double` positions.
+    fn lines(shift: f32) -> crate::Streamlines {
+        let b = crate::synthetic::Bundles {
+            count: 300,
+            points: 40,
+            ..Default::default()
+        };
+        let mut s = crate::Streamlines::new();
+        let mut line = vec![];
+        for i in 0..b.count {
+            b.line(i, &mut line);
+            let moved: Vec<glam::Vec3> =
+                line.iter().map(|p| *p + glam::Vec3::splat(shift)).collect();
+            s.push(&moved);
+        }
+        s
+    }
+
+    /// Collects the parts into one mesh, checking that they arrive in order.
+    #[derive(Default)]
+    struct Gather {
+        mesh: TubeMesh,
+        size: (usize, usize),
+        parts: usize,
+    }
+
+    impl MeshSink for Gather {
+        fn begin(&mut self, origin: glam::DVec3, v: usize, i: usize, _: &TubeStats) -> Result<()> {
+            self.mesh.origin = origin;
+            self.size = (v, i);
+            Ok(())
+        }
+        fn part(&mut self, p: &MeshPart<'_>) -> Result<()> {
+            assert_eq!(p.first_vertex, self.mesh.positions.len());
+            assert_eq!(p.first_index, self.mesh.indices.len());
+            self.mesh.positions.extend_from_slice(p.positions);
+            self.mesh.normals.extend_from_slice(p.normals);
+            self.mesh.colors.extend_from_slice(p.colors);
+            self.mesh.indices.extend_from_slice(p.indices);
+            self.parts += 1;
+            Ok(())
+        }
+    }
+
+    /// Meshed part by part (parts of at most 2,000 vertices: dozens of them), the mesh is the
+    /// whole build's, vertex for vertex and index for index, with the same statistics.
+    #[test]
+    fn a_mesh_streamed_in_parts_is_the_whole_mesh() {
+        let o = TubeOptions::defaults(0.3, 8, 0.05);
+        let (whole, st) = build_owned(lines(0.0), &o);
+        let mut g = Gather::default();
+        let (st2, vertices) = build_streamed_by(lines(0.0), &o, &mut g, 2000).unwrap();
+        assert!(g.parts > 20, "{} parts", g.parts);
+        assert_eq!(g.size, (whole.positions.len(), whole.indices.len()));
+        assert_eq!(vertices, whole.positions.len());
+        assert_eq!(g.mesh.origin, whole.origin);
+        assert!(g.mesh.positions == whole.positions && g.mesh.normals == whole.normals);
+        assert!(g.mesh.colors == whole.colors && g.mesh.indices == whole.indices);
+        assert_eq!(st.triangles, st2.triangles);
+        assert_eq!(st.min_section_ratio, st2.min_section_ratio);
+        assert_eq!(st.max_deviation, st2.max_deviation);
+    }
+
+    /// The PLY written part by part at the records' places is `write_ply`'s file of the whole
+    /// mesh, byte for byte (float positions, and double ones far from the origin); an
+    /// unfinished stream leaves no file and no temporary.
+    #[test]
+    fn a_ply_streamed_in_parts_is_the_whole_meshs_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let o = TubeOptions::defaults(0.3, 8, 0.05);
+        for shift in [0.0f32, 5e4] {
+            let (whole, _) = build_owned(lines(shift), &o);
+            assert_eq!(wide(&whole), shift > 0.0);
+            let path = dir.path().join("t.ply");
+            let mut ply = PlyStream::create(&path).unwrap();
+            build_streamed_by(lines(shift), &o, &mut ply, 2000).unwrap();
+            ply.finish().unwrap();
+            assert!(
+                std::fs::read(&path).unwrap() == ply_bytes(&whole),
+                "shift {shift}"
+            );
+        }
+        let path = dir.path().join("u.ply");
+        let mut ply = PlyStream::create(&path).unwrap();
+        build_streamed_by(lines(0.0), &o, &mut ply, 2000).unwrap();
+        drop(ply);
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .filter(|n| n.to_string_lossy().starts_with(".u.ply"))
+            .collect();
+        assert!(!path.exists() && left.is_empty(), "{left:?}");
     }
 }
