@@ -915,14 +915,28 @@ impl Gpu {
         Ok(buf)
     }
 
+    /// A buffer holding `bytes` (padded with zeros to a multiple of 4), written through the
+    /// queue. Not `create_buffer_init`: that maps the new buffer and panics when the GPU could
+    /// not allocate it, where this leaves an out-of-memory error for [`Gpu::allocating`] (or
+    /// the uncaptured-error handler) to report.
     pub fn buffer(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
-        use wgpu::util::DeviceExt;
-        self.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage,
-            })
+        let size = (bytes.len() as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        if size > 0 {
+            if bytes.len() as u64 == size {
+                self.queue.write_buffer(&buf, 0, bytes);
+            } else {
+                let mut padded = bytes.to_vec();
+                padded.resize(size as usize, 0);
+                self.queue.write_buffer(&buf, 0, &padded);
+            }
+        }
+        buf
     }
 
     /// A storage buffer of `size` bytes (at least 16) that a pass writes in full before it is

@@ -320,7 +320,9 @@ pub use volume::samples::{Packing, Samples};
 
 /// The most samples a volume packed as `packing` may have on `gpu` at full resolution.
 pub fn max_volume_samples(gpu: &Gpu, packing: Packing) -> usize {
-    volume_parts(gpu) * part_words(gpu) * packing.per_word()
+    // The shader's sample index is a u32 (`voxel` in slice_pass.wgsl).
+    (volume_parts(gpu) * part_words(gpu) * packing.per_word())
+        .min((u32::MAX as usize).saturating_add(1))
 }
 
 /// A volume on the GPU: its samples, its transfer function (1-D points, then the 2-D rows'

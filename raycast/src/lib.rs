@@ -364,6 +364,12 @@ impl EaVolume {
         light: Option<&LightSettings>,
         mode: u8,
     ) -> Frame {
+        // The sweep's narrowed samples made out here: made inside, by a parallel loop, the
+        // worker waiting in `get_or_init` could steal another frame of this volume and wait
+        // on the same cell again.
+        if light.is_some() {
+            self.sweep_samples.get_or_init(|| narrowed(&self.data));
+        }
         rayon::scope(|_| self.render_in_pool(v, data, light, mode))
     }
 

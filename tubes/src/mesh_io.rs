@@ -107,6 +107,16 @@ fn write_faces(
 
 /// Binary PLY to `w`, in pieces of about 1 MiB.
 pub fn write_ply(w: &mut dyn std::io::Write, mesh: &TubeMesh) -> std::io::Result<()> {
+    if mesh.positions.len() > i32::MAX as usize {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!(
+                "{} vertices; PLY's indices are signed 32-bit integers (at most {})",
+                mesh.positions.len(),
+                i32::MAX
+            ),
+        ));
+    }
     let double = wide(mesh);
     w.write_all(ply_header(mesh.positions.len(), mesh.triangles(), double).as_bytes())?;
     let mut out: Vec<u8> = Vec::with_capacity(1 << 20);
@@ -210,6 +220,14 @@ impl crate::tube_mesh::MeshSink for PlyStream {
         indices: usize,
         _stats: &crate::tube_mesh::TubeStats,
     ) -> Result<()> {
+        if vertices > i32::MAX as usize {
+            return Err(TubesError::Invalid(format!(
+                "{}: {vertices} vertices; PLY's indices are signed 32-bit integers (at most \
+                 {}): mesh fewer streamlines",
+                self.path.display(),
+                i32::MAX
+            )));
+        }
         self.origin = origin;
         self.double = origin.abs().max_element() > 1e4;
         self.vertices = vertices as u64;
