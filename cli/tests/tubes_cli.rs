@@ -220,16 +220,9 @@ fn a_negative_bundle_radius_is_refused_by_name() {
     assert!(!tck.exists());
 }
 
-/// Issue 18: a tractogram whose tube mesh would not fit is refused before meshing, with the
-/// memory it would need (estimated from a mesh of 1000 of its streamlines): 30,000 synthetic
-/// streamlines with 64-sided tubes need about 2 GB as an OBJ, whose mesh is held whole (the
-/// estimate at 30 bytes a triangle); under a 1 GB address-space limit (`prlimit --as`, as a
-/// cluster job would set it) `umbra tubes` stops at once, writing nothing. A PLY of the same
-/// tubes is written part by part (`tube_mesh::build_streamed`) and is not refused.
-#[test]
-fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
-    let dir = tempfile::tempdir().unwrap();
-    let tck = dir.path().join("bundles.tck");
+/// `umbra synth bundles --n 30000 --points 20` into `dir`: the memory tests' tractogram.
+fn bundles_30k(dir: &std::path::Path) -> std::path::PathBuf {
+    let tck = dir.join("bundles.tck");
     let out = umbra()
         .args(["synth", "bundles", "--n", "30000", "--points", "20", "-o"])
         .arg(&tck)
@@ -240,17 +233,44 @@ fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let obj = dir.path().join("t.obj");
-    let out = Command::new("prlimit")
-        .arg("--as=1000000000")
+    tck
+}
+
+/// `umbra tubes TCK -o OUT --sides SIDES --radius 0.2` under an address-space limit of `limit`
+/// bytes (`prlimit --as`, as a cluster job would set it), with two threads (the address space
+/// of threads and their malloc arenas grows with the cores).
+fn tubes_limited(
+    limit: u64,
+    tck: &std::path::Path,
+    out: &std::path::Path,
+    sides: u32,
+) -> std::process::Output {
+    Command::new("prlimit")
+        .arg(format!("--as={limit}"))
         .arg(env!("CARGO_BIN_EXE_umbra"))
         .arg("tubes")
-        .arg(&tck)
+        .arg(tck)
         .arg("-o")
-        .arg(&obj)
-        .args(["--sides", "64", "--radius", "0.2"])
+        .arg(out)
+        .args(["--sides", &sides.to_string(), "--radius", "0.2"])
+        .env("RAYON_NUM_THREADS", "2")
+        .env("MALLOC_ARENA_MAX", "2")
         .output()
-        .expect("prlimit (util-linux) runs umbra under an address-space limit");
+        .expect("prlimit (util-linux) runs umbra under an address-space limit")
+}
+
+/// Issue 18: a tractogram whose tube mesh would not fit is refused before meshing, with the
+/// memory it would need (estimated from a mesh of 1000 of its streamlines): 30,000 synthetic
+/// streamlines with 64-sided tubes need about 2 GB as an OBJ, whose mesh is held whole (the
+/// estimate at 30 bytes a triangle); under a 1 GB address-space limit (`prlimit --as`, as a
+/// cluster job would set it) `umbra tubes` stops at once, writing nothing. A PLY of the same
+/// tubes is written part by part (`tube_mesh::build_streamed`) and is not refused.
+#[test]
+fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
+    let dir = tempfile::tempdir().unwrap();
+    let tck = bundles_30k(dir.path());
+    let obj = dir.path().join("t.obj");
+    let out = tubes_limited(1_000_000_000, &tck, &obj, 64);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
@@ -280,28 +300,8 @@ fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
 #[test]
 fn a_ply_larger_than_the_memory_limit_is_written_part_by_part() {
     let dir = tempfile::tempdir().unwrap();
-    let tck = dir.path().join("bundles.tck");
-    let out = umbra()
-        .args(["synth", "bundles", "--n", "30000", "--points", "20", "-o"])
-        .arg(&tck)
-        .output()
-        .unwrap();
-    assert!(out.status.success());
-    let run = |path: &std::path::Path| {
-        Command::new("prlimit")
-            .arg("--as=500000000")
-            .arg(env!("CARGO_BIN_EXE_umbra"))
-            .arg("tubes")
-            .arg(&tck)
-            .arg("-o")
-            .arg(path)
-            .args(["--sides", "16", "--radius", "0.2"])
-            // The address space of threads and their malloc arenas grows with the cores.
-            .env("RAYON_NUM_THREADS", "2")
-            .env("MALLOC_ARENA_MAX", "2")
-            .output()
-            .expect("prlimit (util-linux) runs umbra under an address-space limit")
-    };
+    let tck = bundles_30k(dir.path());
+    let run = |path: &std::path::Path| tubes_limited(500_000_000, &tck, path, 16);
     let ply = dir.path().join("t.ply");
     let out = run(&ply);
     let err = String::from_utf8_lossy(&out.stderr);

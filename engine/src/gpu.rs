@@ -890,24 +890,11 @@ impl Gpu {
         if bytes.len() <= piece {
             return Ok(self.buffer(label, bytes, usage));
         }
-        let size = (bytes.len() as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
-        let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size,
-            usage: usage | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let buf = self.writable(label, bytes.len(), usage);
         let mut at = 0;
         while at < bytes.len() {
             let end = (at + piece).min(bytes.len());
-            let piece = &bytes[at..end];
-            if piece.len().is_multiple_of(4) {
-                self.queue.write_buffer(&buf, at as u64, piece);
-            } else {
-                let mut padded = piece.to_vec();
-                padded.resize(piece.len().next_multiple_of(4), 0);
-                self.queue.write_buffer(&buf, at as u64, &padded);
-            }
+            self.write_padded(&buf, at, &bytes[at..end]);
             self.queue.submit([]);
             self.wait()?;
             at = end;
@@ -920,23 +907,33 @@ impl Gpu {
     /// not allocate it, where this leaves an out-of-memory error for [`Gpu::allocating`] (or
     /// the uncaptured-error handler) to report.
     pub fn buffer(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
-        let size = (bytes.len() as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
-        let buf = self.device.create_buffer(&wgpu::BufferDescriptor {
+        let buf = self.writable(label, bytes.len(), usage);
+        self.write_padded(&buf, 0, bytes);
+        buf
+    }
+
+    /// An unmapped buffer of `len` bytes rounded up to a multiple of 4, writable by the queue.
+    fn writable(&self, label: &str, len: usize, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
-            size,
+            size: (len as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
             usage: usage | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
-        });
-        if size > 0 {
-            if bytes.len() as u64 == size {
-                self.queue.write_buffer(&buf, 0, bytes);
-            } else {
-                let mut padded = bytes.to_vec();
-                padded.resize(size as usize, 0);
-                self.queue.write_buffer(&buf, 0, &padded);
-            }
+        })
+    }
+
+    /// Queues `bytes` into `buf` at byte `at` (a multiple of 4), zero-padded to a multiple of 4.
+    fn write_padded(&self, buf: &wgpu::Buffer, at: usize, bytes: &[u8]) {
+        if bytes.is_empty() {
+            return;
         }
-        buf
+        if bytes.len().is_multiple_of(4) {
+            self.queue.write_buffer(buf, at as u64, bytes);
+        } else {
+            let mut padded = bytes.to_vec();
+            padded.resize(bytes.len().next_multiple_of(4), 0);
+            self.queue.write_buffer(buf, at as u64, &padded);
+        }
     }
 
     /// A storage buffer of `size` bytes (at least 16) that a pass writes in full before it is

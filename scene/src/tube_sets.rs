@@ -120,49 +120,45 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
         .to_string_lossy()
         .to_ascii_lowercase()
         .ends_with(".ply");
-    if ply {
-        // Meshed and written part by part: the peak is the points, the rings and one part.
-        let mut warnings = std::mem::take(&mut s.warnings);
-        let (st, vertices, t_write) = tubes_to_ply(s, a)?;
-        let t_compute = t1.elapsed().as_secs_f64() - t_write;
-        push_mesh_warnings(&mut warnings, &st);
-        return Ok(TubesSummary {
-            stats: st,
-            vertices,
-            seconds: Seconds {
-                read: t_read,
-                compute: t_compute,
-                write: t_write,
-                total: t0.elapsed().as_secs_f64(),
-            },
-            warnings,
-        });
-    }
-    if let (Some(need), Some((budget, what))) = (mesh_memory_estimate(&s, a)?, memory_budget()) {
-        if need > budget {
-            return Err(format!(
-                "{}: meshing its {} streamlines as tubes would need about {:.1} GB (from a \
-                 mesh of {ESTIMATE_SAMPLE} of them chosen at random, {} bytes a triangle), \
-                 more than the {:.1} GB {what}; draw them as lines ([[lines]] in a scene), \
-                 select or subsample them (umbra tracts select), or raise the tolerance",
-                a.input.display(),
-                s.len(),
-                need as f64 / 1e9,
-                MESH_BYTES_PER_TRIANGLE,
-                budget as f64 / 1e9
-            ));
-        }
-    }
     let mut warnings = std::mem::take(&mut s.warnings);
-    let (mesh, st) = build_mesh_owned(s, a)?;
-    let t_compute = t1.elapsed().as_secs_f64();
-    let t2 = Instant::now();
-    tubes::mesh_io::write(&a.output, &mesh).map_err(|e| e.to_string())?;
-    let t_write = t2.elapsed().as_secs_f64();
+    let (st, vertices, t_compute, t_write) = if ply {
+        // Meshed and written part by part: the peak is the points, the rings and one part.
+        let (st, vertices, t_write) = tubes_to_ply(s, a)?;
+        (st, vertices, t1.elapsed().as_secs_f64() - t_write, t_write)
+    } else {
+        // An OBJ is built whole: refused first when it would not fit.
+        if let (Some(need), Some((budget, what))) = (mesh_memory_estimate(&s, a)?, memory_budget())
+        {
+            if need > budget {
+                return Err(format!(
+                    "{}: meshing its {} streamlines as tubes would need about {:.1} GB (from a \
+                     mesh of {ESTIMATE_SAMPLE} of them chosen at random, {} bytes a triangle), \
+                     more than the {:.1} GB {what}; write a PLY (meshed part by part), draw \
+                     them as lines ([[lines]] in a scene), select or subsample them (umbra \
+                     tracts select), or raise the tolerance",
+                    a.input.display(),
+                    s.len(),
+                    need as f64 / 1e9,
+                    MESH_BYTES_PER_TRIANGLE,
+                    budget as f64 / 1e9
+                ));
+            }
+        }
+        let (mesh, st) = build_mesh_owned(s, a)?;
+        let t_compute = t1.elapsed().as_secs_f64();
+        let t2 = Instant::now();
+        tubes::mesh_io::write(&a.output, &mesh).map_err(|e| e.to_string())?;
+        (
+            st,
+            mesh.positions.len(),
+            t_compute,
+            t2.elapsed().as_secs_f64(),
+        )
+    };
     push_mesh_warnings(&mut warnings, &st);
     Ok(TubesSummary {
         stats: st,
-        vertices: mesh.positions.len(),
+        vertices,
         seconds: Seconds {
             read: t_read,
             compute: t_compute,

@@ -148,17 +148,7 @@ pub struct PlyStream {
 impl PlyStream {
     /// Creates the temporary file beside `path`.
     pub fn create(path: &Path) -> Result<PlyStream> {
-        let dir = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let name = path
-            .file_name()
-            .ok_or_else(|| TubesError::Invalid(format!("{}: not a file path", path.display())))?;
-        let tmp = dir.join(volume::temp_name(
-            &name.to_string_lossy(),
-            std::process::id(),
-        ));
+        let tmp = volume::temp_path(path)?;
         let file = std::fs::File::create(&tmp).map_err(|e| TubesError::io(path, e))?;
         Ok(PlyStream {
             path: path.to_path_buf(),

@@ -592,14 +592,7 @@ pub fn write_atomic_with(
     path: &Path,
     write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
 ) -> Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .ok_or_else(|| VolumeError::Invalid(format!("{}: not a file path", path.display())))?;
-    let tmp = dir.join(temp_name(&name.to_string_lossy(), std::process::id()));
+    let tmp = temp_path(path)?;
     let res = (|| -> std::io::Result<()> {
         let mut f = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&tmp)?);
         write(&mut f)?;
@@ -612,6 +605,19 @@ pub fn write_atomic_with(
         return Err(VolumeError::io(path, e));
     }
     Ok(())
+}
+
+/// The temporary file beside `path` that this process writes it through before the rename
+/// ([`temp_name`]); an error when `path` names no file.
+pub fn temp_path(path: &Path) -> Result<std::path::PathBuf> {
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .ok_or_else(|| VolumeError::Invalid(format!("{}: not a file path", path.display())))?;
+    Ok(dir.join(temp_name(&name.to_string_lossy(), std::process::id())))
 }
 
 /// The temporary file name [`write_atomic`] writes `name` through in process `pid`.
