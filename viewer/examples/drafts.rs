@@ -1,6 +1,7 @@
 //! The viewer's drafts while orbiting, without a window: the worker's session draws N drafts
 //! of a scene at a view size, turning 2 degrees a draft, and prints each draft's time, its
-//! geometry share and slice budget (what the panel shows), then a full image's time.
+//! geometry share and slice budget (what the panel shows) and the pooled GPU objects (shader
+//! modules, layouts, pipelines, scratch buffers) it had to make, then a full image's time.
 //!   cargo run --release -p umbra-viewer --example drafts -- SCENE [N] [WIDTH HEIGHT]
 //! docs/benchmarks.md ("Interactive viewer") quotes it.
 
@@ -34,6 +35,7 @@ fn main() -> Result<(), String> {
     for i in 0..n {
         s.camera.azimuth = az0 + 2.0 * i as f64;
         let t = std::time::Instant::now();
+        let made = session.gpu().pool_made();
         let img = session.frame(&Request {
             id: i as u64,
             scene: s.clone(),
@@ -42,7 +44,7 @@ fn main() -> Result<(), String> {
             pass_timings: false,
         })?;
         println!(
-            "draft {i:3}: {:7.1} ms frame ({}), {:7.1} ms call, {} x {}; {}",
+            "draft {i:3}: {:7.1} ms frame ({}), {:7.1} ms call, {} pooled objects made, {} x {}; {}",
             img.total_ms,
             img.passes
                 .iter()
@@ -50,6 +52,7 @@ fn main() -> Result<(), String> {
                 .collect::<Vec<_>>()
                 .join(", "),
             t.elapsed().as_secs_f64() * 1e3,
+            session.gpu().pool_made() - made,
             img.size[0],
             img.size[1],
             img.notes.last().map_or("", String::as_str)

@@ -338,6 +338,11 @@ impl Session {
 
     /// Draws the request (re-uploading for a new transfer function) into an [`Image`], and
     /// writes its screenshot: the same frame `umbra render` writes for that scene.
+    /// The GPU the session draws on.
+    pub fn gpu(&self) -> &'static engine::gpu::Gpu {
+        self.gpu
+    }
+
     pub fn frame(&mut self, req: &Request) -> Result<Image, String> {
         let tf = req.scene.volume.as_ref().map(|v| v.transfer.clone());
         let key = data_key(&req.scene);
