@@ -4,7 +4,11 @@
 //!
 //! # The curve
 //! Clamped cubic B-splines with uniform interior knots on [0, 1]: `m >= 4` control points,
-//! knots `0,0,0,0, 1/(m-3), ..., (m-4)/(m-3), 1,1,1,1`, evaluated by de Boor's algorithm.
+//! knots `0,0,0,0, 1/(m-3), ..., (m-4)/(m-3), 1,1,1,1`, evaluated by de Boor's algorithm
+//! (Cox-de Boor recursion, `BSpline::eval_d_de_boor`); in closed form where the knots allow:
+//! the uniform cubic basis on interior spans, and on the first and last three spans of a curve
+//! of at least 8 spans the polynomials `edge_basis` derives once from the recursion (test
+//! `the_edge_spans_polynomials_match_de_boor`).
 //!
 //! # Fitting (progressive iterative approximation)
 //! Start from Schoenberg's variation-diminishing spline: the samples themselves are the control
