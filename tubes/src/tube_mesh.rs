@@ -654,12 +654,21 @@ fn sharp_ranges(points: &[DVec3], a: usize, b: usize) -> Vec<(usize, usize)> {
 }
 
 /// Builds the tube of one cleaned polyline piece.
+///
+/// `None` where the fit would place more rings than the piece has points (or keep every point)
+/// and the piece turns sharply (more than 100 degrees at a point), which keeps it from being
+/// meshed as its polyline: the caller splits it at its sharp turns and meshes the parts with
+/// `between_turns`, each as its polyline where the fit would again place more rings than it
+/// has points, whatever its length. So no piece gets more rings than points - vtkTubeFilter's
+/// ring per point - unless its fit places fewer (HCP1065 at tolerance 0.02: 4,071 pieces had
+/// 94,114 rings more than points, 1.2% more triangles than VTK).
 fn tube(
     points: &[DVec3],
     attr: Option<(&[f32], [f64; 2])>,
     o: &TubeOptions,
     origin: DVec3,
-) -> Rings {
+    between_turns: bool,
+) -> Option<Rings> {
     let mut st = TubeStats {
         min_section_ratio: f64::INFINITY,
         ..Default::default()
@@ -680,10 +689,12 @@ fn tube(
     let mut fit_params = Vec::new();
     if let Some(f) = &fitted {
         fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
-        polyline = rmf_iterative
-            && points.len() >= 8
-            && (f.curve.control.len() >= points.len() || fit_params.len() > points.len())
-            && !sharp_turn(points);
+        let more_rings = f.curve.control.len() >= points.len() || fit_params.len() > points.len();
+        let sharp = sharp_turn(points);
+        if rmf_iterative && more_rings && sharp && !between_turns {
+            return None;
+        }
+        polyline = rmf_iterative && more_rings && !sharp;
     }
     let sides = match o.chordal {
         Some(tol) => sides_for(o.radius, tol),
@@ -882,7 +893,7 @@ fn tube(
     rings.indices = quads * sides * 6 + rings.caps.len() * 2 * sides * 3;
     st.triangles = rings.indices / 3;
     rings.stats = st;
-    rings
+    Some(rings)
 }
 
 /// Builds the tube mesh of all streamlines (in parallel) and its statistics.
@@ -1057,7 +1068,21 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
                 continue;
             }
             let av = vals.as_ref().map(|_| &kept_vals[a..=b]);
-            out.push(tube(&pts[a..=b], av.zip(range), o, origin));
+            if let Some(r) = tube(&pts[a..=b], av.zip(range), o, origin, false) {
+                out.push(r);
+                continue;
+            }
+            // More rings than points from the fit, and a sharp turn: the parts between the
+            // turns (sharing the points of the turns), none of which turns sharply.
+            let turns = sharp_ranges(&pts, a, b);
+            st.splits += turns.len() - 1;
+            for (c, d) in turns {
+                if d == c {
+                    continue;
+                }
+                let av = vals.as_ref().map(|_| &kept_vals[c..=d]);
+                out.extend(tube(&pts[c..=d], av.zip(range), o, origin, true));
+            }
         }
         (out, st)
     };

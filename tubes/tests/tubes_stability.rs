@@ -84,7 +84,9 @@ fn check(name: &str, mesh: &TubeMesh, st: &TubeStats, radius: f64) {
     );
 }
 
-fn hairpin(turn_deg: f64, planar: bool) -> Vec<DVec3> {
+/// Two straight legs of 10 mm meeting at a point where the line turns by `turn_deg`, points
+/// `step` mm apart.
+fn hairpin(turn_deg: f64, planar: bool, step: f64) -> Vec<DVec3> {
     let d1 = DVec3::X;
     let a = turn_deg.to_radians();
     let d2 = if planar {
@@ -92,8 +94,9 @@ fn hairpin(turn_deg: f64, planar: bool) -> Vec<DVec3> {
     } else {
         DVec3::new(a.cos(), a.sin() * 0.6, a.sin() * 0.8)
     };
-    let mut pts: Vec<DVec3> = (0..=20).map(|i| -d1 * (10.0 - 0.5 * i as f64)).collect();
-    pts.extend((1..=20).map(|i| d2 * (0.5 * i as f64)));
+    let n = (10.0 / step).round() as usize;
+    let mut pts: Vec<DVec3> = (0..=n).map(|i| -d1 * (10.0 - step * i as f64)).collect();
+    pts.extend((1..=n).map(|i| d2 * (step * i as f64)));
     pts
 }
 
@@ -101,28 +104,41 @@ fn hairpin(turn_deg: f64, planar: bool) -> Vec<DVec3> {
 fn hairpins_of_150_179_and_180_degrees() {
     for (planar, per_span) in [(true, 1), (false, 1), (true, 4), (false, 4)] {
         for turn in [150.0, 179.0, 180.0] {
-            let s = lines(&[hairpin(turn, planar)]);
-            let o = TubeOptions {
-                per_span,
-                ..opts(0.3)
-            };
-            let (mesh, st) = build(&s, &o);
-            check(
-                &format!("hairpin {turn} planar={planar} per_span={per_span}"),
-                &mesh,
-                &st,
-                0.3,
-            );
-            if turn == 180.0 {
-                assert_eq!(st.splits, 1, "an exact reversal is split");
-                assert_eq!(st.streamlines_out, 2);
-            } else {
-                // The tight turn clamps the radius locally instead of folding the tube; at 179
-                // degrees the fitted apex is so sharp that the tube is cut there.
-                assert!(st.radius_clamps > 0, "turn {turn}: no clamps");
-                assert!(st.splits <= 1);
-                if turn == 150.0 {
-                    assert_eq!(st.splits, 0);
+            // Points 0.5 mm apart: the fit would need more rings than the line's 41 points
+            // about the turn, so the line is split there into its two legs (each fitted or
+            // meshed as its polyline, no more rings than points); points 0.02 mm apart: the
+            // fit places fewer rings than the 1,001 points and is kept, its radius clamped
+            // about the turn instead of folding.
+            for step in [0.5, 0.02] {
+                let s = lines(&[hairpin(turn, planar, step)]);
+                let o = TubeOptions {
+                    per_span,
+                    ..opts(0.3)
+                };
+                let (mesh, st) = build(&s, &o);
+                let name =
+                    format!("hairpin {turn} planar={planar} per_span={per_span} step={step}");
+                check(&name, &mesh, &st, 0.3);
+                let points = s.line(0).len();
+                assert!(
+                    st.triangles <= (points - 1) * 2 * o.sides + 2 * 2 * 2 * o.sides,
+                    "{name}: {} triangles, more than a ring per point",
+                    st.triangles
+                );
+                if turn == 180.0 {
+                    assert_eq!(st.splits, 1, "an exact reversal is split");
+                    assert_eq!(st.streamlines_out, 2);
+                } else if step == 0.5 {
+                    assert_eq!(st.splits, 1, "{name}: split at the turn");
+                    assert_eq!(st.streamlines_out, 2);
+                } else {
+                    // The tight turn clamps the radius locally instead of folding the tube; at
+                    // 179 degrees the fitted apex is so sharp that the tube is cut there.
+                    assert!(st.radius_clamps > 0, "{name}: no clamps {st:?}");
+                    assert!(st.splits <= 1);
+                    if turn == 150.0 {
+                        assert_eq!(st.splits, 0);
+                    }
                 }
             }
         }
@@ -180,7 +196,7 @@ fn degenerate_inputs() {
     }
     let one = vec![DVec3::new(1.0, 1.0, 1.0)];
     let two = vec![DVec3::ZERO, DVec3::new(0.0, 0.0, 2.0)];
-    let mut nan = hairpin(90.0, true);
+    let mut nan = hairpin(90.0, true, 0.5);
     nan[5] = DVec3::NAN;
     nan[30] = DVec3::new(f64::NAN, 1.0, 2.0);
     let s = lines(&[dup, one, two, nan]);
@@ -202,7 +218,7 @@ fn degenerate_inputs() {
 #[test]
 fn far_from_the_origin() {
     let off = DVec3::splat(1e6);
-    let c: Vec<DVec3> = hairpin(179.0, false)
+    let c: Vec<DVec3> = hairpin(179.0, false, 0.5)
         .into_iter()
         .map(|p| p * 0.1 + off)
         .collect();
@@ -214,7 +230,7 @@ fn far_from_the_origin() {
 #[test]
 fn frenet_frames_twist_where_rmf_does_not() {
     // A non-planar hairpin: the Frenet normal swings round the turn; RMF stays put.
-    let c = hairpin(170.0, false);
+    let c = hairpin(170.0, false, 0.5);
     let mut o = opts(0.2);
     let (_, rmf) = build(&lines(std::slice::from_ref(&c)), &o);
     o.frame = FrameMethod::Frenet;
@@ -342,7 +358,7 @@ fn meshing_owned_streamlines_gives_the_same_mesh() {
         helix(3.0, 0.0, &mut rnd),
         helix(2.0, 0.2, &mut rnd),
         vec![DVec3::ONE; 3],
-        hairpin(179.0, false),
+        hairpin(179.0, false, 0.5),
     ];
     let o = opts(0.2);
     let (a, sa) = build(&lines(&curves), &o);
