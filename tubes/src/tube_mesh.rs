@@ -689,12 +689,18 @@ fn tube(
     let mut fit_params = Vec::new();
     if let Some(f) = &fitted {
         fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
-        let more_rings = f.curve.control.len() >= points.len() || fit_params.len() > points.len();
+        // Meshed as its polyline (deviation 0) where the fit places more rings than points,
+        // keeps every point (which tells a rough line only from eight points up, or in a part
+        // between sharp turns: a cubic needs four control points whatever the line), or
+        // misses the tolerance (short parts between turns can).
+        let as_polyline = fit_params.len() > points.len()
+            || ((points.len() >= 8 || between_turns) && f.curve.control.len() >= points.len())
+            || f.max_deviation > o.fit.epsilon;
         let sharp = sharp_turn(points);
-        if rmf_iterative && more_rings && sharp && !between_turns {
+        if rmf_iterative && as_polyline && sharp && !between_turns {
             return None;
         }
-        polyline = rmf_iterative && more_rings && !sharp;
+        polyline = rmf_iterative && as_polyline && !sharp;
     }
     let sides = match o.chordal {
         Some(tol) => sides_for(o.radius, tol),

@@ -477,3 +477,23 @@ fn a_rough_line_narrows_where_it_turns_within_a_ring_spacing() {
         );
     }
 }
+
+#[test]
+fn a_short_line_whose_fit_misses_the_tolerance_is_meshed_as_its_polyline() {
+    // Three points of HCP1065 (TrackVis' 1/16 mm steps; a part of a line split at its sharp
+    // turns): the cubic through them misses the 0.02 mm tolerance by a third (0.027 mm), so
+    // the part is meshed as its polyline, deviation 0.
+    let pts = vec![
+        DVec3::new(-54.15625, -68.875, 119.5),
+        DVec3::new(-53.90625, -69.0, 119.9375),
+        DVec3::new(-53.90625, -69.03125, 119.9375),
+    ];
+    let o = opts(0.2);
+    let (_, st) = build(&lines(std::slice::from_ref(&pts)), &o);
+    assert!(
+        st.max_deviation <= o.fit.epsilon,
+        "deviation {}",
+        st.max_deviation
+    );
+    assert!(st.triangles <= 2 * 2 * o.sides + 2 * 2 * o.sides);
+}
