@@ -827,7 +827,8 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
             next = next + 1u;
             zl = layer_depth(pid, next);
         }
-        if (e.a > 0.999) {
+        // Early ray termination at occlusion::emission_absorption::OPAQUE (1 - 1/128).
+        if (e.a > 0.9921875) {
             break;
         }
     }

@@ -779,6 +779,16 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_shader_ends_rays_at_the_models_opacity() {
+        // The WGSL literal and the Rust constant the CPU renderer and the twin use.
+        let opaque = occlusion::emission_absorption::OPAQUE;
+        assert!(
+            SHADER.contains(&format!("if (e.a > {opaque}) {{")),
+            "shaders/slice_pass.wgsl does not end rays at {opaque}"
+        );
+    }
+
+    #[test]
     fn the_settings_check_names_the_field() {
         let ok = SliceSettings {
             occlusion: true,

@@ -9,7 +9,7 @@
 //! their index-space positions are `q_k = q_a + k dq` (no matrix per sample); the slices
 //! where the ray is inside the grid are solved for once; empty blocks of 4^3 cells
 //! (`occlusion::emission_absorption::occupancy_of`) are stepped over whole, to the first
-//! slice past the block, instead of sample by sample; rays end when the opacity passes 0.999
+//! slice past the block, instead of sample by sample; rays end when the opacity passes `OPAQUE`
 //! (as the shader); the samples are read where the model keeps them, in their stored type
 //! (`volume::samples`: `u8`/`u16` plus an offset, or `f32`; shared, not copied); rays
 //! march in packets of 4 x 4; the transfer function is evaluated exactly (piecewise linear,
@@ -714,7 +714,7 @@ impl EaVolume {
         if r.alpha >= 0.5 && before < 0.5 {
             r.half = depth as f32;
         }
-        if r.alpha > 0.999 {
+        if r.alpha > occlusion::emission_absorption::OPAQUE {
             r.k1 = 0;
             r.k = 1;
         }
