@@ -1,0 +1,298 @@
+//! The unlit `ea` march with eight rays in the lanes of AVX2 registers.
+//!
+//! [`EaVolume::advance`] takes one sample of one ray at a time: about 20 cycles a sample
+//! (`perf annotate` on headsq: the trilinear sample, the transfer function's walk, the
+//! exponential's table, the compositing), each step a chain of dependent scalar operations.
+//! Here eight rays of a packet take their next sample together, every operation on eight
+//! lanes, the cell's corners and the exponential's table read by gathers (masked, so lanes
+//! that are done, outside the grid or in an empty block read nothing). Each lane does exactly
+//! what [`EaVolume::advance`] does for its ray, in the same order and with the same
+//! operations (no fused multiply-adds where the scalar march has none), so the image is the
+//! scalar march's bit for bit (tested): a lane outside the grid steps one slice, a lane in an
+//! empty block steps past the cube of empty blocks around it ([`crate::Ray::past_block`]), a
+//! lane in an occupied block samples and composites.
+//!
+//! Used where the scalar march would use the same model without extras: `ea` (not the
+//! projections), no light volume, no clipping planes, samples bricked in `f32`
+//! ([`EaVolume::lanes_apply`]), on CPUs with AVX2 and FMA.
+
+use crate::{EaVolume, Ray, APRON, EXP_N, EXP_SCALE, SKIP};
+use occlusion::emission_absorption::{EaView, BRICK, OPAQUE};
+use std::arch::x86_64::*;
+
+/// Lanes a register holds.
+pub(crate) const LANES: usize = 8;
+
+/// Marches `rays` (at most [`LANES`]) to their ends as [`EaVolume::advance`] does for an unlit,
+/// unclipped `ea` frame of the bricked `f32` samples `data`, leaving in each ray what the
+/// scalar march leaves (colour, opacity, the volumetric sums and the half-opacity depth).
+///
+/// # Safety
+/// The CPU has AVX2 and FMA, and `vol` qualifies ([`EaVolume::lanes_apply`]: bricks, a
+/// transfer function with points, `data` its bricked samples, fewer than 2^31 of them).
+#[target_feature(enable = "avx2,fma")]
+pub(crate) unsafe fn march(vol: &EaVolume, data: &[f32], v: &EaView, rays: &mut [(usize, Ray)]) {
+    // SAFETY: the caller's (above); the gathers read only lanes whose indices lie in `data`,
+    // `reach32` and the exponential's table (masked lanes read nothing).
+    unsafe {
+        debug_assert!(rays.len() <= LANES);
+        let bricks = vol.bricks.expect("bricked samples");
+        // The rays' state, a lane each; missing lanes are rays already done (k > k1).
+        let (mut qa, mut dq) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3]);
+        let (mut seg, mut k, mut k1) = ([0f32; LANES], [1i32; LANES], [0i32; LANES]);
+        for (i, (_, r)) in rays.iter().enumerate() {
+            for a in 0..3 {
+                qa[a][i] = r.qa[a];
+                dq[a][i] = r.dq[a];
+            }
+            seg[i] = r.seg;
+            // Slices are at most `MAX_SLICES` (16,384): they fit.
+            (k[i], k1[i]) = (r.k.min(1 << 30) as i32, r.k1.min(1 << 30) as i32);
+        }
+        let ps = |x: f32| _mm256_set1_ps(x);
+        let pi = |x: i32| _mm256_set1_epi32(x);
+        let load = |x: &[f32; LANES]| _mm256_loadu_ps(x.as_ptr());
+        let (qa, dq) = (qa.map(|x| load(&x)), dq.map(|x| load(&x)));
+        let seg = load(&seg);
+        let mut kv = _mm256_loadu_si256(k.as_ptr() as *const __m256i);
+        let mut k1v = _mm256_loadu_si256(k1.as_ptr() as *const __m256i);
+        let zero = _mm256_setzero_ps();
+        let (one, onei) = (ps(1.0), pi(1));
+        let hi = vol.hi.map(ps);
+        let last_cell = vol.dims.map(|n| pi((n.max(2) - 2) as i32));
+        let blocks = vol.blocks.map(|n| pi(n as i32));
+        let bricks = bricks.map(|n| pi(n as i32));
+        let offset = ps(vol.offset);
+        let tiny = ps(1e-12);
+        let sign = ps(-0.0);
+        let (mut c, mut alpha, mut acc) = ([zero; 3], zero, zero);
+        let mut half_k = pi(-1);
+        // The transfer function's points and slopes, splatted once.
+        let tf: Vec<(__m256, [__m256; 3], __m256)> = vol
+            .tf
+            .iter()
+            .map(|p| (ps(p.0), p.1.map(ps), ps(p.2)))
+            .collect();
+        let slopes: Vec<(__m256, [__m256; 3], __m256)> = vol
+            .slopes
+            .iter()
+            .map(|s| (ps(s.0), s.1.map(ps), ps(s.2)))
+            .collect();
+        let reach = vol.reach32.as_ptr();
+        let table = vol.exp_table.as_ptr();
+        let samples = data.as_ptr();
+        let (exp_scale, exp_n) = (ps(EXP_SCALE), ps(EXP_N as f32));
+        let (opaque, half) = (ps(OPAQUE), ps(0.5));
+        let apron = pi(APRON as i32);
+        let brick_samples = pi(APRON.pow(3) as i32);
+        let brick_mask = pi(BRICK as i32 - 1);
+        let brick_shift = _mm_cvtsi32_si128(BRICK.trailing_zeros() as i32);
+        let skip_shift = _mm_cvtsi32_si128(SKIP.trailing_zeros() as i32);
+        // (Macros, not closures, so that every intrinsic is compiled with this function's target
+        // features.)
+        macro_rules! lerp {
+            ($a:expr, $b:expr, $t:expr) => {{
+                let (a, b) = ($a, $b);
+                _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), $t))
+            }};
+        }
+        loop {
+            // k <= k1 (both below 2^30).
+            let active = _mm256_cmpgt_epi32(_mm256_add_epi32(k1v, onei), kv);
+            if _mm256_movemask_epi8(active) == 0 {
+                break;
+            }
+            let kf = _mm256_cvtepi32_ps(kv);
+            let q: [__m256; 3] =
+                std::array::from_fn(|a| _mm256_add_ps(qa[a], _mm256_mul_ps(kf, dq[a])));
+            // Inside the grid: 0 <= q <= hi on every axis (false for NaN).
+            let mut inside = _mm256_castsi256_ps(active);
+            for a in 0..3 {
+                let ge = _mm256_cmp_ps::<_CMP_GE_OQ>(q[a], zero);
+                let le = _mm256_cmp_ps::<_CMP_LE_OQ>(q[a], hi[a]);
+                inside = _mm256_and_ps(inside, _mm256_and_ps(ge, le));
+            }
+            let inside_i = _mm256_castps_si256(inside);
+            // The cell (truncation floors the non-negative positions), its skip block.
+            let cell: [__m256i; 3] =
+                std::array::from_fn(|a| _mm256_min_epi32(_mm256_cvttps_epi32(q[a]), last_cell[a]));
+            let b: [__m256i; 3] = std::array::from_fn(|a| _mm256_srl_epi32(cell[a], skip_shift));
+            let block = _mm256_add_epi32(
+                b[0],
+                _mm256_mullo_epi32(
+                    blocks[0],
+                    _mm256_add_epi32(b[1], _mm256_mullo_epi32(blocks[1], b[2])),
+                ),
+            );
+            let d =
+                _mm256_mask_i32gather_epi32::<4>(_mm256_setzero_si256(), reach, block, inside_i);
+            let is_empty =
+                _mm256_andnot_si256(_mm256_cmpeq_epi32(d, _mm256_setzero_si256()), inside_i);
+            let occupied = _mm256_andnot_si256(is_empty, inside_i);
+            // Empty lanes: the slices to the first past the empty cube of blocks around them
+            // (`Ray::past_block`), at least 1; capped far beyond any slice count.
+            let mut steps = ps((1 << 20) as f32);
+            for a in 0..3 {
+                let dqa = dq[a];
+                let moving = _mm256_cmp_ps::<_CMP_GE_OQ>(_mm256_andnot_ps(sign, dqa), tiny);
+                let up = _mm256_cmp_ps::<_CMP_GT_OQ>(dqa, zero);
+                let far = _mm256_mullo_epi32(_mm256_add_epi32(b[a], d), pi(SKIP as i32));
+                let near = _mm256_mullo_epi32(
+                    _mm256_max_epi32(
+                        _mm256_sub_epi32(_mm256_add_epi32(b[a], onei), d),
+                        _mm256_setzero_si256(),
+                    ),
+                    pi(SKIP as i32),
+                );
+                let edge = _mm256_cvtepi32_ps(_mm256_castps_si256(_mm256_blendv_ps(
+                    _mm256_castsi256_ps(near),
+                    _mm256_castsi256_ps(far),
+                    up,
+                )));
+                let n = _mm256_max_ps(_mm256_div_ps(_mm256_sub_ps(edge, q[a]), dqa), zero);
+                let n = _mm256_add_ps(
+                    _mm256_round_ps::<{ _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC }>(n),
+                    one,
+                );
+                steps = _mm256_blendv_ps(steps, _mm256_min_ps(steps, n), moving);
+            }
+            let steps = _mm256_max_epi32(_mm256_cvttps_epi32(steps), onei);
+            // Occupied lanes: the trilinear sample from the cell's brick.
+            let f: [__m256; 3] =
+                std::array::from_fn(|a| _mm256_sub_ps(q[a], _mm256_cvtepi32_ps(cell[a])));
+            let bc: [__m256i; 3] = std::array::from_fn(|a| _mm256_srl_epi32(cell[a], brick_shift));
+            let lc: [__m256i; 3] = std::array::from_fn(|a| _mm256_and_si256(cell[a], brick_mask));
+            let brick = _mm256_add_epi32(
+                bc[0],
+                _mm256_mullo_epi32(
+                    bricks[0],
+                    _mm256_add_epi32(bc[1], _mm256_mullo_epi32(bricks[1], bc[2])),
+                ),
+            );
+            let local = _mm256_add_epi32(
+                lc[0],
+                _mm256_mullo_epi32(
+                    apron,
+                    _mm256_add_epi32(lc[1], _mm256_mullo_epi32(apron, lc[2])),
+                ),
+            );
+            let base = _mm256_add_epi32(_mm256_mullo_epi32(brick, brick_samples), local);
+            let (sy, sz) = (APRON as i32, (APRON * APRON) as i32);
+            let occ_ps = _mm256_castsi256_ps(occupied);
+            macro_rules! corner {
+                ($o:expr) => {
+                    _mm256_mask_i32gather_ps::<4>(
+                        zero,
+                        samples,
+                        _mm256_add_epi32(base, _mm256_set1_epi32($o)),
+                        occ_ps,
+                    )
+                };
+            }
+            let x00 = lerp!(corner!(0), corner!(1), f[0]);
+            let x10 = lerp!(corner!(sy), corner!(sy + 1), f[0]);
+            let x01 = lerp!(corner!(sz), corner!(sz + 1), f[0]);
+            let x11 = lerp!(corner!(sz + sy), corner!(sz + sy + 1), f[0]);
+            let val = _mm256_add_ps(
+                lerp!(lerp!(x00, x10, f[1]), lerp!(x01, x11, f[1]), f[2]),
+                offset,
+            );
+            // Gaps (below -1e30) add nothing.
+            let sampled = _mm256_andnot_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(val, ps(-1e30)), occ_ps);
+            // The transfer function: the last point by default (beyond it, and for NaN), the
+            // first at or below its value, else the segment whose end is the first point at or
+            // above the sample.
+            let last = tf[tf.len() - 1];
+            let (mut rgb, mut sigma) = (last.1, last.2);
+            for i in (1..tf.len()).rev() {
+                let (a, (inv, dc, de)) = (tf[i - 1], slopes[i]);
+                let m = _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GT_OQ>(val, a.0),
+                    _mm256_cmp_ps::<_CMP_LE_OQ>(val, tf[i].0),
+                );
+                let t = _mm256_mul_ps(_mm256_sub_ps(val, a.0), inv);
+                for ch in 0..3 {
+                    rgb[ch] = _mm256_blendv_ps(
+                        rgb[ch],
+                        _mm256_add_ps(a.1[ch], _mm256_mul_ps(dc[ch], t)),
+                        m,
+                    );
+                }
+                sigma = _mm256_blendv_ps(sigma, _mm256_add_ps(a.2, _mm256_mul_ps(de, t)), m);
+            }
+            let first = tf[0];
+            let m = _mm256_cmp_ps::<_CMP_LE_OQ>(val, first.0);
+            for (x, f) in rgb.iter_mut().zip(first.1) {
+                *x = _mm256_blendv_ps(*x, f, m);
+            }
+            sigma = _mm256_blendv_ps(sigma, first.2, m);
+            let lit = _mm256_and_ps(sampled, _mm256_cmp_ps::<_CMP_GT_OQ>(sigma, zero));
+            // 1 - exp(-sigma len), the exponential from its table (`EaVolume::exp_neg`).
+            let t = _mm256_mul_ps(_mm256_mul_ps(sigma, seg), exp_scale);
+            let inner = _mm256_and_ps(
+                lit,
+                _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
+                    _mm256_cmp_ps::<_CMP_LT_OQ>(t, exp_n),
+                ),
+            );
+            let ti = _mm256_cvttps_epi32(_mm256_and_ps(t, inner));
+            let tf_ = _mm256_sub_ps(t, _mm256_cvtepi32_ps(ti));
+            let e0 = _mm256_mask_i32gather_ps::<4>(zero, table, ti, inner);
+            let e1 = _mm256_mask_i32gather_ps::<4>(zero, table, _mm256_add_epi32(ti, onei), inner);
+            let e = _mm256_blendv_ps(
+                // Outside the table: 1 at or below 0 (and NaN), 0 beyond its end.
+                _mm256_blendv_ps(zero, one, _mm256_cmp_ps::<_CMP_NGT_UQ>(t, zero)),
+                _mm256_add_ps(e0, _mm256_mul_ps(_mm256_sub_ps(e1, e0), tf_)),
+                inner,
+            );
+            let al = _mm256_sub_ps(one, e);
+            let wgt = _mm256_mul_ps(_mm256_sub_ps(one, alpha), al);
+            for ch in 0..3 {
+                let x = _mm256_mul_ps(_mm256_mul_ps(wgt, rgb[ch]), one);
+                c[ch] = _mm256_blendv_ps(c[ch], _mm256_add_ps(c[ch], x), lit);
+            }
+            let before = alpha;
+            alpha = _mm256_blendv_ps(alpha, _mm256_add_ps(alpha, wgt), lit);
+            acc = _mm256_blendv_ps(acc, _mm256_add_ps(acc, _mm256_mul_ps(wgt, one)), lit);
+            let crossed = _mm256_and_ps(
+                lit,
+                _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GE_OQ>(alpha, half),
+                    _mm256_cmp_ps::<_CMP_LT_OQ>(before, half),
+                ),
+            );
+            half_k = _mm256_castps_si256(_mm256_blendv_ps(
+                _mm256_castsi256_ps(half_k),
+                _mm256_castsi256_ps(kv),
+                crossed,
+            ));
+            // Next slices: one for lanes outside the grid or sampled, past the empty cube for
+            // empty ones; rays that became opaque end (k = 1 > k1 = 0).
+            let step = _mm256_blendv_epi8(_mm256_and_si256(active, onei), steps, is_empty);
+            kv = _mm256_add_epi32(kv, step);
+            let done = _mm256_castps_si256(_mm256_and_ps(
+                lit,
+                _mm256_cmp_ps::<_CMP_GT_OQ>(alpha, opaque),
+            ));
+            kv = _mm256_blendv_epi8(kv, onei, done);
+            k1v = _mm256_blendv_epi8(k1v, _mm256_setzero_si256(), done);
+        }
+        let store = |x: __m256| {
+            let mut o = [0f32; LANES];
+            _mm256_storeu_ps(o.as_mut_ptr(), x);
+            o
+        };
+        let (c, alpha, acc) = (c.map(store), store(alpha), store(acc));
+        let mut hk = [0i32; LANES];
+        _mm256_storeu_si256(hk.as_mut_ptr() as *mut __m256i, half_k);
+        for (i, (_, r)) in rays.iter_mut().enumerate() {
+            r.c = [c[0][i], c[1][i], c[2][i]];
+            r.alpha = alpha[i];
+            r.acc = [acc[i], acc[i]];
+            if hk[i] >= 0 {
+                r.half = (v.z0 + (hk[i] as f64 + 0.5) * v.dz) as f32;
+            }
+        }
+    }
+}
