@@ -16,6 +16,7 @@
 //! projections), no light volume, no clipping planes, samples bricked in `f32`
 //! ([`EaVolume::lanes_apply`]), on CPUs with AVX2 and FMA.
 
+use crate::light::{LightVolume, KB};
 use crate::{EaVolume, Ray, APRON, EXP_N, EXP_SCALE, SKIP};
 use occlusion::emission_absorption::{EaView, BRICK, OPAQUE};
 use std::arch::x86_64::*;
@@ -31,7 +32,13 @@ pub(crate) const LANES: usize = 8;
 /// The CPU has AVX2 and FMA, and `vol` qualifies ([`EaVolume::lanes_apply`]: bricks, a
 /// transfer function with points, `data` its bricked samples, fewer than 2^31 of them).
 #[target_feature(enable = "avx2,fma")]
-pub(crate) unsafe fn march(vol: &EaVolume, data: &[f32], v: &EaView, rays: &mut [(usize, Ray)]) {
+pub(crate) unsafe fn march<const LIT: bool>(
+    vol: &EaVolume,
+    data: &[f32],
+    v: &EaView,
+    lv: &LightVolume,
+    rays: &mut [(usize, Ray)],
+) {
     // SAFETY: the caller's (above); the gathers read only lanes whose indices lie in `data`,
     // `reach32` and the exponential's table (masked lanes read nothing).
     unsafe {
@@ -40,7 +47,17 @@ pub(crate) unsafe fn march(vol: &EaVolume, data: &[f32], v: &EaView, rays: &mut 
         // The rays' state, a lane each; missing lanes are rays already done (k > k1).
         let (mut qa, mut dq) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3]);
         let (mut seg, mut k, mut k1) = ([0f32; LANES], [1i32; LANES], [0i32; LANES]);
+        // Lit: each ray's four light cells (offsets into a block of slices) and fractions.
+        let (mut cells, mut frac) = ([[0i32; LANES]; 4], [[0f32; LANES]; 2]);
         for (i, (_, r)) in rays.iter().enumerate() {
+            if LIT {
+                debug_assert!(!r.light.shifted, "clipped frames take the scalar march");
+                for (j, c) in r.light.cells.iter().enumerate() {
+                    cells[j][i] = *c as i32;
+                }
+                frac[0][i] = r.light.f[0];
+                frac[1][i] = r.light.f[1];
+            }
             for a in 0..3 {
                 qa[a][i] = r.qa[a];
                 dq[a][i] = r.dq[a];
@@ -54,6 +71,12 @@ pub(crate) unsafe fn march(vol: &EaVolume, data: &[f32], v: &EaView, rays: &mut 
         let load = |x: &[f32; LANES]| _mm256_loadu_ps(x.as_ptr());
         let (qa, dq) = (qa.map(|x| load(&x)), dq.map(|x| load(&x)));
         let seg = load(&seg);
+        let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
+        let frac = frac.map(|f| _mm256_loadu_ps(f.as_ptr()));
+        let light = lv.values().as_ptr();
+        let slab = pi((lv.cells[0] * lv.cells[1] * KB) as i32);
+        const { assert!(KB.is_power_of_two()) };
+        let kb_shift = _mm_cvtsi32_si128(KB.trailing_zeros() as i32);
         let mut kv = _mm256_loadu_si256(k.as_ptr() as *const __m256i);
         let mut k1v = _mm256_loadu_si256(k1.as_ptr() as *const __m256i);
         let zero = _mm256_setzero_ps();
@@ -65,7 +88,7 @@ pub(crate) unsafe fn march(vol: &EaVolume, data: &[f32], v: &EaView, rays: &mut 
         let offset = ps(vol.offset);
         let tiny = ps(1e-12);
         let sign = ps(-0.0);
-        let (mut c, mut alpha, mut acc) = ([zero; 3], zero, zero);
+        let (mut c, mut alpha, mut acc, mut weights) = ([zero; 3], zero, zero, zero);
         let mut half_k = pi(-1);
         // The transfer function's points and slopes, splatted once.
         let tf: Vec<(__m256, [__m256; 3], __m256)> = vol
@@ -248,13 +271,38 @@ pub(crate) unsafe fn march(vol: &EaVolume, data: &[f32], v: &EaView, rays: &mut 
             );
             let al = _mm256_sub_ps(one, e);
             let wgt = _mm256_mul_ps(_mm256_sub_ps(one, alpha), al);
+            // The light at the sample (`LightVolume::lookup`: bilinear over the ray's four
+            // cells in slice k), 1 unlit.
+            let o = if LIT {
+                let at = _mm256_add_epi32(
+                    _mm256_mullo_epi32(_mm256_srl_epi32(kv, kb_shift), slab),
+                    _mm256_and_si256(kv, pi(KB as i32 - 1)),
+                );
+                let lit_ps = lit;
+                macro_rules! cell {
+                    ($j:expr) => {
+                        _mm256_mask_i32gather_ps::<4>(
+                            zero,
+                            light,
+                            _mm256_add_epi32(at, cells[$j]),
+                            lit_ps,
+                        )
+                    };
+                }
+                let x0 = lerp!(cell!(0), cell!(1), frac[0]);
+                let x1 = lerp!(cell!(2), cell!(3), frac[0]);
+                lerp!(x0, x1, frac[1])
+            } else {
+                one
+            };
             for ch in 0..3 {
-                let x = _mm256_mul_ps(_mm256_mul_ps(wgt, rgb[ch]), one);
+                let x = _mm256_mul_ps(_mm256_mul_ps(wgt, rgb[ch]), o);
                 c[ch] = _mm256_blendv_ps(c[ch], _mm256_add_ps(c[ch], x), lit);
             }
             let before = alpha;
             alpha = _mm256_blendv_ps(alpha, _mm256_add_ps(alpha, wgt), lit);
-            acc = _mm256_blendv_ps(acc, _mm256_add_ps(acc, _mm256_mul_ps(wgt, one)), lit);
+            acc = _mm256_blendv_ps(acc, _mm256_add_ps(acc, _mm256_mul_ps(wgt, o)), lit);
+            weights = _mm256_blendv_ps(weights, _mm256_add_ps(weights, wgt), lit);
             let crossed = _mm256_and_ps(
                 lit,
                 _mm256_and_ps(
@@ -283,13 +331,13 @@ pub(crate) unsafe fn march(vol: &EaVolume, data: &[f32], v: &EaView, rays: &mut 
             _mm256_storeu_ps(o.as_mut_ptr(), x);
             o
         };
-        let (c, alpha, acc) = (c.map(store), store(alpha), store(acc));
+        let (c, alpha, acc, weights) = (c.map(store), store(alpha), store(acc), store(weights));
         let mut hk = [0i32; LANES];
         _mm256_storeu_si256(hk.as_mut_ptr() as *mut __m256i, half_k);
         for (i, (_, r)) in rays.iter_mut().enumerate() {
             r.c = [c[0][i], c[1][i], c[2][i]];
             r.alpha = alpha[i];
-            r.acc = [acc[i], acc[i]];
+            r.acc = [acc[i], weights[i]];
             if hk[i] >= 0 {
                 r.half = (v.z0 + (hk[i] as f64 + 0.5) * v.dz) as f32;
             }

@@ -516,12 +516,13 @@ impl EaVolume {
             }
             let mut live = true;
             #[cfg(target_arch = "x86_64")]
-            if simd && MODE == 0 && !LIT {
+            if simd && MODE == 0 {
                 if let Some(f32s) = self.lanes_apply(v, data) {
                     for lanes in rays.chunks_mut(lanes::LANES) {
                         // SAFETY: `simd` is set only where the CPU has AVX2 and FMA, and
-                        // `lanes_apply` checked the volume.
-                        unsafe { lanes::march(self, f32s, v, lanes) };
+                        // `lanes_apply` checked the volume (and that no clipping plane shifts
+                        // the light's footprints).
+                        unsafe { lanes::march::<LIT>(self, f32s, v, lv, lanes) };
                     }
                     live = false;
                 }
@@ -1118,7 +1119,7 @@ mod tests {
 
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn eight_lanes_march_as_the_scalar_march_bit_for_bit() {
+    fn eight_lanes_march_as_the_scalar_march_bit_for_bit_lit_or_not() {
         if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
             eprintln!("no AVX2/FMA on this CPU: both marches are the scalar one");
             return;
@@ -1141,7 +1142,7 @@ mod tests {
             points: vec![(0.5, [0.7, 0.2, 0.1], 0.01)],
             rows: vec![],
         };
-        let (mut marched, mut halves) = (0, 0);
+        let (mut marched, mut halves, mut shadowed) = (0, 0, 0);
         for tf in [tf(), step, single] {
             let mut ev = EaVolume::new(&vol, &data, &tf).unwrap();
             for cam in [
@@ -1153,21 +1154,32 @@ mod tests {
                 Camera::orbit(b, 90.0, 90.0, 2.0, Some(30.0)),
             ] {
                 let view = EaView::new(&vol, cam, 37, 29, None, None, [0.1, 0.2, 0.3]).unwrap();
-                ev.lanes = true;
-                let lanes = ev.render_frame(&view, None);
-                ev.lanes = false;
-                let scalar = ev.render_frame(&view, None);
-                let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-                let flat = |x: &[[f32; 4]]| x.iter().flatten().copied().collect::<Vec<_>>();
-                assert_eq!(bits(&flat(&lanes.image)), bits(&flat(&scalar.image)));
-                assert_eq!(bits(&lanes.volumetric), bits(&scalar.volumetric));
-                assert_eq!(bits(&lanes.half_depth), bits(&scalar.half_depth));
-                marched += lanes.image.iter().filter(|p| p[3] > 0.0).count();
-                halves += lanes.half_depth.iter().filter(|&&z| z != 0.0).count();
+                // Unlit (`ea`) and with the occlusion buffer (`combined`'s eye march).
+                let light = LightSettings {
+                    cell: 2,
+                    cone: false,
+                    theta_deg: 25.0,
+                    blur_samples: 3,
+                };
+                for light in [None, Some(&light)] {
+                    ev.lanes = true;
+                    let lanes = ev.render_frame(&view, light);
+                    ev.lanes = false;
+                    let scalar = ev.render_frame(&view, light);
+                    let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                    let flat = |x: &[[f32; 4]]| x.iter().flatten().copied().collect::<Vec<_>>();
+                    assert_eq!(bits(&flat(&lanes.image)), bits(&flat(&scalar.image)));
+                    assert_eq!(bits(&lanes.volumetric), bits(&scalar.volumetric));
+                    assert_eq!(bits(&lanes.half_depth), bits(&scalar.half_depth));
+                    marched += lanes.image.iter().filter(|p| p[3] > 0.0).count();
+                    halves += lanes.half_depth.iter().filter(|&&z| z != 0.0).count();
+                    shadowed += lanes.volumetric.iter().filter(|&&o| o < 0.99).count();
+                }
             }
         }
         assert!(marched > 1000, "{marched} pixels with volume");
         assert!(halves > 100, "{halves} pixels past half opacity");
+        assert!(shadowed > 100, "{shadowed} pixels in the volume's shadow");
     }
 
     #[test]

@@ -54,6 +54,12 @@ impl LightVolume {
         }
     }
 
+    /// The light volume's values (the layout above), for the gathers of `lanes`.
+    #[cfg(target_arch = "x86_64")]
+    pub(crate) fn values(&self) -> &[f32] {
+        &self.o
+    }
+
     /// `O` of slice `k` (below `slices`) at a pixel: bilinear over the four cells of `f`
     /// (offsets and fractions from [`LightVolume::footprint`]).
     #[inline(always)]
