@@ -14,7 +14,9 @@
 //! (`volume::samples`: `u8`/`u16` plus an offset, or `f32`; shared, not copied); rays
 //! march in packets of 4 x 4; the transfer function is evaluated exactly (piecewise linear,
 //! not a table) and the exponential from a table (within 8e-6); bands of rows run on rayon's
-//! threads, compiled for AVX2 and FMA where the CPU has them.
+//! threads, compiled for AVX2 and FMA where the CPU has them, where the `ea` march (unlit, or
+//! lit by the light volume) takes eight rays of a packet at a time in AVX2 lanes (`lanes`,
+//! bit for bit the scalar march).
 //!
 //! Scope: volume-only scenes with 1-D transfer functions and clipping planes: `ea` (unshaded
 //! emission-absorption), with a light volume ([`light`]: Schott et al.'s occlusion buffer on
