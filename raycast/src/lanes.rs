@@ -1,20 +1,22 @@
-//! The unlit `ea` march with eight rays in the lanes of AVX2 registers.
+//! The `ea` march - unlit, or lit by the light volume of `dos`/`combined` - with eight rays in
+//! the lanes of AVX2 registers.
 //!
 //! [`EaVolume::advance`] takes one sample of one ray at a time: about 20 cycles a sample
 //! (`perf annotate` on headsq: the trilinear sample, the transfer function's walk, the
 //! exponential's table, the compositing), each step a chain of dependent scalar operations.
 //! Here eight rays of a packet take their next sample together, every operation on eight
-//! lanes, the cell's corners and the exponential's table read by gathers (masked, so lanes
-//! that are done, outside the grid or in an empty block read nothing). Each lane does exactly
-//! what [`EaVolume::advance`] does for its ray, in the same order and with the same
-//! operations (no fused multiply-adds where the scalar march has none), so the image is the
-//! scalar march's bit for bit (tested): a lane outside the grid steps one slice, a lane in an
-//! empty block steps past the cube of empty blocks around it ([`crate::Ray::past_block`]), a
-//! lane in an occupied block samples and composites.
+//! lanes, the cell's corners, the skip reach, the exponential's table and the light read by
+//! gathers (masked, so lanes that are done, outside the grid or in an empty block read
+//! nothing). Each lane does exactly what [`EaVolume::advance`] does for its ray, in the same
+//! order and with the same operations (no fused multiply-adds where the scalar march has
+//! none), so the image is the scalar march's bit for bit (tested): a lane outside the grid
+//! steps one slice, a lane in an empty block steps past the cube of empty blocks around it
+//! ([`crate::Ray::past_block`]), a lane in an occupied block samples and composites.
 //!
-//! Used where the scalar march would use the same model without extras: `ea` (not the
-//! projections), no light volume, no clipping planes, samples bricked in `f32`
-//! ([`EaVolume::lanes_apply`]), on CPUs with AVX2 and FMA.
+//! Used where the scalar march would use the same model without extras: `ea` and the eye
+//! march of `dos`/`combined` (not the projections), no clipping planes, samples in any stored
+//! type, bricked or in the grid's layout ([`EaVolume::lanes_apply`]), on CPUs with AVX2 and
+//! FMA.
 
 use crate::light::{LightVolume, KB};
 use crate::{EaVolume, Ray, APRON, EXP_N, EXP_SCALE, SKIP};
@@ -24,17 +26,83 @@ use std::arch::x86_64::*;
 /// Lanes a register holds.
 pub(crate) const LANES: usize = 8;
 
-/// Marches `rays` (at most [`LANES`]) to their ends as [`EaVolume::advance`] does for an unlit,
-/// unclipped `ea` frame of the bricked `f32` samples `data`, leaving in each ray what the
-/// scalar march leaves (colour, opacity, the volumetric sums and the half-opacity depth).
+/// A stored sample type the lanes gather, as `f32` (exactly `volume::samples::Sample::value`).
+pub(crate) trait Gather: Copy {
+    /// The samples at `idx` (lanes whose sign bit of `mask` is set; 0 elsewhere) of `data`.
+    ///
+    /// # Safety
+    /// AVX2 is available; the masked lanes' indices lie in `data`, which holds at least four
+    /// samples.
+    unsafe fn gather(data: &[Self], idx: __m256i, mask: __m256) -> __m256;
+}
+
+impl Gather for f32 {
+    #[inline(always)]
+    unsafe fn gather(data: &[f32], idx: __m256i, mask: __m256) -> __m256 {
+        // SAFETY: the caller's.
+        unsafe { _mm256_mask_i32gather_ps::<4>(_mm256_setzero_ps(), data.as_ptr(), idx, mask) }
+    }
+}
+
+/// Narrow samples of `BYTES` bytes, gathered as the 32-bit word that ends with the sample (or
+/// starts at the buffer's first byte), shifted down and masked: the word never leaves the
+/// buffer, so nothing past its end is read.
+#[inline(always)]
+unsafe fn gather_narrow<const BYTES: i32>(base: *const u8, idx: __m256i, mask: __m256) -> __m256 {
+    // SAFETY: the caller's: the masked lanes' samples lie in a buffer of at least four bytes.
+    unsafe {
+        let at = _mm256_mullo_epi32(idx, _mm256_set1_epi32(BYTES));
+        let start = _mm256_max_epi32(
+            _mm256_sub_epi32(at, _mm256_set1_epi32(4 - BYTES)),
+            _mm256_setzero_si256(),
+        );
+        let word = _mm256_mask_i32gather_epi32::<1>(
+            _mm256_setzero_si256(),
+            base as *const i32,
+            start,
+            _mm256_castps_si256(mask),
+        );
+        // Little-endian: the sample starts (at - start) bytes into the word.
+        let shift = _mm256_slli_epi32::<3>(_mm256_sub_epi32(at, start));
+        let v = _mm256_and_si256(
+            _mm256_srlv_epi32(word, shift),
+            _mm256_set1_epi32(((1i64 << (8 * BYTES)) - 1) as i32),
+        );
+        _mm256_cvtepi32_ps(v)
+    }
+}
+
+impl Gather for u16 {
+    #[inline(always)]
+    unsafe fn gather(data: &[u16], idx: __m256i, mask: __m256) -> __m256 {
+        // SAFETY: the caller's (at least four samples: eight bytes).
+        unsafe { gather_narrow::<2>(data.as_ptr() as *const u8, idx, mask) }
+    }
+}
+
+impl Gather for u8 {
+    #[inline(always)]
+    unsafe fn gather(data: &[u8], idx: __m256i, mask: __m256) -> __m256 {
+        // SAFETY: the caller's (at least four samples: four bytes).
+        unsafe { gather_narrow::<1>(data.as_ptr(), idx, mask) }
+    }
+}
+
+/// Marches `rays` (at most [`LANES`]) to their ends as [`EaVolume::advance`] does for an
+/// unclipped `ea` frame of the samples `data` (lit by `lv` when `LIT`), leaving in
+/// each ray what the scalar march leaves (colour, opacity, the volumetric sums and the
+/// half-opacity depth).
 ///
 /// # Safety
-/// The CPU has AVX2 and FMA, and `vol` qualifies ([`EaVolume::lanes_apply`]: bricks, a
-/// transfer function with points, `data` its bricked samples, fewer than 2^31 of them).
+/// The CPU has AVX2 and FMA; [`EaVolume::lanes_apply`] holds for `v`, `data` (the volume's
+/// samples in its layout: at least four, fewer than 2^31) and, when `LIT`, `lv` (the light volume
+/// swept for `v`, fewer than 2^31 values); the rays come from [`EaVolume::start`] for `v`
+/// (so `k1 < lv.slices`), their light footprints from [`LightVolume::footprint`] (not
+/// shifted: no clipping planes).
 #[target_feature(enable = "avx2,fma")]
-pub(crate) unsafe fn march<const LIT: bool>(
+pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
     vol: &EaVolume,
-    data: &[f32],
+    data: &[T],
     v: &EaView,
     lv: &LightVolume,
     rays: &mut [(usize, Ray)],
@@ -43,7 +111,16 @@ pub(crate) unsafe fn march<const LIT: bool>(
     // `reach32` and the exponential's table (masked lanes read nothing).
     unsafe {
         debug_assert!(rays.len() <= LANES);
-        let bricks = vol.bricks.expect("bricked samples");
+        // The corners' offsets from a cell's first: in a brick of APRON^3 samples, or in the
+        // grid's layout (`EaVolume::corner`, as `EaVolume::corners`).
+        let corners: [i32; 8] = match vol.bricks {
+            Some(_) => {
+                let (sy, sz) = (APRON as i32, (APRON * APRON) as i32);
+                [0, 1, sy, sy + 1, sz, sz + 1, sz + sy, sz + sy + 1]
+            }
+            None => vol.corner.map(|o| o as i32),
+        };
+        let grid = vol.dims.map(|n| _mm256_set1_epi32(n as i32));
         // The rays' state, a lane each; missing lanes are rays already done (k > k1).
         let (mut qa, mut dq) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3]);
         let (mut seg, mut k, mut k1) = ([0f32; LANES], [1i32; LANES], [0i32; LANES]);
@@ -84,7 +161,7 @@ pub(crate) unsafe fn march<const LIT: bool>(
         let hi = vol.hi.map(ps);
         let last_cell = vol.dims.map(|n| pi((n.max(2) - 2) as i32));
         let blocks = vol.blocks.map(|n| pi(n as i32));
-        let bricks = bricks.map(|n| pi(n as i32));
+        let bricks = vol.bricks.map(|b| b.map(|n| pi(n as i32)));
         let offset = ps(vol.offset);
         let tiny = ps(1e-12);
         let sign = ps(-0.0);
@@ -103,7 +180,6 @@ pub(crate) unsafe fn march<const LIT: bool>(
             .collect();
         let reach = vol.reach32.as_ptr();
         let table = vol.exp_table.as_ptr();
-        let samples = data.as_ptr();
         let (exp_scale, exp_n) = (ps(EXP_SCALE), ps(EXP_N as f32));
         let (opaque, half) = (ps(OPAQUE), ps(0.5));
         let apron = pi(APRON as i32);
@@ -183,39 +259,46 @@ pub(crate) unsafe fn march<const LIT: bool>(
             // Occupied lanes: the trilinear sample from the cell's brick.
             let f: [__m256; 3] =
                 std::array::from_fn(|a| _mm256_sub_ps(q[a], _mm256_cvtepi32_ps(cell[a])));
-            let bc: [__m256i; 3] = std::array::from_fn(|a| _mm256_srl_epi32(cell[a], brick_shift));
-            let lc: [__m256i; 3] = std::array::from_fn(|a| _mm256_and_si256(cell[a], brick_mask));
-            let brick = _mm256_add_epi32(
-                bc[0],
-                _mm256_mullo_epi32(
-                    bricks[0],
-                    _mm256_add_epi32(bc[1], _mm256_mullo_epi32(bricks[1], bc[2])),
-                ),
-            );
-            let local = _mm256_add_epi32(
-                lc[0],
-                _mm256_mullo_epi32(
-                    apron,
-                    _mm256_add_epi32(lc[1], _mm256_mullo_epi32(apron, lc[2])),
-                ),
-            );
-            let base = _mm256_add_epi32(_mm256_mullo_epi32(brick, brick_samples), local);
-            let (sy, sz) = (APRON as i32, (APRON * APRON) as i32);
+            // The cell's first corner: in its brick, or in the grid's own layout.
+            let base = if let Some(bricks) = bricks {
+                let bc: [__m256i; 3] =
+                    std::array::from_fn(|a| _mm256_srl_epi32(cell[a], brick_shift));
+                let lc: [__m256i; 3] =
+                    std::array::from_fn(|a| _mm256_and_si256(cell[a], brick_mask));
+                let brick = _mm256_add_epi32(
+                    bc[0],
+                    _mm256_mullo_epi32(
+                        bricks[0],
+                        _mm256_add_epi32(bc[1], _mm256_mullo_epi32(bricks[1], bc[2])),
+                    ),
+                );
+                let local = _mm256_add_epi32(
+                    lc[0],
+                    _mm256_mullo_epi32(
+                        apron,
+                        _mm256_add_epi32(lc[1], _mm256_mullo_epi32(apron, lc[2])),
+                    ),
+                );
+                _mm256_add_epi32(_mm256_mullo_epi32(brick, brick_samples), local)
+            } else {
+                _mm256_add_epi32(
+                    cell[0],
+                    _mm256_mullo_epi32(
+                        grid[0],
+                        _mm256_add_epi32(cell[1], _mm256_mullo_epi32(grid[1], cell[2])),
+                    ),
+                )
+            };
             let occ_ps = _mm256_castsi256_ps(occupied);
             macro_rules! corner {
                 ($o:expr) => {
-                    _mm256_mask_i32gather_ps::<4>(
-                        zero,
-                        samples,
-                        _mm256_add_epi32(base, _mm256_set1_epi32($o)),
-                        occ_ps,
-                    )
+                    T::gather(data, _mm256_add_epi32(base, _mm256_set1_epi32($o)), occ_ps)
                 };
             }
-            let x00 = lerp!(corner!(0), corner!(1), f[0]);
-            let x10 = lerp!(corner!(sy), corner!(sy + 1), f[0]);
-            let x01 = lerp!(corner!(sz), corner!(sz + 1), f[0]);
-            let x11 = lerp!(corner!(sz + sy), corner!(sz + sy + 1), f[0]);
+            let x00 = lerp!(corner!(corners[0]), corner!(corners[1]), f[0]);
+            let x10 = lerp!(corner!(corners[2]), corner!(corners[3]), f[0]);
+            let x01 = lerp!(corner!(corners[4]), corner!(corners[5]), f[0]);
+            let x11 = lerp!(corner!(corners[6]), corner!(corners[7]), f[0]);
             let val = _mm256_add_ps(
                 lerp!(lerp!(x00, x10, f[1]), lerp!(x01, x11, f[1]), f[2]),
                 offset,
@@ -249,7 +332,7 @@ pub(crate) unsafe fn march<const LIT: bool>(
                 *x = _mm256_blendv_ps(*x, f, m);
             }
             sigma = _mm256_blendv_ps(sigma, first.2, m);
-            let lit = _mm256_and_ps(sampled, _mm256_cmp_ps::<_CMP_GT_OQ>(sigma, zero));
+            let lit = _mm256_and_ps(sampled, _mm256_cmp_ps::<_CMP_NLE_UQ>(sigma, zero));
             // 1 - exp(-sigma len), the exponential from its table (`EaVolume::exp_neg`).
             let t = _mm256_mul_ps(_mm256_mul_ps(sigma, seg), exp_scale);
             let inner = _mm256_and_ps(

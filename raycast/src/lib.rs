@@ -91,8 +91,8 @@ pub struct EaVolume {
     reach: Vec<u8>,
     /// [`EaVolume::reach`] widened to 32 bits, for the gathers of `lanes`.
     reach32: Vec<i32>,
-    /// Whether unlit `ea` frames march eight rays at a time where the CPU can (`lanes`; on
-    /// by default, off to compare with the scalar march).
+    /// Whether `ea` frames (unlit, or lit by the light volume) march eight rays at a time
+    /// where the CPU can (`lanes`; on by default, off to compare with the scalar march).
     lanes: bool,
     tf: Vec<(f32, [f32; 3], f32)>,
     /// Per point `i > 0`: the segment from point `i - 1` as `1 / (v_i - v_{i-1})` (0 for a
@@ -201,7 +201,10 @@ impl EaVolume {
             .iter()
             .map(|(v, c, e)| {
                 let e = if e.is_finite() { e.max(0.0) } else { 0.0 };
-                (*v as f32, c.map(|x| x as f32), e as f32)
+                // Finite in f32 too (a value or extinction beyond f32's range would give
+                // NaN slopes).
+                let f = |x: f64| (x as f32).clamp(-f32::MAX, f32::MAX);
+                (f(*v), c.map(f), f(e))
             })
             .collect();
         let slopes = (0..points.len())
@@ -459,8 +462,9 @@ impl EaVolume {
         }
     }
 
-    /// [`EaVolume::band`] compiled for AVX2 and FMA (fused multiply-adds in the lerps and
-    /// positions), chosen at run time where the CPU has them.
+    /// [`EaVolume::band`] compiled for AVX2 and FMA, chosen at run time where the CPU has
+    /// them (Rust fuses no multiply-add on its own, so the arithmetic is the plain one's; the
+    /// packets may go to `lanes`).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn band_fma<T: Voxel>(&self, job: Band<'_, T>) {
@@ -518,16 +522,10 @@ impl EaVolume {
             }
             let mut live = true;
             #[cfg(target_arch = "x86_64")]
-            if simd && MODE == 0 {
-                if let Some(f32s) = self.lanes_apply(v, data) {
-                    for lanes in rays.chunks_mut(lanes::LANES) {
-                        // SAFETY: `simd` is set only where the CPU has AVX2 and FMA, and
-                        // `lanes_apply` checked the volume (and that no clipping plane shifts
-                        // the light's footprints).
-                        unsafe { lanes::march::<LIT>(self, f32s, v, lv, lanes) };
-                    }
-                    live = false;
-                }
+            if simd && MODE == 0 && self.lanes_apply(v, data, LIT.then_some(lv)) {
+                // SAFETY: `simd` is set only where the CPU has AVX2 and FMA; `lanes_apply`
+                // checked the volume, the view and the light volume.
+                live = !unsafe { self.march_lanes::<T, LIT>(v, data, lv, &mut rays) };
             }
             // March together, a step of each ray a turn (neighbours stay near each other in
             // depth as long as they skip alike).
@@ -641,22 +639,59 @@ impl EaVolume {
         r
     }
 
-    /// The samples as `f32` where `lanes` can march this volume in view `v`: bricked `f32`
-    /// samples (fewer than 2^31: the gathers' indices), a transfer function with points, no
-    /// clipping planes, and `self.lanes` on.
+    /// Whether `lanes` can march this volume's `data` in view `v` (with the light volume `lv`
+    /// for a lit frame): samples bricked or in the grid's layout (at least four, fewer than
+    /// 2^31: the gathers' indices), a transfer function with points, no clipping planes (so no shifted light
+    /// footprints), at most `MAX_SLICES` slices, a light volume of fewer than 2^31 values, and
+    /// `self.lanes` on.
     #[cfg(target_arch = "x86_64")]
-    fn lanes_apply<'d, T: Voxel>(&self, v: &EaView, data: &'d [T]) -> Option<&'d [f32]> {
-        if !self.lanes
-            || self.bricks.is_none()
-            || self.tf.is_empty()
-            || !v.clip.is_empty()
-            || data.len() >= i32::MAX as usize
-            || std::any::TypeId::of::<T>() != std::any::TypeId::of::<f32>()
-        {
-            return None;
+    fn lanes_apply<T: Voxel>(&self, v: &EaView, data: &[T], lv: Option<&LightVolume>) -> bool {
+        self.lanes
+            && !self.tf.is_empty()
+            && v.clip.is_empty()
+            && v.slices <= occlusion::emission_absorption::MAX_SLICES
+            && (4..i32::MAX as usize).contains(&data.len())
+            && lv.is_none_or(|l| l.values().len() < i32::MAX as usize)
+    }
+
+    /// Marches `rays` eight at a time (`lanes`) over `data` retyped to its stored type;
+    /// `false` (nothing done) for a type `lanes` does not gather.
+    ///
+    /// # Safety
+    /// The CPU has AVX2 and FMA, and [`EaVolume::lanes_apply`] holds for `v`, `data` (the
+    /// volume's samples) and `lv` (the light volume swept for `v`, for a lit frame); `rays`
+    /// come from [`EaVolume::start`] for `v`.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn march_lanes<T: Voxel, const LIT: bool>(
+        &self,
+        v: &EaView,
+        data: &[T],
+        lv: &LightVolume,
+        rays: &mut [(usize, Ray)],
+    ) -> bool {
+        use std::any::TypeId;
+        macro_rules! run {
+            ($t:ty) => {{
+                // SAFETY: T is $t (compared below): the same slice, retyped.
+                let d =
+                    unsafe { std::slice::from_raw_parts(data.as_ptr() as *const $t, data.len()) };
+                for l in rays.chunks_mut(lanes::LANES) {
+                    // SAFETY: the caller's.
+                    unsafe { lanes::march::<$t, LIT>(self, d, v, lv, l) };
+                }
+                true
+            }};
         }
-        // SAFETY: T is f32 (checked above): the same slice, retyped.
-        Some(unsafe { std::slice::from_raw_parts(data.as_ptr() as *const f32, data.len()) })
+        let t = TypeId::of::<T>();
+        if t == TypeId::of::<f32>() {
+            run!(f32)
+        } else if t == TypeId::of::<u16>() {
+            run!(u16)
+        } else if t == TypeId::of::<u8>() {
+            run!(u8)
+        } else {
+            false
+        }
     }
 
     /// The grid's last index per axis.
@@ -1145,8 +1180,14 @@ mod tests {
             rows: vec![],
         };
         let (mut marched, mut halves, mut shadowed) = (0, 0, 0);
-        for tf in [tf(), step, single] {
-            let mut ev = EaVolume::new(&vol, &data, &tf).unwrap();
+        for (tf, in_place) in [(tf(), false), (step, false), (single, false), (tf(), true)] {
+            let mut ev = match in_place {
+                false => EaVolume::new(&vol, &data, &tf).unwrap(),
+                true => {
+                    EaVolume::in_place(&vol, Arc::new(Samples::pack(prepare(&data))), &tf).unwrap()
+                }
+            };
+            assert_eq!(ev.bricks.is_none(), in_place);
             for cam in [
                 Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0)),
                 Camera::orbit(b, -70.0, 60.0, 3.0, None),
@@ -1182,6 +1223,74 @@ mod tests {
         assert!(marched > 1000, "{marched} pixels with volume");
         assert!(halves > 100, "{halves} pixels past half opacity");
         assert!(shadowed > 100, "{shadowed} pixels in the volume's shadow");
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn eight_lanes_gather_narrow_and_unbricked_samples_as_the_scalar_march() {
+        // Integer samples stored in u8 and u16 (plus an offset): the lanes read them as 32-bit
+        // words ending at the sample (never past the buffer), shifted and masked; bricked, and
+        // in the grid's own layout (large volumes are read where they are).
+        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
+            eprintln!("no AVX2/FMA on this CPU: both marches are the scalar one");
+            return;
+        }
+        let vol = blob([33, 41, 27]);
+        let blob_data = vol.select(None).unwrap().data;
+        let b = vol.bounds();
+        let light = LightSettings {
+            cell: 3,
+            cone: false,
+            theta_deg: 25.0,
+            blur_samples: 3,
+        };
+        for (scale, offset, storage) in [(200.0f32, 17.0f32, "u8"), (3000.0, 1000.0, "u16")] {
+            let data: Vec<f32> = blob_data
+                .iter()
+                .map(|&x| {
+                    if x.is_finite() {
+                        (x * scale).round() + offset
+                    } else {
+                        offset
+                    }
+                })
+                .collect();
+            let s = scale as f64;
+            let o = offset as f64;
+            let tf = Transfer {
+                points: vec![
+                    (0.1 * s + o, [0.0, 0.0, 0.0], 0.0),
+                    (0.5 * s + o, [0.2, 0.4, 1.0], 0.3),
+                    (0.9 * s + o, [1.0, 0.6, 0.2], 0.9),
+                ],
+                rows: vec![],
+            };
+            // Bricked (a copy), and read where the samples are (the grid's layout).
+            let bricked = EaVolume::with_storage(&vol, &data, &tf, true).unwrap();
+            let flat =
+                EaVolume::in_place(&vol, Arc::new(Samples::pack(data.clone())), &tf).unwrap();
+            for mut ev in [bricked, flat] {
+                assert_eq!(ev.storage(), storage);
+                for cam in [
+                    Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0)),
+                    Camera::orbit(b, -120.0, -50.0, 3.0, None),
+                ] {
+                    let view = EaView::new(&vol, cam, 64, 48, None, None, [0.1, 0.2, 0.3]).unwrap();
+                    for light in [None, Some(&light)] {
+                        ev.lanes = true;
+                        let lanes = ev.render_frame(&view, light);
+                        ev.lanes = false;
+                        let scalar = ev.render_frame(&view, light);
+                        let bits = |x: &[[f32; 4]]| {
+                            x.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()
+                        };
+                        assert_eq!(bits(&lanes.image), bits(&scalar.image), "{storage}");
+                        let shown = lanes.image.iter().filter(|p| p[3] > 0.1).count();
+                        assert!(shown > 100, "{storage}: {shown} pixels shown");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
