@@ -677,12 +677,12 @@ fn tube(
     // polyline it is, a ring at every point (as vtkTubeFilter does): deviation 0, and no more
     // rings than points, which the fit's refinement of its turning spans would exceed (2.4x
     // vtkTubeFilter's triangles on noisy helices, docs/benchmarks.md). Decided before fitting
-    // when the points say so, or after it when the fit kept every point of a line of at least
-    // eight or placed more rings than it has points (shorter lines cost little to fit, and keep
-    // their curvature); not where the line
-    // turns sharply at a point (more than 100 degrees), whose rings would fold without the fit's
-    // refinement (hairpins, tests/tubes_stability.rs): rough lines are split there beforehand
-    // (`build`), so this holds for the fitted ones.
+    // when the points say so, or after it when the fit kept every point (of a line of at least
+    // eight, or of a part between sharp turns), placed more rings than the line has points or
+    // missed the tolerance. Never where the line turns sharply at a point (more than 100
+    // degrees), whose rings would fold there: rough lines are split at such turns beforehand
+    // (`prepare`), and a fitted line that needs its polyline is returned as `None` for
+    // `prepare` to split the same way (see the doc above).
     let rmf_iterative = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
     let mut polyline = rmf_iterative && too_rough(points, o.fit.epsilon) && !sharp_turn(points);
     let fitted = (!polyline).then(|| fit(points, &o.fit));
