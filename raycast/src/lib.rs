@@ -1154,11 +1154,41 @@ mod tests {
         }
     }
 
+    /// Whether this CPU marches in lanes (else both marches are the scalar one: said, and the
+    /// lanes tests end there).
+    #[cfg(target_arch = "x86_64")]
+    fn lanes_here() -> bool {
+        let here = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+        if !here {
+            eprintln!("no AVX2/FMA on this CPU: both marches are the scalar one");
+        }
+        here
+    }
+
+    /// The frame of `view` with the lanes and with the scalar march, asserted equal bit for
+    /// bit (image, volumetric AOV, half-opacity depth); the lanes' frame.
+    #[cfg(target_arch = "x86_64")]
+    fn lanes_equal_scalar(
+        ev: &mut EaVolume,
+        view: &EaView,
+        light: Option<&LightSettings>,
+    ) -> Frame {
+        ev.lanes = true;
+        let lanes = ev.render_frame(view, light);
+        ev.lanes = false;
+        let scalar = ev.render_frame(view, light);
+        let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        let flat = |x: &[[f32; 4]]| x.iter().flatten().copied().collect::<Vec<_>>();
+        assert_eq!(bits(&flat(&lanes.image)), bits(&flat(&scalar.image)));
+        assert_eq!(bits(&lanes.volumetric), bits(&scalar.volumetric));
+        assert_eq!(bits(&lanes.half_depth), bits(&scalar.half_depth));
+        lanes
+    }
+
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn eight_lanes_march_as_the_scalar_march_bit_for_bit_lit_or_not() {
-        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
-            eprintln!("no AVX2/FMA on this CPU: both marches are the scalar one");
+        if !lanes_here() {
             return;
         }
         let vol = blob([40, 44, 30]);
@@ -1205,15 +1235,7 @@ mod tests {
                     blur_samples: 3,
                 };
                 for light in [None, Some(&light)] {
-                    ev.lanes = true;
-                    let lanes = ev.render_frame(&view, light);
-                    ev.lanes = false;
-                    let scalar = ev.render_frame(&view, light);
-                    let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-                    let flat = |x: &[[f32; 4]]| x.iter().flatten().copied().collect::<Vec<_>>();
-                    assert_eq!(bits(&flat(&lanes.image)), bits(&flat(&scalar.image)));
-                    assert_eq!(bits(&lanes.volumetric), bits(&scalar.volumetric));
-                    assert_eq!(bits(&lanes.half_depth), bits(&scalar.half_depth));
+                    let lanes = lanes_equal_scalar(&mut ev, &view, light);
                     marched += lanes.image.iter().filter(|p| p[3] > 0.0).count();
                     halves += lanes.half_depth.iter().filter(|&&z| z != 0.0).count();
                     shadowed += lanes.volumetric.iter().filter(|&&o| o < 0.99).count();
@@ -1231,8 +1253,7 @@ mod tests {
         // Integer samples stored in u8 and u16 (plus an offset): the lanes read them as 32-bit
         // words ending at the sample (never past the buffer), shifted and masked; bricked, and
         // in the grid's own layout (large volumes are read where they are).
-        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
-            eprintln!("no AVX2/FMA on this CPU: both marches are the scalar one");
+        if !lanes_here() {
             return;
         }
         let vol = blob([33, 41, 27]);
@@ -1277,14 +1298,7 @@ mod tests {
                 ] {
                     let view = EaView::new(&vol, cam, 64, 48, None, None, [0.1, 0.2, 0.3]).unwrap();
                     for light in [None, Some(&light)] {
-                        ev.lanes = true;
-                        let lanes = ev.render_frame(&view, light);
-                        ev.lanes = false;
-                        let scalar = ev.render_frame(&view, light);
-                        let bits = |x: &[[f32; 4]]| {
-                            x.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()
-                        };
-                        assert_eq!(bits(&lanes.image), bits(&scalar.image), "{storage}");
+                        let lanes = lanes_equal_scalar(&mut ev, &view, light);
                         let shown = lanes.image.iter().filter(|p| p[3] > 0.1).count();
                         assert!(shown > 100, "{storage}: {shown} pixels shown");
                     }
