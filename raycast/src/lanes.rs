@@ -88,160 +88,148 @@ impl Gather for u8 {
     }
 }
 
-/// Marches `rays` (at most [`LANES`]) to their ends as [`EaVolume::advance`] does for an
-/// unclipped `ea` frame of the samples `data` (lit by `lv` when `LIT`), leaving in
-/// each ray what the scalar march leaves (colour, opacity, the volumetric sums and the
-/// half-opacity depth).
-///
-/// # Safety
-/// The CPU has AVX2 and FMA; [`EaVolume::lanes_apply`] holds for `v`, `data` (the volume's
-/// samples in its layout: at least four, fewer than 2^31) and, when `LIT`, `lv` (the light volume
-/// swept for `v`, fewer than 2^31 values); the rays come from [`EaVolume::start`] for `v`
-/// (so `k1 < lv.slices`), their light footprints from [`LightVolume::footprint`] (not
-/// shifted: no clipping planes).
-#[target_feature(enable = "avx2,fma")]
-pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
-    vol: &EaVolume,
-    data: &[T],
-    v: &EaView,
-    lv: &LightVolume,
-    rays: &mut [(usize, Ray)],
-) {
-    // SAFETY: the caller's (above); the gathers read only lanes whose indices lie in `data`,
-    // `reach32` and the exponential's table (masked lanes read nothing).
-    unsafe {
-        debug_assert!(rays.len() <= LANES);
-        // The corners' offsets from a cell's first: in a brick of APRON^3 samples, or in the
-        // grid's layout (`EaVolume::corner`, as `EaVolume::corners`).
-        let corners: [i32; 8] = match vol.bricks {
-            Some(_) => {
-                let (sy, sz) = (APRON as i32, (APRON * APRON) as i32);
-                [0, 1, sy, sy + 1, sz, sz + 1, sz + sy, sz + sy + 1]
-            }
-            None => vol.corner.map(|o| o as i32),
-        };
-        let grid = vol.dims.map(|n| _mm256_set1_epi32(n as i32));
-        // The rays' state, a lane each; missing lanes are rays already done (k > k1).
-        let (mut qa, mut dq) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3]);
-        let (mut seg, mut k, mut k1) = ([0f32; LANES], [1i32; LANES], [0i32; LANES]);
-        // Lit: each ray's four light cells (offsets into a block of slices) and fractions.
-        let (mut cells, mut frac) = ([[0i32; LANES]; 4], [[0f32; LANES]; 2]);
-        for (i, (_, r)) in rays.iter().enumerate() {
-            if LIT {
-                debug_assert!(!r.light.shifted, "clipped frames take the scalar march");
-                for (j, c) in r.light.cells.iter().enumerate() {
-                    cells[j][i] = *c as i32;
-                }
-                frac[0][i] = r.light.f[0];
-                frac[1][i] = r.light.f[1];
-            }
-            for a in 0..3 {
-                qa[a][i] = r.qa[a];
-                dq[a][i] = r.dq[a];
-            }
-            seg[i] = r.seg;
-            // Slices are at most `MAX_SLICES` (16,384): they fit.
-            (k[i], k1[i]) = (r.k.min(1 << 30) as i32, r.k1.min(1 << 30) as i32);
-        }
+/// The volume's constants splatted into registers (made once per band of rows or per sweep
+/// job, not per packet): the grid, its skip blocks and bricks, the corners' offsets, the
+/// transfer function.
+pub(crate) struct Splat<'v> {
+    vol: &'v EaVolume,
+    hi: [__m256; 3],
+    last_cell: [__m256i; 3],
+    blocks: [__m256i; 3],
+    bricks: Option<[__m256i; 3]>,
+    grid: [__m256i; 3],
+    corners: [i32; 8],
+    offset: __m256,
+    tf: Vec<(__m256, [__m256; 3], __m256)>,
+    slopes: Vec<(__m256, [__m256; 3], __m256)>,
+}
+
+/// What one slice gives eight rays ([`Splat::step`]): which lanes are inside the grid, in an
+/// empty skip block (and the slices to step past it) or sampled (not a gap), and the sample's
+/// colour and extinction.
+struct Step {
+    is_empty: __m256i,
+    steps: __m256i,
+    sampled: __m256,
+    rgb: [__m256; 3],
+    sigma: __m256,
+}
+
+// (Macros, not closures, so that every intrinsic is compiled with the calling function's
+// target features.)
+macro_rules! lerp {
+    ($a:expr, $b:expr, $t:expr) => {{
+        let (a, b) = ($a, $b);
+        _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), $t))
+    }};
+}
+
+impl<'v> Splat<'v> {
+    /// # Safety
+    /// The CPU has AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub(crate) unsafe fn new(vol: &'v EaVolume) -> Splat<'v> {
         let ps = |x: f32| _mm256_set1_ps(x);
         let pi = |x: i32| _mm256_set1_epi32(x);
-        let load = |x: &[f32; LANES]| _mm256_loadu_ps(x.as_ptr());
-        let (qa, dq) = (qa.map(|x| load(&x)), dq.map(|x| load(&x)));
-        let seg = load(&seg);
-        let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
-        let frac = frac.map(|f| _mm256_loadu_ps(f.as_ptr()));
-        let light = lv.values().as_ptr();
-        let slab = pi((lv.cells[0] * lv.cells[1] * KB) as i32);
-        const { assert!(KB.is_power_of_two()) };
-        let kb_shift = _mm_cvtsi32_si128(KB.trailing_zeros() as i32);
-        let mut kv = _mm256_loadu_si256(k.as_ptr() as *const __m256i);
-        let mut k1v = _mm256_loadu_si256(k1.as_ptr() as *const __m256i);
-        let zero = _mm256_setzero_ps();
-        let (one, onei) = (ps(1.0), pi(1));
-        let hi = vol.hi.map(ps);
-        let last_cell = vol.dims.map(|n| pi((n.max(2) - 2) as i32));
-        let blocks = vol.blocks.map(|n| pi(n as i32));
-        let bricks = vol.bricks.map(|b| b.map(|n| pi(n as i32)));
-        let offset = ps(vol.offset);
-        let tiny = ps(1e-12);
-        let sign = ps(-0.0);
-        let (mut c, mut alpha, mut acc, mut weights) = ([zero; 3], zero, zero, zero);
-        let mut half_k = pi(-1);
-        // The transfer function's points and slopes, splatted once.
-        let tf: Vec<(__m256, [__m256; 3], __m256)> = vol
-            .tf
-            .iter()
-            .map(|p| (ps(p.0), p.1.map(ps), ps(p.2)))
-            .collect();
-        let slopes: Vec<(__m256, [__m256; 3], __m256)> = vol
-            .slopes
-            .iter()
-            .map(|s| (ps(s.0), s.1.map(ps), ps(s.2)))
-            .collect();
-        let reach = vol.reach32.as_ptr();
-        let table = vol.exp_table.as_ptr();
-        let (exp_scale, exp_n) = (ps(EXP_SCALE), ps(EXP_N as f32));
-        let (opaque, half) = (ps(OPAQUE), ps(0.5));
-        let apron = pi(APRON as i32);
-        let brick_samples = pi(APRON.pow(3) as i32);
-        let brick_mask = pi(BRICK as i32 - 1);
-        let brick_shift = _mm_cvtsi32_si128(BRICK.trailing_zeros() as i32);
-        let skip_shift = _mm_cvtsi32_si128(SKIP.trailing_zeros() as i32);
-        // (Macros, not closures, so that every intrinsic is compiled with this function's target
-        // features.)
-        macro_rules! lerp {
-            ($a:expr, $b:expr, $t:expr) => {{
-                let (a, b) = ($a, $b);
-                _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), $t))
-            }};
+        Splat {
+            vol,
+            hi: vol.hi.map(ps),
+            last_cell: vol.dims.map(|n| pi((n.max(2) - 2) as i32)),
+            blocks: vol.blocks.map(|n| pi(n as i32)),
+            bricks: vol.bricks.map(|b| b.map(|n| pi(n as i32))),
+            grid: vol.dims.map(|n| pi(n as i32)),
+            // The corners' offsets from a cell's first: in a brick of APRON^3 samples, or in
+            // the grid's layout (`EaVolume::corner`, as `EaVolume::corners`).
+            corners: match vol.bricks {
+                Some(_) => {
+                    let (sy, sz) = (APRON as i32, (APRON * APRON) as i32);
+                    [0, 1, sy, sy + 1, sz, sz + 1, sz + sy, sz + sy + 1]
+                }
+                None => vol.corner.map(|o| o as i32),
+            },
+            offset: ps(vol.offset),
+            tf: vol
+                .tf
+                .iter()
+                .map(|p| (ps(p.0), p.1.map(ps), ps(p.2)))
+                .collect(),
+            slopes: vol
+                .slopes
+                .iter()
+                .map(|s| (ps(s.0), s.1.map(ps), ps(s.2)))
+                .collect(),
         }
-        loop {
-            // k <= k1 (both below 2^30).
-            let active = _mm256_cmpgt_epi32(_mm256_add_epi32(k1v, onei), kv);
-            if _mm256_movemask_epi8(active) == 0 {
-                break;
-            }
-            let kf = _mm256_cvtepi32_ps(kv);
-            let q: [__m256; 3] =
-                std::array::from_fn(|a| _mm256_add_ps(qa[a], _mm256_mul_ps(kf, dq[a])));
+    }
+
+    /// Slice samples `q` (index space) of the `active` lanes, as `EaVolume::advance` and
+    /// `EaVolume::optical_depth` take them: outside the grid nothing; in an empty skip block
+    /// the slices past the empty cube of blocks around it (`Ray::past_block`, at least 1,
+    /// capped far beyond any slice count); else the trilinear sample (a gap below -1e30 is
+    /// not sampled) through the transfer function.
+    ///
+    /// # Safety
+    /// As [`march`]'s; called only from functions compiled for AVX2 and FMA (inlined into
+    /// them, so its intrinsics are compiled with their features).
+    #[inline(always)]
+    unsafe fn step<T: Gather>(
+        &self,
+        data: &[T],
+        q: [__m256; 3],
+        dq: [__m256; 3],
+        active: __m256i,
+    ) -> Step {
+        // SAFETY: the caller's; masked lanes read nothing.
+        unsafe {
+            let vol = self.vol;
+            let zero = _mm256_setzero_ps();
+            let (one, onei) = (_mm256_set1_ps(1.0), _mm256_set1_epi32(1));
             // Inside the grid: 0 <= q <= hi on every axis (false for NaN).
             let mut inside = _mm256_castsi256_ps(active);
             for a in 0..3 {
                 let ge = _mm256_cmp_ps::<_CMP_GE_OQ>(q[a], zero);
-                let le = _mm256_cmp_ps::<_CMP_LE_OQ>(q[a], hi[a]);
+                let le = _mm256_cmp_ps::<_CMP_LE_OQ>(q[a], self.hi[a]);
                 inside = _mm256_and_ps(inside, _mm256_and_ps(ge, le));
             }
             let inside_i = _mm256_castps_si256(inside);
             // The cell (truncation floors the non-negative positions), its skip block.
-            let cell: [__m256i; 3] =
-                std::array::from_fn(|a| _mm256_min_epi32(_mm256_cvttps_epi32(q[a]), last_cell[a]));
+            let cell: [__m256i; 3] = std::array::from_fn(|a| {
+                _mm256_min_epi32(_mm256_cvttps_epi32(q[a]), self.last_cell[a])
+            });
+            let skip_shift = _mm_cvtsi32_si128(SKIP.trailing_zeros() as i32);
             let b: [__m256i; 3] = std::array::from_fn(|a| _mm256_srl_epi32(cell[a], skip_shift));
             let block = _mm256_add_epi32(
                 b[0],
                 _mm256_mullo_epi32(
-                    blocks[0],
-                    _mm256_add_epi32(b[1], _mm256_mullo_epi32(blocks[1], b[2])),
+                    self.blocks[0],
+                    _mm256_add_epi32(b[1], _mm256_mullo_epi32(self.blocks[1], b[2])),
                 ),
             );
-            let d =
-                _mm256_mask_i32gather_epi32::<4>(_mm256_setzero_si256(), reach, block, inside_i);
+            let d = _mm256_mask_i32gather_epi32::<4>(
+                _mm256_setzero_si256(),
+                vol.reach32.as_ptr(),
+                block,
+                inside_i,
+            );
             let is_empty =
                 _mm256_andnot_si256(_mm256_cmpeq_epi32(d, _mm256_setzero_si256()), inside_i);
             let occupied = _mm256_andnot_si256(is_empty, inside_i);
-            // Empty lanes: the slices to the first past the empty cube of blocks around them
-            // (`Ray::past_block`), at least 1; capped far beyond any slice count.
-            let mut steps = ps((1 << 20) as f32);
+            // Empty lanes: the slices to the first past the empty cube of blocks around them.
+            let mut steps = _mm256_set1_ps((1 << 20) as f32);
+            let skip = _mm256_set1_epi32(SKIP as i32);
             for a in 0..3 {
                 let dqa = dq[a];
-                let moving = _mm256_cmp_ps::<_CMP_GE_OQ>(_mm256_andnot_ps(sign, dqa), tiny);
+                let moving = _mm256_cmp_ps::<_CMP_GE_OQ>(
+                    _mm256_andnot_ps(_mm256_set1_ps(-0.0), dqa),
+                    _mm256_set1_ps(1e-12),
+                );
                 let up = _mm256_cmp_ps::<_CMP_GT_OQ>(dqa, zero);
-                let far = _mm256_mullo_epi32(_mm256_add_epi32(b[a], d), pi(SKIP as i32));
+                let far = _mm256_mullo_epi32(_mm256_add_epi32(b[a], d), skip);
                 let near = _mm256_mullo_epi32(
                     _mm256_max_epi32(
                         _mm256_sub_epi32(_mm256_add_epi32(b[a], onei), d),
                         _mm256_setzero_si256(),
                     ),
-                    pi(SKIP as i32),
+                    skip,
                 );
                 let edge = _mm256_cvtepi32_ps(_mm256_castps_si256(_mm256_blendv_ps(
                     _mm256_castsi256_ps(near),
@@ -256,11 +244,14 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
                 steps = _mm256_blendv_ps(steps, _mm256_min_ps(steps, n), moving);
             }
             let steps = _mm256_max_epi32(_mm256_cvttps_epi32(steps), onei);
-            // Occupied lanes: the trilinear sample from the cell's brick.
+            // Occupied lanes: the trilinear sample.
             let f: [__m256; 3] =
                 std::array::from_fn(|a| _mm256_sub_ps(q[a], _mm256_cvtepi32_ps(cell[a])));
             // The cell's first corner: in its brick, or in the grid's own layout.
-            let base = if let Some(bricks) = bricks {
+            let base = if let Some(bricks) = self.bricks {
+                let brick_shift = _mm_cvtsi32_si128(BRICK.trailing_zeros() as i32);
+                let brick_mask = _mm256_set1_epi32(BRICK as i32 - 1);
+                let apron = _mm256_set1_epi32(APRON as i32);
                 let bc: [__m256i; 3] =
                     std::array::from_fn(|a| _mm256_srl_epi32(cell[a], brick_shift));
                 let lc: [__m256i; 3] =
@@ -279,17 +270,21 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
                         _mm256_add_epi32(lc[1], _mm256_mullo_epi32(apron, lc[2])),
                     ),
                 );
-                _mm256_add_epi32(_mm256_mullo_epi32(brick, brick_samples), local)
+                _mm256_add_epi32(
+                    _mm256_mullo_epi32(brick, _mm256_set1_epi32(APRON.pow(3) as i32)),
+                    local,
+                )
             } else {
                 _mm256_add_epi32(
                     cell[0],
                     _mm256_mullo_epi32(
-                        grid[0],
-                        _mm256_add_epi32(cell[1], _mm256_mullo_epi32(grid[1], cell[2])),
+                        self.grid[0],
+                        _mm256_add_epi32(cell[1], _mm256_mullo_epi32(self.grid[1], cell[2])),
                     ),
                 )
             };
             let occ_ps = _mm256_castsi256_ps(occupied);
+            let corners = self.corners;
             macro_rules! corner {
                 ($o:expr) => {
                     T::gather(data, _mm256_add_epi32(base, _mm256_set1_epi32($o)), occ_ps)
@@ -301,13 +296,17 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
             let x11 = lerp!(corner!(corners[6]), corner!(corners[7]), f[0]);
             let val = _mm256_add_ps(
                 lerp!(lerp!(x00, x10, f[1]), lerp!(x01, x11, f[1]), f[2]),
-                offset,
+                self.offset,
             );
-            // Gaps (below -1e30) add nothing.
-            let sampled = _mm256_andnot_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(val, ps(-1e30)), occ_ps);
+            // Gaps (below -1e30) are not sampled.
+            let sampled = _mm256_andnot_ps(
+                _mm256_cmp_ps::<_CMP_LT_OQ>(val, _mm256_set1_ps(-1e30)),
+                occ_ps,
+            );
             // The transfer function: the last point by default (beyond it, and for NaN), the
-            // first at or below its value, else the segment whose end is the first point at or
-            // above the sample.
+            // first at or below its value, else the segment whose end is the first point at
+            // or above the sample.
+            let (tf, slopes) = (&self.tf, &self.slopes);
             let last = tf[tf.len() - 1];
             let (mut rgb, mut sigma) = (last.1, last.2);
             for i in (1..tf.len()).rev() {
@@ -332,9 +331,132 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
                 *x = _mm256_blendv_ps(*x, f, m);
             }
             sigma = _mm256_blendv_ps(sigma, first.2, m);
+            Step {
+                is_empty,
+                steps,
+                sampled,
+                rgb,
+                sigma,
+            }
+        }
+    }
+}
+
+/// The rays' parameters, a lane each (missing lanes: rays already done, k > k1).
+struct RayLanes {
+    qa: [__m256; 3],
+    dq: [__m256; 3],
+    seg: __m256,
+    k: __m256i,
+    k1: __m256i,
+}
+
+impl RayLanes {
+    /// # Safety
+    /// The CPU has AVX2 (called from functions compiled for it).
+    #[inline(always)]
+    unsafe fn load<'r>(rays: impl Iterator<Item = &'r Ray>) -> RayLanes {
+        let (mut qa, mut dq) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3]);
+        let (mut seg, mut k, mut k1) = ([0f32; LANES], [1i32; LANES], [0i32; LANES]);
+        for (i, r) in rays.take(LANES).enumerate() {
+            for a in 0..3 {
+                qa[a][i] = r.qa[a];
+                dq[a][i] = r.dq[a];
+            }
+            seg[i] = r.seg;
+            // Slices are at most `MAX_SLICES` (16,384, checked by `lanes_apply`): they fit.
+            (k[i], k1[i]) = (r.k.min(1 << 30) as i32, r.k1.min(1 << 30) as i32);
+        }
+        // SAFETY: loads from local arrays of eight elements.
+        unsafe {
+            let load = |x: &[f32; LANES]| _mm256_loadu_ps(x.as_ptr());
+            RayLanes {
+                qa: qa.map(|x| load(&x)),
+                dq: dq.map(|x| load(&x)),
+                seg: load(&seg),
+                k: _mm256_loadu_si256(k.as_ptr() as *const __m256i),
+                k1: _mm256_loadu_si256(k1.as_ptr() as *const __m256i),
+            }
+        }
+    }
+
+    /// Slice `k`'s samples, `q = qa + k dq` (as the scalar march: a product, then a sum).
+    #[inline(always)]
+    unsafe fn at(&self, k: __m256i) -> [__m256; 3] {
+        let kf = _mm256_cvtepi32_ps(k);
+        std::array::from_fn(|a| _mm256_add_ps(self.qa[a], _mm256_mul_ps(kf, self.dq[a])))
+    }
+}
+
+/// Marches `rays` (at most [`LANES`]) to their ends as [`EaVolume::advance`] does for an
+/// unclipped `ea` frame of the samples `data` (lit by `lv` when `LIT`), leaving in each ray
+/// what the scalar march leaves (colour, opacity, the volumetric sums and the half-opacity
+/// depth).
+///
+/// # Safety
+/// The CPU has AVX2 and FMA; [`EaVolume::lanes_apply`] holds for `v`, `data` (the volume's
+/// samples in its layout: at least four, fewer than 2^31) and, when `LIT`, `lv` (the light
+/// volume swept for `v`, fewer than 2^31 values); `splat` is the volume's; the rays come from
+/// [`EaVolume::start`] for `v` (so `k1 < lv.slices`), their light footprints from
+/// [`LightVolume::footprint`] (not shifted: no clipping planes).
+#[target_feature(enable = "avx2,fma")]
+pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
+    splat: &Splat<'_>,
+    data: &[T],
+    v: &EaView,
+    lv: &LightVolume,
+    rays: &mut [(usize, Ray)],
+) {
+    // SAFETY: the caller's (above); the gathers read only lanes whose indices lie in `data`,
+    // `reach32`, the exponential's table and the light volume (masked lanes read nothing).
+    unsafe {
+        debug_assert!(rays.len() <= LANES);
+        let vol = splat.vol;
+        let r = RayLanes::load(rays.iter().map(|(_, r)| r));
+        // Lit: each ray's four light cells (offsets into a block of slices) and fractions.
+        let (mut cells, mut frac) = ([[0i32; LANES]; 4], [[0f32; LANES]; 2]);
+        if LIT {
+            for (i, (_, r)) in rays.iter().enumerate() {
+                debug_assert!(!r.light.shifted, "clipped frames take the scalar march");
+                for (j, c) in r.light.cells.iter().enumerate() {
+                    cells[j][i] = *c as i32;
+                }
+                frac[0][i] = r.light.f[0];
+                frac[1][i] = r.light.f[1];
+            }
+        }
+        let ps = |x: f32| _mm256_set1_ps(x);
+        let pi = |x: i32| _mm256_set1_epi32(x);
+        let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
+        let frac = frac.map(|f| _mm256_loadu_ps(f.as_ptr()));
+        let light = lv.values().as_ptr();
+        let slab = pi((lv.cells[0] * lv.cells[1] * KB) as i32);
+        const { assert!(KB.is_power_of_two()) };
+        let kb_shift = _mm_cvtsi32_si128(KB.trailing_zeros() as i32);
+        let (mut kv, mut k1v) = (r.k, r.k1);
+        let zero = _mm256_setzero_ps();
+        let (one, onei) = (ps(1.0), pi(1));
+        let (mut c, mut alpha, mut acc, mut weights) = ([zero; 3], zero, zero, zero);
+        let mut half_k = pi(-1);
+        let table = vol.exp_table.as_ptr();
+        let (exp_scale, exp_n) = (ps(EXP_SCALE), ps(EXP_N as f32));
+        let (opaque, half) = (ps(OPAQUE), ps(0.5));
+        loop {
+            // k <= k1 (both below 2^30).
+            let active = _mm256_cmpgt_epi32(_mm256_add_epi32(k1v, onei), kv);
+            if _mm256_movemask_epi8(active) == 0 {
+                break;
+            }
+            let Step {
+                is_empty,
+                steps,
+                sampled,
+                rgb,
+                sigma,
+            } = splat.step(data, r.at(kv), r.dq, active);
             let lit = _mm256_and_ps(sampled, _mm256_cmp_ps::<_CMP_NLE_UQ>(sigma, zero));
             // 1 - exp(-sigma len), the exponential from its table (`EaVolume::exp_neg`).
-            let t = _mm256_mul_ps(_mm256_mul_ps(sigma, seg), exp_scale);
+            let t = _mm256_mul_ps(_mm256_mul_ps(sigma, r.seg), exp_scale);
             let inner = _mm256_and_ps(
                 lit,
                 _mm256_and_ps(

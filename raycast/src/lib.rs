@@ -675,9 +675,11 @@ impl EaVolume {
                 // SAFETY: T is $t (compared below): the same slice, retyped.
                 let d =
                     unsafe { std::slice::from_raw_parts(data.as_ptr() as *const $t, data.len()) };
+                // SAFETY: the caller's.
+                let splat = unsafe { lanes::Splat::new(self) };
                 for l in rays.chunks_mut(lanes::LANES) {
                     // SAFETY: the caller's.
-                    unsafe { lanes::march::<$t, LIT>(self, d, v, lv, l) };
+                    unsafe { lanes::march::<$t, LIT>(&splat, d, v, lv, l) };
                 }
                 true
             }};
