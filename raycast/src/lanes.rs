@@ -13,6 +13,9 @@
 //! steps one slice, a lane in an empty block steps past the cube of empty blocks around it
 //! ([`crate::Ray::past_block`]), a lane in an occupied block samples and composites.
 //!
+//! The light volume's sweep takes its cells' optical depths the same way, eight cells at a
+//! time ([`optical_depths`], the same per-slice step).
+//!
 //! Used where the scalar march would use the same model without extras: `ea` and the eye
 //! march of `dos`/`combined` (not the projections), no clipping planes, samples in any stored
 //! type, bricked or in the grid's layout ([`EaVolume::lanes_apply`]), on CPUs with AVX2 and
@@ -185,9 +188,9 @@ impl<'v> Splat<'v> {
             let (one, onei) = (_mm256_set1_ps(1.0), _mm256_set1_epi32(1));
             // Inside the grid: 0 <= q <= hi on every axis (false for NaN).
             let mut inside = _mm256_castsi256_ps(active);
-            for a in 0..3 {
-                let ge = _mm256_cmp_ps::<_CMP_GE_OQ>(q[a], zero);
-                let le = _mm256_cmp_ps::<_CMP_LE_OQ>(q[a], self.hi[a]);
+            for (&qa, &hi) in q.iter().zip(&self.hi) {
+                let ge = _mm256_cmp_ps::<_CMP_GE_OQ>(qa, zero);
+                let le = _mm256_cmp_ps::<_CMP_LE_OQ>(qa, hi);
                 inside = _mm256_and_ps(inside, _mm256_and_ps(ge, le));
             }
             let inside_i = _mm256_castps_si256(inside);
@@ -547,5 +550,87 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
                 r.half = (v.z0 + (hk[i] as f64 + 0.5) * v.dz) as f32;
             }
         }
+    }
+}
+
+/// The optical depths of slice `k` along the rays of cells `cells` (at most [`LANES`]) of
+/// `rays`, as [`EaVolume::optical_depth`] gives them for an unclipped view: `sigma len` of
+/// the sample (0 outside the grid, in an empty skip block, at a gap), and the next slice whose
+/// depth may not be 0 (the ray's first slice before it; past an empty cube of blocks; `u32`'s
+/// maximum past its last slice).
+///
+/// # Safety
+/// As [`march`]'s for `splat` and `data`; `cells` index `rays`, which come from
+/// [`EaVolume::start`] for the view.
+#[target_feature(enable = "avx2,fma")]
+pub(crate) unsafe fn optical_depths<T: Gather>(
+    splat: &Splat<'_>,
+    data: &[T],
+    rays: &[Ray],
+    cells: &[u32],
+    k: u32,
+) -> ([f32; LANES], [u32; LANES]) {
+    // SAFETY: the caller's; masked lanes read nothing.
+    unsafe {
+        debug_assert!(cells.len() <= LANES);
+        let r = RayLanes::load(cells.iter().map(|&c| &rays[c as usize]));
+        let kv = _mm256_set1_epi32(k.min(1 << 30) as i32);
+        // Before the ray's first slice, past its last (missing lanes: k1 = 0 < k1 + 1 = k0).
+        let before = _mm256_cmpgt_epi32(r.k, kv);
+        let after = _mm256_cmpgt_epi32(kv, r.k1);
+        let active = _mm256_andnot_si256(_mm256_or_si256(before, after), _mm256_set1_epi32(-1));
+        let st = splat.step(data, r.at(kv), r.dq, active);
+        let zero = _mm256_setzero_ps();
+        let tau = _mm256_and_ps(
+            st.sampled,
+            _mm256_mul_ps(_mm256_max_ps(st.sigma, zero), r.seg),
+        );
+        let onei = _mm256_set1_epi32(1);
+        let next = _mm256_add_epi32(kv, _mm256_blendv_epi8(onei, st.steps, st.is_empty));
+        let next = _mm256_blendv_epi8(next, r.k, before);
+        let next = _mm256_blendv_epi8(next, _mm256_set1_epi32(-1), after);
+        let (mut t, mut n) = ([0f32; LANES], [0u32; LANES]);
+        _mm256_storeu_ps(t.as_mut_ptr(), tau);
+        _mm256_storeu_si256(n.as_mut_ptr() as *mut __m256i, next);
+        (t, n)
+    }
+}
+
+/// Whether the lanes gather samples stored as `T` (`f32`, `u16`, `u8`).
+pub(crate) fn gathers<T: 'static>() -> bool {
+    use std::any::TypeId;
+    [TypeId::of::<f32>(), TypeId::of::<u16>(), TypeId::of::<u8>()].contains(&TypeId::of::<T>())
+}
+
+/// [`optical_depths`] over `data` retyped to its stored type (one of [`gathers`]).
+///
+/// # Safety
+/// As [`optical_depths`]'s, and `gathers::<T>()`.
+#[inline(always)]
+pub(crate) unsafe fn optical_depths_of<T: 'static>(
+    splat: &Splat<'_>,
+    data: &[T],
+    rays: &[Ray],
+    cells: &[u32],
+    k: u32,
+) -> ([f32; LANES], [u32; LANES]) {
+    use std::any::TypeId;
+    macro_rules! run {
+        ($t:ty) => {{
+            // SAFETY: T is $t (compared below): the same slice, retyped; the rest the caller's.
+            unsafe {
+                let d = std::slice::from_raw_parts(data.as_ptr() as *const $t, data.len());
+                optical_depths::<$t>(splat, d, rays, cells, k)
+            }
+        }};
+    }
+    let t = TypeId::of::<T>();
+    if t == TypeId::of::<f32>() {
+        run!(f32)
+    } else if t == TypeId::of::<u16>() {
+        run!(u16)
+    } else {
+        debug_assert!(t == TypeId::of::<u8>());
+        run!(u8)
     }
 }

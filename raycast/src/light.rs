@@ -221,6 +221,10 @@ impl EaVolume {
         let rows_per_job = (cells[1] / 32).max(1);
         #[cfg(target_arch = "x86_64")]
         let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+        // SAFETY: the CPU has AVX2 and FMA (checked).
+        #[cfg(target_arch = "x86_64")]
+        let splat = (fma && self.lanes_apply(v, data, None) && crate::lanes::gathers::<T>())
+            .then(|| unsafe { crate::lanes::Splat::new(self) });
         for (k, &row) in blur.iter().enumerate().take(slices) {
             // Cells further than the blur reaches from every dirty cell gather 1.
             let reach_r = if row.wide {
@@ -255,6 +259,8 @@ impl EaVolume {
                 min_taps: s.blur_samples.clamp(1, 9) as usize,
                 d,
                 k,
+                #[cfg(target_arch = "x86_64")]
+                splat: splat.as_ref(),
             };
             let span = cells[0] * rows_per_job;
             next.par_chunks_mut(span)
@@ -313,6 +319,10 @@ struct Sweep<'a> {
     min_taps: usize,
     d: f32,
     k: usize,
+    /// Where the optical depths are taken eight cells at a time (`crate::lanes`): the CPU has
+    /// AVX2 and FMA and `EaVolume::lanes_apply` holds.
+    #[cfg(target_arch = "x86_64")]
+    splat: Option<&'a crate::lanes::Splat<'a>>,
 }
 
 impl Sweep<'_> {
@@ -339,6 +349,9 @@ impl Sweep<'_> {
         let kk = k as u32;
         let c0 = first * cw;
         let mut occ_row: Vec<f32> = Vec::new();
+        // Cells of a row whose optical depth the lanes take (`lanes`).
+        #[cfg(target_arch = "x86_64")]
+        let (lanes, mut need) = (self.splat, Vec::<u32>::with_capacity(cw));
         for (ry, ((out, nk), dn)) in out
             .chunks_mut(cw)
             .zip(nk.chunks_mut(cw))
@@ -374,6 +387,13 @@ impl Sweep<'_> {
                     self.gather(c)
                 };
                 o[(c - c0) * KB + k % KB] = occl;
+                #[cfg(target_arch = "x86_64")]
+                if kk >= *nk && lanes.is_some() {
+                    // The sample's optical depth is taken below, eight cells at a time.
+                    need.push(x as u32);
+                    *leave = [occl, (1.0 - occl) * (age + d)];
+                    continue;
+                }
                 let tau = if kk >= *nk {
                     let (tau, after) = ev.optical_depth(v, data, &self.rays[c], kk);
                     *nk = after;
@@ -386,6 +406,38 @@ impl Sweep<'_> {
                     lo = lo.min(x as i32);
                     hi = hi.max(x as i32);
                 }
+            }
+            #[cfg(target_arch = "x86_64")]
+            if let Some(splat) = lanes {
+                for xs in need.chunks(crate::lanes::LANES) {
+                    let mut cells = [0u32; crate::lanes::LANES];
+                    for (c, &x) in cells.iter_mut().zip(xs) {
+                        *c = (c0 + ry * cw + x as usize) as u32;
+                    }
+                    // SAFETY: `lanes` is set only where the CPU has AVX2 and FMA and
+                    // `EaVolume::lanes_apply` holds for the view and the samples; the cells
+                    // index the rays.
+                    let (tau, next) = unsafe {
+                        crate::lanes::optical_depths_of(
+                            splat,
+                            data,
+                            self.rays,
+                            &cells[..xs.len()],
+                            kk,
+                        )
+                    };
+                    for (i, &x) in xs.iter().enumerate() {
+                        let x = x as usize;
+                        nk[x] = next[i];
+                        let leave = &mut out[x];
+                        leave[0] *= ev.exp_neg(tau[i]);
+                        if leave[0] != 1.0 || leave[1] != 0.0 {
+                            lo = lo.min(x as i32);
+                            hi = hi.max(x as i32);
+                        }
+                    }
+                }
+                need.clear();
             }
             *dn = (lo, hi);
         }
