@@ -3,6 +3,10 @@
   python3 bench/image_compare.py diff A.png B.png
       mean and 99th percentile of the per-pixel mean absolute RGB difference, in 8-bit levels,
       and how many pixels differ by more than 8 levels.
+  python3 bench/image_compare.py channels REF.png IMG.png [--background 255,255,255]
+      per pixel the largest absolute difference over R, G and B, in 8-bit levels: its mean over
+      all pixels, its mean, 99th percentile and maximum over the pixels where REF is not the
+      background colour (the volume's pixels), and the share of pixels that differ at all.
   python3 bench/image_compare.py darkened REF.png IMG.png [--background 250]
       the pixels of REF darker than BACKGROUND in grey (what is drawn on a white background),
       and how many of them IMG draws at less than half REF's grey level (darkened)."""
@@ -21,6 +25,10 @@ def main():
     d = sub.add_parser('diff')
     d.add_argument('a')
     d.add_argument('b')
+    c = sub.add_parser('channels')
+    c.add_argument('ref')
+    c.add_argument('img')
+    c.add_argument('--background', default='255,255,255')
     k = sub.add_parser('darkened')
     k.add_argument('ref')
     k.add_argument('img')
@@ -33,6 +41,20 @@ def main():
         e = np.abs(x - y).mean(axis=2)
         print(f'mean {e.mean():.2f} levels, 99th percentile {np.percentile(e, 99):.1f}, '
               f'{int((e > 8).sum())} of {e.size} pixels differ by more than 8')
+    elif a.what == 'channels':
+        x, y = load(a.ref, 'RGB'), load(a.img, 'RGB')
+        if x.shape != y.shape:
+            raise SystemExit(f'{a.ref} and {a.img} differ in size')
+        bg = np.array([float(v) for v in a.background.split(',')])
+        if bg.shape != (3,):
+            raise SystemExit(f'--background {a.background}: three 8-bit values, R,G,B')
+        e = np.abs(x - y).max(axis=2)
+        vol = np.abs(x - bg).max(axis=2) > 0
+        if not vol.any():
+            raise SystemExit(f'{a.ref} is all background')
+        print(f'mean {e.mean():.3f} levels over all pixels; over the {int(vol.sum())} volume pixels '
+              f'mean {e[vol].mean():.3f}, 99th percentile {np.percentile(e[vol], 99):.0f}, '
+              f'max {e.max():.0f}; {100.0 * (e > 0).mean():.1f}% of the pixels differ')
     else:
         ref, img = load(a.ref, 'L'), load(a.img, 'L')
         if ref.shape != img.shape:
