@@ -109,17 +109,11 @@ fn a_volume_or_mesh_past_the_memory_left_is_an_error_naming_it() {
             "REFUSED the GPU ran out of memory for tube mesh 0 (90 MB)",
         ),
     ] {
-        let exe = std::env::current_exe().unwrap();
-        let out = std::process::Command::new(exe)
-            .args([
-                "a_volume_or_mesh_past_the_memory_left_is_an_error_naming_it",
-                "--exact",
-                "--nocapture",
-                "--test-threads=1",
-            ])
-            .env(CHILD, what)
-            .output()
-            .unwrap();
+        let out = test_support::run_test_in_child(
+            "a_volume_or_mesh_past_the_memory_left_is_an_error_naming_it",
+            CHILD,
+            what,
+        );
         let text = String::from_utf8_lossy(&out.stdout).to_string();
         assert!(
             out.status.success(),

@@ -69,17 +69,11 @@ fn child(volume: &Path, device: &str) {
 
 /// Runs the child on `volume` and `device`: its peak and mean opacity.
 fn run(volume: &Path, device: &str) -> (u64, f64) {
-    let exe = std::env::current_exe().unwrap();
-    let out = std::process::Command::new(exe)
-        .args([
-            "sixteen_bit_volumes_render_within_their_stored_size",
-            "--exact",
-            "--nocapture",
-            "--test-threads=1",
-        ])
-        .env(CHILD, format!("{}\n{device}", volume.display()))
-        .output()
-        .unwrap();
+    let out = test_support::run_test_in_child(
+        "sixteen_bit_volumes_render_within_their_stored_size",
+        CHILD,
+        &format!("{}\n{device}", volume.display()),
+    );
     let text = String::from_utf8_lossy(&out.stdout).to_string();
     assert!(
         out.status.success(),

@@ -77,18 +77,11 @@ fn ten_million_points_round_trip_with_bounded_memory() {
         "writing held the file"
     );
 
-    let exe = std::env::current_exe().unwrap();
-    let out = std::process::Command::new(exe)
-        .args([
-            "--exact",
-            "ten_million_points_round_trip_with_bounded_memory",
-            "--nocapture",
-            "--test-threads",
-            "1",
-        ])
-        .env(CHILD, format!("{}\n{}", input.display(), output.display()))
-        .output()
-        .unwrap();
+    let out = test_support::run_test_in_child(
+        "ten_million_points_round_trip_with_bounded_memory",
+        CHILD,
+        &format!("{}\n{}", input.display(), output.display()),
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),

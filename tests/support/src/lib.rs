@@ -73,3 +73,16 @@ pub fn peak_resident_bytes() -> u64 {
         .expect("VmHWM in kB");
     kb * 1024
 }
+
+/// Runs the test `name` of the calling test binary alone, in a child process of its own
+/// (`--exact --nocapture --test-threads=1`), with the environment variable `var` set to
+/// `value`, and returns its status and output. Tests that need a process to themselves (an
+/// address-space limit, a peak resident size) run their measuring half this way.
+pub fn run_test_in_child(name: &str, var: &str, value: &str) -> std::process::Output {
+    let exe = std::env::current_exe().expect("the test binary's path");
+    std::process::Command::new(exe)
+        .args([name, "--exact", "--nocapture", "--test-threads=1"])
+        .env(var, value)
+        .output()
+        .expect("starting the test binary again")
+}
