@@ -602,6 +602,35 @@ pub(crate) fn gathers<T: 'static>() -> bool {
     [TypeId::of::<f32>(), TypeId::of::<u16>(), TypeId::of::<u8>()].contains(&TypeId::of::<T>())
 }
 
+/// `$body` with `$d` the slice `$data` of `$t`s retyped to its stored type (one the lanes
+/// gather, [`gathers`]) and `$g` naming that type; `$other` for any other type.
+macro_rules! by_stored_type {
+    ($t:ty, $data:expr, $d:ident: $g:ident => $body:expr, else $other:expr) => {{
+        use std::any::TypeId;
+        let data = $data;
+        macro_rules! with {
+            ($s:ty) => {{
+                type $g = $s;
+                // SAFETY: the element type is $s (compared below): the same slice, retyped.
+                let $d: &[$g] =
+                    unsafe { std::slice::from_raw_parts(data.as_ptr() as *const $g, data.len()) };
+                $body
+            }};
+        }
+        let t = TypeId::of::<$t>();
+        if t == TypeId::of::<f32>() {
+            with!(f32)
+        } else if t == TypeId::of::<u16>() {
+            with!(u16)
+        } else if t == TypeId::of::<u8>() {
+            with!(u8)
+        } else {
+            $other
+        }
+    }};
+}
+pub(crate) use by_stored_type;
+
 /// [`optical_depths`] over `data` retyped to its stored type (one of [`gathers`]).
 ///
 /// # Safety
@@ -614,23 +643,8 @@ pub(crate) unsafe fn optical_depths_of<T: 'static>(
     cells: &[u32],
     k: u32,
 ) -> ([f32; LANES], [u32; LANES]) {
-    use std::any::TypeId;
-    macro_rules! run {
-        ($t:ty) => {{
-            // SAFETY: T is $t (compared below): the same slice, retyped; the rest the caller's.
-            unsafe {
-                let d = std::slice::from_raw_parts(data.as_ptr() as *const $t, data.len());
-                optical_depths::<$t>(splat, d, rays, cells, k)
-            }
-        }};
-    }
-    let t = TypeId::of::<T>();
-    if t == TypeId::of::<f32>() {
-        run!(f32)
-    } else if t == TypeId::of::<u16>() {
-        run!(u16)
-    } else {
-        debug_assert!(t == TypeId::of::<u8>());
-        run!(u8)
-    }
+    by_stored_type!(T, data, d: G => {
+        // SAFETY: the caller's.
+        unsafe { optical_depths::<G>(splat, d, rays, cells, k) }
+    }, else unreachable!("samples the lanes do not gather"))
 }

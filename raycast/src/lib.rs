@@ -669,31 +669,15 @@ impl EaVolume {
         lv: &LightVolume,
         rays: &mut [(usize, Ray)],
     ) -> bool {
-        use std::any::TypeId;
-        macro_rules! run {
-            ($t:ty) => {{
-                // SAFETY: T is $t (compared below): the same slice, retyped.
-                let d =
-                    unsafe { std::slice::from_raw_parts(data.as_ptr() as *const $t, data.len()) };
+        lanes::by_stored_type!(T, data, d: G => {
+            // SAFETY: the caller's.
+            let splat = unsafe { lanes::Splat::new(self) };
+            for l in rays.chunks_mut(lanes::LANES) {
                 // SAFETY: the caller's.
-                let splat = unsafe { lanes::Splat::new(self) };
-                for l in rays.chunks_mut(lanes::LANES) {
-                    // SAFETY: the caller's.
-                    unsafe { lanes::march::<$t, LIT>(&splat, d, v, lv, l) };
-                }
-                true
-            }};
-        }
-        let t = TypeId::of::<T>();
-        if t == TypeId::of::<f32>() {
-            run!(f32)
-        } else if t == TypeId::of::<u16>() {
-            run!(u16)
-        } else if t == TypeId::of::<u8>() {
-            run!(u8)
-        } else {
-            false
-        }
+                unsafe { lanes::march::<G, LIT>(&splat, d, v, lv, l) };
+            }
+            true
+        }, else false)
     }
 
     /// The grid's last index per axis.
