@@ -28,6 +28,14 @@
 //! Each ray only visits the slices where it is inside the grid's box, and empty space is
 //! skipped per brick of 8^3 cells whose value range the transfer function maps to zero
 //! extinction ([`occupancy`]); both are exact, and the CPU twin, which does neither, checks it.
+//! A third departure, for speed, on every path: rays end once their opacity passes
+//! [`OPAQUE`] (1 - 1/128, about where VTK's fixed-point ray caster ends them; the paper's
+//! Algorithm 2 takes every slice). Where Algorithm 2's eye-buffer update is implemented:
+//! [`reference()`] here (f64), `march` in `shaders/slice_pass.wgsl` (GPU), and on the CPU
+//! `raycast::EaVolume::advance` (a ray at a time) and `raycast/src/lanes.rs` (eight rays at a
+//! time, bit for bit the former); tests: `the_cpu_renderer_matches_the_f64_twin` and
+//! `eight_lanes_march_as_the_scalar_march_bit_for_bit_lit_or_not` (raycast), the GPU's in
+//! `engine/tests/ea_render.rs`.
 
 use crate::camera::Camera;
 use glam::{DMat4, DVec3, DVec4};
