@@ -45,8 +45,11 @@ def main():
         x, y = load(a.ref, 'RGB'), load(a.img, 'RGB')
         if x.shape != y.shape:
             raise SystemExit(f'{a.ref} and {a.img} differ in size')
-        bg = np.array([float(v) for v in a.background.split(',')])
-        if bg.shape != (3,):
+        try:
+            bg = np.array([float(v) for v in a.background.split(',')])
+        except ValueError:
+            bg = np.zeros(0)
+        if bg.shape != (3,) or not np.isfinite(bg).all():
             raise SystemExit(f'--background {a.background}: three 8-bit values, R,G,B')
         e = np.abs(x - y).max(axis=2)
         vol = np.abs(x - bg).max(axis=2) > 0
