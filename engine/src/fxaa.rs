@@ -74,8 +74,157 @@ impl FxaaPass {
     }
 }
 
+/// The pass on the CPU, for frames the native CPU renderer draws: `shaders/fxaa.wgsl`'s
+/// arithmetic in f32 on a `width x height` linear RGBA image (rows from the top), rows on
+/// rayon's threads. Tested against the pass (`the_cpu_twin_matches_the_pass`).
+pub fn fxaa_cpu(src: &[[f32; 4]], width: u32, height: u32) -> Vec<[f32; 4]> {
+    use rayon::prelude::*;
+    let (w, h) = (width as usize, height as usize);
+    assert_eq!(src.len(), w * h, "fxaa_cpu: the image is width x height");
+    let mut dst = vec![[0.0f32; 4]; src.len()];
+    if w == 0 || h == 0 {
+        return dst;
+    }
+    let texel = |x: i64, y: i64| -> [f32; 4] {
+        let x = x.clamp(0, w as i64 - 1) as usize;
+        let y = y.clamp(0, h as i64 - 1) as usize;
+        src[x + w * y]
+    };
+    let mix = |a: [f32; 4], b: [f32; 4], t: f32| std::array::from_fn(|i| a[i] + (b[i] - a[i]) * t);
+    // Bilinear fetch at a continuous pixel position (texel centres at half-integers).
+    let fetch = |t: [f32; 2]| -> [f32; 4] {
+        let s = [t[0] - 0.5, t[1] - 0.5];
+        let b = s.map(f32::floor);
+        let f = [s[0] - b[0], s[1] - b[1]];
+        let (x, y) = (b[0] as i64, b[1] as i64);
+        let a = mix(texel(x, y), texel(x + 1, y), f[0]);
+        let c = mix(texel(x, y + 1), texel(x + 1, y + 1), f[0]);
+        mix(a, c, f[1])
+    };
+    let luma = |c: [f32; 4]| (c[0] * 0.299 + c[1] * 0.587 + c[2] * 0.114).max(0.0).sqrt();
+    // The luma of the bilinear fetch at each pixel corner (x, y integers: the mean of the four
+    // pixels around it, as `fetch` computes it), once per corner rather than four times.
+    let cw = w + 1;
+    let mut corners = vec![0.0f32; cw * (h + 1)];
+    corners.par_chunks_mut(cw).enumerate().for_each(|(y, row)| {
+        for (x, l) in row.iter_mut().enumerate() {
+            *l = luma(fetch([x as f32, y as f32]));
+        }
+    });
+    dst.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, out) in row.iter_mut().enumerate() {
+            let centre = [x as f32 + 0.5, y as f32 + 0.5];
+            let at = |dx: f32, dy: f32| [centre[0] + dx, centre[1] + dy];
+            let m = src[x + w * y];
+            let l_m = luma(m);
+            let (l_nw, l_ne) = (corners[x + cw * y], corners[x + 1 + cw * y]);
+            let (l_sw, l_se) = (corners[x + cw * (y + 1)], corners[x + 1 + cw * (y + 1)]);
+            let l_min = l_m.min(l_nw.min(l_ne).min(l_sw.min(l_se)));
+            let l_max = l_m.max(l_nw.max(l_ne).max(l_sw.max(l_se)));
+            // Low contrast: no edge (FXAA's edge threshold 1/8, minimum 1/32).
+            if l_max - l_min < (1.0f32 / 32.0).max(l_max / 8.0) {
+                *out = m;
+                continue;
+            }
+            // Edge direction from the diagonal luma differences (pixel y down).
+            let dir = [
+                -((l_nw + l_ne) - (l_sw + l_se)),
+                (l_nw + l_sw) - (l_ne + l_se),
+            ];
+            let reduce = ((l_nw + l_ne + l_sw + l_se) * 0.25 * (1.0 / 8.0)).max(1.0 / 128.0);
+            let rcp = 1.0 / (dir[0].abs().min(dir[1].abs()) + reduce);
+            let dir = dir.map(|d| (d * rcp).clamp(-8.0, 8.0));
+            let along = |s: f32| at(dir[0] * s, dir[1] * s);
+            let (p, q) = (fetch(along(1.0 / 3.0 - 0.5)), fetch(along(2.0 / 3.0 - 0.5)));
+            let a: [f32; 4] = std::array::from_fn(|i| 0.5 * (p[i] + q[i]));
+            let (p, q) = (fetch(along(-0.5)), fetch(along(0.5)));
+            let b: [f32; 4] = std::array::from_fn(|i| a[i] * 0.5 + 0.25 * (p[i] + q[i]));
+            let l_b = luma(b);
+            // Colour only: alpha (coverage) stays the pixel's own.
+            let c = if l_b < l_min || l_b > l_max { a } else { b };
+            *out = [c[0], c[1], c[2], m[3]];
+        }
+    });
+    dst
+}
+
 #[cfg(test)]
 mod tests {
+    use super::*;
+
+    /// A test image: a hard diagonal edge, a thin bright line, noise (a hash per pixel) in
+    /// one quadrant and a smooth ramp, alpha varying.
+    fn image(w: u32, h: u32) -> Vec<[f32; 4]> {
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                let hash = ((i.wrapping_mul(2_654_435_761) >> 16) % 1000) as f32 / 1000.0;
+                let c = if x < w as f32 / 2.0 && y < h as f32 / 2.0 {
+                    [hash, hash * 0.5, 1.0 - hash]
+                } else if (x - 2.0 * y).abs() < 1.0 || x > 0.7 * y + 10.0 {
+                    [0.9, 0.8, 0.7]
+                } else {
+                    [x / w as f32 * 0.2, 0.1, 0.05]
+                };
+                [c[0], c[1], c[2], 0.5 + 0.5 * (y / h as f32)]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_cpu_twin_matches_the_pass() {
+        let Ok(g) = Gpu::new() else {
+            eprintln!("skipped: no GPU adapter");
+            return;
+        };
+        let (w, h) = (61, 47);
+        let img = image(w, h);
+        let input = g.buffer(
+            "fxaa input",
+            bytemuck::cast_slice(&img),
+            wgpu::BufferUsages::STORAGE,
+        );
+        let pass = FxaaPass::new(&g, w, h, &input);
+        let (_, back) = g.output_buffers("fxaa test", w as u64 * h as u64 * 16);
+        let mut enc = g.device.create_command_encoder(&Default::default());
+        pass.record(&mut enc);
+        enc.copy_buffer_to_buffer(&pass.output, 0, &back, 0, w as u64 * h as u64 * 16);
+        g.queue.submit([enc.finish()]);
+        let bytes = g.read_buffer(&back).unwrap();
+        let gpu: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+        let cpu = fxaa_cpu(&img, w, h);
+        let changed = cpu.iter().zip(&img).filter(|(a, b)| a != b).count();
+        assert!(changed > 200, "the image has edges FXAA smooths: {changed}");
+        let worst = cpu
+            .iter()
+            .zip(gpu)
+            .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "CPU twin against the pass: {worst}");
+    }
+
+    /// Flat and low-contrast images pass unchanged; a hard edge is blended, within the range
+    /// of its two sides, and alpha is never touched.
+    #[test]
+    fn fxaa_blends_edges_only() {
+        let flat = vec![[0.3, 0.4, 0.5, 0.7]; 12 * 9];
+        assert_eq!(fxaa_cpu(&flat, 12, 9), flat);
+        let faint: Vec<[f32; 4]> = (0..100)
+            .map(|i| [0.5 + 0.01 * (i % 2) as f32, 0.5, 0.5, 1.0])
+            .collect();
+        assert_eq!(fxaa_cpu(&faint, 10, 10), faint);
+        let img = image(40, 30);
+        let out = fxaa_cpu(&img, 40, 30);
+        let mut blended = 0;
+        for (a, b) in out.iter().zip(&img) {
+            assert_eq!(a[3], b[3]);
+            assert!(a[..3].iter().all(|c| (0.0..=1.0).contains(c)));
+            blended += (a != b) as usize;
+        }
+        assert!(blended > 50, "{blended}");
+        assert!(fxaa_cpu(&[], 0, 0).is_empty());
+    }
+
     #[test]
     fn the_uniform_matches_its_wgsl_struct() {
         crate::prelude::assert_layout!(

@@ -760,8 +760,7 @@ pub fn settings(s: &Scene) -> Settings {
         geometry_extinction: r.geometry_extinction,
         column: r.geometry_shadow == spec::GeometryShadow::Column,
         combine: r.combine,
-        // A two-valued image has no use for smoothed edges.
-        fxaa: r.fxaa && r.bits != 1,
+        fxaa: fxaa_on(r),
         light: [l.ambient, l.diffuse, l.specular, l.shininess],
         occlusion_cell: r.occlusion_cell,
         cone: r.occlusion_model == spec::OcclusionModel::Cone,
@@ -1154,10 +1153,18 @@ pub fn upload_for<'g>(
     })
 }
 
+/// Whether the frame's final image goes through FXAA (`render.fxaa`; a two-valued image has no
+/// use for smoothed edges), on either device.
+fn fxaa_on(r: &spec::RenderSpec) -> bool {
+    r.fxaa && r.bits != 1
+}
+
 /// A frame of the native CPU renderer as the renderer's output: the image, the volumetric
 /// occlusion and the depth where the volume passed half opacity (as the GPU's AOVs of a
 /// volume-only frame), every surface term's layer 1 (no surfaces), timed `opts.frames` times
-/// (`total_ms` the median; passes `light` and `raycast` when pass times are asked for).
+/// (`total_ms` the median; passes `light`, `raycast` and `fxaa` when pass times are asked
+/// for). With `fxaa` the image goes through the GPU pass's FXAA on the CPU
+/// (`engine::fxaa::fxaa_cpu`), so that both devices draw the same image.
 fn cpu_frame(
     ev: &raycast::EaVolume,
     v: &EaView,
@@ -1165,16 +1172,23 @@ fn cpu_frame(
     light: Option<&raycast::LightSettings>,
     projection: Option<occlusion::projection::Extremum>,
     layers: &[(&'static str, Option<SurfaceAo>)],
+    fxaa: bool,
 ) -> renderer::Output {
     let mut frames_ms = vec![];
     let mut light_ms = vec![];
+    let mut fxaa_ms = vec![];
     let mut frame = None;
     for _ in 0..opts.frames.max(1) {
         let t = std::time::Instant::now();
-        let f = match projection {
+        let mut f = match projection {
             Some(which) => ev.render_projection(v, which),
             None => ev.render_frame(v, light),
         };
+        if fxaa {
+            let t = std::time::Instant::now();
+            f.image = engine::fxaa::fxaa_cpu(&f.image, v.width, v.height);
+            fxaa_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        }
         frames_ms.push(t.elapsed().as_secs_f64() * 1e3);
         light_ms.push(f.light_ms);
         frame = Some(f);
@@ -1201,12 +1215,18 @@ fn cpu_frame(
     let n = frame.image.len();
     let mut passes = std::collections::BTreeMap::new();
     if opts.pass_timings {
-        if light.is_some() {
-            let l = median(&light_ms);
-            passes.insert("light".to_string(), l);
-            passes.insert("raycast".to_string(), (total_ms - l).max(0.0));
+        let l = if light.is_some() {
+            median(&light_ms)
         } else {
-            passes.insert("raycast".to_string(), total_ms);
+            0.0
+        };
+        let a = if fxaa { median(&fxaa_ms) } else { 0.0 };
+        if light.is_some() {
+            passes.insert("light".to_string(), l);
+        }
+        passes.insert("raycast".to_string(), (total_ms - l - a).max(0.0));
+        if fxaa {
+            passes.insert("fxaa".to_string(), a);
         }
     }
     renderer::Output {
@@ -1326,6 +1346,7 @@ impl Uploaded<'_> {
                     _ => None,
                 },
                 &layers,
+                fxaa_on(&s.render),
             )),
             None => self
                 .renderer
