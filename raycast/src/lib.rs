@@ -106,6 +106,9 @@ pub struct EaVolume {
     /// (`None`: they are not, or they are stored narrow already), made at the first lit frame
     /// for the light sweep.
     sweep_samples: std::sync::OnceLock<Option<Samples>>,
+    /// The last frame's light volume, kept for the next (`light::LightVolume`): tens of
+    /// megabytes a frame allocated afresh cost their page faults and a fill every frame.
+    light_store: std::sync::Mutex<Vec<f32>>,
     /// The transfer function is transparent below its values (its first point has no
     /// extinction) rather than above them: which side of the extreme empty blocks lie on.
     clear_below: bool,
@@ -236,6 +239,7 @@ impl EaVolume {
             slopes,
             hi: vol.dims.map(|n| n as f32 - 1.0),
             sweep_samples: std::sync::OnceLock::new(),
+            light_store: std::sync::Mutex::new(Vec::new()),
             clear_below: points.first().is_none_or(|p| p.2 <= 0.0),
             tf: points,
             exp_table: (0..=EXP_N + 1)
@@ -454,6 +458,9 @@ impl EaVolume {
                 }
                 self.band(job);
             });
+        if let Some(lv) = lv {
+            self.keep_light(lv);
+        }
         Frame {
             image: out.iter().map(|p| p.rgba).collect(),
             volumetric: out.iter().map(|p| p.volumetric).collect(),
@@ -1339,6 +1346,54 @@ mod tests {
                     .fold(0.0, f64::max);
                 assert!(worst < 2e-3, "{storage}: {worst}");
             }
+        }
+    }
+
+    /// The light volume kept from one frame for the next (`light_store`) leaves nothing
+    /// behind: after frames of other views, sizes and slice counts, a lit frame is bit for bit
+    /// the frame of a volume that drew nothing before.
+    #[test]
+    fn a_lit_frame_is_the_same_after_other_frames() {
+        let dims = [29, 23, 19];
+        let blob = blob(dims);
+        let data: Vec<f32> = blob.fields[0]
+            .data
+            .iter()
+            .map(|v| if v.is_nan() { 0.0 } else { *v })
+            .collect();
+        let field = Field {
+            name: "f".into(),
+            components: 1,
+            stored: ScalarType::F32,
+            data: data.clone(),
+        };
+        let vol = Volume::new(dims, blob.affine, Space::File, field).unwrap();
+        let tf = Transfer::ramp(0.1, 0.9, [1.0, 0.8, 0.6], 3.0);
+        let light = LightSettings {
+            cell: 2,
+            cone: true,
+            theta_deg: 30.0,
+            blur_samples: 3,
+        };
+        let view = |az: f64, w: u32, h: u32, slices: Option<u32>| {
+            let cam = Camera::orbit(vol.bounds(), az, 25.0, 2.0, Some(40.0));
+            EaView::new(&vol, cam, w, h, slices, None, [1.0; 3]).unwrap()
+        };
+        let target = view(30.0, 40, 30, Some(64));
+        let fresh = EaVolume::new(&vol, &data, &tf).unwrap();
+        let want = fresh.render_frame(&target, Some(&light));
+        assert!(want.image.iter().any(|p| p[3] > 0.3), "an opaque part");
+        let ev = EaVolume::new(&vol, &data, &tf).unwrap();
+        // Frames within twice the target's light volume (a larger one's memory is dropped).
+        let others = [
+            view(200.0, 40, 30, Some(64)),
+            view(120.0, 48, 36, Some(80)),
+            view(300.0, 36, 26, Some(50)),
+        ];
+        for other in others {
+            ev.render_frame(&other, Some(&light));
+            let got = ev.render_frame(&target, Some(&light));
+            assert!(got.image == want.image && got.volumetric == want.volumetric);
         }
     }
 

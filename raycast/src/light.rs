@@ -173,6 +173,11 @@ pub(crate) struct Footprint {
 type Leave = [f32; 2];
 
 impl EaVolume {
+    /// Keeps `lv`'s values for the next frame's sweep (see `EaVolume::light_store`).
+    pub(crate) fn keep_light(&self, lv: LightVolume) {
+        *self.light_store.lock().unwrap_or_else(|e| e.into_inner()) = lv.o;
+    }
+
     /// The light volume of view `v`: slice after slice, every cell's `O_k` from the previous
     /// slice's light, then the light leaving through the slab.
     pub(crate) fn sweep<T: Voxel>(
@@ -187,11 +192,21 @@ impl EaVolume {
         let cells = [w.div_ceil(cell), h.div_ceil(cell)];
         let n = cells[0] * cells[1];
         let slices = v.slices.max(1) as usize;
+        // The last frame's values, each block reset to 1 at its first slice (below).
+        let mut o =
+            std::mem::take(&mut *self.light_store.lock().unwrap_or_else(|e| e.into_inner()));
+        let len = n * slices.div_ceil(KB) * KB;
+        if o.capacity() > 2 * len {
+            // Not a much larger frame's memory held for a small one.
+            o = Vec::new();
+        }
+        o.truncate(len);
+        o.resize(len, 1.0);
         let mut lv = LightVolume {
             cells,
             cell,
             slices,
-            o: vec![1.0; n * slices.div_ceil(KB) * KB],
+            o,
         };
         // The cells' centre rays, as the pixels' (a continuous pixel position).
         let rays: Vec<Ray> = (0..n)
@@ -348,6 +363,10 @@ impl Sweep<'_> {
         let (k, d) = (self.k, self.d);
         let kk = k as u32;
         let c0 = first * cw;
+        if k % KB == 0 {
+            // A new block of slices: its values left from the last frame are reset to 1.
+            o.fill(1.0);
+        }
         let mut occ_row: Vec<f32> = Vec::new();
         // Cells of a row whose optical depth the lanes take (`lanes`).
         #[cfg(target_arch = "x86_64")]
