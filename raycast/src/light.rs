@@ -389,6 +389,52 @@ impl Sweep<'_> {
                 occ_row.resize(cw, 0.0);
                 self.stencil_row(y, span_lo, span_hi as usize, &mut occ_row);
             }
+            #[cfg(target_arch = "x86_64")]
+            if let (true, Some(splat)) = (by_row, lanes) {
+                // The paper's blur with the lanes: the loop below's values, in loops over the
+                // row instead of branches per cell. Outside the span the light arriving is 1
+                // (the block holds 1 already: nothing to store).
+                let (s0, s1) = (span_lo, span_hi as usize);
+                occ_row[..s0].fill(1.0);
+                occ_row[s1 + 1..].fill(1.0);
+                let orow = &mut o[ry * cw * KB..][..cw * KB];
+                for (x, &occl) in occ_row.iter().enumerate().take(s1 + 1).skip(s0) {
+                    orow[x * KB + k % KB] = occl;
+                }
+                for (leave, &occl) in out.iter_mut().zip(&occ_row) {
+                    *leave = [occl, (1.0 - occl) * d];
+                }
+                // The cells whose sample is due: its optical depth, eight cells at a time.
+                need.clear();
+                need.extend((0..cw as u32).filter(|&x| kk >= nk[x as usize]));
+                for xs in need.chunks(crate::lanes::LANES) {
+                    let mut cells = [0u32; crate::lanes::LANES];
+                    for (c, &x) in cells.iter_mut().zip(xs) {
+                        *c = (c0 + ry * cw + x as usize) as u32;
+                    }
+                    // SAFETY: as below.
+                    let (tau, next) = unsafe {
+                        crate::lanes::optical_depths_of(
+                            splat,
+                            data,
+                            self.rays,
+                            &cells[..xs.len()],
+                            kk,
+                        )
+                    };
+                    for (i, &x) in xs.iter().enumerate() {
+                        nk[x as usize] = next[i];
+                        out[x as usize][0] *= ev.exp_neg(tau[i]);
+                    }
+                }
+                let lit = |l: &Leave| *l != [1.0, 0.0];
+                *dn = match (out.iter().position(lit), out.iter().rposition(lit)) {
+                    (Some(lo), Some(hi)) => (lo as i32, hi as i32),
+                    _ => (i32::MAX, i32::MIN),
+                };
+                need.clear();
+                continue;
+            }
             let (mut lo, mut hi) = (i32::MAX, i32::MIN);
             for (x, (leave, nk)) in out.iter_mut().zip(nk.iter_mut()).enumerate() {
                 let clear = (x as i32) < rlo || (x as i32) > rhi;
