@@ -596,6 +596,36 @@ pub(crate) unsafe fn optical_depths<T: Gather>(
     }
 }
 
+/// Appends to `out` the indices `x` of `next` (from 0) with `next[x] <= k`: the cells whose
+/// sample is due at slice `k`, eight compares at a time.
+///
+/// # Safety
+/// The CPU has AVX2.
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn due(next: &[u32], k: u32, out: &mut Vec<u32>) {
+    let kv = _mm256_set1_epi32(k as i32);
+    let mut chunks = next.chunks_exact(LANES);
+    let mut x0 = 0u32;
+    for c in &mut chunks {
+        // SAFETY: eight u32 of the chunk; unsigned `n <= k` as `min(n, k) == n`.
+        let mut bits = unsafe {
+            let n = _mm256_loadu_si256(c.as_ptr() as *const __m256i);
+            let le = _mm256_cmpeq_epi32(_mm256_min_epu32(n, kv), n);
+            _mm256_movemask_ps(_mm256_castsi256_ps(le)) as u32
+        };
+        while bits != 0 {
+            out.push(x0 + bits.trailing_zeros());
+            bits &= bits - 1;
+        }
+        x0 += LANES as u32;
+    }
+    for (i, &n) in chunks.remainder().iter().enumerate() {
+        if n <= k {
+            out.push(x0 + i as u32);
+        }
+    }
+}
+
 /// Whether the lanes gather samples stored as `T` (`f32`, `u16`, `u8`).
 pub(crate) fn gathers<T: 'static>() -> bool {
     use std::any::TypeId;

@@ -233,7 +233,7 @@ impl EaVolume {
         // Per cell, the next slice whose sample may not be transparent.
         let mut next_k: Vec<u32> = vec![0; n];
         let d = v.dz as f32;
-        let rows_per_job = (cells[1] / 32).max(1);
+        let rows_per_job = (cells[1] / (4 * rayon::current_num_threads())).max(1);
         #[cfg(target_arch = "x86_64")]
         let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
         // SAFETY: the CPU has AVX2 and FMA (checked).
@@ -398,15 +398,20 @@ impl Sweep<'_> {
                 occ_row[..s0].fill(1.0);
                 occ_row[s1 + 1..].fill(1.0);
                 let orow = &mut o[ry * cw * KB..][..cw * KB];
-                for (x, &occl) in occ_row.iter().enumerate().take(s1 + 1).skip(s0) {
-                    orow[x * KB + k % KB] = occl;
+                let j = k % KB;
+                for (o, &occl) in orow[s0 * KB..(s1 + 1) * KB]
+                    .chunks_exact_mut(KB)
+                    .zip(&occ_row[s0..=s1])
+                {
+                    o[j] = occl;
                 }
                 for (leave, &occl) in out.iter_mut().zip(&occ_row) {
                     *leave = [occl, (1.0 - occl) * d];
                 }
                 // The cells whose sample is due: its optical depth, eight cells at a time.
                 need.clear();
-                need.extend((0..cw as u32).filter(|&x| kk >= nk[x as usize]));
+                // SAFETY: `lanes` is set only where the CPU has AVX2.
+                unsafe { crate::lanes::due(nk, kk, &mut need) };
                 for xs in need.chunks(crate::lanes::LANES) {
                     let mut cells = [0u32; crate::lanes::LANES];
                     for (c, &x) in cells.iter_mut().zip(xs) {
