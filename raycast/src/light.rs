@@ -412,26 +412,7 @@ impl Sweep<'_> {
                 need.clear();
                 // SAFETY: `lanes` is set only where the CPU has AVX2.
                 unsafe { crate::lanes::due(nk, kk, &mut need) };
-                for xs in need.chunks(crate::lanes::LANES) {
-                    let mut cells = [0u32; crate::lanes::LANES];
-                    for (c, &x) in cells.iter_mut().zip(xs) {
-                        *c = (c0 + ry * cw + x as usize) as u32;
-                    }
-                    // SAFETY: as below.
-                    let (tau, next) = unsafe {
-                        crate::lanes::optical_depths_of(
-                            splat,
-                            data,
-                            self.rays,
-                            &cells[..xs.len()],
-                            kk,
-                        )
-                    };
-                    for (i, &x) in xs.iter().enumerate() {
-                        nk[x as usize] = next[i];
-                        out[x as usize][0] *= ev.exp_neg(tau[i]);
-                    }
-                }
+                self.sample_due(ev, splat, data, c0 + ry * cw, &need, nk, out, |_, _| {});
                 let lit = |l: &Leave| *l != [1.0, 0.0];
                 *dn = match (out.iter().position(lit), out.iter().rposition(lit)) {
                     (Some(lo), Some(hi)) => (lo as i32, hi as i32),
@@ -479,37 +460,58 @@ impl Sweep<'_> {
             }
             #[cfg(target_arch = "x86_64")]
             if let Some(splat) = lanes {
-                for xs in need.chunks(crate::lanes::LANES) {
-                    let mut cells = [0u32; crate::lanes::LANES];
-                    for (c, &x) in cells.iter_mut().zip(xs) {
-                        *c = (c0 + ry * cw + x as usize) as u32;
+                self.sample_due(ev, splat, data, c0 + ry * cw, &need, nk, out, |x, leave| {
+                    if leave[0] != 1.0 || leave[1] != 0.0 {
+                        lo = lo.min(x as i32);
+                        hi = hi.max(x as i32);
                     }
-                    // SAFETY: `lanes` is set only where the CPU has AVX2 and FMA and
-                    // `EaVolume::lanes_apply` holds for the view and the samples; the cells
-                    // index the rays.
-                    let (tau, next) = unsafe {
-                        crate::lanes::optical_depths_of(
-                            splat,
-                            data,
-                            self.rays,
-                            &cells[..xs.len()],
-                            kk,
-                        )
-                    };
-                    for (i, &x) in xs.iter().enumerate() {
-                        let x = x as usize;
-                        nk[x] = next[i];
-                        let leave = &mut out[x];
-                        leave[0] *= ev.exp_neg(tau[i]);
-                        if leave[0] != 1.0 || leave[1] != 0.0 {
-                            lo = lo.min(x as i32);
-                            hi = hi.max(x as i32);
-                        }
-                    }
-                }
+                });
                 need.clear();
             }
             *dn = (lo, hi);
+        }
+    }
+
+    /// The optical depths of the row's cells `need` whose sample is due (the row's first cell
+    /// is `row0`), eight at a time (`crate::lanes`): each cell's next slice to sample in `nk`,
+    /// its light leaving in `out` times `exp(-tau)`, then `done(x, leave)`.
+    #[cfg(target_arch = "x86_64")]
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn sample_due<T: Voxel>(
+        &self,
+        ev: &EaVolume,
+        splat: &crate::lanes::Splat<'_>,
+        data: &[T],
+        row0: usize,
+        need: &[u32],
+        nk: &mut [u32],
+        out: &mut [Leave],
+        mut done: impl FnMut(usize, &Leave),
+    ) {
+        for xs in need.chunks(crate::lanes::LANES) {
+            let mut cells = [0u32; crate::lanes::LANES];
+            for (c, &x) in cells.iter_mut().zip(xs) {
+                *c = (row0 + x as usize) as u32;
+            }
+            // SAFETY: `splat` is set only where the CPU has AVX2 and FMA and
+            // `EaVolume::lanes_apply` holds for the view and the samples; the cells index the
+            // rays.
+            let (tau, next) = unsafe {
+                crate::lanes::optical_depths_of(
+                    splat,
+                    data,
+                    self.rays,
+                    &cells[..xs.len()],
+                    self.k as u32,
+                )
+            };
+            for (i, &x) in xs.iter().enumerate() {
+                let x = x as usize;
+                nk[x] = next[i];
+                out[x][0] *= ev.exp_neg(tau[i]);
+                done(x, &out[x]);
+            }
         }
     }
 
