@@ -16,11 +16,7 @@ fn umbra() -> Command {
     c
 }
 
-fn ok(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(out.status.success(), "{err}");
-    err
-}
+use test_support::succeeded as ok;
 
 /// A small, quick scene: the CT head, emission-absorption, 64 x 48.
 fn scene(dir: &Path) -> PathBuf {

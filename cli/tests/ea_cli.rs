@@ -341,11 +341,7 @@ fn both_devices_smooth_a_noisy_volume_alike() {
             .args(["--set", &format!("render.fxaa={fxaa}")])
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        test_support::succeeded(&out);
         image::open(&png).unwrap().to_rgb8().into_raw()
     };
     let largest = |a: &[u8], b: &[u8]| a.iter().zip(b).map(|(x, y)| x.abs_diff(*y)).max().unwrap();

@@ -20,13 +20,7 @@ fn umbra() -> Command {
     c
 }
 
-fn ok(out: &std::process::Output) {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
+use test_support::succeeded as ok;
 
 #[test]
 fn the_demo_matches_its_reference_image() {

@@ -11,11 +11,7 @@ fn umbra() -> Command {
 
 fn ok(c: &mut Command) -> String {
     let out = c.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    test_support::succeeded(&out);
     String::from_utf8_lossy(&out.stdout).to_string()
 }
 

@@ -26,11 +26,7 @@ fn run(args: &[&str], paths: &[&Path]) -> Output {
     c.output().unwrap()
 }
 
-fn ok(o: &Output) -> String {
-    let err = String::from_utf8_lossy(&o.stderr).to_string();
-    assert!(o.status.success(), "{err}");
-    err
-}
+use test_support::succeeded as ok;
 
 fn fails(o: &Output, what: &str) {
     let err = String::from_utf8_lossy(&o.stderr);

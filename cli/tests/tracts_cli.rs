@@ -4,7 +4,7 @@
 
 use glam::{DMat4, DVec3, Vec3};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -17,11 +17,7 @@ fn umbra() -> Command {
     Command::new(env!("CARGO_BIN_EXE_umbra"))
 }
 
-fn ok(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(out.status.success(), "{err}");
-    err
-}
+use test_support::succeeded as ok;
 
 fn cst() -> PathBuf {
     root().join("datasets/tracts/CST_L_demo.trk.gz")

@@ -86,3 +86,11 @@ pub fn run_test_in_child(name: &str, var: &str, value: &str) -> std::process::Ou
         .output()
         .expect("starting the test binary again")
 }
+
+/// Asserts that a command (the `umbra` binary, usually) succeeded, with its standard error as
+/// the failure's message, and returns that standard error (notes, progress).
+pub fn succeeded(out: &std::process::Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    err
+}
