@@ -355,5 +355,10 @@ fn both_devices_smooth_a_noisy_volume_alike() {
         );
         let worst = largest(&gpu, &cpu);
         assert!(worst <= 2, "{method}: the devices differ by {worst} levels");
+        let unsmoothed = largest(&render("gpu", method, false), &plain);
+        assert!(
+            unsmoothed <= 2,
+            "{method}: without FXAA the devices differ by {unsmoothed} levels"
+        );
     }
 }

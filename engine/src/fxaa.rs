@@ -135,7 +135,10 @@ pub fn fxaa_cpu(src: &[[f32; 4]], width: u32, height: u32) -> Vec<[f32; 4]> {
             let rcp = 1.0 / (dir[0].abs().min(dir[1].abs()) + reduce);
             let dir = dir.map(|d| (d * rcp).clamp(-8.0, 8.0));
             let along = |s: f32| at(dir[0] * s, dir[1] * s);
-            let (p, q) = (fetch(along(1.0 / 3.0 - 0.5)), fetch(along(2.0 / 3.0 - 0.5)));
+            // WGSL folds `1.0 / 3.0 - 0.5` in abstract (f64) precision, then rounds to f32.
+            const THIRD: f32 = (1.0f64 / 3.0 - 0.5) as f32;
+            const TWO_THIRDS: f32 = (2.0f64 / 3.0 - 0.5) as f32;
+            let (p, q) = (fetch(along(THIRD)), fetch(along(TWO_THIRDS)));
             let a: [f32; 4] = std::array::from_fn(|i| 0.5 * (p[i] + q[i]));
             let (p, q) = (fetch(along(-0.5)), fetch(along(0.5)));
             let b: [f32; 4] = std::array::from_fn(|i| a[i] * 0.5 + 0.25 * (p[i] + q[i]));
@@ -153,7 +156,7 @@ mod tests {
     use super::*;
 
     /// A test image: a hard diagonal edge, a thin bright line, noise (a hash per pixel) in
-    /// one quadrant and a smooth ramp, alpha varying.
+    /// one quadrant and a ramp with faint noise, alpha varying.
     fn image(w: u32, h: u32) -> Vec<[f32; 4]> {
         (0..w * h)
             .map(|i| {
@@ -164,7 +167,8 @@ mod tests {
                 } else if (x - 2.0 * y).abs() < 1.0 || x > 0.7 * y + 10.0 {
                     [0.9, 0.8, 0.7]
                 } else {
-                    [x / w as f32 * 0.2, 0.1, 0.05]
+                    // Faint noise on the ramp, below FXAA's contrast threshold.
+                    [x / w as f32 * 0.2 + 0.01 * hash, 0.1, 0.05]
                 };
                 [c[0], c[1], c[2], 0.5 + 0.5 * (y / h as f32)]
             })
@@ -213,15 +217,38 @@ mod tests {
             .map(|i| [0.5 + 0.01 * (i % 2) as f32, 0.5, 0.5, 1.0])
             .collect();
         assert_eq!(fxaa_cpu(&faint, 10, 10), faint);
-        let img = image(40, 30);
-        let out = fxaa_cpu(&img, 40, 30);
-        let mut blended = 0;
-        for (a, b) in out.iter().zip(&img) {
-            assert_eq!(a[3], b[3]);
-            assert!(a[..3].iter().all(|c| (0.0..=1.0).contains(c)));
-            blended += (a != b) as usize;
+        let (w, h) = (80usize, 60usize);
+        let img = image(w as u32, h as u32);
+        let out = fxaa_cpu(&img, w as u32, h as u32);
+        // A pixel's result mixes bilinear fetches at most 4 pixels along the edge (the
+        // direction is clamped to 8, the taps reach half of it), so it reads pixels within 5.
+        let near = |i: usize| {
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            (-5i64..=5)
+                .flat_map(move |dy| (-5i64..=5).map(move |dx| (x + dx, y + dy)))
+                .filter(|&(x, y)| x >= 0 && y >= 0 && x < w as i64 && y < h as i64)
+                .map(|(x, y)| x as usize + w * y as usize)
+        };
+        let noisy = |i: usize| i % w < w / 2 && i / w < h / 2;
+        let ramp = |i: usize| !noisy(i) && img[i][1] == 0.1;
+        let (mut flat, mut blended) = (0, 0);
+        for (i, (a, b)) in out.iter().zip(&img).enumerate() {
+            assert_eq!(a[3], b[3], "alpha at {i}");
+            if near(i).all(ramp) {
+                // The ramp's contrast is below the threshold: unchanged.
+                assert_eq!(a, b, "ramp pixel {i}");
+                flat += 1;
+            } else if !near(i).any(noisy) {
+                // The edge between ramp and bright: blended within the range of its sides.
+                for c in 0..3 {
+                    let lo = near(i).map(|j| img[j][c]).fold(f32::INFINITY, f32::min);
+                    let hi = near(i).map(|j| img[j][c]).fold(f32::NEG_INFINITY, f32::max);
+                    assert!(a[c] >= lo - 1e-6 && a[c] <= hi + 1e-6, "{i}: {a:?}");
+                }
+                blended += (a != b) as usize;
+            }
         }
-        assert!(blended > 50, "{blended}");
+        assert!(flat > 100 && blended > 50, "{flat} flat, {blended} blended");
         assert!(fxaa_cpu(&[], 0, 0).is_empty());
     }
 

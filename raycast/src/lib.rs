@@ -1369,31 +1369,43 @@ mod tests {
         };
         let vol = Volume::new(dims, blob.affine, Space::File, field).unwrap();
         let tf = Transfer::ramp(0.1, 0.9, [1.0, 0.8, 0.6], 3.0);
-        let light = LightSettings {
-            cell: 2,
-            cone: true,
-            theta_deg: 30.0,
-            blur_samples: 3,
-        };
         let view = |az: f64, w: u32, h: u32, slices: Option<u32>| {
             let cam = Camera::orbit(vol.bounds(), az, 25.0, 2.0, Some(40.0));
             EaView::new(&vol, cam, w, h, slices, None, [1.0; 3]).unwrap()
         };
-        let target = view(30.0, 40, 30, Some(64));
-        let fresh = EaVolume::new(&vol, &data, &tf).unwrap();
-        let want = fresh.render_frame(&target, Some(&light));
-        assert!(want.image.iter().any(|p| p[3] > 0.3), "an opaque part");
-        let ev = EaVolume::new(&vol, &data, &tf).unwrap();
-        // Frames within twice the target's light volume (a larger one's memory is dropped).
-        let others = [
-            view(200.0, 40, 30, Some(64)),
-            view(120.0, 48, 36, Some(80)),
-            view(300.0, 36, 26, Some(50)),
-        ];
-        for other in others {
-            ev.render_frame(&other, Some(&light));
-            let got = ev.render_frame(&target, Some(&light));
-            assert!(got.image == want.image && got.volumetric == want.volumetric);
+        // 57 slices: the last block of KB slices is partly used.
+        let target = view(30.0, 40, 30, Some(57));
+        // The cone model, the paper's blur on narrow stencils (the row path) and on wide ones.
+        for (cone, theta_deg) in [(true, 30.0), (false, 30.0), (false, 80.0)] {
+            let light = LightSettings {
+                cell: 2,
+                cone,
+                theta_deg,
+                blur_samples: 3,
+            };
+            let wide = occlusion::combined::blur_rows(&target, 2, theta_deg)
+                .iter()
+                .filter(|r| r.wide)
+                .count();
+            assert_eq!(wide > 0, theta_deg > 45.0, "theta {theta_deg}: {wide} wide");
+            let fresh = EaVolume::new(&vol, &data, &tf).unwrap();
+            let want = fresh.render_frame(&target, Some(&light));
+            assert!(want.image.iter().any(|p| p[3] > 0.3), "an opaque part");
+            let ev = EaVolume::new(&vol, &data, &tf).unwrap();
+            // Frames within twice the target's light volume (a larger one's memory is dropped).
+            let others = [
+                view(200.0, 40, 30, Some(64)),
+                view(120.0, 48, 36, Some(80)),
+                view(300.0, 36, 26, Some(50)),
+            ];
+            for other in others {
+                ev.render_frame(&other, Some(&light));
+                let got = ev.render_frame(&target, Some(&light));
+                assert!(
+                    got.image == want.image && got.volumetric == want.volumetric,
+                    "cone {cone}, theta {theta_deg}"
+                );
+            }
         }
     }
 

@@ -221,6 +221,7 @@ impl EaVolume {
             })
             .collect();
         let blur = blur_rows(v, cell as u32, s.theta_deg);
+        debug_assert_eq!(blur.len(), slices, "one blur row per slice");
         let taps = blur_taps(s.blur_samples.clamp(1, 9));
         // The cone model's tap sets, n = blur_samples..=9.
         let cone_taps: Vec<Vec<[f64; 2]>> = (0..=9).map(blur_taps).collect();

@@ -1177,6 +1177,7 @@ fn cpu_frame(
     let mut frames_ms = vec![];
     let mut light_ms = vec![];
     let mut fxaa_ms = vec![];
+    let mut raycast_ms = vec![];
     let mut frame = None;
     for _ in 0..opts.frames.max(1) {
         let t = std::time::Instant::now();
@@ -1184,13 +1185,17 @@ fn cpu_frame(
             Some(which) => ev.render_projection(v, which),
             None => ev.render_frame(v, light),
         };
+        let mut smoothing = 0.0;
         if fxaa {
             let t = std::time::Instant::now();
             f.image = engine::fxaa::fxaa_cpu(&f.image, v.width, v.height);
-            fxaa_ms.push(t.elapsed().as_secs_f64() * 1e3);
+            smoothing = t.elapsed().as_secs_f64() * 1e3;
+            fxaa_ms.push(smoothing);
         }
-        frames_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        let whole = t.elapsed().as_secs_f64() * 1e3;
+        frames_ms.push(whole);
         light_ms.push(f.light_ms);
+        raycast_ms.push((whole - f.light_ms - smoothing).max(0.0));
         frame = Some(f);
     }
     let frame = frame.expect("at least one frame");
@@ -1215,18 +1220,14 @@ fn cpu_frame(
     let n = frame.image.len();
     let mut passes = std::collections::BTreeMap::new();
     if opts.pass_timings {
-        let l = if light.is_some() {
-            median(&light_ms)
-        } else {
-            0.0
-        };
-        let a = if fxaa { median(&fxaa_ms) } else { 0.0 };
+        // Each pass's median over the frames; `raycast` is the rest of each frame (the march
+        // and compositing), so the three need not add up to the median frame exactly.
         if light.is_some() {
-            passes.insert("light".to_string(), l);
+            passes.insert("light".to_string(), median(&light_ms));
         }
-        passes.insert("raycast".to_string(), (total_ms - l - a).max(0.0));
+        passes.insert("raycast".to_string(), median(&raycast_ms));
         if fxaa {
-            passes.insert("fxaa".to_string(), a);
+            passes.insert("fxaa".to_string(), median(&fxaa_ms));
         }
     }
     renderer::Output {
