@@ -4,8 +4,8 @@
 //!
 //! The light volume holds `O_k`, the light reaching slice k, on cells of `s x s` pixels: slice
 //! by slice (each slice blurs the light leaving the previous one, so the slices are a
-//! sequence; the cells of a slice run on rayon's threads), each cell's `O_k` gathered from
-//! `L_{k-1} = O_{k-1} T_{k-1}` of its neighbours with the slice's blur
+//! sequence; the rows of a slice are shared by the threads, [`sweep_slices`]), each cell's
+//! `O_k` gathered from `L_{k-1} = O_{k-1} T_{k-1}` of its neighbours with the slice's blur
 //! (`occlusion::combined::blur_rows`: the 3x3 stencil up to two cells, else `n x n` bilinear
 //! taps on the disk), then `T_k` through the volume along the cell's centre ray, the whole
 //! slab clipped by the clipping planes (occlusion does not stop at the eye's opacity). The
@@ -221,50 +221,61 @@ impl EaVolume {
             })
             .collect();
         let blur = blur_rows(v, cell as u32, s.theta_deg);
-        debug_assert_eq!(blur.len(), slices, "one blur row per slice");
+        debug_assert_eq!(blur.len(), v.slices as usize, "one blur row per slice");
         let taps = blur_taps(s.blur_samples.clamp(1, 9));
         // The cone model's tap sets, n = blur_samples..=9.
         let cone_taps: Vec<Vec<[f64; 2]>> = (0..=9).map(blur_taps).collect();
-        let mut prev: Vec<Leave> = vec![[1.0, 0.0]; n];
-        let mut next: Vec<Leave> = vec![[1.0, 0.0]; n];
+        // Per slice, the light leaving each cell: slice k reads `leave[k % 2]` (the previous
+        // slice's) and writes `leave[(k + 1) % 2]`.
+        let mut leave: [Vec<Leave>; 2] = [vec![[1.0, 0.0]; n], vec![[1.0, 0.0]; n]];
         // Per row of cells, the span of cells whose light leaving the previous slice is not
-        // 1 (lo > hi: none); elsewhere the blur reads ones and gives 1 without reading.
-        let mut dirty: Vec<(i32, i32)> = vec![(i32::MAX, i32::MIN); cells[1]];
-        let mut dirty_next = dirty.clone();
+        // 1 (lo > hi: none); elsewhere the blur reads ones and gives 1 without reading. Read
+        // and written as `leave`.
+        let mut dirty: [Vec<(i32, i32)>; 2] = [
+            vec![(i32::MAX, i32::MIN); cells[1]],
+            vec![(i32::MAX, i32::MIN); cells[1]],
+        ];
+        // Per row, the cells the blur of a dirty cell may reach in the slice about to run.
+        let mut reach: Vec<(i32, i32)> = vec![(i32::MAX, i32::MIN); cells[1]];
         // Per cell, the next slice whose sample may not be transparent.
         let mut next_k: Vec<u32> = vec![0; n];
         let d = v.dz as f32;
-        let rows_per_job = (cells[1] / (4 * rayon::current_num_threads())).max(1);
+        let threads = rayon::current_num_threads();
+        let rows_per_job = (cells[1] / (4 * threads)).max(1);
+        let jobs = cells[1].div_ceil(rows_per_job);
         #[cfg(target_arch = "x86_64")]
         let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
         // SAFETY: the CPU has AVX2 and FMA (checked).
         #[cfg(target_arch = "x86_64")]
         let splat = (fma && self.lanes_apply(v, data, None) && crate::lanes::gathers::<T>())
             .then(|| unsafe { crate::lanes::Splat::new(self) });
-        for (k, &row) in blur.iter().enumerate().take(slices) {
-            // Cells further than the blur reaches from every dirty cell gather 1.
-            let reach_r = if row.wide {
-                row.rpx[0].max(row.rpx[1]).ceil() as i32 + 1
-            } else {
-                1
+        let taps_n = s.blur_samples.clamp(1, 9) as usize;
+        // The rows of job `j` of slice `k` (`shared`: the buffers above, written in disjoint
+        // rows by the jobs of one slice, read by the next slice's).
+        let run = |shared: &Shared, k: usize, j: usize| {
+            let row = blur[k];
+            let first = j * rows_per_job;
+            let rows = rows_per_job.min(cells[1] - first);
+            let (c0, len) = (first * cells[0], rows * cells[0]);
+            // SAFETY: the jobs of slice k write disjoint rows `first..first + rows` of the
+            // slice's outputs and only read its inputs (`leave[k % 2]`, `reach`), which no job
+            // of the slice writes; slices are separated by a barrier (`sweep_slices`).
+            let (prev, reach, out, o, nk, dn) = unsafe {
+                (
+                    std::slice::from_raw_parts(shared.leave[k % 2], n),
+                    std::slice::from_raw_parts(shared.reach, cells[1]),
+                    std::slice::from_raw_parts_mut(shared.leave[(k + 1) % 2].add(c0), len),
+                    std::slice::from_raw_parts_mut(
+                        shared.o.add(((k / KB) * n + c0) * KB),
+                        len * KB,
+                    ),
+                    std::slice::from_raw_parts_mut(shared.next_k.add(c0), len),
+                    std::slice::from_raw_parts_mut(shared.dirty[(k + 1) % 2].add(first), rows),
+                )
             };
-            let reach: Vec<(i32, i32)> = (0..cells[1] as i32)
-                .map(|y| {
-                    let (mut lo, mut hi) = (i32::MAX, i32::MIN);
-                    for yy in (y - reach_r).max(0)..=(y + reach_r).min(cells[1] as i32 - 1) {
-                        let (a, b) = dirty[yy as usize];
-                        if a <= b {
-                            lo = lo.min(a - reach_r);
-                            hi = hi.max(b + reach_r);
-                        }
-                    }
-                    (lo, hi)
-                })
-                .collect();
-            let block = &mut lv.o[(k / KB) * n * KB..][..n * KB];
             let job = Sweep {
-                prev: &prev,
-                reach: &reach,
+                prev,
+                reach,
                 rays: &rays,
                 cells,
                 row,
@@ -272,39 +283,169 @@ impl EaVolume {
                 taps: &taps,
                 cone_taps: &cone_taps,
                 cone: s.cone,
-                min_taps: s.blur_samples.clamp(1, 9) as usize,
+                min_taps: taps_n,
                 d,
                 k,
                 #[cfg(target_arch = "x86_64")]
                 splat: splat.as_ref(),
             };
-            let span = cells[0] * rows_per_job;
-            next.par_chunks_mut(span)
-                .zip(block.par_chunks_mut(span * KB))
-                .zip(next_k.par_chunks_mut(span))
-                .zip(dirty_next.par_chunks_mut(rows_per_job))
-                .enumerate()
-                .for_each(|(job_i, (((out, o), nk), dn))| {
-                    let rows = Rows {
-                        first: job_i * rows_per_job,
-                        out,
-                        o,
-                        nk,
-                        dn,
-                    };
-                    #[cfg(target_arch = "x86_64")]
-                    if fma {
-                        // SAFETY: the CPU has AVX2 and FMA (checked above).
-                        unsafe { job.rows_fma(self, v, data, rows) };
-                        return;
+            let rows = Rows {
+                first,
+                out,
+                o,
+                nk,
+                dn,
+            };
+            #[cfg(target_arch = "x86_64")]
+            if fma {
+                // SAFETY: the CPU has AVX2 and FMA (checked above).
+                unsafe { job.rows_fma(self, v, data, rows) };
+                return;
+            }
+            job.rows(self, v, data, rows);
+        };
+        // Between slices, on one thread: the next slice's reach from the dirty spans of the
+        // light it reads.
+        let between = |shared: &Shared, k: usize| {
+            let Some(row) = blur.get(k) else { return };
+            // Cells further than the blur reaches from every dirty cell gather 1.
+            let reach_r = if row.wide {
+                row.rpx[0].max(row.rpx[1]).ceil() as i32 + 1
+            } else {
+                1
+            };
+            // SAFETY: called while no job runs (before the first slice, or by the last
+            // thread to finish slice k - 1).
+            let (dirty, reach) = unsafe {
+                (
+                    std::slice::from_raw_parts(shared.dirty[k % 2], cells[1]),
+                    std::slice::from_raw_parts_mut(shared.reach, cells[1]),
+                )
+            };
+            for (y, r) in reach.iter_mut().enumerate() {
+                let y = y as i32;
+                let (mut lo, mut hi) = (i32::MAX, i32::MIN);
+                for yy in (y - reach_r).max(0)..=(y + reach_r).min(cells[1] as i32 - 1) {
+                    let (a, b) = dirty[yy as usize];
+                    if a <= b {
+                        lo = lo.min(a - reach_r);
+                        hi = hi.max(b + reach_r);
                     }
-                    job.rows(self, v, data, rows);
-                });
-            std::mem::swap(&mut prev, &mut next);
-            std::mem::swap(&mut dirty, &mut dirty_next);
-        }
+                }
+                *r = (lo, hi);
+            }
+        };
+        let [l0, l1] = &mut leave;
+        let [d0, d1] = &mut dirty;
+        let shared = Shared {
+            leave: [l0.as_mut_ptr(), l1.as_mut_ptr()],
+            dirty: [d0.as_mut_ptr(), d1.as_mut_ptr()],
+            reach: reach.as_mut_ptr(),
+            next_k: next_k.as_mut_ptr(),
+            o: lv.o.as_mut_ptr(),
+        };
+        sweep_slices(
+            &shared,
+            blur.len().min(slices),
+            jobs,
+            threads,
+            &run,
+            &between,
+        );
         lv
     }
+}
+
+/// The sweep's buffers, shared by its threads (see `run` in [`EaVolume::sweep`]).
+struct Shared {
+    leave: [*mut Leave; 2],
+    dirty: [*mut (i32, i32); 2],
+    reach: *mut (i32, i32),
+    next_k: *mut u32,
+    o: *mut f32,
+}
+
+// SAFETY: the threads write disjoint parts of the buffers within a slice, and a barrier
+// orders one slice's writes before the next slice's reads (`sweep_slices`).
+unsafe impl Sync for Shared {}
+
+/// Runs `jobs` jobs of each of `slices` slices in order (`run(shared, k, j)`), with
+/// `between(shared, k)` on one thread before slice k starts. A slice has a few jobs of a few
+/// microseconds each, so a fork-join per slice would pay a wake-up or a steal every slice.
+/// Instead the threads that join (the caller and up to `threads - 1` helpers in rayon's pool)
+/// claim the jobs of the open slice, some from its first job onwards and some from its last
+/// backwards, so that a thread keeps to the same rows (and their cache lines) slice after
+/// slice; the thread that finishes the slice's last job runs `between` and opens the next
+/// slice, while the others spin. Nothing waits for a helper that has not started (a busy pool
+/// only means fewer hands), so the sweep cannot deadlock inside the pool.
+fn sweep_slices<S: Sync>(
+    shared: &S,
+    slices: usize,
+    jobs: usize,
+    threads: usize,
+    run: &(impl Fn(&S, usize, usize) + Sync),
+    between: &(impl Fn(&S, usize) + Sync),
+) {
+    use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+    between(shared, 0);
+    if slices == 0 || jobs == 0 {
+        return;
+    }
+    assert!(jobs < 1 << 16 && slices < 1 << 32, "the sweep's counters");
+    // The open slice (bits 32..), the next job to claim from the front (bits 16..32) and one
+    // past the next from the back (bits 0..16).
+    let pack =
+        |k: usize, lo: usize, hi: usize| ((k as u64) << 32) | ((lo as u64) << 16) | hi as u64;
+    let open = AtomicU64::new(pack(0, 0, jobs));
+    // Jobs of the open slice finished.
+    let finished = AtomicUsize::new(0);
+    let work = |backwards: bool| {
+        let mut spins = 0u32;
+        loop {
+            let state = open.load(Ordering::Acquire);
+            let k = (state >> 32) as usize;
+            let (lo, hi) = (((state >> 16) & 0xffff) as usize, (state & 0xffff) as usize);
+            if k >= slices {
+                return;
+            }
+            if lo >= hi {
+                // The slice's jobs are all claimed: wait for the last to finish.
+                if spins < 4096 {
+                    std::hint::spin_loop();
+                    spins += 1;
+                } else {
+                    std::thread::yield_now();
+                }
+                continue;
+            }
+            let (j, next) = if backwards {
+                (hi - 1, pack(k, lo, hi - 1))
+            } else {
+                (lo, pack(k, lo + 1, hi))
+            };
+            if open
+                .compare_exchange_weak(state, next, Ordering::AcqRel, Ordering::Relaxed)
+                .is_err()
+            {
+                continue;
+            }
+            spins = 0;
+            run(shared, k, j);
+            // Release: this job's writes; acquire: the other jobs' (for `between`).
+            if finished.fetch_add(1, Ordering::AcqRel) + 1 == jobs {
+                finished.store(0, Ordering::Relaxed);
+                between(shared, k + 1);
+                open.store(pack(k + 1, 0, jobs), Ordering::Release);
+            }
+        }
+    };
+    rayon::scope(|scope| {
+        for t in 1..threads.min(jobs) {
+            let work = &work;
+            scope.spawn(move |_| work(t % 2 == 1));
+        }
+        work(false);
+    });
 }
 
 /// Rows of cells of one slice, from row `first`: their light leaving (`out`), their `O` in
@@ -622,5 +763,60 @@ impl Sweep<'_> {
             self.taps(&self.cone_taps[n], x, y, rc)
         };
         (sum[0], sum[1] / (1.0 - sum[0]).max(1e-6))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sweep_slices;
+    use rayon::prelude::*;
+    use std::sync::atomic::{AtomicU64, Ordering};
+
+    /// A sequence of slices, each job reading its neighbours' values of the previous slice
+    /// and `between` summing the slice: any job run early, late or twice changes the result.
+    fn sequence(slices: usize, jobs: usize, threads: usize) -> (Vec<u64>, Vec<u64>) {
+        let vals: [Vec<AtomicU64>; 2] = [
+            (0..jobs).map(|j| AtomicU64::new(j as u64 + 1)).collect(),
+            (0..jobs).map(|_| AtomicU64::new(0)).collect(),
+        ];
+        let sums: Vec<AtomicU64> = (0..=slices).map(|_| AtomicU64::new(0)).collect();
+        // Relaxed on purpose: the sweep's own ordering must make the reads see the writes.
+        let run = |v: &[Vec<AtomicU64>; 2], k: usize, j: usize| {
+            let prev = &v[k % 2];
+            let at = |i: usize| prev[i].load(Ordering::Relaxed);
+            let x = at(j.saturating_sub(1)) + 3 * at(j) + at((j + 1).min(jobs - 1));
+            v[(k + 1) % 2][j].store(x % 1_000_003 + k as u64, Ordering::Relaxed);
+        };
+        let between = |v: &[Vec<AtomicU64>; 2], k: usize| {
+            let s = v[k % 2].iter().map(|x| x.load(Ordering::Relaxed)).sum();
+            sums[k].store(s, Ordering::Relaxed);
+        };
+        sweep_slices(&vals, slices, jobs, threads, &run, &between);
+        let last = vals[slices % 2]
+            .iter()
+            .map(|x| x.load(Ordering::Relaxed))
+            .collect();
+        (
+            last,
+            sums.iter().map(|x| x.load(Ordering::Relaxed)).collect(),
+        )
+    }
+
+    #[test]
+    fn slices_run_in_order_on_any_number_of_threads() {
+        let want = sequence(300, 13, 1);
+        assert!(want.1[300] > 0, "{:?}", &want.1[295..]);
+        for threads in [2, 3, 8] {
+            assert_eq!(sequence(300, 13, threads), want, "{threads} threads");
+        }
+        // Sweeps at once from inside rayon's pool (frames drawn in parallel): no deadlock,
+        // the same values.
+        let got: Vec<_> = (0..6)
+            .into_par_iter()
+            .map(|_| sequence(300, 13, 2))
+            .collect();
+        assert!(got.iter().all(|g| *g == want));
+        assert_eq!(sequence(0, 13, 2).0.len(), 13);
+        assert_eq!(sequence(5, 1, 2), sequence(5, 1, 1));
     }
 }
