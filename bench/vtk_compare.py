@@ -860,3 +860,7 @@ def main():
 
 if __name__ == "__main__":
     main()
+    # VTK's windows go before the Xvfb this script started (stopped at exit): a window
+    # destroyed after its server is gone ends the process with "XIO: fatal IO error".
+    import gc
+    gc.collect()

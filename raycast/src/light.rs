@@ -373,11 +373,14 @@ unsafe impl Sync for Shared {}
 /// `between(shared, k)` on one thread before slice k starts. A slice has a few jobs of a few
 /// microseconds each, so a fork-join per slice would pay a wake-up or a steal every slice.
 /// Instead the threads that join (the caller and up to `threads - 1` helpers in rayon's pool)
-/// claim the jobs of the open slice, some from its first job onwards and some from its last
+/// claim the jobs of the open slice themselves, in pairs: each pair owns a contiguous range of
+/// jobs, one thread claiming from its first job onwards and the other from its last
 /// backwards, so that a thread keeps to the same rows (and their cache lines) slice after
-/// slice; the thread that finishes the slice's last job runs `between` and opens the next
-/// slice, while the others spin. Nothing waits for a helper that has not started (a busy pool
-/// only means fewer hands), so the sweep cannot deadlock inside the pool.
+/// slice while the two meet wherever the work splits evenly; a thread whose range is done
+/// takes jobs from the other ranges. The thread that finishes the slice's last job runs
+/// `between` and opens the next slice, while the others spin. Nothing waits for a helper that
+/// has not started (a busy pool only means fewer hands), so the sweep cannot deadlock inside
+/// the pool.
 fn sweep_slices<S: Sync>(
     shared: &S,
     slices: usize,
@@ -392,59 +395,90 @@ fn sweep_slices<S: Sync>(
         return;
     }
     assert!(jobs < 1 << 16 && slices < 1 << 32, "the sweep's counters");
-    // The open slice (bits 32..), the next job to claim from the front (bits 16..32) and one
-    // past the next from the back (bits 0..16).
+    let hands = threads.clamp(1, jobs);
+    let pairs = hands.div_ceil(2);
+    // A range's state: the slice it is open for (bits 32..), the next job to claim from the
+    // front (bits 16..32) and one past the next from the back (bits 0..16).
     let pack =
         |k: usize, lo: usize, hi: usize| ((k as u64) << 32) | ((lo as u64) << 16) | hi as u64;
-    let open = AtomicU64::new(pack(0, 0, jobs));
+    let unpack = |s: u64| {
+        let k = (s >> 32) as usize;
+        (k, ((s >> 16) & 0xffff) as usize, (s & 0xffff) as usize)
+    };
+    let bounds = |p: usize| (p * jobs / pairs, (p + 1) * jobs / pairs);
+    let open = |k: usize, p: usize| {
+        let (lo, hi) = bounds(p);
+        pack(k, lo, hi)
+    };
+    let ranges: Vec<AtomicU64> = (0..pairs).map(|p| AtomicU64::new(open(0, p))).collect();
     // Jobs of the open slice finished.
     let finished = AtomicUsize::new(0);
-    let work = |backwards: bool| {
+    // Claims a job of slice `k` from range `r` (from its back if `backwards`): Err(()) when
+    // the range has none left for slice k, Ok(None) when another thread changed it first.
+    let claim = |r: usize, k: usize, backwards: bool| -> Result<Option<usize>, ()> {
+        let state = ranges[r].load(Ordering::Acquire);
+        let (kr, lo, hi) = unpack(state);
+        if kr != k || lo >= hi {
+            return Err(());
+        }
+        let (j, next) = if backwards {
+            (hi - 1, pack(k, lo, hi - 1))
+        } else {
+            (lo, pack(k, lo + 1, hi))
+        };
+        Ok(ranges[r]
+            .compare_exchange_weak(state, next, Ordering::AcqRel, Ordering::Relaxed)
+            .is_ok()
+            .then_some(j))
+    };
+    let work = |t: usize| {
+        let (own, backwards) = (t / 2, t % 2 == 1);
         let mut spins = 0u32;
         loop {
-            let state = open.load(Ordering::Acquire);
-            let k = (state >> 32) as usize;
-            let (lo, hi) = (((state >> 16) & 0xffff) as usize, (state & 0xffff) as usize);
+            let (k, _, _) = unpack(ranges[own].load(Ordering::Acquire));
             if k >= slices {
                 return;
             }
-            if lo >= hi {
-                // The slice's jobs are all claimed: wait for the last to finish.
-                if spins < 4096 {
-                    std::hint::spin_loop();
-                    spins += 1;
-                } else {
-                    std::thread::yield_now();
+            let mut got = claim(own, k, backwards);
+            for q in 1..pairs {
+                if got.is_ok() {
+                    break;
                 }
-                continue;
+                got = claim((own + q) % pairs, k, backwards);
             }
-            let (j, next) = if backwards {
-                (hi - 1, pack(k, lo, hi - 1))
-            } else {
-                (lo, pack(k, lo + 1, hi))
+            let j = match got {
+                Ok(Some(j)) => j,
+                // Lost a race: look again.
+                Ok(None) => continue,
+                // Every job of the slice is taken: wait for the last to finish.
+                Err(()) => {
+                    if spins < 4096 {
+                        std::hint::spin_loop();
+                        spins += 1;
+                    } else {
+                        std::thread::yield_now();
+                    }
+                    continue;
+                }
             };
-            if open
-                .compare_exchange_weak(state, next, Ordering::AcqRel, Ordering::Relaxed)
-                .is_err()
-            {
-                continue;
-            }
             spins = 0;
             run(shared, k, j);
             // Release: this job's writes; acquire: the other jobs' (for `between`).
             if finished.fetch_add(1, Ordering::AcqRel) + 1 == jobs {
                 finished.store(0, Ordering::Relaxed);
                 between(shared, k + 1);
-                open.store(pack(k + 1, 0, jobs), Ordering::Release);
+                for (p, r) in ranges.iter().enumerate() {
+                    r.store(open(k + 1, p), Ordering::Release);
+                }
             }
         }
     };
     rayon::scope(|scope| {
-        for t in 1..threads.min(jobs) {
+        for t in 1..hands {
             let work = &work;
-            scope.spawn(move |_| work(t % 2 == 1));
+            scope.spawn(move |_| work(t));
         }
-        work(false);
+        work(0);
     });
 }
 
