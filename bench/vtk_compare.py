@@ -74,7 +74,8 @@ llvmpipe and lavapipe threads: LP_NUM_THREADS is set to --threads unless already
 
 Usage:
     XDG_RUNTIME_DIR=/tmp /tmp/vtkb/venv/bin/python bench/vtk_compare.py -o /tmp/vtkb/out \\
-        [--umbra target/release/umbra] [--cases mni,headsq] [--sizes 512] [--frames 3] \\
+        [--umbra target/release/umbra] [--cases mni,headsq] [--volume PATH ...] \\
+        [--ramp 0.25,1.0] [--sigma S] [--view 120,15] [--sizes 512] [--frames 3] \\
         [--rounds 1] [--methods ea,combined] [--peers cpu,gl] [--threads 2] \\
         [--sampling-check] [--fxaa] [--offscreen]
 """
@@ -483,14 +484,25 @@ def vtk_read(path):
         r = vtk.vtkNrrdReader()
     elif low.endswith(".vti"):
         r = vtk.vtkXMLImageDataReader()
+    elif low.endswith(".mhd") or low.endswith(".mha"):
+        r = vtk.vtkMetaImageReader()
+    elif low.endswith(".vtk"):
+        r = vtk.vtkStructuredPointsReader()
     else:
-        die("no VTK reader chosen for %s (NIfTI, NRRD or VTI)" % path)
+        die("no VTK reader chosen for %s (NIfTI, NRRD, VTI, MetaImage or legacy VTK)" % path)
     r.SetFileName(path)
     r.Update()
     img = vtk.vtkImageData()
     img.DeepCopy(r.GetOutput())
     if img.GetNumberOfPoints() == 0:
         die("VTK read nothing from %s" % path)
+    if img.GetPointData().GetScalars() is None or \
+            img.GetPointData().GetScalars().GetNumberOfComponents() != 1:
+        die("%s: VTK's mappers here take one scalar component per voxel" % path)
+    # Index -> world is the user matrix's (umbra's affine, direction included): the data
+    # keep origin + spacing * index, as `user_matrix_for` assumes.
+    if hasattr(img, "SetDirectionMatrix"):
+        img.SetDirectionMatrix(1, 0, 0, 0, 1, 0, 0, 0, 1)
     reader_matrix = None
     if isinstance(r, vtk.vtkNIFTIImageReader):
         m = r.GetSFormMatrix() or r.GetQFormMatrix()
@@ -580,7 +592,18 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("-o", "--out", required=True, help="output directory")
     ap.add_argument("--umbra", default=os.path.join(REPO, "target", "release", "umbra"))
-    ap.add_argument("--cases", default="mni,headsq", help="of: " + ",".join(CASES))
+    ap.add_argument("--cases", default=None,
+                    help="of: " + ",".join(CASES) + " (default: both, or none with --volume)")
+    ap.add_argument("--volume", action="append", default=[], metavar="PATH",
+                    help="a volume of your own as a further case, named by its file name "
+                         "(NIfTI, NRRD, VTI, MetaImage .mhd/.mha, legacy VTK .vtk); repeatable")
+    ap.add_argument("--ramp", default="0.25,1.0",
+                    help="--volume cases: the ramp's lo,hi as fractions of the data range")
+    ap.add_argument("--sigma", type=float, default=None,
+                    help="--volume cases: extinction at the ramp's top per world unit "
+                         "(default: 60 / the length of the volume's diagonal)")
+    ap.add_argument("--view", default="120,15",
+                    help="--volume cases: camera azimuth,elevation in degrees (umbra's orbit)")
     ap.add_argument("--sizes", default="512", help="comma list of N or WxH")
     ap.add_argument("--frames", type=int, default=3, help="timed frames per peer and round")
     ap.add_argument("--rounds", type=int, default=1)
@@ -617,10 +640,36 @@ def main():
     vtk.vtkMultiThreader.SetGlobalMaximumNumberOfThreads(a.threads)
     vtk.vtkMultiThreader.SetGlobalDefaultNumberOfThreads(a.threads)
     vtk_version = vtk.vtkVersion.GetVTKVersion()
+    if a.cases is None:
+        a.cases = "" if a.volume else "mni,headsq"
     cases = [c.strip() for c in a.cases.split(",") if c.strip()]
     for c in cases:
         if c not in CASES:
             die("unknown case %s (of %s)" % (c, ", ".join(CASES)))
+    cases_of = dict(CASES)
+    try:
+        lo_f, hi_f = (float(x) for x in a.ramp.split(","))
+        az, el = (float(x) for x in a.view.split(","))
+    except ValueError:
+        die("--ramp and --view take two numbers each, as lo,hi and azimuth,elevation")
+    if not 0.0 <= lo_f < hi_f <= 1.0:
+        die("--ramp %s: lo and hi are fractions of the data range, 0 <= lo < hi <= 1" % a.ramp)
+    if a.sigma is not None and not (a.sigma > 0 and math.isfinite(a.sigma)):
+        die("--sigma %s: a positive extinction per world unit" % a.sigma)
+    for vpath in a.volume:
+        vpath = os.path.abspath(vpath)
+        if not os.path.isfile(vpath):
+            die("--volume %s: no such file" % vpath)
+        name = re.sub(r"[^A-Za-z0-9_-]+", "_", re.sub(
+            r"\.(nii\.gz|nii|nhdr|nrrd|vti|mhd|mha|vtk)$", "", os.path.basename(vpath), flags=re.I))
+        while name in cases_of:
+            name += "_"
+        # sigma None: from the volume's size, once `umbra info` has read it.
+        cases_of[name] = (vpath, lo_f, hi_f, a.sigma, (0.35, 0.06, 0.03), (1.0, 0.9, 0.75),
+                          az, el, 2.8, (0.0, 0.0, 1.0))
+        cases.append(name)
+    if not cases:
+        die("no cases (--cases or --volume)")
     sizes = [parse_size(s) for s in a.sizes.split(",")]
     if a.blend != "composite" and a.methods == "ea,combined":
         a.methods = a.blend
@@ -639,9 +688,12 @@ def main():
     rows, agree, case_notes = [], [], {}
     gl_ok = "gl" in peers
     for case in cases:
-        rel, lo_f, hi_f, sigma, c0, c1, az, el, dist, up = CASES[case]
+        rel, lo_f, hi_f, sigma, c0, c1, az, el, dist, up = cases_of[case]
         path = os.path.join(REPO, rel)
         info = umbra_info(umbra, path)
+        if sigma is None:
+            diag = math.dist(info["bounds"][0], info["bounds"][1])
+            sigma = 60.0 / max(diag, 1e-12)
         d = 0.5 * min(info["spacing"])
         if a.blend == "composite":
             tf = ramp(info["range"], lo_f, hi_f, sigma, c0, c1, a.tf_points)
@@ -661,6 +713,19 @@ def main():
             v = matmul(reader_m, d2i)
             err = max(abs(v[i][j] - info["affine"][i][j]) for i in range(4) for j in range(4))
             cn.append("VTK reader sform/qform vs umbra affine: max |diff| %.3g" % err)
+            # vtkNIFTIImageReader reverses the slices of a file with qfac = -1 (its data's k
+            # is the file's nz - 1 - k): then its matrix is umbra's affine with k reversed,
+            # and VTK's data are placed by the reader's matrix.
+            nz = info["dims"][2]
+            flip = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, nz - 1], [0, 0, 0, 1]]
+            af = matmul(info["affine"], flip)
+            err_k = max(abs(v[i][j] - af[i][j]) for i in range(4) for j in range(4))
+            if err > 1e-3 and err_k <= 1e-3:
+                um = reader_m
+                cn.append("VTK's reader reversed the slices (qfac -1): VTK placed by its "
+                          "sform/qform, umbra's affine with k reversed within %.3g" % err_k)
+            elif err > 1e-3:
+                cn.append("VTK's reader and umbra place the volume differently: images differ")
         vr = img.GetScalarRange()
         if abs(vr[0] - info["range"][0]) > 1e-6 or abs(vr[1] - info["range"][1]) > 1e-6:
             cn.append("value range differs: VTK %s, umbra %s" % (vr, info["range"]))
