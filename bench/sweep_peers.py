@@ -23,8 +23,13 @@ Scenes (inside = values >= iso):
 Prints one JSON line per measurement and a Markdown table at the end.
 Needs: pip install edt numpy scipy nibabel; umbra built (target/release/umbra).
 
+Your own volumes: `--volume PATH:ISO` (repeatable; any format `umbra info` reads, converted by
+`umbra convert` to a raw NRRD that both sides read, at its own grid; inside = values >= ISO).
+With --volume and no --scenes only those volumes run.
+
 Usage: python3 bench/sweep_peers.py [--sizes 256,512] [--scenes three-solids,gyroid,mni-wm]
-                                    [--repeat 5] [--methods closest-point,sweeping]
+                                    [--volume PATH:ISO ...] [--repeat 5]
+                                    [--methods closest-point,sweeping]
 """
 import argparse
 import json
@@ -56,8 +61,15 @@ def write_nrrd(path, vol_zyx, spacing_xyz):
         f.write(np.ascontiguousarray(vol_zyx, dtype="<f4").tobytes())
 
 
+NRRD_TYPES = {"float": "<f4", "float32": "<f4", "double": "<f8", "uint8": "u1", "uchar": "u1",
+              "unsigned char": "u1", "int8": "i1", "signed char": "i1", "int16": "<i2",
+              "short": "<i2", "uint16": "<u2", "ushort": "<u2", "unsigned short": "<u2",
+              "int32": "<i4", "int": "<i4", "uint32": "<u4", "unsigned int": "<u4"}
+
+
 def read_nrrd(path):
-    """The float32 NRRD written by umbra synth (raw, little endian), as [z, y, x] and spacing."""
+    """A raw little-endian NRRD with the data attached (as `umbra synth` and `umbra convert`
+    write them), as float32 [z, y, x] and spacing."""
     data = Path(path).read_bytes()
     head, _, body = data.partition(b"\n\n")
     fields = {}
@@ -66,14 +78,35 @@ def read_nrrd(path):
             k, v = line.split(":", 1)
             fields[k.strip()] = v.strip()
     sizes = [int(x) for x in fields["sizes"].split()]
-    assert fields["type"] in ("float", "float32") and fields["encoding"] == "raw", fields
+    assert fields["type"] in NRRD_TYPES and fields["encoding"] == "raw", fields
+    assert fields.get("endian", "little") == "little" or NRRD_TYPES[fields["type"]][0] != "<"
     if "space directions" in fields:
         dirs = [d.strip("() ").split(",") for d in fields["space directions"].split(")")[:3]]
         spacing = [float(np.linalg.norm([float(c) for c in d])) for d in dirs]
     else:
         spacing = [float(x) for x in fields.get("spacings", "1 1 1").split()]
-    a = np.frombuffer(body[: 4 * int(np.prod(sizes))], dtype="<f4")
+    dt = np.dtype(NRRD_TYPES[fields["type"]])
+    a = np.frombuffer(body[: dt.itemsize * int(np.prod(sizes))], dtype=dt).astype(np.float32)
     return a.reshape(sizes[::-1]), spacing
+
+
+def own_volume(spec, tmp):
+    """(name, path, iso, values [z, y, x], spacing xyz) of `--volume PATH:ISO`: the volume as
+    `umbra convert` writes it (raw NRRD; what `umbra sweep` and edt both read)."""
+    src, sep, iso = spec.rpartition(":")
+    if not sep:
+        raise SystemExit(f"--volume {spec}: PATH:ISO (the isovalue after the last colon)")
+    try:
+        iso = float(iso)
+    except ValueError:
+        raise SystemExit(f"--volume {spec}: the isovalue {iso!r} is not a number")
+    name = Path(src).name.split(".")[0]
+    path = Path(tmp) / f"own_{name}.nrrd"
+    r = subprocess.run([UMBRA, "convert", src, "-o", str(path)], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"--volume {spec}: umbra convert failed:\n{r.stderr}")
+    v, sp = read_nrrd(path)
+    return name, path, iso, v, sp
 
 
 def scene(name, n, tmp):
@@ -151,49 +184,62 @@ def copy_bytes(v, repeat):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", default="256,512")
-    ap.add_argument("--scenes", default="three-solids,gyroid,mni-wm")
+    ap.add_argument("--scenes", default=None,
+                    help="of three-solids, gyroid, mni-wm (default: all three, none with --volume)")
+    ap.add_argument("--volume", action="append", default=[], metavar="PATH:ISO",
+                    help="a volume of one's own (any format umbra reads) and its isovalue, at "
+                         "its own grid; repeatable")
     ap.add_argument("--methods", default="closest-point")
     ap.add_argument("--repeat", type=int, default=5)
     a = ap.parse_args()
     rows = []
     print(f"# machine: {os.cpu_count()} cores; date {time.strftime('%Y-%m-%dT%H:%MZ', time.gmtime())}")
+    if a.scenes is None:
+        a.scenes = "" if a.volume else "three-solids,gyroid,mni-wm"
+    cases = [(n, name) for n in [int(s) for s in a.sizes.split(",")]
+             for name in a.scenes.split(",") if name]
+    cases += [(None, spec) for spec in a.volume]
     with tempfile.TemporaryDirectory(dir=os.environ.get("TMPDIR", "/tmp")) as tmp:
-        for n in [int(s) for s in a.sizes.split(",")]:
-            for name in a.scenes.split(","):
+        for n, name in cases:
+            if n is None:
+                name, path, iso, v, sp = own_volume(name, tmp)
+            else:
                 path, iso, v, sp = scene(name, n, tmp)
-                rec = {"scene": name, "n": n, "spacing": sp, "inside_fraction": float((v >= iso).mean())}
-                methods = a.methods.split(",")
-                first, edt_t = [], []
-                info = None
-                for _ in range(a.repeat):
-                    s, info = umbra_sweep(path, iso, methods[0], tmp, 1)
-                    first.append(s)
-                    edt_t.append(edt_sdf(v, iso, sp, 1))
-                rec[f"umbra_{methods[0]}_s"] = statistics.median(first)
-                rec[f"umbra_{methods[0]}_all_s"] = first
-                rec["band_voxels"] = info["band_voxels"]
-                rec[f"umbra_{methods[0]}_peak_bytes"] = info["peak_bytes"]
-                rec["edt_s"] = statistics.median(edt_t)
-                rec["edt_all_s"] = edt_t
-                for m in methods[1:]:
-                    s, info = umbra_sweep(path, iso, m, tmp, a.repeat)
-                    rec[f"umbra_{m}_s"] = s
-                    rec[f"umbra_{m}_peak_bytes"] = info["peak_bytes"]
-                rec["copy_s"] = copy_bytes(v, a.repeat)
-                print(json.dumps(rec), flush=True)
-                rows.append(rec)
-                os.remove(path)
+            rec = {"scene": name, "n": n, "dims": list(v.shape[::-1]), "voxels": int(v.size),
+                   "spacing": sp, "inside_fraction": float((v >= iso).mean())}
+            methods = a.methods.split(",")
+            first, edt_t = [], []
+            info = None
+            for _ in range(a.repeat):
+                s, info = umbra_sweep(path, iso, methods[0], tmp, 1)
+                first.append(s)
+                edt_t.append(edt_sdf(v, iso, sp, 1))
+            rec[f"umbra_{methods[0]}_s"] = statistics.median(first)
+            rec[f"umbra_{methods[0]}_all_s"] = first
+            rec["band_voxels"] = info["band_voxels"]
+            rec[f"umbra_{methods[0]}_peak_bytes"] = info["peak_bytes"]
+            rec["edt_s"] = statistics.median(edt_t)
+            rec["edt_all_s"] = edt_t
+            for m in methods[1:]:
+                s, info = umbra_sweep(path, iso, m, tmp, a.repeat)
+                rec[f"umbra_{m}_s"] = s
+                rec[f"umbra_{m}_peak_bytes"] = info["peak_bytes"]
+            rec["copy_s"] = copy_bytes(v, a.repeat)
+            print(json.dumps(rec), flush=True)
+            rows.append(rec)
+            os.remove(path)
     methods = a.methods.split(",")
     print()
-    print("| scene | N^3 | " + " | ".join(f"umbra {m} s" for m in methods)
+    print("| scene | grid | " + " | ".join(f"umbra {m} s" for m in methods)
           + " | edt.sdf s | copy s | edt / umbra | umbra / copy | umbra peak bytes / voxel |")
     print("|---|---|" + "---|" * len(methods) + "---|---|---|---|---|")
     for r in rows:
         u = r[f"umbra_{methods[0]}_s"]
-        print(f"| {r['scene']} | {r['n']} | "
+        grid = f"{r['n']}^3" if r["n"] else " x ".join(str(d) for d in r["dims"])
+        print(f"| {r['scene']} | {grid} | "
               + " | ".join(f"{r[f'umbra_{m}_s']:.3f}" for m in methods)
               + f" | {r['edt_s']:.3f} | {r['copy_s']:.3f} | {r['edt_s'] / u:.2f} | {u / r['copy_s']:.2f} |"
-              + f" {r[f'umbra_{methods[0]}_peak_bytes'] / r['n'] ** 3:.1f} |")
+              + f" {r[f'umbra_{methods[0]}_peak_bytes'] / r['voxels']:.1f} |")
 
 
 if __name__ == "__main__":
