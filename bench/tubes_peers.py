@@ -10,7 +10,7 @@ For each input (a .tck; .trk/.trk.gz bundles can be merged into one .tck with --
 Prints one JSON line per input and a Markdown table.
 Needs: pip install vtk nibabel numpy; umbra built (target/release/umbra).
 
-Usage: python3 bench/tubes_peers.py NAME=FILE.tck [NAME=FILE.tck ...] [--radius 0.2]
+Usage: python3 bench/tubes_peers.py [NAME=]FILE.tck [[NAME=]FILE ...] [--radius 0.2]
        [--tolerance 0.02] [--repeat 3] [--vtk-max-points P]
        (inputs of more than P points are timed with umbra alone: vtkTubeFilter's output for
        10^8 points, 1.6 G triangles, does not fit this machine's memory)
@@ -116,7 +116,13 @@ def main():
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for item in a.inputs:
-            name, path = item.split("=", 1)
+            # NAME=FILE, or FILE alone (named by its file name).
+            name, sep, path = item.partition("=")
+            if not sep or not name:
+                path = path or name
+                name = Path(path).name
+            if not Path(path).is_file():
+                raise SystemExit(f"tubes_peers: no such file: {path}")
             lines = load_lines(path)
             points = int(sum(len(l) for l in lines))
             with_vtk = a.vtk_max_points is None or points <= a.vtk_max_points
