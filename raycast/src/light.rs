@@ -389,7 +389,7 @@ fn sweep_slices<S: Sync>(
     run: &(impl Fn(&S, usize, usize) + Sync),
     between: &(impl Fn(&S, usize) + Sync),
 ) {
-    use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+    use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
     between(shared, 0);
     if slices == 0 || jobs == 0 {
         return;
@@ -413,6 +413,16 @@ fn sweep_slices<S: Sync>(
     let ranges: Vec<AtomicU64> = (0..pairs).map(|p| AtomicU64::new(open(0, p))).collect();
     // Jobs of the open slice finished.
     let finished = AtomicUsize::new(0);
+    // Set when a job panicked: the others stop waiting for it (rayon then passes the panic on).
+    let failed = AtomicBool::new(false);
+    struct Failed<'a>(&'a AtomicBool);
+    impl Drop for Failed<'_> {
+        fn drop(&mut self) {
+            if std::thread::panicking() {
+                self.0.store(true, Ordering::Relaxed);
+            }
+        }
+    }
     // Claims a job of slice `k` from range `r` (from its back if `backwards`): Err(()) when
     // the range has none left for slice k, Ok(None) when another thread changed it first.
     let claim = |r: usize, k: usize, backwards: bool| -> Result<Option<usize>, ()> {
@@ -452,6 +462,9 @@ fn sweep_slices<S: Sync>(
                 Ok(None) => continue,
                 // Every job of the slice is taken: wait for the last to finish.
                 Err(()) => {
+                    if failed.load(Ordering::Relaxed) {
+                        return;
+                    }
                     if spins < 4096 {
                         std::hint::spin_loop();
                         spins += 1;
@@ -462,6 +475,7 @@ fn sweep_slices<S: Sync>(
                 }
             };
             spins = 0;
+            let guard = Failed(&failed);
             run(shared, k, j);
             // Release: this job's writes; acquire: the other jobs' (for `between`).
             if finished.fetch_add(1, Ordering::AcqRel) + 1 == jobs {
@@ -471,6 +485,7 @@ fn sweep_slices<S: Sync>(
                     r.store(open(k + 1, p), Ordering::Release);
                 }
             }
+            drop(guard);
         }
     };
     rayon::scope(|scope| {
@@ -852,5 +867,22 @@ mod tests {
         assert!(got.iter().all(|g| *g == want));
         assert_eq!(sequence(0, 13, 2).0.len(), 13);
         assert_eq!(sequence(5, 1, 2), sequence(5, 1, 1));
+    }
+
+    #[test]
+    fn a_job_that_panics_ends_the_sweep_with_its_panic() {
+        for (threads, bad_job) in [(2, 0), (2, 12), (4, 5)] {
+            let r = std::panic::catch_unwind(|| {
+                sweep_slices(
+                    &(),
+                    100,
+                    13,
+                    threads,
+                    &|_, k, j| assert!(!(k == 7 && j == bad_job), "job {j} of slice {k}"),
+                    &|_, _| {},
+                )
+            });
+            assert!(r.is_err(), "{threads} threads, job {bad_job}");
+        }
     }
 }
