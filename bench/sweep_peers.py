@@ -64,7 +64,8 @@ def write_nrrd(path, vol_zyx, spacing_xyz):
 NRRD_TYPES = {"float": "<f4", "float32": "<f4", "double": "<f8", "uint8": "u1", "uchar": "u1",
               "unsigned char": "u1", "int8": "i1", "signed char": "i1", "int16": "<i2",
               "short": "<i2", "uint16": "<u2", "ushort": "<u2", "unsigned short": "<u2",
-              "int32": "<i4", "int": "<i4", "uint32": "<u4", "unsigned int": "<u4"}
+              "int32": "<i4", "int": "<i4", "uint32": "<u4", "unsigned int": "<u4",
+              "int64": "<i8", "uint64": "<u8"}
 
 
 def read_nrrd(path):
@@ -77,6 +78,9 @@ def read_nrrd(path):
         if ":" in line and not line.startswith("#"):
             k, v = line.split(":", 1)
             fields[k.strip()] = v.strip()
+    if fields.get("dimension") != "3":
+        raise SystemExit(f"{path}: a field of one component is needed (dimension "
+                         f"{fields.get('dimension')}); convert one with umbra convert --field")
     sizes = [int(x) for x in fields["sizes"].split()]
     assert fields["type"] in NRRD_TYPES and fields["encoding"] == "raw", fields
     assert fields.get("endian", "little") == "little" or NRRD_TYPES[fields["type"]][0] != "<"
@@ -90,6 +94,9 @@ def read_nrrd(path):
     return a.reshape(sizes[::-1]), spacing
 
 
+TAKEN = set()
+
+
 def own_volume(spec, tmp):
     """(name, path, iso, values [z, y, x], spacing xyz) of `--volume PATH:ISO`: the volume as
     `umbra convert` writes it (raw NRRD; what `umbra sweep` and edt both read)."""
@@ -101,6 +108,9 @@ def own_volume(spec, tmp):
     except ValueError:
         raise SystemExit(f"--volume {spec}: the isovalue {iso!r} is not a number")
     name = Path(src).name.split(".")[0]
+    while name in TAKEN:
+        name += "_"
+    TAKEN.add(name)
     path = Path(tmp) / f"own_{name}.nrrd"
     r = subprocess.run([UMBRA, "convert", src, "-o", str(path)], capture_output=True, text=True)
     if r.returncode != 0:

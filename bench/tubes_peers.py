@@ -117,10 +117,13 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         for item in a.inputs:
             # NAME=FILE, or FILE alone (named by its file name).
-            name, sep, path = item.partition("=")
-            if not sep or not name:
-                path = path or name
-                name = Path(path).name
+            if Path(item).is_file():
+                name, path = Path(item).name, item
+            else:
+                name, sep, path = item.partition("=")
+                if not sep or not name:
+                    path = path or name
+                    name = Path(path).name
             if not Path(path).is_file():
                 raise SystemExit(f"tubes_peers: no such file: {path}")
             lines = load_lines(path)

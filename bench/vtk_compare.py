@@ -269,9 +269,9 @@ target = %s
 up = %s
 fov_y = %.9g
 [volume]
-path = "%s"
+path = %s
 """ % (toml_list(BACKGROUND), toml_list(cam["eye"]), toml_list(cam["target"]),
-       toml_list(cam["up"]), cam["fov_y"], vol)
+       toml_list(cam["up"]), cam["fov_y"], json.dumps(vol))
     tail = """[render]
 method = "%s"
 width = 512
@@ -503,12 +503,13 @@ def vtk_read(path):
     # keep origin + spacing * index, as `user_matrix_for` assumes.
     if hasattr(img, "SetDirectionMatrix"):
         img.SetDirectionMatrix(1, 0, 0, 0, 1, 0, 0, 0, 1)
-    reader_matrix = None
+    reader_matrix, qfac = None, 1.0
     if isinstance(r, vtk.vtkNIFTIImageReader):
+        qfac = r.GetQFac()
         m = r.GetSFormMatrix() or r.GetQFormMatrix()
         if m is not None:
             reader_matrix = [[m.GetElement(i, j) for j in range(4)] for i in range(4)]
-    return img, reader_matrix
+    return img, reader_matrix, qfac
 
 
 def matmul(a, b):
@@ -702,9 +703,12 @@ def main():
         cam = orbit_camera(info["bounds"], az, el, dist, FOV_Y, up)
         scene = os.path.join(os.path.abspath(a.out), case + ".toml")
         write_scene(scene, path, cam, tf, a.fxaa)
-        img, reader_m = vtk_read(path)
+        img, reader_m, qfac = vtk_read(path)
         um = user_matrix_for(img, info["affine"])
         cn = []
+        if reader_m is None and qfac < 0:
+            cn.append("qfac -1 without a sform or qform matrix: VTK's reader may have "
+                      "reversed the slices, the placement is unchecked")
         if reader_m is not None:
             # vtkNIFTIImageReader's sform/qform maps VTK data coordinates (origin + spacing
             # index) to NIfTI world: compose with index -> data and compare with umbra's.
@@ -927,5 +931,4 @@ if __name__ == "__main__":
     main()
     # VTK's windows go before the Xvfb this script started (stopped at exit): a window
     # destroyed after its server is gone ends the process with "XIO: fatal IO error".
-    import gc
     gc.collect()

@@ -373,11 +373,12 @@ impl EaVolume {
         }
     }
 
-    /// A frame, drawn in a worker thread of rayon's pool: the light sweep starts a parallel
-    /// loop per slice, and from a thread outside the pool each of them is a job handed over
-    /// and a sleep on a latch until a worker has finished it - a cross-thread wake-up per
-    /// slice (perf, 128 x 128 `combined` with one worker: a third of the frame in the
-    /// scheduler). Inside the pool the loops split and join among the workers.
+    /// A frame, drawn in a worker thread of rayon's pool: the light sweep's slices are shared
+    /// by the caller and the pool's idle workers (`light::sweep_slices`), and the eye's rays
+    /// are a parallel loop. From a thread outside the pool, each parallel loop had been a job
+    /// handed over and a sleep on a latch until a worker finished it (perf, 128 x 128
+    /// `combined` with one worker, when the sweep forked and joined per slice: a third of the
+    /// frame in the scheduler).
     fn render_with<T: Voxel>(
         &self,
         v: &EaView,
@@ -1391,6 +1392,19 @@ mod tests {
             let fresh = EaVolume::new(&vol, &data, &tf).unwrap();
             let want = fresh.render_frame(&target, Some(&light));
             assert!(want.image.iter().any(|p| p[3] > 0.3), "an opaque part");
+            // The same frame whatever the threads sharing the sweep's slices.
+            for threads in [1, 4] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let ev = EaVolume::new(&vol, &data, &tf).unwrap();
+                let got = pool.install(|| ev.render_frame(&target, Some(&light)));
+                assert!(
+                    got.image == want.image && got.volumetric == want.volumetric,
+                    "{threads} threads, cone {cone}, theta {theta_deg}"
+                );
+            }
             let ev = EaVolume::new(&vol, &data, &tf).unwrap();
             // Frames within twice the target's light volume (a larger one's memory is dropped).
             let others = [

@@ -370,7 +370,8 @@ struct Shared {
 unsafe impl Sync for Shared {}
 
 /// Runs `jobs` jobs of each of `slices` slices in order (`run(shared, k, j)`), with
-/// `between(shared, k)` on one thread before slice k starts. A slice has a few jobs of a few
+/// `between(shared, k)` on one thread before slice k starts (and `between(shared, slices)`
+/// after the last). A slice has a few jobs of a few
 /// microseconds each, so a fork-join per slice would pay a wake-up or a steal every slice.
 /// Instead the threads that join (the caller and up to `threads - 1` helpers in rayon's pool)
 /// claim the jobs of the open slice themselves, in pairs: each pair owns a contiguous range of
@@ -824,6 +825,8 @@ mod tests {
     /// A sequence of slices, each job reading its neighbours' values of the previous slice
     /// and `between` summing the slice: any job run early, late or twice changes the result.
     fn sequence(slices: usize, jobs: usize, threads: usize) -> (Vec<u64>, Vec<u64>) {
+        // Each job must run exactly once.
+        let runs: Vec<AtomicU64> = (0..slices * jobs).map(|_| AtomicU64::new(0)).collect();
         let vals: [Vec<AtomicU64>; 2] = [
             (0..jobs).map(|j| AtomicU64::new(j as u64 + 1)).collect(),
             (0..jobs).map(|_| AtomicU64::new(0)).collect(),
@@ -831,6 +834,7 @@ mod tests {
         let sums: Vec<AtomicU64> = (0..=slices).map(|_| AtomicU64::new(0)).collect();
         // Relaxed on purpose: the sweep's own ordering must make the reads see the writes.
         let run = |v: &[Vec<AtomicU64>; 2], k: usize, j: usize| {
+            runs[k * jobs + j].fetch_add(1, Ordering::Relaxed);
             let prev = &v[k % 2];
             let at = |i: usize| prev[i].load(Ordering::Relaxed);
             let x = at(j.saturating_sub(1)) + 3 * at(j) + at((j + 1).min(jobs - 1));
@@ -841,6 +845,7 @@ mod tests {
             sums[k].store(s, Ordering::Relaxed);
         };
         sweep_slices(&vals, slices, jobs, threads, &run, &between);
+        assert!(runs.iter().all(|r| r.load(Ordering::Relaxed) == 1));
         let last = vals[slices % 2]
             .iter()
             .map(|x| x.load(Ordering::Relaxed))
@@ -855,8 +860,14 @@ mod tests {
     fn slices_run_in_order_on_any_number_of_threads() {
         let want = sequence(300, 13, 1);
         assert!(want.1[300] > 0, "{:?}", &want.1[295..]);
+        // In a pool of 8 workers, so that 3 and 8 threads do run at once.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(8)
+            .build()
+            .unwrap();
         for threads in [2, 3, 8] {
-            assert_eq!(sequence(300, 13, threads), want, "{threads} threads");
+            let got = pool.install(|| sequence(300, 13, threads));
+            assert_eq!(got, want, "{threads} threads");
         }
         // Sweeps at once from inside rayon's pool (frames drawn in parallel): no deadlock,
         // the same values.
@@ -871,18 +882,33 @@ mod tests {
 
     #[test]
     fn a_job_that_panics_ends_the_sweep_with_its_panic() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(4)
+            .build()
+            .unwrap();
         for (threads, bad_job) in [(2, 0), (2, 12), (4, 5)] {
-            let r = std::panic::catch_unwind(|| {
-                sweep_slices(
-                    &(),
-                    100,
-                    13,
-                    threads,
-                    &|_, k, j| assert!(!(k == 7 && j == bad_job), "job {j} of slice {k}"),
-                    &|_, _| {},
-                )
+            let r = pool.install(|| {
+                std::panic::catch_unwind(|| {
+                    sweep_slices(
+                        &(),
+                        100,
+                        13,
+                        threads,
+                        &|_, k, j| assert!(!(k == 7 && j == bad_job), "job {j} of slice {k}"),
+                        &|_, _| {},
+                    )
+                })
             });
-            assert!(r.is_err(), "{threads} threads, job {bad_job}");
+            let payload = r.expect_err("the job's panic");
+            let text = payload
+                .downcast_ref::<String>()
+                .cloned()
+                .unwrap_or_default();
+            assert_eq!(
+                text,
+                format!("job {bad_job} of slice 7"),
+                "{threads} threads"
+            );
         }
     }
 }
