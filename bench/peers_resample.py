@@ -22,6 +22,8 @@ import time
 
 import numpy as np
 
+import nrrd_io
+
 CASES = [
     # name, files, umbra --field, VTK array (None: velocity of PLOT3D), dims
     ("fire_ug.vtu", ["fire_ug.vtu"], "uvw", "uvw", (128, 54, 52)),
@@ -57,15 +59,6 @@ def vtk_read(vtk, data, files):
     return r.GetOutput()
 
 
-def read_nrrd(path):
-    """The raw little-endian float NRRD umbra writes (components fastest)."""
-    with open(path, "rb") as f:
-        raw = f.read()
-    head, data = raw.split(b"\n\n", 1)
-    assert b"encoding: raw" in head and b"type: float" in head and b"endian: little" in head
-    return np.frombuffer(data, dtype="<f4").astype(np.float64)
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", default=os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "cfd"))
@@ -87,7 +80,7 @@ def main():
             t = time.perf_counter()
             subprocess.run(cmd, check=True, capture_output=True)
             tu.append(time.perf_counter() - t)
-        u = read_nrrd(out).reshape(dims[2], dims[1], dims[0], -1).transpose(2, 1, 0, 3)
+        u = nrrd_io.read(out)[0].astype(np.float64).reshape(dims[2], dims[1], dims[0], -1).transpose(2, 1, 0, 3)
 
         tv = []
         for _ in range(a.repeat):

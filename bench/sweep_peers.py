@@ -42,56 +42,11 @@ from pathlib import Path
 
 import numpy as np
 
+import nrrd_io
+
 ROOT = Path(__file__).resolve().parent.parent
 UMBRA = os.environ.get("UMBRA", str(ROOT / "target" / "release" / "umbra"))
 SHARED = ROOT.parent / "shared" / "data"
-
-
-def write_nrrd(path, vol_zyx, spacing_xyz):
-    """float32 NRRD, x fastest (the array is indexed [z, y, x])."""
-    nz, ny, nx = vol_zyx.shape
-    hdr = (
-        "NRRD0004\ntype: float\ndimension: 3\n"
-        f"sizes: {nx} {ny} {nz}\n"
-        f"spacings: {spacing_xyz[0]!r} {spacing_xyz[1]!r} {spacing_xyz[2]!r}\n"
-        "encoding: raw\nendian: little\n\n"
-    )
-    with open(path, "wb") as f:
-        f.write(hdr.encode())
-        f.write(np.ascontiguousarray(vol_zyx, dtype="<f4").tobytes())
-
-
-NRRD_TYPES = {"float": "<f4", "float32": "<f4", "double": "<f8", "uint8": "u1", "uchar": "u1",
-              "unsigned char": "u1", "int8": "i1", "signed char": "i1", "int16": "<i2",
-              "short": "<i2", "uint16": "<u2", "ushort": "<u2", "unsigned short": "<u2",
-              "int32": "<i4", "int": "<i4", "uint32": "<u4", "unsigned int": "<u4",
-              "int64": "<i8", "uint64": "<u8"}
-
-
-def read_nrrd(path):
-    """A raw little-endian NRRD with the data attached (as `umbra synth` and `umbra convert`
-    write them), as float32 [z, y, x] and spacing."""
-    data = Path(path).read_bytes()
-    head, _, body = data.partition(b"\n\n")
-    fields = {}
-    for line in head.decode().splitlines()[1:]:
-        if ":" in line and not line.startswith("#"):
-            k, v = line.split(":", 1)
-            fields[k.strip()] = v.strip()
-    if fields.get("dimension") != "3":
-        raise SystemExit(f"{path}: a field of one component is needed (dimension "
-                         f"{fields.get('dimension')}); convert one with umbra convert --field")
-    sizes = [int(x) for x in fields["sizes"].split()]
-    assert fields["type"] in NRRD_TYPES and fields["encoding"] == "raw", fields
-    assert fields.get("endian", "little") == "little" or NRRD_TYPES[fields["type"]][0] != "<"
-    if "space directions" in fields:
-        dirs = [d.strip("() ").split(",") for d in fields["space directions"].split(")")[:3]]
-        spacing = [float(np.linalg.norm([float(c) for c in d])) for d in dirs]
-    else:
-        spacing = [float(x) for x in fields.get("spacings", "1 1 1").split()]
-    dt = np.dtype(NRRD_TYPES[fields["type"]])
-    a = np.frombuffer(body[: dt.itemsize * int(np.prod(sizes))], dtype=dt).astype(np.float32)
-    return a.reshape(sizes[::-1]), spacing
 
 
 TAKEN = set()
@@ -115,7 +70,7 @@ def own_volume(spec, tmp):
     r = subprocess.run([UMBRA, "convert", src, "-o", str(path)], capture_output=True, text=True)
     if r.returncode != 0:
         raise SystemExit(f"--volume {spec}: umbra convert failed:\n{r.stderr}")
-    v, sp = read_nrrd(path)
+    v, sp = nrrd_io.read(path, scalar=True)
     return name, path, iso, v, sp
 
 
@@ -125,7 +80,7 @@ def scene(name, n, tmp):
     if name == "three-solids":
         subprocess.run([UMBRA, "synth", "three-solids", "--n", str(n), "-o", str(path)],
                        check=True, capture_output=True)
-        v, sp = read_nrrd(path)
+        v, sp = nrrd_io.read(path, scalar=True)
         return path, 0.0, v, sp
     if name == "gyroid":
         t = np.linspace(0.0, 6.0 * np.pi, n, dtype=np.float32)
@@ -145,11 +100,11 @@ def scene(name, n, tmp):
         v = np.ascontiguousarray(r.transpose(2, 1, 0))  # [z, y, x]
         sp = [float(zooms[i]) * a.shape[i] / r.shape[i] for i in range(3)]
         iso = 0.5
-        write_nrrd(path, v, sp)
+        nrrd_io.write(path, v, sp)
         return path, iso, v, sp
     else:
         raise SystemExit(f"unknown scene {name}")
-    write_nrrd(path, v, sp)
+    nrrd_io.write(path, v, sp)
     return path, 0.0, v, sp
 
 
