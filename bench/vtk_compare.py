@@ -210,17 +210,26 @@ def umbra_info(umbra, path):
     t = out.stdout
     num = r"[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?"
     info = {"text": t}
-    m = re.search(r"dims:\s*(\d+) x (\d+) x (\d+)", t)
+
+    def search(pattern, what):
+        m = re.search(pattern, t)
+        if m is None:
+            die("%s: no %s in `umbra info`'s report (a %s that is not finite, or a file "
+                "that is not one scalar volume?):\n%s" % (path, what, what, t))
+        return m
+    m = search(r"dims:\s*(\d+) x (\d+) x (\d+)", "grid size")
     info["dims"] = [int(x) for x in m.groups()]
-    m = re.search(r"spacing:\s*(%s),\s*(%s),\s*(%s)" % (num, num, num), t)
+    m = search(r"spacing:\s*(%s),\s*(%s),\s*(%s)" % (num, num, num), "spacing")
     info["spacing"] = [float(x) for x in m.groups()]
     rows = re.findall(r"^\s*\[\s*(%s)\s+(%s)\s+(%s)\s+(%s)\s*\]" % ((num,) * 4), t, re.M)
     info["affine"] = [[float(x) for x in r] for r in rows[:4]]
-    m = re.search(r"bounds:\s*min \((%s), (%s), (%s)\)\s*max \((%s), (%s), (%s)\)" % ((num,) * 6), t)
+    m = search(r"bounds:\s*min \((%s), (%s), (%s)\)\s*max \((%s), (%s), (%s)\)" % ((num,) * 6), "bounds")
     b = [float(x) for x in m.groups()]
     info["bounds"] = (b[:3], b[3:])
-    m = re.search(r"range:\s*(%s) \.\. (%s)" % (num, num), t)
+    m = search(r"range:\s*(%s) \.\. (%s)" % (num, num), "value range")
     info["range"] = (float(m.group(1)), float(m.group(2)))
+    if not info["range"][1] > info["range"][0]:
+        die("%s: every sample has the value %g: no ramp to place" % (path, info["range"][0]))
     if len(info["affine"]) != 4:
         die("could not read the affine from `umbra info %s`:\n%s" % (path, t))
     return info

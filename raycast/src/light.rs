@@ -876,7 +876,10 @@ mod tests {
             .map(|_| sequence(300, 13, 2))
             .collect();
         assert!(got.iter().all(|g| *g == want));
-        assert_eq!(sequence(0, 13, 2).0.len(), 13);
+        // No slices: the values stay, and `between` still runs once, before slice 0.
+        let (none, sums) = sequence(0, 13, 2);
+        assert_eq!(none, (1..=13).collect::<Vec<u64>>());
+        assert_eq!(sums, vec![91]);
         assert_eq!(sequence(5, 1, 2), sequence(5, 1, 1));
     }
 
