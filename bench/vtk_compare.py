@@ -122,9 +122,19 @@ def peer_label(peer):
     return "%s (render.device = %s)" % (PEER_LABEL.get(base, base), device)
 
 
+# Stops the Xvfb this script started (set by ensure_display).
+XVFB_STOP = None
+
+
 def die(msg):
     sys.stderr.write("vtk_compare: " + msg + "\n")
-    sys.exit(2)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    # Without unwinding: VTK's windows would be destroyed after their X server, which ends
+    # the process with "XIO: fatal IO error" instead of this message's status.
+    if XVFB_STOP is not None:
+        XVFB_STOP()
+    os._exit(2)
 
 
 def import_deps():
@@ -173,6 +183,8 @@ def ensure_display(force_offscreen, notes):
             except subprocess.TimeoutExpired:
                 proc.kill()
     atexit.register(stop)
+    global XVFB_STOP
+    XVFB_STOP = stop
     buf = b""
     t0 = time.time()
     os.set_blocking(r, False)
@@ -217,6 +229,11 @@ def umbra_info(umbra, path):
             die("%s: no %s in `umbra info`'s report (a %s that is not finite, or a file "
                 "that is not one scalar volume?):\n%s" % (path, what, what, t))
         return m
+    fm = re.search(r"field:\s*(\S+) \((\d+) component", t)
+    if fm and fm.group(2) != "1":
+        die("%s: field '%s' has %s components: VTK's mappers here take one scalar per voxel "
+            "(umbra convert --field %s:magnitude -o one.nrrd)" % (path, fm.group(1),
+                                                                fm.group(2), fm.group(1)))
     m = search(r"dims:\s*(\d+) x (\d+) x (\d+)", "grid size")
     info["dims"] = [int(x) for x in m.groups()]
     m = search(r"spacing:\s*(%s),\s*(%s),\s*(%s)" % (num, num, num), "spacing")
