@@ -72,10 +72,22 @@ pub fn nice_length(x: f64) -> f64 {
         .unwrap_or(p)
 }
 
-/// A number in at most 4 significant digits, without trailing zeros.
+/// A number in at most 4 significant digits, without trailing zeros: plainly from 1e-4 up to
+/// 1e4, in scientific notation outside (`-2.278e10`: a field's range in pascals stays short
+/// enough for the colour bar's two ends).
 pub fn format_number(v: f64) -> String {
     if v == 0.0 || !v.is_finite() {
         return format!("{v}");
+    }
+    if !(1e-4..1e4).contains(&v.abs()) {
+        let s = format!("{v:.3e}");
+        let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
+        let mantissa = if mantissa.contains('.') {
+            mantissa.trim_end_matches('0').trim_end_matches('.')
+        } else {
+            mantissa
+        };
+        return format!("{mantissa}e{exponent}");
     }
     let digits = (3 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
     let s = format!("{v:.digits$}");
@@ -513,6 +525,11 @@ mod tests {
         assert_eq!(format_number(0.25), "0.25");
         assert_eq!(format_number(1234.5678), "1235");
         assert_eq!(format_number(-0.00012346), "-0.0001235");
+        assert_eq!(format_number(9999.4), "9999");
+        assert_eq!(format_number(-22776158208.0), "-2.278e10");
+        assert_eq!(format_number(102083428352.0), "1.021e11");
+        assert_eq!(format_number(20000.0), "2e4");
+        assert_eq!(format_number(3.2e-7), "3.2e-7");
     }
 
     fn blank(w: usize, h: usize) -> Vec<[f32; 4]> {
