@@ -811,6 +811,7 @@ mod stream_tests {
         mesh: TubeMesh,
         size: (usize, usize),
         parts: usize,
+        buffers: Option<[usize; 2]>,
     }
 
     impl MeshSink for Gather {
@@ -820,6 +821,9 @@ mod stream_tests {
             Ok(())
         }
         fn part(&mut self, p: &MeshPart<'_>) -> Result<()> {
+            // Every part in the same buffers: allocated once, at the largest part's size.
+            let at = [p.positions.as_ptr() as usize, p.indices.as_ptr() as usize];
+            assert_eq!(*self.buffers.get_or_insert(at), at, "part {}", self.parts);
             assert_eq!(p.first_vertex, self.mesh.positions.len());
             assert_eq!(p.first_index, self.mesh.indices.len());
             self.mesh.positions.extend_from_slice(p.positions);

@@ -261,21 +261,29 @@ fn any_perpendicular(t: DVec3) -> DVec3 {
     t.cross(a).normalize()
 }
 
-/// Rotation-minimizing frame vectors by double reflection.
+/// Rotation-minimizing frame vectors by double reflection (Wang et al. 2008).
+///
+/// The reflections are orthogonal maps, so the frame vector stays a unit vector normal to the
+/// tangent but for rounding; each written vector is re-orthonormalised against its tangent,
+/// while the sequence carries the reflected vector as it is and takes the corrected one every
+/// [`RMF_RESYNC`] rings, or at once where the reflection left it far from unit length (a
+/// degenerate step). Each ring then waits only for the two reflections of the one before, not
+/// also for a square root and a division (a ring per point on rough tracts made this chain
+/// 12% of a mesh, docs/benchmarks.md); the rounding carried meanwhile is a few ulps.
 pub fn rmf(x: &[DVec3], t: &[DVec3]) -> Vec<DVec3> {
     let mut r = Vec::with_capacity(x.len());
-    r.push(any_perpendicular(t[0]));
+    let mut carry = any_perpendicular(t[0]);
+    r.push(carry);
     for i in 0..x.len() - 1 {
         let v1 = x[i + 1] - x[i];
         let c1 = v1.dot(v1);
-        let ri = r[i];
         let (rl, tl) = if c1 > 1e-300 {
             (
-                ri - v1 * (2.0 / c1 * v1.dot(ri)),
+                carry - v1 * (2.0 / c1 * v1.dot(carry)),
                 t[i] - v1 * (2.0 / c1 * v1.dot(t[i])),
             )
         } else {
-            (ri, t[i])
+            (carry, t[i])
         };
         let v2 = t[i + 1] - tl;
         let c2 = v2.dot(v2);
@@ -284,16 +292,24 @@ pub fn rmf(x: &[DVec3], t: &[DVec3]) -> Vec<DVec3> {
         } else {
             rl
         };
-        // Re-orthonormalise against the tangent (rounding).
-        // (The fallback only where the rounding left nothing: not made eagerly, it was a
-        // cross product and a square root per ring.)
-        let next = (next - t[i + 1] * next.dot(t[i + 1]))
+        // Re-orthonormalised against the tangent (rounding); the fallback only where the
+        // rounding left nothing (not made eagerly: a cross product and a square root a ring).
+        let fixed = (next - t[i + 1] * next.dot(t[i + 1]))
             .try_normalize()
             .unwrap_or_else(|| any_perpendicular(t[i + 1]));
-        r.push(next);
+        r.push(fixed);
+        let n2 = next.length_squared();
+        carry = if i % RMF_RESYNC == RMF_RESYNC - 1 || !(0.999..=1.001).contains(&n2) {
+            fixed
+        } else {
+            next
+        };
     }
     r
 }
+
+/// Rings between the corrections [`rmf`] carries.
+const RMF_RESYNC: usize = 16;
 
 /// Frenet normals with the flip correction.
 pub fn frenet(curve: &BSpline, params: &[f64], t: &[DVec3]) -> Vec<DVec3> {
@@ -688,19 +704,26 @@ fn tube(
     let fitted = (!polyline).then(|| fit(points, &o.fit));
     let mut fit_params = Vec::new();
     if let Some(f) = &fitted {
-        fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
-        // Meshed as its polyline (deviation 0) where the fit places more rings than points,
-        // keeps every point (which tells a rough line only from eight points up, or in a part
-        // between sharp turns: a cubic needs four control points whatever the line), or
-        // misses the tolerance (short parts between turns can).
-        let as_polyline = fit_params.len() > points.len()
-            || ((points.len() >= 8 || between_turns) && f.curve.control.len() >= points.len())
+        // Meshed as its polyline (deviation 0) where the fit keeps every point (which tells a
+        // rough line only from eight points up, or in a part between sharp turns: a cubic
+        // needs four control points whatever the line), misses the tolerance (short parts
+        // between turns can) or places more rings than points. The rings are placed only
+        // where the first two leave the question open or the fit is kept.
+        let in_vain = ((points.len() >= 8 || between_turns)
+            && f.curve.control.len() >= points.len())
             || f.max_deviation > o.fit.epsilon;
+        if !(rmf_iterative && in_vain) {
+            fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
+        }
+        let as_polyline = in_vain || fit_params.len() > points.len();
         let sharp = sharp_turn(points);
         if rmf_iterative && as_polyline && sharp && !between_turns {
             return None;
         }
         polyline = rmf_iterative && as_polyline && !sharp;
+        if !polyline && fit_params.is_empty() {
+            fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
+        }
     }
     let sides = match o.chordal {
         Some(tol) => sides_for(o.radius, tol),
@@ -1276,10 +1299,29 @@ impl Block {
     }
 }
 
+/// A block's pieces in runs `(first, end, vertices, indices)` of at most `part_vertices`
+/// vertices (one piece at least, however large), in order.
+fn mesh_parts(pieces: &[Piece], part_vertices: usize) -> Vec<(usize, usize, usize, usize)> {
+    let mut out = Vec::new();
+    let mut at = 0;
+    while at < pieces.len() {
+        let (mut end, mut v, mut i) = (at, 0usize, 0usize);
+        while end < pieces.len() && (end == at || v + pieces[end].vertices <= part_vertices) {
+            v += pieces[end].vertices;
+            i += pieces[end].indices;
+            end += 1;
+        }
+        out.push((at, end, v, i));
+        at = end;
+    }
+    out
+}
+
 /// Vertices of a part [`build_streamed`] hands its sink at once (pieces are not split, so a
-/// part of a single huge tube may be larger): 1 M vertices, 28 MB, and their 2 M triangles'
-/// indices, 24 MB.
-pub const PART_VERTICES: usize = 1 << 20;
+/// part of a single huge tube may be larger): 128 K vertices, 3.5 MB, and their 256 K
+/// triangles' indices, 3 MB - a part stays in the caches from its meshing to its writing (1 M
+/// vertices took 5% longer to mesh, docs/benchmarks.md).
+pub const PART_VERTICES: usize = 1 << 17;
 
 /// A part of a mesh that [`build_streamed`] hands its sink: the vertices and triangles of a
 /// run of tube pieces, the indices numbering the whole mesh's vertices.
@@ -1353,28 +1395,29 @@ pub(crate) fn build_streamed_by(
         Vec::<[u8; 3]>::new(),
         Vec::<u32>::new(),
     );
+    // The buffers once, at the largest part's size: reserved part by part, a part larger
+    // than the one before grew them by `realloc`, which copied the previous part's contents
+    // (already sent) - 17% of a single-threaded mesh of the HCP1065 CST_L bundle
+    // (docs/benchmarks.md).
+    let parts: Vec<Vec<(usize, usize, usize, usize)>> = blocks
+        .iter()
+        .map(|b| mesh_parts(&b.pieces, part_vertices))
+        .collect();
+    let (most_v, most_i) = parts
+        .iter()
+        .flatten()
+        .fold((0, 0), |(a, b), p| (a.max(p.2), b.max(p.3)));
+    positions.reserve_exact(most_v);
+    normals.reserve_exact(most_v);
+    colors.reserve_exact(most_v);
+    indices.reserve_exact(most_i);
     let (mut first_vertex, mut first_index) = (0usize, 0usize);
-    for block in blocks {
-        // Runs of pieces of at most PART_VERTICES vertices (one piece at least).
-        let mut at = 0;
-        while at < block.pieces.len() {
-            let mut end = at;
-            let (mut v, mut i) = (0usize, 0usize);
-            while end < block.pieces.len()
-                && (end == at || v + block.pieces[end].vertices <= part_vertices)
-            {
-                v += block.pieces[end].vertices;
-                i += block.pieces[end].indices;
-                end += 1;
-            }
+    for (block, parts) in blocks.into_iter().zip(parts) {
+        for (at, end, v, i) in parts {
             positions.clear();
             normals.clear();
             colors.clear();
             indices.clear();
-            positions.reserve(v);
-            normals.reserve(v);
-            colors.reserve(v);
-            indices.reserve(i);
             let ratio = block.emit_into(
                 &block.pieces[at..end],
                 first_vertex as u32,
@@ -1402,7 +1445,6 @@ pub(crate) fn build_streamed_by(
             })?;
             first_vertex += v;
             first_index += i;
-            at = end;
         }
     }
     if !stats.min_section_ratio.is_finite() {
@@ -1414,6 +1456,88 @@ pub(crate) fn build_streamed_by(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`rmf`] as it was before the carried corrections: every step's vector corrected before
+    /// the next reflection.
+    fn rmf_corrected_each_step(x: &[DVec3], t: &[DVec3]) -> Vec<DVec3> {
+        let mut r = vec![any_perpendicular(t[0])];
+        for i in 0..x.len() - 1 {
+            let v1 = x[i + 1] - x[i];
+            let c1 = v1.dot(v1);
+            let ri = r[i];
+            let (rl, tl) = if c1 > 1e-300 {
+                (
+                    ri - v1 * (2.0 / c1 * v1.dot(ri)),
+                    t[i] - v1 * (2.0 / c1 * v1.dot(t[i])),
+                )
+            } else {
+                (ri, t[i])
+            };
+            let v2 = t[i + 1] - tl;
+            let c2 = v2.dot(v2);
+            let next = if c2 > 1e-300 {
+                rl - v2 * (2.0 / c2 * v2.dot(rl))
+            } else {
+                rl
+            };
+            r.push(
+                (next - t[i + 1] * next.dot(t[i + 1]))
+                    .try_normalize()
+                    .unwrap_or_else(|| any_perpendicular(t[i + 1])),
+            );
+        }
+        r
+    }
+
+    /// The frames with the corrections carried every [`RMF_RESYNC`] rings are the frames
+    /// corrected at every ring, to 1e-12, on a rough random walk of 50,000 points (a ring at
+    /// every point, as on TrackVis tracts) with hairpins and a straight run; each is a unit
+    /// vector normal to its tangent.
+    #[test]
+    fn carried_corrections_keep_the_frames_of_corrections_at_every_ring() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut x = vec![DVec3::ZERO];
+        let mut d = DVec3::new(1.0, 0.2, 0.1).normalize();
+        for i in 1..50_000 {
+            d = if i % 5_000 == 0 {
+                -d
+            } else if (20_000..21_000).contains(&i) {
+                d
+            } else {
+                (d + 0.6 * DVec3::new(rnd(), rnd(), rnd())).normalize()
+            };
+            x.push(x[i - 1] + d * 0.0625);
+        }
+        let n = x.len();
+        let t: Vec<DVec3> = (0..n)
+            .map(|i| (x[(i + 1).min(n - 1)] - x[i.saturating_sub(1)]).normalize_or(DVec3::X))
+            .collect();
+        // Tangents a little off unit length (rounded to f32): the reflections no longer map
+        // one tangent onto the next exactly, and what the carried vector loses is bounded by
+        // the corrections it takes every RMF_RESYNC rings.
+        let t32: Vec<DVec3> = t
+            .iter()
+            .map(|v| (v.as_vec3() * 1.000001).as_dvec3())
+            .collect();
+        let (fast, each) = (rmf(&x, &t32), rmf_corrected_each_step(&x, &t32));
+        let worst = (0..n)
+            .map(|i| (fast[i] - each[i]).length())
+            .fold(0.0, f64::max);
+        // Measured: 8.9e-14, and 1.2e-12 without the corrections carried.
+        assert!(worst < 4e-13, "{worst:e} with tangents off unit length");
+        let (fast, each) = (rmf(&x, &t), rmf_corrected_each_step(&x, &t));
+        for i in 0..n {
+            assert!((fast[i] - each[i]).length() < 1e-12, "ring {i}");
+            assert!((fast[i].length() - 1.0).abs() < 1e-12, "ring {i}");
+            assert!(fast[i].dot(t[i]).abs() < 1e-12, "ring {i}");
+        }
+    }
 
     #[test]
     fn a_turn_left_out_of_the_curvature_never_limits_the_radius() {
