@@ -17,6 +17,13 @@ use tubes::tube_mesh::TubeMesh;
 /// Fraction of the value range below which the presets are transparent.
 pub const PRESET_CUTOFF: f64 = 0.1;
 
+/// A field whose robust range is less than this share of its full range gets a note when a
+/// preset spans the full range.
+pub const OUTLIER_SHARE: f64 = 0.1;
+
+/// Samples the note of [`OUTLIER_SHARE`] estimates the robust range from, at most.
+pub const NOTE_SAMPLES: usize = 1 << 20;
+
 /// The transfer function of a scene for a field with value range `range`: points as given, or
 /// a preset's colour ramp over the range with extinction zero below [`PRESET_CUTOFF`] of it,
 /// rising linearly to `extinction` at the top.
@@ -110,6 +117,40 @@ pub fn transfer(spec: &TransferSpec, range: [f64; 2]) -> Result<Transfer, String
 /// A set's `colormap` key (checked when the scene was read; `None`: the built-in ramp).
 fn named_map(c: &Option<String>) -> Option<volume::colormap::Colormap> {
     c.as_deref().and_then(|c| c.parse().ok())
+}
+
+/// The percentiles `volume.transfer.range = "robust"` spans: the 2nd and 98th of the finite
+/// values (FSL's `fslstats -r`; NiiVue's and MRIcroGL's default window).
+pub const ROBUST_PERCENTILES: [f64; 2] = [2.0, 98.0];
+
+/// The robust range of `samples` (the values `keep` keeps: finite ones, and not the gaps'
+/// stand-in where NaN was replaced; [`volume::quantile::of_samples`]): their
+/// [`ROBUST_PERCENTILES`], or `full` where those coincide (a field that is mostly one value,
+/// such as a mask or a padded background).
+pub fn robust_range(
+    samples: &Samples,
+    full: [f64; 2],
+    keep: impl Fn(f32) -> bool + Sync,
+) -> [f64; 2] {
+    let q = volume::quantile::of_samples(samples, &ROBUST_PERCENTILES.map(|p| p / 100.0), keep);
+    match q[0] < q[1] {
+        true => [q[0], q[1]],
+        false => full,
+    }
+}
+
+/// The values a preset's ramp spans (`volume.transfer.range`): the field's finite range `full`,
+/// its robust range (`robust`, asked for only then) or the values given.
+pub fn preset_range(
+    spec: &TransferSpec,
+    full: [f64; 2],
+    robust: impl FnOnce() -> [f64; 2],
+) -> [f64; 2] {
+    match &spec.range {
+        spec::TransferRange::Values(v) => *v,
+        spec::TransferRange::Named(n) if n == "robust" => robust(),
+        spec::TransferRange::Named(_) => full,
+    }
 }
 
 /// The transfer function the projections (`mip`, `minip`) show their value through:
@@ -480,9 +521,47 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 s.render.method.desc().volume,
                 engine::method::VolumeShading::Projection(_)
             );
+            let full = [st.min, st.max];
+            let finite = |v: f32| v.is_finite();
+            let preset = vspec.transfer.points.is_empty();
+            let range = preset_range(&vspec.transfer, full, || {
+                robust_range(&field.samples, full, finite)
+            });
+            if preset && !projection && vspec.transfer.range.is_full() {
+                // A range that outliers stretch gives most of the field almost one colour and
+                // opacity: say so, and what spans the rest. Estimated from every k-th sample,
+                // at most NOTE_SAMPLES of them (exact below), so that every render of a
+                // large f32 field does not pay two passes over it for a note.
+                let step = (field.samples.len() / NOTE_SAMPLES).max(1);
+                let q = volume::quantile::quantiles(
+                    || {
+                        field
+                            .samples
+                            .values()
+                            .step_by(step)
+                            .filter(|v| v.is_finite())
+                    },
+                    &ROBUST_PERCENTILES.map(|p| p / 100.0),
+                );
+                if q[0] < q[1] && (q[1] - q[0]) < OUTLIER_SHARE * (full[1] - full[0]) {
+                    let n = crate::annotate::format_number;
+                    notes.push(format!(
+                        "{}: the 2nd to 98th percentiles of the values, about [{}, {}], span \
+                         {}% of the range [{}, {}] the preset spans, so most values take \
+                         almost one colour and opacity; volume.transfer.range = \"robust\" \
+                         spans them",
+                        vspec.path.display(),
+                        n(q[0]),
+                        n(q[1]),
+                        n(100.0 * (q[1] - q[0]) / (full[1] - full[0])),
+                        n(full[0]),
+                        n(full[1])
+                    ));
+                }
+            }
             let tf = match projection {
-                true => projection_transfer(vspec, [st.min, st.max])?,
-                false => transfer(&vspec.transfer, [st.min, st.max])?,
+                true => projection_transfer(vspec, full)?,
+                false => transfer(&vspec.transfer, range)?,
             };
             if s.annotate.colorbar.as_deref() == Some("volume") {
                 let (map, [lo, hi]) = match projection {
@@ -490,7 +569,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                         vspec.colormap.clone().unwrap_or_else(|| "grey".into()),
                         vspec.window.unwrap_or([st.min, st.max]),
                     ),
-                    false => ("transfer function".to_string(), [st.min, st.max]),
+                    false => ("transfer function".to_string(), range),
                 };
                 colorbar = Some(crate::annotate::ColorBar {
                     label: field.name.clone(),

@@ -111,6 +111,9 @@ pub struct TransferSpec {
     pub preset: String,
     /// Extinction at the top of a preset's ramp, per world unit.
     pub extinction: f64,
+    /// The values a preset's ramp spans.
+    #[serde(skip_serializing_if = "TransferRange::is_full")]
+    pub range: TransferRange,
     pub points: Vec<TfPoint>,
 }
 
@@ -119,8 +122,30 @@ impl Default for TransferSpec {
         TransferSpec {
             preset: "grey".into(),
             extinction: 0.5,
+            range: TransferRange::default(),
             points: vec![],
         }
+    }
+}
+
+/// `volume.transfer.range`: `"full"` (the field's finite range), `"robust"` (its 2nd to 98th
+/// percentiles) or `[lo, hi]` (values).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum TransferRange {
+    Named(String),
+    Values([f64; 2]),
+}
+
+impl Default for TransferRange {
+    fn default() -> Self {
+        TransferRange::Named("full".into())
+    }
+}
+
+impl TransferRange {
+    pub fn is_full(&self) -> bool {
+        matches!(self, TransferRange::Named(n) if n == "full")
     }
 }
 
@@ -1653,6 +1678,29 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 "volume.transfer.preset",
                 format!("'{}' is not one of {}", t.preset, PRESETS.join(", ")),
             );
+        }
+        if !t.points.is_empty() && !t.range.is_full() {
+            return bad(
+                "volume.transfer.range",
+                "spans a preset's ramp; points carry their own values".into(),
+            );
+        }
+        match &t.range {
+            TransferRange::Named(n) if n == "full" || n == "robust" => {}
+            TransferRange::Named(n) => {
+                return bad(
+                    "volume.transfer.range",
+                    format!("'{n}' is not \"full\", \"robust\" or [lo, hi]"),
+                )
+            }
+            TransferRange::Values([lo, hi]) => {
+                if !(lo.is_finite() && hi.is_finite() && (*lo as f32) < (*hi as f32)) {
+                    return bad(
+                        "volume.transfer.range",
+                        format!("[{lo}, {hi}]: two finite values, lo below hi in single precision, are needed"),
+                    );
+                }
+            }
         }
         if !(t.extinction.is_finite() && t.extinction >= 0.0) {
             return bad(

@@ -256,11 +256,13 @@ impl App {
                 // and scale, with the histograms of the rebuilt model.
                 Some(e) if r.volume && e.range == r.range => {
                     e.histogram = r.histogram.clone();
+                    e.robust = r.robust;
                     e.set_2d(r.histogram2d.clone());
                 }
                 _ => {
                     self.editor = r.volume.then(|| {
                         crate::transfer::Editor::new(r.range, r.histogram.clone())
+                            .with_robust(r.robust)
                             .with_2d(r.histogram2d.clone())
                     })
                 }

@@ -59,6 +59,7 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     let bounds = m.bounds;
     let range = worker::data_range(&m);
     let editor = transfer::Editor::new(range, worker::histogram(&m, range, 128))
+        .with_robust(worker::robust_range(&m, range))
         .with_2d(worker::histogram2d(&m, range, 128, 64));
     let quit = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {

@@ -11,7 +11,7 @@
 //! add a row there (a copy of the nearest row); right-click a handle to remove its row.
 
 use eframe::egui;
-use scene::spec::{Color, TfPoint, TransferSpec};
+use scene::spec::{Color, TfPoint, TransferRange, TransferSpec};
 
 /// The presets, by their scene names.
 pub const PRESETS: &[&str] = &["grey", "bone", "fire", "cool-warm"];
@@ -121,6 +121,8 @@ struct Drag2d {
 pub struct Editor {
     pub log: bool,
     pub range: [f64; 2],
+    /// The data's robust range (`volume.transfer.range = "robust"`).
+    pub robust: [f64; 2],
     pub histogram: Vec<u64>,
     pub tab: Tab,
     pub histogram2d: Option<Histogram2d>,
@@ -135,6 +137,7 @@ impl Editor {
         Editor {
             log: false,
             range,
+            robust: range,
             histogram,
             tab: Tab::OneD,
             histogram2d: None,
@@ -142,6 +145,12 @@ impl Editor {
             dragging2d: None,
             texture: None,
         }
+    }
+
+    /// With the data's robust range.
+    pub fn with_robust(mut self, robust: [f64; 2]) -> Editor {
+        self.robust = robust;
+        self
     }
 
     /// With the value x gradient histogram (the second tab).
@@ -163,7 +172,8 @@ impl Editor {
         if !spec.points.is_empty() {
             return spec.points.clone();
         }
-        scene::compile::transfer(spec, self.range)
+        let range = scene::compile::preset_range(spec, self.range, || self.robust);
+        scene::compile::transfer(spec, range)
             .map(|t| {
                 t.points
                     .iter()
@@ -192,6 +202,7 @@ impl Editor {
         };
         TransferSpec {
             points: row(0.0).chain(row(g1)).collect(),
+            range: Default::default(),
             ..spec.clone()
         }
     }
@@ -220,11 +231,29 @@ impl Editor {
                     && spec.points.is_empty()
                 {
                     spec.points = self.points_of(spec);
+                    spec.range = Default::default();
                 }
                 if ui.selectable_label(current == TWO_D, TWO_D).clicked() && !is_2d(spec) {
                     *spec = self.two_d(spec);
                 }
             });
+        if spec.points.is_empty() {
+            // The values the preset spans: the data's range, its robust range, or as given.
+            let named = |n: &str| TransferRange::Named(n.into());
+            let shown = match &spec.range {
+                TransferRange::Named(n) => n.clone(),
+                TransferRange::Values([lo, hi]) => format!("[{lo}, {hi}]"),
+            };
+            egui::ComboBox::from_label("volume.transfer.range")
+                .selected_text(shown)
+                .show_ui(ui, |ui| {
+                    for n in ["full", "robust"] {
+                        if ui.selectable_label(spec.range == named(n), n).clicked() {
+                            spec.range = named(n);
+                        }
+                    }
+                });
+        }
         if self.histogram2d.is_some() {
             ui.horizontal(|ui| {
                 ui.selectable_value(&mut self.tab, Tab::OneD, "1-D");
@@ -369,6 +398,7 @@ impl Editor {
             if response.dragged() {
                 if spec.points.is_empty() {
                     spec.points = pts.clone();
+                    spec.range = Default::default();
                 }
                 let (a, b) = (
                     if i > 0 { spec.points[i - 1].value } else { lo },
@@ -630,6 +660,7 @@ mod tests {
         let spec = TransferSpec {
             preset: "bone".into(),
             extinction: 0.3,
+            range: Default::default(),
             points: vec![],
         };
         let two = e.two_d(&spec);
@@ -652,6 +683,7 @@ mod tests {
         e.two_d(&TransferSpec {
             preset: "bone".into(),
             extinction: 0.3,
+            range: Default::default(),
             points: vec![],
         })
     }
@@ -689,20 +721,33 @@ mod tests {
 
     #[test]
     fn a_preset_made_explicit_is_the_same_function() {
-        let e = Editor::new([0.0, 200.0], vec![1; 16]);
-        for preset in PRESETS {
+        // Over the data's range and over its robust range (the editor's points are those the
+        // renderer evaluates either way, and made explicit they no longer need the range).
+        let e = Editor::new([0.0, 200.0], vec![1; 16]).with_robust([40.0, 150.0]);
+        for (preset, range) in PRESETS.iter().flat_map(|p| {
+            [
+                (p, TransferRange::Named("full".into())),
+                (p, TransferRange::Named("robust".into())),
+            ]
+        }) {
             let spec = TransferSpec {
                 preset: preset.to_string(),
                 extinction: 0.3,
+                range: range.clone(),
                 points: vec![],
             };
             let pts = e.points_of(&spec);
             let explicit = TransferSpec {
                 points: pts,
+                range: Default::default(),
                 ..spec.clone()
             };
-            let a = scene::compile::transfer(&spec, e.range).unwrap();
-            let b = scene::compile::transfer(&explicit, e.range).unwrap();
+            let spans = match range.is_full() {
+                true => e.range,
+                false => e.robust,
+            };
+            let a = scene::compile::transfer(&spec, spans).unwrap();
+            let b = scene::compile::transfer(&explicit, [-1e9, 1e9]).unwrap();
             for v in [0.0, 13.0, 20.0, 55.5, 100.0, 180.0, 200.0] {
                 let (ca, ea) = a.eval(v);
                 let (cb, eb) = b.eval(v);

@@ -127,8 +127,10 @@ pub struct Session {
     gpu: &'static engine::gpu::Gpu,
     model: Model,
     up: scene::compile::Uploaded<'static>,
-    /// The data's finite range (the presets' ramps span it) and the uploaded function.
+    /// The data's finite and robust ranges (those the presets' ramps span, by
+    /// `volume.transfer.range`) and the uploaded function.
     range: [f64; 2],
+    robust: [f64; 2],
     transfer: Option<scene::spec::TransferSpec>,
     /// The scene's data as modelled: its objects, without the transfer function.
     data: DataKey,
@@ -197,6 +199,15 @@ pub fn data_range(m: &Model) -> [f64; 2] {
     } else {
         [0.0, 1.0]
     }
+}
+
+/// The robust range of a model's volume samples (gaps excluded; `volume.transfer.range =
+/// "robust"`, as `scene::compile::model` takes it), `full` without a volume.
+pub fn robust_range(m: &Model, full: [f64; 2]) -> [f64; 2] {
+    let Some((_, data, _)) = &m.volume else {
+        return full;
+    };
+    scene::compile::robust_range(data, full, |v| v.is_finite() && v > -1e30)
 }
 
 /// `bins` counts of the model's volume samples over `range` (gaps excluded): the histogram the
@@ -319,9 +330,11 @@ impl Session {
             engine::gpu::Gpu::new().map_err(|e| format!("no GPU adapter for the renderer: {e}"))?,
         ));
         let up = upload(gpu, &m)?;
+        let range = data_range(&m);
         Ok(Session {
             gpu,
-            range: data_range(&m),
+            range,
+            robust: robust_range(&m, range),
             model: m,
             up,
             transfer,
@@ -356,12 +369,14 @@ impl Session {
             self.model = model;
             self.up = up;
             self.range = data_range(&self.model);
+            self.robust = robust_range(&self.model, self.range);
             self.data = key;
             self.transfer = tf.clone();
             self.draft.clear();
             rebuilt = Some(Rebuilt {
                 bounds: self.model.bounds,
                 range: self.range,
+                robust: self.robust,
                 histogram: histogram(&self.model, self.range, 128),
                 histogram2d: histogram2d(&self.model, self.range, 128, 64),
                 volume: self.model.volume.is_some(),
@@ -369,8 +384,9 @@ impl Session {
         }
         if tf != self.transfer {
             if let (Some(spec), Some(vol)) = (&tf, &mut self.model.volume) {
-                vol.2 = scene::compile::transfer(spec, self.range)
-                    .map_err(|e| format!("scene key {e}"))?;
+                let range = scene::compile::preset_range(spec, self.range, || self.robust);
+                vol.2 =
+                    scene::compile::transfer(spec, range).map_err(|e| format!("scene key {e}"))?;
                 self.up = upload(self.gpu, &self.model)?;
                 self.draft.clear();
             }
@@ -429,6 +445,7 @@ impl Session {
 pub struct Rebuilt {
     pub bounds: [glam::DVec3; 2],
     pub range: [f64; 2],
+    pub robust: [f64; 2],
     pub histogram: Vec<u64>,
     pub histogram2d: crate::transfer::Histogram2d,
     pub volume: bool,

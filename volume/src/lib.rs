@@ -38,6 +38,7 @@ pub mod nrrd;
 pub mod occlusion_shading;
 pub mod occlusion_sweep;
 pub mod plot3d;
+pub mod quantile;
 pub mod regrid;
 pub mod samples;
 pub mod series;
