@@ -101,6 +101,14 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
     let tf = &h.state().scene.volume.as_ref().unwrap().transfer;
     assert_eq!(tf.preset, "fire");
     assert!(tf.points.is_empty());
+    // Its range menu: the ramp over the data's robust range (the screenshot below is compared
+    // with the headless renderer's image of it).
+    h.get_by_label("volume.transfer.range").click();
+    h.run_steps(2);
+    h.get_by_label("robust").click();
+    h.run_steps(2);
+    let tf = &h.state().scene.volume.as_ref().unwrap().transfer;
+    assert_eq!(tf.range, scene::spec::TransferRange::Named("robust".into()));
     // Wait for the full image of this state, then take the screenshot.
     let t = Instant::now();
     while h.state().shown_level() != Some(Level::Full) && t.elapsed() < Duration::from_secs(60) {
