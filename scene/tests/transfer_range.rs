@@ -18,15 +18,13 @@ fn outlier_volume(dir: &Path) -> std::path::PathBuf {
         data[i] = 1e6;
     }
     data[4321] = f32::NAN;
-    let path = dir.join("p.nrrd");
-    volume::nrrd::write(
-        &path,
-        &vol,
-        &vol.fields[0],
-        volume::nrrd::WriteEncoding::Raw,
-    )
-    .unwrap();
-    path
+    write(&vol, &dir.join("p.nrrd"))
+}
+
+/// `vol`'s first field as a raw NRRD at `path`.
+fn write(vol: &volume::Volume, path: &Path) -> std::path::PathBuf {
+    volume::nrrd::write(path, vol, &vol.fields[0], volume::nrrd::WriteEncoding::Raw).unwrap();
+    path.to_path_buf()
 }
 
 fn scene(path: &Path, range: Option<&str>) -> scene::spec::Scene {
@@ -102,14 +100,7 @@ fn a_preset_spans_the_full_range_the_robust_range_or_the_values_given() {
         "ramp",
         |p: DVec3| p.x,
     );
-    let quiet = dir.path().join("q.nrrd");
-    volume::nrrd::write(
-        &quiet,
-        &plain,
-        &plain.fields[0],
-        volume::nrrd::WriteEncoding::Raw,
-    )
-    .unwrap();
+    let quiet = write(&plain, &dir.path().join("q.nrrd"));
     let m = scene::compile::model(&scene(&quiet, None)).unwrap();
     assert!(!m.notes.iter().any(|n| n.contains("volume.transfer.range")));
 }
