@@ -68,6 +68,7 @@ fn info_json_has_the_documented_keys_and_values() {
         "space",
         "bounds",
         "range",
+        "robust",
         "nonfinite",
         "fields",
     ] {
@@ -84,6 +85,20 @@ fn info_json_has_the_documented_keys_and_values() {
     assert!((sp - (0.81f64 + 0.01).sqrt()).abs() < 1e-12);
     assert_eq!(v["range"], serde_json::json!([-100.0, 134.0]));
     assert_eq!(v["nonfinite"], 0);
+    // `robust`: the 2nd and 98th percentiles (numpy's "linear") of the values, by sorting.
+    let vol = volume::load(&fixture("lps_i16_gzip_be.nrrd")).unwrap();
+    let mut x: Vec<f64> = vol.fields[0].data.iter().map(|&v| v as f64).collect();
+    x.sort_by(f64::total_cmp);
+    let q = |p: f64| {
+        let at = p * (x.len() - 1) as f64;
+        let k = at.floor() as usize;
+        x[k] + (at - k as f64) * (x[(k + 1).min(x.len() - 1)] - x[k])
+    };
+    for (i, p) in [0.02, 0.98].into_iter().enumerate() {
+        let got = v["robust"][i].as_f64().unwrap();
+        assert!((got - q(p)).abs() < 1e-9, "robust[{i}] {got} against {}", q(p));
+    }
+    assert!(v["robust"][0].as_f64() < v["robust"][1].as_f64());
 }
 
 #[test]
@@ -111,6 +126,9 @@ fn info_field_selection_and_nonfinite_count() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["nonfinite"], 2);
     assert_eq!(v["format"], "nifti2");
+    // The robust range leaves the NaN out and lies within the finite range.
+    let (r, lo, hi) = (&v["robust"], &v["range"][0], &v["range"][1]);
+    assert!(r[0].as_f64() >= lo.as_f64() && r[1].as_f64() <= hi.as_f64(), "{v}");
     let out = umbra()
         .args(["info", "--field", "nope"])
         .arg(fixture("image_binary.vtk"))

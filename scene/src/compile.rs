@@ -132,7 +132,17 @@ pub fn robust_range(
     full: [f64; 2],
     keep: impl Fn(f32) -> bool + Sync,
 ) -> [f64; 2] {
-    let q = volume::quantile::of_samples(samples, &ROBUST_PERCENTILES.map(|p| p / 100.0), keep);
+    let q = volume::quantile::of_samples(samples, &ROBUST_FRACTIONS, keep);
+    robust_from(&q, full)
+}
+
+/// [`ROBUST_PERCENTILES`] as fractions, as [`volume::quantile`] takes them.
+pub const ROBUST_FRACTIONS: [f64; 2] =
+    [ROBUST_PERCENTILES[0] / 100.0, ROBUST_PERCENTILES[1] / 100.0];
+
+/// The robust range from the quantiles `q` at [`ROBUST_FRACTIONS`]: `full` where they coincide
+/// (or there are none).
+pub fn robust_from(q: &[f64], full: [f64; 2]) -> [f64; 2] {
     match q[0] < q[1] {
         true => [q[0], q[1]],
         false => full,
@@ -541,7 +551,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                             .step_by(step)
                             .filter(|v| v.is_finite())
                     },
-                    &ROBUST_PERCENTILES.map(|p| p / 100.0),
+                    &ROBUST_FRACTIONS,
                 );
                 if q[0] < q[1] && (q[1] - q[0]) < OUTLIER_SHARE * (full[1] - full[0]) {
                     let n = crate::annotate::format_number;

@@ -86,7 +86,12 @@ pub fn run(a: Args) -> Result<(), String> {
             Ok(f) => {
                 warn(&f.volume.warnings);
                 let stats = f.samples.stats();
-                let j = volume_json_of(&f.volume, &f.name, 1, f.stored, stats);
+                let robust = (stats.min <= stats.max).then(|| {
+                    scene::compile::robust_range(&f.samples, [stats.min, stats.max], |v| {
+                        v.is_finite()
+                    })
+                });
+                let j = volume_json_of(&f.volume, &f.name, 1, f.stored, stats, robust);
                 let text = volume_text(&name, &f.volume, &j);
                 return print(j, if a.json { String::new() } else { text });
             }
@@ -134,17 +139,27 @@ fn gpu(json: bool) -> Result<(), String> {
 }
 
 /// The JSON description of a volume (keys documented in the README: `format`, `dims`,
-/// `components`, `type`, `spacing`, `affine`, `space`, `bounds`, `range`, `nonfinite`, `fields`,
-/// plus `field`, the name of the field `range` and `nonfinite` describe).
+/// `components`, `type`, `spacing`, `affine`, `space`, `bounds`, `range`, `robust`,
+/// `nonfinite`, `fields`, plus `field`, the name of the field `range` and `nonfinite` describe).
 pub fn volume_json(vol: &Volume, sel: Option<&FieldSelector>) -> Result<Value, VolumeError> {
     let field = vol.select(sel)?;
     let stats = field.stats();
+    // The robust range of a scalar field (what `volume.transfer.range = "robust"` spans); a
+    // vector's components are not one distribution.
+    let robust = (field.components == 1 && stats.min <= stats.max).then(|| {
+        let q = volume::quantile::quantiles(
+            || field.data.iter().copied().filter(|v| v.is_finite()),
+            &scene::compile::ROBUST_FRACTIONS,
+        );
+        scene::compile::robust_from(&q, [stats.min, stats.max])
+    });
     Ok(volume_json_of(
         vol,
         &field.name,
         field.components,
         field.stored,
         stats,
+        robust,
     ))
 }
 
@@ -156,6 +171,7 @@ pub fn volume_json_of(
     components: usize,
     stored: volume::ScalarType,
     stats: volume::FieldStats,
+    robust: Option<[f64; 2]>,
 ) -> Value {
     let a = vol.affine;
     let rows: Vec<Vec<f64>> = (0..4)
@@ -173,6 +189,7 @@ pub fn volume_json_of(
         "space": vol.space.name(),
         "bounds": [[lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z]],
         "range": [num(stats.min), num(stats.max)],
+        "robust": robust.map(|[a, b]| json!([a, b])).unwrap_or(Value::Null),
         "nonfinite": stats.nonfinite,
         "fields": vol.field_names(),
         "field": name,
@@ -234,6 +251,12 @@ pub fn volume_text(path: &str, vol: &Volume, j: &Value) -> String {
         f3(&j["bounds"][1])
     );
     s += &format!("range:      {} .. {}\n", j["range"][0], j["range"][1]);
+    if !j["robust"].is_null() {
+        s += &format!(
+            "robust:     {} .. {} (2nd to 98th percentiles)\n",
+            j["robust"][0], j["robust"][1]
+        );
+    }
     s += &format!("non-finite: {} voxels\n", j["nonfinite"]);
     s
 }
