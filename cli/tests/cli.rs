@@ -96,7 +96,11 @@ fn info_json_has_the_documented_keys_and_values() {
     };
     for (i, p) in [0.02, 0.98].into_iter().enumerate() {
         let got = v["robust"][i].as_f64().unwrap();
-        assert!((got - q(p)).abs() < 1e-9, "robust[{i}] {got} against {}", q(p));
+        assert!(
+            (got - q(p)).abs() < 1e-9,
+            "robust[{i}] {got} against {}",
+            q(p)
+        );
     }
     assert!(v["robust"][0].as_f64() < v["robust"][1].as_f64());
 }
@@ -128,7 +132,10 @@ fn info_field_selection_and_nonfinite_count() {
     assert_eq!(v["format"], "nifti2");
     // The robust range leaves the NaN out and lies within the finite range.
     let (r, lo, hi) = (&v["robust"], &v["range"][0], &v["range"][1]);
-    assert!(r[0].as_f64() >= lo.as_f64() && r[1].as_f64() <= hi.as_f64(), "{v}");
+    assert!(
+        r[0].as_f64() >= lo.as_f64() && r[1].as_f64() <= hi.as_f64(),
+        "{v}"
+    );
     let out = umbra()
         .args(["info", "--field", "nope"])
         .arg(fixture("image_binary.vtk"))
