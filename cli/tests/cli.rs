@@ -133,7 +133,8 @@ fn info_field_selection_and_nonfinite_count() {
     // The robust range leaves the NaN out and lies within the finite range.
     let (r, lo, hi) = (&v["robust"], &v["range"][0], &v["range"][1]);
     assert!(
-        r[0].as_f64() >= lo.as_f64() && r[1].as_f64() <= hi.as_f64(),
+        r[0].as_f64().unwrap() >= lo.as_f64().unwrap()
+            && r[1].as_f64().unwrap() <= hi.as_f64().unwrap(),
         "{v}"
     );
     let out = umbra()

@@ -228,6 +228,11 @@ fn scene_values_that_cannot_be_drawn_are_refused_naming_the_key() {
         ),
         ("volume.transfer.range=[1.0,nan]", "volume.transfer.range"),
         ("volume.transfer.range=\"wide\"", "volume.transfer.range"),
+        ("volume.transfer.range=5", "volume.transfer.range"),
+        (
+            "volume.transfer.range=[-1e39,1e39]",
+            "volume.transfer.range",
+        ),
         ("clip=[{normal=[nan,0,1],offset=0}]", "clip[0].normal"),
         ("clip=[{normal=[0,0,1],offset=inf}]", "clip[0].offset"),
         (nine.as_str(), "at most 8"),

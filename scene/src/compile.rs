@@ -141,9 +141,9 @@ pub const ROBUST_FRACTIONS: [f64; 2] =
     [ROBUST_PERCENTILES[0] / 100.0, ROBUST_PERCENTILES[1] / 100.0];
 
 /// The robust range from the quantiles `q` at [`ROBUST_FRACTIONS`]: `full` where they coincide
-/// (or there are none).
+/// in single precision, as the renderers map values (or there are none).
 pub fn robust_from(q: &[f64], full: [f64; 2]) -> [f64; 2] {
-    match q[0] < q[1] {
+    match (q[0] as f32) < (q[1] as f32) {
         true => [q[0], q[1]],
         false => full,
     }
@@ -534,15 +534,18 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             let full = [st.min, st.max];
             let finite = |v: f32| v.is_finite();
             let preset = vspec.transfer.points.is_empty();
-            let range = preset_range(&vspec.transfer, full, || {
-                robust_range(&field.samples, full, finite)
-            });
+            let range = match projection {
+                true => full,
+                false => preset_range(&vspec.transfer, full, || {
+                    robust_range(&field.samples, full, finite)
+                }),
+            };
             if preset && !projection && vspec.transfer.range.is_full() {
                 // A range that outliers stretch gives most of the field almost one colour and
                 // opacity: say so, and what spans the rest. Estimated from every k-th sample,
                 // at most NOTE_SAMPLES of them (exact below), so that every render of a
                 // large f32 field does not pay two passes over it for a note.
-                let step = (field.samples.len() / NOTE_SAMPLES).max(1);
+                let step = field.samples.len().div_ceil(NOTE_SAMPLES).max(1);
                 let q = volume::quantile::quantiles(
                     || {
                         field

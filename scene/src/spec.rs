@@ -131,7 +131,10 @@ impl Default for TransferSpec {
 /// `volume.transfer.range`: `"full"` (the field's finite range), `"robust"` (its 2nd to 98th
 /// percentiles) or `[lo, hi]` (values).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "volume.transfer.range: \"full\", \"robust\" or [lo, hi]"
+)]
 pub enum TransferRange {
     Named(String),
     Values([f64; 2]),
@@ -1694,10 +1697,13 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 )
             }
             TransferRange::Values([lo, hi]) => {
-                if !(lo.is_finite() && hi.is_finite() && (*lo as f32) < (*hi as f32)) {
+                if !((*lo as f32).is_finite()
+                    && (*hi as f32).is_finite()
+                    && (*lo as f32) < (*hi as f32))
+                {
                     return bad(
                         "volume.transfer.range",
-                        format!("[{lo}, {hi}]: two finite values, lo below hi in single precision, are needed"),
+                        format!("[{lo}, {hi}]: two values finite in single precision, lo below hi there, are needed"),
                     );
                 }
             }

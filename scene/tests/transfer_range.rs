@@ -113,8 +113,9 @@ fn a_bad_range_is_refused_naming_the_key() {
         ("\"wide\"", "'wide' is not"),
         ("[5.0, 5.0]", "lo below hi"),
         ("[6.0, 1.0]", "lo below hi"),
-        ("[nan, 1.0]", "two finite values"),
-        ("[1.0, inf]", "two finite values"),
+        ("[nan, 1.0]", "finite in single precision"),
+        ("[1.0, inf]", "finite in single precision"),
+        ("[-1e39, 1e39]", "finite in single precision"),
     ] {
         let text = format!(
             "[volume]\npath = \"{}\"\n[volume.transfer]\nrange = {range}\n",

@@ -266,8 +266,8 @@ fn any_perpendicular(t: DVec3) -> DVec3 {
 /// The reflections are orthogonal maps, so the frame vector stays a unit vector normal to the
 /// tangent but for rounding; each written vector is re-orthonormalised against its tangent,
 /// while the sequence carries the reflected vector as it is and takes the corrected one every
-/// [`RMF_RESYNC`] rings, or at once where the reflection left it far from unit length (a
-/// degenerate step). Each ring then waits only for the two reflections of the one before, not
+/// [`RMF_RESYNC`] rings, or at once where the reflection left it far from unit length or along
+/// the tangent (degenerate steps). Each ring then waits only for the two reflections of the one before, not
 /// also for a square root and a division (a ring per point on rough tracts made this chain
 /// 12% of a mesh, docs/benchmarks.md); the rounding carried meanwhile is a few ulps.
 pub fn rmf(x: &[DVec3], t: &[DVec3]) -> Vec<DVec3> {
@@ -294,12 +294,13 @@ pub fn rmf(x: &[DVec3], t: &[DVec3]) -> Vec<DVec3> {
         };
         // Re-orthonormalised against the tangent (rounding); the fallback only where the
         // rounding left nothing (not made eagerly: a cross product and a square root a ring).
-        let fixed = (next - t[i + 1] * next.dot(t[i + 1]))
-            .try_normalize()
-            .unwrap_or_else(|| any_perpendicular(t[i + 1]));
+        let (fixed, fallback) = match (next - t[i + 1] * next.dot(t[i + 1])).try_normalize() {
+            Some(f) => (f, false),
+            None => (any_perpendicular(t[i + 1]), true),
+        };
         r.push(fixed);
         let n2 = next.length_squared();
-        carry = if i % RMF_RESYNC == RMF_RESYNC - 1 || !(0.999..=1.001).contains(&n2) {
+        carry = if fallback || i % RMF_RESYNC == RMF_RESYNC - 1 || !(0.999..=1.001).contains(&n2) {
             fixed
         } else {
             next
