@@ -657,11 +657,12 @@ fn kinked(points: &[DVec3], tolerance: f64) -> bool {
 
 /// The fourth difference, in tolerances, beyond which [`too_rough`] calls a line a polyline:
 /// above the 16 that five samples within the tolerance of one cubic can reach, for fits whose
-/// spans fall unevenly among the samples. Measured (the fourth differences of every fitted
-/// line of at least eight points, `umbra tubes --radius 0.2 --sides 8 --tolerance 0.02`): no
-/// fit that shortened a line exceeded 7.7 on HCP1065 CST_L and AF_R, DIPY tracks300 and the
-/// smooth benchmark lines (1.9), nor 1.1 on circles and helices of any radius and sampling
-/// (the test below), while 3,773 of the 4,933 fits in vain on CST_L did.
+/// spans fall unevenly among the samples. Measured on whole cleaned lines of at least eight
+/// points at tolerance 0.02 (`cargo run --release -p tubes --example fit_kinks -- 0.02 FILE...`,
+/// docs/benchmarks.md): the fits that shortened a line stay below 11.7 on DIPY tracks300 and
+/// 1.9 on the smooth benchmark lines, and below 1.1 on circles and helices of any radius and
+/// sampling (the test below); no HCP1065 CST_L or AF_R line's fit shortens it, and 5,522 of
+/// CST_L's 5,577 exceed 24.
 const ROUGH_FOURTH: f64 = 24.0;
 
 /// Whether the polyline turns by more than 100 degrees at the middle point of `w`.
