@@ -131,6 +131,9 @@ pub struct Session {
     /// `volume.transfer.range`) and the uploaded function.
     range: [f64; 2],
     robust: [f64; 2],
+    /// The editor's histograms of the volume's samples (1-D, and value x gradient), taken at
+    /// the first rebuild of a volume.
+    histograms: Option<(Vec<u64>, crate::transfer::Histogram2d)>,
     transfer: Option<scene::spec::TransferSpec>,
     /// The scene's data as modelled: its objects, without the transfer function.
     data: DataKey,
@@ -335,6 +338,7 @@ impl Session {
             gpu,
             range,
             robust: robust_range(&m, range),
+            histograms: None,
             model: m,
             up,
             transfer,
@@ -366,10 +370,20 @@ impl Session {
             // they were, in step (drafts take lists from the one into the other's buffers).
             let model = scene::compile::model(&req.scene)?;
             let up = upload(self.gpu, &model)?;
+            let same_volume = key.0 == self.data.0;
             self.model = model;
             self.up = up;
-            self.range = data_range(&self.model);
-            self.robust = robust_range(&self.model, self.range);
+            // The same volume (only other objects changed): its ranges and histograms are
+            // those already taken (a pass or two over its samples each).
+            if !same_volume || self.histograms.is_none() {
+                self.range = data_range(&self.model);
+                self.robust = robust_range(&self.model, self.range);
+                self.histograms = Some((
+                    histogram(&self.model, self.range, 128),
+                    histogram2d(&self.model, self.range, 128, 64),
+                ));
+            }
+            let (histogram, histogram2d) = self.histograms.clone().unwrap_or_default();
             self.data = key;
             self.transfer = tf.clone();
             self.draft.clear();
@@ -377,8 +391,8 @@ impl Session {
                 bounds: self.model.bounds,
                 range: self.range,
                 robust: self.robust,
-                histogram: histogram(&self.model, self.range, 128),
-                histogram2d: histogram2d(&self.model, self.range, 128, 64),
+                histogram,
+                histogram2d,
                 volume: self.model.volume.is_some(),
             });
         }

@@ -245,8 +245,42 @@ fn the_session_rebuilds_for_opened_files_and_survives_bad_settings() {
         ..Default::default()
     };
     let img = frame(&mut session, &hidden.apply(&with_lines)).unwrap();
-    assert!(img.rebuilt.is_some());
     assert!(session.model().lines.is_empty());
+    // The same volume: the ranges and histograms kept from the rebuild before are the model's.
+    let kept = img.rebuilt.expect("a new model");
+    let m = session.model();
+    let range = umbra_viewer::worker::data_range(m);
+    assert_eq!((kept.range, kept.robust), (r.range, r.robust));
+    assert_eq!(kept.range, range);
+    assert_eq!(kept.robust, umbra_viewer::worker::robust_range(m, range));
+    assert_eq!(
+        kept.histogram,
+        umbra_viewer::worker::histogram(m, range, 128)
+    );
+    assert_eq!(
+        kept.histogram2d,
+        umbra_viewer::worker::histogram2d(m, range, 128, 64)
+    );
+    // Another volume opened: its own ranges and histogram, not those kept.
+    let mut other = hidden.apply(&with_lines);
+    umbra_viewer::objects::open(
+        &mut other,
+        &root.join("datasets/mni/mni_icbm152_wm_tal_nlin_sym_09a.nii.gz"),
+    )
+    .unwrap();
+    let fresh = frame(&mut session, &other).unwrap().rebuilt.unwrap();
+    let m = session.model();
+    let range = umbra_viewer::worker::data_range(m);
+    assert!(
+        fresh.range != kept.range && fresh.range == range,
+        "{:?}",
+        fresh.range
+    );
+    assert_eq!(fresh.robust, umbra_viewer::worker::robust_range(m, range));
+    assert_eq!(
+        fresh.histogram,
+        umbra_viewer::worker::histogram(m, range, 128)
+    );
 }
 
 /// A draft's share of the geometry is drawn from the full upload's volume and points with only
