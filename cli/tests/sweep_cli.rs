@@ -282,6 +282,46 @@ fn iso_renders_swept_and_reference_images() {
     assert!(j["hit_pixels"].as_u64().unwrap() > 100);
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (48, 32));
+    // A sweep with --sdf-only over the same name leaves the octants of the sweep before:
+    // `iso` refuses them, naming both files, and writes no image.
+    ok(umbra()
+        .arg("sweep")
+        .arg(&input)
+        .args(["--iso=-0.2", "--sdf-only", "-o"])
+        .arg(&d));
+    let stale = dir.path().join("stale.png");
+    let out = umbra()
+        .arg("iso")
+        .arg(&input)
+        .args(["--iso=-0.2", "--fields"])
+        .arg(&d)
+        .args(["--width", "48", "--height", "32", "-o"])
+        .arg(&stale)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("s.octants.nrrd")
+            && err.contains("another umbra sweep")
+            && err.contains("s.nrrd"),
+        "{err}"
+    );
+    assert!(!stale.exists());
+    // A distance output that is not named .nrrd is refused before any work.
+    for name in ["x.nii", "x.png"] {
+        let out = umbra()
+            .arg("sweep")
+            .arg(&input)
+            .args(["--iso", "0", "-o"])
+            .arg(dir.path().join(name))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{name}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(name) && err.contains(".nrrd"), "{err}");
+        assert!(!dir.path().join(name).exists());
+    }
     let r = dir.path().join("r.png");
     let j: serde_json::Value = serde_json::from_str(
         ok(umbra()

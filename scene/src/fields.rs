@@ -122,8 +122,13 @@ pub fn scalar_field(
 }
 
 /// Writes the distance as a 3-D float32 NRRD in the input's frame.
-pub fn write_distance(path: &Path, vol: &Volume, df: &DistanceField) -> Result<(), String> {
-    nrrd::write_array(
+pub fn write_distance(
+    path: &Path,
+    vol: &Volume,
+    df: &DistanceField,
+    sweep_id: &str,
+) -> Result<(), String> {
+    nrrd::write_array_with(
         path,
         &Array {
             dims: vol.dims,
@@ -136,14 +141,20 @@ pub fn write_distance(path: &Path, vol: &Volume, df: &DistanceField) -> Result<(
             content: "signed distance (world units, negative inside)",
         },
         WriteEncoding::Raw,
+        &[(SWEEP_KEY, sweep_id)],
     )
     .map_err(|e| e.to_string())
 }
 
 /// Writes the octants as a 4-D uint8 NRRD whose first axis (kind `list`) holds the eight
 /// octants in Table 1 order.
-pub fn write_octants(path: &Path, vol: &Volume, oct: &OctantFields) -> Result<(), String> {
-    nrrd::write_array(
+pub fn write_octants(
+    path: &Path,
+    vol: &Volume,
+    oct: &OctantFields,
+    sweep_id: &str,
+) -> Result<(), String> {
+    nrrd::write_array_with(
         path,
         &Array {
             dims: vol.dims,
@@ -157,8 +168,57 @@ pub fn write_octants(path: &Path, vol: &Volume, oct: &OctantFields) -> Result<()
             content: "octant visibility x 255 (Table 1 order)",
         },
         WriteEncoding::Raw,
+        &[(SWEEP_KEY, sweep_id)],
     )
     .map_err(|e| e.to_string())
+}
+
+/// The NRRD key whose value pairs a distance file with the octant fields of the same sweep:
+/// one id per run of [`run`], written into both.
+pub const SWEEP_KEY: &str = "umbra_sweep";
+
+/// The id of one sweep: its input, iso level, clock and process, hashed.
+fn sweep_id(args: &SweepArgs) -> String {
+    let mut h = crate::hash::Fnv1a::default();
+    h.eat(args.input.to_string_lossy().as_bytes());
+    h.eat(&args.iso.to_le_bytes());
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or_default();
+    h.eat(&now.to_le_bytes());
+    h.eat(&std::process::id().to_le_bytes());
+    format!("{:016x}", h.finish())
+}
+
+/// The sweep id a file written by [`write_distance`] or [`write_octants`] carries (`None`
+/// for files without one: other writers, or umbra before ids).
+pub fn sweep_id_of(path: &Path) -> Result<Option<String>, String> {
+    Ok(nrrd::key_values(path)
+        .map_err(|e| e.to_string())?
+        .into_iter()
+        .find(|(k, _)| k == SWEEP_KEY)
+        .map(|(_, v)| v))
+}
+
+/// Refuses octant fields that another sweep wrote than the distance field's: a distance
+/// with an id needs octants with the same one (`umbra sweep --sdf-only` leaves older octants
+/// beside a new distance).
+fn check_pair(distance: &Path, octants: &Path) -> Result<(), String> {
+    let Some(d) = sweep_id_of(distance)? else {
+        return Ok(());
+    };
+    match sweep_id_of(octants)? {
+        Some(o) if o == d => Ok(()),
+        o => Err(format!(
+            "{}: these octant fields come from another umbra sweep than the distance field {} \
+             ({SWEEP_KEY} {} against {d}; a sweep with --sdf-only writes no octants): sweep \
+             again without --sdf-only, or name the matching octants",
+            octants.display(),
+            distance.display(),
+            o.as_deref().unwrap_or("missing"),
+        )),
+    }
 }
 
 /// Reads octant fields written by [`write_octants`].
@@ -212,7 +272,16 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
             .clone()
             .unwrap_or_else(|| default_octants_path(&args.output))
     });
+    for p in std::iter::once(&args.output).chain(octants_path.as_ref()) {
+        if !p.to_string_lossy().to_ascii_lowercase().ends_with(".nrrd") {
+            return Err(format!(
+                "{}: umbra sweep writes NRRD files; name the output .nrrd",
+                p.display()
+            ));
+        }
+    }
     volume::check_outputs(&[Some(args.output.as_path()), octants_path.as_deref()])?;
+    let id = sweep_id(args);
     stage("reading");
     let mut vol = volume::load(&args.input).map_err(|e| e.to_string())?;
     let values = scalar_field(
@@ -248,11 +317,11 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
     }
     stage("writing");
     let t2 = Instant::now();
-    write_distance(&args.output, &vol, &df)?;
+    write_distance(&args.output, &vol, &df, &id)?;
     let oct_path = match (&oct, args.sdf_only) {
         (Some(o), false) => {
             let p = octants_path.clone().unwrap_or_default();
-            write_octants(&p, &vol, o)?;
+            write_octants(&p, &vol, o, &id)?;
             Some(p)
         }
         _ => None,
@@ -310,6 +379,7 @@ pub fn iso_fields(
                 let op = octants
                     .map(|o| o.to_path_buf())
                     .unwrap_or_else(|| default_octants_path(p));
+                check_pair(p, &op)?;
                 Some(read_octants(&op, vol.dims)?)
             } else {
                 None

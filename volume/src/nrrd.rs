@@ -680,6 +680,27 @@ fn vec3(v: DVec3) -> String {
 
 /// Writes an array as an attached NRRD through a temporary file.
 pub fn write_array(path: &Path, a: &Array, encoding: WriteEncoding) -> Result<()> {
+    write_array_with(path, a, encoding, &[])
+}
+
+/// [`write_array`] with `key:=value` lines in the header (NRRD's key/value pairs, which
+/// readers keep as metadata; see [`key_values`]). Keys and values may not hold a line break,
+/// and keys not `:=`.
+pub fn write_array_with(
+    path: &Path,
+    a: &Array,
+    encoding: WriteEncoding,
+    key_values: &[(&str, &str)],
+) -> Result<()> {
+    if let Some((k, v)) = key_values
+        .iter()
+        .find(|(k, v)| k.is_empty() || k.contains(":=") || format!("{k}{v}").contains('\n'))
+    {
+        return Err(VolumeError::Invalid(format!(
+            "{}: the key/value pair {k:?} := {v:?} cannot be written in a NRRD header",
+            path.display()
+        )));
+    }
     let n = a.dims[0] * a.dims[1] * a.dims[2];
     if a.data.len() != n * a.components {
         return Err(VolumeError::Invalid(format!(
@@ -733,7 +754,11 @@ pub fn write_array(path: &Path, a: &Array, encoding: WriteEncoding) -> Result<()
         WriteEncoding::Raw => "encoding: raw\n",
         WriteEncoding::Gzip => "encoding: gzip\n",
     };
-    h += &format!("space origin: {}\n\n", vec3(a.affine.w_axis.truncate()));
+    h += &format!("space origin: {}\n", vec3(a.affine.w_axis.truncate()));
+    for (k, v) in key_values {
+        h += &format!("{k}:={v}\n");
+    }
+    h += "\n";
     if matches!(a.data, ArrayData::U8(_) | ArrayData::U8Planes(_)) && a.stored != ScalarType::U8 {
         return Err(VolumeError::Invalid(format!(
             "{}: u8 data must be stored as uint8",
@@ -752,6 +777,33 @@ pub fn write_array(path: &Path, a: &Array, encoding: WriteEncoding) -> Result<()
             let mut bytes = h.into_bytes();
             bytes.extend_from_slice(&io_util::gzip_bytes(&body));
             io_util::write_atomic(path, &bytes)
+        }
+    }
+}
+
+/// The most bytes of a header [`key_values`] reads.
+pub const MAX_HEADER: usize = 1 << 20;
+
+/// The `key:=value` pairs of a NRRD header (attached `.nrrd` or detached `.nhdr`), in order;
+/// only the header is read (at most [`MAX_HEADER`] bytes of it).
+pub fn key_values(path: &Path) -> Result<Vec<(String, String)>> {
+    use std::io::{BufRead, Read};
+    let f = std::fs::File::open(path).map_err(|e| VolumeError::io(path, e))?;
+    let mut r = std::io::BufReader::new(f).take(MAX_HEADER as u64);
+    let mut out = vec![];
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        let n = r
+            .read_until(b'\n', &mut line)
+            .map_err(|e| VolumeError::io(path, e))?;
+        let text = String::from_utf8_lossy(&line);
+        let text = text.trim_end_matches(['\n', '\r']);
+        if n == 0 || text.is_empty() {
+            return Ok(out);
+        }
+        if let Some((k, v)) = text.split_once(":=") {
+            out.push((k.to_string(), v.to_string()));
         }
     }
 }
