@@ -14,7 +14,8 @@
 //! `both_ways`, backward to `t0 - duration`; it stops earlier where a stage leaves the grid or
 //! meets a non-finite sample, where the speed at a new point is at most `min_speed`, where the
 //! velocity turns by more than `max_angle` degrees from one point to the next, where a mask
-//! falls below its threshold, or at the first point past `max_length` of arc length. Points
+//! falls below its threshold, or at the first point past `max_length` of arc length (of the
+//! whole line: forward first, backward for what is left). Points
 //! carry `time` (the particle's time) and `speed` (`|v(x, t)|`) as in [`crate::trace`].
 
 use crate::trace::{timed_lines, GridField, GridScalar};
@@ -106,17 +107,22 @@ pub struct PathlineOptions<'a> {
     pub both_ways: bool,
 }
 
-/// Follows one particle from `(x0, t0)` in time direction `sign` (1 or -1); returns the
-/// points after the seed with their times and speeds.
+/// Follows one particle from `(x0, t0)` in time direction `sign` (1 or -1) up to the first
+/// point past `max_length` of arc length; returns the points after the seed with their times
+/// and speeds, and the arc length followed.
 fn trace_one(
     f: &SeriesField,
     x0: DVec3,
     t0: f64,
     v0: DVec3,
     sign: f64,
+    max_length: f64,
     o: &PathlineOptions,
-) -> Vec<(DVec3, f64, f64)> {
+) -> (Vec<(DVec3, f64, f64)>, f64) {
     let mut out = Vec::new();
+    if max_length <= 0.0 {
+        return (out, 0.0);
+    }
     let (mut x, mut t, mut v) = (x0, t0, v0);
     let mut elapsed = 0.0;
     let mut length = 0.0;
@@ -177,11 +183,11 @@ fn trace_one(
         x = q;
         t = tq;
         v = vq;
-        if length >= o.max_length {
+        if length >= max_length {
             break;
         }
     }
-    out
+    (out, length)
 }
 
 /// Traces a pathline from every seed `(position, time)`, in parallel, with the point attributes
@@ -201,15 +207,17 @@ pub fn pathlines(f: &SeriesField, seeds: &[(DVec3, f64)], o: &PathlineOptions) -
             if !s0.is_finite() || s0 <= o.min_speed {
                 return None;
             }
+            // `max_length` bounds the whole line: backward goes as far as forward left.
+            let (fwd, len) = trace_one(f, s, t0, v, 1.0, o.max_length, o);
             let mut line: Vec<(DVec3, f64, f64)> = if o.both_ways {
-                let mut back = trace_one(f, s, t0, v, -1.0, o);
+                let (mut back, _) = trace_one(f, s, t0, v, -1.0, o.max_length - len, o);
                 back.reverse();
                 back
             } else {
                 Vec::new()
             };
             line.push((s, t0, s0));
-            line.extend(trace_one(f, s, t0, v, 1.0, o));
+            line.extend(fwd);
             (line.len() >= 2).then_some(line)
         })
         .collect();

@@ -12,7 +12,8 @@
 //! being world directions (the volume readers convert them). Eigenvector fields have no sign:
 //! with `orient`, every sample is flipped to agree with the previous direction of travel (and
 //! within an RK stage with the stage's reference direction). Tracing stops at the grid's edge,
-//! after `max_length`, where the speed falls below `min_speed`, where a mask's trilinear value
+//! after `max_length` of the whole line (forward first, backward for what is left), where the
+//! speed falls below `min_speed`, where a mask's trilinear value
 //! falls below its threshold (an FA mask), where the direction turns by more than `max_angle`
 //! degrees in one step, or where a step's chord is under a tenth of the step (the line went back
 //! on itself, at a stagnation point). From every seed the line is traced both ways and joined. For an
@@ -410,22 +411,27 @@ fn step(
 type Sample = (DVec3, f64, f64);
 
 /// Traces one way from `seed` (speed `s0`) along `sign d0` (`d0` the field's direction there,
-/// `sign` 1 forward, -1 backward); returns the points after the seed with their integration
-/// times since the seed (positive) and speeds.
+/// `sign` 1 forward, -1 backward) for at most `max_length` of arc length; returns the points
+/// after the seed with their integration times since the seed (positive) and speeds, and the
+/// arc length traced.
 fn trace_one(
     f: &GridField,
     seed: DVec3,
     d0: DVec3,
     s0: f64,
     sign: f64,
+    max_length: f64,
     o: &TraceOptions,
-) -> Vec<Sample> {
+) -> (Vec<Sample>, f64) {
     let mut out = Vec::new();
     let (mut p, mut dir, mut speed) = (seed, d0 * sign, s0);
     let mut length = 0.0;
     let mut time = 0.0;
     let cos_max = o.max_angle_deg.to_radians().cos();
-    let max_steps = ((o.max_length / (o.step * 1e-3)).ceil() as usize).min(1_000_000);
+    if max_length <= 0.0 {
+        return (out, 0.0);
+    }
+    let max_steps = ((max_length / (o.step * 1e-3)).ceil() as usize).min(1_000_000);
     for _ in 0..max_steps {
         let Some(Step {
             q,
@@ -433,14 +439,7 @@ fn trace_one(
             h,
             dt,
             speed: nspeed,
-        }) = step(
-            f,
-            p,
-            (dir, speed),
-            o.step.min(o.max_length - length),
-            sign,
-            o,
-        )
+        }) = step(f, p, (dir, speed), o.step.min(max_length - length), sign, o)
         else {
             break;
         };
@@ -464,11 +463,11 @@ fn trace_one(
         p = q;
         dir = ndir;
         speed = nspeed;
-        if length >= o.max_length - 1e-12 {
+        if length >= max_length - 1e-12 {
             break;
         }
     }
-    out
+    (out, length)
 }
 
 /// Traces a streamline through every seed (both ways unless told otherwise), in parallel, with
@@ -496,9 +495,10 @@ pub fn trace_at(f: &GridField, seeds: &[(DVec3, f64)], o: &TraceOptions) -> Stre
             }
             let s0 = v.length();
             let d = v / s0;
-            let fwd = trace_one(f, s, d, s0, 1.0, o);
+            // `max_length` bounds the whole line: backward goes as far as forward left.
+            let (fwd, len) = trace_one(f, s, d, s0, 1.0, o.max_length, o);
             let mut line: Vec<Sample> = if o.both_ways {
-                let mut back = trace_one(f, s, d, s0, -1.0, o);
+                let (mut back, _) = trace_one(f, s, d, s0, -1.0, o.max_length - len, o);
                 back.reverse();
                 back.into_iter().map(|(p, t, v)| (p, t0 - t, v)).collect()
             } else {

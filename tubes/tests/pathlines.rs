@@ -92,7 +92,8 @@ fn a_uniform_field_gives_its_speed_and_time_as_distance_over_speed() {
     let vol = cube(|_| DVec3::new(0.4 * 0.6, 0.4 * 0.8, 0.0), 5);
     let f = GridField::from_volume(&vol, None).unwrap();
     for integ in [Integrator::Euler, Integrator::Rk4, Integrator::Rk45] {
-        let mut o = stream_opts(integ, 0.05, 1.0);
+        // Long enough for both halves to reach the grid's edge (the bound is the whole line's).
+        let mut o = stream_opts(integ, 0.05, 3.0);
         o.both_ways = true;
         let s = trace_at(&f, &[(DVec3::new(-0.2, -0.3, 0.1), 2.5)], &o);
         assert_eq!(s.len(), 1);
@@ -379,4 +380,44 @@ fn time_and_speed_survive_trk_and_trx() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("'a/b'"), "{e}");
+}
+
+/// `max_length` bounds a line traced both ways as a whole, forward first and backward for
+/// what is left - streamlines and pathlines alike.
+#[test]
+fn the_length_bound_holds_for_the_whole_line_traced_both_ways() {
+    let vol = cube(|_| DVec3::new(1.0, 0.0, 0.0), 5);
+    let f = GridField::from_volume(&vol, None).unwrap();
+    let series = VolumeSeries::steady(vol.clone());
+    let sf = SeriesField::from_series(&series, None).unwrap();
+    let seed = DVec3::new(0.1, 0.0, 0.0);
+    let arc = |s: &Streamlines| -> (f64, f64, f64) {
+        let p: Vec<DVec3> = s.points.iter().map(|p| p.as_dvec3()).collect();
+        let len = p.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+        let min = p.iter().map(|q| q.x).fold(f64::INFINITY, f64::min);
+        let max = p.iter().map(|q| q.x).fold(f64::NEG_INFINITY, f64::max);
+        (len, min, max)
+    };
+    // (bound, expected length, lowest x, highest x): forward takes all of a short bound; a long
+    // one reaches the grid's edge at x = 1 and leaves the rest to the backward half.
+    for (bound, len, lo, hi) in [(0.6, 0.6, 0.1, 0.7), (1.5, 1.5, -0.5, 1.0)] {
+        let mut o = stream_opts(Integrator::Rk4, 0.05, bound);
+        o.both_ways = true;
+        let s = trace_at(&f, &[(seed, 0.0)], &o);
+        let (l, a, b) = arc(&s);
+        assert!(
+            (l - len).abs() < 1e-6 && (a - lo).abs() < 1e-6 && (b - hi).abs() < 1e-6,
+            "streamline, bound {bound}: length {l}, x in [{a}, {b}]"
+        );
+        let mut p = path_opts(0.05, f64::INFINITY);
+        p.max_length = bound;
+        p.both_ways = true;
+        let s = pathlines(&sf, &[(seed, 0.0)], &p);
+        let (l, a, b) = arc(&s);
+        // Pathlines stop at the first point past the bound: within a step of it.
+        assert!(
+            l >= len - 1e-6 && l < len + 0.05 + 1e-6 && a > lo - 0.05 - 1e-6 && b <= hi + 1e-6,
+            "pathline, bound {bound}: length {l}, x in [{a}, {b}]"
+        );
+    }
 }

@@ -73,7 +73,7 @@ pub struct Args {
     /// RK45 local error bound (world units).
     #[arg(long, default_value_t = 1e-3, value_parser = super::positive)]
     tolerance: f64,
-    /// Longest streamline (world units; default: twice the grid's diagonal).
+    /// Longest streamline, both ways together (world units; default: twice the grid's diagonal).
     #[arg(long, value_parser = super::positive)]
     max_length: Option<f64>,
     /// Stop where the field's magnitude falls below this.
