@@ -1568,6 +1568,16 @@ fn check_halo(h: &HaloSpec, key: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// A `volume:PATH` source (a colour or a filter) with a relative path made relative to the
+/// scene's folder `dir`, as every other data path of a scene; other sources unchanged.
+fn resolve_volume_source(source: &mut String, dir: &Path) {
+    if let Some(p) = source.strip_prefix("volume:") {
+        if Path::new(p).is_relative() {
+            *source = format!("volume:{}", dir.join(p).display());
+        }
+    }
+}
+
 /// Checks ranges and resolves relative paths.
 fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
     let bad = |key: &str, why: String| Err(format!("scene key {key}: {why}"));
@@ -1769,6 +1779,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             );
         }
         check_color_source(&t.color).map_err(|why| format!("scene key tubes[{i}].color: {why}"))?;
+        resolve_volume_source(&mut t.color, dir);
         if let Some(sel) = &mut t.select {
             check_select(sel, dir, &format!("tubes[{i}].select"))?;
         }
@@ -1791,11 +1802,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
         check_color_source(&p.color)
             .map_err(|why| format!("scene key points[{i}].color: {why}"))?;
-        if let Some(c) = p.color.strip_prefix("volume:") {
-            if Path::new(c).is_relative() {
-                p.color = format!("volume:{}", dir.join(c).display());
-            }
-        }
+        resolve_volume_source(&mut p.color, dir);
         if let Some(h) = &p.halo {
             check_halo(h, &format!("points[{i}].halo"))?;
         }
@@ -1820,6 +1827,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             );
         }
         check_color_source(&l.color).map_err(|why| format!("scene key lines[{i}].color: {why}"))?;
+        resolve_volume_source(&mut l.color, dir);
         if let Some(t) = &l.trail {
             let key = |k: &str| format!("lines[{i}].trail.{k}");
             if l.time.is_none() {
@@ -1861,10 +1869,8 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             }
         }
         if let Some(f) = &mut l.filter {
-            if let Some(p) = f.strip_prefix("volume:") {
-                if Path::new(p).is_relative() {
-                    *f = format!("volume:{}", dir.join(p).display());
-                }
+            if f.starts_with("volume:") {
+                resolve_volume_source(f, dir);
             } else if f.strip_prefix("scalar:").is_none_or(|n| n.is_empty()) {
                 return bad(
                     &format!("lines[{i}].filter"),
@@ -2046,6 +2052,20 @@ mod tests {
         assert_eq!(s.render.method, Method::Combined);
         assert!(s.volume.as_ref().unwrap().path.starts_with("/d"));
         assert_eq!(s.clip.len(), 1);
+    }
+
+    #[test]
+    fn volume_sources_resolve_against_the_scene_folder_as_every_data_path() {
+        let text = "[[tubes]]\npath = \"t.trk\"\ncolor = \"volume:fa.nii\"\n\
+                    [[lines]]\npath = \"l.trk\"\ncolor = \"volume:sub/fa.nii\"\n\
+                    filter = \"volume:md.nii\"\n\
+                    [[points]]\npath = \"p.csv\"\ncolor = \"volume:/abs/fa.nii\"\n";
+        let s = parse(text, "s.toml", Path::new("/scn"), &[]).unwrap();
+        let v = |p: &str| format!("volume:{}", Path::new("/scn").join(p).display());
+        assert_eq!(s.tubes[0].color, v("fa.nii"));
+        assert_eq!(s.lines[0].color, v("sub/fa.nii"));
+        assert_eq!(s.lines[0].filter.as_deref(), Some(v("md.nii").as_str()));
+        assert_eq!(s.points[0].color, "volume:/abs/fa.nii");
     }
 
     #[test]
