@@ -899,3 +899,51 @@ fn a_tilted_cut_face_shows_no_band_per_slice_on_either_device() {
     }
     assert!(max_diff(&dir.path().join("cpu_2.png"), &dir.path().join("gpu_2.png")) <= 2);
 }
+
+/// `--trail-range` from the command line: a frame per time, each with its `now` in the
+/// timings JSON's `sequence` (as documented), and run from another folder than the scene's.
+#[test]
+fn a_trail_range_reports_each_frame_time_in_the_timings_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = tubes::Streamlines::new();
+    let pts: Vec<glam::Vec3> = (0..=40)
+        .map(|k| glam::Vec3::new(k as f32 * 0.5 - 10.0, 0.0, 0.0))
+        .collect();
+    s.push(&pts);
+    s.point_attributes.push(tubes::Attribute {
+        name: "time".into(),
+        components: 1,
+        values: (0..=40).map(|k| k as f32 * 0.5).collect(),
+    });
+    tubes::save(&dir.path().join("line.trk"), &s).unwrap();
+    let scene = dir.path().join("trail.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\nprojection = \"orthographic\"\neye = [0.0, 0.0, 40.0]\n\
+         target = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nheight = 24.0\n\
+         [[lines]]\npath = \"line.trk\"\nwidth = 6.0\ntime = \"scalar:time\"\n\
+         trail = { now = 0.0, back = 2.0, forward = 2.0 }\n\
+         [render]\nmethod = \"illuminated\"\nwidth = 48\nheight = 24\nfxaa = false\nmsaa = 1\n",
+    )
+    .unwrap();
+    let json = dir.path().join("t.json");
+    ok(&umbra()
+        .current_dir(std::env::temp_dir())
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("f_##.png"))
+        .args(["--trail-range", "4:16:3", "--timings-json"])
+        .arg(&json)
+        .output()
+        .unwrap());
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let seq = j["sequence"].as_array().unwrap();
+    let nows: Vec<f64> = seq.iter().map(|f| f["now"].as_f64().unwrap()).collect();
+    assert_eq!(nows, [4.0, 10.0, 16.0]);
+    for (k, f) in seq.iter().enumerate() {
+        assert_eq!(f["index"].as_u64(), Some(k as u64));
+        assert!(Path::new(f["path"].as_str().unwrap()).exists());
+    }
+}

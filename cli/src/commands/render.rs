@@ -373,14 +373,21 @@ fn timings(r: &RenderReport) -> serde_json::Value {
         "adapter": r.adapter,
         "setup_seconds": r.setup_seconds,
         "seconds": r.seconds,
-        "sequence": r.sequence.iter().map(|f| serde_json::json!({
-            "index": f.index,
-            "path": f.path,
-            "total_ms": f.total_ms,
-            "frames_ms": f.frames_ms,
-            "passes": f.passes,
-            "slices": f.slices,
-        })).collect::<Vec<_>>(),
+        "sequence": r.sequence.iter().map(|f| {
+            let mut o = serde_json::json!({
+                "index": f.index,
+                "path": f.path,
+                "total_ms": f.total_ms,
+                "frames_ms": f.frames_ms,
+                "passes": f.passes,
+                "slices": f.slices,
+            });
+            // The trails' time of the frame (`--trail-range`).
+            if let Some(now) = f.now {
+                o["now"] = now.into();
+            }
+            o
+        }).collect::<Vec<_>>(),
     })
 }
 
