@@ -24,8 +24,11 @@
 //!
 //! Look-at keys give `eye` (and optionally `target`, `up`; default the scene camera's, or the
 //! scene's centre for `target`); all keys of a path are of one kind. `fov_y` may be keyed in
-//! either kind. Values are interpolated per component between the keys around each frame's
-//! time; `up` is normalised after interpolation.
+//! either kind, and a key with only `fov_y` (and `time`) joins a path of either kind. Values
+//! are interpolated per component between the keys around each frame's time; `up` is
+//! normalised after interpolation. Keys take the ranges of the scene's `[camera]` (`fov_y` in
+//! (0, 180), `distance` above 1, points within 1e15, `up` not zero); Catmull-Rom values that
+//! overshoot them are held inside.
 
 use crate::spec::{CameraSpec, Scene};
 use serde::Deserialize;
@@ -139,6 +142,26 @@ impl CameraPath {
             if values.into_iter().any(|v| !v.is_finite()) {
                 return Err(format!("key[{i}]: every value must be finite"));
             }
+            // The ranges of the scene's `[camera]` keys.
+            if let Some(f) = k.fov_y.filter(|f| !(*f > 0.0 && *f < 180.0)) {
+                return Err(format!("key[{i}].fov_y: {f} is not in (0, 180) degrees"));
+            }
+            if let Some(d) = k.distance.filter(|d| *d <= 1.0) {
+                return Err(format!(
+                    "key[{i}].distance: {d} must be above 1 (bounding-sphere radii)"
+                ));
+            }
+            for (name, v) in [("eye", k.eye), ("target", k.target), ("up", k.up)] {
+                if let Some(v) = v.filter(|v| v.iter().any(|x| x.abs() > volume::MAX_COORDINATE)) {
+                    return Err(format!(
+                        "key[{i}].{name}: {v:?} is not a point within {:e}",
+                        volume::MAX_COORDINATE
+                    ));
+                }
+            }
+            if k.up.is_some_and(|u| u == [0.0; 3]) {
+                return Err(format!("key[{i}].up: [0, 0, 0] is no direction"));
+            }
             if i > 0 && k.time <= p.key[i - 1].time {
                 return Err(format!(
                     "key[{i}].time: {} is not after key[{}].time = {}",
@@ -148,22 +171,28 @@ impl CameraPath {
                 ));
             }
         }
-        // A key is a look-at key when it gives eye, target or up; the first look-at key gives
-        // the eye (later ones may retarget alone), and every key is of the first one's kind.
+        // A key is a look-at key when it gives eye, target or up, an orbit key when it gives an
+        // angle or the distance, and of either kind when it gives only `fov_y`. A path's keys
+        // are of one kind; a look-at path's first key gives the eye (later ones may retarget
+        // alone).
         let look = |k: &Key| k.eye.is_some() || k.target.is_some() || k.up.is_some();
-        let first_look = look(&p.key[0]);
-        if first_look && p.key[0].eye.is_none() {
-            return Err("key[0]: a look-at path starts with an eye".into());
-        }
-        if let Some(i) = p.key.iter().position(|k| look(k) != first_look) {
-            return Err(format!(
-                "key[{i}]: all keys must be of one kind ({} like key[0])",
-                if first_look {
-                    "eye, target or up"
-                } else {
-                    "orbit angles, no eye, target or up"
-                }
-            ));
+        let orbit = |k: &Key| k.azimuth.is_some() || k.elevation.is_some() || k.distance.is_some();
+        if let Some(first) = p.key.iter().position(|k| look(k) || orbit(k)) {
+            let first_look = look(&p.key[first]);
+            if first_look && p.key[0].eye.is_none() {
+                return Err("key[0]: a look-at path starts with an eye".into());
+            }
+            let other = |k: &Key| if first_look { orbit(k) } else { look(k) };
+            if let Some(i) = p.key.iter().position(other) {
+                return Err(format!(
+                    "key[{i}]: all keys must be of one kind ({} like key[{first}])",
+                    if first_look {
+                        "eye, target or up"
+                    } else {
+                        "orbit angles, no eye, target or up"
+                    }
+                ));
+            }
         }
         match (p.frames, p.fps) {
             (Some(_), Some(_)) => return Err("frames and fps: give one, not both".into()),
@@ -214,8 +243,10 @@ impl CameraPath {
             Some([c(0)?, c(1)?, c(2)?])
         };
         let mut c = base.clone();
+        // Catmull-Rom may overshoot its keys: the angle and the distance are held inside the
+        // ranges a scene's camera allows.
         if let Some(f) = series(&|k| k.fov_y) {
-            c.fov_y = f;
+            c.fov_y = f.clamp(1e-3, 179.999);
         }
         if self.key[0].eye.is_some() {
             // Look-at: each of eye, target and up interpolated over the keys that give it.
@@ -233,7 +264,9 @@ impl CameraPath {
             c.eye = None;
             c.azimuth = series(&|k| k.azimuth).unwrap_or(base.azimuth);
             c.elevation = series(&|k| k.elevation).unwrap_or(base.elevation);
-            c.distance = series(&|k| k.distance).unwrap_or(base.distance);
+            c.distance = series(&|k| k.distance)
+                .unwrap_or(base.distance)
+                .max(1.0 + 1e-9);
         }
         c
     }
@@ -413,5 +446,44 @@ mod tests {
         bad("frames = 2\n[[key]]\ntime = 0\nzoom = 2\n", "zoom");
         bad("fps = 1e9\n[[key]]\ntime = 0\n[[key]]\ntime = 1\n", "fps");
         bad("frames = 2\n[[key]]\ntime = nan\n", "finite");
+        // The ranges of the scene's [camera].
+        let k = |v: &str| format!("frames = 2\n[[key]]\ntime = 0\n{v}\n");
+        bad(&k("distance = -1.0"), "key[0].distance");
+        bad(&k("distance = 0.5"), "key[0].distance");
+        bad(&k("fov_y = 0.0"), "key[0].fov_y");
+        bad(&k("fov_y = 200.0"), "key[0].fov_y");
+        bad(&k("eye = [1, 2, 3]\nup = [0, 0, 0]"), "key[0].up");
+        bad(&k("eye = [1e16, 2, 3]"), "key[0].eye");
+        bad(
+            "frames = 2\n[[key]]\ntime = 0\nfov_y = 20\n[[key]]\ntime = 1\neye = [1, 2, 3]\n",
+            "key[0]: a look-at path starts with an eye",
+        );
+    }
+
+    #[test]
+    fn a_key_with_only_fov_y_joins_a_path_of_either_kind() {
+        let base = CameraSpec::default();
+        for first in ["eye = [0, -10, 0]", "azimuth = 10"] {
+            let p = CameraPath::parse(&format!(
+                "frames = 3\n[[key]]\ntime = 0\n{first}\nfov_y = 40\n[[key]]\ntime = 1\nfov_y = 20\n"
+            ))
+            .unwrap();
+            let f: Vec<f64> = p
+                .frame_times()
+                .iter()
+                .map(|&t| p.camera_at(&base, t).fov_y)
+                .collect();
+            assert_eq!(f, [40.0, 30.0, 20.0], "{first}");
+        }
+        // Catmull-Rom overshoot is held inside the camera's ranges.
+        let p = CameraPath::parse(
+            "frames = 41\ninterpolation = \"catmull-rom\"\n[[key]]\ntime = 0\ndistance = 9\n\
+             [[key]]\ntime = 1\ndistance = 1.01\n[[key]]\ntime = 2\ndistance = 1.01\n",
+        )
+        .unwrap();
+        assert!(p
+            .frame_times()
+            .iter()
+            .all(|&t| p.camera_at(&base, t).distance > 1.0));
     }
 }
