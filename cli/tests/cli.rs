@@ -497,3 +497,53 @@ fn a_closed_pipe_on_standard_output_ends_quietly() {
     assert!(!err.contains("panicked"), "{err}");
     assert_eq!(out.status.code(), Some(0), "{err}");
 }
+
+/// `inside` counts the samples inside the mesh whatever the array's values: a NaN at one node
+/// of a tetrahedron makes its samples NaN but keeps them inside, and a warning says so.
+#[test]
+fn resample_counts_samples_inside_the_mesh_whatever_their_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let vtu = |values: &str| {
+        format!(
+            "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" \
+             byte_order=\"LittleEndian\">\n<UnstructuredGrid><Piece NumberOfPoints=\"4\" \
+             NumberOfCells=\"1\">\n<PointData Scalars=\"s\"><DataArray type=\"Float32\" \
+             Name=\"s\" format=\"ascii\">{values}</DataArray></PointData>\n<Points><DataArray \
+             type=\"Float32\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 0 0 0 1 0 0 0 \
+             1</DataArray></Points>\n<Cells><DataArray type=\"Int32\" Name=\"connectivity\" \
+             format=\"ascii\">0 1 2 3</DataArray>\n<DataArray type=\"Int32\" Name=\"offsets\" \
+             format=\"ascii\">4</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" \
+             format=\"ascii\">10</DataArray></Cells>\n</Piece></UnstructuredGrid></VTKFile>\n"
+        )
+    };
+    let mut reports = vec![];
+    for (name, values) in [("ok", "0 1 2 3"), ("nan", "0 1 2 nan")] {
+        let p = dir.path().join(format!("{name}.vtu"));
+        std::fs::write(&p, vtu(values)).unwrap();
+        let out = umbra()
+            .arg("resample")
+            .arg(&p)
+            .args(["--field", "s", "--size", "8", "--json", "-o"])
+            .arg(dir.path().join(format!("{name}.nrrd")))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        reports.push(j);
+    }
+    let (ok, nan) = (&reports[0], &reports[1]);
+    let inside = ok["inside"].as_f64().unwrap();
+    // A corner tetrahedron of the unit cube holds about a sixth of a regular grid's samples.
+    assert!(inside > 0.1 && inside < 0.4, "{inside}");
+    assert_eq!(nan["inside"].as_f64(), Some(inside));
+    assert!(ok["warnings"].as_array().unwrap().is_empty());
+    let w = nan["warnings"].to_string();
+    assert!(
+        w.contains("inside the mesh are NaN") && w.contains("'s'"),
+        "{w}"
+    );
+}

@@ -586,6 +586,12 @@ impl CfdGrid {
     /// Resamples an array (`NAME`, `NAME:magnitude`, `NAME:x|y|z` or `A,B,C`) onto `dims` samples spanning the grid's
     /// bounding box; samples outside the mesh are NaN.
     pub fn resample(&self, sel: &str, dims: [usize; 3]) -> Result<Volume> {
+        self.resample_counted(sel, dims).map(|(v, _)| v)
+    }
+
+    /// [`CfdGrid::resample`], with how many samples fell inside the mesh (whatever the array's
+    /// values there: a NaN in the data is NaN inside the mesh).
+    pub fn resample_counted(&self, sel: &str, dims: [usize; 3]) -> Result<(Volume, usize)> {
         if dims.iter().any(|&d| !(1..=2048).contains(&d)) || dims[0] * dims[1] * dims[2] > 1 << 28 {
             return Err(VolumeError::Invalid(format!(
                 "grid size {dims:?}: each 1 to 2048, at most 2^28 samples"
@@ -654,6 +660,7 @@ impl CfdGrid {
                 }
             }
         };
+        let inside = std::sync::atomic::AtomicUsize::new(0);
         let data: Vec<f32> = (0..n)
             .into_par_iter()
             .flat_map_iter(|id| {
@@ -664,7 +671,10 @@ impl CfdGrid {
                 );
                 let x = (affine * DVec4::new(i as f64, j as f64, k as f64, 1.0)).truncate();
                 let v = match loc.locate(x) {
-                    Some(hit) => sample(&hit),
+                    Some(hit) => {
+                        inside.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        sample(&hit)
+                    }
                     None => [f32::NAN; 3],
                 };
                 v.into_iter().take(out_comps)
@@ -687,7 +697,7 @@ impl CfdGrid {
             },
         )?;
         v.format = format!("{} resampled", self.format);
-        Ok(v)
+        Ok((v, inside.into_inner()))
     }
 }
 

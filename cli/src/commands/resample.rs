@@ -163,15 +163,25 @@ pub fn resample(
     let bounds = [b[0].to_array(), b[1].to_array()];
     let dims = dims.unwrap_or_else(|| fit_dims(bounds, longest));
     stage("locating samples and interpolating");
-    let vol = grid.resample(field, dims)?;
+    let (vol, inside) = grid.resample_counted(field, dims)?;
     let f = vol.select(None)?;
     let comps = f.components;
-    let inside = f
+    let samples = (f.data.len() / comps).max(1);
+    let nan = f
         .data
         .chunks(comps)
-        .filter(|c| c.iter().all(|v| !v.is_nan()))
-        .count() as f64
-        / (f.data.len() / comps).max(1) as f64;
+        .filter(|c| c.iter().any(|v| v.is_nan()))
+        .count();
+    let mut warnings = warnings;
+    // Samples outside the mesh are NaN; any more are the array's own NaN values.
+    if nan > samples - inside {
+        warnings.push(format!(
+            "{} of the samples inside the mesh are NaN: the array '{field}' has NaN values in \
+             the cells around them",
+            nan - (samples - inside)
+        ));
+    }
+    let inside = inside as f64 / samples as f64;
     stage("writing");
     super::convert::write_field(output, &vol, &f, gzip)?;
     Ok(ResampleReport {
