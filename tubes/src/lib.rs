@@ -252,12 +252,19 @@ impl Streamlines {
         Ok(())
     }
 
-    /// Total polyline length of streamline `i`.
+    /// Total polyline length of streamline `i` through its finite points (a point with a NaN
+    /// or infinite coordinate is left out, as the tube mesher drops it).
     pub fn arc_length(&self, i: usize) -> f64 {
-        self.line(i)
-            .windows(2)
-            .map(|w| (w[1].as_dvec3() - w[0].as_dvec3()).length())
-            .sum()
+        let mut prev: Option<DVec3> = None;
+        let mut sum = 0.0;
+        for p in self.line(i).iter().filter(|p| p.is_finite()) {
+            let p = p.as_dvec3();
+            if let Some(q) = prev {
+                sum += (p - q).length();
+            }
+            prev = Some(p);
+        }
+        sum
     }
 }
 
@@ -291,6 +298,16 @@ mod tests {
             Some([Vec3::new(-2.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 3.0)])
         );
         assert!((s.arc_length(0) - 2.0).abs() < 1e-12);
+        // Non-finite points are left out of the length (the line through its finite points).
+        let mut s2 = Streamlines::new();
+        s2.push(&[
+            Vec3::ZERO,
+            Vec3::new(f32::NAN, 0.0, 0.0),
+            Vec3::new(3.0, 4.0, 0.0),
+            Vec3::new(3.0, f32::INFINITY, 0.0),
+            Vec3::new(3.0, 4.0, 1.0),
+        ]);
+        assert!((s2.arc_length(0) - 6.0).abs() < 1e-12);
         s.transform(&DMat4::from_translation(DVec3::new(78.0, 76.0, -50.0)));
         assert_eq!(s.line(0)[0], Vec3::new(78.0, 76.0, -50.0));
         s.validate().unwrap();
