@@ -198,6 +198,23 @@ fn trace_follows_a_synthetic_field_into_a_tractogram() {
             .unwrap();
         assert_eq!(o.status.code(), Some(1), "{bad:?}");
     }
+    // Seeds that give no line: an empty tractogram, and a warning that says why.
+    let far = dir.path().join("far.csv");
+    std::fs::write(&far, "x,y,z\n100,100,100\n").unwrap();
+    let empty = dir.path().join("empty.tck");
+    let o = umbra()
+        .arg("trace")
+        .arg(&field)
+        .arg("-o")
+        .arg(&empty)
+        .arg("--seeds")
+        .arg(&far)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("warning: no seed gave a line"), "{err}");
+    assert_eq!(tubes::load(&empty).unwrap().len(), 0);
 }
 
 /// A negative bundle radius reaches the generator's check (not clap's "unexpected argument"),

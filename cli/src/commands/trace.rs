@@ -174,6 +174,13 @@ pub fn run(a: Args) -> Result<(), String> {
     for n in &r.notes {
         eprintln!("note: {n}");
     }
+    if r.lines == 0 {
+        eprintln!(
+            "umbra: warning: no seed gave a line: each lay outside the grid or the mask, where \
+             the speed is at most --min-speed, or stopped before its first step; the output \
+             holds no streamline"
+        );
+    }
     eprintln!(
         "wrote {}: {} {}, {} points",
         args.output.display(),

@@ -164,5 +164,8 @@ fn select(a: SelectArgs) -> Result<(), String> {
         sum.by_subsample,
         a.output.display()
     );
+    if sum.kept == 0 && sum.total > 0 {
+        eprintln!("umbra: warning: the selection kept no streamline; the output holds none");
+    }
     Ok(())
 }
