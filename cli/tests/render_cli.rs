@@ -947,3 +947,35 @@ fn a_trail_range_reports_each_frame_time_in_the_timings_json() {
         assert!(Path::new(f["path"].as_str().unwrap()).exists());
     }
 }
+
+/// The CPU renderer refuses an isosurface scene saying so (it had said the scene had no
+/// volume), and writes nothing.
+#[test]
+fn the_cpu_renderer_names_the_isosurface_it_cannot_draw() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("iso.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[volume]\npath = \"{}\"\n[volume.iso]\nvalue = 1000.0\n\
+             [render]\ndevice = \"cpu\"\nwidth = 32\nheight = 24\n",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    let png = dir.path().join("iso.png");
+    let out = umbra()
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("render.device") && err.contains("isosurface ([volume.iso])"),
+        "{err}"
+    );
+    assert!(!png.exists());
+}

@@ -368,6 +368,18 @@ pub fn slice_distance(vol: &volume::Volume, data: &Samples, tf: &Transfer) -> (f
     for k in (1..nz.saturating_sub(1)).step_by(step) {
         for j in (1..ny.saturating_sub(1)).step_by(step) {
             for i in (1..nx.saturating_sub(1)).step_by(step) {
+                // NaN samples are held as -3e38 (gaps): no gradient across them.
+                let around = [
+                    at(i + 1, j, k),
+                    at(i - 1, j, k),
+                    at(i, j + 1, k),
+                    at(i, j - 1, k),
+                    at(i, j, k + 1),
+                    at(i, j, k - 1),
+                ];
+                if around.iter().any(|v| !(v.is_finite() && *v > -1e30)) {
+                    continue;
+                }
                 let c = [
                     (at(i + 1, j, k) - at(i - 1, j, k)) / (2.0 * sp[0]),
                     (at(i, j + 1, k) - at(i, j - 1, k)) / (2.0 * sp[1]),
@@ -475,7 +487,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 None,
                 true,
                 None,
-            )?;
+            )
+            .map_err(|e| format!("volume.iso.fields: {e}"))?;
             let octants = octants.ok_or("volume.iso: the octant fields are missing")?;
             let surface = occlusion::isosurface::IsoSurface::new(
                 vol.dims,
@@ -647,7 +660,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         let mut args = crate::tube_sets::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
         args.colormap = named_map(&t.colormap);
         let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
-            .map_err(|e| format!("tubes[{i}].color ({}): {e}", t.path.display()))?;
+            .map_err(|e| format!("tubes[{i}] ({}): {e}", t.path.display()))?;
         let mut mesh = mesh;
         mesh.opacity = (t.opacity < 1.0).then_some(t.opacity as f32);
         meshes.push(mesh);
@@ -1054,12 +1067,12 @@ pub fn cpu_refusal(s: &Scene, m: &Model) -> Option<String> {
     if m.planes.as_ref().is_some_and(|p| p.blend.is_some()) {
         return Some("an overlay blended into the volume (drawn on the GPU)".into());
     }
-    let Some((_, _, tf)) = &m.volume else {
-        return Some("no [volume]".into());
-    };
     if m.iso.is_some() {
         return Some("an isosurface ([volume.iso])".into());
     }
+    let Some((_, _, tf)) = &m.volume else {
+        return Some("no volume to draw (no [volume], or volume.render = false)".into());
+    };
     if !m.meshes.is_empty() || !m.lines.is_empty() {
         return Some("tubes, lines or points (geometry is drawn on the GPU)".into());
     }
@@ -1537,6 +1550,17 @@ mod tests {
         let (d, why) = slice_distance(&vol, &data, &step);
         assert_eq!(d, 0.125);
         assert!(why.contains("eighth"), "{why}");
+        // NaN samples (gaps, held as -3e38) give no gradient: a third of the ramp NaN leaves
+        // the narrow feature's 0.2, where the gaps' jumps would have bounded it at 0.125.
+        let mut values = vol.select(None).unwrap().data;
+        for (n, v) in values.iter_mut().enumerate() {
+            if n % 32 < 10 {
+                *v = f32::NAN;
+            }
+        }
+        let gaps = Samples::pack(emission_absorption::prepare_owned(values));
+        let (d, why) = slice_distance(&vol, &gaps, &narrow);
+        assert!((d - 0.2).abs() < 1e-9, "{d} {why}");
     }
 
     #[test]

@@ -1924,16 +1924,19 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         if !(c.offset.is_finite() && c.offset.abs() <= volume::MAX_COORDINATE) {
             return bad(
                 &format!("clip[{i}].offset"),
-                format!("{} is not finite", c.offset),
+                format!(
+                    "{} is not a finite offset within {:e}",
+                    c.offset,
+                    volume::MAX_COORDINATE
+                ),
             );
         }
     }
     let r = &s.render;
-    if !(1..=16384).contains(&r.width) || !(1..=16384).contains(&r.height) {
-        return bad(
-            "render.width",
-            format!("{} x {} is not within 1..16384", r.width, r.height),
-        );
+    for (key, v) in [("render.width", r.width), ("render.height", r.height)] {
+        if !(1..=16384).contains(&v) {
+            return bad(key, format!("{v} pixels is not within 1..16384"));
+        }
     }
     if r.slices.is_some() && r.slice_distance.is_some() {
         return bad(
@@ -1941,11 +1944,14 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             "give slices or slice_distance, not both".into(),
         );
     }
-    if r.slices == Some(0)
-        || r.slice_distance
-            .is_some_and(|d| !(d.is_finite() && d > 0.0))
-    {
+    if r.slices == Some(0) {
         return bad("render.slices", "must be positive".into());
+    }
+    if let Some(d) = r.slice_distance.filter(|d| !(d.is_finite() && *d > 0.0)) {
+        return bad(
+            "render.slice_distance",
+            format!("{d} is not a positive finite distance"),
+        );
     }
     if !(1..=engine::gbuffer::MAX_PEEL_LAYERS).contains(&r.translucent_layers) {
         return bad(
@@ -2192,6 +2198,14 @@ mod tests {
             ("render.lineao.guard=5000", "render.lineao.guard"),
             ("render.lineao.floor=2", "render.lineao.floor"),
             ("render.lineao.intensity=-1", "render.lineao.intensity"),
+            ("render.height=0", "render.height"),
+            ("render.width=20000", "render.width"),
+            ("render.slice_distance=0", "render.slice_distance"),
+            ("render.slices=0", "render.slices"),
+            (
+                "clip=[{normal=[0,0,1],offset=1e16}]",
+                "clip[0].offset: 10000000000000000 is not a finite offset within 1e15",
+            ),
         ] {
             let e = bad(set);
             assert!(e.contains(key), "{set}: {e}");
