@@ -418,3 +418,37 @@ fn time_options_that_do_not_apply_are_refused() {
         .unwrap();
     fails(&o, "--frames");
 }
+
+/// A time series drawn as a volume is its first frame, and the render says so (as `umbra
+/// info` does).
+#[test]
+fn a_time_series_rendered_as_a_volume_notes_that_it_is_frame_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let nii = dir.path().join("dg.nii");
+    let o = umbra()
+        .args(["synth", "double-gyre", "--n", "5", "--frames", "3", "-o"])
+        .arg(&nii)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        "[volume]\npath = \"dg.nii\"\nfield = \"data:magnitude\"\n\
+         [render]\ndevice = \"cpu\"\nmethod = \"ea\"\nwidth = 24\nheight = 16\n",
+    )
+    .unwrap();
+    let o = umbra()
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("s.png"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("dg.nii: a time series of 3 vector fields") && err.contains("frame 0 only"),
+        "{err}"
+    );
+}

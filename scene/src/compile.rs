@@ -464,6 +464,11 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             .map_err(|e| e.to_string())?;
         if let Some(ispec) = &vspec.iso {
             let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
+            notes.extend(
+                vol.warnings
+                    .iter()
+                    .map(|w| format!("{}: {w}", vspec.path.display())),
+            );
             space = Some(vol.space);
             let inside = if ispec.inside == spec::IsoInside::Below {
                 volume::distance_sweep::Inside::Below
@@ -524,6 +529,11 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 e => e.to_string(),
             })?;
             let vol = field.volume;
+            notes.extend(
+                vol.warnings
+                    .iter()
+                    .map(|w| format!("{}: {w}", vspec.path.display())),
+            );
             space = Some(vol.space);
             let st = field.samples.stats();
             if !(st.min.is_finite() && st.max.is_finite()) {
