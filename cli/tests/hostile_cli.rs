@@ -334,3 +334,43 @@ fn a_subsample_of_nothing_is_refused() {
     );
     assert!(!out.exists());
 }
+
+/// A CPU frame larger than the process may allocate (an address-space limit, as `ulimit -v`
+/// on a cluster node) is a clear error naming the size keys, not an abort, and no file.
+#[test]
+fn a_cpu_frame_past_the_memory_limit_is_refused_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[volume]\npath = \"{}\"\n[render]\ndevice = \"cpu\"\nmethod = \"ea\"\n",
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .parent()
+                .unwrap()
+                .join("datasets/vtk/headsq_64x64x93.nhdr")
+                .display()
+        ),
+    )
+    .unwrap();
+    let png = dir.path().join("huge.png");
+    // 6 GB of address space: enough to start (lavapipe included), not for 16 GiB of frame.
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(
+            "ulimit -v 6000000 && exec \"$0\" render \"$1\" -o \"$2\" --width 16384 --height 16384",
+        )
+        .arg(env!("CARGO_BIN_EXE_umbra"))
+        .arg(&scene)
+        .arg(&png)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("render.width and render.height") && err.contains("16384 x 16384"),
+        "{err}"
+    );
+    assert!(!png.exists());
+}

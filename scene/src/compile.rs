@@ -1048,6 +1048,28 @@ pub struct Uploaded<'g> {
     refused: Option<String>,
 }
 
+/// Bytes a pixel of a CPU frame takes at its peak: the march's pixels (24), the frame's
+/// image, opacity and depth (24), and the output's image and AOVs (16).
+pub const CPU_FRAME_BYTES_PER_PIXEL: u64 = 64;
+
+/// Refuses a CPU frame whose buffers this process cannot allocate (an address-space limit
+/// such as `ulimit -v`, or a size past the machine), naming the keys, instead of aborting in
+/// the middle of the frame: the buffers are reserved, not touched, and given back.
+pub fn check_cpu_frame_memory(width: u32, height: u32) -> Result<(), String> {
+    let bytes = width as u64 * height as u64 * CPU_FRAME_BYTES_PER_PIXEL;
+    let mut probe: Vec<u8> = Vec::new();
+    usize::try_from(bytes)
+        .ok()
+        .and_then(|b| probe.try_reserve_exact(b).ok())
+        .ok_or_else(|| {
+            format!(
+                "scene keys render.width and render.height: a {width} x {height} frame needs \
+                 about {:.1} GiB for the CPU renderer, more than this process can allocate",
+                bytes as f64 / (1u64 << 30) as f64
+            )
+        })
+}
+
 /// Whether the native CPU renderer draws the frames of `s` with model `m` on `gpu`
 /// (`render.device`: `cpu`, or `auto` on a CPU adapter, and nothing it refuses).
 pub fn drawn_on_cpu(s: &Scene, m: &Model, gpu: &engine::gpu::Gpu) -> bool {
@@ -1444,6 +1466,9 @@ impl Uploaded<'_> {
             ),
             false => None,
         };
+        if cpu.is_some() {
+            check_cpu_frame_memory(v.width, v.height)?;
+        }
         let limit = self
             .renderer
             .gpu()
