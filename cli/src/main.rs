@@ -31,19 +31,21 @@ enum Command {
     /// Trace streamlines (or, with --pathlines, pathlines through a time series) into .trk,
     /// .trx or .tck, with time and speed per point.
     Trace(trace::Args),
-    /// B-spline stream tubes of a tractogram (.trk, .tck), written as PLY or OBJ.
+    /// B-spline stream tubes of a tractogram (.trk, .tck, optionally .gz, .trx, .vtk), written as
+    /// PLY or OBJ.
     Tubes(tubes::Args),
     /// Tractogram tools: `umbra tracts select` (streamlines by include/exclude ROIs, length,
     /// attribute ranges, subsample).
     Tracts(tracts::Args),
     /// Write a synthetic scene as NRRD or NIfTI: validation (the sweeping paper's solids,
-    /// [0,100]^3), three-solids (sphere, torus, box in [0,1]^3), abc, burgers, rotation (vector
-    /// fields), double-gyre (a time-periodic flow, 5-D NIfTI).
+    /// [0,100]^3), three-solids (sphere, torus, box in [0,1]^3), phantom (3-D Shepp-Logan,
+    /// uint16), abc, burgers, rotation (vector fields), double-gyre (a time-periodic flow, 5-D
+    /// NIfTI), bundles (synthetic fibre bundles as .tck).
     Synth(synth::Args),
     /// Write a volume's field as NRRD (.nrrd) or NIfTI-1 (.nii, .nii.gz).
     Convert(convert::Args),
-    /// Render a scene file on the GPU: volume and tubes with combined occlusion (or the
-    /// dos, vicinity, ea, phong baselines) to PNG (sRGB) or EXR (linear RGBA, --aov layers).
+    /// Render a scene file (on the GPU, or the native CPU renderer): volume, tubes and lines by
+    /// any method of the table to PNG (sRGB) or EXR (linear RGBA, --aov layers).
     Render(render::Args),
     /// Benchmarks: `umbra bench accuracy` (every method against the Monte Carlo ground truth,
     /// error against time, results.csv and a Pareto chart).
@@ -53,7 +55,7 @@ enum Command {
     /// HCP1065 bundles as lines with LineAO over the template).
     Demo(demo::Args),
     /// Check a scene file (TOML) and print it resolved, with defaults and --set overrides, as
-    /// JSON (the renderer of issue 5 reads the same files).
+    /// JSON (`umbra render` and `umbra view` read the same files).
     Scene(scene::Args),
     /// Resample a CFD grid (.vtr, .vts, .vtu, legacy .vtk STRUCTURED_GRID/RECTILINEAR_GRID,
     /// PLOT3D) onto a regular grid; samples outside the mesh are NaN.

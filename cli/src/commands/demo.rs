@@ -35,7 +35,8 @@ pub struct Args {
     width: Option<u32>,
     #[arg(long)]
     height: Option<u32>,
-    /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated, lineao.
+    /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated, lineao,
+    /// illustrative, mip, minip.
     #[arg(long, value_enum, hide_possible_values = true)]
     method: Option<super::Method>,
     /// Frames timed; total_ms is their median.

@@ -8,8 +8,9 @@ use volume::{FieldSelector, Volume, VolumeError};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Volume file (.nii, .nii.gz, .hdr, .nrrd, .nhdr, .vtk, .vti, .mhd, .mha, .slc) or
-    /// tractogram (.trk, .tck, optionally .gz).
+    /// Volume file (.nii, .nii.gz, .hdr, .nrrd, .nhdr, .vtk, .vti, .mhd, .mha, .slc), CFD grid
+    /// (.vtr, .vts, .vtu, legacy .vtk grids, PLOT3D with --q) or tractogram (.trk, .tck,
+    /// optionally .gz, .trx, .vtk polylines).
     file: Option<PathBuf>,
     /// Print one JSON object instead of text.
     #[arg(long)]

@@ -27,7 +27,7 @@ pub struct Args {
     #[arg(long)]
     height: Option<u32>,
     /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated,
-    /// lineao.
+    /// lineao, illustrative, mip, minip.
     #[arg(long, value_enum, hide_possible_values = true)]
     method: Option<super::Method>,
     /// Render each image this many times, every pass re-run (total_ms is the median);

@@ -55,7 +55,7 @@ pub fn run(a: Args) -> Result<(), String> {
     .map_err(|e| e.to_string())?;
     drop(progress);
     for w in &r.warnings {
-        eprintln!("warning: {w}");
+        eprintln!("umbra: warning: {w}");
     }
     if a.json {
         out_json_pretty(&r)?;
