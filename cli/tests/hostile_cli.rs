@@ -374,3 +374,25 @@ fn a_cpu_frame_past_the_memory_limit_is_refused_cleanly() {
     );
     assert!(!png.exists());
 }
+
+/// Outputs whose name promises another format than the command writes are refused before
+/// any work, naming the file (an `iso` PNG named .jpg, NIfTI asked to be gzip-encoded by
+/// `--gzip`), and nothing is written.
+#[test]
+fn outputs_named_for_another_format_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let input = fixture("lps_i16_gzip_be.nrrd");
+    let input = input.to_str().unwrap();
+    let jpg = d.path().join("q.jpg");
+    let e = refused(
+        &["iso", input, "--iso", "0", "-o", jpg.to_str().unwrap()],
+        "q.jpg: umbra iso writes PNG images",
+    );
+    assert!(!jpg.exists(), "{e}");
+    let nii = d.path().join("q.nii");
+    refused(
+        &["convert", input, "-o", nii.to_str().unwrap(), "--gzip"],
+        "q.nii: --gzip encodes NRRD output",
+    );
+    assert!(!nii.exists());
+}

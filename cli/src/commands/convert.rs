@@ -19,6 +19,18 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<(), String> {
+    if a.gzip
+        && !a
+            .output
+            .to_string_lossy()
+            .to_ascii_lowercase()
+            .ends_with(".nrrd")
+    {
+        return Err(format!(
+            "{}: --gzip encodes NRRD output; NIfTI is compressed by naming it .nii.gz",
+            a.output.display()
+        ));
+    }
     convert(&a.input, &a.output, a.field.as_ref(), a.gzip).map_err(|e| e.to_string())?;
     eprintln!("wrote {}", a.output.display());
     Ok(())

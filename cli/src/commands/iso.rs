@@ -102,6 +102,17 @@ impl From<Geometry> for GeometryTerm {
 }
 
 pub fn run(a: Args) -> Result<(), String> {
+    if !a
+        .output
+        .to_string_lossy()
+        .to_ascii_lowercase()
+        .ends_with(".png")
+    {
+        return Err(format!(
+            "{}: umbra iso writes PNG images; name the output .png",
+            a.output.display()
+        ));
+    }
     volume::check_output(&a.output)?;
     if !(a.gamma.is_finite() && a.gamma > 0.0) {
         return Err(format!("--gamma {}: must be a positive number", a.gamma));

@@ -137,7 +137,7 @@ fn bundles(a: &Args) -> Result<(), String> {
     let name = a.output.to_string_lossy().to_ascii_lowercase();
     if !(name.ends_with(".tck") || name.ends_with(".tck.gz")) {
         return Err(format!(
-            "{}: bundles are written as MRtrix .tck or .tck.gz (streamed; convert with `umbra tracts`)",
+            "{}: bundles are written as MRtrix .tck or .tck.gz (streamed; `umbra tracts select IN.tck -o OUT.trk` converts)",
             a.output.display()
         ));
     }
