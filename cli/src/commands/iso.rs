@@ -45,7 +45,7 @@ pub struct Args {
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     reference_ao: Option<u64>,
     /// With --reference-ao: uniform-sphere visibility (the reference for --geometry none).
-    #[arg(long)]
+    #[arg(long, requires = "reference_ao")]
     uniform: bool,
     /// No occlusion at all (local illumination).
     #[arg(long)]

@@ -20,7 +20,7 @@ pub struct Args {
     #[arg(long)]
     field: String,
     /// Output dimensions NX,NY,NZ (default: --size on the longest side, equal spacing).
-    #[arg(long, value_parser = parse_dims)]
+    #[arg(long, value_parser = parse_dims, conflicts_with = "size")]
     dims: Option<[usize; 3]>,
     /// Samples along the longest side when --dims is not given.
     #[arg(long, default_value_t = 128)]
