@@ -683,7 +683,10 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         colorbar = colorbar.or(b);
     }
     for (i, p) in s.points.iter().enumerate() {
-        lines.push(point_set(i, p, &mut notes, &slabs)?);
+        let bar = s.annotate.colorbar.as_deref() == Some(&format!("points.{i}"));
+        let (set, b) = point_set(i, p, &mut notes, bar, &slabs)?;
+        lines.push(set);
+        colorbar = colorbar.or(b);
     }
     if let (Some(src), None) = (&s.annotate.colorbar, &colorbar) {
         return Err(format!(
@@ -839,8 +842,9 @@ fn point_set(
     i: usize,
     p: &spec::PointsSpec,
     notes: &mut Vec<String>,
+    want_bar: bool,
     slabs: &[crate::slices::Slab],
-) -> Result<LineSet, String> {
+) -> Result<(LineSet, Option<crate::annotate::ColorBar>), String> {
     let mut sl = tubes::points::read(&p.path).map_err(|e| format!("points[{i}]: {e}"))?;
     if let Some(m) = p.transform {
         let key = format!("points[{i}].transform");
@@ -856,7 +860,12 @@ fn point_set(
     })
     .map_err(|e| format!("points[{i}].color ({}): {e}", p.path.display()))?;
     set.halo = p.halo.as_ref().and_then(|h| h.halo());
-    Ok(set)
+    let bar = match want_bar {
+        true => crate::tube_sets::color_bar(&sl, &p.color, named_map(&p.colormap))
+            .map_err(|e| format!("points[{i}].color: {e}"))?,
+        false => None,
+    };
+    Ok((set, bar))
 }
 
 /// The renderer's settings from a scene.

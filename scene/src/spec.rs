@@ -1361,13 +1361,18 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
                 .ok()
                 .and_then(|i| s.lines.get(i))
                 .is_some_and(|l| scalar(&l.color)),
+            Some(("points", n)) => n
+                .parse::<usize>()
+                .ok()
+                .and_then(|i| s.points.get(i))
+                .is_some_and(|p| scalar(&p.color)),
             Some(("overlays", name)) => s.overlays.iter().any(|o| o.name == name && !o.labels),
             _ => false,
         };
         if !ok {
             return bad(
                 "colorbar",
-                format!("'{src}': give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), tubes.N / lines.N of an entry coloured by scalar:NAME or volume:PATH, or overlays.NAME of a scalar overlay"),
+                format!("'{src}': give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), tubes.N / lines.N / points.N of an entry coloured by scalar:NAME or volume:PATH, or overlays.NAME of a scalar overlay"),
             );
         }
     }

@@ -93,3 +93,27 @@ fn an_anaglyph_shows_the_off_axis_disparity_of_points_at_known_depths() {
     assert!(img.pixels().all(|p| p.0[0] == p.0[1] && p.0[1] == p.0[2]));
     assert!(img.pixels().filter(|p| p.0[0] < 128).count() > 30);
 }
+
+/// A point cloud coloured by a column gives the colour bar `points.N`: the column's name
+/// and its finite range; a point cloud without a scalar colouring is refused as a source.
+#[test]
+fn a_point_cloud_coloured_by_a_column_has_a_colour_bar() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("p.csv"),
+        "x,y,z,temp\n0,0,0,2.5\n1,0,0,nan\n0,1,0,7.0\n0,0,1,4.0\n",
+    )
+    .unwrap();
+    let scene = |color: &str| {
+        format!(
+            "[[points]]\npath = \"p.csv\"\ncolor = \"{color}\"\n[annotate]\ncolorbar = \"points.0\"\n"
+        )
+    };
+    let s = scene::spec::parse(&scene("scalar:temp"), "s.toml", dir.path(), &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let bar = m.colorbar.expect("a colour bar");
+    assert_eq!(bar.label, "temp");
+    assert_eq!(bar.range, [2.5, 7.0]);
+    let e = scene::spec::parse(&scene("#ff0000"), "s.toml", dir.path(), &[]).unwrap_err();
+    assert!(e.contains("colorbar") && e.contains("points.N"), "{e}");
+}
