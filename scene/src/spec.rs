@@ -1447,6 +1447,9 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 "lut and show are for label overlays (labels = true)".into(),
             );
         }
+        if let Some(l) = o.show.iter().flatten().find(|l| !(0..=65535).contains(*l)) {
+            return bad(key("show"), format!("label {l} is not in 0..65535"));
+        }
         if o.labels && (o.range.is_some() || o.colormap.is_some()) {
             return bad(
                 key("range"),
@@ -1637,10 +1640,13 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
     }
     if let Some(h) = c.height {
-        if !(h.is_finite() && h > 0.0) {
+        if !(h.is_finite() && h > 0.0 && h <= volume::MAX_COORDINATE) {
             return bad(
                 "camera.height",
-                format!("{h} is not a positive finite height"),
+                format!(
+                    "{h} is not a positive finite height up to {:e}",
+                    volume::MAX_COORDINATE
+                ),
             );
         }
     }
@@ -2207,6 +2213,11 @@ mod tests {
             ("render.width=20000", "render.width"),
             ("render.slice_distance=0", "render.slice_distance"),
             ("render.slices=0", "render.slices"),
+            ("camera.height=1e20", "camera.height"),
+            (
+                "overlays=[{name=\"a\",path=\"a.nii\",labels=true,show=[70000]}]",
+                "overlays[0].show: label 70000 is not in 0..65535",
+            ),
             (
                 "clip=[{normal=[0,0,1],offset=1e16}]",
                 "clip[0].offset: 10000000000000000 is not a finite offset within 1e15",
