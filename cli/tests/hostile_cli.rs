@@ -107,7 +107,7 @@ fn a_second_output_that_cannot_be_written_leaves_no_first_output() {
             "-o",
             s(&dist),
             "--octants-out",
-            s(&bad),
+            s(&blocker.join("oct.nrrd")),
         ],
         "cannot write",
     );
@@ -236,7 +236,7 @@ fn scene_values_that_cannot_be_drawn_are_refused_naming_the_key() {
         ("clip=[{normal=[nan,0,1],offset=0}]", "clip[0].normal"),
         ("clip=[{normal=[0,0,1],offset=inf}]", "clip[0].offset"),
         (nine.as_str(), "at most 8"),
-        ("render.slice_distance=inf", "render.slices"),
+        ("render.slice_distance=inf", "render.slice_distance"),
     ] {
         refused(&["scene", s(&scene), "--set", set], key);
     }

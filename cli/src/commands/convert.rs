@@ -20,14 +20,13 @@ pub struct Args {
 
 pub fn run(a: Args) -> Result<(), String> {
     if a.gzip
-        && !a
-            .output
+        && a.output
             .to_string_lossy()
             .to_ascii_lowercase()
-            .ends_with(".nrrd")
+            .ends_with(".nii")
     {
         return Err(format!(
-            "{}: --gzip encodes NRRD output; NIfTI is compressed by naming it .nii.gz",
+            "{}: --gzip encodes NRRD output; a NIfTI file is compressed by naming it .nii.gz",
             a.output.display()
         ));
     }

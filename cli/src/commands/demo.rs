@@ -204,7 +204,12 @@ pub fn render_demo(
             trace_carotid_demo(&data.join("vtk/carotid.vtk"), &tracts)?;
             let scene = dir.path().join("cfd.toml");
             std::fs::write(&scene, cfd_scene(&data, &tracts)).map_err(|e| e.to_string())?;
-            scene::render::run(&args(scene), &mut |_| {})?.failures()
+            // Errors name the demo's scene, not the temporary file it is written to.
+            let named = |e: String| e.replace(&scene.display().to_string(), "the cfd demo's scene");
+            scene::render::run(&args(scene.clone()), &mut |_| {})
+                .map_err(named)?
+                .failures()
+                .map_err(named)
         }
         "lines" => {
             let scene = data.join("scenes/demo_lines.toml");

@@ -24,7 +24,7 @@ pub struct Args {
     /// Which side is inside (negative distance): values above (>=) or below (<=) the level.
     #[arg(long, value_enum, default_value = "above")]
     inside: super::Inside,
-    /// Field to use: NAME or NAME:magnitude.
+    /// Field to use: NAME, NAME:magnitude or NAME:x|y|z.
     #[arg(long, value_parser = super::field_selector)]
     field: Option<FieldSelector>,
     /// Write only the distance field.
