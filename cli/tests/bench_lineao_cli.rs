@@ -11,10 +11,11 @@ const HEADER: &str = "case,method,setting,ms,rmse,bias,rmse_affine,spearman,ssim
 
 #[test]
 fn bench_lineao_quick_writes_the_accuracy_and_the_anisotropic_tables() {
-    let dir = tempfile::tempdir().unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    // A relative output folder: the scenes written under it must still find their data.
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_umbra"))
-        .args(["bench", "lineao", "--quick", "-o"])
-        .arg(dir.path())
+        .current_dir(tmp.path())
+        .args(["bench", "lineao", "--quick", "-o", "out"])
         .output()
         .unwrap();
     assert!(
@@ -22,6 +23,7 @@ fn bench_lineao_quick_writes_the_accuracy_and_the_anisotropic_tables() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let dir = tmp.path().join("out");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         stdout
@@ -29,9 +31,9 @@ fn bench_lineao_quick_writes_the_accuracy_and_the_anisotropic_tables() {
             .any(|l| l.starts_with("dense") && l.contains("lineao")),
         "{stdout}"
     );
-    assert!(dir.path().join("pareto.svg").exists());
-    assert!(dir.path().join("pareto.png").exists());
-    let csv = std::fs::read_to_string(dir.path().join("results.csv")).unwrap();
+    assert!(dir.join("pareto.svg").exists());
+    assert!(dir.join("pareto.png").exists());
+    let csv = std::fs::read_to_string(dir.join("results.csv")).unwrap();
     let mut lines = csv.lines();
     assert_eq!(lines.next(), Some(HEADER));
     let names: Vec<&str> = HEADER.split(',').collect();
@@ -97,7 +99,7 @@ fn bench_lineao_quick_writes_the_accuracy_and_the_anisotropic_tables() {
 
     // The anisotropic group (run by default).
     let table = |name: &str, header: &str| -> Vec<HashMap<String, String>> {
-        let text = std::fs::read_to_string(dir.path().join(name)).unwrap();
+        let text = std::fs::read_to_string(dir.join(name)).unwrap();
         let mut lines = text.lines();
         assert_eq!(lines.next(), Some(header), "{name}");
         let names: Vec<&str> = header.split(',').collect();
@@ -163,7 +165,7 @@ fn bench_lineao_quick_writes_the_accuracy_and_the_anisotropic_tables() {
         }
         assert!(f(r, "parallel_pixels") > 100.0 && f(r, "crossing_pixels") > 100.0);
     }
-    assert!(dir.path().join("aniso_roll.svg").exists());
+    assert!(dir.join("aniso_roll.svg").exists());
     // The trail animation: every row finite; LineAO's visibility changes from frame to frame.
     let flicker = table("aniso_flicker.csv", FLICKER_HEADER);
     assert_eq!(flicker.len(), 5, "3 LineAO settings and 2 references");

@@ -103,7 +103,8 @@ use std::time::Instant;
 /// `umbra bench lineao`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Two small cases (isolated lines, the dense bundle) at 96 x 96 with 16 paths per pixel.
+    /// A small run: of the accuracy group only the isolated lines and the dense bundle, the
+    /// anisotropic group with fewer lines; 96 x 96, 16 paths per pixel, one frame.
     #[arg(long)]
     quick: bool,
     /// Hemisphere paths per pixel of the references [default: 128, 16 with --quick].
@@ -242,9 +243,9 @@ pub fn run(a: Args) -> Result<(), String> {
     }
     let mut wrote = vec![];
     if cfg.cases.accuracy {
-        wrote.extend(["results.csv", "pareto.svg"]);
+        wrote.extend(["results.csv", "pareto.svg", "pareto.png"]);
         if !a.quick {
-            wrote.extend(["samples.svg", "zoom.csv", "border.csv"]);
+            wrote.extend(["samples.svg", "samples.png", "zoom.csv", "border.csv"]);
         }
     }
     if cfg.cases.aniso {
@@ -1076,6 +1077,12 @@ impl Methods<'_> {
 
 /// Runs `umbra bench lineao`: the selected case groups.
 pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Outcome, String> {
+    // The scenes written under `<out>/scenes` name their data by path, and a scene's paths
+    // resolve against the scene's folder: a relative output folder must not reach them as is.
+    let c = &Config {
+        out: std::path::absolute(&c.out).map_err(|e| format!("{}: {e}", c.out.display()))?,
+        ..c.clone()
+    };
     for d in ["data", "scenes", "images"] {
         let d = c.out.join(d);
         std::fs::create_dir_all(&d).map_err(|e| format!("{}: {e}", d.display()))?;

@@ -15,8 +15,10 @@ pub struct Args {
     /// Monte Carlo paths per pixel of the references.
     #[arg(long, default_value_t = 256)]
     reference_spp: u32,
+    /// Frames timed per configuration (the median is its time).
     #[arg(long, default_value_t = 1)]
     frames: u32,
+    /// Output folder: stability.csv, flicker.csv, scenes/ and one folder per case.
     #[arg(short, long)]
     output: PathBuf,
 }
@@ -77,6 +79,9 @@ pub fn stability(
     frames: u32,
     progress: &dyn Fn(&str),
 ) -> Result<Vec<(String, String, Row)>, String> {
+    // The scenes written under `<out>/scenes` name their data by path, and a scene's paths
+    // resolve against the scene's folder: a relative output folder must not reach them as is.
+    let out = &std::path::absolute(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let sdir = out.join("scenes");
     std::fs::create_dir_all(&sdir).map_err(|e| format!("{}: {e}", sdir.display()))?;
     // A sheet 0.3 units thick (z in [-0.15, 0.15]), a blob, and a block shadowing a floor.
