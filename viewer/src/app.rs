@@ -320,9 +320,12 @@ impl App {
             }
         }
         if response.hovered() {
+            // One line of scrolling (a wheel's notch) is one zoom step, as a key press is; egui
+            // hands lines over as `line_scroll_speed` points, spread over a few frames.
             let scroll = ui.input(|i| i.smooth_scroll_delta.y) as f64;
             if scroll != 0.0 {
-                self.orbit = self.orbit.zoom(scroll / 50.0);
+                let line = ui.ctx().options(|o| o.input_options.line_scroll_speed) as f64;
+                self.orbit = self.orbit.zoom(scroll / line.max(1.0));
             }
         }
         let keys: Vec<(egui::Key, egui::Modifiers)> = ui.input(|i| {

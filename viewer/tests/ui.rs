@@ -75,6 +75,21 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
     h.run_steps(2);
     let az = h.state().orbit.azimuth;
     assert!((az - (az0 - 40.0)).abs() < 1.0, "azimuth {az0} -> {az}");
+    // One notch of the wheel over the view (a line of scrolling, spread by egui over frames)
+    // zooms in by one step of 1.1, as `+` does.
+    h.hover_at(egui::pos2(450.0, 300.0));
+    h.run_steps(1);
+    let d0 = h.state().orbit.distance;
+    h.event(egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Line,
+        delta: egui::vec2(0.0, 1.0),
+        phase: egui::TouchPhase::Move,
+        source: egui::MouseWheelSource::Wheel,
+        modifiers: Default::default(),
+    });
+    h.run_steps(40);
+    let d = h.state().orbit.distance;
+    assert!((d0 / d - 1.1).abs() < 0.002, "distance {d0} -> {d}");
     // The method menu (its button shows the current method) and its entry.
     h.get_by_label("method").click();
     h.run_steps(2);
