@@ -47,8 +47,11 @@ enum Command {
     /// Render a scene file (on the GPU, or the native CPU renderer): volume, tubes and lines by
     /// any method of the table to PNG (sRGB) or EXR (linear RGBA, --aov layers).
     Render(render::Args),
-    /// Benchmarks: `umbra bench accuracy` (every method against the Monte Carlo ground truth,
-    /// error against time, results.csv and a Pareto chart).
+    /// Benchmarks, each timed and measured against a ground truth: accuracy (every method
+    /// against the Monte Carlo reference, a Pareto chart), stability (scenes that make methods
+    /// fail), lineao (LineAO and its anisotropic form against ray-traced AO), curves (cost
+    /// against image size, slices, segments), sweep (occlusion sweeping against Monte Carlo
+    /// AO), tubes (meshing cost against accuracy), ao (the tubes' reference AO for Mitsuba).
     Bench(bench::Args),
     /// Render a demo scene: `mni` (the MNI T1 template with HCP1065 tracts as tubes, combined
     /// method; the default), `cfd` (carotid flow with traced streamlines) or `lines` (all ten

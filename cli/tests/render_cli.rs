@@ -414,9 +414,10 @@ fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
 fn bench_stability_measures_every_case_with_a_verdict() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("stab");
+    // A relative output folder: the scenes written under it must still find their data.
     let out = umbra()
-        .args(["bench", "stability", "--reference-spp", "64", "-o"])
-        .arg(&out_dir)
+        .current_dir(dir.path())
+        .args(["bench", "stability", "--reference-spp", "64", "-o", "stab"])
         .output()
         .unwrap();
     ok(&out);
@@ -583,6 +584,96 @@ fn bench_ao_writes_the_cross_check_inputs() {
         .parse()
         .unwrap();
     assert!(near > mean, "{near} <= {mean}");
+}
+
+#[test]
+fn bench_refuses_zero_counts_and_ao_without_tubes() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = dir.path().join("o");
+    let scene = small_scene(dir.path(), "");
+    let tracks = root().join("tests/fixtures/tracts/dipy/tracks300.trk");
+    let ao = root().join("bench/scenes/ao_tracks.toml");
+    let cases: Vec<(Vec<std::ffi::OsString>, &str)> = vec![
+        (
+            vec!["ao".into(), ao.clone().into(), "--spp".into(), "0".into()],
+            "--spp",
+        ),
+        (
+            vec![
+                "accuracy".into(),
+                scene.clone().into(),
+                "--reference-spp".into(),
+                "0".into(),
+            ],
+            "--reference-spp 0",
+        ),
+        (
+            vec![
+                "accuracy".into(),
+                scene.clone().into(),
+                "--frames".into(),
+                "0".into(),
+            ],
+            "--frames 0",
+        ),
+        (
+            vec!["stability".into(), "--reference-spp".into(), "0".into()],
+            "--reference-spp 0",
+        ),
+        (
+            vec![
+                "curves".into(),
+                scene.clone().into(),
+                "--frames".into(),
+                "0".into(),
+            ],
+            "--frames",
+        ),
+        (
+            vec!["tubes".into(), tracks.into(), "--runs".into(), "0".into()],
+            "--runs",
+        ),
+    ];
+    for (args, want) in cases {
+        let out = umbra()
+            .arg("bench")
+            .args(&args)
+            .arg("-o")
+            .arg(&o)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains(want) && err.contains("at least 1"),
+            "{args:?}: {err}"
+        );
+    }
+    // Nothing was written for the refused runs.
+    assert!(!o.join("results.csv").exists() && !o.join("tubes.csv").exists());
+    // A scene without tubes: the error says what bench ao needs.
+    let vol = dir.path().join("v.toml");
+    std::fs::write(
+        &vol,
+        format!(
+            "[volume]\npath = \"{}\"\n",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    let out = umbra()
+        .args(["bench", "ao"])
+        .arg(&vol)
+        .arg("-o")
+        .arg(&o)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("needs [[tubes]]") && err.contains("v.toml"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -38,7 +38,7 @@ use std::path::PathBuf;
 /// `umbra bench accuracy`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene file (without tubes: the reference does not model them yet).
+    /// Scene file: a volume, tubes or both (the reference traces both; not isosurface mode).
     scene: PathBuf,
     /// KEY=V1,V2,... (repeatable): slices, cone (degrees), a render.* key by name, or a
     /// dotted scene key.
@@ -197,6 +197,12 @@ pub struct AccuracyReport {
 /// Runs `umbra bench accuracy`: the rows written to results.csv, and the references traced and
 /// found in the cache.
 pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyReport, String> {
+    if a.spp == 0 || a.frames == 0 {
+        return Err(format!(
+            "--reference-spp {} --frames {}: each must be at least 1",
+            a.spp, a.frames
+        ));
+    }
     spec::load(&a.scene, &a.overrides)?;
     let methods = &a.methods;
     std::fs::create_dir_all(a.out.join("reference"))

@@ -46,8 +46,17 @@ pub fn ao(
     if max_distance.is_some_and(|d| !(d > 0.0 && d.is_finite())) {
         return Err("--max-distance: must be a positive number".into());
     }
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    if spp == 0 {
+        return Err("--spp: must be at least 1".into());
+    }
     let mut s = spec::load(scene_path, overrides)?;
+    if s.tubes.is_empty() {
+        return Err(format!(
+            "{}: bench ao needs [[tubes]] (the volume, lines and points are left out)",
+            scene_path.display()
+        ));
+    }
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     s.volume = None;
     let m = compile::model(&s).map_err(|e| format!("{}: {e}", scene_path.display()))?;
     if m.meshes.is_empty() {

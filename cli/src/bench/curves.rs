@@ -84,12 +84,15 @@ struct Row {
 }
 
 pub fn run(a: Args) -> Result<(), String> {
+    if a.frames == 0 {
+        return Err("--frames: must be at least 1".into());
+    }
     std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;
     let base = spec::load(&a.scene, &a.overrides)?;
     let mut m = scene::compile::model(&base).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let gpu = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
     let opts = DrawOptions {
-        frames: a.frames.max(1),
+        frames: a.frames,
         pass_timings: false,
     };
     let mut rows: Vec<Row> = vec![];

@@ -30,9 +30,11 @@ enum Command {
     /// Occlusion sweeping against Monte Carlo AO on the validation scene over grid sizes:
     /// <out>/sweep.csv and a chart.
     Sweep(sweep::Args),
-    /// Scenes built to make the volume methods fail (a sheet thinner than the slices, grazing
-    /// views, very few slices, cone angles near 0 and 80 degrees, zooming, turning in small
-    /// steps), each against the Monte Carlo reference: <out>/stability.csv with verdicts.
+    /// Scenes built to make the methods fail (a sheet thinner than the slices, grazing views,
+    /// very few slices, cone angles near 0 and 80 degrees, zooming, turning in small steps,
+    /// sparse and dense tube bundles, a bundle cut by the image border, isosurfaces for
+    /// occlusion sweeping), each against its reference: <out>/stability.csv with verdicts,
+    /// <out>/flicker.csv.
     Stability(stability::Args),
     /// Every method at every combination of the swept settings, timed and compared with the
     /// Monte Carlo reference of the same light model (cached): <out>/results.csv,

@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 /// `umbra bench sweep`.
 #[derive(clap::Args)]
 pub struct Args {
+    /// Grid sizes n (the sweep's grid is n^3), comma-separated.
     #[arg(long, value_delimiter = ',', value_parser = list_item::<usize>, default_value = "32,64,128")]
     sizes: Vec<usize>,
     /// Flat-face offsets c (comma-separated).
@@ -33,6 +34,7 @@ pub struct Args {
     /// Image size (square).
     #[arg(long, default_value_t = 128)]
     size: usize,
+    /// Output folder: sweep.csv, sweep.svg, sweep.png.
     #[arg(short, long)]
     output: PathBuf,
 }

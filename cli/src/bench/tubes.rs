@@ -29,6 +29,9 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<(), String> {
+    if a.runs == 0 {
+        return Err("--runs: must be at least 1".into());
+    }
     for r in tubes(&a.input, &a.tolerances, a.radius, a.runs, &a.output)? {
         out(format!(
             "tolerance {:8}  control points {:9}  triangles {:10}  max deviation {:.5}  {:.1} ms",
