@@ -84,3 +84,39 @@ fn annotations_are_drawn_in_their_places_only() {
         assert!(err.contains(key), "{set}: {err}");
     }
 }
+
+/// The illustrative method draws points, lines and tubes in one ink: a bar of their colouring
+/// is refused before anything is drawn; another method draws it.
+#[test]
+fn a_bar_of_a_colouring_the_illustrative_method_does_not_draw_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("p.csv"),
+        "x,y,z,temp\n0,0,0,1\n1,0,0,2\n0,1,0,3\n0,0,1,4\n",
+    )
+    .unwrap();
+    let s = dir.path().join("s.toml");
+    std::fs::write(
+        &s,
+        "[[points]]\npath = \"p.csv\"\ncolor = \"scalar:temp\"\n[annotate]\ncolorbar = \"points.0\"\n\
+         [render]\nwidth = 64\nheight = 48\n",
+    )
+    .unwrap();
+    render(&s, &dir.path().join("ok.png"), &[]);
+    let png = dir.path().join("ink.png");
+    let o = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("-o")
+        .arg(&png)
+        .args(["--set", "render.method=\"illustrative\""])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("s.toml") && err.contains("points.0") && err.contains("illustrative"),
+        "{err}"
+    );
+    assert!(!png.exists());
+}

@@ -236,6 +236,26 @@ pub fn write_image(
     }
 }
 
+/// Refuses a colour bar of a surface's colouring (`tubes.N`, `lines.N`, `points.N`) under the
+/// illustrative method, which draws every surface in one ink (`render.illustrative.line`): the
+/// bar would show colours the image does not have.
+pub fn check_colorbar_method(s: &spec::Scene) -> Result<(), String> {
+    if let Some(src) = s.annotate.colorbar.as_deref().filter(|c| {
+        ["tubes.", "lines.", "points."]
+            .iter()
+            .any(|p| c.starts_with(p))
+    }) {
+        if s.render.method == spec::Method::Illustrative {
+            return Err(format!(
+                "scene key annotate.colorbar: '{src}' is drawn in render.illustrative.line by the \
+                 illustrative method, not in its colouring: the bar would show colours the image \
+                 does not have (choose another method or leave the bar out)"
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Draws the scene's `[annotate]` over a frame's image.
 pub fn annotate_frame(
     s: &spec::Scene,
@@ -430,6 +450,7 @@ pub(crate) fn run_on(
     // A killed run's temporary files of these outputs (no other process writes them).
     let files: Vec<&Path> = owned.iter().map(|(_, f)| f.as_path()).collect();
     volume::remove_stale_temps(&files);
+    check_colorbar_method(&s).map_err(|e| format!("{}: {e}", path.display()))?;
     progress(Progress::Stage("reading the scene's data"));
     let mut m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
     let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;

@@ -115,5 +115,19 @@ fn a_point_cloud_coloured_by_a_column_has_a_colour_bar() {
     assert_eq!(bar.label, "temp");
     assert_eq!(bar.range, [2.5, 7.0]);
     let e = scene::spec::parse(&scene("#ff0000"), "s.toml", dir.path(), &[]).unwrap_err();
-    assert!(e.contains("colorbar") && e.contains("points.N"), "{e}");
+    assert!(e.contains("colorbar") && e.contains("points.N"), "{e}"); // The illustrative method draws the points in its one ink: their bar is refused there, the
+                                                                      // other methods keep it.
+    scene::render::check_colorbar_method(&s).unwrap();
+    let ink = scene::spec::parse(
+        &scene("scalar:temp"),
+        "s.toml",
+        dir.path(),
+        &["render.method=\"illustrative\"".into()],
+    )
+    .unwrap();
+    let e = scene::render::check_colorbar_method(&ink).unwrap_err();
+    assert!(
+        e.contains("annotate.colorbar") && e.contains("render.illustrative.line"),
+        "{e}"
+    );
 }
