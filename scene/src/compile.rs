@@ -694,7 +694,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         ));
     }
     let mut boxes: Vec<[DVec3; 2]> = meshes.iter().filter_map(mesh_bounds).collect();
-    boxes.extend(lines.iter().filter_map(LineSet::bounds));
+    boxes.extend(lines.iter().filter_map(LineSet::drawn_bounds));
     if let Some((v, _, _)) = &volume {
         boxes.push(v.bounds());
     }

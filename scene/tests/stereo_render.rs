@@ -114,6 +114,12 @@ fn a_point_cloud_coloured_by_a_column_has_a_colour_bar() {
     let bar = m.colorbar.expect("a colour bar");
     assert_eq!(bar.label, "temp");
     assert_eq!(bar.range, [2.5, 7.0]);
+    // The scene's bounds hold the discs whole (diameter 1 by default), so the fitted camera
+    // does not cut the ones at the edge.
+    assert_eq!(
+        m.bounds,
+        [glam::DVec3::splat(-0.5), glam::DVec3::splat(1.5)]
+    );
     let e = scene::spec::parse(&scene("#ff0000"), "s.toml", dir.path(), &[]).unwrap_err();
     assert!(e.contains("colorbar") && e.contains("points.N"), "{e}"); // The illustrative method draws the points in its one ink: their bar is refused there, the
                                                                       // other methods keep it.

@@ -276,6 +276,20 @@ impl LineSet {
             .map(|[lo, hi]| [self.origin + lo.as_dvec3(), self.origin + hi.as_dvec3()])
     }
 
+    /// World bounds of what is drawn: the points' bounds grown by half the drawn width -
+    /// the halo's strip where there is one - when the width is in world units (a disc or a
+    /// line at the edge is inside the box whole); a width in pixels has no world extent.
+    pub fn drawn_bounds(&self) -> Option<[DVec3; 2]> {
+        let [lo, hi] = self.bounds()?;
+        let r = match self.width {
+            LineWidth::World(w) if w.is_finite() => {
+                0.5 * w * self.halo.as_ref().map_or(1.0, |h| h.width.max(1.0) as f64)
+            }
+            _ => 0.0,
+        };
+        Some([lo - DVec3::splat(r), hi + DVec3::splat(r)])
+    }
+
     /// Bytes the renderer keeps for the set: a position, a colour and a segment index per point.
     pub fn gpu_bytes(&self) -> usize {
         self.positions.len() * 16 + self.segments.len() * 4
@@ -292,6 +306,27 @@ mod tests {
         s.push(&[Vec3::new(0.0, 5.0, 0.0)]);
         s.push(&[Vec3::Y, Vec3::Y, Vec3::new(0.0, 1.0, 3.0)]);
         s
+    }
+
+    #[test]
+    fn drawn_bounds_hold_whole_discs_and_halos_in_world_units_only() {
+        let white = ColorMode::Constant([1.0; 3]);
+        let mut p = LineSet::points(&two_lines(), &white, LineWidth::World(0.5));
+        let [lo, hi] = p.bounds().unwrap();
+        assert_eq!([lo, hi], [DVec3::ZERO, DVec3::new(2.0, 5.0, 3.0)]);
+        let [dlo, dhi] = p.drawn_bounds().unwrap();
+        assert_eq!([dlo, dhi], [lo - 0.25, hi + 0.25]);
+        p.halo = Some(Halo {
+            uniform: false,
+            outline: false,
+            width: 4.0,
+            d_max: 0.01,
+            displacement: Displacement::Linear,
+            depth_cue: 0.0,
+        });
+        assert_eq!(p.drawn_bounds().unwrap(), [lo - 1.0, hi + 1.0]);
+        let px = LineSet::new(&two_lines(), &white, LineWidth::Pixels(3.0), false);
+        assert_eq!(px.drawn_bounds(), px.bounds());
     }
 
     #[test]
