@@ -996,17 +996,12 @@ fn a_tilted_cut_face_shows_no_band_per_slice_on_either_device() {
 #[test]
 fn a_trail_range_reports_each_frame_time_in_the_timings_json() {
     let dir = tempfile::tempdir().unwrap();
-    let mut s = tubes::Streamlines::new();
-    let pts: Vec<glam::Vec3> = (0..=40)
-        .map(|k| glam::Vec3::new(k as f32 * 0.5 - 10.0, 0.0, 0.0))
-        .collect();
-    s.push(&pts);
-    s.point_attributes.push(tubes::Attribute {
-        name: "time".into(),
-        components: 1,
-        values: (0..=40).map(|k| k as f32 * 0.5).collect(),
-    });
-    tubes::save(&dir.path().join("line.trk"), &s).unwrap();
+    // One line along x from -10 to 10 (41 points), time 0 to 20 along it.
+    std::fs::copy(
+        test_support::fixtures().join("tracts/timed_line.trk"),
+        dir.path().join("line.trk"),
+    )
+    .unwrap();
     let scene = dir.path().join("trail.toml");
     std::fs::write(
         &scene,

@@ -2,7 +2,6 @@
 //! point, read from a .trk scalar, drawn frame by frame with the trail's time advancing; the
 //! frames are written with their times and the trail moves along the line.
 
-use glam::Vec3;
 use scene::render::{run, Cameras, RenderArgs, TrailRange};
 
 /// The mean image column of the pixels darker than the white background.
@@ -22,19 +21,9 @@ fn centroid_x(path: &std::path::Path) -> f64 {
 #[test]
 fn a_trail_range_writes_a_frame_per_time_and_the_trail_moves() {
     let dir = tempfile::tempdir().unwrap();
-    // One line along x from -10 to 10, time 0 to 20 along it.
-    let mut s = tubes::Streamlines::new();
-    let pts: Vec<Vec3> = (0..=40)
-        .map(|k| Vec3::new(k as f32 * 0.5 - 10.0, 0.0, 0.0))
-        .collect();
-    s.push(&pts);
-    s.point_attributes.push(tubes::Attribute {
-        name: "time".into(),
-        components: 1,
-        values: (0..=40).map(|k| k as f32 * 0.5).collect(),
-    });
+    // One line along x from -10 to 10 (41 points), time 0 to 20 along it.
     let trk = dir.path().join("line.trk");
-    tubes::save(&trk, &s).unwrap();
+    std::fs::copy(test_support::fixtures().join("tracts/timed_line.trk"), &trk).unwrap();
     let scene = dir.path().join("trail.toml");
     std::fs::write(
         &scene,
