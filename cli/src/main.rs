@@ -117,6 +117,16 @@ fn main() -> ExitCode {
                 ErrorKind::InvalidValue | ErrorKind::ValueValidation => 1,
                 _ => e.exit_code(),
             };
+            if code != 0 {
+                // `umbra render --record FILE` leaves its record on any failure.
+                let text = e.render().to_string();
+                let first = text.lines().next().unwrap_or_default();
+                let why = first.strip_prefix("error: ").unwrap_or(first);
+                let args: Vec<_> = std::env::args_os().collect();
+                if let Err(w) = render::record_unparsed(&args, why) {
+                    eprintln!("umbra: error: the record could not be written: {w}");
+                }
+            }
             return ExitCode::from(code as u8);
         }
     };

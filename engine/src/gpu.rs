@@ -19,6 +19,9 @@ pub enum GpuError {
          `apt-get install mesa-vulkan-drivers`)"
     )]
     NoAdapter(String),
+    /// An adapter was asked for (`--adapter`, `UMBRA_ADAPTER`) that is not there.
+    #[error("{0}")]
+    NoMatch(String),
     #[error("could not create a GPU device on '{adapter}': {reason}")]
     Device { adapter: String, reason: String },
     #[error("GPU operation failed: {0}")]
@@ -364,7 +367,7 @@ impl Gpu {
         let choice = match std::env::var("UMBRA_ADAPTER") {
             Ok(v) => Some(
                 AdapterChoice::parse(&v)
-                    .map_err(|e| GpuError::NoAdapter(format!("UMBRA_ADAPTER={v}: {e}")))?,
+                    .map_err(|e| GpuError::NoMatch(format!("UMBRA_ADAPTER={v}: {e}")))?,
             ),
             Err(_) => None,
         };
@@ -389,7 +392,11 @@ impl Gpu {
             Some(want) => {
                 let all = instance.enumerate_adapters(wgpu::Backends::all()).await;
                 let infos: Vec<wgpu::AdapterInfo> = all.iter().map(|a| a.get_info()).collect();
-                let k = want.pick(&infos).map_err(GpuError::NoAdapter)?;
+                let k = want.pick(&infos).map_err(if infos.is_empty() {
+                    GpuError::NoAdapter
+                } else {
+                    GpuError::NoMatch
+                })?;
                 all.into_iter()
                     .nth(k)
                     .expect("pick returns an index of the list")

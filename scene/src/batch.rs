@@ -43,7 +43,8 @@ impl Shard {
 
     /// Reads `I/N` (0 <= I < N).
     pub fn parse(text: &str) -> Result<Shard, String> {
-        let bad = || format!("shard '{text}': expected I/N with 0 <= I < N, e.g. 0/4");
+        let bad =
+            || format!("shard '{text}': expected I/N with 0 <= I < N <= 4294967295, e.g. 0/4");
         let (i, n) = text.split_once('/').ok_or_else(bad)?;
         let index: u32 = i.trim().parse().map_err(|_| bad())?;
         let count: u32 = n.trim().parse().map_err(|_| bad())?;
@@ -73,7 +74,10 @@ impl Shard {
         let min = num(SLURM_VARIABLES[1], var(SLURM_VARIABLES[1]))?;
         let count = num(SLURM_VARIABLES[2], var(SLURM_VARIABLES[2]))?;
         let step = match var(SLURM_VARIABLES[3]) {
-            Some(s) => num(SLURM_VARIABLES[3], Some(s))?.max(1),
+            Some(s) => match num(SLURM_VARIABLES[3], Some(s))? {
+                0 => return Err("SLURM_ARRAY_TASK_STEP=0: a step of at least 1".into()),
+                st => st,
+            },
             None => 1,
         };
         let max = match var(SLURM_VARIABLES[4]) {
@@ -462,6 +466,14 @@ mod tests {
                 );
             }
         }
+        // A step of 0 is no array Slurm makes: refused, not read as 1.
+        let v = env(&[
+            ("SLURM_ARRAY_TASK_ID", "1"),
+            ("SLURM_ARRAY_TASK_MIN", "1"),
+            ("SLURM_ARRAY_TASK_COUNT", "3"),
+            ("SLURM_ARRAY_TASK_STEP", "0"),
+        ]);
+        assert!(Shard::resolve(None, &v).unwrap_err().contains("STEP=0"));
         // --array=10-40:10 (STEP 10): tasks 10, 20, 30, 40 are shards 0..3 of 4.
         let v = env(&[
             ("SLURM_ARRAY_TASK_ID", "30"),

@@ -402,6 +402,10 @@ pub(crate) fn run_on(
         owned.push((k, file));
     }
     let frames_owned = owned.len();
+    // A killed run's temporary files of this shard's outputs, complete ones included (no
+    // other process writes them).
+    let files: Vec<&Path> = owned.iter().map(|(_, f)| f.as_path()).collect();
+    volume::remove_stale_temps(&files);
     let mut skipped = vec![];
     if a.skip_existing {
         owned.retain(|(k, file)| {
@@ -447,19 +451,50 @@ pub(crate) fn run_on(
         report.seconds = report.setup_seconds;
         return Ok(report);
     }
-    // A killed run's temporary files of these outputs (no other process writes them).
-    let files: Vec<&Path> = owned.iter().map(|(_, f)| f.as_path()).collect();
-    volume::remove_stale_temps(&files);
-    check_colorbar_method(&s).map_err(|e| format!("{}: {e}", path.display()))?;
-    progress(Progress::Stage("reading the scene's data"));
-    let mut m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
-    let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;
-    progress(Progress::Stage("uploading to the GPU"));
-    // The frames read the lines from the GPU only: their points are freed as they go up.
-    // A volume the CPU renderer draws stays on the CPU only (no GPU copy, full resolution).
-    let on_gpu = !crate::compile::drawn_on_cpu(&s, &m, gpu);
-    let up = upload_freeing_lines(gpu, &mut m, on_gpu)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    // What every frame needs: the output folders, the model, the GPU, the upload. When it
+    // fails after frames were skipped, the frames left are failed with its error, so that
+    // the report (and a shard's record) keeps what was skipped.
+    let mut setup = || -> Result<_, String> {
+        // Each output folder made and writable before the data are read (one probe a folder).
+        let mut folders = std::collections::HashSet::new();
+        for (_, f) in &owned {
+            if folders.insert(f.parent()) {
+                volume::check_output(f)?;
+            }
+        }
+        check_colorbar_method(&s).map_err(|e| format!("{}: {e}", path.display()))?;
+        progress(Progress::Stage("reading the scene's data"));
+        let mut m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
+        let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;
+        progress(Progress::Stage("uploading to the GPU"));
+        // The frames read the lines from the GPU only: their points are freed as they go up.
+        // A volume the CPU renderer draws stays on the CPU only (no GPU copy, full
+        // resolution).
+        let on_gpu = !crate::compile::drawn_on_cpu(&s, &m, gpu);
+        let up = upload_freeing_lines(gpu, &mut m, on_gpu)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok((m, gpu, up))
+    };
+    let (m, gpu, up) = match setup() {
+        Ok(x) => x,
+        Err(e) if report.skipped.is_empty() => return Err(e),
+        Err(e) => {
+            for (k, file) in owned {
+                let o = FrameOutcome {
+                    index: k,
+                    name: None,
+                    path: file,
+                    ms: None,
+                    error: Some(e.clone()),
+                };
+                progress(Progress::Failed(&o));
+                report.failed.push(o);
+            }
+            report.setup_seconds = t0.elapsed().as_secs_f64();
+            report.seconds = report.setup_seconds;
+            return Ok(report);
+        }
+    };
     let opts = DrawOptions {
         frames: a.frames.max(1),
         pass_timings: a.pass_timings,

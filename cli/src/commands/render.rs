@@ -21,10 +21,10 @@ pub struct Args {
     #[arg(short, long)]
     output: PathBuf,
     /// Image width (render.width).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     width: Option<u32>,
     /// Image height (render.height).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     height: Option<u32>,
     /// A render method (render.method): combined, dos, vicinity, ea, phong, illuminated,
     /// lineao, illustrative, mip, minip.
@@ -32,16 +32,18 @@ pub struct Args {
     method: Option<super::Method>,
     /// Render each image this many times, every pass re-run (total_ms is the median);
     /// more than 1 also times each pass.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true,
+          value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
     /// Write the timings (total_ms, passes, each frame's) as JSON to this file; also times
     /// each pass.
     #[arg(long)]
     timings_json: Option<PathBuf>,
-    /// Render a turntable of N frames: frame k at camera.azimuth + k 360/N (a look-at
+    /// Render a turntable of N frames (1 to 100000): frame k at camera.azimuth + k 360/N (a look-at
     /// camera turns its eye about the target around up). The output name's run of #
     /// becomes k, zero-padded.
-    #[arg(long, value_name = "N", conflicts_with = "camera_path")]
+    #[arg(long, value_name = "N", conflicts_with = "camera_path", allow_negative_numbers = true,
+          value_parser = clap::value_parser!(u32).range(1..=100_000))]
     orbit: Option<u32>,
     /// Render the keyframed cameras of this TOML file (see the README, "Turntables and
     /// camera paths"); the output name needs a run of # as with --orbit.
@@ -77,7 +79,7 @@ pub struct Args {
     /// Render shard I of N (0 <= I < N): the frames (of --orbit, --camera-path,
     /// --trail-range or --manifest) whose index k has k mod N = I. Default: a Slurm array
     /// task's (SLURM_ARRAY_TASK_ID, _MIN, _STEP, _COUNT) when set. Implies --skip-existing.
-    #[arg(long, value_name = "I/N")]
+    #[arg(long, value_name = "I/N", allow_hyphen_values = true)]
     shard: Option<String>,
     /// Leave outputs that are already complete images of the scene's size; render the rest.
     #[arg(long)]
@@ -172,12 +174,59 @@ pub fn run(a: Args) -> Result<(), String> {
     r
 }
 
+/// The record of a `umbra render` command line that did not parse (a bad option value, an
+/// unknown flag): found in the raw arguments, written with the parser's `error` so that a
+/// job array's records still account for the task. Returns why it could not be written.
+pub fn record_unparsed(args: &[std::ffi::OsString], error: &str) -> Result<(), String> {
+    if args.get(1).and_then(|a| a.to_str()) != Some("render") {
+        return Ok(());
+    }
+    let mut path = None;
+    let mut it = args.iter().skip(2);
+    while let Some(a) = it.next() {
+        if a == "--" {
+            break;
+        }
+        if a == "--record" {
+            path = it.next().cloned();
+        } else if let Some(v) = a.to_str().and_then(|t| t.strip_prefix("--record=")) {
+            path = Some(v.into());
+        }
+    }
+    let Some(path) = path.map(PathBuf::from) else {
+        return Ok(());
+    };
+    writable(&path, "--record")?;
+    write_record(
+        &path,
+        &Record {
+            shard: None,
+            shard_from: None,
+            frames: 0,
+            done: &[],
+            skipped: &[],
+            failed: &[],
+            error: Some(error),
+            seconds: 0.0,
+            adapter: "",
+            host: host(),
+        },
+    )
+}
+
 fn write_record(path: &Path, r: &Record) -> Result<(), String> {
     let text = serde_json::to_string_pretty(r).map_err(|e| e.to_string())?;
     volume::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())
 }
 
 fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), String> {
+    // The record's and the timings' folders first: a run that fails on anything else still
+    // leaves its record.
+    for (p, what) in [(&a.record, "--record"), (&a.timings_json, "--timings-json")] {
+        if let Some(p) = p {
+            writable(p, what)?;
+        }
+    }
     let cameras = match (a.orbit, &a.camera_path) {
         (Some(n), _) => Cameras::Orbit(n),
         (None, Some(p)) => Cameras::Path(p.clone()),
@@ -202,11 +251,6 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
     })?;
     state.shard.set(Some((shard, from)));
     let skip_existing = a.skip_existing || from != ShardFrom::None;
-    for (p, what) in [(&a.record, "--record"), (&a.timings_json, "--timings-json")] {
-        if let Some(p) = p {
-            writable(p, what)?;
-        }
-    }
     let progress = Frames::new();
     let mut on_progress = |p: Progress| match p {
         Progress::Done(f, n) => {
