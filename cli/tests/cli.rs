@@ -249,6 +249,31 @@ fn convert_writes_nrrd_and_nifti_that_read_back() {
     assert!(!st.status.success());
 }
 
+/// What `umbra convert` cannot carry over is said: float64 rounded to 32-bit floats, a file's
+/// own frame that NIfTI would declare RAS+ (not for NRRD, which keeps it).
+#[test]
+fn convert_warns_of_what_the_output_does_not_keep() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |input: PathBuf, out: &str| {
+        let o = umbra()
+            .arg("convert")
+            .arg(input)
+            .arg("-o")
+            .arg(dir.path().join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success());
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let e = run(fixture("detached_f64.nhdr"), "f.nrrd");
+    assert!(e.contains("float64 samples are held as 32-bit floats"), "{e}");
+    let headsq = root().join("datasets/vtk/headsq_64x64x93.nhdr");
+    let e = run(headsq.clone(), "h.nii");
+    assert!(e.contains("NIfTI declares RAS+"), "{e}");
+    let e = run(headsq, "h.nrrd");
+    assert!(!e.contains("warning"), "{e}");
+}
+
 #[test]
 fn info_describes_tractograms() {
     let p = root().join("tests/fixtures/tracts/nibabel/complex.trk");

@@ -30,23 +30,68 @@ pub fn run(a: Args) -> Result<(), String> {
             a.output.display()
         ));
     }
-    convert(&a.input, &a.output, a.field.as_ref(), a.gzip).map_err(|e| e.to_string())?;
+    let warnings =
+        convert(&a.input, &a.output, a.field.as_ref(), a.gzip).map_err(|e| e.to_string())?;
+    for w in &warnings {
+        eprintln!("umbra: warning: {}: {w}", a.input.display());
+    }
     eprintln!("wrote {}", a.output.display());
     Ok(())
 }
 
 /// Reads `input`, selects a field, and writes it to `output` (`.nrrd`, `.nii`, `.nii.gz`).
-/// `gzip` picks gzip encoding for NRRD (NIfTI follows the `.gz` suffix).
+/// `gzip` picks gzip encoding for NRRD (NIfTI follows the `.gz` suffix). Returns what the
+/// user should know: the reader's warnings (a time series written as its frame 0), values
+/// the 32-bit float samples could not hold exactly, an anatomical frame NIfTI adds.
 pub fn convert(
     input: &Path,
     output: &Path,
     field: Option<&FieldSelector>,
     gzip: bool,
-) -> Result<(), VolumeError> {
+) -> Result<Vec<String>, VolumeError> {
     check_volume_output(output)?;
     let vol = volume::load(input)?;
     let f = vol.select(field)?;
-    write_field(output, &vol, &f, gzip)
+    write_field(output, &vol, &f, gzip)?;
+    let mut warnings = vol.warnings.clone();
+    warnings.extend(precision_warning(&f));
+    let nifti = output.to_string_lossy().to_ascii_lowercase();
+    if vol.space == volume::Space::File && (nifti.ends_with(".nii") || nifti.ends_with(".nii.gz"))
+    {
+        warnings.push(
+            "its frame is its own (no anatomical orientation declared), and NIfTI declares \
+             RAS+ (sform and qform code 1): readers of the output, umbra included, label its \
+             axes R/L, A/P, S/I; write .nrrd to keep the file's own frame"
+                .into(),
+        );
+    }
+    Ok(warnings)
+}
+
+/// What the `f32` samples could not hold of a wider stored type: float64 rounded to single
+/// precision, integers past 2^24 in magnitude rounded; the output keeps the stored type, so the
+/// values it holds are the rounded ones.
+fn precision_warning(f: &volume::Field) -> Option<String> {
+    use volume::ScalarType as T;
+    let wide_int = matches!(f.stored, T::I32 | T::U32 | T::I64 | T::U64);
+    let beyond = f
+        .data
+        .iter()
+        .filter(|v| v.is_finite() && v.abs() >= 16_777_216.0)
+        .count();
+    match f.stored {
+        T::F64 => Some(format!(
+            "field {}: float64 samples are held as 32-bit floats (about 7 significant digits; \
+             magnitudes past 3.4e38 become infinite) and written as float64 of those values",
+            f.name
+        )),
+        _ if wide_int && beyond > 0 => Some(format!(
+            "field {}: {beyond} samples are at or past 2^24 = 16777216 in magnitude, where 32-bit \
+             floats hold only some integers: they are rounded to the nearest they hold",
+            f.name
+        )),
+        _ => None,
+    }
 }
 
 /// Checks before any work that `output` names a format [`write_field`] writes and can be
