@@ -266,7 +266,10 @@ fn convert_warns_of_what_the_output_does_not_keep() {
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
     let e = run(fixture("detached_f64.nhdr"), "f.nrrd");
-    assert!(e.contains("float64 samples are held as 32-bit floats"), "{e}");
+    assert!(
+        e.contains("float64 samples are held as 32-bit floats"),
+        "{e}"
+    );
     let headsq = root().join("datasets/vtk/headsq_64x64x93.nhdr");
     let e = run(headsq.clone(), "h.nii");
     assert!(e.contains("NIfTI declares RAS+"), "{e}");

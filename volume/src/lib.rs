@@ -551,6 +551,25 @@ fn extension(path: &Path) -> String {
         .to_string()
 }
 
+/// The header of an Analyze-style NIfTI pair when `path` names its image (`x.img`, `x.img.gz`):
+/// the `x.hdr` or `x.hdr.gz` beside it, when there is one; else `path`.
+fn nifti_pair_header(path: &Path) -> std::borrow::Cow<'_, Path> {
+    if extension(path) == "img" {
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+        if let Some(name) = name {
+            let gz = name.to_ascii_lowercase().ends_with(".gz");
+            let stem_len = name.len() - if gz { 7 } else { 4 };
+            for suffix in [".hdr", ".hdr.gz", ".HDR"] {
+                let h = path.with_file_name(format!("{}{suffix}", &name[..stem_len]));
+                if h.is_file() {
+                    return h.into();
+                }
+            }
+        }
+    }
+    path.into()
+}
+
 /// Whether a file's name is one of the volume formats' (`.nii`, `.nii.gz`, `.hdr`, `.nrrd`,
 /// `.nhdr`, `.vti`, `.mhd`, `.mha`, `.slc`): such a file is read by its reader or refused, never
 /// guessed at as a PLOT3D grid (which has no signature).
@@ -568,6 +587,7 @@ pub fn has_volume_extension(path: &Path) -> bool {
 /// Supported: NIfTI-1/2 (`.nii`, `.nii.gz`, `.hdr`+`.img`), NRRD (`.nrrd`, `.nhdr`), VTK legacy
 /// STRUCTURED_POINTS (`.vtk`), VTK XML ImageData (`.vti`), MetaImage (`.mhd`, `.mha`), SLC (`.slc`).
 pub fn load(path: &Path) -> Result<Volume> {
+    let path = &nifti_pair_header(path);
     let ext = extension(path);
     let ext = ext.as_str();
     let vol = match ext {
@@ -602,6 +622,7 @@ pub struct ScalarField {
 /// reads it, moved out of the volume (no copy). Errors for a vector field (select
 /// `NAME:magnitude` or a component).
 pub fn load_scalar(path: &Path, selector: Option<&FieldSelector>) -> Result<ScalarField> {
+    let path = &nifti_pair_header(path);
     let (mut vol, stored) = match extension(path).as_str() {
         "nii" | "hdr" => nifti::read_stored(path)?,
         "nrrd" | "nhdr" => nrrd::read_stored(path)?,
@@ -663,6 +684,7 @@ pub fn load_scalar(path: &Path, selector: Option<&FieldSelector>) -> Result<Scal
 /// frames; see [`nifti::read_series`]) gives all its frames, any other volume a steady series
 /// of one frame ([`VolumeSeries::steady`]).
 pub fn load_series(path: &Path) -> Result<VolumeSeries> {
+    let path = &nifti_pair_header(path);
     let ext = extension(path);
     let ext = ext.as_str();
     if matches!(ext, "nii" | "hdr") {

@@ -135,3 +135,24 @@ fn every_fixture_matches_its_reference_reader() {
         failures.join("\n")
     );
 }
+
+/// A NIfTI-1 pair (`ni1`: header and image in two files), cut from a single-file fixture, reads
+/// the same whether the header or the image is named.
+#[test]
+fn a_nifti_pair_reads_by_either_name() {
+    let nii = std::fs::read(fixtures().join("n1_i8.nii")).unwrap();
+    let offset = f32::from_le_bytes(nii[108..112].try_into().unwrap()) as usize;
+    let mut hdr = nii[..348].to_vec();
+    hdr[108..112].copy_from_slice(&0f32.to_le_bytes());
+    hdr[344..348].copy_from_slice(b"ni1\0");
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("pair.hdr"), &hdr).unwrap();
+    std::fs::write(dir.path().join("pair.img"), &nii[offset..]).unwrap();
+    let want = volume::load(&fixtures().join("n1_i8.nii")).unwrap();
+    for name in ["pair.hdr", "pair.img"] {
+        let v = volume::load(&dir.path().join(name)).unwrap();
+        assert_eq!(v.dims, want.dims, "{name}");
+        assert_eq!(v.affine, want.affine, "{name}");
+        assert_eq!(v.default().data, want.default().data, "{name}");
+    }
+}

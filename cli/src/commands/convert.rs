@@ -56,8 +56,7 @@ pub fn convert(
     let mut warnings = vol.warnings.clone();
     warnings.extend(precision_warning(&f));
     let nifti = output.to_string_lossy().to_ascii_lowercase();
-    if vol.space == volume::Space::File && (nifti.ends_with(".nii") || nifti.ends_with(".nii.gz"))
-    {
+    if vol.space == volume::Space::File && (nifti.ends_with(".nii") || nifti.ends_with(".nii.gz")) {
         warnings.push(
             "its frame is its own (no anatomical orientation declared), and NIfTI declares \
              RAS+ (sform and qform code 1): readers of the output, umbra included, label its \
