@@ -563,7 +563,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                     robust_range(&field.samples, full, finite)
                 }),
             };
-            if preset && !projection && vspec.transfer.range.is_full() {
+            if preset && !projection && vspec.transfer.range.is_full() && vspec.render {
                 // A range that outliers stretch gives most of the field almost one colour and
                 // opacity: say so, and what spans the rest. Estimated from every k-th sample,
                 // at most NOTE_SAMPLES of them (exact below), so that every render of a
@@ -600,6 +600,14 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 false => transfer(&vspec.transfer, range)?,
             };
             if s.annotate.colorbar.as_deref() == Some("volume") {
+                if !vspec.render {
+                    return Err(
+                        "scene key annotate.colorbar: 'volume' shows the volume's colours, and \
+                         volume.render = false draws none (a slice's colours: \
+                         \"overlays.NAME\" for an overlay)"
+                            .into(),
+                    );
+                }
                 let (map, [lo, hi]) = match projection {
                     true => (
                         vspec.colormap.clone().unwrap_or_else(|| "grey".into()),

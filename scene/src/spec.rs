@@ -1464,6 +1464,22 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 "false with [volume.iso]: the isosurface is the volume's drawing; leave [volume.iso] out".into(),
             );
         }
+        if v.iso.is_some()
+            && matches!(
+                s.render.method.desc().volume,
+                engine::method::VolumeShading::Projection(_)
+            )
+        {
+            return bad(
+                "render.method".into(),
+                format!(
+                    "{:?} projects the volume's values and [volume.iso] draws the volume as an \
+                     isosurface: choose one",
+                    s.render.method
+                )
+                .to_lowercase(),
+            );
+        }
         if v.iso.is_some() {
             if let Some(i) = s.tubes.iter().position(|t| t.opacity < 1.0) {
                 return bad(
@@ -1501,7 +1517,7 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
     {
         return bad(
             "slices".into(),
-            "slices and overlays need a [volume] drawn by its transfer function (its grid is theirs)"
+            "slices and overlays need a [volume] (its grid is theirs; drawn or not, volume.render), not an isosurface ([volume.iso])"
                 .into(),
         );
     }

@@ -614,3 +614,50 @@ fn the_bundled_slices_scene_shows_anatomy_overlay_and_cropped_tracts() {
         .count();
     assert!(warm > 200 && grey > 200, "warm {warm}, grey {grey}");
 }
+
+/// A volume that is not drawn (`volume.render = false`, its slices are) has no colours of its
+/// own to show: `annotate.colorbar = "volume"` is refused and no transfer-function note is
+/// made; an isosurface cannot be projected (`mip` with `[volume.iso]` is refused by name).
+#[test]
+fn a_volume_not_drawn_has_no_colour_bar_or_transfer_note() {
+    let dir = tempfile::tempdir().unwrap();
+    // Values with outliers: most in [0, 1], a few at 1000 (the note's case when drawn).
+    let v = volume_of([16, 16, 16], DMat4::IDENTITY, |p| {
+        if p.x == 0.0 && p.y == 0.0 {
+            1000.0
+        } else {
+            (p.z / 15.0) as f32
+        }
+    });
+    let path = write(dir.path(), "v.nii", &v);
+    let scene = |render: bool, extra: &str| {
+        format!(
+            "[volume]\npath = \"{path}\"\nrender = {render}\n[[slices]]\naxis = \"axial\"\n{extra}"
+        )
+    };
+    let parse = |t: &str| scene::spec::parse(t, "s.toml", dir.path(), &[]);
+    let drawn = model(&parse(&scene(true, "")).unwrap()).unwrap();
+    assert!(
+        drawn.notes.iter().any(|n| n.contains("percentiles")),
+        "{:?}",
+        drawn.notes
+    );
+    let hidden = model(&parse(&scene(false, "")).unwrap()).unwrap();
+    assert!(
+        !hidden.notes.iter().any(|n| n.contains("percentiles")),
+        "{:?}",
+        hidden.notes
+    );
+    let e = model(&parse(&scene(false, "[annotate]\ncolorbar = \"volume\"\n")).unwrap())
+        .err()
+        .unwrap();
+    assert!(
+        e.contains("annotate.colorbar") && e.contains("volume.render"),
+        "{e}"
+    );
+    let iso = format!(
+        "[volume]\npath = \"{path}\"\n[volume.iso]\nvalue = 0.5\n[render]\nmethod = \"mip\"\n"
+    );
+    let e = parse(&iso).unwrap_err();
+    assert!(e.contains("render.method") && e.contains("mip"), "{e}");
+}
