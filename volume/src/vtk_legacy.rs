@@ -606,9 +606,12 @@ pub fn read(path: &Path) -> Result<Volume> {
     let mut fields: Vec<Field> = Vec::new();
     let mut active: Option<usize> = None;
     for a in arrays.into_iter().filter(|a| !a.on_cells) {
+        // An array of 2 or more than 3 components becomes a field per component: the active
+        // scalars are its first.
+        let first = fields.len();
         vtk_common::push_field(&mut fields, a.name, a.comps, a.ty, a.data);
         if a.scalars && active.is_none() {
-            active = Some(fields.len() - 1);
+            active = Some(first);
         }
     }
     if fields.is_empty() {

@@ -156,3 +156,23 @@ fn a_nifti_pair_reads_by_either_name() {
         assert_eq!(v.default().data, want.default().data, "{name}");
     }
 }
+
+/// A VTK legacy SCALARS array of two components is split into a field per component; the
+/// default field is its first component, as for NRRD lists and MetaImage channels.
+#[test]
+fn a_two_component_vtk_scalars_array_defaults_to_its_first_component() {
+    let mut text = String::from(
+        "# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 2 2\n\
+         SPACING 1 1 1\nORIGIN 0 0 0\nPOINT_DATA 8\nSCALARS two float 2\nLOOKUP_TABLE default\n",
+    );
+    for k in 0..8 {
+        text += &format!("{} {}\n", k, 100 + k);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("two.vtk");
+    std::fs::write(&p, text).unwrap();
+    let v = volume::load(&p).unwrap();
+    assert_eq!(v.fields.len(), 2);
+    let d = v.default();
+    assert_eq!(d.data, (0..8).map(|k| k as f32).collect::<Vec<_>>(), "{}", d.name);
+}
