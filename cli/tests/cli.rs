@@ -273,8 +273,24 @@ fn convert_warns_of_what_the_output_does_not_keep() {
     let headsq = root().join("datasets/vtk/headsq_64x64x93.nhdr");
     let e = run(headsq.clone(), "h.nii");
     assert!(e.contains("NIfTI declares RAS+"), "{e}");
-    let e = run(headsq, "h.nrrd");
+    let e = run(headsq.clone(), "h.nrrd");
     assert!(!e.contains("warning"), "{e}");
+    // A field the file lacks: the error names the file.
+    for cmd in [&["convert", "-o", "x.nrrd"][..], &["info"]] {
+        let o = umbra()
+            .args(cmd)
+            .arg(&headsq)
+            .args(["--field", "nope"])
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert!(
+            e.contains("headsq_64x64x93.nhdr: field nope"),
+            "{cmd:?}: {e}"
+        );
+    }
 }
 
 #[test]

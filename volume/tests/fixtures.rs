@@ -174,5 +174,10 @@ fn a_two_component_vtk_scalars_array_defaults_to_its_first_component() {
     let v = volume::load(&p).unwrap();
     assert_eq!(v.fields.len(), 2);
     let d = v.default();
-    assert_eq!(d.data, (0..8).map(|k| k as f32).collect::<Vec<_>>(), "{}", d.name);
+    assert_eq!(
+        d.data,
+        (0..8).map(|k| k as f32).collect::<Vec<_>>(),
+        "{}",
+        d.name
+    );
 }

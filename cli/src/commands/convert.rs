@@ -51,7 +51,9 @@ pub fn convert(
 ) -> Result<Vec<String>, VolumeError> {
     check_volume_output(output)?;
     let vol = volume::load(input)?;
-    let f = vol.select(field)?;
+    let f = vol
+        .select(field)
+        .map_err(|e| VolumeError::Invalid(format!("{}: {e}", input.display())))?;
     write_field(output, &vol, &f, gzip)?;
     let mut warnings = vol.warnings.clone();
     warnings.extend(precision_warning(&f));

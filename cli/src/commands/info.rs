@@ -103,7 +103,7 @@ pub fn run(a: Args) -> Result<(), String> {
         match volume::load(&file) {
             Ok(vol) => {
                 warn(&vol.warnings);
-                let j = volume_json(&vol, sel).map_err(|e| e.to_string())?;
+                let j = volume_json(&vol, sel).map_err(|e| format!("{}: {e}", file.display()))?;
                 let text = volume_text(&name, &vol, &j);
                 return print(j, if a.json { String::new() } else { text });
             }
