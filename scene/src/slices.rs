@@ -298,6 +298,15 @@ fn labels_map(
     let mut present = std::collections::BTreeSet::new();
     for &v in field.iter().filter(|v| v.is_finite()) {
         let l = v.round();
+        // Labels are whole numbers (a float file may hold them with a rounding error); 2.5 is
+        // no label but a scalar map's value.
+        if (v - l).abs() > 1e-3 {
+            return Err(format!(
+                "overlays[{i}].labels ({}): the value {v} is not a whole number; a label \
+                 overlay holds labels (a scalar map is an overlay without labels = true)",
+                o.path.display()
+            ));
+        }
         if l < 0.0 || l >= MAX_LABELS as f32 {
             return Err(format!(
                 "overlays[{i}].labels ({}): label {v} is outside 0..{}",

@@ -661,3 +661,40 @@ fn a_volume_not_drawn_has_no_colour_bar_or_transfer_note() {
     let e = parse(&iso).unwrap_err();
     assert!(e.contains("render.method") && e.contains("mip"), "{e}");
 }
+
+/// A label overlay holds whole numbers: a value of 2.5 is refused naming the overlay (it was
+/// drawn as label 3), a float file's rounding error is not.
+#[test]
+fn a_label_overlay_with_fractional_values_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = write(
+        dir.path(),
+        "v.nii",
+        &volume_of([8, 8, 8], DMat4::IDENTITY, |p| p.z as f32),
+    );
+    for (value, ok) in [(2.0000002f32, true), (2.5, false)] {
+        let labels = write(
+            dir.path(),
+            "l.nii",
+            &volume_of([8, 8, 8], DMat4::IDENTITY, |p| {
+                if p.x < 4.0 {
+                    value
+                } else {
+                    1.0
+                }
+            }),
+        );
+        let text = format!(
+            "[volume]\npath = \"{base}\"\n[[slices]]\naxis = \"axial\"\n\
+             [[overlays]]\nname = \"l\"\npath = \"{labels}\"\nlabels = true\n"
+        );
+        let s = scene::spec::parse(&text, "s.toml", dir.path(), &[]).unwrap();
+        match model(&s) {
+            Ok(_) => assert!(ok, "{value} accepted"),
+            Err(e) => {
+                assert!(!ok, "{value}: {e}");
+                assert!(e.contains("overlays[0].labels") && e.contains("2.5"), "{e}");
+            }
+        }
+    }
+}
