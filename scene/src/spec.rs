@@ -1443,7 +1443,7 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
         if !o.labels && (o.lut.is_some() || o.show.is_some()) {
             return bad(
-                key("lut"),
+                key(if o.lut.is_some() { "lut" } else { "show" }),
                 "lut and show are for label overlays (labels = true)".into(),
             );
         }
@@ -1452,7 +1452,11 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
         if o.labels && (o.range.is_some() || o.colormap.is_some()) {
             return bad(
-                key("range"),
+                key(if o.range.is_some() {
+                    "range"
+                } else {
+                    "colormap"
+                }),
                 "a label overlay takes its colours from lut, not range or colormap".into(),
             );
         }
@@ -1556,7 +1560,7 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
             .is_some_and(|v| s.overlays.iter().any(|o| &o.name == v && o.labels));
         if shows_labels && (sl.window.is_some() || sl.colormap.is_some()) {
             return bad(
-                key("window"),
+                key(if sl.window.is_some() { "window" } else { "colormap" }),
                 "a slice showing a label overlay takes its colours from the overlay's lut, not window or colormap".into(),
             );
         }
@@ -2233,6 +2237,14 @@ mod tests {
             (
                 "overlays=[{name=\"a\",path=\"a.nii\",labels=true,show=[70000]}]",
                 "overlays[0].show: label 70000 is not in 0..65535",
+            ),
+            (
+                "overlays=[{name=\"a\",path=\"a.nii\",labels=true,colormap=\"hot\"}]",
+                "overlays[0].colormap",
+            ),
+            (
+                "overlays=[{name=\"a\",path=\"a.nii\",show=[1]}]",
+                "overlays[0].show",
             ),
             (
                 "clip=[{normal=[0,0,1],offset=1e16}]",
