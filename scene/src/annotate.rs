@@ -422,15 +422,20 @@ pub fn draw(
             };
         }
         if !label.is_empty() {
-            let (lw, lh) = extent(&font, px, &label);
-            text(
-                &mut cv,
-                &pen,
-                px,
-                &label,
-                x0 + (bw - lw) * 0.5,
-                y0 - lh - 0.2 * px,
-            );
+            // Centred over the bar, moved left to stay inside the image; a label wider than
+            // the image is cut, ending in an ellipsis.
+            let avail = (wf - 2.0 * margin).max(px);
+            let (mut lw, lh) = extent(&font, px, &label);
+            if lw > avail {
+                let mut chars: Vec<char> = label.chars().collect();
+                while chars.len() > 1 && lw > avail {
+                    chars.pop();
+                    label = chars.iter().collect::<String>() + "\u{2026}";
+                    lw = extent(&font, px, &label).0;
+                }
+            }
+            let x = (x0 + (bw - lw) * 0.5).min(wf - margin - lw).max(margin);
+            text(&mut cv, &pen, px, &label, x, y0 - lh - 0.2 * px);
         }
         placed.colorbar = Some([x0, y0, x1, y1]);
     }
@@ -552,6 +557,55 @@ mod tests {
             }
         }
         (inside, outside)
+    }
+
+    /// A colour bar's label longer than the bar, or than the image, stays inside the image
+    /// (moved left, then cut with an ellipsis): no ink in the right margin.
+    #[test]
+    fn a_long_colour_bar_label_stays_inside_the_image() {
+        let camera = Camera::look_at(
+            DVec3::new(0.0, 0.0, 400.0),
+            DVec3::ZERO,
+            DVec3::Y,
+            Projection::Orthographic { height: 100.0 },
+            [DVec3::splat(-50.0), DVec3::splat(50.0)],
+        )
+        .unwrap();
+        let bar = ColorBar {
+            label: "v".into(),
+            map: "transfer function".into(),
+            range: [0.0, 63.0],
+            colors: vec![[0.5; 3]; 64],
+        };
+        let (w, h) = (256usize, 192usize);
+        for label in ["a field with a long name", &"very long ".repeat(20)] {
+            let spec = AnnotateSpec {
+                colorbar: Some("volume".into()),
+                colorbar_label: Some(label.to_string()),
+                ..Default::default()
+            };
+            let mut img = blank(w, h);
+            let ctx = Context {
+                camera: &camera,
+                ras: true,
+                background: [1.0; 3],
+                colorbar: Some(&bar),
+            };
+            draw(&mut img, w, h, &spec, &ctx).unwrap();
+            // Text 9 px high, margins 5.4 px (the bar's frame reaches 2.6 px from the edge):
+            // nothing dark in the last 3 columns.
+            let dark = (0..h)
+                .flat_map(|y| (w - 3..w).map(move |x| y * w + x))
+                .filter(|&i| img[i][0] < 0.5)
+                .count();
+            assert_eq!(dark, 0, "{label}");
+            // The label was drawn (ink above the bar).
+            let above = (h - 40..h - 24)
+                .flat_map(|y| (0..w).map(move |x| y * w + x))
+                .filter(|&i| img[i][0] < 0.5)
+                .count();
+            assert!(above > 20, "{label}: {above}");
+        }
     }
 
     #[test]
