@@ -194,7 +194,27 @@ fn absurd_dimensions_stay_within_a_small_address_space() {
     let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
     std::io::Write::write_all(&mut enc, &h).unwrap();
     std::fs::write(&gz, enc.finish().unwrap()).unwrap();
-    for f in [&p, &gz] {
+    // Files whose bytes really are there (sparse, 1 GiB): reading them whole needs more than
+    // the limit, an error rather than an abort.
+    let raw = dir.path().join("raw.nii");
+    let mut h = h[..352].to_vec();
+    for (k, d) in [3i16, 1024, 1024, 1024, 1, 1, 1, 1].iter().enumerate() {
+        h[40 + 2 * k..42 + 2 * k].copy_from_slice(&d.to_le_bytes());
+    }
+    h[70..72].copy_from_slice(&2i16.to_le_bytes());
+    h[72..74].copy_from_slice(&8i16.to_le_bytes());
+    let f = std::fs::File::create(&raw).unwrap();
+    std::io::Write::write_all(&mut &f, &h).unwrap();
+    f.set_len(352 + (1 << 30)).unwrap();
+    let tck = dir.path().join("raw.tck");
+    let f = std::fs::File::create(&tck).unwrap();
+    std::io::Write::write_all(
+        &mut &f,
+        b"mrtrix tracks\ndatatype: Float32LE\nfile: . 100\ncount: 1\nEND\n",
+    )
+    .unwrap();
+    f.set_len(1 << 30).unwrap();
+    for f in [&p, &gz, &raw, &tck] {
         let out = Command::new("sh")
             .arg("-c")
             .arg(format!(

@@ -155,7 +155,19 @@ pub fn open_maybe_gz(path: &Path, magic: &[u8], format: &str) -> Result<Source> 
 pub fn read_maybe_gz(path: &Path, magic: &[u8], format: &str) -> Result<Vec<u8>> {
     use std::io::Read;
     let mut src = open_maybe_gz(path, magic, format)?;
-    let mut out = Vec::with_capacity(src.len.unwrap_or(0) as usize);
+    let mut out = Vec::new();
+    let len = src.len.unwrap_or(0);
+    // Reserved fallibly: a file past the memory the process may use is an error, not an abort.
+    out.try_reserve_exact(len as usize).map_err(|_| {
+        TubesError::format(
+            path,
+            "data",
+            format!(
+                "not enough memory to read its {len} bytes ({} MiB)",
+                len >> 20
+            ),
+        )
+    })?;
     src.reader
         .read_to_end(&mut out)
         .map_err(|e| src.error(path, e))?;

@@ -239,8 +239,17 @@ pub fn read(path: &Path) -> Result<Streamlines> {
     // A plain file's size bounds its points (a streamline's NaN triplet included): reserved
     // once, the points are never copied to a larger buffer.
     if let Some(len) = src.len {
-        s.points
-            .reserve_exact((len as usize).saturating_sub(offset) / triplet);
+        let n = (len as usize).saturating_sub(offset) / triplet;
+        s.points.try_reserve_exact(n).map_err(|_| {
+            TubesError::format(
+                path,
+                "data",
+                format!(
+                    "not enough memory for its {n} points ({} MiB)",
+                    (n * std::mem::size_of::<glam::Vec3>()) >> 20
+                ),
+            )
+        })?;
     }
     let mut terminated = false;
     let mut open = 0usize; // points since the last delimiter

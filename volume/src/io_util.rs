@@ -80,7 +80,15 @@ pub fn open_regular(path: &Path) -> std::io::Result<(std::fs::File, u64)> {
 pub fn read_regular(path: &Path, limit: Option<u64>) -> std::io::Result<Vec<u8>> {
     let (f, len) = open_regular(path)?;
     let n = limit.map_or(len, |l| l.min(len));
-    let mut buf = Vec::with_capacity(n as usize);
+    let mut buf = Vec::new();
+    // Reserved fallibly: a file larger than the memory the process may use (an address-space
+    // limit, a cgroup) is an error giving its size, not an abort.
+    buf.try_reserve_exact(n as usize).map_err(|_| {
+        std::io::Error::new(
+            std::io::ErrorKind::OutOfMemory,
+            format!("not enough memory to read its {n} bytes ({} MiB)", n >> 20),
+        )
+    })?;
     f.take(n).read_to_end(&mut buf)?;
     Ok(buf)
 }
