@@ -133,7 +133,10 @@ fn main() -> ExitCode {
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("umbra: error: {e}");
+            // A last guard on length: an error that quotes a huge value (a 5 MB string in a
+            // scene) prints each line cut to 1000 characters.
+            let lines: Vec<String> = e.lines().map(|l| volume::clip_text(l, 1000)).collect();
+            eprintln!("umbra: error: {}", lines.join("\n"));
             ExitCode::from(1)
         }
     }

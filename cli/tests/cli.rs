@@ -611,3 +611,26 @@ fn resample_counts_samples_inside_the_mesh_whatever_their_values() {
         "{w}"
     );
 }
+
+/// An error that quotes a huge value (a 5 MB string in a scene, as a bad colour or as a value
+/// of the wrong type) stays short: each quoted line is cut.
+#[test]
+fn errors_quoting_a_huge_value_stay_short() {
+    let dir = tempfile::tempdir().unwrap();
+    let big = "x".repeat(5_000_000);
+    for (name, text) in [
+        ("colour.toml", format!("background = \"{big}\"\n")),
+        ("type.toml", format!("background = [\"{big}\"]\n")),
+    ] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        let out = umbra().arg("scene").arg(&p).output().unwrap();
+        assert_eq!(out.status.code(), Some(1));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.len() < 3000 && err.contains(name),
+            "{name}: {} bytes",
+            err.len()
+        );
+    }
+}

@@ -1200,9 +1200,16 @@ fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
 /// Reads a scene from TOML text; `name` labels errors, relative paths resolve against `dir`.
 pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result<Scene, String> {
     // Parse as written first: serde's errors then carry the line of an unknown or bad key.
-    let mut scene: Scene = toml::from_str(text).map_err(|e| format!("{name}: {e}"))?;
+    // The parser quotes the line (and marks it): each line of its message is cut to 400
+    // characters, so that a 5 MB value gives a short error.
+    let short = |e: &dyn std::fmt::Display| {
+        let text = e.to_string();
+        let lines: Vec<String> = text.lines().map(|l| volume::clip_text(l, 400)).collect();
+        format!("{name}: {}", lines.join("\n"))
+    };
+    let mut scene: Scene = toml::from_str(text).map_err(|e| short(&e))?;
     if !overrides.is_empty() {
-        let mut table: toml::Table = text.parse().map_err(|e| format!("{name}: {e}"))?;
+        let mut table: toml::Table = text.parse().map_err(|e| short(&e))?;
         for o in overrides {
             let (k, v) = o
                 .split_once('=')
@@ -1213,7 +1220,7 @@ pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result
             .try_into()
             .map_err(|e| format!("{name} with overrides: {e}"))?;
     }
-    validate(&mut scene, dir)?;
+    validate(&mut scene, dir).map_err(|e| format!("{name}: {e}"))?;
     Ok(scene)
 }
 
