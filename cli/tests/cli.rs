@@ -634,3 +634,16 @@ fn errors_quoting_a_huge_value_stay_short() {
         );
     }
 }
+
+/// A broken file named like a VTK file is refused by the VTK reader, never read as a PLOT3D
+/// grid (which has no signature to tell it by).
+#[test]
+fn info_does_not_guess_plot3d_for_a_broken_vtk_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("broken.vtk");
+    std::fs::write(&p, [7u8; 24]).unwrap();
+    let out = umbra().arg("info").arg(&p).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("broken.vtk") && !err.contains("plot3d"), "{err}");
+}

@@ -97,7 +97,7 @@ pub fn run(a: Args) -> Result<(), String> {
                 return print(j, if a.json { String::new() } else { text });
             }
             Err(volume::VolumeError::Invalid(_)) => {}
-            Err(e) if volume::has_volume_extension(&file) => return Err(e.to_string()),
+            Err(e) if named_format(&file) => return Err(e.to_string()),
             Err(_) => {}
         }
         match volume::load(&file) {
@@ -107,7 +107,7 @@ pub fn run(a: Args) -> Result<(), String> {
                 let text = volume_text(&name, &vol, &j);
                 return print(j, if a.json { String::new() } else { text });
             }
-            Err(e) if volume::has_volume_extension(&file) => return Err(e.to_string()),
+            Err(e) if named_format(&file) => return Err(e.to_string()),
             Err(e) => volume::plot3d::read(&file, None).map_err(|_| e.to_string())?,
         }
     };
@@ -137,6 +137,16 @@ fn gpu(json: bool) -> Result<(), String> {
         smoke.render_size[1],
         smoke.sample_count
     ))
+}
+
+/// Whether the file's name says its format (a volume's, or VTK's `.vtk`, `.vtr`, `.vts`,
+/// `.vtu`): then it is read by that reader or refused, never guessed at as a PLOT3D grid.
+fn named_format(file: &std::path::Path) -> bool {
+    let name = file.to_string_lossy().to_ascii_lowercase();
+    volume::has_volume_extension(file)
+        || [".vtk", ".vtr", ".vts", ".vtu", ".vtk.gz"]
+            .iter()
+            .any(|e| name.ends_with(e))
 }
 
 /// The JSON description of a volume (keys documented in the README: `format`, `dims`,
