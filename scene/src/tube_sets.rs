@@ -173,7 +173,7 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
 fn push_mesh_warnings(warnings: &mut Vec<String>, st: &TubeStats) {
     if st.dropped_points > 0 {
         warnings.push(format!(
-            "{} NaN or repeated points were dropped",
+            "{} non-finite (NaN or infinite) or repeated points were dropped",
             st.dropped_points
         ));
     }
