@@ -645,5 +645,8 @@ fn info_does_not_guess_plot3d_for_a_broken_vtk_file() {
     let out = umbra().arg("info").arg(&p).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(err.contains("broken.vtk") && !err.contains("plot3d"), "{err}");
+    assert!(
+        err.contains("broken.vtk") && !err.contains("plot3d"),
+        "{err}"
+    );
 }
