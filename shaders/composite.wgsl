@@ -106,7 +106,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         // Head light: the reflection of the light about n makes angle 2 acos(n.l) with the
         // view direction; cos of it is 2 (n.l)^2 - 1.
         let rv = max(2.0 * nl * nl - 1.0, 0.0);
-        let spec = C.light.specular * pow(rv, C.light.shininess);
+        // An outline rim (gbuffer.wgsl: alpha 0.9) is black ink: no highlight on it.
+        let spec = select(C.light.specular * pow(rv, C.light.shininess), 0.0, c.a < 0.95);
         // eq. 9, or LineAO's paper shading (the AO in place of ambient and diffuse)
         var lit = C.light.ambient + C.light.diffuse * nl;
         if (C.paper_shading != 0u) {

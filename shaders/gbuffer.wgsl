@@ -686,8 +686,9 @@ fn halo_at(v: VOut) -> Halo {
 
 // The colour of a halo sample in the G-buffer: alpha 0.5 marks it (composite paints it with
 // the halo colour, the background unless the method is illustrative); an outline rim is black
-// and a surface.
+// and a surface, alpha 0.9 marking it unlit (composite adds no specular highlight to it).
 const HALO_ALPHA: f32 = 0.5;
+const OUTLINE_ALPHA: f32 = 0.9;
 
 struct FrontOutH {
     @location(0) color: vec4<f32>,
@@ -698,7 +699,7 @@ struct FrontOutH {
 
 fn rim_color(f: FrontOut) -> vec4<f32> {
     if (LP.halo_outline != 0u) {
-        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
+        return vec4<f32>(0.0, 0.0, 0.0, OUTLINE_ALPHA);
     }
     return vec4<f32>(0.0, 0.0, 0.0, HALO_ALPHA);
 }

@@ -897,3 +897,33 @@ fn sets_added_after_an_empty_set_keep_their_number() {
     assert!(covered > 300, "the sets cover {covered} pixels");
     assert!(whole.image == shared.image, "the share draws another image");
 }
+
+/// An outline halo's rim is black ink, whatever the head light's specular term (it was grey,
+/// 149 of 255, with the default light): the rim pixels beside a white line stay dark.
+#[test]
+fn an_outline_rim_is_black_under_the_head_light() {
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let d_max = (4.0 / (cam.far - cam.near)) as f32;
+    let mut l = coloured(
+        &[vec![[-20.0, 0.0, 2.0], [20.0, 0.0, 2.0]]],
+        4.0,
+        [1.0, 1.0, 1.0],
+    );
+    l.halo = Some(tubes::lines::Halo {
+        outline: true,
+        ..halo(d_max, tubes::lines::Displacement::Linear, true)
+    });
+    let o = render(&gpu, &[l], cam, &[]);
+    let x = W as usize / 2;
+    let px = |y: usize| o.image[x + W as usize * y];
+    // Down the middle column: the line's pixels (lit white) between two rims.
+    let lit: Vec<usize> = (0..H as usize).filter(|&y| px(y)[0] > 0.5).collect();
+    let (top, bottom) = (lit[0], *lit.last().unwrap());
+    let rim: Vec<f32> = (top.saturating_sub(8)..top)
+        .chain(bottom + 1..(bottom + 9).min(H as usize))
+        .map(|y| px(y)[0].max(px(y)[1]).max(px(y)[2]))
+        .collect();
+    let dark = rim.iter().filter(|&&v| v < 0.02).count();
+    assert!(dark >= 12, "rim values {rim:?}");
+}

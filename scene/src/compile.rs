@@ -661,7 +661,14 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             meshes.push(mesh);
             continue;
         }
-        let mut sl = tubes::load(&t.path).map_err(|e| format!("tubes[{i}]: {e}"))?;
+        let mut sl = tubes::load(&t.path).map_err(|e| {
+            // A tube set also takes a mesh: say so where the tractogram readers list theirs.
+            let e = e.to_string().replace(
+                "or .trx)",
+                "or .trx; for [[tubes]] also a mesh, .ply or .obj)",
+            );
+            format!("tubes[{i}]: {e}")
+        })?;
         if let Some(m) = t.transform {
             let key = format!("tubes[{i}].transform");
             sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);

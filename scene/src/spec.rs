@@ -1532,6 +1532,26 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 .into(),
         );
     }
+    // The objects' transforms, checked here so that `umbra scene` refuses what rendering would.
+    let transforms = (s.tubes.iter().map(|t| ("tubes", t.transform.as_ref())))
+        .enumerate()
+        .chain(
+            s.lines
+                .iter()
+                .map(|l| ("lines", l.transform.as_ref()))
+                .enumerate(),
+        )
+        .chain(
+            s.points
+                .iter()
+                .map(|p| ("points", p.transform.as_ref()))
+                .enumerate(),
+        );
+    for (i, (what, m)) in transforms {
+        if let Some(m) = m {
+            crate::tube_sets::transform_matrix(m, &format!("scene key {what}[{i}].transform"))?;
+        }
+    }
     for (i, sl) in s.slices.iter().enumerate() {
         let key = |k: &str| format!("slices[{i}].{k}");
         match (&sl.axis, &sl.normal) {
@@ -1826,10 +1846,10 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         if p.path.is_relative() {
             p.path = dir.join(&p.path);
         }
-        if !(p.size > 0.0 && p.size.is_finite()) {
+        if !(p.size > 0.0 && p.size <= 1e15) {
             return bad(
                 &format!("points[{i}].size"),
-                format!("{} is not a positive diameter", p.size),
+                format!("{} is not a positive diameter up to 1e15", p.size),
             );
         }
         if p.color == "direction" {
@@ -1862,6 +1882,12 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             return bad(
                 &format!("lines[{i}].width"),
                 format!("{} pixels: at most 256", l.width),
+            );
+        }
+        if l.width_unit == WidthUnit::World && l.width > 1e15 {
+            return bad(
+                &format!("lines[{i}].width"),
+                format!("{} world units: at most 1e15", l.width),
             );
         }
         check_color_source(&l.color).map_err(|why| format!("scene key lines[{i}].color: {why}"))?;
@@ -1916,10 +1942,16 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 );
             }
         }
-        if !(l.filter_min.is_finite() && l.filter_taper >= 0.0 && l.filter_taper.is_finite()) {
+        if !l.filter_min.is_finite() {
             return bad(
                 &format!("lines[{i}].filter_min"),
-                "filter_min must be finite and filter_taper finite and >= 0".into(),
+                format!("{} is not a finite value", l.filter_min),
+            );
+        }
+        if !(l.filter_taper >= 0.0 && l.filter_taper.is_finite()) {
+            return bad(
+                &format!("lines[{i}].filter_taper"),
+                format!("{} is not a finite width at least 0", l.filter_taper),
             );
         }
         if let Some(h) = &l.halo {
@@ -2254,6 +2286,22 @@ mod tests {
                 "overlays[0].show",
             ),
             (
+                "lines=[{path=\"a.tck\",filter=\"scalar:s\",filter_taper=-1}]",
+                "lines[0].filter_taper",
+            ),
+            (
+                "lines=[{path=\"a.tck\",width=1e20,width_unit=\"world\"}]",
+                "lines[0].width: 100000000000000000000 world units: at most 1e15",
+            ),
+            (
+                "tubes=[{path=\"a.tck\",transform=[nan,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}]",
+                "tubes[0].transform",
+            ),
+            (
+                "points=[{path=\"a.csv\",transform=[1e300,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}]",
+                "points[0].transform",
+            ),
+            (
                 "clip=[{normal=[0,0,1],offset=1e16}]",
                 "clip[0].offset: 10000000000000000 is not a finite offset within 1e15",
             ),
@@ -2293,7 +2341,8 @@ mod tests {
                 "lines[0].trail.start",
             ),
             ("filter = \"speed\"\n", "lines[0].filter"),
-            ("filter = \"scalar:fa\"\nfilter_taper = -1.0\n", "lines[0].filter_min"),
+            ("filter = \"scalar:fa\"\nfilter_taper = -1.0\n", "lines[0].filter_taper"),
+            ("filter = \"scalar:fa\"\nfilter_min = nan\n", "lines[0].filter_min"),
             ("taper = { u = 0.7 }\n", "lines[0].taper.u"),
             ("taper = { vertices = 0 }\n", "lines[0].taper.vertices"),
             ("halo = { width = 0.5 }\n", "lines[0].halo.width"),

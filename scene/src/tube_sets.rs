@@ -88,9 +88,10 @@ fn parse_hex(s: &str) -> Result<[f32; 3], String> {
 /// error naming `key` when it is not 16 finite numbers of an invertible matrix.
 pub fn transform_matrix(m: &[f64; 16], key: &str) -> Result<DMat4, String> {
     let rows = DMat4::from_cols_array(m).transpose();
-    if !m.iter().all(|v| v.is_finite()) || rows.determinant() == 0.0 {
+    if !m.iter().all(|v| v.is_finite() && v.abs() <= 1e15) || rows.determinant() == 0.0 {
         return Err(format!(
-            "{key}: 16 finite numbers of an invertible row-major 4x4 matrix"
+            "{key}: 16 finite numbers within 1e15 of an invertible row-major 4x4 matrix (a \
+             flat list, row after row)"
         ));
     }
     Ok(rows)
