@@ -559,18 +559,23 @@ mod tests {
         (inside, outside)
     }
 
-    /// A colour bar's label longer than the bar, or than the image, stays inside the image
-    /// (moved left, then cut with an ellipsis): no ink in the right margin.
-    #[test]
-    fn a_long_colour_bar_label_stays_inside_the_image() {
-        let camera = Camera::look_at(
+    /// An orthographic view from +z, 100 world units high.
+    fn top_view() -> Camera {
+        Camera::look_at(
             DVec3::new(0.0, 0.0, 400.0),
             DVec3::ZERO,
             DVec3::Y,
             Projection::Orthographic { height: 100.0 },
             [DVec3::splat(-50.0), DVec3::splat(50.0)],
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    /// A colour bar's label longer than the bar, or than the image, stays inside the image
+    /// (moved left, then cut with an ellipsis): no ink in the right margin.
+    #[test]
+    fn a_long_colour_bar_label_stays_inside_the_image() {
+        let camera = top_view();
         let bar = ColorBar {
             label: "v".into(),
             map: "transfer function".into(),
@@ -610,14 +615,7 @@ mod tests {
 
     #[test]
     fn the_layout_scales_with_the_image_and_the_scale_bar_measures_the_world() {
-        let camera = Camera::look_at(
-            DVec3::new(0.0, 0.0, 400.0),
-            DVec3::ZERO,
-            DVec3::Y,
-            Projection::Orthographic { height: 100.0 },
-            [DVec3::splat(-50.0), DVec3::splat(50.0)],
-        )
-        .unwrap();
+        let camera = top_view();
         let bar = ColorBar {
             label: "speed".into(),
             map: "viridis".into(),
