@@ -7,7 +7,8 @@ mod commands;
 mod output;
 mod progress;
 
-use clap::{error::ErrorKind, Parser, Subcommand};
+use clap::error::{ContextKind, ContextValue, ErrorKind};
+use clap::{Parser, Subcommand};
 use commands::{
     convert, demo, info, iso, render, resample, scene, sweep, synth, trace, tracts, tubes, view,
 };
@@ -113,8 +114,14 @@ fn main() -> ExitCode {
             // A bad value of a flag (an unknown --fit, a --dims that is not NX,NY,NZ) is wrong
             // input like the errors the commands find (exit 1); help and version exit 0, and a
             // malformed command line clap's usual 2.
+            // An option given without its value (`--orbit` at the end) is a malformed command
+            // line: clap reports it as an invalid, empty value.
+            let missing = matches!(
+                e.get(ContextKind::InvalidValue),
+                Some(ContextValue::String(v)) if v.is_empty()
+            );
             let code = match e.kind() {
-                ErrorKind::InvalidValue | ErrorKind::ValueValidation => 1,
+                ErrorKind::InvalidValue | ErrorKind::ValueValidation if !missing => 1,
                 _ => e.exit_code(),
             };
             if code != 0 {

@@ -553,6 +553,13 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
         assert!(r["shard"].is_null(), "{r}");
     }
     assert!(!d.join("o").exists());
+    // An option without its value is a malformed command line (exit 2), its record written.
+    let o = run(&["-o", "o/f_#.png", "--record", "m/r.json", "--orbit"]);
+    assert_eq!(o.status.code(), Some(2), "{}", err(&o));
+    assert!(record(&d.join("m/r.json"))["error"]
+        .as_str()
+        .unwrap()
+        .contains("--orbit"));
     // Bad Slurm variables: the record's new folder is made first.
     let o = umbra()
         .arg("render")

@@ -1205,7 +1205,12 @@ pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result
     let short = |e: &dyn std::fmt::Display| {
         let text = e.to_string();
         let lines: Vec<String> = text.lines().map(|l| volume::clip_text(l, 400)).collect();
-        format!("{name}: {}", lines.join("\n"))
+        let mut out = format!("{name}: {}", lines.join("\n"));
+        if text.contains("missing field `path`") {
+            out += " (every [volume], [[tubes]], [[lines]], [[points]] and [[overlays]] entry \
+                    names its data file with path; the marked line is the entry's)";
+        }
+        out
     };
     let mut scene: Scene = toml::from_str(text).map_err(|e| short(&e))?;
     if !overrides.is_empty() {
@@ -2355,6 +2360,17 @@ mod tests {
             let e = l(extra).unwrap_err();
             assert!(e.contains(key), "{extra}: {e}");
         }
+    }
+
+    #[test]
+    fn an_entry_without_its_path_is_pointed_at() {
+        let e = parse("[[lines]]\nwidth = 2.0\n", "s.toml", Path::new("."), &[]).unwrap_err();
+        assert!(
+            e.starts_with("s.toml: ")
+                && e.contains("missing field `path`")
+                && e.contains("[[lines]]"),
+            "{e}"
+        );
     }
 
     #[test]
