@@ -116,10 +116,11 @@ fn main() -> ExitCode {
             // malformed command line clap's usual 2.
             // An option given without its value (`--orbit` at the end) is a malformed command
             // line: clap reports it as an invalid, empty value.
-            let missing = matches!(
-                e.get(ContextKind::InvalidValue),
-                Some(ContextValue::String(v)) if v.is_empty()
-            );
+            let missing = e.kind() == ErrorKind::InvalidValue
+                && matches!(
+                    e.get(ContextKind::InvalidValue),
+                    Some(ContextValue::String(v)) if v.is_empty()
+                );
             let code = match e.kind() {
                 ErrorKind::InvalidValue | ErrorKind::ValueValidation if !missing => 1,
                 _ => e.exit_code(),

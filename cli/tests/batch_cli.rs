@@ -560,6 +560,21 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
         .as_str()
         .unwrap()
         .contains("--orbit"));
+    // An explicitly empty value is a bad value (exit 1), not a missing one.
+    let o = run(&["--orbit", "3", "-o", "o/f_#.png", "--frames", ""]);
+    assert_eq!(o.status.code(), Some(1), "{}", err(&o));
+    // `--record` without its value: no record file named after the next flag.
+    let o = run(&["-o", "o/f_#.png", "--record", "--orbit", "3"]);
+    assert_eq!(o.status.code(), Some(2), "{}", err(&o));
+    assert!(!d.join("--orbit").exists());
+    // A record path naming a folder (`dir/.`) is refused before any frame.
+    let o = run(&["--orbit", "2", "-o", "rd/f_#.png", "--record", "rdir/."]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        err(&o).contains("rdir/.") && !d.join("rd").exists(),
+        "{}",
+        err(&o)
+    );
     // Bad Slurm variables: the record's new folder is made first.
     let o = umbra()
         .arg("render")

@@ -2368,7 +2368,7 @@ mod tests {
         assert!(
             e.starts_with("s.toml: ")
                 && e.contains("missing field `path`")
-                && e.contains("[[lines]]"),
+                && e.contains("names its data file with path"),
             "{e}"
         );
     }

@@ -647,9 +647,11 @@ pub fn check_output(path: &Path) -> std::result::Result<(), String> {
     let Some(name) = path.file_name() else {
         return fail("not a file path".into());
     };
-    // `Path` drops a trailing separator ("out/" names "out"), the file system does not.
-    if path.as_os_str().as_encoded_bytes().ends_with(b"/") {
-        return fail("a folder's path (it ends in /), not a file's".into());
+    // `Path` drops a trailing separator or `.` ("out/" and "out/." name "out"); the file
+    // system does not.
+    let raw = path.as_os_str().as_encoded_bytes();
+    if raw.ends_with(b"/") || raw.ends_with(b"/.") || raw == b"." {
+        return fail("a folder's path (it ends in / or /.), not a file's".into());
     }
     if path.is_dir() {
         return fail("it is a directory".into());

@@ -559,7 +559,7 @@ fn nifti_pair_header(path: &Path) -> std::borrow::Cow<'_, Path> {
         if let Some(name) = name {
             let gz = name.to_ascii_lowercase().ends_with(".gz");
             let stem_len = name.len() - if gz { 7 } else { 4 };
-            for suffix in [".hdr", ".hdr.gz", ".HDR"] {
+            for suffix in [".hdr", ".hdr.gz"] {
                 let h = path.with_file_name(format!("{}{suffix}", &name[..stem_len]));
                 if h.is_file() {
                     return h.into();

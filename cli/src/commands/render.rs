@@ -79,7 +79,7 @@ pub struct Args {
     /// Render shard I of N (0 <= I < N): the frames (of --orbit, --camera-path,
     /// --trail-range or --manifest) whose index k has k mod N = I. Default: a Slurm array
     /// task's (SLURM_ARRAY_TASK_ID, _MIN, _STEP, _COUNT) when set. Implies --skip-existing.
-    #[arg(long, value_name = "I/N", allow_hyphen_values = true)]
+    #[arg(long, value_name = "I/N")]
     shard: Option<String>,
     /// Leave outputs that are already complete images of the scene's size; render the rest.
     #[arg(long)]
@@ -188,7 +188,11 @@ pub fn record_unparsed(args: &[std::ffi::OsString], error: &str) -> Result<(), S
             break;
         }
         if a == "--record" {
-            path = it.next().cloned();
+            // A flag after it is the parser's missing value, not a path.
+            path = it
+                .next()
+                .filter(|v| !v.to_str().is_some_and(|t| t.starts_with('-')))
+                .cloned();
         } else if let Some(v) = a.to_str().and_then(|t| t.strip_prefix("--record=")) {
             path = Some(v.into());
         }
