@@ -593,10 +593,21 @@ fn bench_refuses_zero_counts_and_ao_without_tubes() {
     let scene = small_scene(dir.path(), "");
     let tracks = root().join("tests/fixtures/tracts/dipy/tracks300.trk");
     let ao = root().join("bench/scenes/ao_tracks.toml");
-    let cases: Vec<(Vec<std::ffi::OsString>, &str)> = vec![
+    // A scene without tubes, for bench ao.
+    let vol = dir.path().join("v.toml");
+    std::fs::write(
+        &vol,
+        format!(
+            "[volume]\npath = \"{}\"\n",
+            root().join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        ),
+    )
+    .unwrap();
+    let at_least_1 = |flag: &'static str| vec![flag, "at least 1"];
+    let cases: Vec<(Vec<std::ffi::OsString>, Vec<&str>)> = vec![
         (
             vec!["ao".into(), ao.clone().into(), "--spp".into(), "0".into()],
-            "--spp",
+            at_least_1("--spp"),
         ),
         (
             vec![
@@ -605,7 +616,7 @@ fn bench_refuses_zero_counts_and_ao_without_tubes() {
                 "--reference-spp".into(),
                 "0".into(),
             ],
-            "--reference-spp 0",
+            at_least_1("--reference-spp 0"),
         ),
         (
             vec![
@@ -614,11 +625,11 @@ fn bench_refuses_zero_counts_and_ao_without_tubes() {
                 "--frames".into(),
                 "0".into(),
             ],
-            "--frames 0",
+            at_least_1("--frames 0"),
         ),
         (
             vec!["stability".into(), "--reference-spp".into(), "0".into()],
-            "--reference-spp 0",
+            at_least_1("--reference-spp 0"),
         ),
         (
             vec![
@@ -627,11 +638,15 @@ fn bench_refuses_zero_counts_and_ao_without_tubes() {
                 "--frames".into(),
                 "0".into(),
             ],
-            "--frames",
+            at_least_1("--frames"),
         ),
         (
             vec!["tubes".into(), tracks.into(), "--runs".into(), "0".into()],
-            "--runs",
+            at_least_1("--runs"),
+        ),
+        (
+            vec!["ao".into(), vol.clone().into()],
+            vec!["needs [[tubes]]", "v.toml"],
         ),
     ];
     for (args, want) in cases {
@@ -644,36 +659,10 @@ fn bench_refuses_zero_counts_and_ao_without_tubes() {
             .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
-        assert!(
-            err.contains(want) && err.contains("at least 1"),
-            "{args:?}: {err}"
-        );
+        assert!(want.iter().all(|w| err.contains(w)), "{args:?}: {err}");
     }
     // Nothing was written for the refused runs.
     assert!(!o.join("results.csv").exists() && !o.join("tubes.csv").exists());
-    // A scene without tubes: the error says what bench ao needs.
-    let vol = dir.path().join("v.toml");
-    std::fs::write(
-        &vol,
-        format!(
-            "[volume]\npath = \"{}\"\n",
-            root().join("datasets/vtk/headsq_64x64x93.nhdr").display()
-        ),
-    )
-    .unwrap();
-    let out = umbra()
-        .args(["bench", "ao"])
-        .arg(&vol)
-        .arg("-o")
-        .arg(&o)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(
-        err.contains("needs [[tubes]]") && err.contains("v.toml"),
-        "{err}"
-    );
 }
 
 #[test]
