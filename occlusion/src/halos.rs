@@ -16,6 +16,7 @@
 //! | §3.7 anaglyph stereo (parameters unspecified: off-axis eyes, red = left) | `camera::Camera::stereo_eye`, `stereo::anaglyph` | - (both eyes are whole frames, mixed on the CPU) | `camera::tests::stereo_eyes_converge_on_their_plane_and_show_the_predicted_disparity`, `scene/tests/stereo_render.rs` |
 //! | §3.4 1-bit output | `scene::image_io::one_bit` | - | `scene/tests/print_render.rs` |
 //! | §4.3 `w_strip` = 4-8 `w_line` (printed inverted) | `render` default `halo.width = 6` | | |
+//! | outline rims (seed 002's dark rims, `style = "outline"`; not this paper): black ink, unlit | - | `gbuffer.wgsl::rim_color` (alpha `OUTLINE_ALPHA`), `composite.wgsl` (no highlight below alpha 0.95) | `lines_render.rs::an_outline_rim_is_black_under_the_head_light` |
 //!
 //! Strips end at their points: a segment's square cap holds the core only, half the core's
 //! width beyond the point, and no rim (a rim there hid the next segment of a line bending away
