@@ -18,6 +18,6 @@ for i in $(seq "$N"); do
     "$bin" tubes "$F" -o "$OUT/t.ply" --radius 0.2 --sides 8 --tolerance 0.02 \
       --stats-json "$OUT/s.json" > /dev/null 2>&1
     python3 -c "import json,sys; s=json.load(open(sys.argv[1]))['seconds']; \
-print(sys.argv[2], '%.3f/%.3f' % (s['compute'], s['total']))" "$OUT/s.json" $b
+print(sys.argv[2], '%.4f/%.4f' % (s['compute'], s['total']))" "$OUT/s.json" $b
   done
 done | sort | awk '{a[$1]=a[$1]" "$2} END {for (k in a) print k":"a[k]}' | sort

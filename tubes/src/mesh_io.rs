@@ -842,7 +842,7 @@ mod stream_tests {
         let o = TubeOptions::defaults(0.3, 8, 0.05);
         let (whole, st) = build_owned(lines(0.0), &o);
         let mut g = Gather::default();
-        let (st2, vertices) = build_streamed_by(lines(0.0), &o, &mut g, 2000).unwrap();
+        let (st2, vertices) = build_streamed_by(lines(0.0), &o, &mut g, |_| 2000).unwrap();
         assert!(g.parts > 20, "{} parts", g.parts);
         assert_eq!(g.size, (whole.positions.len(), whole.indices.len()));
         assert_eq!(vertices, whole.positions.len());
@@ -866,7 +866,7 @@ mod stream_tests {
             assert_eq!(wide(&whole), shift > 0.0);
             let path = dir.path().join("t.ply");
             let mut ply = PlyStream::create(&path).unwrap();
-            build_streamed_by(lines(shift), &o, &mut ply, 2000).unwrap();
+            build_streamed_by(lines(shift), &o, &mut ply, |_| 2000).unwrap();
             ply.finish().unwrap();
             assert!(
                 std::fs::read(&path).unwrap() == ply_bytes(&whole),
@@ -875,7 +875,7 @@ mod stream_tests {
         }
         let path = dir.path().join("u.ply");
         let mut ply = PlyStream::create(&path).unwrap();
-        build_streamed_by(lines(0.0), &o, &mut ply, 2000).unwrap();
+        build_streamed_by(lines(0.0), &o, &mut ply, |_| 2000).unwrap();
         drop(ply);
         let left: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()

@@ -665,6 +665,74 @@ fn kinked(points: &[DVec3], tolerance: f64) -> bool {
 /// CST_L's 5,577 exceed 24.
 const ROUGH_FOURTH: f64 = 24.0;
 
+/// The most points a segment of [`simplify_polyline`] passes over, which bounds its cost to
+/// `SIMPLIFY_SPAN` distance tests a point.
+const SIMPLIFY_SPAN: usize = 16;
+
+/// The most a segment of [`simplify_polyline`] turns from the one before (unless the
+/// polyline itself turns more at a point), degrees: longer segments that turn more twist the
+/// frames between rings (DIPY's tracks300 at tolerance 0.1: the largest twist 1.32 degrees with
+/// every point, 1.79 with 15 degrees, 1.32 with 10; HCP1065 CST_L at 0.02 keeps 47% of its
+/// points with 10 degrees, 46.8% with 15).
+const SIMPLIFY_TURN_DEG: f64 = 10.0;
+
+/// The points of a polyline its tube needs within `tolerance`: from the first point, each
+/// segment is extended point by point while every point it passes lies within `tolerance` of
+/// it, it turns by at most `max_turn_deg` from the segment before and it passes at most
+/// [`SIMPLIFY_SPAN`] points, then the next starts where it ends. Returns the
+/// kept indices (the first and the last point always) and the largest distance of a dropped
+/// point to the segment that replaced it - a bound of its distance to the tube's axis.
+/// vtkTubeFilter places a ring at every point; a tractogram's polyline lines often run
+/// straighter than their sampling (HCP1065: 43-46% of the points kept at tolerance 0.02 by
+/// Douglas-Peucker), and the rings left cost as much as the rest of the meshing.
+fn simplify_polyline(points: &[DVec3], tolerance: f64, max_turn_deg: f64) -> (Vec<usize>, f64) {
+    let n = points.len();
+    let mut keep = Vec::with_capacity(n);
+    if n == 0 {
+        return (keep, 0.0);
+    }
+    let tol2 = tolerance * tolerance;
+    let cos_turn = max_turn_deg.to_radians().cos();
+    let mut worst2 = 0.0f64;
+    let mut a = 0;
+    // The direction of the last segment (unit), or zero before the first.
+    let mut last = DVec3::ZERO;
+    keep.push(0);
+    while a + 1 < n {
+        let (mut b, mut b_worst2) = (a + 1, 0.0f64);
+        for c in a + 2..n.min(a + SIMPLIFY_SPAN + 1) {
+            let (p, v) = (points[a], points[c] - points[a]);
+            let vv = v.length_squared();
+            // No longer segment that turns more from the last than the rings of a fit may.
+            if last != DVec3::ZERO && last.dot(v) < cos_turn * vv.sqrt() {
+                break;
+            }
+            let mut w2 = 0.0f64;
+            for &x in &points[a + 1..c] {
+                let d = x - p;
+                let u = if vv > 0.0 {
+                    (d.dot(v) / vv).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                w2 = w2.max((d - v * u).length_squared());
+                if w2 > tol2 {
+                    break;
+                }
+            }
+            if w2 > tol2 {
+                break;
+            }
+            (b, b_worst2) = (c, w2);
+        }
+        worst2 = worst2.max(b_worst2);
+        keep.push(b);
+        last = (points[b] - points[a]).normalize_or_zero();
+        a = b;
+    }
+    (keep, worst2.sqrt())
+}
+
 /// Whether the polyline turns by more than 100 degrees at the middle point of `w`.
 fn sharp(w: &[DVec3]) -> bool {
     // a . b < -0.17 |a| |b|, squared (no square roots): a . b < 0 and (a . b)^2 > 0.17^2
@@ -757,22 +825,43 @@ fn tube(
     let (mut x, mut t, mut k): (Vec<DVec3>, Vec<DVec3>, Vec<f64>) =
         (Vec::new(), Vec::new(), Vec::new());
     let mut kept_params = Vec::with_capacity(fit_params.len().max(points.len()));
+    let poly_samples: Vec<f64>;
     // The curve, and the parameters of the input points on it where it was fitted (a
     // polyline's are its ring numbers, `params` below).
     let (curve, fit_samples): (Option<&BSpline>, Option<&[f64]>) = if polyline {
         st.polyline_pieces = 1;
-        st.control_points = points.len();
-        st.max_deviation = 0.0;
-        let n = points.len();
-        for (i, &p) in points.iter().enumerate() {
-            let d = points[(i + 1).min(n - 1)] - points[i.saturating_sub(1)];
-            x.push(p);
+        // The points whose rings the tube needs: those the tolerance lets go are dropped
+        // where the colour does not come from them (`simplify_polyline`), unless the rings
+        // left would turn sharply at a point and fold there.
+        let all = || (0..points.len()).collect::<Vec<usize>>();
+        let (keep, deviation) = match o.color {
+            ColorMode::Direction | ColorMode::Constant(_) => {
+                let (keep, d) = simplify_polyline(points, o.fit.epsilon, SIMPLIFY_TURN_DEG);
+                if keep
+                    .windows(3)
+                    .any(|w| sharp(&[points[w[0]], points[w[1]], points[w[2]]]))
+                {
+                    (all(), 0.0)
+                } else {
+                    (keep, d)
+                }
+            }
+            ColorMode::Scalar(..) | ColorMode::Field(..) => (all(), 0.0),
+        };
+        st.control_points = keep.len();
+        st.max_deviation = deviation;
+        let n = keep.len();
+        for (m, &i) in keep.iter().enumerate() {
+            let d = points[keep[(m + 1).min(n - 1)]] - points[keep[m.saturating_sub(1)]];
+            x.push(points[i]);
             t.push(d.normalize_or(if let Some(&q) = t.last() { q } else { DVec3::X }));
             // The turn between rings is weighed by `kd` below.
             k.push(0.0);
+            // A ring's parameter is its point's number, as the samples' below.
             kept_params.push(i as f64);
         }
-        (None, None)
+        poly_samples = (0..points.len()).map(|i| i as f64).collect();
+        (None, Some(&poly_samples[..]))
     } else {
         let f = fitted.as_ref().expect("fitted");
         st.control_points = f.curve.control.len();
@@ -1348,6 +1437,20 @@ fn mesh_parts(pieces: &[Piece], part_vertices: usize) -> Vec<(usize, usize, usiz
 /// vertices took 5% longer to mesh, docs/benchmarks.md).
 pub const PART_VERTICES: usize = 1 << 17;
 
+/// The smallest part [`build_streamed`] cuts a small mesh into (32 K vertices, 0.9 MB).
+pub const MIN_PART_VERTICES: usize = 1 << 15;
+
+/// Vertices a part of a mesh of `vertices` vertices: [`PART_VERTICES`], but a quarter of a
+/// mesh smaller than four such parts, and never below [`MIN_PART_VERTICES`]. A small mesh is
+/// meshed into memory the process has never touched, whose first touches (page faults and the
+/// kernel's clearing) then cost as much as the meshing: DIPY's tracks300 (115 K vertices)
+/// took 4.4-8.1 ms of compute in one part and 3.6-6.6 ms in four (docs/benchmarks.md).
+/// Larger meshes keep the large parts: parts of 32 K vertices made the HCP1065 CST_L
+/// bundle's mesh 1.15x slower (fork-joins and writes per part).
+pub fn part_vertices_for(vertices: usize) -> usize {
+    (vertices / 4).clamp(MIN_PART_VERTICES, PART_VERTICES)
+}
+
 /// A part of a mesh that [`build_streamed`] hands its sink: the vertices and triangles of a
 /// run of tube pieces, the indices numbering the whole mesh's vertices.
 pub struct MeshPart<'a> {
@@ -1386,16 +1489,16 @@ pub fn build_streamed(
     o: &TubeOptions,
     sink: &mut dyn MeshSink,
 ) -> crate::Result<(TubeStats, usize)> {
-    build_streamed_by(s, o, sink, PART_VERTICES)
+    build_streamed_by(s, o, sink, part_vertices_for)
 }
 
-/// [`build_streamed`] in parts of at most `part_vertices` vertices (tests cut small meshes
-/// into many parts).
+/// [`build_streamed`] in parts of at most `part_vertices(the mesh's vertices)` vertices (tests
+/// cut small meshes into many parts).
 pub(crate) fn build_streamed_by(
     s: Streamlines,
     o: &TubeOptions,
     sink: &mut dyn MeshSink,
-    part_vertices: usize,
+    part_vertices: fn(usize) -> usize,
 ) -> crate::Result<(TubeStats, usize)> {
     let Prepared {
         origin,
@@ -1414,6 +1517,7 @@ pub(crate) fn build_streamed_by(
     }
     sink.begin(origin, nv, ni, &stats)?;
     stats.min_section_ratio = f64::INFINITY;
+    let part_vertices = part_vertices(nv);
     let (mut positions, mut normals, mut colors, mut indices) = (
         Vec::<Vec3>::new(),
         Vec::<Vec3>::new(),
@@ -1541,6 +1645,19 @@ mod tests {
             }
         }
         assert!(shortened >= 500, "{shortened} smooth lines shortened");
+    }
+
+    /// Small meshes are cut into four parts of at least [`MIN_PART_VERTICES`], large ones into
+    /// parts of [`PART_VERTICES`].
+    #[test]
+    fn parts_follow_the_size_of_the_mesh() {
+        assert_eq!(part_vertices_for(0), MIN_PART_VERTICES);
+        // DIPY's tracks300 at radius 0.2, 8 sides: 115,304 vertices, four parts.
+        assert_eq!(part_vertices_for(115_304), MIN_PART_VERTICES);
+        assert_eq!(115_304usize.div_ceil(part_vertices_for(115_304)), 4);
+        assert_eq!(part_vertices_for(400_000), 100_000);
+        assert_eq!(part_vertices_for(4 * PART_VERTICES), PART_VERTICES);
+        assert_eq!(part_vertices_for(usize::MAX), PART_VERTICES);
     }
 
     /// [`rmf`] as it was before the carried corrections: every step's vector corrected before
