@@ -552,22 +552,13 @@ fn extension(path: &Path) -> String {
 }
 
 /// The header of an Analyze-style NIfTI pair when `path` names its image (`x.img`, `x.img.gz`):
-/// the `x.hdr` or `x.hdr.gz` beside it, when there is one; else `path`.
+/// the `x.hdr` or `x.hdr.gz` beside it, when there is one; else `path`. Suffixes in any case
+/// (`X.IMG` finds `X.HDR`, `nifti::pair_partners`).
 fn nifti_pair_header(path: &Path) -> std::borrow::Cow<'_, Path> {
-    if extension(path) == "img" {
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
-        if let Some(name) = name {
-            let gz = name.to_ascii_lowercase().ends_with(".gz");
-            let stem_len = name.len() - if gz { 7 } else { 4 };
-            for suffix in [".hdr", ".hdr.gz"] {
-                let h = path.with_file_name(format!("{}{suffix}", &name[..stem_len]));
-                if h.is_file() {
-                    return h.into();
-                }
-            }
-        }
-    }
-    path.into()
+    nifti::pair_partners(path, "img", "hdr")
+        .into_iter()
+        .find(|h| h.is_file())
+        .map_or(path.into(), Into::into)
 }
 
 /// Whether a file's name is one of the volume formats' (`.nii`, `.nii.gz`, `.hdr`, `.nrrd`,

@@ -634,17 +634,8 @@ fn read_series_as(path: &Path, keep_stored: bool) -> Result<(VolumeSeries, Optio
 }
 
 fn pair_image(path: &Path) -> Result<PathBuf> {
-    let s = path.to_string_lossy();
-    let cands = if let Some(stem) = s.strip_suffix(".hdr") {
-        vec![format!("{stem}.img"), format!("{stem}.img.gz")]
-    } else if let Some(stem) = s.strip_suffix(".hdr.gz") {
-        vec![format!("{stem}.img.gz"), format!("{stem}.img")]
-    } else {
-        vec![]
-    };
-    cands
+    pair_partners(path, "hdr", "img")
         .into_iter()
-        .map(PathBuf::from)
         .find(|p| p.exists())
         .ok_or_else(|| {
             VolumeError::format(
@@ -653,6 +644,51 @@ fn pair_image(path: &Path) -> Result<PathBuf> {
                 "'ni1' header (separate image file) but no matching .img file",
             )
         })
+}
+
+/// The names the other file of a NIfTI pair may have: for `x.hdr` (`from` = "hdr", `to` =
+/// "img") `x.img` and `x.img.gz`, the gzipped one first when the given file is gzipped. The
+/// suffixes are matched in any case (`X.HDR`), and the partner is looked for in the case of
+/// the given suffix first (`X.IMG`, `X.IMG.GZ`, `X.IMG.gz`), then in the other. Empty when the
+/// name does not end in `.from` or `.from.gz`.
+pub(crate) fn pair_partners(path: &Path, from: &str, to: &str) -> Vec<PathBuf> {
+    let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
+        return Vec::new();
+    };
+    let lower = name.to_ascii_lowercase();
+    let gz = lower.ends_with(&format!(".{from}.gz"));
+    if !gz && !lower.ends_with(&format!(".{from}")) {
+        return Vec::new();
+    }
+    // ASCII lower-casing keeps every byte where it is, and the suffix is ASCII.
+    let stem_len = name.len() - from.len() - 1 - if gz { 3 } else { 0 };
+    let (stem, suffix) = name.split_at(stem_len);
+    let upper = suffix[1..].starts_with(|c: char| c.is_ascii_uppercase());
+    let cases = if upper {
+        [to.to_ascii_uppercase(), to.to_string()]
+    } else {
+        [to.to_string(), to.to_ascii_uppercase()]
+    };
+    let mut out = Vec::new();
+    for ext in cases {
+        let up = ext.starts_with(|c: char| c.is_ascii_uppercase());
+        let plain = format!("{stem}.{ext}");
+        let zipped = [
+            format!("{plain}.{}", if up { "GZ" } else { "gz" }),
+            format!("{plain}.gz"),
+        ];
+        let mut names = vec![plain.clone()];
+        for z in zipped {
+            if !names.contains(&z) {
+                names.push(z);
+            }
+        }
+        if gz {
+            names.rotate_left(1);
+        }
+        out.extend(names.into_iter().map(|n| path.with_file_name(n)));
+    }
+    out
 }
 
 /// Decomposes an affine into NIfTI qform parameters (quaternion b, c, d, qfac, zooms), as
@@ -878,4 +914,42 @@ fn write_frames(
     let gz = path.to_string_lossy().to_ascii_lowercase().ends_with(".gz");
     let bytes = if gz { io_util::gzip_bytes(&h) } else { h };
     io_util::write_atomic(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pair_partners_in_the_given_case_first() {
+        let names = |p: &str, from, to| -> Vec<String> {
+            pair_partners(Path::new(p), from, to)
+                .iter()
+                .map(|p| p.to_string_lossy().into_owned())
+                .collect()
+        };
+        assert_eq!(
+            names("d/x.hdr", "hdr", "img"),
+            [
+                "d/x.img",
+                "d/x.img.gz",
+                "d/x.IMG",
+                "d/x.IMG.GZ",
+                "d/x.IMG.gz"
+            ]
+        );
+        assert_eq!(
+            names("d/X.HDR.GZ", "hdr", "img"),
+            [
+                "d/X.IMG.GZ",
+                "d/X.IMG.gz",
+                "d/X.IMG",
+                "d/X.img.gz",
+                "d/X.img"
+            ]
+        );
+        assert_eq!(names("ü.Img", "img", "hdr")[0], "ü.HDR");
+        assert!(names("x.nii", "hdr", "img").is_empty());
+        assert!(names("hdr", "hdr", "img").is_empty());
+    }
 }

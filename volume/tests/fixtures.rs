@@ -137,7 +137,8 @@ fn every_fixture_matches_its_reference_reader() {
 }
 
 /// A NIfTI-1 pair (`ni1`: header and image in two files), cut from a single-file fixture, reads
-/// the same whether the header or the image is named.
+/// the same whether the header or the image is named, with lower- or upper-case suffixes
+/// (`PAIR.HDR` + `PAIR.IMG`, as some scanners' exports name them).
 #[test]
 fn a_nifti_pair_reads_by_either_name() {
     let nii = std::fs::read(fixtures().join("n1_i8.nii")).unwrap();
@@ -145,15 +146,17 @@ fn a_nifti_pair_reads_by_either_name() {
     let mut hdr = nii[..348].to_vec();
     hdr[108..112].copy_from_slice(&0f32.to_le_bytes());
     hdr[344..348].copy_from_slice(b"ni1\0");
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("pair.hdr"), &hdr).unwrap();
-    std::fs::write(dir.path().join("pair.img"), &nii[offset..]).unwrap();
     let want = volume::load(&fixtures().join("n1_i8.nii")).unwrap();
-    for name in ["pair.hdr", "pair.img"] {
-        let v = volume::load(&dir.path().join(name)).unwrap();
-        assert_eq!(v.dims, want.dims, "{name}");
-        assert_eq!(v.affine, want.affine, "{name}");
-        assert_eq!(v.default().data, want.default().data, "{name}");
+    for (h, i) in [("pair.hdr", "pair.img"), ("PAIR.HDR", "PAIR.IMG")] {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join(h), &hdr).unwrap();
+        std::fs::write(dir.path().join(i), &nii[offset..]).unwrap();
+        for name in [h, i] {
+            let v = volume::load(&dir.path().join(name)).unwrap();
+            assert_eq!(v.dims, want.dims, "{name}");
+            assert_eq!(v.affine, want.affine, "{name}");
+            assert_eq!(v.default().data, want.default().data, "{name}");
+        }
     }
 }
 
