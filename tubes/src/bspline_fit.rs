@@ -326,6 +326,12 @@ impl BSpline {
     /// Closest parameter to `x` near `t0` (Newton on `(C(t) - x) . C'(t) = 0`, steps clamped to
     /// half a span); falls back to `t0` when Newton ends farther away than it started.
     pub fn project(&self, x: DVec3, t0: f64) -> (f64, f64) {
+        self.project_until(x, t0, -1.0)
+    }
+
+    /// [`Self::project`], stopping at the first iterate whose distance is at most `enough`
+    /// (a curve point that near settles whether `x` is within `enough` of the curve).
+    pub fn project_until(&self, x: DVec3, t0: f64, enough: f64) -> (f64, f64) {
         let t0 = t0.clamp(0.0, 1.0);
         let max_step = 0.5 / self.spans() as f64;
         let mut t = t0;
@@ -340,6 +346,9 @@ impl BSpline {
             }
             if dist < best.1 {
                 best = (t, dist);
+            }
+            if dist <= enough {
+                break;
             }
             let g = r.dot(d1);
             let h = d1.length_squared() + r.dot(d2);
@@ -540,7 +549,8 @@ fn max_deviation(curve: &BSpline, points: &[DVec3], guess: &[f64]) -> (f64, Vec<
 
 /// Whether every point is within `limit` of `curve`: the distance to the curve point at the
 /// carried parameter is an upper bound of the distance to the curve, so points are projected
-/// (Newton) only when that bound exceeds the limit. Returns the largest bound and the
+/// (Newton) only when that bound exceeds the limit, and only until an iterate is within it
+/// (its parameter is carried on; the reported deviation is projected afresh at the end). Returns the largest bound and the
 /// parameters, or `None` as soon as a point is farther than `limit`.
 fn within(curve: &BSpline, points: &[DVec3], guess: &[f64], limit: f64) -> Option<(f64, Vec<f64>)> {
     let mut worst2 = 0.0f64;
@@ -550,7 +560,7 @@ fn within(curve: &BSpline, points: &[DVec3], guess: &[f64], limit: f64) -> Optio
         let mut d2 = (curve.eval(t0) - x).length_squared();
         let mut t = t0;
         if d2 > limit2 {
-            let (tp, d) = curve.project(x, t0);
+            let (tp, d) = curve.project_until(x, t0, limit);
             if d > limit {
                 return None;
             }
@@ -919,6 +929,36 @@ mod tests {
                 assert!((p.truncate().length() - 10.0).abs() <= eps * 1.5);
             }
         }
+    }
+
+    /// `project_until` stops at the first iterate within `enough` (from the start when the start
+    /// is), and with a negative `enough` is `project`.
+    #[test]
+    fn projection_stops_once_the_point_is_near_enough() {
+        let c = BSpline::new(
+            (0..12)
+                .map(|i| {
+                    let a = 0.4 * i as f64;
+                    DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 0.3 * a)
+                })
+                .collect(),
+        );
+        let x = c.eval(0.37) + DVec3::new(0.0, 0.0, 0.05);
+        let full = c.project(x, 0.3);
+        assert_eq!(c.project_until(x, 0.3, -1.0), full);
+        assert!(
+            full.1 <= 0.05 + 1e-9 && (full.0 - 0.37).abs() < 0.02,
+            "{full:?}"
+        );
+        let start = (c.eval(0.3) - x).length();
+        assert_eq!(c.project_until(x, 0.3, start), (0.3, start));
+        // Between the two: an iterate within `enough`, no farther than the start.
+        let (t, d) = c.project_until(x, 0.3, 0.5 * (start + full.1));
+        assert!(
+            d <= 0.5 * (start + full.1) && d >= full.1 - 1e-12,
+            "{t} {d}"
+        );
+        assert!(((c.eval(t) - x).length() - d).abs() < 1e-12);
     }
 
     #[test]
