@@ -396,3 +396,92 @@ fn outputs_named_for_another_format_are_refused() {
     );
     assert!(!nii.exists());
 }
+
+/// Two outputs of one command naming one file (literally or through `..`) are refused before
+/// any work: the second write replaced the first (a sweep's octants over its distance, a
+/// render's timings over its record).
+#[test]
+fn two_outputs_naming_one_file_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let vol = fixture("spacings_ascii.nrrd");
+    let x = d.path().join("x.nrrd");
+    std::fs::create_dir(d.path().join("sub")).unwrap();
+    let via = d.path().join("sub/../x.nrrd");
+    for other in [&x, &via] {
+        refused(
+            &[
+                "sweep",
+                s(&vol),
+                "--iso",
+                "50",
+                "-o",
+                s(&x),
+                "--octants-out",
+                s(other),
+            ],
+            "for a second output",
+        );
+        assert!(!x.exists());
+    }
+    let trk = fixture("tracts/nibabel/simple.trk");
+    let ply = d.path().join("t.ply");
+    refused(
+        &["tubes", s(&trk), "-o", s(&ply), "--stats-json", s(&ply)],
+        "for a second output",
+    );
+    assert!(!ply.exists());
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .join("datasets/scenes/example.toml");
+    let json = d.path().join("r.json");
+    let png = d.path().join("r.png");
+    refused(
+        &[
+            "render",
+            s(&scene),
+            "-o",
+            s(&png),
+            "--record",
+            s(&json),
+            "--timings-json",
+            s(&json),
+        ],
+        "for a second output",
+    );
+    assert!(!png.exists());
+    // Distinct names in one folder still run.
+    succeeds(&[
+        "sweep",
+        s(&vol),
+        "--iso",
+        "50",
+        "-o",
+        s(&x),
+        "--octants-out",
+        s(&d.path().join("o.nrrd")),
+    ]);
+}
+
+/// A volume scene of `umbra synth` named for another format is refused before it is made
+/// (`-o ph.tck` wrote a NRRD under that name).
+#[test]
+fn a_synthetic_volume_named_for_another_format_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    for name in ["ph.tck", "ph.txt", "ph"] {
+        let out = d.path().join(name);
+        refused(
+            &["synth", "phantom", "--n", "8", "-o", s(&out)],
+            "phantom is a volume: write it as .nrrd, .nii or .nii.gz",
+        );
+        assert!(!out.exists(), "{name}");
+    }
+    succeeds(&[
+        "synth",
+        "phantom",
+        "--n",
+        "8",
+        "-o",
+        s(&d.path().join("ph.NRRD")),
+    ]);
+}

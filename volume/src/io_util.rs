@@ -683,7 +683,37 @@ pub fn check_output(path: &Path) -> std::result::Result<(), String> {
 /// [`check_output`] for every path given (`None`s skipped): all outputs of a command are
 /// checked before it starts, so a bad second path leaves no first output written.
 pub fn check_outputs(paths: &[Option<&Path>]) -> std::result::Result<(), String> {
-    paths.iter().flatten().try_for_each(|p| check_output(p))
+    paths.iter().flatten().try_for_each(|p| check_output(p))?;
+    check_distinct(paths)
+}
+
+/// Refuses two outputs that name one file (`out.nrrd` and `./dir/../out.nrrd` alike: the
+/// folders compared as the file system resolves them): the second write would replace the
+/// first. Call it after the folders exist ([`check_output`] makes them).
+pub fn check_distinct(paths: &[Option<&Path>]) -> std::result::Result<(), String> {
+    let key = |p: &Path| {
+        let dir = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let dir = dir
+            .canonicalize()
+            .or_else(|_| std::path::absolute(dir))
+            .unwrap_or_else(|_| dir.to_path_buf());
+        (dir, p.file_name().map(|n| n.to_os_string()))
+    };
+    let paths: Vec<&Path> = paths.iter().flatten().copied().collect();
+    for (i, a) in paths.iter().enumerate() {
+        if let Some(b) = paths[..i].iter().find(|b| key(b) == key(a)) {
+            return Err(format!(
+                "{}: the same file as {} is given for a second output; each output needs a \
+                 file of its own",
+                a.display(),
+                b.display()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Whether process `pid` is alive on this machine (Linux: /proc; elsewhere assumed dead).

@@ -267,8 +267,9 @@ pub fn validation_scene(n: usize) -> Volume {
 /// The modified 3-D Shepp-Logan head phantom (Kak & Slaney's ellipsoids with Toft's
 /// contrasts, each rotated about z only) on an `n^3` grid spanning `[-1, 1]^3`, stored as
 /// `uint16`: each ellipsoid adds its contrast x 1000 (skull 1000, brain 200, ventricles 0,
-/// small lesions 300), plus a deterministic integer noise of -8..=8 inside the skull (none
-/// outside, so the empty margin stays empty). Integer samples in 16 bits: the stored-type
+/// small lesions 300, 100 where a lesion overlaps a ventricle), plus a deterministic integer
+/// noise of -8..=8 on every sample that is not 0 (the ventricles and the empty margin stay
+/// exactly 0). Integer samples in 16 bits: the stored-type
 /// scene of the renderers' memory benchmarks.
 pub fn shepp_logan(n: usize) -> Volume {
     // (contrast, semi-axes a b c, centre x y z, rotation about z in degrees)

@@ -231,6 +231,11 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
             writable(p, what)?;
         }
     }
+    volume::check_distinct(&[
+        Some(a.output.as_path()),
+        a.record.as_deref(),
+        a.timings_json.as_deref(),
+    ])?;
     let cameras = match (a.orbit, &a.camera_path) {
         (Some(n), _) => Cameras::Orbit(n),
         (None, Some(p)) => Cameras::Path(p.clone()),

@@ -106,6 +106,14 @@ pub fn run(a: Args) -> Result<(), String> {
             a.scene
         ));
     }
+    let lower = a.output.to_string_lossy().to_ascii_lowercase();
+    if !(is_nifti(&a.output) || lower.ends_with(".nrrd")) {
+        return Err(format!(
+            "{}: {} is a volume: write it as .nrrd, .nii or .nii.gz",
+            a.output.display(),
+            a.scene
+        ));
+    }
     let n = a.n.unwrap_or(100);
     let vol = scene(&a.scene, n)?;
     if is_nifti(&a.output) {
