@@ -485,3 +485,56 @@ fn a_synthetic_volume_named_for_another_format_is_refused() {
         s(&d.path().join("ph.NRRD")),
     ]);
 }
+
+/// Options that would be ignored are refused: `--tolerance` without `--distance sweeping`,
+/// `--octants-out` or `--subsurface` with `--sdf-only`, `--threshold` without `--mask` (each
+/// accepted and ignored before); a mask that is not scalar is named.
+#[test]
+fn options_that_do_not_apply_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let vol = fixture("spacings_ascii.nrrd");
+    let o = d.path().join("d.nrrd");
+    let sweep = |extra: &[&str], needle: &str| {
+        let mut args = vec!["sweep", s(&vol), "--iso", "50", "-o", s(&o)];
+        args.extend_from_slice(extra);
+        refused(&args, needle);
+        assert!(!o.exists(), "{extra:?}");
+    };
+    sweep(
+        &["--tolerance", "0.1"],
+        "--tolerance is the convergence of --distance sweeping",
+    );
+    let oct = d.path().join("o.nrrd");
+    sweep(
+        &["--sdf-only", "--octants-out", s(&oct)],
+        "cannot be used with",
+    );
+    sweep(
+        &["--sdf-only", "--subsurface", "0.5"],
+        "cannot be used with",
+    );
+    succeeds(&[
+        "sweep",
+        s(&vol),
+        "--iso",
+        "50",
+        "-o",
+        s(&o),
+        "--distance",
+        "sweeping",
+        "--tolerance",
+        "0.1",
+        "--sdf-only",
+    ]);
+    let field = fixture("ras_vec_raw.nrrd");
+    let trk = d.path().join("t.trk");
+    refused(
+        &["trace", s(&field), "-o", s(&trk), "--threshold", "0.3"],
+        "--mask",
+    );
+    refused(
+        &["trace", s(&field), "-o", s(&trk), "--mask", s(&field)],
+        "ras_vec_raw.nrrd: the mask must be a scalar volume",
+    );
+    assert!(!trk.exists());
+}

@@ -98,10 +98,51 @@ fn iso_outside_the_range_is_a_clear_error() {
         assert_eq!(out.status.code(), Some(1));
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            err.contains("outside the range") && err.contains("val.nrrd"),
+            err.contains("outside it") && err.contains("val.nrrd"),
             "{err}"
         );
         assert!(!dir.path().join("x.nrrd").exists());
+    }
+    // At the end of the range where every sample is inside, the level is not called outside
+    // the range (`--iso 0` on a field of 0..7 with inside at or above the level).
+    let ramp = dir.path().join("ramp.nrrd");
+    std::fs::write(
+        &ramp,
+        "NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n0 1 2 3 4 5 6 7\n",
+    )
+    .unwrap();
+    for (iso, inside, want) in [
+        (
+            "0",
+            "above",
+            Some("is its minimum, and samples at or above the level are inside"),
+        ),
+        (
+            "7",
+            "below",
+            Some("is its maximum, and samples at or below the level are inside"),
+        ),
+        ("7", "above", None),
+        ("0", "below", None),
+    ] {
+        let out = umbra()
+            .arg("sweep")
+            .arg(&ramp)
+            .args(["--iso", iso, "--inside", inside, "-o"])
+            .arg(dir.path().join("r.nrrd"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        match want {
+            Some(w) => {
+                assert_eq!(out.status.code(), Some(1), "{iso} {inside}: {err}");
+                assert!(
+                    err.contains(w) && err.contains("ranges over [0, 7]"),
+                    "{err}"
+                );
+            }
+            None => assert!(out.status.success(), "{iso} {inside}: {err}"),
+        }
     }
     let out = umbra()
         .arg("sweep")

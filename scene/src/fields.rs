@@ -110,8 +110,18 @@ pub fn scalar_field(
         Inside::Below => iso64 < st.min || iso64 >= st.max,
     };
     if no_surface {
+        // At the range's minimum with `above` (maximum with `below`) the level is in the range
+        // but every sample is inside: inside is at or above (at or below) the level.
+        let place = if iso64 < st.min || iso64 > st.max {
+            "outside it"
+        } else {
+            match inside {
+                Inside::Above => "its minimum, and samples at or above the level are inside",
+                Inside::Below => "its maximum, and samples at or below the level are inside",
+            }
+        };
         return Err(format!(
-            "{}: the iso level {iso} is outside the range of field '{}' ([{}, {}]): every sample lies on one side, so there is no surface",
+            "{}: field '{}' ranges over [{}, {}] and the iso level {iso} is {place}: every sample lies on one side, so there is no surface",
             path.display(),
             f.name,
             st.min,

@@ -18,7 +18,7 @@
 //! whole line: forward first, backward for what is left). Points
 //! carry `time` (the particle's time) and `speed` (`|v(x, t)|`) as in [`crate::trace`].
 
-use crate::trace::{timed_lines, GridField, GridScalar};
+use crate::trace::{step_limit_warnings, timed_lines, GridField, GridScalar, MAX_STEPS};
 use crate::Streamlines;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -109,7 +109,7 @@ pub struct PathlineOptions<'a> {
 
 /// Follows one particle from `(x0, t0)` in time direction `sign` (1 or -1) up to the first
 /// point past `max_length` of arc length; returns the points after the seed with their times
-/// and speeds, and the arc length followed.
+/// and speeds, the arc length followed, and whether [`crate::trace::MAX_STEPS`] stopped it.
 fn trace_one(
     f: &SeriesField,
     x0: DVec3,
@@ -118,10 +118,10 @@ fn trace_one(
     sign: f64,
     max_length: f64,
     o: &PathlineOptions,
-) -> (Vec<(DVec3, f64, f64)>, f64) {
+) -> (Vec<(DVec3, f64, f64)>, f64, bool) {
     let mut out = Vec::new();
     if max_length <= 0.0 {
-        return (out, 0.0);
+        return (out, 0.0, false);
     }
     let (mut x, mut t, mut v) = (x0, t0, v0);
     let mut elapsed = 0.0;
@@ -129,9 +129,9 @@ fn trace_one(
     let cos_max = o.max_angle_deg.to_radians().cos();
     let steps = (o.duration / o.time_step).ceil();
     let max_steps = if steps.is_finite() {
-        (steps as usize).min(1_000_000)
+        (steps as usize).min(MAX_STEPS)
     } else {
-        1_000_000
+        MAX_STEPS
     };
     for _ in 0..max_steps {
         let h = o.time_step.min(o.duration - elapsed);
@@ -187,14 +187,16 @@ fn trace_one(
             break;
         }
     }
-    (out, length)
+    // Every step taken, and neither the duration nor the length reached: the limit stopped it.
+    let capped = out.len() == MAX_STEPS && elapsed < o.duration && length < max_length;
+    (out, length, capped)
 }
 
 /// Traces a pathline from every seed `(position, time)`, in parallel, with the point attributes
 /// `time` and `speed`. Seeds outside the field, below the minimum speed or outside the mask give
 /// no line; nor do lines of a single point.
 pub fn pathlines(f: &SeriesField, seeds: &[(DVec3, f64)], o: &PathlineOptions) -> Streamlines {
-    let lines: Vec<Vec<(DVec3, f64, f64)>> = seeds
+    let lines: Vec<(Vec<(DVec3, f64, f64)>, bool)> = seeds
         .par_iter()
         .filter_map(|&(s, t0)| {
             if let Some((mask, thr)) = o.mask {
@@ -208,20 +210,23 @@ pub fn pathlines(f: &SeriesField, seeds: &[(DVec3, f64)], o: &PathlineOptions) -
                 return None;
             }
             // `max_length` bounds the whole line: backward goes as far as forward left.
-            let (fwd, len) = trace_one(f, s, t0, v, 1.0, o.max_length, o);
-            let mut line: Vec<(DVec3, f64, f64)> = if o.both_ways {
-                let (mut back, _) = trace_one(f, s, t0, v, -1.0, o.max_length - len, o);
+            let (fwd, len, cap_f) = trace_one(f, s, t0, v, 1.0, o.max_length, o);
+            let (mut line, cap_b): (Vec<(DVec3, f64, f64)>, bool) = if o.both_ways {
+                let (mut back, _, cap) = trace_one(f, s, t0, v, -1.0, o.max_length - len, o);
                 back.reverse();
-                back
+                (back, cap)
             } else {
-                Vec::new()
+                (Vec::new(), false)
             };
             line.push((s, t0, s0));
             line.extend(fwd);
-            (line.len() >= 2).then_some(line)
+            (line.len() >= 2).then_some((line, cap_f || cap_b))
         })
         .collect();
-    let mut s = timed_lines(lines);
+    let capped = lines.iter().filter(|l| l.1).count();
+    let n = lines.len();
+    let mut s = timed_lines(lines.into_iter().map(|l| l.0).collect());
     s.format = "pathlines".into();
+    s.warnings = step_limit_warnings(seeds.len(), n, capped);
     s
 }

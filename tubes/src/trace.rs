@@ -190,7 +190,10 @@ impl<'a> GridScalar<'a> {
     pub fn from_volume(v: &'a Volume) -> Result<Self, String> {
         let f = v.default();
         if f.components != 1 {
-            return Err("the mask must be a scalar volume".into());
+            return Err(format!(
+                "the mask must be a scalar volume; its field '{}' has {} components",
+                f.name, f.components
+            ));
         }
         Ok(GridScalar {
             dims: v.dims,
@@ -410,10 +413,35 @@ fn step(
 /// A traced point: position, integration time since the seed, speed.
 type Sample = (DVec3, f64, f64);
 
+/// The most steps a line is traced each way from its seed (streamlines and pathlines): a
+/// bound on the work and the memory of one line; a line it cuts is counted in the output's
+/// warnings ([`step_limit_warnings`]).
+pub const MAX_STEPS: usize = 1_000_000;
+
+/// The warnings of a tracing run: lines cut at [`MAX_STEPS`] and seeds that gave no line
+/// (when some did: a run where none did says so itself).
+pub(crate) fn step_limit_warnings(seeds: usize, lines: usize, capped: usize) -> Vec<String> {
+    let mut w = Vec::new();
+    if capped > 0 {
+        w.push(format!(
+            "{capped} of {lines} lines stopped at the limit of {MAX_STEPS} steps each way from \
+             the seed, before their length or duration: the step is small for them"
+        ));
+    }
+    if lines > 0 && lines < seeds {
+        w.push(format!(
+            "{} of {seeds} seeds gave no line (outside the grid or the mask, at most the \
+             minimum speed, or stopped before their first step)",
+            seeds - lines
+        ));
+    }
+    w
+}
+
 /// Traces one way from `seed` (speed `s0`) along `sign d0` (`d0` the field's direction there,
 /// `sign` 1 forward, -1 backward) for at most `max_length` of arc length; returns the points
-/// after the seed with their integration times since the seed (positive) and speeds, and the
-/// arc length traced.
+/// after the seed with their integration times since the seed (positive) and speeds, the arc
+/// length traced, and whether [`MAX_STEPS`] stopped it.
 fn trace_one(
     f: &GridField,
     seed: DVec3,
@@ -422,16 +450,16 @@ fn trace_one(
     sign: f64,
     max_length: f64,
     o: &TraceOptions,
-) -> (Vec<Sample>, f64) {
+) -> (Vec<Sample>, f64, bool) {
     let mut out = Vec::new();
     let (mut p, mut dir, mut speed) = (seed, d0 * sign, s0);
     let mut length = 0.0;
     let mut time = 0.0;
     let cos_max = o.max_angle_deg.to_radians().cos();
     if max_length <= 0.0 {
-        return (out, 0.0);
+        return (out, 0.0, false);
     }
-    let max_steps = ((max_length / (o.step * 1e-3)).ceil() as usize).min(1_000_000);
+    let max_steps = ((max_length / (o.step * 1e-3)).ceil() as usize).min(MAX_STEPS);
     for _ in 0..max_steps {
         let Some(Step {
             q,
@@ -467,7 +495,9 @@ fn trace_one(
             break;
         }
     }
-    (out, length)
+    // Every step taken and the length still short: the limit stopped the line.
+    let capped = out.len() == MAX_STEPS && length < max_length - 1e-12;
+    (out, length, capped)
 }
 
 /// Traces a streamline through every seed (both ways unless told otherwise), in parallel, with
@@ -481,7 +511,7 @@ pub fn trace(f: &GridField, seeds: &[DVec3], o: &TraceOptions) -> Streamlines {
 /// otherwise), in parallel, with the point attributes `time` and `speed` (module doc). Seeds
 /// outside the field, below the minimum speed or outside the mask give no line.
 pub fn trace_at(f: &GridField, seeds: &[(DVec3, f64)], o: &TraceOptions) -> Streamlines {
-    let lines: Vec<Vec<Sample>> = seeds
+    let lines: Vec<(Vec<Sample>, bool)> = seeds
         .par_iter()
         .filter_map(|&(s, t0)| {
             if let Some((mask, thr)) = o.mask {
@@ -496,20 +526,27 @@ pub fn trace_at(f: &GridField, seeds: &[(DVec3, f64)], o: &TraceOptions) -> Stre
             let s0 = v.length();
             let d = v / s0;
             // `max_length` bounds the whole line: backward goes as far as forward left.
-            let (fwd, len) = trace_one(f, s, d, s0, 1.0, o.max_length, o);
-            let mut line: Vec<Sample> = if o.both_ways {
-                let (mut back, _) = trace_one(f, s, d, s0, -1.0, o.max_length - len, o);
+            let (fwd, len, cap_f) = trace_one(f, s, d, s0, 1.0, o.max_length, o);
+            let (mut line, cap_b): (Vec<Sample>, bool) = if o.both_ways {
+                let (mut back, _, cap) = trace_one(f, s, d, s0, -1.0, o.max_length - len, o);
                 back.reverse();
-                back.into_iter().map(|(p, t, v)| (p, t0 - t, v)).collect()
+                (
+                    back.into_iter().map(|(p, t, v)| (p, t0 - t, v)).collect(),
+                    cap,
+                )
             } else {
-                Vec::new()
+                (Vec::new(), false)
             };
             line.push((s, t0, s0));
             line.extend(fwd.into_iter().map(|(p, t, v)| (p, t0 + t, v)));
-            (line.len() >= 2).then_some(line)
+            (line.len() >= 2).then_some((line, cap_f || cap_b))
         })
         .collect();
-    timed_lines(lines)
+    let capped = lines.iter().filter(|l| l.1).count();
+    let n = lines.len();
+    let mut out = timed_lines(lines.into_iter().map(|l| l.0).collect());
+    out.warnings = step_limit_warnings(seeds.len(), n, capped);
+    out
 }
 
 /// Streamlines from lines of `(position, time, speed)`, with the point attributes `time` and

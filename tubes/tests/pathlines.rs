@@ -421,3 +421,52 @@ fn the_length_bound_holds_for_the_whole_line_traced_both_ways() {
         );
     }
 }
+
+/// A line the step limit cuts, and seeds that give no line, are counted in the output's
+/// warnings (they had been dropped or cut silently); a line that ends by its own bounds is
+/// not counted.
+#[test]
+fn lines_cut_by_the_step_limit_and_seeds_without_lines_are_counted() {
+    let vol = cube(|_| DVec3::new(1.0, 0.0, 0.0), 5);
+    let f = GridField::from_volume(&vol, None).unwrap();
+    let series = VolumeSeries::steady(vol.clone());
+    let sf = SeriesField::from_series(&series, None).unwrap();
+    let (inside, outside) = ((DVec3::ZERO, 0.0), (DVec3::splat(5.0), 0.0));
+    // Streamlines: a step so small that the limit comes before the grid's edge (1e-7 x 10^6 =
+    // 0.1 of arc), then a step that reaches the edge.
+    let s = trace_at(
+        &f,
+        &[inside, outside],
+        &stream_opts(Integrator::Rk4, 1e-7, 10.0),
+    );
+    assert_eq!(s.len(), 1);
+    assert_eq!(s.points.len(), tubes::trace::MAX_STEPS + 1);
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.starts_with("1 of 1 lines stopped at the limit of 1000000 steps")),
+        "{:?}",
+        s.warnings
+    );
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.starts_with("1 of 2 seeds gave no line")),
+        "{:?}",
+        s.warnings
+    );
+    let s = trace_at(&f, &[inside], &stream_opts(Integrator::Rk4, 0.05, 10.0));
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    // Pathlines: a time step whose 10^6 steps end before the duration, then one that does not.
+    let s = pathlines(&sf, &[inside], &path_opts(1e-7, 1.0));
+    assert_eq!(s.points.len(), tubes::trace::MAX_STEPS + 1);
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.starts_with("1 of 1 lines stopped at the limit")),
+        "{:?}",
+        s.warnings
+    );
+    let s = pathlines(&sf, &[inside, outside], &path_opts(0.05, 0.5));
+    assert_eq!(s.warnings, ["1 of 2 seeds gave no line (outside the grid or the mask, at most the minimum speed, or stopped before their first step)"]);
+}

@@ -28,7 +28,7 @@ pub struct Args {
     #[arg(long, value_parser = super::field_selector)]
     field: Option<FieldSelector>,
     /// Write only the distance field.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["octants_out", "subsurface"])]
     sdf_only: bool,
     /// Initial distances next to the surface: gradient (default), plane, or edge (the paper).
     #[arg(
@@ -43,9 +43,10 @@ pub struct Args {
     /// (the paper's fast sweeping, rounds of eight sweeps to --tolerance).
     #[arg(long, value_enum, default_value = "closest-point")]
     distance: Distance,
-    /// Convergence tolerance of the distance sweeps (--distance sweeping), in voxels.
-    #[arg(long, default_value_t = 1e-3, value_parser = super::positive32)]
-    tolerance: f32,
+    /// Convergence tolerance of the distance sweeps (--distance sweeping only), in voxels
+    /// [default: 1e-3].
+    #[arg(long, value_parser = super::positive32)]
+    tolerance: Option<f32>,
     /// Subsurface variant: per-voxel opacity alpha in [0, 1] for the octant sweeps.
     #[arg(long, value_parser = super::unit)]
     subsurface: Option<f32>,
@@ -89,6 +90,12 @@ impl From<Init> for InitMethod {
 }
 
 pub fn run(a: Args) -> Result<(), String> {
+    if a.tolerance.is_some() && !matches!(a.distance, Distance::Sweeping) {
+        return Err(
+            "--tolerance is the convergence of --distance sweeping; closest points need none"
+                .into(),
+        );
+    }
     let args = scene::fields::SweepArgs {
         input: a.input,
         iso: a.iso,
@@ -99,7 +106,7 @@ pub fn run(a: Args) -> Result<(), String> {
         sdf_only: a.sdf_only,
         init: a.init.into(),
         method: a.distance.into(),
-        tolerance: a.tolerance,
+        tolerance: a.tolerance.unwrap_or(1e-3),
         subsurface_alpha: a.subsurface,
     };
     let progress = if a.json {

@@ -82,7 +82,8 @@ pub struct Args {
     /// Stop where this scalar volume (e.g. FA) falls below --threshold.
     #[arg(long)]
     mask: Option<PathBuf>,
-    #[arg(long, default_value_t = 0.2, allow_hyphen_values = true, value_parser = super::finite64)]
+    /// The mask's level (needs --mask).
+    #[arg(long, default_value_t = 0.2, allow_hyphen_values = true, value_parser = super::finite64, requires = "mask")]
     threshold: f64,
     /// Stop where the direction turns by more than this many degrees in one step.
     #[arg(long, default_value_t = 60.0, value_parser = super::degrees)]
@@ -259,11 +260,10 @@ pub struct TraceArgs {
 /// `rng`), `plane:x=V:N` (an N x N lattice on a plane of constant x, y or z), or a CSV file of
 /// `x,y,z` lines.
 pub fn parse_seeds(spec: &str, bounds: [DVec3; 2], rng: u64) -> Result<Vec<DVec3>, String> {
-    let num = |s: &str| {
-        s.parse::<usize>()
-            .ok()
-            .filter(|&n| (1..=10_000_000).contains(&n))
-            .ok_or_else(|| format!("--seeds {spec}: '{s}' is not a count"))
+    let num = |s: &str| match s.parse::<usize>() {
+        Ok(n) if (1..=10_000_000).contains(&n) => Ok(n),
+        Ok(_) => Err(format!("--seeds {spec}: {s} seeds: give 1 to 10,000,000")),
+        Err(_) => Err(format!("--seeds {spec}: '{s}' is not a count")),
     };
     if let Some(n) = spec.strip_prefix("grid:") {
         let n = num(n)?;
@@ -295,7 +295,14 @@ pub fn parse_seeds(spec: &str, bounds: [DVec3; 2], rng: u64) -> Result<Vec<DVec3
             .ok()
             .filter(|v: &f64| v.is_finite())
             .ok_or_else(|| format!("--seeds {spec}: '{value}' is not a finite number"))?;
-        let n = num(n)?.min(3000);
+        let n = num(n)?;
+        if n > 3000 {
+            return Err(format!(
+                "--seeds {spec}: at most {}3000 (9 million seeds)",
+                spec.strip_suffix(&n.to_string())
+                    .unwrap_or("plane:x=VALUE:")
+            ));
+        }
         let (u, w) = ((a + 1) % 3, (a + 2) % 3);
         let mut out = Vec::with_capacity(n * n);
         for i in 0..n {
@@ -423,7 +430,17 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
         .as_ref()
         .map(|p| volume::load(p).map_err(|e| e.to_string()))
         .transpose()?;
-    let mask = mask_vol.as_ref().map(GridScalar::from_volume).transpose()?;
+    let mask = mask_vol
+        .as_ref()
+        .map(|v| {
+            GridScalar::from_volume(v).map_err(|e| {
+                format!(
+                    "{}: {e}",
+                    a.mask.as_deref().unwrap_or(Path::new("")).display()
+                )
+            })
+        })
+        .transpose()?;
     let mut notes: Vec<String> = series
         .warnings
         .iter()
@@ -549,6 +566,7 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
         (trace_at(&f, &timed, &o), None, None)
     };
     s.format = String::new();
+    notes.extend(std::mem::take(&mut s.warnings));
     let name = a.output.to_string_lossy().to_ascii_lowercase();
     if name.trim_end_matches(".gz").ends_with(".tck") {
         notes.push(format!(
@@ -592,6 +610,27 @@ mod tests {
             "nan",
         ] {
             assert!(parse_seed_times(bad, 1, 0.0, 0.0, 1).is_err(), "{bad}");
+        }
+    }
+
+    /// Seed counts past the limits are refused with the limit, never clamped silently.
+    #[test]
+    fn seed_counts_past_their_limits_say_the_limit() {
+        let b = [DVec3::ZERO, DVec3::ONE];
+        assert_eq!(parse_seeds("plane:z=0.5:3", b, 1).unwrap().len(), 9);
+        assert_eq!(parse_seeds("random:7", b, 1).unwrap().len(), 7);
+        for (spec, want) in [
+            ("random:16000000", "16000000 seeds: give 1 to 10,000,000"),
+            ("random:0", "0 seeds: give 1 to 10,000,000"),
+            ("random:many", "'many' is not a count"),
+            (
+                "plane:z=20:100000",
+                "at most plane:z=20:3000 (9 million seeds)",
+            ),
+            ("grid:201", "at most grid:200"),
+        ] {
+            let e = parse_seeds(spec, b, 1).unwrap_err();
+            assert!(e.contains(want), "{spec}: {e}");
         }
     }
 }
