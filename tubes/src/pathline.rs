@@ -18,7 +18,7 @@
 //! whole line: forward first, backward for what is left). Points
 //! carry `time` (the particle's time) and `speed` (`|v(x, t)|`) as in [`crate::trace`].
 
-use crate::trace::{step_limit_warnings, timed_lines, GridField, GridScalar, MAX_STEPS};
+use crate::trace::{step_limit_warnings, timed_lines, GridField, GridScalar, Sample, MAX_STEPS};
 use crate::Streamlines;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -196,7 +196,7 @@ fn trace_one(
 /// `time` and `speed`. Seeds outside the field, below the minimum speed or outside the mask give
 /// no line; nor do lines of a single point.
 pub fn pathlines(f: &SeriesField, seeds: &[(DVec3, f64)], o: &PathlineOptions) -> Streamlines {
-    let lines: Vec<(Vec<(DVec3, f64, f64)>, bool)> = seeds
+    let lines: Vec<(Vec<Sample>, bool)> = seeds
         .par_iter()
         .filter_map(|&(s, t0)| {
             if let Some((mask, thr)) = o.mask {
@@ -211,7 +211,7 @@ pub fn pathlines(f: &SeriesField, seeds: &[(DVec3, f64)], o: &PathlineOptions) -
             }
             // `max_length` bounds the whole line: backward goes as far as forward left.
             let (fwd, len, cap_f) = trace_one(f, s, t0, v, 1.0, o.max_length, o);
-            let (mut line, cap_b): (Vec<(DVec3, f64, f64)>, bool) = if o.both_ways {
+            let (mut line, cap_b): (Vec<Sample>, bool) = if o.both_ways {
                 let (mut back, _, cap) = trace_one(f, s, t0, v, -1.0, o.max_length - len, o);
                 back.reverse();
                 (back, cap)

@@ -411,7 +411,7 @@ fn step(
 }
 
 /// A traced point: position, integration time since the seed, speed.
-type Sample = (DVec3, f64, f64);
+pub(crate) type Sample = (DVec3, f64, f64);
 
 /// The most steps a line is traced each way from its seed (streamlines and pathlines): a
 /// bound on the work and the memory of one line; a line it cuts is counted in the output's
