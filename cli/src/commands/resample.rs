@@ -114,8 +114,9 @@ pub struct ResampleReport {
     pub warnings: Vec<String>,
 }
 
-/// Regular dimensions with `longest` samples on the longest side of `bounds` and the same
-/// spacing on the others.
+/// Regular dimensions with `longest` samples on the longest side of `bounds` and, on each
+/// other side, the count whose spacing is nearest to that side's (each axis spans its bounds
+/// exactly, so the spacings differ by the rounding).
 pub fn fit_dims(bounds: [[f64; 3]; 2], longest: usize) -> [usize; 3] {
     let ext = [0, 1, 2].map(|a| (bounds[1][a] - bounds[0][a]).max(0.0));
     let m = ext.iter().cloned().fold(0.0, f64::max);
