@@ -615,13 +615,17 @@ pub fn write_atomic_with(
     Ok(())
 }
 
+/// The folder a file path lies in: its parent, or `.` for a bare name.
+fn folder_of(path: &Path) -> &Path {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+}
+
 /// The temporary file beside `path` that this process writes it through before the rename
 /// ([`temp_name`]); an error when `path` names no file.
 pub fn temp_path(path: &Path) -> Result<std::path::PathBuf> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let dir = folder_of(path);
     let name = path
         .file_name()
         .ok_or_else(|| VolumeError::Invalid(format!("{}: not a file path", path.display())))?;
@@ -656,10 +660,7 @@ pub fn check_output(path: &Path) -> std::result::Result<(), String> {
     if path.is_dir() {
         return fail("it is a directory".into());
     }
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let dir = folder_of(path);
     if let Err(e) = std::fs::create_dir_all(dir) {
         return fail(format!("cannot create its folder: {e}"));
     }
@@ -692,10 +693,7 @@ pub fn check_outputs(paths: &[Option<&Path>]) -> std::result::Result<(), String>
 /// first. Call it after the folders exist ([`check_output`] makes them).
 pub fn check_distinct(paths: &[Option<&Path>]) -> std::result::Result<(), String> {
     let key = |p: &Path| {
-        let dir = p
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
+        let dir = folder_of(p);
         let dir = dir
             .canonicalize()
             .or_else(|_| std::path::absolute(dir))
@@ -731,10 +729,7 @@ pub fn remove_stale_temps(paths: &[&Path]) -> usize {
     let mut by_dir: BTreeMap<&Path, HashSet<String>> = BTreeMap::new();
     for p in paths {
         let Some(name) = p.file_name() else { continue };
-        let dir = p
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
+        let dir = folder_of(p);
         by_dir
             .entry(dir)
             .or_default()
