@@ -161,6 +161,10 @@ pub struct EaView {
     /// Clipping planes `(normal, offset)`: samples with `normal . p > offset` are removed
     /// (at most [`MAX_CLIP`]).
     pub clip: Vec<([f64; 3], f64)>,
+    /// The smallest voxel spacing, world units (the finest detail the data hold; 0 where
+    /// unknown): the light volume's cells need not be finer on screen
+    /// (`crate::combined::data_cell`).
+    pub voxel: f64,
 }
 
 /// The most slices a view has (a bound on the work per pixel).
@@ -259,6 +263,7 @@ impl EaView {
             slices: n,
             background,
             clip: vec![],
+            voxel: spacing,
         })
     }
 }

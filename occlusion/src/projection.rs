@@ -98,6 +98,7 @@ mod tests {
             slices,
             background: [0.0; 3],
             clip: vec![],
+            voxel: 0.0,
         }
     }
 
