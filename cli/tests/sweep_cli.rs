@@ -349,6 +349,42 @@ fn iso_renders_swept_and_reference_images() {
         "{err}"
     );
     assert!(!stale.exists());
+    // Fields swept for another level (or side) are refused, naming the level they hold; at
+    // their own level they draw.
+    ok(umbra()
+        .arg("sweep")
+        .arg(&input)
+        .args(["--iso", "0", "-o"])
+        .arg(&d));
+    for args in [
+        ["--iso=0.5", "--inside=above"],
+        ["--iso=0", "--inside=below"],
+    ] {
+        let out = umbra()
+            .arg("iso")
+            .arg(&input)
+            .args(args)
+            .arg("--fields")
+            .arg(&d)
+            .args(["--width", "48", "--height", "32", "-o"])
+            .arg(&stale)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("s.nrrd") && err.contains("swept for the level 0.0 above"),
+            "{args:?}: {err}"
+        );
+        assert!(!stale.exists());
+    }
+    ok(umbra()
+        .arg("iso")
+        .arg(&input)
+        .args(["--iso", "0", "--fields"])
+        .arg(&d)
+        .args(["--width", "48", "--height", "32", "-o"])
+        .arg(&stale));
     // A distance output that is not named .nrrd is refused before any work.
     for name in ["x.nii", "x.png"] {
         let out = umbra()

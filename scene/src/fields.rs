@@ -136,7 +136,7 @@ pub fn write_distance(
     path: &Path,
     vol: &Volume,
     df: &DistanceField,
-    sweep_id: &str,
+    sweep: &SweepTag,
 ) -> Result<(), String> {
     nrrd::write_array_with(
         path,
@@ -151,7 +151,7 @@ pub fn write_distance(
             content: "signed distance (world units, negative inside)",
         },
         WriteEncoding::Raw,
-        &[(SWEEP_KEY, sweep_id)],
+        &[(SWEEP_KEY, &sweep.id), (LEVEL_KEY, &sweep.level)],
     )
     .map_err(|e| e.to_string())
 }
@@ -162,7 +162,7 @@ pub fn write_octants(
     path: &Path,
     vol: &Volume,
     oct: &OctantFields,
-    sweep_id: &str,
+    sweep: &SweepTag,
 ) -> Result<(), String> {
     nrrd::write_array_with(
         path,
@@ -178,7 +178,7 @@ pub fn write_octants(
             content: "octant visibility x 255 (Table 1 order)",
         },
         WriteEncoding::Raw,
-        &[(SWEEP_KEY, sweep_id)],
+        &[(SWEEP_KEY, &sweep.id), (LEVEL_KEY, &sweep.level)],
     )
     .map_err(|e| e.to_string())
 }
@@ -186,6 +186,45 @@ pub fn write_octants(
 /// The NRRD key whose value pairs a distance file with the octant fields of the same sweep:
 /// one id per run of [`run`], written into both.
 pub const SWEEP_KEY: &str = "umbra_sweep";
+
+/// The NRRD key holding the level a sweep's fields belong to: `ISO above|below` (the iso
+/// level as written, `f32` round trip, and which side is inside), checked when the fields are
+/// used for a surface ([`iso_fields`]).
+pub const LEVEL_KEY: &str = "umbra_iso";
+
+/// What a sweep writes into both of its files' headers.
+pub struct SweepTag {
+    pub id: String,
+    pub level: String,
+}
+
+/// The [`LEVEL_KEY`] value of an iso level and side.
+pub fn level_tag(iso: f32, inside: Inside) -> String {
+    let side = match inside {
+        Inside::Above => "above",
+        Inside::Below => "below",
+    };
+    format!("{iso:?} {side}")
+}
+
+/// Refuses a distance field swept for another level or side than `iso`/`inside` (a file
+/// without the key - another writer's, or umbra's before it - is taken as it is).
+fn check_level(distance: &Path, iso: f32, inside: Inside) -> Result<(), String> {
+    // Not a NRRD header (another format): nothing to check; reading it says the rest.
+    let Ok(kv) = nrrd::key_values(distance) else {
+        return Ok(());
+    };
+    let tag = kv.into_iter().find(|(k, _)| k == LEVEL_KEY).map(|(_, v)| v);
+    let want = level_tag(iso, inside);
+    match tag {
+        Some(t) if t != want => Err(format!(
+            "{}: these fields were swept for the level {t} ({LEVEL_KEY}), not {want}: sweep at \
+             this level, or draw the level they were swept for",
+            distance.display()
+        )),
+        _ => Ok(()),
+    }
+}
 
 /// The id of one sweep: its input, iso level, clock and process, hashed.
 fn sweep_id(args: &SweepArgs) -> String {
@@ -327,11 +366,15 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
     }
     stage("writing");
     let t2 = Instant::now();
-    write_distance(&args.output, &vol, &df, &id)?;
+    let tag = SweepTag {
+        id,
+        level: level_tag(args.iso, args.inside),
+    };
+    write_distance(&args.output, &vol, &df, &tag)?;
     let oct_path = match (&oct, args.sdf_only) {
         (Some(o), false) => {
             let p = octants_path.clone().unwrap_or_default();
-            write_octants(&p, &vol, o, &id)?;
+            write_octants(&p, &vol, o, &tag)?;
             Some(p)
         }
         _ => None,
@@ -376,6 +419,7 @@ pub fn iso_fields(
 ) -> Result<(Vec<f32>, Option<volume::occlusion_sweep::OctantFields>), String> {
     match fields {
         Some(p) => {
+            check_level(p, iso, inside)?;
             let d = volume::load(p).map_err(|e| e.to_string())?;
             if d.dims != vol.dims || d.fields[0].components != 1 {
                 return Err(format!(
