@@ -1360,11 +1360,7 @@ fn cpu_frame(
         frame = Some(f);
     }
     let frame = frame.expect("at least one frame");
-    let median = |x: &[f64]| {
-        let mut s = x.to_vec();
-        s.sort_by(f64::total_cmp);
-        s[s.len() / 2]
-    };
+    let median = renderer::median;
     let total_ms = median(&frames_ms);
     let aov = frame
         .volumetric

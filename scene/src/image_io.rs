@@ -93,7 +93,8 @@ pub fn write_rgb_png(
 
 /// Writes linear RGBA as EXR (channels R, G, B, A) with any further named channels (the
 /// renderer's AOVs, `engine::renderer::Output::aov_channels`), through a temporary file renamed
-/// into place.
+/// into place. Colours are light, never negative: a resolve's rounding below 0 (-0.003 was
+/// seen at an MSAA silhouette) is written as 0, as the PNG's quantisation does.
 pub fn write_exr(
     path: &Path,
     w: usize,
@@ -105,7 +106,7 @@ pub fn write_exr(
     let ch = |name: &str, v: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(v));
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     for (k, n) in ["R", "G", "B", "A"].iter().enumerate() {
-        list.push(ch(n, image.iter().map(|p| p[k]).collect()));
+        list.push(ch(n, image.iter().map(|p| p[k].max(0.0)).collect()));
     }
     for (n, v) in channels {
         if v.len() != w * h {
@@ -264,5 +265,38 @@ mod spread_tests {
         let odd: Vec<bool> = (0..w * h).map(|i| i % 2 == 1).collect();
         assert_eq!(median_local_spread(&cols, &odd, w, h, 4), 0.0);
         assert!(median_local_spread(&cols, &vec![false; w * h], w, h, 4).is_nan());
+    }
+}
+
+#[cfg(test)]
+mod exr_tests {
+    use super::*;
+
+    /// Negative colours are written as 0 (a resolve's rounding), the rest as given, alpha and
+    /// the AOV channels untouched.
+    #[test]
+    fn an_exr_holds_no_negative_colour() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("x.exr");
+        let image = [[-0.0032f32, 0.5, 2.0, 1.0], [0.25, -1.0, 0.0, 0.5]];
+        let aov = vec![("occlusion.combined".to_string(), vec![0.75f32, 1.0])];
+        write_exr(&p, 2, 1, &image, &aov).unwrap();
+        let img = exr::prelude::read_first_flat_layer_from_file(&p).unwrap();
+        let chan = |name: &str| -> Vec<f32> {
+            img.layer_data
+                .channel_data
+                .list
+                .iter()
+                .find(|c| c.name.to_string() == name)
+                .unwrap()
+                .sample_data
+                .values_as_f32()
+                .collect()
+        };
+        assert_eq!(chan("R"), [0.0, 0.25]);
+        assert_eq!(chan("G"), [0.5, 0.0]);
+        assert_eq!(chan("B"), [2.0, 0.0]);
+        assert_eq!(chan("A"), [1.0, 0.5]);
+        assert_eq!(chan("occlusion.combined"), [0.75, 1.0]);
     }
 }

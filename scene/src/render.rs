@@ -578,15 +578,14 @@ pub(crate) fn run_on(
         passes,
         pass_clock,
     } = out.timings;
-    let mut totals: Vec<f64> = frames.iter().map(|f| f.total_ms).collect();
-    totals.sort_by(f64::total_cmp);
+    let totals: Vec<f64> = frames.iter().map(|f| f.total_ms).collect();
     report.width = v.width;
     report.height = v.height;
     report.slices = v.slices;
     report.slice_distance = v.dz;
     report.triangles = out.triangles;
     report.total_ms = if sequence.is_some() {
-        totals[totals.len() / 2]
+        engine::renderer::median(&totals)
     } else {
         total_ms
     };

@@ -128,6 +128,17 @@ impl Default for TransferSpec {
     }
 }
 
+impl TransferSpec {
+    /// The transfer function given by `points` alone: a preset's keys (`preset`,
+    /// `extinction`, `range`) at their defaults, as a scene with points must have them.
+    pub fn from_points(points: Vec<TfPoint>) -> TransferSpec {
+        TransferSpec {
+            points,
+            ..TransferSpec::default()
+        }
+    }
+}
+
 /// `volume.transfer.range`: `"full"` (the field's finite range), `"robust"` (its 2nd to 98th
 /// percentiles) or `[lo, hi]` (values).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -1399,7 +1410,10 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
     let window = |key: String, w: Option<[f64; 2]>| match w {
         Some(w) if !f32_window(w) => bad(
             key,
-            format!("{w:?}: two finite values that differ in single precision are needed"),
+            format!(
+                "{w:?}: two different finite values at most 3.4e38 apart are needed (the \
+                 window's ends and its width are single-precision numbers)"
+            ),
         ),
         _ => Ok(()),
     };
@@ -1755,11 +1769,34 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 format!("'{}' is not one of {}", t.preset, PRESETS.join(", ")),
             );
         }
-        if !t.points.is_empty() && !t.range.is_full() {
-            return bad(
-                "volume.transfer.range",
-                "spans a preset's ramp; points carry their own values".into(),
-            );
+        if !t.points.is_empty() {
+            let d = TransferSpec::default();
+            if !t.range.is_full() {
+                return bad(
+                    "volume.transfer.range",
+                    "spans a preset's ramp; points carry their own values".into(),
+                );
+            }
+            if t.preset != d.preset {
+                return bad(
+                    "volume.transfer.preset",
+                    format!(
+                        "'{}' with points: a preset's ramp or points, not both (points carry \
+                         their own colours)",
+                        t.preset
+                    ),
+                );
+            }
+            if t.extinction != d.extinction {
+                return bad(
+                    "volume.transfer.extinction",
+                    format!(
+                        "{} with points: the extinction at a preset's top; points carry their \
+                         own",
+                        t.extinction
+                    ),
+                );
+            }
         }
         match &t.range {
             TransferRange::Named(n) if n == "full" || n == "robust" => {}
@@ -2133,6 +2170,34 @@ mod tests {
         assert_eq!(s.render.method, Method::Combined);
         assert!(s.volume.as_ref().unwrap().path.starts_with("/d"));
         assert_eq!(s.clip.len(), 1);
+    }
+
+    /// A preset's keys beside points are refused, each naming its key (they were ignored in
+    /// silence); left at their defaults, or written as the defaults, they pass.
+    #[test]
+    fn a_presets_keys_beside_points_are_refused() {
+        let pts = "points = [{ value = 0.0, color = [0, 0, 0], extinction = 0.0 }, \
+                   { value = 1.0, color = [1, 1, 1], extinction = 1.0 }]\n";
+        let scene =
+            |extra: &str| format!("[volume]\npath = \"v.nii\"\n[volume.transfer]\n{pts}{extra}");
+        for (extra, key) in [
+            ("preset = \"fire\"\n", "volume.transfer.preset"),
+            ("extinction = 0.3\n", "volume.transfer.extinction"),
+            ("range = \"robust\"\n", "volume.transfer.range"),
+        ] {
+            let e = parse(&scene(extra), "s.toml", Path::new("/d"), &[]).unwrap_err();
+            assert!(e.contains(key) && e.starts_with("s.toml"), "{extra}: {e}");
+        }
+        for extra in [
+            "",
+            "preset = \"grey\"\nextinction = 0.5\nrange = \"full\"\n",
+        ] {
+            parse(&scene(extra), "s.toml", Path::new("/d"), &[]).unwrap();
+        }
+        // What the viewer's editor saves when it turns a preset into points.
+        let t = TransferSpec::from_points(vec![]);
+        assert_eq!((t.preset.as_str(), t.extinction), ("grey", 0.5));
+        assert!(t.range.is_full());
     }
 
     #[test]

@@ -560,6 +560,12 @@ fn bad_slice_and_colour_map_keys_name_the_key() {
     // A window too narrow for single precision.
     let e = err("[volume]\npath = \"v.nii\"\nwindow = [1.0, 1.00000001]\n");
     assert!(e.contains("volume.window"), "{e}");
+    // Too wide: its width overflows single precision (the message says so).
+    let e = err("[volume]\npath = \"v.nii\"\nwindow = [-2e38, 2e38]\n");
+    assert!(
+        e.contains("volume.window") && e.contains("at most 3.4e38 apart"),
+        "{e}"
+    );
     // Blending needs a volume drawn by its transfer function.
     let blend = "[volume]\npath = \"v.nii\"\n[[overlays]]\nname = \"a\"\npath = \"a.nii\"\nvolume_blend = true\n";
     let e = err(&format!("{blend}[render]\nmethod = \"mip\"\n"));

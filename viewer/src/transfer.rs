@@ -200,11 +200,7 @@ impl Editor {
                 ..p.clone()
             })
         };
-        TransferSpec {
-            points: row(0.0).chain(row(g1)).collect(),
-            range: Default::default(),
-            ..spec.clone()
-        }
+        TransferSpec::from_points(row(0.0).chain(row(g1)).collect())
     }
 
     /// The editor; true when the transfer function changed.
@@ -230,8 +226,7 @@ impl Editor {
                 if ui.selectable_label(current == custom, custom).clicked()
                     && spec.points.is_empty()
                 {
-                    spec.points = self.points_of(spec);
-                    spec.range = Default::default();
+                    *spec = TransferSpec::from_points(self.points_of(spec));
                 }
                 if ui.selectable_label(current == TWO_D, TWO_D).clicked() && !is_2d(spec) {
                     *spec = self.two_d(spec);
@@ -397,8 +392,7 @@ impl Editor {
         if let (Some(i), Some(at)) = (self.dragging, response.interact_pointer_pos()) {
             if response.dragged() {
                 if spec.points.is_empty() {
-                    spec.points = pts.clone();
-                    spec.range = Default::default();
+                    *spec = TransferSpec::from_points(pts.clone());
                 }
                 let (a, b) = (
                     if i > 0 { spec.points[i - 1].value } else { lo },

@@ -84,14 +84,13 @@ pub fn tubes(
             times.push(t.elapsed().as_secs_f64() * 1e3);
             stats = Some(st);
         }
-        times.sort_by(f64::total_cmp);
         let st = stats.unwrap();
         rows.push(TubesRow {
             tolerance: tol,
             control_points: st.control_points,
             triangles: st.triangles,
             max_deviation: st.max_deviation,
-            ms: times[times.len() / 2],
+            ms: engine::renderer::median(&times),
         });
     }
     let mut csv = Vec::new();
