@@ -514,8 +514,10 @@ def vtk_read(path):
         r = vtk.vtkMetaImageReader()
     elif low.endswith(".vtk"):
         r = vtk.vtkStructuredPointsReader()
+    elif low.endswith(".slc"):
+        r = vtk.vtkSLCReader()
     else:
-        die("no VTK reader chosen for %s (NIfTI, NRRD, VTI, MetaImage or legacy VTK)" % path)
+        die("no VTK reader chosen for %s (NIfTI, NRRD, VTI, MetaImage, legacy VTK or SLC)" % path)
     r.SetFileName(path)
     r.Update()
     img = vtk.vtkImageData()
@@ -623,7 +625,7 @@ def main():
                     help="of: " + ",".join(CASES) + " (default: both, or none with --volume)")
     ap.add_argument("--volume", action="append", default=[], metavar="PATH",
                     help="a volume of your own as a further case, named by its file name "
-                         "(NIfTI, NRRD, VTI, MetaImage .mhd/.mha, legacy VTK .vtk); repeatable")
+                         "(NIfTI, NRRD, VTI, MetaImage .mhd/.mha, legacy VTK .vtk, SLC .slc); repeatable")
     ap.add_argument("--ramp", default="0.25,1.0",
                     help="--volume cases: the ramp's lo,hi as fractions of the data range")
     ap.add_argument("--sigma", type=float, default=None,
