@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """`umbra tubes` against vtkTubeFilter on several tractograms in one run (issue 16).
 
-For each input (a .tck; .trk/.trk.gz bundles can be merged into one .tck with --merge):
+For each input (a .tck or .trk, gzipped or not; another format umbra reads, such as TRX or VTK
+polylines, is written as a .tck by `umbra tracts select` for VTK's side; .trk/.trk.gz bundles
+can be merged into one .tck with --merge):
   * umbra: `seconds.compute` of `umbra tubes IN -o OUT.ply --radius R --sides 8 --tolerance T
     --stats-json S` (clean, fit, reduce, frames, mesh; no file I/O), with triangles, max
     deviation and how many pieces were meshed as polylines, one process per run;
@@ -35,6 +37,15 @@ UMBRA = os.environ.get("UMBRA", str(ROOT / "target" / "release" / "umbra"))
 def load_lines(path):
     import nibabel as nib
     p = str(path)
+    low = p.lower()
+    if not low.removesuffix(".gz").endswith((".trk", ".tck")):
+        # A format nibabel does not read (TRX, VTK polylines): umbra writes the same points
+        # as a .tck first (`umbra tracts select`), and VTK meshes those.
+        with tempfile.TemporaryDirectory() as d:
+            tck = os.path.join(d, "lines.tck")
+            subprocess.run([UMBRA, "tracts", "select", p, "-o", tck], check=True,
+                           stdout=subprocess.DEVNULL)
+            return load_lines(tck)
     if p.endswith(".gz"):
         with gzip.open(p, "rb") as f, tempfile.NamedTemporaryFile(suffix=Path(p[:-3]).suffix) as t:
             t.write(f.read())
