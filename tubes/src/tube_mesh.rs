@@ -224,8 +224,8 @@ pub struct TubeStats {
     pub splits: usize,
     pub dropped_points: usize,
     pub skipped_streamlines: usize,
-    /// Pieces meshed as their polyline (a ring at every point) because the fit could not
-    /// shorten them within the tolerance.
+    /// Pieces meshed as their polyline (a ring on each point the tolerance cannot let go,
+    /// [`simplify_polyline`]) because the fit could not shorten them within the tolerance.
     pub polyline_pieces: usize,
 }
 
@@ -783,8 +783,8 @@ fn tube(
         ..Default::default()
     };
     // A line too rough for the fit to shorten (noise above the tolerance) is meshed as the
-    // polyline it is, a ring at every point (as vtkTubeFilter does): deviation 0, and no more
-    // rings than points, which the fit's refinement of its turning spans would exceed (2.4x
+    // polyline it is, a ring on each point the tolerance cannot let go (vtkTubeFilter puts one
+    // on every point): deviation within the tolerance, and no more rings than points, which the fit's refinement of its turning spans would exceed (2.4x
     // vtkTubeFilter's triangles on noisy helices, docs/benchmarks.md). Decided before fitting
     // when the points say so, or after it when the fit kept every point (of a line of at least
     // eight, or of a part between sharp turns), placed more rings than the line has points or
