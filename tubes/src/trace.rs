@@ -415,7 +415,7 @@ pub(crate) type Sample = (DVec3, f64, f64);
 
 /// The most steps a line is traced each way from its seed (streamlines and pathlines): a
 /// bound on the work and the memory of one line; a line it cuts is counted in the output's
-/// warnings ([`step_limit_warnings`]).
+/// warnings (`step_limit_warnings`).
 pub const MAX_STEPS: usize = 1_000_000;
 
 /// The warnings of a tracing run: lines cut at [`MAX_STEPS`] and seeds that gave no line
