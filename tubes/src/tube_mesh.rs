@@ -225,7 +225,7 @@ pub struct TubeStats {
     pub dropped_points: usize,
     pub skipped_streamlines: usize,
     /// Pieces meshed as their polyline (a ring on each point the tolerance cannot let go,
-    /// [`simplify_polyline`]) because the fit could not shorten them within the tolerance.
+    /// `simplify_polyline`) because the fit could not shorten them within the tolerance.
     pub polyline_pieces: usize,
 }
 
