@@ -148,8 +148,10 @@ pub struct PlyStream {
 impl PlyStream {
     /// Creates the temporary file beside `path`.
     pub fn create(path: &Path) -> Result<PlyStream> {
+        let t = std::time::Instant::now();
         let tmp = volume::temp_path(path)?;
         let file = std::fs::File::create(&tmp).map_err(|e| TubesError::io(path, e))?;
+        let seconds = t.elapsed().as_secs_f64();
         Ok(PlyStream {
             path: path.to_path_buf(),
             tmp,
@@ -160,7 +162,7 @@ impl PlyStream {
             vertices: 0,
             out: Vec::with_capacity(1 << 20),
             finished: false,
-            seconds: 0.0,
+            seconds,
         })
     }
 
@@ -180,7 +182,8 @@ impl PlyStream {
         res.map_err(|e| TubesError::io(&self.path, e))
     }
 
-    /// Flushes the file to disk and renames it to its path; the seconds spent writing in all.
+    /// Flushes the file to disk and renames it to its path; the seconds spent on the file in
+    /// all (creating it, sizing it, the writes, the flush and the rename).
     pub fn finish(mut self) -> Result<f64> {
         let t = std::time::Instant::now();
         let res = self
@@ -226,10 +229,12 @@ impl crate::tube_mesh::MeshSink for PlyStream {
         let (vb, fb) = record_bytes(self.double);
         let total = self.header + vertices as u64 * vb + (indices / 3) as u64 * fb;
         self.write_at(0, |w, _| w.write_all(header.as_bytes()))?;
-        // The file at its final size at once: the parts fill it in.
-        self.file
-            .set_len(total)
-            .map_err(|e| TubesError::io(&self.path, e))
+        // The file at its final size at once: the parts fill it in (file I/O, timed as the
+        // writes are).
+        let t = std::time::Instant::now();
+        let res = self.file.set_len(total);
+        self.seconds += t.elapsed().as_secs_f64();
+        res.map_err(|e| TubesError::io(&self.path, e))
     }
 
     fn part(&mut self, p: &crate::tube_mesh::MeshPart<'_>) -> Result<()> {
