@@ -793,27 +793,6 @@ fn tube(
     // (`prepare`), and a fitted line that needs its polyline is returned as `None` for
     // `prepare` to split the same way (see the doc above).
     let rmf_iterative = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
-    // The points a polyline piece keeps (module doc of `simplify_polyline`), and the largest
-    // distance of a dropped one to its segment.
-    let poly_keep = || -> (Vec<usize>, f64) {
-        let all = || (0..points.len()).collect::<Vec<usize>>();
-        match o.color {
-            ColorMode::Direction | ColorMode::Constant(_) => {
-                let (keep, d) = simplify_polyline(points, o.fit.epsilon, SIMPLIFY_TURN_DEG);
-                // Rings that would turn sharply at a point fold there: every point then.
-                if keep
-                    .windows(3)
-                    .any(|w| sharp(&[points[w[0]], points[w[1]], points[w[2]]]))
-                {
-                    (all(), 0.0)
-                } else {
-                    (keep, d)
-                }
-            }
-            ColorMode::Scalar(..) | ColorMode::Field(..) => (all(), 0.0),
-        }
-    };
-    let mut poly: Option<(Vec<usize>, f64)> = None;
     let mut polyline = rmf_iterative && too_rough(points, o.fit.epsilon) && !sharp_turn(points);
     let fitted = (!polyline).then(|| fit(points, &o.fit));
     let mut fit_params = Vec::new();
@@ -829,15 +808,7 @@ fn tube(
         if !(rmf_iterative && in_vain) {
             fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
         }
-        // A kept fit still loses to its polyline where that needs fewer rings (with the
-        // points the tolerance lets go dropped, a polyline can: HCP1065 CST_L at tolerance
-        // 0.1 fitted more rings than at 0.05, docs/accuracy.md).
-        let as_polyline = in_vain
-            || fit_params.len() > points.len()
-            || (rmf_iterative && {
-                let rings = poly.get_or_insert_with(poly_keep).0.len();
-                fit_params.len() > rings
-            });
+        let as_polyline = in_vain || fit_params.len() > points.len();
         let sharp = sharp_turn(points);
         if rmf_iterative && as_polyline && sharp && !between_turns {
             return None;
@@ -862,7 +833,21 @@ fn tube(
         // The points whose rings the tube needs: those the tolerance lets go are dropped
         // where the colour does not come from them (`simplify_polyline`), unless the rings
         // left would turn sharply at a point and fold there.
-        let (keep, deviation) = poly.take().unwrap_or_else(poly_keep);
+        let all = || (0..points.len()).collect::<Vec<usize>>();
+        let (keep, deviation) = match o.color {
+            ColorMode::Direction | ColorMode::Constant(_) => {
+                let (keep, d) = simplify_polyline(points, o.fit.epsilon, SIMPLIFY_TURN_DEG);
+                if keep
+                    .windows(3)
+                    .any(|w| sharp(&[points[w[0]], points[w[1]], points[w[2]]]))
+                {
+                    (all(), 0.0)
+                } else {
+                    (keep, d)
+                }
+            }
+            ColorMode::Scalar(..) | ColorMode::Field(..) => (all(), 0.0),
+        };
         st.control_points = keep.len();
         st.max_deviation = deviation;
         let n = keep.len();
