@@ -539,6 +539,9 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
         (&["--orbit", "-1"], "--orbit"),
         (&["--orbit", "3", "--frames", "-2"], "--frames"),
         (&["--orbit=0"], "--orbit"),
+        // A negative shard is a bad shard, written with or without `=` (the first exited 2).
+        (&["--orbit", "3", "--shard", "-1/2"], "-1/2"),
+        (&["--orbit", "3", "--shard=-1/2"], "-1/2"),
     ]
     .into_iter()
     .enumerate()
@@ -567,6 +570,20 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
     let o = run(&["-o", "o/f_#.png", "--record", "--orbit", "3"]);
     assert_eq!(o.status.code(), Some(2), "{}", err(&o));
     assert!(!d.join("--orbit").exists());
+    // `--shard` followed by another option is never taken as a shard: a malformed command
+    // line (exit 2) where the option's own value is left over, else the option refused as
+    // the shard's value (exit 1); nothing rendered either way.
+    for (args, code) in [
+        (&["-o", "o/f_#.png", "--shard", "--orbit", "3"][..], 2),
+        (&["--orbit", "3", "--shard", "-o", "o/f_#.png"], 2),
+        (&["--orbit", "3", "-o", "o/f_#.png", "--shard", "--json"], 1),
+    ] {
+        let o = run(args);
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {}", err(&o));
+        assert!(!d.join("o").exists(), "{args:?}");
+    }
+    let o = run(&["--orbit", "3", "-o", "o/f_#.png", "--shard", "--json"]);
+    assert!(err(&o).contains("is an option, not a shard"), "{}", err(&o));
     // Bad Slurm variables: the record's new folder is made first.
     let o = umbra()
         .arg("render")

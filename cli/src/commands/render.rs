@@ -79,7 +79,7 @@ pub struct Args {
     /// Render shard I of N (0 <= I < N): the frames (of --orbit, --camera-path,
     /// --trail-range or --manifest) whose index k has k mod N = I. Default: a Slurm array
     /// task's (SLURM_ARRAY_TASK_ID, _MIN, _STEP, _COUNT) when set. Implies --skip-existing.
-    #[arg(long, value_name = "I/N")]
+    #[arg(long, value_name = "I/N", allow_hyphen_values = true, value_parser = shard_value)]
     shard: Option<String>,
     /// Leave outputs that are already complete images of the scene's size; render the rest.
     #[arg(long)]
@@ -120,6 +120,19 @@ struct Record<'a> {
     seconds: f64,
     adapter: &'a str,
     host: String,
+}
+
+/// `--shard`'s value as given (checked by `Shard::resolve`), so that `--shard -1/2` is the
+/// bad shard it is (exit 1, as `--shard=-1/2`) - but not another option taken as the value
+/// (`--shard --orbit 3`, `--shard -o x`): that is a command line without the shard's value.
+fn shard_value(v: &str) -> Result<String, String> {
+    let mut c = v.chars();
+    if c.next() == Some('-') && !c.next().is_some_and(|d| d.is_ascii_digit()) {
+        return Err(format!(
+            "'{v}' is an option, not a shard: give I/N (e.g. --shard 0/4)"
+        ));
+    }
+    Ok(v.to_string())
 }
 
 /// This machine's name (for a record read after a job array ran on many nodes).
