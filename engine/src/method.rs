@@ -236,7 +236,7 @@ pub struct Settings {
     pub fxaa: bool,
     /// ambient, diffuse, specular, shininess
     pub light: [f64; 4],
-    /// Occlusion buffer cell edge in pixels (None: chosen, see `slice_pass::auto_cell`).
+    /// Occlusion buffer cell edge in pixels (None: chosen, `occlusion::combined::light_cell`).
     pub occlusion_cell: Option<u32>,
     /// The cone-following occlusion model instead of the paper's.
     pub cone: bool,

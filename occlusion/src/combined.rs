@@ -7,7 +7,7 @@
 //! |---|---|---|---|
 //! | §3.2.1 G-buffer | - | `gbuffer.rs`, `gbuffer.wgsl` | `engine/tests/occlusion_render.rs` |
 //! | Alg. 2 eye buffer, E/A | `emission_absorption::reference`; `raycast::EaVolume::render_frame` | `slice_pass.wgsl::march` | `engine/tests/ea_render.rs`, `raycast` tests |
-//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_cell`], [`auto_cell`], `reference::render`; `raycast::light` (the sweep, volume-only) | `slice_pass.wgsl::light` | unit tests below, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass) |
+//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_cell`], [`auto_cell`], [`data_cell`], `reference::render`; `raycast::light` (the sweep, volume-only) | `slice_pass.wgsl::light` | unit tests below, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass) |
 //! | Alg. 4, eq. 1-3 partial occlusion | `reference::render` (surface AOV) | `slice_pass.wgsl::march` | `occlusion_render.rs` (exp(-sigma z)) |
 //! | Alg. 5, eq. 4-6 vicinity | [`poisson_disk`], `camera::texture_radius` | `vicinity.wgsl` | `occlusion_render.rs` (groove) |
 //! | Alg. 6, eq. 7-10 compositing | - | `composite.wgsl` | `occlusion_render.rs` (eq. 7, 8) |
@@ -60,7 +60,8 @@
 //! `blur_samples`, up to 9 per axis) grow with the radius in cells.
 //!
 //! Departure from the paper, for speed (issue 5, "beat the paper's design"): the occlusion
-//! buffer lives on cells of `s x s` pixels (`render.occlusion_cell`), one dispatch per slice
+//! buffer lives on cells of `s x s` pixels (`render.occlusion_cell`; by default [`light_cell`]:
+//! 2 pixels, or as many as the data's smallest voxel covers on screen, [`data_cell`]), one dispatch per slice
 //! (the `light` entry; the dispatch is the barrier the blur needs), and stores every slice's
 //! `O_k` in a light volume (cells x slices). The eye buffer is then one dispatch (`march`): all
 //! slices of a pixel in one invocation, with `O` read bilinearly from the light volume, rays
