@@ -53,18 +53,12 @@ fn stderr(o: &Output) -> String {
 /// The EXR's size and its pixels' RGB, sRGB-encoded as the PNG would hold them; every value
 /// must be finite.
 fn srgb_pixels(exr: &Path) -> (usize, usize, Vec<[f64; 3]>) {
-    let img = exr::prelude::read_first_flat_layer_from_file(exr).unwrap();
-    let size = img.layer_data.size;
+    let img = scene::image_io::read_exr_channels(exr).unwrap();
+    let size = img.0;
     let chan = |name: &str| -> Vec<f32> {
-        img.layer_data
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == name)
+        scene::image_io::exr_channel(&img, name)
             .unwrap_or_else(|| panic!("{}: no channel {name}", exr.display()))
-            .sample_data
-            .values_as_f32()
-            .collect()
+            .to_vec()
     };
     let (r, g, b) = (chan("R"), chan("G"), chan("B"));
     let bad = r

@@ -190,17 +190,11 @@ fn the_cpu_renderer_lights_the_volume_as_the_gpu_light_pass_does() {
             String::from_utf8_lossy(&out.stderr)
         );
         let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-        let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
+        let img = scene::image_io::read_exr_channels(&exr).unwrap();
         let chan = |c: &str| -> Vec<f32> {
-            img.layer_data
-                .channel_data
-                .list
-                .iter()
-                .find(|x| x.name.to_string() == c)
+            scene::image_io::exr_channel(&img, c)
                 .unwrap_or_else(|| panic!("{name}: no channel {c}"))
-                .sample_data
-                .values_as_f32()
-                .collect()
+                .to_vec()
         };
         let rgba = ["R", "G", "B", "A"].map(chan);
         (r, rgba, chan("occlusion.volumetric"), chan("Z"))

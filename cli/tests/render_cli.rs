@@ -106,16 +106,11 @@ fn render_writes_exr_with_aovs_and_timings() {
         ["timestamps", "fences"].contains(&t["pass_clock"].as_str().unwrap()),
         "{t}"
     );
-    let img = exr::prelude::read_first_flat_layer_from_file(&exr).unwrap();
+    let img = scene::image_io::read_exr_channels(&exr).unwrap();
     let chan = |name: &str| -> Vec<f32> {
-        let c = img
-            .layer_data
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == name)
-            .unwrap_or_else(|| panic!("no channel {name}"));
-        c.sample_data.values_as_f32().collect()
+        scene::image_io::exr_channel(&img, name)
+            .unwrap_or_else(|| panic!("no channel {name}"))
+            .to_vec()
     };
     let (a, z) = (chan("A"), chan("Z"));
     let (p, v, c) = (
@@ -556,8 +551,8 @@ fn bench_ao_writes_the_cross_check_inputs() {
     // The PLY is the tubes' mesh in world coordinates: it reads back.
     let m = tubes::mesh_io::read(&out_dir.join("tubes.ply")).unwrap();
     assert!(m.triangles() > 1000);
-    let img = exr::prelude::read_first_flat_layer_from_file(out_dir.join("ao.exr")).unwrap();
-    assert_eq!(img.layer_data.channel_data.list.len(), 2);
+    let img = scene::image_io::read_exr_channels(&out_dir.join("ao.exr")).unwrap();
+    assert_eq!(img.1.len(), 2);
     // A short reach leaves more open: the mean rises.
     let out = umbra()
         .args(["bench", "ao"])

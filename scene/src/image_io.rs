@@ -127,6 +127,34 @@ pub fn write_exr(
     Ok(())
 }
 
+/// An EXR's first layer: its size and every channel by name, as 32-bit floats (what
+/// [`write_exr`] and [`RefImage::write_exr`] write; the tests read images back through it).
+pub type ExrChannels = ((usize, usize), Vec<(String, Vec<f32>)>);
+
+/// Reads [`ExrChannels`] from `path`; an error naming the file when it is no readable EXR.
+pub fn read_exr_channels(path: &Path) -> Result<ExrChannels, String> {
+    let img = exr::prelude::read_first_flat_layer_from_file(path)
+        .map_err(|e| format!("{}: reading EXR: {e}", path.display()))?;
+    let size = img.layer_data.size;
+    let channels = img
+        .layer_data
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect();
+    Ok(((size.0, size.1), channels))
+}
+
+/// The channel `name` of [`ExrChannels`], if there is one.
+pub fn exr_channel<'a>(channels: &'a ExrChannels, name: &str) -> Option<&'a [f32]> {
+    channels
+        .1
+        .iter()
+        .find(|(n, _)| n == name)
+        .map(|(_, v)| v.as_slice())
+}
+
 /// The EXR channels of a cached reference, in [`RefImage`]'s field order after R, G, B.
 const REF_CHANNELS: [&str; 4] = [
     "stderr",
@@ -172,15 +200,10 @@ impl RefImageExr for RefImage {
     /// Reads what [`RefImage::write_exr`] wrote; `None` when the file is absent, unreadable or
     /// lacks a channel.
     fn read_exr(path: &std::path::Path) -> Option<RefImage> {
-        let img = exr::prelude::read_first_flat_layer_from_file(path).ok()?;
-        let size = img.layer_data.size;
+        let img = read_exr_channels(path).ok()?;
+        let size = img.0;
         let chan = |name: &str| -> Option<Vec<f64>> {
-            img.layer_data
-                .channel_data
-                .list
-                .iter()
-                .find(|c| c.name.to_string() == name)
-                .map(|c| c.sample_data.values_as_f32().map(|v| v as f64).collect())
+            exr_channel(&img, name).map(|v| v.iter().map(|&x| x as f64).collect())
         };
         let (r, g, b) = (chan("R")?, chan("G")?, chan("B")?);
         let [stderr, volumetric, surface, vicinity] = [
@@ -281,18 +304,8 @@ mod exr_tests {
         let image = [[-0.0032f32, 0.5, 2.0, 1.0], [0.25, -1.0, 0.0, 0.5]];
         let aov = vec![("occlusion.combined".to_string(), vec![0.75f32, 1.0])];
         write_exr(&p, 2, 1, &image, &aov).unwrap();
-        let img = exr::prelude::read_first_flat_layer_from_file(&p).unwrap();
-        let chan = |name: &str| -> Vec<f32> {
-            img.layer_data
-                .channel_data
-                .list
-                .iter()
-                .find(|c| c.name.to_string() == name)
-                .unwrap()
-                .sample_data
-                .values_as_f32()
-                .collect()
-        };
+        let img = read_exr_channels(&p).unwrap();
+        let chan = |name: &str| exr_channel(&img, name).unwrap().to_vec();
         assert_eq!(chan("R"), [0.0, 0.25]);
         assert_eq!(chan("G"), [0.5, 0.0]);
         assert_eq!(chan("B"), [2.0, 0.0]);
