@@ -51,6 +51,20 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `umbra sweep VOL --iso 50 -o DIST --octants-out OCT`.
+fn sweep_to<'a>(vol: &'a Path, dist: &'a Path, oct: &'a Path) -> [&'a str; 8] {
+    [
+        "sweep",
+        s(vol),
+        "--iso",
+        "50",
+        "-o",
+        s(dist),
+        "--octants-out",
+        s(oct),
+    ]
+}
+
 #[test]
 fn tube_settings_out_of_range_are_refused_before_reading() {
     let d = tempfile::tempdir().unwrap();
@@ -99,16 +113,7 @@ fn a_second_output_that_cannot_be_written_leaves_no_first_output() {
     let vol = fixture("spacings_ascii.nrrd");
     let dist = d.path().join("d.nrrd");
     refused(
-        &[
-            "sweep",
-            s(&vol),
-            "--iso",
-            "50",
-            "-o",
-            s(&dist),
-            "--octants-out",
-            s(&blocker.join("oct.nrrd")),
-        ],
+        &sweep_to(&vol, &dist, &blocker.join("oct.nrrd")),
         "cannot write",
     );
     assert!(
@@ -408,19 +413,7 @@ fn two_outputs_naming_one_file_are_refused() {
     std::fs::create_dir(d.path().join("sub")).unwrap();
     let via = d.path().join("sub/../x.nrrd");
     for other in [&x, &via] {
-        refused(
-            &[
-                "sweep",
-                s(&vol),
-                "--iso",
-                "50",
-                "-o",
-                s(&x),
-                "--octants-out",
-                s(other),
-            ],
-            "for a second output",
-        );
+        refused(&sweep_to(&vol, &x, other), "for a second output");
         assert!(!x.exists());
     }
     let trk = fixture("tracts/nibabel/simple.trk");
@@ -451,16 +444,7 @@ fn two_outputs_naming_one_file_are_refused() {
     );
     assert!(!png.exists());
     // Distinct names in one folder still run.
-    succeeds(&[
-        "sweep",
-        s(&vol),
-        "--iso",
-        "50",
-        "-o",
-        s(&x),
-        "--octants-out",
-        s(&d.path().join("o.nrrd")),
-    ]);
+    succeeds(&sweep_to(&vol, &x, &d.path().join("o.nrrd")));
 }
 
 /// A volume scene of `umbra synth` named for another format is refused before it is made
