@@ -90,6 +90,12 @@ struct Params {
     packing: u32,
     // added to a packed integer to give the sample's value
     value_offset: f32,
+    // eye slices per step of the light volume (a power of two) and the steps it holds: the
+    // `light` entry sweeps slabs light_step d deep, eye slice k reads step k / light_step
+    light_step: u32,
+    light_slices: u32,
+    pad0: u32,
+    pad1: u32,
 };
 
 const NO_LAYER: u32 = 0xffffffffu;
@@ -120,7 +126,7 @@ struct Slice {
 // Linear depth of the tubes' nearest front and back faces (0: none).
 @group(0) @binding(6) var front_depth: texture_2d<f32>;
 @group(0) @binding(7) var back_depth: texture_2d<f32>;
-// O_k per cell and slice (index cx + cells.x (cy + cells.y k)).
+// O per cell and step of the light (index cx + cells.x (cy + cells.y j)).
 @group(0) @binding(8) var<storage, read_write> light_volume: array<f32>;
 // Per cell: (nearest front depth of its pixels or 0, farthest back depth, 1 / cos of the
 // cell's ray, unused).
@@ -172,18 +178,26 @@ fn occ_bilinear(t: vec2<f32>) -> f32 {
     return mix(a, c, f.y);
 }
 
-// O of slice k (clamped to the slices) at a continuous pixel position, bilinear over cells.
+// O of eye slice k at a continuous pixel position, bilinear over cells: step k / light_step
+// of the light volume, linear between steps (the last step's beyond it).
 fn light_at(px: vec2<f32>, k: u32) -> f32 {
-    let kk = min(k, P.n_slices - 1u);
     let c = px / f32(P.cell) - vec2<f32>(0.5);
     let b = vec2<i32>(floor(c));
     let f = c - floor(c);
     let hi = vec2<i32>(P.cells) - vec2<i32>(1);
-    let base = P.cells.x * P.cells.y * kk;
     var v: array<f32, 4>;
-    for (var i = 0; i < 4; i = i + 1) {
-        let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
-        v[i] = light_volume[base + u32(q.x) + P.cells.x * u32(q.y)];
+    if (P.light_step == 1u) {
+        let base = P.cells.x * P.cells.y * min(k, P.light_slices - 1u);
+        for (var i = 0; i < 4; i = i + 1) {
+            let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
+            v[i] = light_volume[base + u32(q.x) + P.cells.x * u32(q.y)];
+        }
+    } else {
+        let kf = f32(k) / f32(P.light_step);
+        for (var i = 0; i < 4; i = i + 1) {
+            let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
+            v[i] = light_step_at(u32(q.x) + P.cells.x * u32(q.y), kf);
+        }
     }
     return mix(mix(v[0], v[1], f.x), mix(v[2], v[3], f.x), f.y);
 }
@@ -203,10 +217,10 @@ fn clip_entry(r: Ray) -> f32 {
     return a;
 }
 
-// Cell ci's light at fractional slice kf: O interpolated between slices, 1 in front of slice
-// -1 (O_{-1} = 1), the last slice's beyond it.
-fn light_cell(ci: u32, kf: f32) -> f32 {
-    let n = P.n_slices;
+// Cell ci's light at fractional step kf: O interpolated between steps, 1 in front of step -1
+// (O_{-1} = 1), the last step's beyond it (`LightVolume::cell_at` in raycast/src/light.rs).
+fn light_step_at(ci: u32, kf: f32) -> f32 {
+    let n = P.light_slices;
     let base = P.cells.x * P.cells.y;
     if (kf <= -1.0) {
         return 1.0;
@@ -219,6 +233,11 @@ fn light_cell(ci: u32, kf: f32) -> f32 {
     let a = light_volume[ci + base * min(k0, n - 1u)];
     let b = light_volume[ci + base * min(k0 + 1u, n - 1u)];
     return mix(a, b, t);
+}
+
+// Cell ci's light at fractional eye slice kf.
+fn light_cell(ci: u32, kf: f32) -> f32 {
+    return light_step_at(ci, kf / f32(P.light_step));
 }
 
 // Where a pixel behind a clipping plane reads its four cells: each cell at the same distance
@@ -374,8 +393,13 @@ fn box_slices(r: Ray, front: f32) -> vec2<u32> {
 // (n . p <= offset; along the ray n . p is affine in depth). Empty when y <= x. Clipping the
 // slab rather than dropping samples keeps cut faces free of slice steps.
 fn slab_interval(r: Ray, k: u32, front: f32) -> vec2<f32> {
-    var a = P.z0 + f32(k) * P.dz;
-    var b = a + P.dz;
+    return depth_interval(r, P.z0 + f32(k) * P.dz, P.dz, front);
+}
+
+// The part of the slab [a, a + depth] the ray keeps (see `slab_interval`).
+fn depth_interval(r: Ray, a0: f32, depth: f32, front: f32) -> vec2<f32> {
+    var a = a0;
+    var b = a + depth;
     if (front > 0.0) {
         b = min(b, front);
     }
@@ -500,8 +524,9 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let ci = id.x + cw * id.y;
+    // Step k of the light: a slab light_step eye slices deep.
     let k = S.k;
-    let d = P.dz;
+    let d = P.dz * f32(P.light_step);
     let z_k = P.z0 + (f32(k) + 0.5) * d;
     let s = P.cell;
     let centre = (vec2<f32>(id.xy) + vec2<f32>(0.5)) * f32(s);
@@ -600,7 +625,7 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     // the cell's pixels. Over the whole slab: occlusion does not stop at the surface.
     let seg = d * cs.z;
     var grad = vec3<f32>(0.0);
-    let iv = slab_interval(r, k, 0.0);
+    let iv = depth_interval(r, P.z0 + f32(k) * d, d, 0.0);
     var t = 1.0;
     if (iv.y > iv.x) {
         let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);

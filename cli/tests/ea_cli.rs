@@ -167,7 +167,8 @@ fn the_cpu_renderer_draws_what_the_gpu_draws_and_bench_curves_times_both() {
 fn the_cpu_renderer_lights_the_volume_as_the_gpu_light_pass_does() {
     // The occlusion methods on a volume-only scene: the CPU renderer's light volume against
     // the GPU's `light` pass (lavapipe in CI) - the paper's blur (3x3 stencil), the cone
-    // model, and wide blurs (taps on the disk) on cells of 3 pixels with a clipping plane.
+    // model, and wide blurs (taps on the disk) on cells of 3 pixels with a clipping plane;
+    // light steps of one, two (the default) and four slices, with the plane and without.
     let dir = tempfile::tempdir().unwrap();
     let scene = headsq_scene(
         dir.path(),
@@ -206,6 +207,22 @@ fn the_cpu_renderer_lights_the_volume_as_the_gpu_light_pass_does() {
             vec![
                 "render.method=\"combined\"",
                 "render.occlusion_model=\"cone\"",
+            ],
+        ),
+        // The light a slice deep (the default here takes a step per voxel, two slices), and
+        // steps of four slices with the cone model.
+        (
+            "step1",
+            vec!["render.method=\"combined\"", "render.occlusion_step=1"],
+        ),
+        // Without the plane: the march reads its own four cells, between steps.
+        ("unclipped", vec!["render.method=\"combined\"", "clip=[]"]),
+        (
+            "cone_step4",
+            vec![
+                "render.method=\"combined\"",
+                "render.occlusion_model=\"cone\"",
+                "render.occlusion_step=4",
             ],
         ),
         (

@@ -238,6 +238,9 @@ pub struct Settings {
     pub light: [f64; 4],
     /// Occlusion buffer cell edge in pixels (None: chosen, `occlusion::combined::light_cell`).
     pub occlusion_cell: Option<u32>,
+    /// Eye slices per step of the light volume (None: chosen,
+    /// `occlusion::combined::light_step`).
+    pub occlusion_step: Option<u32>,
     /// The cone-following occlusion model instead of the paper's.
     pub cone: bool,
     /// G-buffer samples per pixel (lowered to what the adapter supports, with a note).
@@ -303,6 +306,7 @@ impl Default for Settings {
             fxaa: true,
             light: [0.3, 0.7, 0.3, 32.0],
             occlusion_cell: None,
+            occlusion_step: None,
             cone: false,
             msaa: 4,
             surface_ao: SurfaceAo::Vicinity,

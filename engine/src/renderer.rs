@@ -629,6 +629,12 @@ impl Frame {
             &SliceSettings {
                 occlusion,
                 cell: s.occlusion_cell,
+                // Tubes, lines and planes in the light keep a step a slice.
+                step: Some(occlusion::combined::light_step(
+                    s.occlusion_step,
+                    view,
+                    !(scene.meshes.is_empty() && scene.lines.is_empty() && scene.planes.is_empty()),
+                )),
                 cone: s.cone,
                 phong: desc.volume == VolumeShading::Phong,
                 projection: match desc.volume {

@@ -10,7 +10,7 @@ use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, GpuError, Slot};
 use crate::method::{require, SettingError};
 use crate::prelude::{clip_planes, mat4, with_prelude, FrameUniform, LightUniform};
-use occlusion::combined::{blur_rows, light_cell, BlurRow};
+use occlusion::combined::{blur_rows, light_cell, light_step, light_view, step_theta, BlurRow};
 use occlusion::emission_absorption::{occupancy_packed, EaView, Transfer, BRICK, MAX_CLIP};
 use volume::Volume;
 
@@ -23,6 +23,10 @@ pub struct SliceSettings {
     pub occlusion: bool,
     /// Cell edge of the occlusion buffer in pixels (None: `occlusion::combined::light_cell`).
     pub cell: Option<u32>,
+    /// Eye slices per step of the light volume, 1, 2, 4 or 8 (None: a voxel deep,
+    /// `occlusion::combined::data_step`; the caller passes 1 where tubes or lines cast light,
+    /// `occlusion::combined::light_step`).
+    pub step: Option<u32>,
     /// The cone-following model instead of the paper's constant per-slice blur.
     pub cone: bool,
     /// Phong shading of the volume with on-the-fly gradients.
@@ -58,6 +62,12 @@ impl SliceSettings {
             self.cell.is_none_or(|c| (1..=16).contains(&c)),
             "cell",
             || "must be 1 to 16 pixels".into(),
+        )?;
+        require(
+            self.step
+                .is_none_or(|m| m.is_power_of_two() && m <= occlusion::combined::MAX_LIGHT_STEP),
+            "step",
+            || "must be 1, 2, 4 or 8 slices".into(),
         )?;
         require(
             self.geometry_extinction >= 0.0 && self.geometry_extinction.is_finite(),
@@ -136,6 +146,11 @@ pub struct SliceParams {
     pub packing: u32,
     /// Added to a packed integer to give the sample's value.
     pub value_offset: f32,
+    /// Eye slices per step of the light volume (a power of two) and the steps it holds.
+    pub light_step: u32,
+    pub light_slices: u32,
+    pub pad0: u32,
+    pub pad1: u32,
 }
 
 /// An overlay blended into the volume rendering (`overlays[].volume_blend`): each volume
@@ -571,15 +586,18 @@ impl SlicePass {
 
         let cell = light_cell(s.cell, v, limit as u64);
         let cells = (v.width.div_ceil(cell), v.height.div_ceil(cell));
-        let light_bytes = cells.0 as u64 * cells.1 as u64 * v.slices as u64 * 4;
+        // The light's own view: steps of `step` eye slices (`occlusion::combined::light_view`).
+        let step = light_step(s.step, v, false);
+        let lv = light_view(v, step);
+        let light_bytes = cells.0 as u64 * cells.1 as u64 * lv.slices as u64 * 4;
         if s.occlusion && light_bytes > limit as u64 {
             return Err(GpuError::Operation(format!(
-                "the light volume ({} x {} cells x {} slices, {} MB) exceeds this adapter's \
+                "the light volume ({} x {} cells x {} steps, {} MB) exceeds this adapter's \
                  storage binding limit ({} MB); raise render.occlusion_cell or lower the \
                  slice count",
                 cells.0,
                 cells.1,
-                v.slices,
+                lv.slices,
                 light_bytes >> 20,
                 limit >> 20
             )));
@@ -623,6 +641,10 @@ impl SlicePass {
             part_len: vol.part_len,
             packing: vol.packing.code(),
             value_offset: vol.value_offset,
+            light_step: step,
+            light_slices: lv.slices,
+            pad0: 0,
+            pad1: 0,
         };
         let (blend_field, blend_lut) = match blend {
             Some(b) => (b.field.clone(), b.lut.clone()),
@@ -679,9 +701,9 @@ impl SlicePass {
         // and recompiles it for every new offset (2.5 ms a dispatch here).
         let align = device.limits().min_storage_buffer_offset_alignment.max(16);
         let stride = (SLICE_BYTES as u32).div_ceil(align) * align;
-        let rows = if s.occlusion { v.slices } else { 1 };
+        let rows = if s.occlusion { lv.slices } else { 1 };
         let mut kb = vec![0u8; (rows * stride) as usize];
-        let blur = blur_rows(v, cell, s.theta_deg);
+        let blur = blur_rows(&lv, cell, step_theta(s.theta_deg, step, s.cone));
         for k in 0..rows {
             let BlurRow { wide, rpx, w } = blur.get(k as usize).copied().unwrap_or(BlurRow {
                 wide: false,
@@ -728,7 +750,7 @@ impl SlicePass {
             stride,
             eye,
             state,
-            slices: v.slices,
+            slices: lv.slices,
             occlusion: s.occlusion,
             size: (v.width, v.height),
             cells,
@@ -793,6 +815,7 @@ mod tests {
         let ok = SliceSettings {
             occlusion: true,
             cell: None,
+            step: None,
             cone: false,
             phong: false,
             projection: None,
@@ -826,6 +849,15 @@ mod tests {
             }),
             "cell"
         );
+        for step in [0, 3, 16] {
+            assert_eq!(
+                field(SliceSettings {
+                    step: Some(step),
+                    ..ok
+                }),
+                "step"
+            );
+        }
         assert_eq!(
             field(SliceSettings {
                 geometry_extinction: f64::INFINITY,
@@ -898,6 +930,10 @@ mod tests {
                 part_len,
                 packing,
                 value_offset,
+                light_step,
+                light_slices,
+                pad0,
+                pad1,
             }
         );
         crate::prelude::assert_layout!(

@@ -7,7 +7,7 @@
 //! |---|---|---|---|
 //! | §3.2.1 G-buffer | - | `gbuffer.rs`, `gbuffer.wgsl` | `engine/tests/occlusion_render.rs` |
 //! | Alg. 2 eye buffer, E/A | `emission_absorption::reference`; `raycast::EaVolume::render_frame` | `slice_pass.wgsl::march` | `engine/tests/ea_render.rs`, `raycast` tests |
-//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_cell`], [`auto_cell`], [`data_cell`], `reference::render`; `raycast::light` (the sweep, volume-only) | `slice_pass.wgsl::light` | unit tests below, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass) |
+//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_cell`], [`auto_cell`], [`data_cell`], [`light_step`], [`data_step`], [`light_view`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only) | `slice_pass.wgsl::light` | unit tests below, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass) |
 //! | Alg. 4, eq. 1-3 partial occlusion | `reference::render` (surface AOV) | `slice_pass.wgsl::march` | `occlusion_render.rs` (exp(-sigma z)) |
 //! | Alg. 5, eq. 4-6 vicinity | [`poisson_disk`], `camera::texture_radius` | `vicinity.wgsl` | `occlusion_render.rs` (groove) |
 //! | Alg. 6, eq. 7-10 compositing | - | `composite.wgsl` | `occlusion_render.rs` (eq. 7, 8) |
@@ -129,6 +129,69 @@ pub fn data_cell(v: &EaView) -> u32 {
         c *= 2;
     }
     c
+}
+
+/// The most eye slices one step of the light volume spans (`render.occlusion_step`).
+pub const MAX_LIGHT_STEP: u32 = 8;
+
+/// Eye slices per step of the light volume: the scene's `render.occlusion_step` (a power of
+/// two up to [`MAX_LIGHT_STEP`]), or [`data_step`] where the light passes through the volume
+/// alone, else 1 (the paper's light, a step per slice: a tube thinner than a coarser step could
+/// fall between its samples).
+pub fn light_step(step: Option<u32>, v: &EaView, geometry: bool) -> u32 {
+    match step {
+        // A power of two (the CPU renderer's lanes divide by a shift).
+        Some(m) => 1 << m.clamp(1, MAX_LIGHT_STEP).ilog2(),
+        None if geometry => 1,
+        None => data_step(v),
+    }
+}
+
+/// The coarsest step of the light volume the data allow: the largest power of two `m` up to
+/// [`MAX_LIGHT_STEP`] with `m d` at most the smallest voxel spacing (`v.voxel`), 1 where that is unknown. The
+/// light is a blur of the data's opacity, which varies within a voxel only by interpolation,
+/// so a light step finer than a voxel in depth adds cost and hardly any light, as cells finer
+/// than a voxel's image do across ([`data_cell`]): at the default slice distance (half the
+/// smallest spacing) the light takes a step per voxel, half the slices' work, and `combined`
+/// moved by 0.2-0.5 levels of 255 in mean over the volume's pixels on the MNI T1 and headsq
+/// at 128-512^2 (docs/benchmarks.md).
+pub fn data_step(v: &EaView) -> u32 {
+    if !(v.voxel > 0.0 && v.dz > 0.0) {
+        return 1;
+    }
+    let mut m = 1u32;
+    while m < MAX_LIGHT_STEP && (2 * m) as f64 * v.dz <= v.voxel * (1.0 + 1e-9) {
+        m *= 2;
+    }
+    m
+}
+
+/// The view the light volume is swept in for a step of `step` slices: the same front, slabs
+/// `step d` deep, as many as cover the eye's slices. The light of eye slice `k` is this view's
+/// at fractional slice `k / step` (linear between its slices): slice `j step` of the eye has
+/// exactly the light of step `j` (both have passed through the same depth), the slices between
+/// lie between the two steps.
+pub fn light_view(v: &EaView, step: u32) -> EaView {
+    let m = step.max(1);
+    EaView {
+        dz: v.dz * m as f64,
+        slices: v.slices.div_ceil(m),
+        ..v.clone()
+    }
+}
+
+/// The cone half-angle a step of `step` slices blurs with, so that the paper's model spreads a
+/// shadow as far as it does a slice at a time: its blur is a random walk (variance
+/// `(d tan(theta))^2 / 4` a step), so `step` slices add up to one step of `d step` with
+/// `tan(theta) / sqrt(step)`. The cone-following model (`cone`) depends on the distance alone
+/// and keeps theta.
+pub fn step_theta(theta_deg: f64, step: u32, cone: bool) -> f64 {
+    if cone || step <= 1 {
+        return theta_deg;
+    }
+    (theta_deg.to_radians().tan() / (step as f64).sqrt())
+        .atan()
+        .to_degrees()
 }
 
 /// One slice's blur (the paper's model; the cone model scales `rpx` per cell): the radius in
@@ -303,6 +366,56 @@ mod tests {
         assert_eq!(light_cell(Some(1), &v, 1 << 30), 1);
         assert_eq!(light_cell(None, &v, 1 << 30), 4);
         assert_eq!(light_cell(None, &v, 100 * 100 * 100 * 4 / 4), 8);
+    }
+
+    #[test]
+    fn the_light_steps_a_voxel_deep_where_the_volume_alone_casts_it() {
+        use crate::camera::Camera;
+        use glam::DVec3;
+        let view = |voxel: f64, dz: f64, slices: u32| EaView {
+            camera: Camera::orbit([DVec3::ZERO, DVec3::ONE], 0.0, 0.0, 2.0, None),
+            width: 64,
+            height: 64,
+            z0: 3.0,
+            dz,
+            slices,
+            background: [0.0; 3],
+            clip: vec![],
+            voxel,
+        };
+        // Half a voxel apart (the default slice distance): a step per voxel.
+        assert_eq!(data_step(&view(1.0, 0.5, 101)), 2);
+        // Finer slices step a voxel (at most 8 slices); coarser ones a slice.
+        assert_eq!(data_step(&view(1.0, 0.25, 101)), 4);
+        assert_eq!(data_step(&view(1.0, 0.3, 101)), 2);
+        assert_eq!(data_step(&view(1.0, 0.01, 101)), 8);
+        assert_eq!(data_step(&view(1.0, 0.6, 101)), 1);
+        assert_eq!(data_step(&view(1.0, 1.0, 101)), 1);
+        for bad in [0.0, f64::NAN, -1.0] {
+            assert_eq!(data_step(&view(bad, 0.5, 101)), 1);
+        }
+        // The scene's step wins; tubes keep the paper's step.
+        let v = view(1.0, 0.5, 101);
+        assert_eq!(light_step(None, &v, false), 2);
+        assert_eq!(light_step(None, &v, true), 1);
+        assert_eq!(light_step(Some(4), &v, true), 4);
+        assert_eq!(light_step(Some(0), &v, false), 1);
+        assert_eq!(light_step(Some(3), &v, false), 2);
+        assert_eq!(light_step(Some(100), &v, false), 8);
+        // The light's view: the same front, slabs a step deep covering every eye slice.
+        let l = light_view(&v, 2);
+        assert_eq!((l.z0, l.dz, l.slices), (3.0, 1.0, 51));
+        assert!(l.z0 + l.dz * l.slices as f64 >= v.z0 + v.dz * v.slices as f64);
+        assert_eq!(light_view(&v, 1).slices, 101);
+        // The paper's blur: `step` slices of variance (d tan)^2 / 4 each make one step of
+        // (step d tan')^2 / 4; the cone model keeps its angle.
+        for m in [2u32, 4] {
+            let t = step_theta(25.0, m, false).to_radians().tan();
+            let t0 = 25f64.to_radians().tan();
+            assert!(((m as f64 * t).powi(2) - m as f64 * t0 * t0).abs() < 1e-12);
+            assert_eq!(step_theta(25.0, m, true), 25.0);
+        }
+        assert_eq!(step_theta(25.0, 1, false), 25.0);
     }
 
     #[test]

@@ -436,6 +436,14 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
         let slab = pi((lv.cells[0] * lv.cells[1] * KB) as i32);
         const { assert!(KB.is_power_of_two()) };
         let kb_shift = _mm_cvtsi32_si128(KB.trailing_zeros() as i32);
+        // Light steps of `lv.step` slices (a power of two).
+        debug_assert!(lv.step.is_power_of_two());
+        let stepped = LIT && lv.step > 1;
+        let step_shift = _mm_cvtsi32_si128(lv.step.trailing_zeros() as i32);
+        let step_mask = pi(lv.step as i32 - 1);
+        let inv_step = ps(1.0 / lv.step as f32);
+        let last = pi(lv.slices as i32 - 1);
+        let kb_mask = pi(KB as i32 - 1);
         let (mut kv, mut k1v) = (r.k, r.k1);
         let zero = _mm256_setzero_ps();
         let (one, onei) = (ps(1.0), pi(1));
@@ -480,26 +488,52 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
             let al = _mm256_sub_ps(one, e);
             let wgt = _mm256_mul_ps(_mm256_sub_ps(one, alpha), al);
             // The light at the sample (`LightVolume::lookup`: bilinear over the ray's four
-            // cells in slice k), 1 unlit.
+            // cells at step k / step, linear between steps), 1 unlit.
             let o = if LIT {
-                let at = _mm256_add_epi32(
-                    _mm256_mullo_epi32(_mm256_srl_epi32(kv, kb_shift), slab),
-                    _mm256_and_si256(kv, pi(KB as i32 - 1)),
-                );
                 let lit_ps = lit;
+                // The block and slot of step `ks` in the light volume's layout.
+                macro_rules! at {
+                    ($ks:expr) => {{
+                        let ks = $ks;
+                        _mm256_add_epi32(
+                            _mm256_mullo_epi32(_mm256_srl_epi32(ks, kb_shift), slab),
+                            _mm256_and_si256(ks, kb_mask),
+                        )
+                    }};
+                }
                 macro_rules! cell {
-                    ($j:expr) => {
+                    ($at:expr, $j:expr) => {
                         _mm256_mask_i32gather_ps::<4>(
                             zero,
                             light,
-                            _mm256_add_epi32(at, cells[$j]),
+                            _mm256_add_epi32($at, cells[$j]),
                             lit_ps,
                         )
                     };
                 }
-                let x0 = lerp!(cell!(0), cell!(1), frac[0]);
-                let x1 = lerp!(cell!(2), cell!(3), frac[0]);
-                lerp!(x0, x1, frac[1])
+                if stepped {
+                    // Steps k0 = k / step and the next (both clamped to the last), and the
+                    // fraction between them, as `LightVolume::cell_at` takes them.
+                    let k0 = _mm256_srl_epi32(kv, step_shift);
+                    let t = _mm256_mul_ps(
+                        _mm256_cvtepi32_ps(_mm256_and_si256(kv, step_mask)),
+                        inv_step,
+                    );
+                    let a0 = at!(_mm256_min_epi32(k0, last));
+                    let a1 = at!(_mm256_min_epi32(_mm256_add_epi32(k0, onei), last));
+                    let v0 = lerp!(cell!(a0, 0), cell!(a1, 0), t);
+                    let v1 = lerp!(cell!(a0, 1), cell!(a1, 1), t);
+                    let v2 = lerp!(cell!(a0, 2), cell!(a1, 2), t);
+                    let v3 = lerp!(cell!(a0, 3), cell!(a1, 3), t);
+                    let x0 = lerp!(v0, v1, frac[0]);
+                    let x1 = lerp!(v2, v3, frac[0]);
+                    lerp!(x0, x1, frac[1])
+                } else {
+                    let a = at!(kv);
+                    let x0 = lerp!(cell!(a, 0), cell!(a, 1), frac[0]);
+                    let x1 = lerp!(cell!(a, 2), cell!(a, 3), frac[0]);
+                    lerp!(x0, x1, frac[1])
+                }
             } else {
                 one
             };

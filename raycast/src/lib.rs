@@ -1179,6 +1179,62 @@ mod tests {
         lanes
     }
 
+    #[test]
+    fn a_light_a_voxel_deep_shades_as_the_light_a_slice_deep() {
+        // Steps of two and four slices (slices a quarter voxel apart: a step of four is a
+        // voxel) against the light of every slice, both models: the volumetric occlusion
+        // moves by little in mean and the image by less than a level, but it does move (the
+        // sweep took the steps).
+        let vol = blob([40, 44, 30]);
+        let data = vol.select(None).unwrap().data;
+        let b = vol.bounds();
+        let ev = EaVolume::new(&vol, &data, &tf()).unwrap();
+        let cam = Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0));
+        let view = EaView::new(&vol, cam, 64, 48, None, Some(0.25), [1.0; 3]).unwrap();
+        for cone in [false, true] {
+            let light = |step| LightSettings {
+                cell: 2,
+                step,
+                cone,
+                theta_deg: 25.0,
+                blur_samples: 3,
+            };
+            let fine = ev.render_frame(&view, Some(&light(1)));
+            let shadowed = fine.volumetric.iter().filter(|&&o| o < 0.9).count();
+            assert!(shadowed > 100, "{shadowed} shadowed pixels");
+            for step in [2, 4] {
+                let coarse = ev.render_frame(&view, Some(&light(step)));
+                let n = fine.volumetric.len() as f64;
+                let dv: f64 = fine
+                    .volumetric
+                    .iter()
+                    .zip(&coarse.volumetric)
+                    .map(|(a, b)| (a - b).abs() as f64)
+                    .sum::<f64>()
+                    / n;
+                let di: f64 = fine
+                    .image
+                    .iter()
+                    .zip(&coarse.image)
+                    .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f32::max) as f64)
+                    .sum::<f64>()
+                    / n;
+                assert!(
+                    dv > 1e-5,
+                    "cone {cone} step {step}: the light did not change"
+                );
+                assert!(
+                    dv < 0.01,
+                    "cone {cone} step {step}: occlusion moved by {dv} in mean"
+                );
+                assert!(
+                    di < 1.0 / 255.0,
+                    "cone {cone} step {step}: image moved by {di}"
+                );
+            }
+        }
+    }
+
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn eight_lanes_march_as_the_scalar_march_bit_for_bit_lit_or_not() {
@@ -1224,11 +1280,14 @@ mod tests {
                 // Unlit (`ea`) and with the occlusion buffer (`combined`'s eye march).
                 let light = LightSettings {
                     cell: 2,
+                    step: 1,
                     cone: false,
                     theta_deg: 25.0,
                     blur_samples: 3,
                 };
-                for light in [None, Some(&light)] {
+                // Light steps of two slices: the march reads between steps.
+                let stepped = LightSettings { step: 2, ..light };
+                for light in [None, Some(&light), Some(&stepped)] {
                     let lanes = lanes_equal_scalar(&mut ev, &view, light);
                     marched += lanes.image.iter().filter(|p| p[3] > 0.0).count();
                     halves += lanes.half_depth.iter().filter(|&&z| z != 0.0).count();
@@ -1255,6 +1314,7 @@ mod tests {
         let b = vol.bounds();
         let light = LightSettings {
             cell: 3,
+            step: 1,
             cone: false,
             theta_deg: 25.0,
             blur_samples: 3,
@@ -1380,6 +1440,7 @@ mod tests {
         for (cone, theta_deg) in [(true, 30.0), (false, 30.0), (false, 80.0)] {
             let light = LightSettings {
                 cell: 2,
+                step: 1,
                 cone,
                 theta_deg,
                 blur_samples: 3,
@@ -1464,6 +1525,7 @@ mod tests {
         let view = EaView::new(&vol, cam, 32, 24, None, None, [1.0; 3]).unwrap();
         let light = LightSettings {
             cell: 2,
+            step: 1,
             cone: false,
             theta_deg: 25.0,
             blur_samples: 3,

@@ -17,16 +17,18 @@
 //! cell every [`KB`] slices.
 
 use crate::{EaVolume, Ray, Voxel};
-use occlusion::combined::{blur_rows, blur_taps, BlurRow};
+use occlusion::combined::{blur_rows, blur_taps, light_view, step_theta, BlurRow};
 use occlusion::emission_absorption::EaView;
 use rayon::prelude::*;
 
 /// How the light volume is computed: `render.occlusion_cell` (as chosen by
-/// `occlusion::combined::light_cell`), `render.occlusion_model = "cone"`, `render.theta`
-/// (degrees) and `render.blur_samples`.
+/// `occlusion::combined::light_cell`), `render.occlusion_step` (eye slices per step of the
+/// light, a power of two: `occlusion::combined::light_step`), `render.occlusion_model =
+/// "cone"`, `render.theta` (degrees) and `render.blur_samples`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightSettings {
     pub cell: u32,
+    pub step: u32,
     pub cone: bool,
     pub theta_deg: f64,
     pub blur_samples: u32,
@@ -35,11 +37,14 @@ pub struct LightSettings {
 /// Slices per block of a cell's light (16 f32: one cache line).
 pub(crate) const KB: usize = 16;
 
-/// `O_k` per cell and slice (see the module's layout).
+/// `O_k` per cell and slice (see the module's layout): `slices` steps of the light, each
+/// `step` eye slices deep (a power of two); eye slice `k` reads step `k / step`, linearly
+/// between steps.
 pub(crate) struct LightVolume {
     pub cells: [usize; 2],
     pub cell: usize,
     pub slices: usize,
+    pub step: usize,
     o: Vec<f32>,
 }
 
@@ -50,6 +55,7 @@ impl LightVolume {
             cells: [1, 1],
             cell: 1,
             slices: 1,
+            step: 1,
             o: vec![1.0; KB],
         }
     }
@@ -60,14 +66,21 @@ impl LightVolume {
         &self.o
     }
 
-    /// `O` of slice `k` (below `slices`) at a pixel: bilinear over the four cells of `f`
-    /// (offsets and fractions from [`LightVolume::footprint`]).
+    /// `O` of eye slice `k` at a pixel: bilinear over the four cells of `f` (offsets and
+    /// fractions from [`LightVolume::footprint`]), at step `k / step` (linear between steps;
+    /// the last step's beyond it).
     #[inline(always)]
     pub(crate) fn lookup(&self, f: &Footprint, k: usize) -> f32 {
-        debug_assert!(k < self.slices);
         if f.shifted {
             return self.lookup_shifted(f, k);
         }
+        if self.step > 1 {
+            let kf = k as f32 / self.step as f32;
+            let v = [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], kf));
+            let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+            return lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1]);
+        }
+        debug_assert!(k < self.slices);
         let n = self.cells[0] * self.cells[1];
         let block = &self.o[(k / KB) * n * KB..];
         let j = k % KB;
@@ -76,8 +89,8 @@ impl LightVolume {
         lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
     }
 
-    /// Cell `c`'s (an offset `cell KB`) light at fractional slice `kf`, as `light_cell` in the
-    /// shader: interpolated between slices, `O_{-1} = 1` before slice 0, the last beyond it.
+    /// Cell `c`'s (an offset `cell KB`) light at fractional step `kf`, as `light_coarse` in the
+    /// shader: interpolated between steps, `O_{-1} = 1` before step 0, the last beyond it.
     fn cell_at(&self, c: u32, kf: f32) -> f32 {
         if kf <= -1.0 {
             return 1.0;
@@ -99,8 +112,8 @@ impl LightVolume {
     /// [`LightVolume::lookup`] behind a clipping plane: each cell read at the pixel's slice plus
     /// its shift (`light_shifted` in the shader; see [`LightVolume::clip_shifts`]).
     fn lookup_shifted(&self, f: &Footprint, k: usize) -> f32 {
-        let kf = k as f32;
-        let v = [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], kf + f.shift[i]));
+        let (kf, m) = (k as f32, self.step as f32);
+        let v = [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], (kf + f.shift[i]) / m));
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
     }
@@ -187,6 +200,17 @@ impl EaVolume {
         s: &LightSettings,
         inv: glam::DMat4,
     ) -> LightVolume {
+        // A step of `s.step` eye slices (`occlusion::combined::light_step`): the sweep runs in
+        // the light's own view, the eye reads it at fractional slices (`LightVolume::lookup`).
+        let step = s.step.clamp(1, occlusion::combined::MAX_LIGHT_STEP) as usize;
+        let coarse;
+        let v = if step > 1 {
+            coarse = light_view(v, step as u32);
+            &coarse
+        } else {
+            v
+        };
+        let theta_deg = step_theta(s.theta_deg, step as u32, s.cone);
         let cell = s.cell.max(1) as usize;
         let (w, h) = (v.width as usize, v.height as usize);
         let cells = [w.div_ceil(cell), h.div_ceil(cell)];
@@ -206,6 +230,7 @@ impl EaVolume {
             cells,
             cell,
             slices,
+            step,
             o,
         };
         // The cells' centre rays, as the pixels' (a continuous pixel position).
@@ -220,7 +245,7 @@ impl EaVolume {
                 self.start(v, o, d)
             })
             .collect();
-        let blur = blur_rows(v, cell as u32, s.theta_deg);
+        let blur = blur_rows(v, cell as u32, theta_deg);
         debug_assert_eq!(blur.len(), v.slices as usize, "one blur row per slice");
         let taps = blur_taps(s.blur_samples.clamp(1, 9));
         // The cone model's tap sets, n = blur_samples..=9.

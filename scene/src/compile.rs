@@ -902,6 +902,7 @@ pub fn settings(s: &Scene) -> Settings {
         fxaa: fxaa_on(r),
         light: [l.ambient, l.diffuse, l.specular, l.shininess],
         occlusion_cell: r.occlusion_cell,
+        occlusion_step: r.occlusion_step,
         cone: r.occlusion_model == spec::OcclusionModel::Cone,
         msaa: if r.bits == 1 { 1 } else { r.msaa },
         surface_ao: r.surface_ao,
@@ -1159,19 +1160,22 @@ fn cpu_light(s: &Scene, v: &EaView, limit: u64) -> Result<Option<raycast::LightS
     }
     let r = &s.render;
     let cell = occlusion::combined::light_cell(r.occlusion_cell, v, limit);
+    let step = occlusion::combined::light_step(r.occlusion_step, v, false);
+    let steps = v.slices.div_ceil(step);
     let cells = v.width.div_ceil(cell) as u64 * v.height.div_ceil(cell) as u64;
-    let bytes = cells * v.slices as u64 * 4;
+    let bytes = cells * steps as u64 * 4;
     if bytes > limit {
         return Err(format!(
-            "scene key render.occlusion_cell: the light volume ({cells} cells x {} slices, {} \
+            "scene key render.occlusion_cell: the light volume ({cells} cells x {} steps, {} \
              MB) exceeds {} MB; raise render.occlusion_cell or lower the slice count",
-            v.slices,
+            steps,
             bytes >> 20,
             limit >> 20
         ));
     }
     Ok(Some(raycast::LightSettings {
         cell,
+        step,
         cone: r.occlusion_model == spec::OcclusionModel::Cone,
         theta_deg: r.theta,
         blur_samples: r.blur_samples,

@@ -837,6 +837,9 @@ pub struct RenderSpec {
     /// Edge of the occlusion buffer's cells in pixels, 1 to 16 (default: 2, or larger when
     /// the light volume would not fit the adapter).
     pub occlusion_cell: Option<u32>,
+    /// Eye slices per step of the light volume: 1, 2, 4 or 8 (default: as many as fit in the
+    /// smallest voxel spacing where the volume alone casts the light, else 1).
+    pub occlusion_step: Option<u32>,
     /// `paper` (constant blur per slice) or `cone` (follows the cone; slice-count independent).
     pub occlusion_model: OcclusionModel,
     /// MSAA samples (lowered to what the adapter supports, with a warning).
@@ -900,6 +903,7 @@ impl Default for RenderSpec {
             geometry_shadow: GeometryShadow::Inside,
             combine: Combine::Min,
             occlusion_cell: None,
+            occlusion_step: None,
             occlusion_model: OcclusionModel::Paper,
             msaa: 4,
             fxaa: true,
@@ -944,6 +948,7 @@ pub struct Approximation {
     pub vicinity_bias: Option<f64>,
     pub combine: Combine,
     pub occlusion_cell: Option<u32>,
+    pub occlusion_step: Option<u32>,
     pub occlusion_model: OcclusionModel,
     pub msaa: u32,
     pub fxaa: bool,
@@ -975,6 +980,7 @@ impl RenderSpec {
             geometry_shadow,
             combine,
             occlusion_cell,
+            occlusion_step,
             occlusion_model,
             msaa,
             fxaa,
@@ -1009,6 +1015,7 @@ impl RenderSpec {
                 vicinity_bias,
                 combine,
                 occlusion_cell,
+                occlusion_step,
                 occlusion_model,
                 msaa,
                 fxaa,
@@ -2082,6 +2089,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
     let slices = engine::slice_pass::SliceSettings {
         occlusion: true,
         cell: r.occlusion_cell,
+        step: r.occlusion_step,
         cone: r.occlusion_model == OcclusionModel::Cone,
         phong: false,
         projection: None,
@@ -2097,6 +2105,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             "theta_deg" => "render.theta",
             "blur_samples" => "render.blur_samples",
             "cell" => "render.occlusion_cell",
+            "step" => "render.occlusion_step",
             _ => "render.geometry_extinction",
         };
         return bad(key, e.problem);
@@ -2265,6 +2274,7 @@ mod tests {
             "render.vicinity_bias=0.3",
             "render.combine=product",
             "render.occlusion_cell=4",
+            "render.occlusion_step=1",
             "render.occlusion_model=cone",
             "render.msaa=1",
             "render.fxaa=false",
