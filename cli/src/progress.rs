@@ -166,10 +166,14 @@ impl Frames {
         let name = name.map(|n| format!(" {n}")).unwrap_or_default();
         match self.bar(None) {
             Some(bar) => {
-                bar.println(format!(
-                    "frame {index}{name}: {} is complete, skipped",
-                    path.display()
-                ));
+                // Printed with the bar cleared and drawn again below it (`println` on a bar
+                // that has not drawn yet left the line unended, and the bar erased it).
+                bar.suspend(|| {
+                    eprintln!(
+                        "frame {index}{name}: {} is complete, skipped",
+                        path.display()
+                    )
+                });
                 bar.inc(1);
             }
             None => eprintln!(
@@ -185,7 +189,7 @@ impl Frames {
         let line = format!("frame {index}{name}: {} FAILED: {error}", path.display());
         match self.bar(None) {
             Some(bar) => {
-                bar.println(line);
+                bar.suspend(|| eprintln!("{line}"));
                 bar.inc(1);
             }
             None => eprintln!("{line}"),

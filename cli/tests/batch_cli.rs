@@ -584,6 +584,46 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
     }
     let o = run(&["--orbit", "3", "-o", "o/f_#.png", "--shard", "--json"]);
     assert!(err(&o).contains("is an option, not a shard"), "{}", err(&o));
+    // A record or timings file the output pattern also makes is refused before any frame (a
+    // frame would overwrite it, or it a frame).
+    for args in [
+        &["--orbit", "3", "-o", "sq/f_#.png", "--record", "sq/f_1.png"][..],
+        &[
+            "--orbit",
+            "3",
+            "-o",
+            "sq/f_##.png",
+            "--timings-json",
+            "./sq/f_002.png",
+        ],
+    ] {
+        let o = run(args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", err(&o));
+        assert!(err(&o).contains("output pattern"), "{}", err(&o));
+        assert!(!d.join("sq/f_0.png").exists() && !d.join("sq/f_00.png").exists());
+    }
+    std::fs::write(d.join("m.txt"), "a\nb\n").unwrap();
+    let o = run(&[
+        "--manifest",
+        "m.txt",
+        "-o",
+        "mm/{name}.png",
+        "--record",
+        "mm/b.png",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", err(&o));
+    assert!(err(&o).contains("output pattern"), "{}", err(&o));
+    assert!(!d.join("mm/a.png").exists());
+    // Names the pattern cannot make are fine.
+    let o = run(&[
+        "--orbit",
+        "2",
+        "-o",
+        "sq/f_##.png",
+        "--record",
+        "sq/f_1.json",
+    ]);
+    ok(&o);
     // Bad Slurm variables: the record's new folder is made first.
     let o = umbra()
         .arg("render")

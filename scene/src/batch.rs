@@ -285,6 +285,50 @@ pub fn named_output(pattern: &Path, name: &str) -> Result<PathBuf, String> {
     Ok(PathBuf::from(text.replace("{name}", name)))
 }
 
+/// Whether `path` is an output [`named_output`] can make from `pattern` for some name (each
+/// `{name}` a non-empty name without `/`; the paths compared as absolute paths): a second
+/// output with such a name would be overwritten by an entry's, or overwrite it.
+pub fn named_output_matches(pattern: &Path, path: &Path) -> bool {
+    let abs = |p: &Path| {
+        std::path::absolute(p)
+            .unwrap_or_else(|_| p.to_path_buf())
+            .to_string_lossy()
+            .into_owned()
+    };
+    // Anchored in the pattern's own folder text, so `{name}` parts are not absolutised away.
+    let (pat, text) = (abs(pattern), abs(path));
+    let parts: Vec<&str> = pat.split("{name}").collect();
+    if parts.len() < 2 {
+        return pat == text;
+    }
+    // Greedy-free matching of literal parts with one name between each pair.
+    fn rest_matches(parts: &[&str], text: &str, name: Option<&str>) -> bool {
+        match parts.split_first() {
+            None => text.is_empty(),
+            Some((lit, more)) => {
+                let Some(after) = text.strip_prefix(lit) else {
+                    return false;
+                };
+                if more.is_empty() {
+                    return after.is_empty();
+                }
+                // Every `{name}` stands for the same name.
+                match name {
+                    Some(n) => after
+                        .strip_prefix(n)
+                        .is_some_and(|r| rest_matches(more, r, Some(n))),
+                    None => (1..=after.len())
+                        .filter(|&i| after.is_char_boundary(i))
+                        .map(|i| (&after[..i], &after[i..]))
+                        .take_while(|(n, _)| !n.contains('/'))
+                        .any(|(n, r)| rest_matches(more, r, Some(n))),
+                }
+            }
+        }
+    }
+    rest_matches(&parts, &text, None)
+}
+
 /// What [`run_manifest`] did: one outcome per entry of its shard.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ManifestReport {
@@ -582,6 +626,16 @@ mod tests {
         assert!(named_output(Path::new("out/x.png"), "a")
             .unwrap_err()
             .contains("{name}"));
+        // Which other outputs an entry could overwrite.
+        let p = Path::new("out/{name}/{name}_t1.png");
+        let m = |a: &str| named_output_matches(p, Path::new(a));
+        assert!(m("out/sub-01/sub-01_t1.png") && m("out/a/a_t1.png"));
+        assert!(!m("out/a/b_t1.png") && !m("out/a/b/a/b_t1.png") && !m("out/_t1.png"));
+        assert!(!m("out/a/a_t1.json") && !m("other/a/a_t1.png"));
+        let flat = Path::new("mm/{name}.png");
+        assert!(named_output_matches(flat, Path::new("mm/a.png")));
+        assert!(named_output_matches(flat, Path::new("./mm/record.png")));
+        assert!(!named_output_matches(flat, Path::new("mm/record.json")));
     }
 
     #[test]

@@ -334,6 +334,39 @@ pub fn frame_path(pattern: &Path, k: usize) -> Result<std::path::PathBuf, String
     Ok(pattern.with_file_name(file))
 }
 
+/// Whether `path` is a file [`frame_path`] can make from `pattern` for some frame (the same
+/// folder, as the file system resolves it; the number zero-padded to the run or longer): a
+/// second output with such a name would be overwritten by a frame, or overwrite it.
+pub fn frame_path_matches(pattern: &Path, path: &Path) -> bool {
+    let (Some(name), Some(file)) = (
+        pattern.file_name().and_then(|n| n.to_str()),
+        path.file_name().and_then(|n| n.to_str()),
+    ) else {
+        return false;
+    };
+    let Some(end) = name.rfind('#').map(|e| e + 1) else {
+        return false;
+    };
+    let start = name[..end].trim_end_matches('#').len();
+    let (prefix, suffix, digits) = (&name[..start], &name[end..], end - start);
+    let number = file
+        .strip_prefix(prefix)
+        .and_then(|r| r.strip_suffix(suffix))
+        .filter(|n| n.len() >= digits && n.bytes().all(|b| b.is_ascii_digit()));
+    number.is_some() && same_folder(pattern, path)
+}
+
+/// Whether two paths' folders are one folder (resolved by the file system where they exist).
+pub fn same_folder(a: &Path, b: &Path) -> bool {
+    let dir = |p: &Path| {
+        let d = volume::folder_of(p);
+        d.canonicalize()
+            .or_else(|_| std::path::absolute(d))
+            .unwrap_or_else(|_| d.to_path_buf())
+    };
+    dir(a) == dir(b)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -353,6 +386,14 @@ mod tests {
         assert!(frame_path(Path::new("out/frame.png"), 0)
             .unwrap_err()
             .contains("run of #"));
+        // What the pattern can make, and what it cannot.
+        let m = |a: &str| frame_path_matches(p, Path::new(a));
+        assert!(m("out/frame_0007.png") && m("out/frame_12345.png") && m("./out/frame_0000.png"));
+        assert!(!m("out/frame_007.png") && !m("out/frame_000x.png") && !m("frame_0007.png"));
+        assert!(!m("out/frame_0007.exr") && !m("out/record.json"));
+        let q = Path::new("a#b_##.exr");
+        assert!(frame_path_matches(q, Path::new("a#b_03.exr")));
+        assert!(!frame_path_matches(q, Path::new("a3b_03.exr")));
     }
 
     #[test]

@@ -616,7 +616,7 @@ pub fn write_atomic_with(
 }
 
 /// The folder a file path lies in: its parent, or `.` for a bare name.
-fn folder_of(path: &Path) -> &Path {
+pub fn folder_of(path: &Path) -> &Path {
     path.parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."))

@@ -249,6 +249,25 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
         a.record.as_deref(),
         a.timings_json.as_deref(),
     ])?;
+    // A sequence's or a manifest's output is a pattern: the record and the timings must not be
+    // a file it makes (a frame would overwrite them, or they the frame).
+    let sequence_out = a.orbit.is_some() || a.camera_path.is_some() || a.trail_range.is_some();
+    for (p, what) in [(&a.record, "--record"), (&a.timings_json, "--timings-json")] {
+        let Some(p) = p.as_deref() else { continue };
+        let clash = if a.manifest.is_some() {
+            scene::batch::named_output_matches(&a.output, p)
+        } else {
+            sequence_out && scene::camera_path::frame_path_matches(&a.output, p)
+        };
+        if clash {
+            return Err(format!(
+                "{what} {}: a file the output pattern {} also makes; the {what} and an image \
+                 would overwrite each other; give it a name the pattern cannot make",
+                p.display(),
+                a.output.display()
+            ));
+        }
+    }
     let cameras = match (a.orbit, &a.camera_path) {
         (Some(n), _) => Cameras::Orbit(n),
         (None, Some(p)) => Cameras::Path(p.clone()),
