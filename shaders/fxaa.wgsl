@@ -61,10 +61,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let a = 0.5 * (fetch(centre + dir * (1.0 / 3.0 - 0.5)) + fetch(centre + dir * (2.0 / 3.0 - 0.5)));
     let b = a * 0.5 + 0.25 * (fetch(centre - dir * 0.5) + fetch(centre + dir * 0.5));
     let l_b = luma(b);
-    // Colour only: alpha (coverage) stays the pixel's own.
+    // Colour and alpha (coverage) blended alike: an image composited over black stays
+    // premultiplied (engine/src/fxaa.rs).
     if (l_b < l_min || l_b > l_max) {
-        dst[idx] = vec4<f32>(a.rgb, m.a);
+        dst[idx] = a;
     } else {
-        dst[idx] = vec4<f32>(b.rgb, m.a);
+        dst[idx] = b;
     }
 }

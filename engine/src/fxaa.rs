@@ -143,9 +143,9 @@ pub fn fxaa_cpu(src: &[[f32; 4]], width: u32, height: u32) -> Vec<[f32; 4]> {
             let (p, q) = (fetch(along(-0.5)), fetch(along(0.5)));
             let b: [f32; 4] = std::array::from_fn(|i| a[i] * 0.5 + 0.25 * (p[i] + q[i]));
             let l_b = luma(b);
-            // Colour only: alpha (coverage) stays the pixel's own.
-            let c = if l_b < l_min || l_b > l_max { a } else { b };
-            *out = [c[0], c[1], c[2], m[3]];
+            // Colour and alpha (coverage) blended alike: an image composited over black stays
+            // premultiplied (colour spread into the background brings its coverage along).
+            *out = if l_b < l_min || l_b > l_max { a } else { b };
         }
     });
     dst
@@ -207,8 +207,8 @@ mod tests {
         assert!(worst < 1e-4, "CPU twin against the pass: {worst}");
     }
 
-    /// Flat and low-contrast images pass unchanged; a hard edge is blended, within the range
-    /// of its two sides, and alpha is never touched.
+    /// Flat and low-contrast images pass unchanged; a hard edge is blended, colour and alpha
+    /// within the range of its two sides.
     #[test]
     fn fxaa_blends_edges_only() {
         let flat = vec![[0.3, 0.4, 0.5, 0.7]; 12 * 9];
@@ -233,14 +233,13 @@ mod tests {
         let ramp = |i: usize| !noisy(i) && img[i][1] == 0.1;
         let (mut flat, mut blended) = (0, 0);
         for (i, (a, b)) in out.iter().zip(&img).enumerate() {
-            assert_eq!(a[3], b[3], "alpha at {i}");
             if near(i).all(ramp) {
                 // The ramp's contrast is below the threshold: unchanged.
                 assert_eq!(a, b, "ramp pixel {i}");
                 flat += 1;
             } else if !near(i).any(noisy) {
                 // The edge between ramp and bright: blended within the range of its sides.
-                for c in 0..3 {
+                for c in 0..4 {
                     let lo = near(i).map(|j| img[j][c]).fold(f32::INFINITY, f32::min);
                     let hi = near(i).map(|j| img[j][c]).fold(f32::NEG_INFINITY, f32::max);
                     assert!(a[c] >= lo - 1e-6 && a[c] <= hi + 1e-6, "{i}: {a:?}");
@@ -250,6 +249,37 @@ mod tests {
         }
         assert!(flat > 100 && blended > 50, "{flat} flat, {blended} blended");
         assert!(fxaa_cpu(&[], 0, 0).is_empty());
+    }
+
+    /// An image composited over black (colour = straight colour x alpha) stays so: FXAA
+    /// spreading colour into the background spreads its coverage with it (an EXR's RGB stays
+    /// premultiplied; the colour alone had left coloured pixels of alpha 0).
+    #[test]
+    fn an_image_over_black_stays_premultiplied() {
+        let (w, h) = (40usize, 30usize);
+        let k = [0.9f32, 0.5, 0.2];
+        let img: Vec<[f32; 4]> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                // A disc, a line and a hard diagonal.
+                let a = if (x - 12.0).hypot(y - 14.0) < 7.0 || (x - y - 8.0).abs() < 0.6 {
+                    1.0
+                } else if x + y > 55.0 {
+                    0.6
+                } else {
+                    0.0
+                };
+                [k[0] * a, k[1] * a, k[2] * a, a]
+            })
+            .collect();
+        let out = fxaa_cpu(&img, w as u32, h as u32);
+        let changed = out.iter().zip(&img).filter(|(a, b)| a != b).count();
+        assert!(changed > 20, "{changed} pixels smoothed");
+        for (i, p) in out.iter().enumerate() {
+            for c in 0..3 {
+                assert!((p[c] - k[c] * p[3]).abs() < 1e-5, "pixel {i}: {p:?}");
+            }
+        }
     }
 
     #[test]
