@@ -15,8 +15,8 @@ struct Params {
     // 1: LineAO's paper shading, combined c + specular (Eichelbaum et al. §3.3)
     paper_shading: u32,
     pad: u32,
-    // the colour of halo samples (gbuffer.wgsl: alpha 0.5): the background, or the
-    // illustrative method's halo colour (xyz, 1)
+    // the colour of halo samples (gbuffer.wgsl: alpha 0.5): the background (xyz, 0: a gap,
+    // no coverage), or the illustrative method's halo colour (xyz, 1)
     halo: vec4<f32>,
     // the illustrative method's line colour (xyz) and w = 1 when the method is illustrative
     line: vec4<f32>,
@@ -90,9 +90,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             continue;
         }
         if (c.a < 0.75) {
-            // A halo (Everts et al.): its colour, unlit and not occluded.
+            // A halo (Everts et al.): its colour, unlit and not occluded; coverage only where
+            // it is ink (the illustrative halo), not where a gap shows the background.
             sum = sum + C.halo.rgb;
-            covered = covered + 1.0;
+            covered = covered + C.halo.w;
             continue;
         }
         if (C.line.w > 0.5) {

@@ -74,7 +74,8 @@ pub struct CompositeParams {
     /// 1: LineAO's paper shading.
     pub paper_shading: u32,
     pub pad: u32,
-    /// The colour of halo samples (xyz, 1).
+    /// The colour of halo samples (xyz) and whether they count as coverage (w: 1 the
+    /// illustrative halo, 0 a gap halo showing the background).
     pub halo: [f32; 4],
     /// The illustrative line colour (xyz), w = 1 for the illustrative method.
     pub line: [f32; 4],
@@ -143,9 +144,11 @@ impl CompositePass {
             product: (s.combine == Combine::Product) as u32,
             paper_shading: s.paper_shading as u32,
             pad: 0,
+            // w: whether a halo sample is coverage (the illustrative halo's ink), or shows
+            // the background (a gap: no surface, alpha as the background's).
             halo: match s.illustrative {
                 Some((_, h)) => vec4([h[0], h[1], h[2], 1.0]),
-                None => vec4([b[0], b[1], b[2], 1.0]),
+                None => vec4([b[0], b[1], b[2], 0.0]),
             },
             line: match s.illustrative {
                 Some((l, _)) => vec4([l[0], l[1], l[2], 1.0]),

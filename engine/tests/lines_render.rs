@@ -482,6 +482,17 @@ fn parallel_lines_at_one_depth_do_not_cut_each_other_and_1_bit_print_has_two_val
         a > 100 && (a as i64 - b as i64).abs() <= W as i64 / 8,
         "{a} alone, {b} beside"
     );
+    // A gap halo covers nothing: its rim shows the background in alpha too (coverage as the
+    // line's without a halo), so that an EXR composites over another background cleanly.
+    let mut plain = line(2.5, [1.0, 0.0, 0.0]);
+    plain.halo = None;
+    let bare = render(&gpu, &[plain], cam, &[]);
+    let covered = |o: &Output| o.image.iter().filter(|c| c[3] > 0.5).count();
+    let (h, p) = (covered(&alone), covered(&bare));
+    assert!(
+        p > 100 && (h as i64 - p as i64).abs() <= W as i64 / 8,
+        "{h} pixels covered with the halo, {p} without"
+    );
     // The two-valued print form.
     let v: std::collections::BTreeSet<u8> = both
         .image
