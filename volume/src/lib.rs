@@ -737,8 +737,31 @@ pub fn load_grid(path: &Path, q: Option<&Path>) -> Result<(cfd_grid::CfdGrid, Ve
 }
 
 fn sniff(path: &Path) -> Result<Volume> {
+    let ext = extension(path);
+    if matches!(ext.as_str(), "trk" | "tck" | "trx" | "tt") {
+        return Err(VolumeError::format(
+            path,
+            "file name",
+            "a tractogram, not a volume (a grid of samples)",
+        ));
+    }
+    if matches!(ext.as_str(), "vtr" | "vts" | "vtu") {
+        return Err(VolumeError::format(
+            path,
+            "file name",
+            "a CFD grid (VTK XML rectilinear, structured or unstructured), not a regular volume; \
+             resample it onto a regular grid first",
+        ));
+    }
     let head = io_util::read_head(path, 600)?;
     let starts = |m: &[u8]| head.starts_with(m);
+    // NIfTI's first field, sizeof_hdr: 348 (NIfTI-1) or 540 (NIfTI-2), in either byte order.
+    let nifti_header = head.len() >= 348 && {
+        let b = [head[0], head[1], head[2], head[3]];
+        [i32::from_le_bytes(b), i32::from_be_bytes(b)]
+            .iter()
+            .any(|&n| n == 348 || n == 540)
+    };
     if starts(b"NRRD") {
         nrrd::read(path)
     } else if starts(b"# vtk DataFile") {
@@ -747,13 +770,15 @@ fn sniff(path: &Path) -> Result<Volume> {
         vti::read(path)
     } else if starts(b"11111") {
         slc::read(path)
-    } else if starts(&[0x1f, 0x8b]) || head.len() >= 348 {
+    } else if starts(&[0x1f, 0x8b]) || nifti_header {
         nifti::read(path)
     } else {
         Err(VolumeError::format(
             path,
             "file name",
-            "unknown volume format (expected .nii, .nii.gz, .nrrd, .nhdr, .vtk, .vti, .mhd, .mha or .slc)",
+            "unknown volume format: neither its name nor its first bytes are a volume's \
+             (expected .nii, .nii.gz, .nrrd, .nhdr, .vtk, .vti, .mhd, .mha or .slc; CFD grids - \
+             .vtr, .vts, .vtu, PLOT3D - and tractograms are not volumes)",
         ))
     }
 }

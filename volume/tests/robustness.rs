@@ -448,6 +448,33 @@ fn empty_and_garbage_files_are_errors() {
     assert!(missing.contains("missing.nii"), "{missing}");
 }
 
+/// Files that are no volume are named for what they are, not read as a broken NIfTI header
+/// (every file of 348 bytes or more once was): text, tractograms, CFD grids.
+#[test]
+fn files_that_are_no_volume_say_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "Permission is hereby granted, free of charge, to any person. ".repeat(20);
+    for (name, bytes, want) in [
+        ("LICENSE.txt", text.as_bytes(), "unknown volume format"),
+        ("grid.bin", &[7u8; 4000][..], "unknown volume format"),
+        ("t.trk", &[0u8; 1000][..], "a tractogram"),
+        ("t.trk.gz", &[0x1f, 0x8b, 8, 0][..], "a tractogram"),
+        ("t.tck", b"mrtrix tracks\n".as_slice(), "a tractogram"),
+        ("g.vtu", b"<?xml version=\"1.0\"?>".as_slice(), "a CFD grid"),
+    ] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let e = volume::load(&p).unwrap_err().to_string();
+        assert!(e.contains(name) && e.contains(want), "{name}: {e}");
+        assert!(!e.contains("sizeof_hdr"), "{name}: {e}");
+    }
+    // A NIfTI header without the usual name is still read as one (big-endian too).
+    let nii = test_support::fixtures().join("n1_be_i16_flipx.nii");
+    let p = dir.path().join("volume.dat");
+    std::fs::copy(&nii, &p).unwrap();
+    assert!(volume::load(&p).is_ok());
+}
+
 /// Issue 17's hostile headers: products of header fields that overflow 64 bits are refused
 /// (the MetaImage product wrapped to 2 and a 2-byte file was accepted as 3 x 6.1e18 x 1), and
 /// so are piece extents whose voxel count overflows.
