@@ -463,6 +463,30 @@ fn resample_writes_a_regular_volume_from_a_curvilinear_grid() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("NX,NY,NZ"));
+    // A field the grid does not have: the error names the file (resample and info alike).
+    let err = |args: &[&str]| {
+        let out = umbra().args(args).output().unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let sheared = input.to_str().unwrap();
+    let o3 = dir.path().join("n.nrrd");
+    let o3 = o3.to_str().unwrap();
+    for args in [
+        &["resample", sheared, "--field", "nope", "-o", o3][..],
+        &["info", sheared, "--field", "nope"],
+    ] {
+        let e = err(args);
+        assert!(
+            e.contains("sheared.vtk") && e.contains("nope"),
+            "{args:?}: {e}"
+        );
+    }
+    // One sample along an axis the grid extends along cannot span it: refused.
+    let e = err(&[
+        "resample", sheared, "--field", "s", "--dims", "4,1,4", "-o", o3,
+    ]);
+    assert!(e.contains("sheared.vtk") && e.contains("along y"), "{e}");
 }
 
 #[test]

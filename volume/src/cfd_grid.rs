@@ -495,7 +495,14 @@ impl CfdGrid {
             &self.geometry
         {
             if let Some(i) = points.iter().position(|p| !p.is_finite()) {
-                return bad("points", format!("point {i} is {:?}", points[i]));
+                let p = points[i];
+                return bad(
+                    "points",
+                    format!(
+                        "point {i} is ({}, {}, {}): coordinates must be finite",
+                        p.x, p.y, p.z
+                    ),
+                );
             }
         }
         for a in &self.arrays {

@@ -497,7 +497,20 @@ fn read_series_as(path: &Path, keep_stored: bool) -> Result<(VolumeSeries, Optio
         .checked_mul(components)
         .and_then(|n| n.checked_mul(frames))
         .filter(|&n| n as u64 <= io_util::MAX_SAMPLES)
-        .ok_or_else(|| VolumeError::format(path, "dim", "image too large"))?;
+        .ok_or_else(|| {
+            VolumeError::format(
+                path,
+                "dim",
+                format!(
+                    "{} x {} x {} voxels x {components} components x {frames} frames give more \
+                     than {} samples",
+                    d[0],
+                    d[1],
+                    d[2],
+                    io_util::MAX_SAMPLES
+                ),
+            )
+        })?;
     let nbytes = total * ty.size();
     let hdr_size = if h.version == 1 { 348 } else { 540 };
     let single = h.magic[1] == b'+';

@@ -300,7 +300,11 @@ fn voxels_wedges_and_pyramids_are_split_and_bad_cells_are_refused() {
     bad[0][1] = f32::NAN;
     std::fs::write(&p, vtu(&[(10, &[0, 1, 4, 15])], &bad, &[1.0])).unwrap();
     let e = volume::load_grid(&p, None).unwrap_err().to_string();
-    assert!(e.contains("points") && e.contains("NaN"), "{e}");
+    assert!(
+        e.contains("points") && e.contains("NaN") && e.contains("must be finite"),
+        "{e}"
+    );
+    assert!(!e.contains("DVec3"), "{e}");
 }
 
 #[test]

@@ -108,9 +108,20 @@ pub fn run(a: Args) -> Result<(), String> {
                 return print(j, if a.json { String::new() } else { text });
             }
             Err(e) if named_format(&file) => return Err(e.to_string()),
-            Err(e) => volume::plot3d::read(&file, None).map_err(|_| e.to_string())?,
+            Err(e) => volume::plot3d::read(&file, None)
+                .map_err(|p| format!("{e}; read as a PLOT3D grid: {p}"))?,
         }
     };
+    // A grid describes all its arrays; a field it does not have is an error, not ignored.
+    if let Some(sel) = &a.field {
+        if !grid.names().iter().any(|n| *n == sel.name) {
+            return Err(format!(
+                "{name}: field {}: no such array; the grid has: {}",
+                sel.name,
+                grid.names().join(", ")
+            ));
+        }
+    }
     // Grid readers' warnings name their file themselves.
     warnings
         .iter()

@@ -115,8 +115,9 @@ pub struct ResampleReport {
 }
 
 /// Regular dimensions with `longest` samples on the longest side of `bounds` and, on each
-/// other side, the count whose spacing is nearest to that side's (each axis spans its bounds
-/// exactly, so the spacings differ by the rounding).
+/// other side, the count whose spacing is nearest to that side's, two at least where the side
+/// has any extent (each axis spans its bounds exactly, so the spacings differ by the
+/// rounding); a flat side gets one.
 pub fn fit_dims(bounds: [[f64; 3]; 2], longest: usize) -> [usize; 3] {
     let ext = [0, 1, 2].map(|a| (bounds[1][a] - bounds[0][a]).max(0.0));
     let m = ext.iter().cloned().fold(0.0, f64::max);
@@ -124,7 +125,11 @@ pub fn fit_dims(bounds: [[f64; 3]; 2], longest: usize) -> [usize; 3] {
         return [1, 1, 1];
     }
     let h = m / (longest.max(2) - 1) as f64;
-    ext.map(|e| ((e / h).round() as usize + 1).clamp(1, 2048))
+    // An axis with any extent gets two samples at least, so that it spans its bounds.
+    ext.map(|e| {
+        let lo = if e > 0.0 { 2 } else { 1 };
+        ((e / h).round() as usize + 1).clamp(lo, 2048)
+    })
 }
 
 /// Reads `input` (and the PLOT3D solution `q`), resamples `field` onto `dims` (or onto
@@ -163,8 +168,23 @@ pub fn resample(
     let b = grid.bounds();
     let bounds = [b[0].to_array(), b[1].to_array()];
     let dims = dims.unwrap_or_else(|| fit_dims(bounds, longest));
+    // One sample cannot span an axis the grid extends along.
+    for (a, name) in ["x", "y", "z"].iter().enumerate() {
+        if dims[a] < 2 && bounds[1][a] > bounds[0][a] {
+            return Err(VolumeError::Invalid(format!(
+                "{}: dims {}: the grid spans {} to {} along {name}, which needs 2 samples at \
+                 least (1 only for a flat axis)",
+                input.display(),
+                dims.map(|d| d.to_string()).join(","),
+                bounds[0][a],
+                bounds[1][a]
+            )));
+        }
+    }
     stage("locating samples and interpolating");
-    let (vol, inside) = grid.resample_counted(field, dims)?;
+    let (vol, inside) = grid
+        .resample_counted(field, dims)
+        .map_err(|e| VolumeError::Invalid(format!("{}: {e}", input.display())))?;
     let f = vol.select(None)?;
     let comps = f.components;
     let samples = (f.data.len() / comps).max(1);
@@ -201,6 +221,14 @@ pub fn resample(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_axis_with_extent_gets_two_samples_at_least() {
+        // kitchen.vtk at --size 2 gave a z of one sample (spacing 1, a slab of nothing).
+        assert_eq!(fit_dims([[0.0; 3], [10.0, 0.05, 0.0]], 2), [2, 2, 1]);
+        assert_eq!(fit_dims([[0.0; 3], [10.0, 5.0, 2.5]], 5), [5, 3, 2]);
+        assert_eq!(fit_dims([[0.0; 3], [0.0; 3]], 5), [1, 1, 1]);
+    }
 
     #[test]
     fn dims_are_three_positive_integers() {
