@@ -522,3 +522,59 @@ fn options_that_do_not_apply_are_refused() {
     );
     assert!(!trk.exists());
 }
+
+/// The bench commands check their options and scenes before anything is written: a refused
+/// run leaves no output folder (stability wrote its scenes, accuracy its reference folder,
+/// curves and ao empty folders, lineao its data, before the error).
+#[test]
+fn refused_bench_runs_leave_no_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = test_support::headsq_scene(d, "", "bone", "width = 32\nheight = 32\n");
+    let sc = s(&scene);
+    let out = |n: &str| d.join(n).to_str().unwrap().to_string();
+    let (st, acc, cv, cv2, lq) = (out("st"), out("acc"), out("cv"), out("cv2"), out("lq"));
+    refused(
+        &["bench", "stability", "-o", &st, "--reference-spp", "0"],
+        "at least 1",
+    );
+    refused(
+        &["bench", "accuracy", sc, "--sweep", "nokey=1,2", "-o", &acc],
+        "nokey",
+    );
+    refused(
+        &[
+            "bench", "curves", sc, "-o", &cv, "--sizes", "0", "--frames", "1",
+        ],
+        "render.width",
+    );
+    refused(
+        &[
+            "bench",
+            "curves",
+            sc,
+            "-o",
+            &cv2,
+            "--methods",
+            "bogus",
+            "--frames",
+            "1",
+        ],
+        "bogus",
+    );
+    refused(
+        &[
+            "bench",
+            "lineao",
+            "-o",
+            &lq,
+            "--quick",
+            "--set",
+            "render.lineao.samples=0",
+        ],
+        "render.lineao.samples",
+    );
+    for o in [&st, &acc, &cv, &cv2, &lq] {
+        assert!(!Path::new(o).exists(), "{o} was created");
+    }
+}

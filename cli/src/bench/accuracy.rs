@@ -205,9 +205,6 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
     }
     spec::load(&a.scene, &a.overrides)?;
     let methods = &a.methods;
-    std::fs::create_dir_all(a.out.join("reference"))
-        .map_err(|e| format!("{}: {e}", a.out.display()))?;
-    let gpu = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
     // Every combination of the swept values.
     let mut combos: Vec<Vec<String>> = vec![vec![]];
     for (_, vals) in &a.sweeps {
@@ -222,13 +219,37 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
             })
             .collect();
     }
-    let mut report = AccuracyReport::default();
-    let mut rows = vec![];
-    for combo in &combos {
+    let overrides = |combo: &[String]| {
         let mut over = a.overrides.clone();
         for ((k, _), v) in a.sweeps.iter().zip(combo) {
             over.push(format!("{}={v}", sweep_key(k)));
         }
+        over
+    };
+    // Every combination's scene is checked before anything is written (a swept key that does
+    // not exist, a value out of range, what the reference cannot model).
+    for combo in &combos {
+        let s = spec::load(&a.scene, &overrides(combo))?;
+        if s.volume.as_ref().is_some_and(|v| v.iso.is_some()) {
+            return Err(format!(
+                "{}: the Monte Carlo reference does not model isosurfaces yet",
+                a.scene.display()
+            ));
+        }
+        if !s.lines.is_empty() {
+            return Err(format!(
+                "{}: the Monte Carlo reference does not model [[lines]] yet",
+                a.scene.display()
+            ));
+        }
+    }
+    std::fs::create_dir_all(a.out.join("reference"))
+        .map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let gpu = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
+    let mut report = AccuracyReport::default();
+    let mut rows = vec![];
+    for combo in &combos {
+        let over = overrides(combo);
         let s = spec::load(&a.scene, &over)?;
         let m = compile::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
         if m.iso.is_some() {

@@ -56,7 +56,6 @@ pub fn ao(
             scene_path.display()
         ));
     }
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     s.volume = None;
     let m = compile::model(&s).map_err(|e| format!("{}: {e}", scene_path.display()))?;
     if m.meshes.is_empty() {
@@ -69,6 +68,7 @@ pub fn ao(
     let occlusion::camera::Projection::Perspective { fov_y_deg } = v.camera.projection else {
         return Err("bench ao: the cross-check needs a perspective camera".into());
     };
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let ts = occlusion::reference_tubes::TubeScene::new(&m.meshes, &compile::tube_clip(&s));
     let (w, h) = (v.width as usize, v.height as usize);
     let (mean, se) =

@@ -87,10 +87,7 @@ pub fn run(a: Args) -> Result<(), String> {
     if a.frames == 0 {
         return Err("--frames: must be at least 1".into());
     }
-    std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;
     let base = spec::load(&a.scene, &a.overrides)?;
-    let mut m = scene::compile::model(&base).map_err(|e| format!("{}: {e}", a.scene.display()))?;
-    let gpu = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
     let opts = DrawOptions {
         frames: a.frames,
         pass_timings: false,
@@ -119,6 +116,28 @@ pub fn run(a: Args) -> Result<(), String> {
         }
         Ok::<_, String>(s)
     };
+    // Every case's scene, and the segment fractions, are checked before anything is written.
+    for (method, device) in &cases {
+        for &size in &a.sizes {
+            with(method, device, size, None)?;
+        }
+        for &n in &a.slices {
+            with(method, device, a.slice_size, Some(n))?;
+        }
+    }
+    if let Some(f) = a.segments.iter().find(|&&f| !(f > 0.0 && f <= 1.0)) {
+        return Err(format!("--segments: {f} is not in (0, 1]"));
+    }
+    if !a.segments.is_empty() && base.lines.is_empty() && base.points.is_empty() {
+        return Err(format!(
+            "{}: --segments needs [[lines]] or [[points]]",
+            a.scene.display()
+        ));
+    }
+    let made = !a.output.exists();
+    std::fs::create_dir_all(&a.output).map_err(|e| format!("{}: {e}", a.output.display()))?;
+    let mut m = scene::compile::model(&base).map_err(|e| format!("{}: {e}", a.scene.display()))?;
+    let gpu = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
     {
         let up = scene::compile::upload(&gpu, &m)?;
         for (method, device) in &cases {
@@ -155,6 +174,18 @@ pub fn run(a: Args) -> Result<(), String> {
                 measure(&up, &s, &m, opts, case, &mut rows, &mut notes);
             }
         }
+    }
+    if rows.is_empty() {
+        // Nothing measured (every case left out): no empty table, no charts to announce, and
+        // the folder this run made (still empty) removed.
+        if made {
+            let _ = std::fs::remove_dir(&a.output);
+        }
+        return Err(format!(
+            "{}: no case could be measured: {}",
+            a.scene.display(),
+            notes.join("; ")
+        ));
     }
     let mut csv = Vec::new();
     let _ = writeln!(csv, "curve,method,device,width,height,slices,segments,ms");

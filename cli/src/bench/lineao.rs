@@ -1083,13 +1083,21 @@ pub fn lineao(c: &Config, progress: &dyn Fn(&str)) -> Result<Outcome, String> {
         out: std::path::absolute(&c.out).map_err(|e| format!("{}: {e}", c.out.display()))?,
         ..c.clone()
     };
+    let n = c.size;
+    let mut size = vec![format!("render.width={n}"), format!("render.height={n}")];
+    size.extend(c.set.iter().cloned());
+    // The overrides are checked on a scene of the bench's kind (lines, LineAO) before anything
+    // is written or traced: an unknown key or a value out of range ends the run here.
+    spec::parse(
+        "[[lines]]\npath = \"lines.tck\"\n[render]\nmethod = \"lineao\"\n",
+        "the bench's scenes with --set",
+        &c.out,
+        &size,
+    )?;
     for d in ["data", "scenes", "images"] {
         let d = c.out.join(d);
         std::fs::create_dir_all(&d).map_err(|e| format!("{}: {e}", d.display()))?;
     }
-    let n = c.size;
-    let mut size = vec![format!("render.width={n}"), format!("render.height={n}")];
-    size.extend(c.set.iter().cloned());
     let gpu = engine::gpu::Gpu::new().map_err(|e| e.to_string())?;
     let rows = if c.cases.accuracy {
         accuracy_cases(c, &gpu, &size, progress)?

@@ -79,6 +79,11 @@ pub fn stability(
     frames: u32,
     progress: &dyn Fn(&str),
 ) -> Result<Vec<(String, String, Row)>, String> {
+    if spp == 0 || frames == 0 {
+        return Err(format!(
+            "--reference-spp {spp} --frames {frames}: each must be at least 1"
+        ));
+    }
     // The scenes written under `<out>/scenes` name their data by path, and a scene's paths
     // resolve against the scene's folder: a relative output folder must not reach them as is.
     let out = &std::path::absolute(out).map_err(|e| format!("{}: {e}", out.display()))?;
