@@ -250,10 +250,13 @@ fn overlay(
         volume::regrid::into_grid(&f.data, vol.dims, vol.affine, to_src, dims, affine, interp)
             .map_err(|e| format!("{} ({}): {e}", key("path"), o.path.display()))?;
     if field.iter().all(|v| !v.is_finite()) {
-        notes.push(format!(
-            "overlays[{i}] ({}): no voxel of it falls inside the scene volume's grid",
-            o.path.display()
-        ));
+        // Say why: the file's own values, or where it lies.
+        let why = if f.data.iter().all(|v| !v.is_finite()) {
+            "every value of it is NaN or infinite: nothing to draw"
+        } else {
+            "no voxel of it falls inside the scene volume's grid"
+        };
+        notes.push(format!("overlays[{i}] ({}): {why}", o.path.display()));
     }
     let map = if o.labels {
         labels_map(i, o, &field, notes)?
@@ -296,7 +299,8 @@ fn labels_map(
     notes: &mut Vec<String>,
 ) -> Result<LayerMap, String> {
     let mut present = std::collections::BTreeSet::new();
-    for &v in field.iter().filter(|v| v.is_finite()) {
+    // NaN holds no label; an infinite value is no label either, and refused as out of range.
+    for &v in field.iter().filter(|v| !v.is_nan()) {
         let l = v.round();
         // Labels are whole numbers (a float file may hold them with a rounding error); 2.5 is
         // no label but a scalar map's value.

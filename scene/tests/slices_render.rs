@@ -277,6 +277,59 @@ height = 64
     assert_eq!(z.len(), want);
 }
 
+/// Infinite labels are out of range like 70000 (they were accepted and drew nothing), and an
+/// overlay whose every value is NaN says so, not that it lies outside the grid.
+#[test]
+fn infinite_labels_are_refused_and_an_empty_overlay_says_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let anat = write(dir.path(), "anat.nii.gz", &anatomy());
+    let grid = DMat4::from_scale(DVec3::splat(2.0)) * DMat4::from_translation(DVec3::splat(-10.0));
+    let scene = |labels: &str, flag: &str| {
+        format!(
+            "[volume]\npath = \"{anat}\"\nrender = false\n[[overlays]]\nname = \"o\"\npath = \"{labels}\"\n{flag}[[slices]]\naxis = \"axial\"\n[render]\nmethod = \"ea\"\nwidth = 32\nheight = 32\n"
+        )
+    };
+    for (name, bad) in [
+        ("pinf.nii.gz", f32::INFINITY),
+        ("ninf.nii.gz", f32::NEG_INFINITY),
+    ] {
+        let p = write(
+            dir.path(),
+            name,
+            &volume_of([12, 12, 12], grid, |q| if q.x > 0.0 { bad } else { 2.0 }),
+        );
+        let s =
+            scene::spec::parse(&scene(&p, "labels = true\n"), "t.toml", dir.path(), &[]).unwrap();
+        let e = model(&s).err().expect("an infinite label is refused");
+        assert!(e.contains("overlays[0].labels") && e.contains("inf"), "{e}");
+    }
+    let nan = write(
+        dir.path(),
+        "nan.nii.gz",
+        &volume_of([12, 12, 12], grid, |_| f32::NAN),
+    );
+    let s = scene::spec::parse(
+        &scene(&nan, "range = [0.0, 1.0]\n"),
+        "t.toml",
+        dir.path(),
+        &[],
+    )
+    .unwrap();
+    let m = model(&s).unwrap();
+    assert!(
+        m.notes
+            .iter()
+            .any(|n| n.contains("every value of it is NaN")),
+        "{:?}",
+        m.notes
+    );
+    assert!(
+        !m.notes.iter().any(|n| n.contains("falls inside")),
+        "{:?}",
+        m.notes
+    );
+}
+
 #[test]
 fn projections_equal_the_cpu_extreme_along_each_ray() {
     let dir = tempfile::tempdir().unwrap();
