@@ -578,3 +578,62 @@ fn refused_bench_runs_leave_no_folder() {
         assert!(!Path::new(o).exists(), "{o} was created");
     }
 }
+
+/// Line sets that come out with nothing to draw say why: streamlines of a single point (left
+/// out silently before, a blank image with exit 0), a selection that kept none (the error did
+/// not name it), a filter no point passes.
+#[test]
+fn line_sets_with_nothing_to_draw_say_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut one = tubes::Streamlines::new();
+    for k in 0..4 {
+        one.push(&[glam::Vec3::new(k as f32, 0.0, 0.0)]);
+    }
+    tubes::save(&d.join("one.tck"), &one).unwrap();
+    let mut two = tubes::Streamlines::new();
+    two.push(&[glam::Vec3::ZERO, glam::Vec3::X]);
+    two.push(&[glam::Vec3::Y]);
+    tubes::save(&d.join("two.tck"), &two).unwrap();
+    let scene = |name: &str, tck: &str| {
+        let p = d.join(name);
+        std::fs::write(
+            &p,
+            format!("[[lines]]\npath = \"{tck}\"\n[render]\nmethod = \"illuminated\"\nwidth = 32\nheight = 32\n"),
+        )
+        .unwrap();
+        p
+    };
+    let png = d.join("o.png");
+    let one_s = scene("one.toml", "one.tck");
+    let e = refused(&["render", s(&one_s), "-o", s(&png)], "with geometry");
+    assert!(e.contains("4 of 4 streamlines have a single point"), "{e}");
+    assert!(!png.exists());
+    let two_s = scene("two.toml", "two.tck");
+    let e = refused(
+        &[
+            "render",
+            s(&two_s),
+            "-o",
+            s(&png),
+            "--set",
+            "lines.0.select={min_length=1000}",
+        ],
+        "with geometry",
+    );
+    assert!(
+        e.contains("lines[0]: select kept 0 of 2 streamlines"),
+        "{e}"
+    );
+    // A mixed set draws its lines and notes the single point.
+    let out = umbra()
+        .args(["render", s(&two_s), "-o", s(&png)])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("1 of 2 streamlines have a single point"),
+        "{err}"
+    );
+}

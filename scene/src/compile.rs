@@ -709,7 +709,13 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         ));
     }
     let mut boxes: Vec<[DVec3; 2]> = meshes.iter().filter_map(mesh_bounds).collect();
-    boxes.extend(lines.iter().filter_map(LineSet::drawn_bounds));
+    // A set with nothing to draw (single-point streamlines only) frames nothing.
+    boxes.extend(
+        lines
+            .iter()
+            .filter(|l| !l.segments.is_empty())
+            .filter_map(LineSet::drawn_bounds),
+    );
     if let Some((v, _, _)) = &volume {
         boxes.push(v.bounds());
     }
@@ -720,10 +726,14 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         boxes.push(b);
     }
     let Some(first) = boxes.first().copied() else {
-        return Err(
-            "the scene has no [volume] and no [[tubes]], [[lines]] or [[points]] with geometry"
-                .into(),
-        );
+        // The notes say why a set came out empty (a selection that kept nothing, ...).
+        let why = match notes.is_empty() {
+            true => String::new(),
+            false => format!(" ({})", notes.join("; ")),
+        };
+        return Err(format!(
+            "the scene has no [volume] and no [[tubes]], [[lines]] or [[points]] with geometry{why}"
+        ));
     };
     let bounds = boxes
         .iter()
@@ -785,6 +795,16 @@ fn line_set(
     };
     let cylinder = l.profile == spec::LineProfile::Cylinder;
     notes.extend(sl.warnings.iter().map(|w| format!("lines[{i}]: {w}")));
+    // A line needs two points: streamlines of one are left out, and said so.
+    let single = (0..sl.len()).filter(|&k| sl.line(k).len() < 2).count();
+    if single > 0 {
+        notes.push(format!(
+            "lines[{i}] ({}): {single} of {} streamlines have a single point and are not drawn \
+             (a line needs two; [[points]] draws points)",
+            l.path.display(),
+            sl.len()
+        ));
+    }
     let proxy_radius = l.proxy_radius() as f32;
     let times = match &l.time {
         None => vec![],
@@ -838,6 +858,13 @@ fn line_set(
         set.taper_u = u;
     }
     if let Some(values) = filter {
+        if !values.iter().any(|&v| v >= l.filter_min as f32) {
+            notes.push(format!(
+                "lines[{i}].filter_min: no point of {} reaches {}: nothing of the set is drawn",
+                l.path.display(),
+                l.filter_min
+            ));
+        }
         set.filter = values;
         set.filter_min = l.filter_min as f32;
         set.filter_taper = l.filter_taper as f32;
