@@ -709,3 +709,33 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
     );
     assert!(!g.join("o/.f_0.png.999999999.tmp").exists());
 }
+
+/// A run whose scene fails before any frame records the shard's frame count the command line
+/// gives (it recorded 0), so that a job array's records add up.
+#[test]
+fn a_failed_run_records_the_frames_it_was_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = d.join("missing.toml");
+    std::fs::write(&s, "[volume]\npath = \"nope.nii\"\n").unwrap();
+    for (extra, want) in [
+        (&["--orbit", "3"][..], 3),
+        (&["--orbit", "5", "--shard", "1/2"], 2),
+        (&[], 1),
+    ] {
+        let rec = d.join("r.json");
+        let o = umbra()
+            .arg("render")
+            .arg(&s)
+            .args(["-o", "o/f_#.png", "--record"])
+            .arg(&rec)
+            .args(extra)
+            .current_dir(d)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1), "{extra:?}");
+        let r = record(&rec);
+        assert_eq!(r["frames"], want, "{extra:?}: {r}");
+        assert!(r["error"].as_str().unwrap().contains("nope.nii"), "{r}");
+    }
+}

@@ -101,8 +101,14 @@ impl Shard {
         }) {
             return Err(sparse());
         }
+        if count > u32::MAX as u64 {
+            return Err(format!(
+                "SLURM_ARRAY_TASK_COUNT={count}: at most {} shards",
+                u32::MAX
+            ));
+        }
         let index = (id - min) / step;
-        if count == 0 || index >= count || count > u32::MAX as u64 {
+        if count == 0 || index >= count {
             return Err(sparse());
         }
         Ok(Some(Shard {
@@ -572,6 +578,18 @@ mod tests {
         assert!(Shard::from_slurm(v)
             .unwrap_err()
             .contains("not a whole number"));
+        // An evenly spaced array of more tasks than shards can be: the limit, not "sparse".
+        let v = env(&[
+            ("SLURM_ARRAY_TASK_ID", "4294967296"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_MAX", "4294967296"),
+            ("SLURM_ARRAY_TASK_COUNT", "4294967297"),
+        ]);
+        let e = Shard::from_slurm(v).unwrap_err();
+        assert!(
+            e.contains("at most 4294967295") && !e.contains("sparse"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -150,10 +150,11 @@ fn writable(path: &Path, what: &str) -> Result<(), String> {
     volume::check_output(path).map_err(|e| format!("{what}: {e}"))
 }
 
-/// What the error path needs to write the record: the shard once known, whether the record
-/// was written.
+/// What the error path needs to write the record: the shard once known, its frame count once
+/// known, whether the record was written.
 struct RecordState {
     shard: Cell<Option<(Shard, ShardFrom)>>,
+    frames: Cell<Option<usize>>,
     written: Cell<bool>,
 }
 
@@ -161,6 +162,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let t0 = std::time::Instant::now();
     let state = RecordState {
         shard: Cell::new(None),
+        frames: Cell::new(None),
         written: Cell::new(false),
     };
     let r = render(&a, t0, &state);
@@ -170,7 +172,7 @@ pub fn run(a: Args) -> Result<(), String> {
             let rec = Record {
                 shard: known.map(|k| k.0),
                 shard_from: known.map(|k| k.1),
-                frames: 0,
+                frames: state.frames.get().unwrap_or(0),
                 done: &[],
                 skipped: &[],
                 failed: &[],
@@ -291,6 +293,17 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
         None => e,
     })?;
     state.shard.set(Some((shard, from)));
+    // The shard's frames where the command line gives their count (a camera path's and a
+    // manifest's are known once read): a run that fails before any frame still records them.
+    let total = match (a.orbit, &a.camera_path, &trail_range, &a.manifest) {
+        (Some(n), _, _, None) => Some(n as usize),
+        (None, None, Some(t), None) => Some(t.n as usize),
+        (None, None, None, None) => Some(1),
+        _ => None,
+    };
+    state
+        .frames
+        .set(total.map(|n| (0..n).filter(|&k| shard.owns(k)).count()));
     let skip_existing = a.skip_existing || from != ShardFrom::None;
     let progress = Frames::new();
     let mut on_progress = |p: Progress| match p {
