@@ -114,7 +114,7 @@ pub fn run(a: Args) -> Result<(), String> {
     };
     // A grid describes all its arrays; a field it does not have is an error, not ignored.
     if let Some(sel) = &a.field {
-        if !grid.names().iter().any(|n| *n == sel.name) {
+        if !grid.names().contains(&sel.name) {
             return Err(format!(
                 "{name}: field {}: no such array; the grid has: {}",
                 sel.name,
