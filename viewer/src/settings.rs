@@ -186,6 +186,18 @@ pub fn panel(ui: &mut egui::Ui, s: &mut Scene, centre: [f64; 3]) -> bool {
             );
             menu(
                 ui,
+                "occlusion_step",
+                &mut r.occlusion_step,
+                &[
+                    (None, "auto"),
+                    (Some(1), "1 slice"),
+                    (Some(2), "2 slices"),
+                    (Some(4), "4 slices"),
+                    (Some(8), "8 slices"),
+                ],
+            );
+            menu(
+                ui,
                 "occlusion_model",
                 &mut r.occlusion_model,
                 &[
