@@ -242,6 +242,15 @@ fn scene_values_that_cannot_be_drawn_are_refused_naming_the_key() {
         ("clip=[{normal=[0,0,1],offset=inf}]", "clip[0].offset"),
         (nine.as_str(), "at most 8"),
         ("render.slice_distance=inf", "render.slice_distance"),
+        // Transfer-function values past single precision (the devices drew different images).
+        (
+            "volume.transfer={points=[{value=-1e39,color=[1,0,0],extinction=0.05},{value=1e39,color=[1,1,1],extinction=0.05}]}",
+            "volume.transfer.points[0].value",
+        ),
+        (
+            "volume.transfer={points=[{value=-3e38,color=[1,0,0],extinction=0.05},{value=3e38,color=[1,1,1],extinction=0.05}]}",
+            "span more than single precision",
+        ),
     ] {
         refused(&["scene", s(&scene), "--set", set], key);
     }
@@ -521,6 +530,23 @@ fn options_that_do_not_apply_are_refused() {
         "ras_vec_raw.nrrd: the mask must be a scalar volume",
     );
     assert!(!trk.exists());
+    // iso: octants without the distance they belong to, a subsurface for sweeps read from a
+    // file, a Monte Carlo reference without occlusion - each was ignored in silence.
+    let png = d.path().join("i.png");
+    let iso = |extra: &[&str], needle: &str| {
+        let mut args = vec!["iso", s(&vol), "--iso", "50", "-o", s(&png)];
+        args.extend_from_slice(extra);
+        refused(&args, needle);
+        assert!(!png.exists(), "{extra:?}");
+    };
+    iso(&["--octants", s(&oct)], "--fields");
+    iso(
+        &["--fields", s(&o), "--subsurface", "0.5"],
+        "cannot be used with",
+    );
+    iso(&["--local", "--reference-ao", "4"], "cannot be used with");
+    // A negative value written as its own word is the value, refused by its range (exit 1).
+    iso(&["--gamma", "-1"], "--gamma -1: must be a positive number");
 }
 
 /// The bench commands check their options and scenes before anything is written: a refused

@@ -1841,6 +1841,29 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                     "value must be finite and extinction finite and >= 0".into(),
                 );
             }
+            // Both devices interpolate in single precision: a value past it (the CPU took
+            // 1e39 as the first point's colour, the GPU as nothing) is refused, as windows are.
+            if !(p.value as f32).is_finite() {
+                return bad(
+                    &format!("volume.transfer.points[{i}].value"),
+                    format!(
+                        "{}: values must be finite in single precision (at most 3.4e38)",
+                        p.value
+                    ),
+                );
+            }
+        }
+        if let (Some(a), Some(b)) = (t.points.first(), t.points.last()) {
+            if !((b.value as f32) - (a.value as f32)).is_finite() {
+                return bad(
+                    "volume.transfer.points",
+                    format!(
+                        "values from {} to {} span more than single precision holds (at most \
+                         3.4e38 apart)",
+                        a.value, b.value
+                    ),
+                );
+            }
         }
         let twod = t.points.iter().filter(|p| p.gradient.is_some()).count();
         if twod != 0 && twod != t.points.len() {

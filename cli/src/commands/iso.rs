@@ -23,14 +23,14 @@ pub struct Args {
     #[arg(long)]
     fields: Option<PathBuf>,
     /// Octant fields, when not at <stem>.octants.nrrd beside --fields.
-    #[arg(long)]
+    #[arg(long, requires = "fields")]
     octants: Option<PathBuf>,
     /// Output PNG (8-bit sRGB).
     #[arg(short, long)]
     output: PathBuf,
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
     width: usize,
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
     height: usize,
     /// Degrees; 0 looks along +y, 90 along +x.
     #[arg(long, default_value_t = 30.0, allow_hyphen_values = true, value_parser = super::finite64)]
@@ -48,7 +48,7 @@ pub struct Args {
     #[arg(long, requires = "reference_ao")]
     uniform: bool,
     /// No occlusion at all (local illumination).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "reference_ao")]
     local: bool,
     /// Geometry term: cosine (eq. 4-5), none (scalar AO) or abs (subsurface, |N.w|).
     #[arg(
@@ -62,13 +62,13 @@ pub struct Args {
     #[arg(long, default_value = "uniform", value_parser = str::parse::<Sky>)]
     sky: Sky,
     /// Gamma applied to the ambient term (A^(1/gamma)).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     gamma: f64,
     /// Flat-face correction: look the octants up at P + c h N.
-    #[arg(long, default_value_t = volume::occlusion_shading::DEFAULT_OFFSET, value_parser = super::nonnegative)]
+    #[arg(long, default_value_t = volume::occlusion_shading::DEFAULT_OFFSET, value_parser = super::nonnegative, allow_negative_numbers = true)]
     offset: f64,
     /// Subsurface opacity for the octant sweeps computed in memory.
-    #[arg(long, value_parser = super::unit)]
+    #[arg(long, value_parser = super::unit, conflicts_with = "fields")]
     subsurface: Option<f32>,
     /// Add a Phong head light.
     #[arg(long)]
@@ -155,10 +155,12 @@ pub fn run(a: Args) -> Result<(), String> {
         return out_json(&stats);
     }
     eprintln!(
-        "wrote {} ({} surface pixels, mean ambient {:.3}, {:.2} s)",
+        "wrote {} ({} surface pixels, mean ambient {}, {:.2} s)",
         args.output.display(),
         stats.hit_pixels,
-        stats.mean_ambient,
+        stats
+            .mean_ambient
+            .map_or("- (no surface in view)".into(), |m| format!("{m:.3}")),
         stats.seconds
     );
     Ok(())
@@ -193,8 +195,9 @@ pub struct IsoStats {
     pub width: usize,
     pub height: usize,
     pub hit_pixels: usize,
-    pub mean_ambient: f64,
-    pub mean_stderr: f64,
+    /// Means over the surface's pixels; null where no pixel shows the surface.
+    pub mean_ambient: Option<f64>,
+    pub mean_stderr: Option<f64>,
     pub seconds: f64,
 }
 
@@ -257,13 +260,15 @@ pub fn render_to_file(args: &IsoArgs) -> Result<(IsoImage, IsoStats), String> {
     let hits: Vec<usize> = (0..img.ambient.len())
         .filter(|&i| img.ambient[i].is_finite())
         .collect();
-    let n = hits.len().max(1) as f64;
+    let n = hits.len() as f64;
+    let mean =
+        |v: &[f32]| (!hits.is_empty()).then(|| hits.iter().map(|&i| v[i] as f64).sum::<f64>() / n);
     let stats = IsoStats {
         width: img.width,
         height: img.height,
         hit_pixels: hits.len(),
-        mean_ambient: hits.iter().map(|&i| img.ambient[i] as f64).sum::<f64>() / n,
-        mean_stderr: hits.iter().map(|&i| img.stderr[i] as f64).sum::<f64>() / n,
+        mean_ambient: mean(&img.ambient),
+        mean_stderr: mean(&img.stderr),
         seconds: t0.elapsed().as_secs_f64(),
     };
     Ok((img, stats))
