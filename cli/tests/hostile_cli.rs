@@ -251,8 +251,24 @@ fn scene_values_that_cannot_be_drawn_are_refused_naming_the_key() {
             "volume.transfer={points=[{value=-3e38,color=[1,0,0],extinction=0.05},{value=3e38,color=[1,1,1],extinction=0.05}]}",
             "span more than single precision",
         ),
+        // Figures: a scale bar or eyes farther apart than any world, what 1 bit cannot show,
+        // an entry's index written otherwise than its key, text the font cannot draw.
+        ("annotate.scale_bar=1e30", "annotate.scale_bar"),
+        ("render.eye_separation=1e30", "render.eye_separation"),
+        ("annotate.colorbar=\"tubes.00\"", "give volume"),
+        ("annotate.title=\"Fibres 中文\"", "no glyph for 2"),
     ] {
         refused(&["scene", s(&scene), "--set", set], key);
+    }
+    // What a 1-bit image cannot hold: an anaglyph's two colours, a colour bar's.
+    for (set, key) in [
+        ("render.stereo=\"anaglyph\"", "render.bits"),
+        ("annotate.colorbar=\"volume\"", "1-bit"),
+    ] {
+        refused(
+            &["scene", s(&scene), "--set", set, "--set", "render.bits=1"],
+            key,
+        );
     }
 }
 

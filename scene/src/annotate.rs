@@ -76,7 +76,11 @@ pub fn nice_length(x: f64) -> f64 {
 /// 1e4, in scientific notation outside (`-2.278e10`: a field's range in pascals stays short
 /// enough for the colour bar's two ends).
 pub fn format_number(v: f64) -> String {
-    if v == 0.0 || !v.is_finite() {
+    if v == 0.0 {
+        // -0 too.
+        return "0".into();
+    }
+    if !v.is_finite() {
         return format!("{v}");
     }
     if !(1e-4..1e4).contains(&v.abs()) {
@@ -91,6 +95,10 @@ pub fn format_number(v: f64) -> String {
     }
     let digits = (3 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
     let s = format!("{v:.digits$}");
+    if s.trim_start_matches('-').len() > 4 && !s.contains('.') {
+        // Rounded up to 1e4 (9999.6): five digits; as the numbers from 1e4 up are written.
+        return format_number(s.parse::<f64>().unwrap_or(v).signum() * 1e4);
+    }
     let s = if s.contains('.') {
         s.trim_end_matches('0').trim_end_matches('.').to_string()
     } else {
@@ -196,6 +204,36 @@ impl Canvas<'_> {
             }
         }
     }
+}
+
+/// The characters of `text` the bundled font has no glyph for (drawn as empty boxes), each
+/// once, in order; spaces always have one.
+pub fn missing_glyphs(text: &str) -> Vec<char> {
+    let Ok(font) = FontRef::try_from_slice(FONT) else {
+        return vec![];
+    };
+    let mut out: Vec<char> = vec![];
+    for ch in text.chars() {
+        if font.glyph_id(ch).0 == 0 && !ch.is_whitespace() && !out.contains(&ch) {
+            out.push(ch);
+        }
+    }
+    out
+}
+
+/// `label` cut to `avail` pixels wide at `px`, ending in an ellipsis when cut; its width.
+fn fit(font: &FontRef, px: f32, label: &str, avail: f32) -> (String, f32) {
+    let mut label = label.to_string();
+    let (mut lw, _) = extent(font, px, &label);
+    if lw > avail {
+        let mut chars: Vec<char> = label.chars().collect();
+        while chars.len() > 1 && lw > avail {
+            chars.pop();
+            label = chars.iter().collect::<String>() + "\u{2026}";
+            lw = extent(font, px, &label).0;
+        }
+    }
+    (label, lw)
 }
 
 /// Width and height of `text` at `px` pixels.
@@ -328,9 +366,17 @@ pub fn draw(
     let mut cv = Canvas { img, w, h };
     let (wf, hf) = (w as f32, h as f32);
     if let Some(t) = spec.title.as_deref().filter(|t| !t.is_empty()) {
+        // Centred; a title wider than the image is cut, ending in an ellipsis.
         let tp = px * 1.4;
-        let (tw, _) = extent(&font, tp, t);
-        placed.title = Some(text(&mut cv, &pen, tp, t, (wf - tw) * 0.5, margin));
+        let (t, tw) = fit(&font, tp, t, (wf - 2.0 * margin).max(tp));
+        placed.title = Some(text(
+            &mut cv,
+            &pen,
+            tp,
+            &t,
+            ((wf - tw) * 0.5).max(margin),
+            margin,
+        ));
     }
     if spec.orientation {
         let [r, l, t, b] = orientation_labels(ctx.camera, w, h, ctx.ras);
@@ -425,15 +471,8 @@ pub fn draw(
             // Centred over the bar, moved left to stay inside the image; a label wider than
             // the image is cut, ending in an ellipsis.
             let avail = (wf - 2.0 * margin).max(px);
-            let (mut lw, lh) = extent(&font, px, &label);
-            if lw > avail {
-                let mut chars: Vec<char> = label.chars().collect();
-                while chars.len() > 1 && lw > avail {
-                    chars.pop();
-                    label = chars.iter().collect::<String>() + "\u{2026}";
-                    lw = extent(&font, px, &label).0;
-                }
-            }
+            let (label, lw) = fit(&font, px, &label, avail);
+            let lh = extent(&font, px, &label).1;
             let x = (x0 + (bw - lw) * 0.5).min(wf - margin - lw).max(margin);
             text(&mut cv, &pen, px, &label, x, y0 - lh - 0.2 * px);
         }
@@ -535,6 +574,13 @@ mod tests {
         assert_eq!(format_number(102083428352.0), "1.021e11");
         assert_eq!(format_number(20000.0), "2e4");
         assert_eq!(format_number(3.2e-7), "3.2e-7");
+        // Rounding up to 1e4 is written as 1e4 is; negative zero is 0.
+        assert_eq!(format_number(9999.6), "1e4");
+        assert_eq!(format_number(-9999.6), "-1e4");
+        assert_eq!(format_number(-0.0), "0");
+        // Characters the bundled font lacks, each once; spaces always draw.
+        assert_eq!(missing_glyphs("Fibres α-β → 中文 中"), vec!['中', '文']);
+        assert!(missing_glyphs("T1 (mm) ±0.5").is_empty());
     }
 
     fn blank(w: usize, h: usize) -> Vec<[f32; 4]> {
@@ -569,6 +615,36 @@ mod tests {
             [DVec3::splat(-50.0), DVec3::splat(50.0)],
         )
         .unwrap()
+    }
+
+    /// A title wider than the image is cut with an ellipsis inside the margins (it lost its
+    /// ends on both sides before): no ink in the outer columns, and ink at the top.
+    #[test]
+    fn a_long_title_stays_inside_the_image() {
+        let camera = top_view();
+        let (w, h) = (200usize, 150usize);
+        let spec = AnnotateSpec {
+            title: Some("W".repeat(200)),
+            ..Default::default()
+        };
+        let mut img = blank(w, h);
+        let ctx = Context {
+            camera: &camera,
+            ras: true,
+            background: [1.0; 3],
+            colorbar: None,
+        };
+        let p = draw(&mut img, w, h, &spec, &ctx).unwrap();
+        let dark = |xs: std::ops::Range<usize>| {
+            (0..h)
+                .flat_map(|y| xs.clone().map(move |x| y * w + x))
+                .filter(|&i| img[i][0] < 0.5)
+                .count()
+        };
+        assert_eq!(dark(0..3) + dark(w - 3..w), 0);
+        assert!(dark(10..w - 10) > 100);
+        let t = p.title.unwrap();
+        assert!(t[0] >= 3.0 && t[2] <= w as f32 - 3.0, "{t:?}");
     }
 
     /// A colour bar's label longer than the bar, or than the image, stays inside the image

@@ -36,7 +36,12 @@ impl Color {
                 if h.len() != 6 || !h.bytes().all(|b| b.is_ascii_hexdigit()) {
                     return Err(format!("'{s}' is not #rrggbb"));
                 }
-                let v = |i: usize| u8::from_str_radix(&h[i..i + 2], 16).unwrap() as f64 / 255.0;
+                // sRGB, as colour codes are everywhere (the PNG shows the code's colour);
+                // the renderer works on linear values.
+                let v = |i: usize| {
+                    let c = u8::from_str_radix(&h[i..i + 2], 16).unwrap() as f64 / 255.0;
+                    volume::colormap::srgb_to_linear(c)
+                };
                 Ok([v(0), v(2), v(4)])
             }
         }
@@ -1353,8 +1358,11 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
     let a = &s.annotate;
     let bad = |key: &str, why: String| Err(format!("scene key annotate.{key}: {why}"));
     match &a.scale_bar {
-        Some(ScaleBarSpec::Length(l)) if !(l.is_finite() && *l > 0.0) => {
-            return bad("scale_bar", format!("{l} is not a positive length"))
+        Some(ScaleBarSpec::Length(l)) if !(l.is_finite() && *l > 0.0 && *l <= 1e15) => {
+            return bad(
+                "scale_bar",
+                format!("{l} is not a positive length of at most 1e15"),
+            )
         }
         Some(ScaleBarSpec::Word(w)) if w != "auto" => {
             return bad("scale_bar", format!("'{w}': give a length or \"auto\""))
@@ -1371,6 +1379,19 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
             if t.chars().count() > 200 || t.chars().any(char::is_control) {
                 return bad(k, "at most 200 characters, no control characters".into());
             }
+            let missing = crate::annotate::missing_glyphs(t);
+            if !missing.is_empty() {
+                let shown: String = missing.iter().take(8).collect();
+                return bad(
+                    k,
+                    format!(
+                        "the bundled font (DejaVu Sans) has no glyph for {} of its characters \
+                         ({shown}{}): they would be drawn as empty boxes",
+                        missing.len(),
+                        if missing.len() > 8 { "..." } else { "" }
+                    ),
+                );
+            }
         }
     }
     if let Some(c) = &a.color {
@@ -1379,21 +1400,17 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
     }
     if let Some(src) = &a.colorbar {
         let scalar = |c: &str| c.starts_with("scalar:") || c.starts_with("volume:");
+        // An index as written by the entries' own keys (`lines.0`, not `lines.00`).
+        let index = |n: &str| n.parse::<usize>().ok().filter(|i| i.to_string() == n);
         let ok = match src.split_once('.') {
             None if src == "volume" => s.volume.as_ref().is_some_and(|v| v.iso.is_none()),
-            Some(("tubes", n)) => n
-                .parse::<usize>()
-                .ok()
+            Some(("tubes", n)) => index(n)
                 .and_then(|i| s.tubes.get(i))
                 .is_some_and(|t| scalar(&t.color)),
-            Some(("lines", n)) => n
-                .parse::<usize>()
-                .ok()
+            Some(("lines", n)) => index(n)
                 .and_then(|i| s.lines.get(i))
                 .is_some_and(|l| scalar(&l.color)),
-            Some(("points", n)) => n
-                .parse::<usize>()
-                .ok()
+            Some(("points", n)) => index(n)
                 .and_then(|i| s.points.get(i))
                 .is_some_and(|p| scalar(&p.color)),
             Some(("overlays", name)) => s.overlays.iter().any(|o| o.name == name && !o.labels),
@@ -1403,6 +1420,14 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
             return bad(
                 "colorbar",
                 format!("'{src}': give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), tubes.N / lines.N / points.N of an entry coloured by scalar:NAME or volume:PATH, or overlays.NAME of a scalar overlay"),
+            );
+        }
+        if s.render.bits == 1 {
+            return bad(
+                "colorbar",
+                format!(
+                    "'{src}': a 1-bit image (render.bits = 1) cannot show a colour bar's colours"
+                ),
             );
         }
     }
@@ -2172,13 +2197,19 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         ("render.convergence", r.convergence),
     ] {
         if let Some(v) = v {
-            if !(v > 0.0 && v.is_finite()) {
-                return bad(k, format!("{v} is not a positive distance"));
+            if !(v > 0.0 && v <= 1e15) {
+                return bad(k, format!("{v} is not a positive distance of at most 1e15"));
             }
         }
     }
     if ![1, 8].contains(&r.bits) {
         return bad("render.bits", format!("{} is not 1 or 8", r.bits));
+    }
+    if r.bits == 1 && r.stereo != Stereo::None {
+        return bad(
+            "render.bits",
+            "1: a 1-bit image cannot hold an anaglyph's two colours (render.stereo)".into(),
+        );
     }
     if ![1, 2, 4, 8].contains(&r.msaa) {
         return bad("render.msaa", format!("{} is not 1, 2, 4 or 8", r.msaa));
@@ -2528,10 +2559,12 @@ mod tests {
 
     #[test]
     fn colours_parse_and_bad_ones_are_refused() {
-        assert_eq!(
-            Color::Hex("#ff8000".into()).rgb().unwrap(),
-            [1.0, 128.0 / 255.0, 0.0]
-        );
+        // A colour code is sRGB: back to its bytes through the PNG's encoding.
+        let c = Color::Hex("#ff8040".into()).rgb().unwrap();
+        let bytes = c.map(|v| (volume::colormap::linear_to_srgb(v) * 255.0).round() as u8);
+        assert_eq!(bytes, [0xff, 0x80, 0x40]);
+        assert_eq!(c[0], 1.0);
+        assert!((c[1] - 0.2158).abs() < 1e-3, "{c:?}");
         assert!(Color::Hex("ff8000".into()).rgb().is_err());
         assert!(Color::Rgb([1.5, 0.0, 0.0]).rgb().is_err());
         let e = parse("background = \"#12\"\n", "s", Path::new("."), &[]).unwrap_err();

@@ -61,14 +61,14 @@ pub struct Args {
     /// Override a scene key by its dotted path (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
-    /// A title at the top (annotate.title).
-    #[arg(long, value_name = "TEXT")]
+    /// A title at the top (annotate.title); may begin with `-` (`--title "-log10 p"`).
+    #[arg(long, value_name = "TEXT", allow_hyphen_values = true)]
     title: Option<String>,
     /// Orientation labels (L/R, A/P, S/I) at the image's edges (annotate.orientation).
     #[arg(long)]
     orientation: bool,
     /// A scale bar of this length in world units, or auto (annotate.scale_bar).
-    #[arg(long, value_name = "LENGTH|auto")]
+    #[arg(long, value_name = "LENGTH|auto", allow_negative_numbers = true)]
     scale_bar: Option<String>,
     /// A colour bar of the colouring of volume, tubes.N or lines.N (annotate.colorbar).
     #[arg(long, value_name = "SOURCE")]
