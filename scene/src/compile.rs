@@ -448,6 +448,15 @@ fn mesh_set(i: usize, t: &spec::TubesSpec) -> Result<TubeMesh, String> {
 /// Loads the scene's volume and builds its tube meshes.
 pub fn model(s: &Scene) -> Result<Model, String> {
     let mut notes = vec![];
+    if s.render.stereo == spec::Stereo::None
+        && (s.render.eye_separation.is_some() || s.render.convergence.is_some())
+    {
+        notes.push(
+            "render.eye_separation and render.convergence apply to stereo images only \
+             (render.stereo = \"anaglyph\"); this image is not stereo"
+                .into(),
+        );
+    }
     let mut colorbar = None;
     let mut space = None;
     // The volume, loaded once: drawn by its transfer function, or in isosurface mode as its
