@@ -678,4 +678,19 @@ fn line_sets_with_nothing_to_draw_say_why() {
         err.contains("1 of 2 streamlines have a single point"),
         "{err}"
     );
+    // Stereo settings on an image that is not stereo: said so (they were ignored silently).
+    let out = umbra()
+        .args([
+            "render",
+            s(&two_s),
+            "-o",
+            s(&png),
+            "--set",
+            "render.eye_separation=5",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("apply to stereo images only"), "{err}");
 }
