@@ -304,6 +304,48 @@ fn umbra_view_without_a_display_says_so() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("DISPLAY"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
+    // An empty DISPLAY is none (winit's text, with its source path, was printed).
+    let out = Command::new(env!("CARGO_BIN_EXE_umbra"))
+        .args(["view", s.to_str().unwrap()])
+        .env("DISPLAY", "")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("DISPLAY is not set") && !err.contains(".rs:"),
+        "{err}"
+    );
+    // The frame log is never the scene (it was emptied before the scene was read), and it
+    // is written only once the window shows: a viewer that fails first leaves none.
+    let text = std::fs::read(&s).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_umbra"))
+        .args([
+            "view",
+            s.to_str().unwrap(),
+            "--frame-log",
+            s.to_str().unwrap(),
+        ])
+        .env_remove("DISPLAY")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--frame-log"));
+    assert_eq!(std::fs::read(&s).unwrap(), text, "the scene was changed");
+    let log = dir.path().join("logs/new/frames.csv");
+    let out = Command::new(env!("CARGO_BIN_EXE_umbra"))
+        .args([
+            "view",
+            s.to_str().unwrap(),
+            "--frame-log",
+            log.to_str().unwrap(),
+        ])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(!log.exists(), "a log of a viewer that never showed");
     // A window size that is no size is refused before anything opens, naming the flag.
     for bad in ["nan", "0", "-5", "1e9"] {
         let out = Command::new(env!("CARGO_BIN_EXE_umbra"))

@@ -47,7 +47,8 @@ pub struct ViewArgs {
 /// Opens the viewer and returns when its window has closed; an error when the scene cannot
 /// be read, or no window can be opened (no display), naming what is missing.
 pub fn run(a: ViewArgs) -> Result<(), String> {
-    if cfg!(target_os = "linux") && std::env::var_os("DISPLAY").is_none() {
+    let display = std::env::var_os("DISPLAY").filter(|d| !d.is_empty());
+    if cfg!(target_os = "linux") && display.is_none() {
         return Err(
             "umbra view needs an X display (DISPLAY is not set); on a machine without \
                     one, run it under xvfb-run or use umbra render"
@@ -113,7 +114,19 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     }));
     let _ = std::panic::take_hook();
     match run {
-        Ok(r) => r.map_err(|e| format!("umbra view could not open its window: {e}")),
+        Ok(r) => r.map_err(|e| {
+            // winit's text can carry its source file's path; say what was tried, then it.
+            let e = e.to_string();
+            let e = e.rsplit_once(".rs:").map_or(e.as_str(), |(_, rest)| {
+                rest.split_once(": ").map_or(rest, |(_, m)| m)
+            });
+            format!(
+                "umbra view could not open its window on the X display {}: {e}",
+                display
+                    .as_deref()
+                    .map_or("(none)".into(), |d| d.to_string_lossy().into_owned())
+            )
+        }),
         Err(p) if window_gone(&panic_text(&*p)) => Ok(()),
         Err(p) => std::panic::resume_unwind(p),
     }
@@ -154,5 +167,7 @@ fn window_gone(text: &str) -> bool {
 /// Writes `bytes` to `path` through a temporary file and a rename (`volume::write_atomic`, the
 /// writer every output of umbra goes through), the error as text naming the file.
 pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
+    // Its folder made first (like `mkdir -p`), as for every output of umbra.
+    volume::check_output(path).map_err(|e| e.to_string())?;
     volume::write_atomic(path, bytes).map_err(|e| e.to_string())
 }

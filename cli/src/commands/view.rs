@@ -37,18 +37,35 @@ fn window_side(s: &str) -> Result<f32, String> {
     }
 }
 
-/// The frame log's writer: the header now, a line per event (each line written whole).
+/// The frame log's writer: the file checked now (its folder made, writable, not the scene),
+/// created with its header at the window's first event - a viewer that fails before its window
+/// shows (a bad scene, no display) writes nothing - then a line per event (each written whole).
 fn frame_log(
     path: &std::path::Path,
+    scene: &std::path::Path,
     started: std::time::Instant,
 ) -> Result<umbra_viewer::OnEvent, String> {
     use std::io::Write;
-    let f = std::fs::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut out = std::io::LineWriter::new(f);
-    writeln!(out, "seconds,event,level,width,height,total_ms")
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    volume::check_output(path).map_err(|e| format!("--frame-log: {e}"))?;
+    volume::check_distinct(&[Some(scene), Some(path)]).map_err(|e| format!("--frame-log: {e}"))?;
+    let path = path.to_path_buf();
+    let mut out: Option<std::io::LineWriter<std::fs::File>> = None;
+    let mut failed = false;
     Ok(Box::new(move |e: &umbra_viewer::ViewEvent| {
         let t = started.elapsed().as_secs_f64();
+        if out.is_none() && !failed {
+            match std::fs::File::create(&path).map(std::io::LineWriter::new) {
+                Ok(mut f) => {
+                    let _ = writeln!(f, "seconds,event,level,width,height,total_ms");
+                    out = Some(f);
+                }
+                Err(err) => {
+                    failed = true;
+                    eprintln!("umbra view: warning: --frame-log {}: {err}", path.display());
+                }
+            }
+        }
+        let Some(out) = out.as_mut() else { return };
         // A full disk ends the log, not the viewer.
         let _ = match e {
             umbra_viewer::ViewEvent::Frame => writeln!(out, "{t:.4},frame,,,,"),
@@ -76,7 +93,7 @@ pub fn run(a: Args) -> Result<(), String> {
     let on_event = a
         .frame_log
         .as_deref()
-        .map(|p| frame_log(p, started))
+        .map(|p| frame_log(p, &a.scene, started))
         .transpose()?;
     umbra_viewer::run(umbra_viewer::ViewArgs {
         on_event,
