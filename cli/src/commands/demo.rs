@@ -1,10 +1,11 @@
 //! `umbra demo [mni|cfd|lines]`: the bundled scenes.
 //!
-//! * `mni` (default): `datasets/scenes/demo.toml` - the MNI ICBM 2009a T1 template cut open at
-//!   the mid-sagittal plane with three HCP1065 bundles (registered: they lie in the white
-//!   matter), by the combined method.
-//! * `cfd`: the VTK carotid flow (`datasets/vtk/carotid.vtk`): streamlines traced from a plane
-//!   of seeds at the inlet (RK4, `umbra trace`), as tubes over the speed field, by the combined
+//! * `mni` (default): `datasets/scenes/demo.toml` - the MNI ICBM 2009a T1 template cut open by
+//!   an axial plane (z = 20) with three HCP1065 bundles rising out of the cut (registered: they
+//!   lie in the white matter), by the combined method.
+//! * `cfd`: the VTK carotid flow (`datasets/vtk/carotid.vtk`): streamlines traced from 20,000
+//!   random seeds (RK4, both ways, `umbra trace`) and kept where the flow is faster than 1, as
+//!   tubes coloured by speed inside the vessel drawn as a translucent volume, by the combined
 //!   method.
 //! * `lines`: `datasets/scenes/demo_lines.toml` - all ten HCP1065 bundles (7.1M points,
 //!   registered as for `mni`) as lines in direction colours with LineAO (method `lineao`) over
