@@ -694,3 +694,50 @@ fn line_sets_with_nothing_to_draw_say_why() {
     assert!(out.status.success(), "{err}");
     assert!(err.contains("apply to stereo images only"), "{err}");
 }
+
+/// An output that names the command's input is refused before anything is written (`umbra
+/// tubes IN --stats-json IN` replaced the tractogram by its statistics).
+#[test]
+fn outputs_never_overwrite_the_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut sl = tubes::Streamlines::new();
+    sl.push(&[
+        glam::Vec3::ZERO,
+        glam::Vec3::X,
+        glam::Vec3::new(2.0, 1.0, 0.0),
+    ]);
+    let tck = d.join("in.tck");
+    tubes::save(&tck, &sl).unwrap();
+    let before = std::fs::read(&tck).unwrap();
+    let ply = d.join("o.ply");
+    let same = d.join(".").join("in.tck");
+    refused(
+        &["tubes", s(&tck), "-o", s(&ply), "--stats-json", s(&same)],
+        "the same file as the input",
+    );
+    refused(
+        &["tracts", "select", s(&tck), "-o", s(&same)],
+        "the same file as the input",
+    );
+    assert_eq!(std::fs::read(&tck).unwrap(), before);
+    assert!(!ply.exists());
+    // A render's record or timings never replace its scene, even while failing.
+    let scene = d.join("s.toml");
+    std::fs::write(&scene, format!("[[lines]]\npath = \"{}\"\n", s(&tck))).unwrap();
+    let text = std::fs::read(&scene).unwrap();
+    for flag in ["--record", "--timings-json"] {
+        refused(
+            &[
+                "render",
+                s(&scene),
+                "-o",
+                s(&d.join("x.png")),
+                flag,
+                s(&scene),
+            ],
+            "the same file as the input",
+        );
+        assert_eq!(std::fs::read(&scene).unwrap(), text, "{flag}");
+    }
+}

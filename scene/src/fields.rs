@@ -330,6 +330,10 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
         }
     }
     volume::check_outputs(&[Some(args.output.as_path()), octants_path.as_deref()])?;
+    volume::check_not_input(
+        &[Some(args.input.as_path())],
+        &[Some(args.output.as_path()), octants_path.as_deref()],
+    )?;
     let id = sweep_id(args);
     stage("reading");
     let mut vol = volume::load(&args.input).map_err(|e| e.to_string())?;

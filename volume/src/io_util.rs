@@ -714,6 +714,34 @@ pub fn check_distinct(paths: &[Option<&Path>]) -> std::result::Result<(), String
     Ok(())
 }
 
+/// Refuses an output that names one of the command's inputs (as the file system resolves the
+/// folders, as [`check_distinct`]): writing it would destroy what is being read (a
+/// tractogram replaced by a statistics file). Commands that may rewrite their input in place
+/// (`umbra convert`, through a temporary file) do not call it.
+pub fn check_not_input(
+    inputs: &[Option<&Path>],
+    outputs: &[Option<&Path>],
+) -> std::result::Result<(), String> {
+    let key = |p: &Path| {
+        let dir = folder_of(p);
+        let dir = dir
+            .canonicalize()
+            .or_else(|_| std::path::absolute(dir))
+            .unwrap_or_else(|_| dir.to_path_buf());
+        (dir, p.file_name().map(|n| n.to_os_string()))
+    };
+    for o in outputs.iter().flatten() {
+        if let Some(i) = inputs.iter().flatten().find(|i| key(i) == key(o)) {
+            return Err(format!(
+                "{}: the same file as the input {}; writing it would destroy the input",
+                o.display(),
+                i.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Whether process `pid` is alive on this machine (Linux: /proc; elsewhere assumed dead).
 fn process_alive(pid: &str) -> bool {
     cfg!(target_os = "linux") && Path::new("/proc").join(pid).exists()

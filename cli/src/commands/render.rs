@@ -167,7 +167,12 @@ pub fn run(a: Args) -> Result<(), String> {
     };
     let r = render(&a, t0, &state);
     if let (Err(e), Some(path)) = (&r, &a.record) {
-        if !state.written.get() {
+        // Never over the scene or the manifest (the error may be just that).
+        let input = volume::check_not_input(
+            &[a.scene.as_deref(), a.manifest.as_deref()],
+            &[Some(path.as_path())],
+        );
+        if !state.written.get() && input.is_ok() {
             let known = state.shard.get();
             let rec = Record {
                 shard: known.map(|k| k.0),
@@ -251,6 +256,14 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
         a.record.as_deref(),
         a.timings_json.as_deref(),
     ])?;
+    volume::check_not_input(
+        &[a.scene.as_deref(), a.manifest.as_deref()],
+        &[
+            Some(a.output.as_path()),
+            a.record.as_deref(),
+            a.timings_json.as_deref(),
+        ],
+    )?;
     // A sequence's or a manifest's output is a pattern: the record and the timings must not be
     // a file it makes (a frame would overwrite them, or they the frame).
     let sequence_out = a.orbit.is_some() || a.camera_path.is_some() || a.trail_range.is_some();

@@ -416,6 +416,10 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
         ));
     }
     volume::check_output(&a.output)?;
+    volume::check_not_input(
+        &[Some(a.input.as_path()), a.mask.as_deref()],
+        &[Some(a.output.as_path())],
+    )?;
     let mut series = volume::load_series(&a.input).map_err(|e| e.to_string())?;
     if let Some(b) = t.time_boundary {
         series.periodic = b == TimeBoundary::Periodic;

@@ -142,6 +142,7 @@ fn select(a: SelectArgs) -> Result<(), String> {
         ));
     }
     volume::check_output(&a.output)?;
+    volume::check_not_input(&[Some(a.input.as_path())], &[Some(a.output.as_path())])?;
     let s = tubes::load(&a.input).map_err(|e| e.to_string())?;
     for w in &s.warnings {
         eprintln!("umbra: warning: {}: {w}", a.input.display());

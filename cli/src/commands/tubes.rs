@@ -148,6 +148,10 @@ pub fn run(a: Args) -> Result<(), String> {
         transform: a.transform,
     };
     volume::check_outputs(&[Some(args.output.as_path()), a.stats_json.as_deref()])?;
+    volume::check_not_input(
+        &[Some(args.input.as_path())],
+        &[Some(args.output.as_path()), a.stats_json.as_deref()],
+    )?;
     let s = scene::tube_sets::run(&args)?;
     for w in &s.warnings {
         eprintln!("umbra: warning: {}: {w}", args.input.display());
