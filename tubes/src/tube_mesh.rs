@@ -809,7 +809,17 @@ fn tube(
         if !(rmf_iterative && in_vain) {
             fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
         }
-        let as_polyline = in_vain || fit_params.len() > points.len();
+        // A curve that passes its points but loops between them (a tangent at a ring more
+        // than 60 degrees off the chord to the next ring: four points 0.5, 1, 0.5 apart gave
+        // a cubic whose end tangents ran 115 degrees from the line, rings tilted across it and
+        // narrowed to 0.006 of the radius by the loop's curvature) is meshed as its polyline.
+        let loops = fit_params.windows(2).any(|w| {
+            let chord = (w[1].1 - w[0].1).normalize_or_zero();
+            chord != DVec3::ZERO
+                && (w[0].2.normalize_or_zero().dot(chord) < 0.5
+                    || w[1].2.normalize_or_zero().dot(chord) < 0.5)
+        });
+        let as_polyline = in_vain || fit_params.len() > points.len() || loops;
         let sharp = sharp_turn(points);
         if rmf_iterative && as_polyline && sharp && !between_turns {
             return None;
@@ -1586,6 +1596,37 @@ pub(crate) fn build_streamed_by(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A straight piece whose fitted curve all but stops at its ends (four points 0.5, 1.0,
+    /// 0.5 apart between two hair-length reversals of an HCP1065 CST_L streamline) keeps the
+    /// full radius: the analytic curvature there is the parameterisation's, not a turn (its
+    /// rings were 0.006 of the radius, a thread in the render).
+    #[test]
+    fn a_straight_piece_keeps_its_radius_where_its_curve_slows() {
+        let pts = [
+            [-80.59375, -104.4375, 5.78125],
+            [-80.75, -104.125, 6.15625],
+            [-81.09375, -103.5, 6.84375],
+            [-81.25, -103.1875, 7.21875],
+        ];
+        let mut s = Streamlines::new();
+        s.push(&pts.map(|p| Vec3::new(p[0], p[1], p[2])));
+        let mut o = TubeOptions::defaults(0.5, 8, 0.02);
+        o.caps = false;
+        let (mesh, st) = build(&s, &o);
+        assert_eq!(st.radius_clamps, 0, "{st:?}");
+        // Every vertex half a unit from the line (nearly straight: within 0.03).
+        let (a, b) = (
+            DVec3::from(pts[0].map(|v| v as f64)),
+            DVec3::from(pts[3].map(|v| v as f64)),
+        );
+        let axis = (b - a).normalize();
+        for p in &mesh.positions {
+            let q = p.as_dvec3() + mesh.origin - a;
+            let r = (q - axis * q.dot(axis)).length();
+            assert!((r - 0.5).abs() < 0.03, "a vertex {r} from the line");
+        }
+    }
 
     /// The kink rule of [`too_rough`] and its premise: one point of a straight line or a helix
     /// moved off it by 4.5 to 20 tolerances (fourth difference 27 to 120 tolerances) keeps
