@@ -438,24 +438,28 @@ pub(crate) fn step_limit_warnings(seeds: usize, lines: usize, capped: usize) -> 
     w
 }
 
-/// Traces one way from `seed` (speed `s0`) along `sign d0` (`d0` the field's direction there,
+/// Traces one way from `seed` (speed `s0`; the first step turns at most `max_angle` from
+/// `start_chord`, else from the direction) along `sign d0` (`d0` the field's direction there,
 /// `sign` 1 forward, -1 backward) for at most `max_length` of arc length; returns the points
 /// after the seed with their integration times since the seed (positive) and speeds, the arc
 /// length traced, and whether [`MAX_STEPS`] stopped it.
 fn trace_one(
     f: &GridField,
-    seed: DVec3,
+    (seed, s0): (DVec3, f64),
     d0: DVec3,
-    s0: f64,
     sign: f64,
     max_length: f64,
     o: &TraceOptions,
+    start_chord: Option<DVec3>,
 ) -> (Vec<Sample>, f64, bool) {
     let mut out = Vec::new();
     let (mut p, mut dir, mut speed) = (seed, d0 * sign, s0);
     let mut length = 0.0;
     let mut time = 0.0;
     let cos_max = o.max_angle_deg.to_radians().cos();
+    // The direction the first step may not turn from: the other half's first step seen from
+    // the seed (the line's turn there), else the field's direction.
+    let mut last_chord = start_chord.unwrap_or(dir.normalize_or_zero());
     if max_length <= 0.0 {
         return (out, 0.0, false);
     }
@@ -474,6 +478,13 @@ fn trace_one(
         if ndir.dot(dir) < cos_max {
             break;
         }
+        // The line's own turn: the step's chord against the last one (the direction at the
+        // seed for the first). A higher-order step can bend more than its end directions say
+        // (RK4 on an eigenvector field made turns of 141 degrees under a limit of 60).
+        let chord = (q - p).normalize_or_zero();
+        if chord.dot(last_chord) < cos_max {
+            break;
+        }
         if let Some((mask, thr)) = o.mask {
             match mask.at(q) {
                 Some(v) if v >= thr => {}
@@ -488,6 +499,7 @@ fn trace_one(
         length += h;
         time += dt;
         out.push((q, time, nspeed));
+        last_chord = chord;
         p = q;
         dir = ndir;
         speed = nspeed;
@@ -526,9 +538,11 @@ pub fn trace_at(f: &GridField, seeds: &[(DVec3, f64)], o: &TraceOptions) -> Stre
             let s0 = v.length();
             let d = v / s0;
             // `max_length` bounds the whole line: backward goes as far as forward left.
-            let (fwd, len, cap_f) = trace_one(f, s, d, s0, 1.0, o.max_length, o);
+            let (fwd, len, cap_f) = trace_one(f, (s, s0), d, 1.0, o.max_length, o, None);
             let (mut line, cap_b): (Vec<Sample>, bool) = if o.both_ways {
-                let (mut back, _, cap) = trace_one(f, s, d, s0, -1.0, o.max_length - len, o);
+                let joint = fwd.first().map(|q| -(q.0 - s).normalize_or_zero());
+                let (mut back, _, cap) =
+                    trace_one(f, (s, s0), d, -1.0, o.max_length - len, o, joint);
                 back.reverse();
                 (
                     back.into_iter().map(|(p, t, v)| (p, t0 - t, v)).collect(),
