@@ -741,3 +741,51 @@ fn outputs_never_overwrite_the_input() {
         assert_eq!(std::fs::read(&scene).unwrap(), text, "{flag}");
     }
 }
+
+/// `umbra tubes` says what the statistics alone hid: no tube at all, a fit that does not honour
+/// the tolerance, coordinates too large for the radius to resolve; `--chordal` decides the
+/// sides, so `--sides` beside it is refused.
+#[test]
+fn tubes_warn_where_the_mesh_is_not_what_was_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ply = d.join("o.ply");
+    let run = |tck: &Path, extra: &[&str]| {
+        let mut args = vec!["tubes", s(tck), "-o", s(&ply)];
+        args.extend_from_slice(extra);
+        let out = umbra().args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{args:?}: {err}");
+        err
+    };
+    let empty = d.join("empty.tck");
+    tubes::save(&empty, &tubes::Streamlines::new()).unwrap();
+    assert!(run(&empty, &[]).contains("no tube was made"));
+    let mut wavy = tubes::Streamlines::new();
+    let pts: Vec<glam::Vec3> = (0..40)
+        .map(|i| glam::Vec3::new(i as f32 * 0.5, (i as f32 * 0.9).sin(), 0.0))
+        .collect();
+    wavy.push(&pts);
+    let w = d.join("wavy.tck");
+    tubes::save(&w, &wavy).unwrap();
+    assert!(run(&w, &["--fit", "none", "--tolerance", "0.01"]).contains("exceeds the tolerance"));
+    assert!(!run(&w, &["--tolerance", "0.01"]).contains("exceeds the tolerance"));
+    let mut huge = tubes::Streamlines::new();
+    huge.push(&pts.iter().map(|p| *p * 1e30).collect::<Vec<_>>());
+    let h = d.join("huge.tck");
+    tubes::save(&h, &huge).unwrap();
+    assert!(run(&h, &[]).contains("flattened"));
+    refused(
+        &[
+            "tubes",
+            s(&w),
+            "-o",
+            s(&ply),
+            "--chordal",
+            "0.01",
+            "--sides",
+            "4",
+        ],
+        "cannot be used with",
+    );
+}

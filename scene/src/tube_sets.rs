@@ -115,6 +115,12 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
         s.transform(&transform_matrix(&m, "transform")?);
     }
     let t_read = t0.elapsed().as_secs_f64();
+    // Vertices are single precision relative to the mesh's origin: a radius below what that
+    // resolves across the tractogram's extent flattens the tubes.
+    let extent = s
+        .bounds()
+        .map_or(0.0, |[lo, hi]| (hi - lo).as_dvec3().max_element());
+    let flat = a.radius < 1e-6 * extent;
     let t1 = Instant::now();
     let ply = a
         .output
@@ -156,7 +162,14 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
             t2.elapsed().as_secs_f64(),
         )
     };
-    push_mesh_warnings(&mut warnings, &st);
+    push_mesh_warnings(&mut warnings, &st, a.tolerance);
+    if flat {
+        warnings.push(format!(
+            "the radius {} is below what single-precision vertices resolve across the \
+             tractogram's extent of {extent:e}: the tubes come out flattened",
+            a.radius
+        ));
+    }
     Ok(TubesSummary {
         stats: st,
         vertices,
@@ -171,7 +184,19 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
 }
 
 /// The warnings of a mesh's statistics.
-fn push_mesh_warnings(warnings: &mut Vec<String>, st: &TubeStats) {
+fn push_mesh_warnings(warnings: &mut Vec<String>, st: &TubeStats, tolerance: f64) {
+    if st.triangles == 0 {
+        warnings.push(
+            "no tube was made: no streamline has two distinct points (the mesh is empty)".into(),
+        );
+    }
+    if st.max_deviation > tolerance * (1.0 + 1e-9) {
+        warnings.push(format!(
+            "the largest deviation, {:.4}, exceeds the tolerance {tolerance}: only the \
+             iterative fit refines until the tolerance holds",
+            st.max_deviation
+        ));
+    }
     if st.dropped_points > 0 {
         warnings.push(format!(
             "{} non-finite (NaN or infinite) or repeated points were dropped",

@@ -430,13 +430,21 @@ fn put_name(h: &mut [u8], at: usize, name: &str, count: usize) {
 pub fn write(path: &Path, s: &Streamlines) -> Result<()> {
     s.validate()
         .map_err(|e| TubesError::Invalid(format!("{}: {e}", path.display())))?;
-    let ns: usize = s.point_attributes.iter().map(|a| a.components).sum();
-    let np: usize = s.line_attributes.iter().map(|a| a.components).sum();
+    // An empty tractogram declares no attributes: with none of their values in the file,
+    // nibabel cannot read the names back (it indexes the missing values).
+    let empty = s.is_empty();
+    let (point_attributes, line_attributes) = if empty {
+        (&[][..], &[][..])
+    } else {
+        (&s.point_attributes[..], &s.line_attributes[..])
+    };
+    let ns: usize = point_attributes.iter().map(|a| a.components).sum();
+    let np: usize = line_attributes.iter().map(|a| a.components).sum();
     if ns > 10
         || np > 10
-        || s.point_attributes
+        || point_attributes
             .iter()
-            .chain(&s.line_attributes)
+            .chain(line_attributes)
             .any(|a| a.name.len() > 17)
     {
         return Err(TubesError::Invalid(format!(
@@ -456,13 +464,13 @@ pub fn write(path: &Path, s: &Streamlines) -> Result<()> {
     }
     h[36..38].copy_from_slice(&(ns as i16).to_le_bytes());
     let mut at = 38;
-    for a in &s.point_attributes {
+    for a in point_attributes {
         put_name(&mut h, at, &a.name, a.components);
         at += 20;
     }
     h[238..240].copy_from_slice(&(np as i16).to_le_bytes());
     let mut at = 240;
-    for a in &s.line_attributes {
+    for a in line_attributes {
         put_name(&mut h, at, &a.name, a.components);
         at += 20;
     }

@@ -724,3 +724,29 @@ fn float64_values_beyond_f32_are_refused() {
     let e = expect_err(d.path(), "big.tck", &b, "1e300");
     assert!(e.contains("point 1") && e.contains("f32"), "{e}");
 }
+
+/// An empty TrackVis file declares no scalars or properties (nibabel, which writes them so,
+/// failed to read umbra's, which named two scalars with no values), and reads back empty.
+#[test]
+fn an_empty_trackvis_file_declares_no_attributes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = Streamlines::new();
+    s.point_attributes.push(tubes::Attribute {
+        name: "time".into(),
+        components: 1,
+        values: vec![],
+    });
+    s.line_attributes.push(tubes::Attribute {
+        name: "id".into(),
+        components: 1,
+        values: vec![],
+    });
+    let p = dir.path().join("e.trk");
+    tubes::save(&p, &s).unwrap();
+    let bytes = std::fs::read(&p).unwrap();
+    let i16_at = |o: usize| i16::from_le_bytes([bytes[o], bytes[o + 1]]);
+    assert_eq!((i16_at(36), i16_at(238)), (0, 0));
+    assert_eq!(bytes.len(), 1000);
+    let back = tubes::load(&p).unwrap();
+    assert!(back.is_empty() && back.point_attributes.is_empty());
+}

@@ -27,7 +27,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0.05, value_parser = super::positive)]
     tolerance: f64,
     /// Error-bounded tessellation: sides and ring spacing from this chordal tolerance.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "sides")]
     chordal: Option<f64>,
     /// Curve fit: iterative (the paper's), least-squares, or none.
     #[arg(
