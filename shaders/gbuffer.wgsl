@@ -58,13 +58,20 @@ struct VOut {
     @location(10) @interpolate(linear) seg: vec3<f32>,
 };
 
+// Mesh and line colours are 8-bit sRGB (as files and colour codes give them:
+// `tubes::tube_mesh::map_color`); the G-buffer holds linear light. The sRGB EOTF exactly
+// (`volume::colormap::srgb_to_linear`).
+fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
+    return select(pow((c + vec3<f32>(0.055)) / 1.055, vec3<f32>(2.4)), c / 12.92, c <= vec3<f32>(0.04045));
+}
+
 @vertex
 fn vs(v: VIn) -> VOut {
     var o: VOut;
     let rel = v.pos + G.offset.xyz;
     o.clip = G.view_proj_rel * vec4<f32>(rel, 1.0);
     o.normal = v.normal;
-    o.color = v.color.rgb;
+    o.color = srgb_to_linear(v.color.rgb);
     o.rel = rel;
     o.bend = vec3<f32>(0.0);
     o.bulge = 0.0;
@@ -316,7 +323,7 @@ fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
     var o: VOut;
     o.clip = c;
     o.rel = p;
-    o.color = unpack4x8unorm(line_colors[select(i, j, end == 1u)]).rgb;
+    o.color = srgb_to_linear(unpack4x8unorm(line_colors[select(i, j, end == 1u)]).rgb);
     // The view-facing normal (T x C) x T of illuminated lines, C towards the eye (a point
     // under perspective, a direction under orthographic projection).
     var to_eye = -G.forward.xyz;

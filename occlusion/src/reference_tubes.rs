@@ -62,7 +62,9 @@ impl TubeScene {
             let col = |i: usize| {
                 m.colors
                     .get(i)
-                    .map_or([0.8; 3], |c| c.map(|v| v as f64 / 255.0))
+                    // 8-bit sRGB, decoded to linear light as the G-buffer decodes it.
+                    .map_or([200.0 / 255.0; 3], |c| c.map(|v| v as f64 / 255.0))
+                    .map(volume::colormap::srgb_to_linear)
             };
             for t in m.indices.chunks_exact(3) {
                 let i = [t[0] as usize, t[1] as usize, t[2] as usize];

@@ -656,7 +656,11 @@ pub fn color_bar(
             map: map.map_or("viridis", |m| m.name()).into(),
             range,
             colors: (0..64)
-                .map(|k| tubes::tube_mesh::map_color(map, (k as f64 + 0.5) / 64.0))
+                // Drawn into the linear image: decoded as the renderer decodes the tubes'.
+                .map(|k| {
+                    tubes::tube_mesh::map_color(map, (k as f64 + 0.5) / 64.0)
+                        .map(|c| volume::colormap::srgb_to_linear(c as f64) as f32)
+                })
                 .collect(),
         }))
 }

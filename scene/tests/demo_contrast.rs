@@ -64,8 +64,12 @@ fn the_mni_demo_shows_gyri_sulci_and_the_bundles() {
         let s = c[0] + c[1] + c[2];
         [c[0] / s, c[1] / s, c[2] / s]
     };
+    // The codes are sRGB; the image is linear light.
     let hex = |h: &str| {
-        let v = |k: usize| u8::from_str_radix(&h[1 + 2 * k..3 + 2 * k], 16).unwrap() as f32 / 255.0;
+        let v = |k: usize| {
+            let c = u8::from_str_radix(&h[1 + 2 * k..3 + 2 * k], 16).unwrap() as f64 / 255.0;
+            volume::colormap::srgb_to_linear(c) as f32
+        };
         chroma([v(0), v(1), v(2)])
     };
     let want: Vec<[f32; 3]> = s.tubes.iter().map(|t| hex(&t.color)).collect();

@@ -380,7 +380,8 @@ mod tests {
             LineWidth::World(0.1),
             true,
         );
-        let want = |v: f64| rgba(magma.rgb(v).map(|c| c as f32));
+        // sRGB, as every colour of a line set is stored (the renderer decodes them).
+        let want = |v: f64| rgba(magma.srgb(v).map(|c| c as f32));
         assert_eq!(l.colors[0], want(0.0));
         assert_eq!(l.colors[1], want(0.5));
         assert_eq!(l.colors[5], want(0.25));

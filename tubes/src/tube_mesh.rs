@@ -69,10 +69,12 @@ pub enum ColorMode<'a> {
     ),
 }
 
-/// The colour at `t` in [0, 1] of colour map `map` (linear RGB; `None`: [`colormap`]).
+/// The colour at `t` in [0, 1] of colour map `map` (`None`: [`colormap`]), sRGB-encoded as
+/// every colour of a mesh or line set is (8-bit sRGB, as PLY and OBJ files carry them and
+/// `#rrggbb` gives them; the renderer decodes them to linear light, `gbuffer.wgsl`).
 pub fn map_color(map: Option<Colormap>, t: f64) -> [f32; 3] {
     match map {
-        Some(m) => m.rgb(t).map(|c| c as f32),
+        Some(m) => m.srgb(t).map(|c| c as f32),
         None => colormap(t),
     }
 }

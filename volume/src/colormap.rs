@@ -96,7 +96,17 @@ impl Colormap {
     /// So `rgb(k / 255)` is entry `k` (to rounding; exactly at 0 and 1) and the colour is linear
     /// in `t` between entries.
     pub fn rgb(self, t: f64) -> [f64; 3] {
-        let table = &tables()[self as usize].linear;
+        Self::lerp(&tables()[self as usize].linear, t)
+    }
+
+    /// The sRGB-encoded colour at `t`, interpolated in [`Colormap::srgb_table`] as
+    /// [`Colormap::rgb`] is in the linear one: what a file's 8-bit colours (a mesh's vertex
+    /// colours, which the renderer decodes) carry.
+    pub fn srgb(self, t: f64) -> [f64; 3] {
+        Self::lerp(&tables()[self as usize].srgb, t)
+    }
+
+    fn lerp(table: &[[f32; 3]], t: f64) -> [f64; 3] {
         let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
         let x = t * (TABLE_LEN - 1) as f64;
         let i = (x.floor() as usize).min(TABLE_LEN - 2);
