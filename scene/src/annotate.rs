@@ -617,6 +617,16 @@ mod tests {
         .unwrap()
     }
 
+    /// The context of RAS data on a white background.
+    fn on_white<'a>(camera: &'a Camera, colorbar: Option<&'a ColorBar>) -> Context<'a> {
+        Context {
+            camera,
+            ras: true,
+            background: [1.0; 3],
+            colorbar,
+        }
+    }
+
     /// A title wider than the image is cut with an ellipsis inside the margins (it lost its
     /// ends on both sides before): no ink in the outer columns, and ink at the top.
     #[test]
@@ -628,13 +638,7 @@ mod tests {
             ..Default::default()
         };
         let mut img = blank(w, h);
-        let ctx = Context {
-            camera: &camera,
-            ras: true,
-            background: [1.0; 3],
-            colorbar: None,
-        };
-        let p = draw(&mut img, w, h, &spec, &ctx).unwrap();
+        let p = draw(&mut img, w, h, &spec, &on_white(&camera, None)).unwrap();
         let dark = |xs: std::ops::Range<usize>| {
             (0..h)
                 .flat_map(|y| xs.clone().map(move |x| y * w + x))
@@ -666,13 +670,7 @@ mod tests {
                 ..Default::default()
             };
             let mut img = blank(w, h);
-            let ctx = Context {
-                camera: &camera,
-                ras: true,
-                background: [1.0; 3],
-                colorbar: Some(&bar),
-            };
-            draw(&mut img, w, h, &spec, &ctx).unwrap();
+            draw(&mut img, w, h, &spec, &on_white(&camera, Some(&bar))).unwrap();
             // Text 9 px high, margins 5.4 px (the bar's frame reaches 2.6 px from the edge):
             // nothing dark in the last 3 columns.
             let dark = (0..h)

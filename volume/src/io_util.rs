@@ -688,18 +688,22 @@ pub fn check_outputs(paths: &[Option<&Path>]) -> std::result::Result<(), String>
     check_distinct(paths)
 }
 
+/// A file's identity for comparing paths: its folder as the file system resolves it (the
+/// absolute path where it does not exist yet) and its name.
+fn file_key(p: &Path) -> (std::path::PathBuf, Option<std::ffi::OsString>) {
+    let dir = folder_of(p);
+    let dir = dir
+        .canonicalize()
+        .or_else(|_| std::path::absolute(dir))
+        .unwrap_or_else(|_| dir.to_path_buf());
+    (dir, p.file_name().map(|n| n.to_os_string()))
+}
+
 /// Refuses two outputs that name one file (`out.nrrd` and `./dir/../out.nrrd` alike: the
 /// folders compared as the file system resolves them): the second write would replace the
 /// first. Call it after the folders exist ([`check_output`] makes them).
 pub fn check_distinct(paths: &[Option<&Path>]) -> std::result::Result<(), String> {
-    let key = |p: &Path| {
-        let dir = folder_of(p);
-        let dir = dir
-            .canonicalize()
-            .or_else(|_| std::path::absolute(dir))
-            .unwrap_or_else(|_| dir.to_path_buf());
-        (dir, p.file_name().map(|n| n.to_os_string()))
-    };
+    let key = file_key;
     let paths: Vec<&Path> = paths.iter().flatten().copied().collect();
     for (i, a) in paths.iter().enumerate() {
         if let Some(b) = paths[..i].iter().find(|b| key(b) == key(a)) {
@@ -722,14 +726,7 @@ pub fn check_not_input(
     inputs: &[Option<&Path>],
     outputs: &[Option<&Path>],
 ) -> std::result::Result<(), String> {
-    let key = |p: &Path| {
-        let dir = folder_of(p);
-        let dir = dir
-            .canonicalize()
-            .or_else(|_| std::path::absolute(dir))
-            .unwrap_or_else(|_| dir.to_path_buf());
-        (dir, p.file_name().map(|n| n.to_os_string()))
-    };
+    let key = file_key;
     for o in outputs.iter().flatten() {
         if let Some(i) = inputs.iter().flatten().find(|i| key(i) == key(o)) {
             return Err(format!(
