@@ -13,7 +13,9 @@
 //! * tractograms: valid offsets and attributes, finite bounds of the finite points, and at most
 //!   [`AMPLIFICATION`] bytes of points per input byte (plus 1 MiB);
 //! * meshes: indices within the vertices, finite positions and normals;
-//! * scenes: every camera and render number finite.
+//! * scenes: every camera and render number finite;
+//! * point clouds: valid, finite bounds, bounded as tractograms;
+//! * colour tables: named entries, no more than the input's bytes.
 //!
 //! A property that fails panics, which libFuzzer reports as a crash.
 
@@ -43,10 +45,12 @@ pub enum Target {
     Ply,
     Obj,
     Scene,
+    Points,
+    Lut,
 }
 
 impl Target {
-    pub const ALL: [Target; 17] = [
+    pub const ALL: [Target; 19] = [
         Target::Nifti,
         Target::NiftiGz,
         Target::Nrrd,
@@ -64,6 +68,8 @@ impl Target {
         Target::Ply,
         Target::Obj,
         Target::Scene,
+        Target::Points,
+        Target::Lut,
     ];
 
     /// The target's name: its fuzz binary, corpus and dictionary are named so.
@@ -86,6 +92,8 @@ impl Target {
             Target::Ply => "ply",
             Target::Obj => "obj",
             Target::Scene => "scene",
+            Target::Points => "points",
+            Target::Lut => "lut",
         }
     }
 
@@ -108,6 +116,8 @@ impl Target {
             Target::Ply => "input.ply",
             Target::Obj => "input.obj",
             Target::Scene => "input.toml",
+            Target::Points => "input.csv",
+            Target::Lut => "input.lut.txt",
         }
     }
 
@@ -199,6 +209,22 @@ pub fn run(target: Target, data: &[u8]) {
                 assert!(m.origin.is_finite());
                 assert!(m.positions.iter().all(|p| p.is_finite()));
                 assert!(m.normals.iter().all(|p| p.is_finite()));
+            }
+        }
+        Target::Points => {
+            if let Ok(s) = tubes::points::read(&path) {
+                s.validate().unwrap();
+                if let Some([lo, hi]) = s.bounds() {
+                    assert!(lo.is_finite() && hi.is_finite());
+                }
+                assert!(s.points.len() * 12 <= limit, "{} points", s.points.len());
+            }
+        }
+        Target::Lut => {
+            if let Ok(t) = volume::labels::read_lut(&path) {
+                // Every entry named, at most one a line of the input.
+                assert!(t.entries.values().all(|e| !e.name.is_empty()));
+                assert!(t.entries.len() <= data.iter().filter(|&&b| b == b'\n').count() + 1);
             }
         }
         Target::Scene => {
