@@ -4,10 +4,12 @@
 // for the slab [z0 + k d, z0 + (k + 1) d].
 //
 // Two entry points share the per-sample code:
-// * `light` does one slice of the volumetric occlusion buffer (Alg. 3) on a grid of cells of
-//   s x s pixels (the dispatch is the barrier the blur needs): O_k gathered from the light
-//   leaving slice k - 1 with the cone blur, the light leaving slice k through the volume and
-//   the tubes' thickness, O_k stored in the light volume (cells x slices).
+// * `light` does one step of the volumetric occlusion buffer (Alg. 3) on a grid of cells of
+//   s x s pixels (the dispatch is the barrier the blur needs): a step is `light_step` slices
+//   deep (`occlusion::combined::light_view`; 1: the paper's slice); O_k gathered from the light
+//   leaving step k - 1 with the cone blur, the light leaving step k through the volume and the
+//   tubes' thickness, O_k stored in the light volume (cells x steps), which the march reads at
+//   step `slice / light_step` (`light_at`, `light_step_at`).
 // * `march` walks every slice of a pixel in one invocation: the eye buffer (Alg. 2) with the
 //   volume's colour modulated by the light volume when there is one, rays clipped to the
 //   grid's box and to the surface, empty bricks skipped, early termination; then the partial

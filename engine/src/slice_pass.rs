@@ -19,7 +19,8 @@ const SHADER: &str = include_str!("../../shaders/slice_pass.wgsl");
 /// How the slices shade.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SliceSettings {
-    /// Run the occlusion buffer (one dispatch per slice) and shade the volume with it.
+    /// Run the occlusion buffer (one dispatch per step of `step` slices) and shade the volume
+    /// with it.
     pub occlusion: bool,
     /// Cell edge of the occlusion buffer in pixels (None: `occlusion::combined::light_cell`).
     pub cell: Option<u32>,

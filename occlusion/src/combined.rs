@@ -61,9 +61,13 @@
 //!
 //! Departure from the paper, for speed (issue 5, "beat the paper's design"): the occlusion
 //! buffer lives on cells of `s x s` pixels (`render.occlusion_cell`; by default [`light_cell`]:
-//! 2 pixels, or as many as the data's smallest voxel covers on screen, [`data_cell`]), one dispatch per slice
-//! (the `light` entry; the dispatch is the barrier the blur needs), and stores every slice's
-//! `O_k` in a light volume (cells x slices). The eye buffer is then one dispatch (`march`): all
+//! 2 pixels, or as many as the data's smallest voxel covers on screen, [`data_cell`]), in steps
+//! of `m` slices (`render.occlusion_step`; by default [`light_step`]: a voxel deep where the
+//! volume alone casts the light, [`data_step`], else one slice), one dispatch per step (the
+//! `light` entry; the dispatch is the barrier the blur needs), and stores every step's `O` in a
+//! light volume (cells x steps). A step is the paper's slice in the light's own view
+//! ([`light_view`]: slabs `m d` deep) with the blur's angle of [`step_theta`]; eye slice `k`
+//! reads step `k / m`, linearly between steps. The eye buffer is then one dispatch (`march`): all
 //! slices of a pixel in one invocation, with `O` read bilinearly from the light volume, rays
 //! clipped to the grid's box and to the surface, empty 8^3 bricks skipped (exact, see
 //! `ea_pass::occupancy`), early termination at opacity `OPAQUE` (1 - 1/128) - none of which the

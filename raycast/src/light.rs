@@ -2,9 +2,10 @@
 //! `occlusion::combined` states it and `shaders/slice_pass.wgsl::light` computes it, for the
 //! `dos` and `combined` methods of volume-only scenes on machines without a GPU.
 //!
-//! The light volume holds `O_k`, the light reaching slice k, on cells of `s x s` pixels: slice
-//! by slice (each slice blurs the light leaving the previous one, so the slices are a
-//! sequence; the rows of a slice are shared by the threads, [`sweep_slices`]), each cell's
+//! The light volume holds `O_k`, the light reaching step k (`LightSettings::step` slices deep,
+//! `occlusion::combined::light_view`; the eye reads step `slice / step` linearly), on cells of
+//! `s x s` pixels: step by step (each blurs the light leaving the previous one, so the steps
+//! are a sequence; the rows of a slice are shared by the threads, [`sweep_slices`]), each cell's
 //! `O_k` gathered from `L_{k-1} = O_{k-1} T_{k-1}` of its neighbours with the slice's blur
 //! (`occlusion::combined::blur_rows`: the 3x3 stencil up to two cells, else `n x n` bilinear
 //! taps on the disk), then `T_k` through the volume along the cell's centre ray, the whole
