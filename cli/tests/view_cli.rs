@@ -317,35 +317,36 @@ fn umbra_view_without_a_display_says_so() {
         "{err}"
     );
     // The frame log is never the scene (it was emptied before the scene was read), and it
-    // is written only once the window shows: a viewer that fails first leaves none.
-    let text = std::fs::read(&s).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_umbra"))
-        .args([
+    // is created only once the window paints (the Xvfb test above sees it then): a viewer that
+    // fails first - with no display, or past the display's check on a scene it cannot read -
+    // leaves none.
+    let view = |scene: &std::path::Path, log: &std::path::Path, display: Option<&str>| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_umbra"));
+        c.args([
             "view",
-            s.to_str().unwrap(),
-            "--frame-log",
-            s.to_str().unwrap(),
-        ])
-        .env_remove("DISPLAY")
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--frame-log"));
-    assert_eq!(std::fs::read(&s).unwrap(), text, "the scene was changed");
-    let log = dir.path().join("logs/new/frames.csv");
-    let out = Command::new(env!("CARGO_BIN_EXE_umbra"))
-        .args([
-            "view",
-            s.to_str().unwrap(),
+            scene.to_str().unwrap(),
             "--frame-log",
             log.to_str().unwrap(),
         ])
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
+        .env_remove("WAYLAND_DISPLAY");
+        match display {
+            Some(d) => c.env("DISPLAY", d),
+            None => c.env_remove("DISPLAY"),
+        };
+        let out = c.output().unwrap();
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let text = std::fs::read(&s).unwrap();
+    assert!(view(&s, &s, None).contains("--frame-log"));
+    assert_eq!(std::fs::read(&s).unwrap(), text, "the scene was changed");
+    let log = dir.path().join("logs/new/frames.csv");
+    view(&s, &log, None);
     assert!(!log.exists(), "a log of a viewer that never showed");
+    let missing = dir.path().join("missing.toml");
+    let err = view(&missing, &log, Some(":97"));
+    assert!(err.contains("missing.toml"), "{err}");
+    assert!(!log.exists(), "a log of a viewer whose scene failed");
     // A window size that is no size is refused before anything opens, naming the flag.
     for bad in ["nan", "0", "-5", "1e9"] {
         let out = Command::new(env!("CARGO_BIN_EXE_umbra"))

@@ -90,7 +90,7 @@ impl LightVolume {
         lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
     }
 
-    /// Cell `c`'s (an offset `cell KB`) light at fractional step `kf`, as `light_coarse` in the
+    /// Cell `c`'s (an offset `cell KB`) light at fractional step `kf`, as `light_step_at` in the
     /// shader: interpolated between steps, `O_{-1} = 1` before step 0, the last beyond it.
     fn cell_at(&self, c: u32, kf: f32) -> f32 {
         if kf <= -1.0 {

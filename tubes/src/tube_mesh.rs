@@ -674,7 +674,7 @@ const SIMPLIFY_SPAN: usize = 16;
 /// The most a segment of [`simplify_polyline`] turns from the one before (unless the
 /// polyline itself turns more at a point), degrees: longer segments that turn more twist the
 /// frames between rings (DIPY's tracks300 at tolerance 0.1: the largest twist 1.32 degrees with
-/// every point, 1.79 with 15 degrees, 1.32 with 10; HCP1065 CST_L at 0.02 keeps 47% of its
+/// every point, 1.79 with 15 degrees, 1.32 with 10; HCP1065 CST_L at 0.02 keeps 48% of its
 /// points with 10 degrees, 46.8% with 15).
 const SIMPLIFY_TURN_DEG: f64 = 10.0;
 
@@ -685,7 +685,7 @@ const SIMPLIFY_TURN_DEG: f64 = 10.0;
 /// kept indices (the first and the last point always) and the largest distance of a dropped
 /// point to the segment that replaced it - a bound of its distance to the tube's axis.
 /// vtkTubeFilter places a ring at every point; a tractogram's polyline lines often run
-/// straighter than their sampling (at tolerance 0.02 this keeps 47% of HCP1065 CST_L's
+/// straighter than their sampling (at tolerance 0.02 this keeps 48% of HCP1065 CST_L's
 /// points and 51% of AF_R's, docs/benchmarks.md), and the rings left cost as much as the rest
 /// of the meshing.
 fn simplify_polyline(points: &[DVec3], tolerance: f64, max_turn_deg: f64) -> (Vec<usize>, f64) {
