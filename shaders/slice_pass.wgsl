@@ -5,11 +5,13 @@
 //
 // Two entry points share the per-sample code:
 // * `light` does one step of the volumetric occlusion buffer (Alg. 3) on a grid of cells of
-//   s x s pixels (the dispatch is the barrier the blur needs): a step is `light_step` slices
-//   deep (`occlusion::combined::light_view`; 1: the paper's slice); O_k gathered from the light
-//   leaving step k - 1 with the cone blur, the light leaving step k through the volume and the
-//   tubes' thickness, O_k stored in the light volume (cells x steps), which the march reads at
-//   step `slice / light_step` (`light_at`, `light_step_at`).
+//   s x s pixels (the dispatch is the barrier the blur needs): a step is `light_step x
+//   light_samples` slices deep (`occlusion::combined::light_view`; 1: the paper's slice),
+//   sampled in `light_samples` parts (`occlusion::combined::light_samples`); O_k gathered from
+//   the light leaving step k - 1 with the cone blur, the light leaving step k through the
+//   volume and the tubes' thickness, O_k and the light reaching each further part stored in
+//   the light volume (cells x stored slices, `light_samples` a step), which the march reads at
+//   stored slice `slice / light_step` (`light_at`, `light_step_at`).
 // * `march` walks every slice of a pixel in one invocation: the eye buffer (Alg. 2) with the
 //   volume's colour modulated by the light volume when there is one, rays clipped to the
 //   grid's box and to the surface, empty bricks skipped, early termination; then the partial
@@ -92,11 +94,13 @@ struct Params {
     packing: u32,
     // added to a packed integer to give the sample's value
     value_offset: f32,
-    // eye slices per step of the light volume (a power of two) and the steps it holds: the
-    // `light` entry sweeps slabs light_step d deep, eye slice k reads step k / light_step
+    // eye slices per stored slice of the light volume (a power of two) and the stored slices
+    // it holds: eye slice k reads stored slice k / light_step
     light_step: u32,
     light_slices: u32,
-    pad0: u32,
+    // stored slices per step of the `light` entry (its slabs light_step light_samples d
+    // deep): volume samples at the middles of equal parts of its slab (a voxel apart)
+    light_samples: u32,
     pad1: u32,
 };
 
@@ -526,9 +530,10 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let ci = id.x + cw * id.y;
-    // Step k of the light: a slab light_step eye slices deep.
+    // Step k of the light: a slab light_step light_samples eye slices deep.
     let k = S.k;
-    let d = P.dz * f32(P.light_step);
+    let n = max(P.light_samples, 1u);
+    let d = P.dz * f32(P.light_step * n);
     let z_k = P.z0 + (f32(k) + 0.5) * d;
     let s = P.cell;
     let centre = (vec2<f32>(id.xy) + vec2<f32>(0.5)) * f32(s);
@@ -620,18 +625,37 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
             occl = sum / f32(n * n);
         }
     }
-    light_volume[ci + cw * ch * k] = occl;
+    light_volume[ci + cw * ch * k * n] = occl;
     // The light leaving slice k: through the volume's extinction at the cell's ray, and
     // through the tubes where the slice lies inside them (between front and back faces; with
     // flag 4 everywhere behind a front face, the paper's rule), as the mean transmittance of
     // the cell's pixels. Over the whole slab: occlusion does not stop at the surface.
     let seg = d * cs.z;
     var grad = vec3<f32>(0.0);
-    let iv = depth_interval(r, P.z0 + f32(k) * d, d, 0.0);
     var t = 1.0;
-    if (iv.y > iv.x) {
-        let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
-        t = exp(-max(c.a, 0.0) * (iv.y - iv.x) * cs.z);
+    // n samples at the middles of equal parts of the slab (one: its middle), each part clipped
+    // on its own, as the CPU renderer's `EaVolume::optical_depth` takes them; the light
+    // reaching part i stored at slice k n + i (`raycast::light::store_parts`).
+    if (n == 1u) {
+        let iv = depth_interval(r, P.z0 + f32(k) * d, d, 0.0);
+        if (iv.y > iv.x) {
+            let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
+            t = exp(-max(c.a, 0.0) * (iv.y - iv.x) * cs.z);
+        }
+    } else {
+        let part = d / f32(n);
+        var tau = 0.0;
+        for (var i = 0u; i < n; i = i + 1u) {
+            if (i > 0u) {
+                light_volume[ci + cw * ch * (k * n + i)] = occl * exp(-tau);
+            }
+            let iv = depth_interval(r, P.z0 + (f32(k) + f32(i) / f32(n)) * d, part, 0.0);
+            if (iv.y > iv.x) {
+                let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
+                tau = tau + max(c.a, 0.0) * (iv.y - iv.x) * cs.z;
+            }
+        }
+        t = exp(-tau);
     }
     let column = P.column != 0u;
     if (cs.x > 0.0 && z_k >= cs.x && (column || z_k <= cs.y)) {

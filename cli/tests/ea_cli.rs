@@ -168,7 +168,8 @@ fn the_cpu_renderer_lights_the_volume_as_the_gpu_light_pass_does() {
     // The occlusion methods on a volume-only scene: the CPU renderer's light volume against
     // the GPU's `light` pass (lavapipe in CI) - the paper's blur (3x3 stencil), the cone
     // model, and wide blurs (taps on the disk) on cells of 3 pixels with a clipping plane;
-    // light steps of one, two (the default) and four slices, with the plane and without.
+    // light steps of one, the default, four and eight slices (sampled a voxel apart), with the
+    // plane and without.
     let dir = tempfile::tempdir().unwrap();
     let scene = headsq_scene(
         dir.path(),
@@ -209,8 +210,9 @@ fn the_cpu_renderer_lights_the_volume_as_the_gpu_light_pass_does() {
                 "render.occlusion_model=\"cone\"",
             ],
         ),
-        // The light a slice deep (the default here takes a step per voxel, two slices), and
-        // steps of four slices with the cone model.
+        // The light a slice deep (the default here takes steps two voxels deep or more,
+        // sampled a voxel apart), and steps of four and eight slices (two and four samples a
+        // step, clipped one by one).
         (
             "step1",
             vec!["render.method=\"combined\"", "render.occlusion_step=1"],
@@ -224,6 +226,10 @@ fn the_cpu_renderer_lights_the_volume_as_the_gpu_light_pass_does() {
                 "render.occlusion_model=\"cone\"",
                 "render.occlusion_step=4",
             ],
+        ),
+        (
+            "step8",
+            vec!["render.method=\"combined\"", "render.occlusion_step=8"],
         ),
         (
             "wide",
@@ -243,6 +249,24 @@ fn the_cpu_renderer_lights_the_volume_as_the_gpu_light_pass_does() {
             out.push(render(&format!("{name}_{device}"), &all));
         }
         let (gpu, cpu) = (&out[0], &out[1]);
+        // Both devices sweep the same light volume, and say which.
+        let grid = &gpu.0["light"];
+        assert!(
+            grid["cell"].as_u64().is_some_and(|c| c >= 1),
+            "{name}: {grid}"
+        );
+        assert!(
+            grid["step"].as_u64().is_some_and(|m| m.is_power_of_two()),
+            "{name}: {grid}"
+        );
+        assert_eq!(grid, &cpu.0["light"], "{name}: the devices' light volumes");
+        let step = grid["step"].as_u64().unwrap();
+        if let Some(m) = sets
+            .iter()
+            .find_map(|s| s.strip_prefix("render.occlusion_step="))
+        {
+            assert_eq!(step.to_string(), m, "{name}");
+        }
         // The same frame unlit.
         let mut unlit = sets.clone();
         unlit.push("render.method=\"ea\"");
@@ -372,4 +396,105 @@ fn both_devices_smooth_a_noisy_volume_alike() {
             "{method}: without FXAA the devices differ by {unsmoothed} levels"
         );
     }
+}
+
+#[test]
+fn a_deep_light_step_casts_the_shadow_of_a_sheet_one_voxel_thick_on_both_devices() {
+    // A sheet one voxel thick over a floor, seen from above with the head light: the light's
+    // steps of eight slices (four voxels at half a voxel apart) take four samples a voxel
+    // apart, so the sheet's shadow on the floor is the one the steps a voxel deep cast (the
+    // same samples), on the GPU as on the CPU. A step sampled only at its middle would see the
+    // sheet at one phase in four, its shadow missing or four voxels deep.
+    let dir = tempfile::tempdir().unwrap();
+    let n = 32usize;
+    let mut bytes = format!(
+        "NRRD0004\ntype: float\ndimension: 3\nsizes: {n} {n} {n}\nspacings: 1 1 1\nencoding: raw\nendian: little\n\n"
+    )
+    .into_bytes();
+    for z in 0..n {
+        for _y in 0..n {
+            for _x in 0..n {
+                let v: f32 = match z {
+                    17 => 1.0,
+                    2..=4 => 0.5,
+                    _ => 0.0,
+                };
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+    let vol = dir.path().join("sheet.nrrd");
+    std::fs::write(&vol, bytes).unwrap();
+    let scene = dir.path().join("sheet.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "background = [0.0, 0.0, 0.0]\n[camera]\nazimuth = 10.0\nelevation = 75.0\n\
+             [volume]\npath = \"{}\"\n[volume.transfer]\npoints = [\n  \
+             {{ value = 0.0, color = [1.0, 1.0, 1.0], extinction = 0.0 }},\n  \
+             {{ value = 0.5, color = [1.0, 1.0, 1.0], extinction = 2.0 }},\n  \
+             {{ value = 1.0, color = [1.0, 1.0, 1.0], extinction = 0.6 }},\n]\n\
+             [render]\nmethod = \"dos\"\nwidth = 48\nheight = 48\nfxaa = false\nslice_distance = 0.5\n",
+            vol.display()
+        ),
+    )
+    .unwrap();
+    let aov = |name: &str, sets: &[&str]| -> Vec<f32> {
+        let exr = dir.path().join(format!("{name}.exr"));
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_umbra"));
+        cmd.args([
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            exr.to_str().unwrap(),
+            "--aov",
+        ]);
+        for set in sets {
+            cmd.args(["--set", set]);
+        }
+        let out = cmd.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let img = scene::image_io::read_exr_channels(&exr).unwrap();
+        scene::image_io::exr_channel(&img, "occlusion.volumetric")
+            .unwrap()
+            .to_vec()
+    };
+    let mean_diff = |a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs() as f64)
+            .sum::<f64>()
+            / a.len() as f64
+    };
+    let voxel_gpu = aov(
+        "voxel_gpu",
+        &["render.occlusion_step=2", "render.device=\"gpu\""],
+    );
+    let deep_gpu = aov(
+        "deep_gpu",
+        &["render.occlusion_step=8", "render.device=\"gpu\""],
+    );
+    let deep_cpu = aov(
+        "deep_cpu",
+        &["render.occlusion_step=8", "render.device=\"cpu\""],
+    );
+    // The sheet shadows the floor: the volumetric visibility drops well below 1.
+    let shadowed = voxel_gpu.iter().filter(|&&o| o < 0.7).count();
+    assert!(shadowed > 500, "{shadowed} pixels shadowed");
+    let (deep, devices) = (
+        mean_diff(&deep_gpu, &voxel_gpu),
+        mean_diff(&deep_gpu, &deep_cpu),
+    );
+    assert!(
+        deep < 0.005,
+        "steps of eight against a voxel deep: {deep} in mean"
+    );
+    assert!(
+        devices < 2e-3,
+        "GPU against CPU at steps of eight: {devices} in mean"
+    );
 }

@@ -236,7 +236,7 @@ pub struct Settings {
     pub fxaa: bool,
     /// ambient, diffuse, specular, shininess
     pub light: [f64; 4],
-    /// Occlusion buffer cell edge in pixels (None: chosen, `occlusion::combined::light_cell`).
+    /// Occlusion buffer cell edge in pixels (None: chosen, `occlusion::combined::light_grid`).
     pub occlusion_cell: Option<u32>,
     /// Eye slices per step of the light volume (None: chosen,
     /// `occlusion::combined::light_step`).

@@ -141,6 +141,26 @@ pub struct Output {
     pub term_channels: Vec<(String, Vec<f32>)>,
     pub timings: Timings,
     pub triangles: u64,
+    /// The occlusion buffer's grid where the frame swept one (`dos`, `combined`).
+    pub light: Option<LightGrid>,
+}
+
+/// The light volume a frame swept: its cells and steps as chosen by
+/// `occlusion::combined::light_grid` and `light_step` (or the scene's
+/// `render.occlusion_cell` and `render.occlusion_step`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct LightGrid {
+    /// A cell's edge in pixels.
+    pub cell: u32,
+    /// Eye slices per step (the light blurred once a step).
+    pub step: u32,
+    /// Volume samples per step, a voxel apart, and the light stored at each
+    /// (`occlusion::combined::light_samples`).
+    pub samples: u32,
+    /// Cells per image axis.
+    pub cells: [u32; 2],
+    /// Steps of the sweep.
+    pub steps: u32,
 }
 
 impl Output {
@@ -525,6 +545,7 @@ impl<'g> Renderer<'g> {
                 pass_clock,
             },
             triangles: frame.gbuf.triangles(),
+            light: frame.slices.light_grid(),
         })
     }
 }
@@ -629,12 +650,16 @@ impl Frame {
             &SliceSettings {
                 occlusion,
                 cell: s.occlusion_cell,
-                // Tubes, lines and planes in the light keep a step a slice.
-                step: Some(occlusion::combined::light_step(
-                    s.occlusion_step,
-                    view,
-                    !(scene.meshes.is_empty() && scene.lines.is_empty() && scene.planes.is_empty()),
-                )),
+                // Tubes, lines and planes in the light keep a step a slice
+                // (`occlusion::combined::light_step`); the pass resolves the volume's own.
+                step: if scene.meshes.is_empty()
+                    && scene.lines.is_empty()
+                    && scene.planes.is_empty()
+                {
+                    s.occlusion_step
+                } else {
+                    Some(s.occlusion_step.unwrap_or(1))
+                },
                 cone: s.cone,
                 phong: desc.volume == VolumeShading::Phong,
                 projection: match desc.volume {

@@ -10,7 +10,7 @@ use crate::gbuffer::GBuffer;
 use crate::gpu::{Gpu, GpuError, Slot};
 use crate::method::{require, SettingError};
 use crate::prelude::{clip_planes, mat4, with_prelude, FrameUniform, LightUniform};
-use occlusion::combined::{blur_rows, light_cell, light_step, light_view, step_theta, BlurRow};
+use occlusion::combined::{blur_rows, light_grid, light_view, step_theta, BlurRow};
 use occlusion::emission_absorption::{occupancy_packed, EaView, Transfer, BRICK, MAX_CLIP};
 use volume::Volume;
 
@@ -22,11 +22,11 @@ pub struct SliceSettings {
     /// Run the occlusion buffer (one dispatch per step of `step` slices) and shade the volume
     /// with it.
     pub occlusion: bool,
-    /// Cell edge of the occlusion buffer in pixels (None: `occlusion::combined::light_cell`).
+    /// Cell edge of the occlusion buffer in pixels (None: `occlusion::combined::light_grid`).
     pub cell: Option<u32>,
-    /// Eye slices per step of the light volume, 1, 2, 4 or 8 (None: a voxel deep,
-    /// `occlusion::combined::data_step`; the caller passes 1 where tubes or lines cast light,
-    /// `occlusion::combined::light_step`).
+    /// Eye slices per step of the light volume, 1, 2, 4 or 8 (None: a voxel deep, two where
+    /// a cell spans two voxels across, `occlusion::combined::data_step`; the caller passes 1
+    /// where tubes or lines cast light, `occlusion::combined::light_step`).
     pub step: Option<u32>,
     /// The cone-following model instead of the paper's constant per-slice blur.
     pub cone: bool,
@@ -147,10 +147,13 @@ pub struct SliceParams {
     pub packing: u32,
     /// Added to a packed integer to give the sample's value.
     pub value_offset: f32,
-    /// Eye slices per step of the light volume (a power of two) and the steps it holds.
+    /// Eye slices per stored slice of the light volume (a power of two) and the stored
+    /// slices it holds.
     pub light_step: u32,
     pub light_slices: u32,
-    pub pad0: u32,
+    /// Stored slices (and volume samples, a voxel apart) per step of the `light` entry
+    /// (`occlusion::combined::light_samples`).
+    pub light_samples: u32,
     pub pad1: u32,
 }
 
@@ -518,6 +521,9 @@ pub struct SlicePass {
     cells: (u32, u32),
     /// Cell edge in pixels.
     pub cell: u32,
+    /// Eye slices per step of the light volume, and its parts (stored slices) per step.
+    step: u32,
+    samples: u32,
 }
 
 impl SlicePass {
@@ -585,20 +591,24 @@ impl SlicePass {
             ],
         );
 
-        let cell = light_cell(s.cell, v, limit as u64);
+        // The light's own view: cells of `cell` pixels, steps of `step` eye slices
+        // (`occlusion::combined::light_grid`, `light_view`).
+        let (cell, step) = light_grid(s.cell, s.step, false, v, limit as u64);
         let cells = (v.width.div_ceil(cell), v.height.div_ceil(cell));
-        // The light's own view: steps of `step` eye slices (`occlusion::combined::light_view`).
-        let step = light_step(s.step, v, false);
         let lv = light_view(v, step);
-        let light_bytes = cells.0 as u64 * cells.1 as u64 * lv.slices as u64 * 4;
+        // Each step sampled in `parts` parts a voxel deep, and the light reaching each stored
+        // (`occlusion::combined::light_samples`).
+        let light_parts = occlusion::combined::light_samples(v, step);
+        let stored = lv.slices * light_parts;
+        let light_bytes = cells.0 as u64 * cells.1 as u64 * stored as u64 * 4;
         if s.occlusion && light_bytes > limit as u64 {
             return Err(GpuError::Operation(format!(
-                "the light volume ({} x {} cells x {} steps, {} MB) exceeds this adapter's \
+                "the light volume ({} x {} cells x {} slices, {} MB) exceeds this adapter's \
                  storage binding limit ({} MB); raise render.occlusion_cell or lower the \
                  slice count",
                 cells.0,
                 cells.1,
-                lv.slices,
+                stored,
                 light_bytes >> 20,
                 limit >> 20
             )));
@@ -642,9 +652,9 @@ impl SlicePass {
             part_len: vol.part_len,
             packing: vol.packing.code(),
             value_offset: vol.value_offset,
-            light_step: step,
-            light_slices: lv.slices,
-            pad0: 0,
+            light_step: step / light_parts,
+            light_slices: stored,
+            light_samples: light_parts,
             pad1: 0,
         };
         let (blend_field, blend_lut) = match blend {
@@ -756,12 +766,25 @@ impl SlicePass {
             size: (v.width, v.height),
             cells,
             cell,
+            step,
+            samples: light_parts,
         })
     }
 
     /// Whether the light volume is computed (the `light` pass has work).
     pub fn has_light(&self) -> bool {
         self.occlusion
+    }
+
+    /// The light volume's cells and steps, where the pass sweeps one.
+    pub fn light_grid(&self) -> Option<crate::renderer::LightGrid> {
+        self.occlusion.then(|| crate::renderer::LightGrid {
+            cell: self.cell,
+            step: self.step,
+            samples: self.samples,
+            cells: [self.cells.0, self.cells.1],
+            steps: self.slices,
+        })
     }
 
     /// Records the light volume, slice by slice, in one compute pass.
@@ -933,7 +956,7 @@ mod tests {
                 value_offset,
                 light_step,
                 light_slices,
-                pad0,
+                light_samples,
                 pad1,
             }
         );

@@ -7,7 +7,7 @@
 //! |---|---|---|---|
 //! | §3.2.1 G-buffer | - | `gbuffer.rs`, `gbuffer.wgsl` | `engine/tests/occlusion_render.rs` |
 //! | Alg. 2 eye buffer, E/A | `emission_absorption::reference`; `raycast::EaVolume::render_frame` | `slice_pass.wgsl::march` | `engine/tests/ea_render.rs`, `raycast` tests |
-//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_cell`], [`auto_cell`], [`data_cell`], [`light_step`], [`data_step`], [`light_view`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only) | `slice_pass.wgsl::light` | unit tests below, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass) |
+//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_grid`], [`data_cell`], [`light_step`], [`data_step`], [`voxel_step`], [`light_samples`], [`light_view`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only) | `slice_pass.wgsl::light` | unit tests below, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass) |
 //! | Alg. 4, eq. 1-3 partial occlusion | `reference::render` (surface AOV) | `slice_pass.wgsl::march` | `occlusion_render.rs` (exp(-sigma z)) |
 //! | Alg. 5, eq. 4-6 vicinity | [`poisson_disk`], `camera::texture_radius` | `vicinity.wgsl` | `occlusion_render.rs` (groove) |
 //! | Alg. 6, eq. 7-10 compositing | - | `composite.wgsl` | `occlusion_render.rs` (eq. 7, 8) |
@@ -60,14 +60,16 @@
 //! `blur_samples`, up to 9 per axis) grow with the radius in cells.
 //!
 //! Departure from the paper, for speed (issue 5, "beat the paper's design"): the occlusion
-//! buffer lives on cells of `s x s` pixels (`render.occlusion_cell`; by default [`light_cell`]:
+//! buffer lives on cells of `s x s` pixels (`render.occlusion_cell`; by default [`light_grid`]:
 //! 2 pixels, or as many as the data's smallest voxel covers on screen, [`data_cell`]), in steps
-//! of `m` slices (`render.occlusion_step`; by default [`light_step`]: a voxel deep where the
-//! volume alone casts the light, [`data_step`], else one slice), one dispatch per step (the
-//! `light` entry; the dispatch is the barrier the blur needs), and stores every step's `O` in a
-//! light volume (cells x steps). A step is the paper's slice in the light's own view
-//! ([`light_view`]: slabs `m d` deep) with the blur's angle of [`step_theta`]; eye slice `k`
-//! reads step `k / m`, linearly between steps. The eye buffer is then one dispatch (`march`): all
+//! of `m` slices (`render.occlusion_step`; by default [`light_step`]: where the volume alone
+//! casts the light four voxels deep, [`data_step`], sampled and stored a voxel apart,
+//! [`light_samples`]; else one slice), one dispatch per step (the
+//! `light` entry; the dispatch is the barrier the blur needs), and stores every step's `O` -
+//! and the light reaching each of its parts - in a light volume (cells x stored slices). A
+//! step is the paper's slice in the light's own view ([`light_view`]: slabs `m d` deep) with
+//! the blur's angle of [`step_theta`]; eye slice `k` reads stored slice `k / (m / p)` for `p`
+//! parts a step, linearly between stored slices. The eye buffer is then one dispatch (`march`): all
 //! slices of a pixel in one invocation, with `O` read bilinearly from the light volume, rays
 //! clipped to the grid's box and to the surface, empty 8^3 bricks skipped (exact, see
 //! `ea_pass::occupancy`), early termination at opacity `OPAQUE` (1 - 1/128) - none of which the
@@ -81,34 +83,35 @@
 use crate::emission_absorption::EaView;
 use crate::rng::SplitMix64;
 
-/// Cell edge in pixels when the scene does not fix it: the smallest power of two (at least
-/// `min`) whose light volume (`cells x slices` f32) fits in `budget` bytes.
-pub fn auto_cell(width: u32, height: u32, slices: u32, min: u32, budget: u64) -> u32 {
-    let mut s = min.max(1);
-    while s < 64 {
-        let cells = width.div_ceil(s) as u64 * height.div_ceil(s) as u64;
-        if cells * slices as u64 * 4 <= budget {
-            break;
-        }
-        s *= 2;
+/// The light volume's grid, `(cell, step)`: the cell edge in pixels - the scene's
+/// `render.occlusion_cell`, or from [`data_cell`] (2 pixels, more where the data's voxels
+/// cover more), doubled (up to 64) while the light volume (`cells x steps x samples` f32:
+/// the light stored at each part of a step, [`light_samples`]) exceeds
+/// `limit` bytes (at most 1 GiB) - and the eye slices per step on that cell
+/// ([`light_step`]: the scene's `render.occlusion_step`, 1 where tubes, lines or planes cast
+/// light (`geometry`), else [`data_step`]). The GPU pass passes its adapter's storage binding
+/// limit; the CPU renderer the same, so that both choose the same grid.
+pub fn light_grid(
+    cell: Option<u32>,
+    step: Option<u32>,
+    geometry: bool,
+    v: &EaView,
+    limit: u64,
+) -> (u32, u32) {
+    if let Some(c) = cell {
+        let c = c.max(1);
+        return (c, light_step(step, v, geometry));
     }
-    s
-}
-
-/// The cell edge of a frame's light volume: the scene's `render.occlusion_cell`, or
-/// [`auto_cell`] from [`data_cell`] (2 pixels, more where the data's voxels cover more) with
-/// the light volume within `limit` bytes (at most 1 GiB). The GPU pass passes its adapter's
-/// storage binding limit; the CPU renderer the same, so that both choose the same cells.
-pub fn light_cell(cell: Option<u32>, v: &EaView, limit: u64) -> u32 {
-    match cell {
-        Some(c) => c.max(1),
-        None => auto_cell(
-            v.width,
-            v.height,
-            v.slices,
-            data_cell(v),
-            limit.min(1 << 30),
-        ),
+    let budget = limit.min(1 << 30);
+    let mut c = data_cell(v);
+    loop {
+        let m = light_step(step, v, geometry);
+        let cells = v.width.div_ceil(c) as u64 * v.height.div_ceil(c) as u64;
+        let stored = v.slices.div_ceil(m) as u64 * light_samples(v, m) as u64;
+        if c >= 64 || cells * stored * 4 <= budget {
+            return (c, m);
+        }
+        c *= 2;
     }
 }
 
@@ -120,14 +123,9 @@ pub fn light_cell(cell: Option<u32>, v: &EaView, limit: u64) -> u32 {
 /// pixels on three 48-68^3 volumes at 512^2, where a voxel covers 4-5 pixels, and halved the
 /// light pass (docs/benchmarks.md).
 pub fn data_cell(v: &EaView) -> u32 {
-    if !(v.voxel > 0.0 && v.width > 0 && v.height > 0) {
+    let Some(px) = voxel_px(v) else {
         return 2;
-    }
-    let z = v.z0 + 0.5 * v.dz * v.slices as f64;
-    let (tx, ty) = v
-        .camera
-        .texture_radius(v.voxel, -z, v.width as f64 / v.height as f64);
-    let px = (tx * v.width as f64).min(ty * v.height as f64);
+    };
     let mut c = 2u32;
     while c < 64 && (2 * c) as f64 <= px {
         c *= 2;
@@ -135,13 +133,27 @@ pub fn data_cell(v: &EaView) -> u32 {
     c
 }
 
+/// The smallest voxel spacing (`v.voxel`) on screen in pixels at the middle of the slab (the
+/// smaller of the two axes); None where the view or the spacing is degenerate.
+fn voxel_px(v: &EaView) -> Option<f64> {
+    if !(v.voxel > 0.0 && v.width > 0 && v.height > 0) {
+        return None;
+    }
+    let z = v.z0 + 0.5 * v.dz * v.slices as f64;
+    let (tx, ty) = v
+        .camera
+        .texture_radius(v.voxel, -z, v.width as f64 / v.height as f64);
+    let px = (tx * v.width as f64).min(ty * v.height as f64);
+    (px.is_finite() && px > 0.0).then_some(px)
+}
+
 /// The most eye slices one step of the light volume spans (`render.occlusion_step`).
 pub const MAX_LIGHT_STEP: u32 = 8;
 
 /// Eye slices per step of the light volume: the scene's `render.occlusion_step` (a power of
 /// two up to [`MAX_LIGHT_STEP`]), or [`data_step`] where the light passes through the volume
-/// alone, else 1 (the paper's light, a step per slice: a tube thinner than a coarser step could
-/// fall between its samples).
+/// alone, else 1 (the paper's light, a step per slice: a tube thinner than a coarser step
+/// could fall between its samples).
 pub fn light_step(step: Option<u32>, v: &EaView, geometry: bool) -> u32 {
     match step {
         // A power of two (the CPU renderer's lanes divide by a shift).
@@ -151,23 +163,58 @@ pub fn light_step(step: Option<u32>, v: &EaView, geometry: bool) -> u32 {
     }
 }
 
-/// The coarsest step of the light volume the data allow: the largest power of two `m` up to
-/// [`MAX_LIGHT_STEP`] with `m d` at most the smallest voxel spacing (`v.voxel`), 1 where that is unknown. The
-/// light is a blur of the data's opacity, which varies within a voxel only by interpolation,
-/// so a light step finer than a voxel in depth adds cost and hardly any light, as cells finer
-/// than a voxel's image do across ([`data_cell`]): at the default slice distance (half the
-/// smallest spacing) the light takes a step per voxel, half the slices' work, and `combined`
-/// moved by 0.2-0.5 levels of 255 in mean over the volume's pixels on the MNI T1 and headsq
-/// at 128-512^2 (docs/benchmarks.md).
+/// The deepest step of the light volume [`data_step`] takes, in voxels (of the smallest
+/// spacing).
+pub const MAX_STEP_VOXELS: f64 = 4.0;
+
+/// The step of the light volume where the volume alone casts the light: the largest power of
+/// two `m` up to [`MAX_LIGHT_STEP`] with `m d` within [`MAX_STEP_VOXELS`] voxels (of the
+/// smallest spacing, `v.voxel`); 1 where the spacing is unknown.
+///
+/// Whatever the step, the light samples the data a voxel apart and stores the light at each
+/// sample ([`light_samples`]): it is attenuated and read as with steps a voxel deep, and the
+/// step only sets how often it is blurred (the paper's blur once a step, with the angle of
+/// [`step_theta`]). Against the Monte Carlo reference, steps of two, four and eight slices at
+/// the default slice distance (one to four voxels) gave the same RMSE to 2e-5 on the MNI T1
+/// (128-512^2) and headsq (512^2), while the sweep's cost falls with the steps (the blur, the
+/// bookkeeping and the barrier between steps; docs/accuracy.md "The light's steps and
+/// samples").
 pub fn data_step(v: &EaView) -> u32 {
     if !(v.voxel > 0.0 && v.dz > 0.0) {
         return 1;
     }
+    steps_within(v, v.voxel * MAX_STEP_VOXELS)
+}
+
+/// The largest power of two `m` up to [`MAX_LIGHT_STEP`] with `m d` within `depth` (1 at
+/// least).
+fn steps_within(v: &EaView, depth: f64) -> u32 {
     let mut m = 1u32;
-    while m < MAX_LIGHT_STEP && (2 * m) as f64 * v.dz <= v.voxel * (1.0 + 1e-9) {
+    while m < MAX_LIGHT_STEP && (2 * m) as f64 * v.dz <= depth * (1.0 + 1e-9) {
         m *= 2;
     }
     m
+}
+
+/// Eye slices a voxel deep (the smallest spacing): the largest power of two up to
+/// [`MAX_LIGHT_STEP`] whose slices fit in it, 1 where the spacing is unknown.
+pub fn voxel_step(v: &EaView) -> u32 {
+    if !(v.voxel > 0.0 && v.dz > 0.0) {
+        return 1;
+    }
+    steps_within(v, v.voxel)
+}
+
+/// Volume samples a step of `step` eye slices takes: as many as keep them a voxel apart
+/// (`step / voxel_step`, 1 at least), at the middles of equal parts of the step's slab, and
+/// the light reaching each part is stored (the part's light attenuated by the parts before
+/// it). A step deeper than a voxel then attenuates and stores the light as the steps a voxel
+/// deep would (the same samples; the eye reads it a part at a time): only its blur is
+/// coarser. A sheet thinner than the step cannot fall between its samples, and a dense
+/// medium's light decays within the step as it does (`umbra bench stability`'s thin sheet,
+/// `cli/tests/ea_cli.rs`'s sheet over a floor).
+pub fn light_samples(v: &EaView, step: u32) -> u32 {
+    (step / voxel_step(v)).max(1)
 }
 
 /// The view the light volume is swept in for a step of `step` slices: the same front, slabs
@@ -367,13 +414,29 @@ mod tests {
         }
         // The scene's own cell wins; the budget still doubles the data's.
         let v = view(1.0, 100.0, 400, 400);
-        assert_eq!(light_cell(Some(1), &v, 1 << 30), 1);
-        assert_eq!(light_cell(None, &v, 1 << 30), 4);
-        assert_eq!(light_cell(None, &v, 100 * 100 * 100 * 4 / 4), 8);
+        assert_eq!(light_grid(Some(1), None, false, &v, 1 << 30), (1, 4));
+        assert_eq!(light_grid(None, None, false, &v, 1 << 30), (4, 4));
+        // The light is stored a voxel (a slice) apart: 100^2 cells x 100 slices of f32 at 4
+        // px (4 MB); at 8 px 50^2 x 100 (1 MB).
+        assert_eq!(light_grid(None, None, false, &v, 1_000_000), (8, 4));
+        assert_eq!(light_grid(None, Some(1), false, &v, 1_000_000), (8, 1));
+        // The budget counts the stored slices, not the eye's: at half a voxel apart a step
+        // of eight slices stores four, 100^2 x ceil(100 / 8) x 4 (2.08 MB) at 4 px, which
+        // fits 2.1 MB; with tubes in the light (a step a slice, 4 MB) the cells double.
+        let mut v = view(1.0, 100.0, 400, 400);
+        v.dz = 0.5;
+        assert_eq!(light_grid(None, None, false, &v, 2_100_000), (4, 8));
+        assert_eq!(light_grid(None, None, true, &v, 2_100_000), (8, 1));
+        // Without a voxel size: 2 px cells a slice deep, doubled to fit (at most 64 px).
+        let v = view(0.0, 100.0, 512, 512);
+        assert_eq!(light_grid(None, None, false, &v, 1 << 30), (2, 1));
+        assert_eq!(light_grid(None, None, false, &v, 20 << 20), (4, 1));
+        assert_eq!(light_grid(None, None, false, &v, 0), (64, 1));
+        assert_eq!(light_grid(None, Some(4), false, &v, 1 << 30), (2, 4));
     }
 
     #[test]
-    fn the_light_steps_a_voxel_deep_where_the_volume_alone_casts_it() {
+    fn the_light_steps_four_voxels_deep_where_the_volume_alone_casts_it() {
         use crate::camera::Camera;
         use glam::DVec3;
         let view = |voxel: f64, dz: f64, slices: u32| EaView {
@@ -387,25 +450,39 @@ mod tests {
             clip: vec![],
             voxel,
         };
-        // Half a voxel apart (the default slice distance): a step per voxel.
-        assert_eq!(data_step(&view(1.0, 0.5, 101)), 2);
-        // Finer slices step a voxel (at most 8 slices); coarser ones a slice.
-        assert_eq!(data_step(&view(1.0, 0.25, 101)), 4);
-        assert_eq!(data_step(&view(1.0, 0.3, 101)), 2);
+        // Half a voxel apart (the default slice distance): steps of eight slices, four
+        // voxels deep.
+        let v = view(1.0, 0.5, 101);
+        assert_eq!(data_step(&v), 8);
+        // Finer slices at most 8 a step; coarser ones fewer, as many as fit in four voxels.
+        assert_eq!(data_step(&view(1.0, 0.25, 101)), 8);
         assert_eq!(data_step(&view(1.0, 0.01, 101)), 8);
-        assert_eq!(data_step(&view(1.0, 0.6, 101)), 1);
-        assert_eq!(data_step(&view(1.0, 1.0, 101)), 1);
+        assert_eq!(data_step(&view(1.0, 0.6, 101)), 4);
+        assert_eq!(data_step(&view(1.0, 1.0, 101)), 4);
+        assert_eq!(data_step(&view(1.0, 1.5, 101)), 2);
+        assert_eq!(data_step(&view(1.0, 2.5, 101)), 1);
+        assert_eq!(data_step(&view(1.0, 4.5, 101)), 1);
         for bad in [0.0, f64::NAN, -1.0] {
             assert_eq!(data_step(&view(bad, 0.5, 101)), 1);
         }
         // The scene's step wins; tubes keep the paper's step.
-        let v = view(1.0, 0.5, 101);
-        assert_eq!(light_step(None, &v, false), 2);
+        assert_eq!(light_step(None, &v, false), 8);
         assert_eq!(light_step(None, &v, true), 1);
         assert_eq!(light_step(Some(4), &v, true), 4);
         assert_eq!(light_step(Some(0), &v, false), 1);
         assert_eq!(light_step(Some(3), &v, false), 2);
         assert_eq!(light_step(Some(100), &v, false), 8);
+        assert_eq!(light_step(Some(1), &v, false), 1);
+        // Samples stay a voxel apart whatever the step.
+        assert_eq!(voxel_step(&v), 2);
+        assert_eq!(voxel_step(&view(1.0, 0.25, 101)), 4);
+        assert_eq!(voxel_step(&view(f64::NAN, 0.25, 101)), 1);
+        for (step, want) in [(1, 1), (2, 1), (4, 2), (8, 4)] {
+            assert_eq!(light_samples(&v, step), want, "step {step}");
+        }
+        assert_eq!(light_samples(&view(1.0, 0.25, 101), 8), 2);
+        assert_eq!(light_samples(&view(1.0, 1.5, 101), 4), 4);
+        assert_eq!(light_samples(&view(0.0, 0.5, 101), 4), 4);
         // The light's view: the same front, slabs a step deep covering every eye slice.
         let l = light_view(&v, 2);
         assert_eq!((l.z0, l.dz, l.slices), (3.0, 1.0, 51));
@@ -452,15 +529,6 @@ mod tests {
             blur_stencil([2.5, 0.1]).0,
             "beyond two cells the shader takes taps"
         );
-    }
-
-    #[test]
-    fn the_cell_size_grows_until_the_light_volume_fits() {
-        // 512^2 x 512 slices of f32: 512 MB at cell 1, 128 MB at 2, 32 MB at 4.
-        assert_eq!(auto_cell(512, 512, 512, 1, 1 << 30), 1);
-        assert_eq!(auto_cell(512, 512, 512, 1, 128 << 20), 2);
-        assert_eq!(auto_cell(512, 512, 512, 2, 100 << 20), 4);
-        assert_eq!(auto_cell(512, 512, 512, 2, 1 << 30), 2);
     }
 
     #[test]

@@ -335,11 +335,17 @@ pub fn prepare_owned(mut data: Vec<f32>) -> Vec<f32> {
 /// planes (`normal . p <= offset`); empty when `b <= a`. The renderer samples the volume at
 /// its middle, over its length: cut faces then have no slice steps.
 pub fn slab_interval(v: &EaView, o: DVec3, d: DVec3, k: u32) -> (f64, f64) {
+    let a = v.z0 + k as f64 * v.dz;
+    clip_interval(v, o, d, a, a + v.dz)
+}
+
+/// The part of the depth interval `[a, b]` that the ray `o + s d` keeps behind the view's
+/// clipping planes ([`slab_interval`] for any interval: a part of a slab).
+pub fn clip_interval(v: &EaView, o: DVec3, d: DVec3, a: f64, b: f64) -> (f64, f64) {
     let f = v.camera.forward();
     let cosine = d.dot(f);
     let o_depth = (o - v.camera.eye).dot(f);
-    let mut a = v.z0 + k as f64 * v.dz;
-    let mut b = a + v.dz;
+    let (mut a, mut b) = (a, b);
     for (n, off) in &v.clip {
         let n = DVec3::from(*n);
         let g1 = n.dot(d) / cosine;

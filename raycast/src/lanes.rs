@@ -588,10 +588,10 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
 }
 
 /// The optical depths of slice `k` along the rays of cells `cells` (at most [`LANES`]) of
-/// `rays`, as [`EaVolume::optical_depth`] gives them for an unclipped view: `sigma len` of
-/// the sample (0 outside the grid, in an empty skip block, at a gap), and the next slice whose
-/// depth may not be 0 (the ray's first slice before it; past an empty cube of blocks; `u32`'s
-/// maximum past its last slice).
+/// `rays`, as [`EaVolume::optical_depth`] gives them for an unclipped view with `n` samples a
+/// slab: each part's `sigma len / n` (0 outside the grid, in an empty skip block, at a gap;
+/// indexed part, then lane), and the next slice whose depth may not be 0 (the ray's first slice before it; past
+/// the empty cubes of blocks of all its samples; `u32`'s maximum past its last slice).
 ///
 /// # Safety
 /// As [`march`]'s for `splat` and `data`; `cells` index `rays`, which come from
@@ -603,7 +603,8 @@ pub(crate) unsafe fn optical_depths<T: Gather>(
     rays: &[Ray],
     cells: &[u32],
     k: u32,
-) -> ([f32; LANES], [u32; LANES]) {
+    n: u32,
+) -> ([[f32; LANES]; crate::MAX_PARTS], [u32; LANES]) {
     // SAFETY: the caller's; masked lanes read nothing.
     unsafe {
         debug_assert!(cells.len() <= LANES);
@@ -613,20 +614,37 @@ pub(crate) unsafe fn optical_depths<T: Gather>(
         let before = _mm256_cmpgt_epi32(r.k, kv);
         let after = _mm256_cmpgt_epi32(kv, r.k1);
         let active = _mm256_andnot_si256(_mm256_or_si256(before, after), _mm256_set1_epi32(-1));
-        let st = splat.step(data, r.at(kv), r.dq, active);
         let zero = _mm256_setzero_ps();
-        let tau = _mm256_and_ps(
-            st.sampled,
-            _mm256_mul_ps(_mm256_max_ps(st.sigma, zero), r.seg),
-        );
         let onei = _mm256_set1_epi32(1);
-        let next = _mm256_add_epi32(kv, _mm256_blendv_epi8(onei, st.steps, st.is_empty));
+        let n = n.clamp(1, crate::MAX_PARTS as u32);
+        // `n` samples at the middles of equal parts of the slab, as `EaVolume::optical_depth`
+        // takes them: each part's optical depth; the slices to skip only where every sample
+        // is in an empty block (the fewest of theirs), else 1.
+        let (seg, kf) = (
+            _mm256_div_ps(r.seg, _mm256_set1_ps(n as f32)),
+            _mm256_cvtepi32_ps(kv),
+        );
+        let mut t = [[0f32; LANES]; crate::MAX_PARTS];
+        let mut all_empty = _mm256_set1_epi32(-1);
+        let mut steps = _mm256_set1_epi32(i32::MAX);
+        for (i, t) in t.iter_mut().enumerate().take(n as usize) {
+            let at = _mm256_add_ps(kf, _mm256_set1_ps(crate::sub_offset(i as u32, n)));
+            let q = std::array::from_fn(|a| _mm256_add_ps(r.qa[a], _mm256_mul_ps(at, r.dq[a])));
+            let st = splat.step(data, q, r.dq, active);
+            let tau = _mm256_and_ps(
+                st.sampled,
+                _mm256_mul_ps(_mm256_max_ps(st.sigma, zero), seg),
+            );
+            _mm256_storeu_ps(t.as_mut_ptr(), tau);
+            all_empty = _mm256_and_si256(all_empty, st.is_empty);
+            steps = _mm256_min_epi32(steps, st.steps);
+        }
+        let next = _mm256_add_epi32(kv, _mm256_blendv_epi8(onei, steps, all_empty));
         let next = _mm256_blendv_epi8(next, r.k, before);
         let next = _mm256_blendv_epi8(next, _mm256_set1_epi32(-1), after);
-        let (mut t, mut n) = ([0f32; LANES], [0u32; LANES]);
-        _mm256_storeu_ps(t.as_mut_ptr(), tau);
-        _mm256_storeu_si256(n.as_mut_ptr() as *mut __m256i, next);
-        (t, n)
+        let mut m = [0u32; LANES];
+        _mm256_storeu_si256(m.as_mut_ptr() as *mut __m256i, next);
+        (t, m)
     }
 }
 
@@ -706,9 +724,10 @@ pub(crate) unsafe fn optical_depths_of<T: 'static>(
     rays: &[Ray],
     cells: &[u32],
     k: u32,
-) -> ([f32; LANES], [u32; LANES]) {
+    n: u32,
+) -> ([[f32; LANES]; crate::MAX_PARTS], [u32; LANES]) {
     by_stored_type!(T, data, d: G => {
         // SAFETY: the caller's.
-        unsafe { optical_depths::<G>(splat, d, rays, cells, k) }
+        unsafe { optical_depths::<G>(splat, d, rays, cells, k, n) }
     }, else unreachable!("samples the lanes do not gather"))
 }

@@ -26,7 +26,7 @@
 
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use occlusion::emission_absorption::{
-    occupancy_packed, prepare, slab_interval, EaView, Transfer, BRICK,
+    clip_interval, occupancy_packed, prepare, slab_interval, EaView, Transfer, BRICK,
 };
 use occlusion::projection::Extremum;
 use rayon::prelude::*;
@@ -795,12 +795,13 @@ impl EaVolume {
 }
 
 impl EaVolume {
-    /// The optical depth `sigma len / cos` of slab `k` along ray `r` (the whole slab, clipped
-    /// by the clipping planes only; sampled at its middle): 0 outside the grid, in an empty
-    /// block, next to a gap or where the transfer function is transparent. The light leaving
-    /// a cell through a slice is `exp(-` this `)`. Also the next slice whose optical depth
-    /// may not be 0 (past an empty block, the ray's first slice in the grid; `u32::MAX` past
-    /// its last).
+    /// The optical depths `sigma len / cos` of the `n` equal parts of slab `k` along ray `r`
+    /// (each clipped by the clipping planes only, and sampled at its middle;
+    /// `occlusion::combined::light_samples`; 1: the whole slab at its middle): 0 outside the grid, in
+    /// an empty block, next to a gap or where the transfer function is transparent. The light
+    /// leaving a cell through a slice is `exp(-` this `)`. Also the next slice whose optical
+    /// depth may not be 0 (past an empty block where every sample is in one, the ray's first
+    /// slice in the grid; `u32::MAX` past its last).
     #[inline(always)]
     pub(crate) fn optical_depth<T: Voxel>(
         &self,
@@ -808,45 +809,75 @@ impl EaVolume {
         data: &[T],
         r: &Ray,
         k: u32,
-    ) -> (f32, u32) {
+        n: u32,
+    ) -> (Parts, u32) {
+        let mut tau: Parts = [0.0; MAX_PARTS];
         if k < r.k {
-            return (0.0, r.k);
+            return (tau, r.k);
         }
         if k > r.k1 {
-            return (0.0, u32::MAX);
+            return (tau, u32::MAX);
         }
-        let next = k + 1;
-        let kf = k as f32;
-        let mut q = [0, 1, 2].map(|a| r.qa[a] + kf * r.dq[a]);
-        let mut len = r.seg;
+        let n = n.clamp(1, MAX_PARTS as u32);
         let clipped = !v.clip.is_empty();
-        if clipped {
-            let (lo, hi) = slab_interval(v, r.o, r.d, k);
-            let s = (0.5 * (lo + hi) - r.o_depth) / r.cosine;
-            if hi <= lo || s < 0.0 {
-                return (0.0, next);
-            }
-            let p = self.world_to_index * DVec4::from((r.o + r.d * s, 1.0));
-            q = p.truncate().as_vec3().to_array();
-            len = ((hi - lo) / r.cosine) as f32;
-        }
         let hi = self.hi();
-        if (0..3).any(|a| !(q[a] >= 0.0 && q[a] <= hi[a])) {
-            return (0.0, next);
+        let mut skip = u32::MAX;
+        for i in 0..n {
+            let (q, len) = if clipped {
+                // Each part of the slab clipped on its own, as the steps a part deep would be.
+                let (lo, hi) = if n == 1 {
+                    slab_interval(v, r.o, r.d, k)
+                } else {
+                    let a = v.z0 + (k as f64 + i as f64 / n as f64) * v.dz;
+                    clip_interval(v, r.o, r.d, a, a + v.dz / n as f64)
+                };
+                let s = (0.5 * (lo + hi) - r.o_depth) / r.cosine;
+                if hi <= lo || s < 0.0 {
+                    skip = 1;
+                    continue;
+                }
+                let p = self.world_to_index * DVec4::from((r.o + r.d * s, 1.0));
+                (
+                    p.truncate().as_vec3().to_array(),
+                    ((hi - lo) / r.cosine) as f32,
+                )
+            } else {
+                let kf = k as f32 + sub_offset(i, n);
+                ([0, 1, 2].map(|a| r.qa[a] + kf * r.dq[a]), r.seg / n as f32)
+            };
+            if (0..3).any(|a| !(q[a] >= 0.0 && q[a] <= hi[a])) {
+                skip = 1;
+                continue;
+            }
+            let (cell, block, b) = self.cell(q);
+            if !self.occupied[block] {
+                let d = self.reach[block] as usize;
+                skip = skip.min(if clipped { 1 } else { r.past_block(q, b, d) });
+                continue;
+            }
+            skip = 1;
+            let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
+            let val = EaVolume::trilinear(&self.corners(data, cell), f) + self.offset;
+            if val < -1e30 {
+                continue;
+            }
+            tau[i as usize] = self.transfer(val).1.max(0.0) * len;
         }
-        let (cell, block, b) = self.cell(q);
-        if !self.occupied[block] {
-            let d = self.reach[block] as usize;
-            let skip = if clipped { 1 } else { r.past_block(q, b, d) };
-            return (0.0, k.saturating_add(skip));
-        }
-        let f = [0, 1, 2].map(|a| q[a] - cell[a] as f32);
-        let val = EaVolume::trilinear(&self.corners(data, cell), f) + self.offset;
-        if val < -1e30 {
-            return (0.0, next);
-        }
-        (self.transfer(val).1.max(0.0) * len, next)
+        (tau, k.saturating_add(skip))
     }
+}
+
+/// The most parts a light step's slab is sampled in (`occlusion::combined::light_samples`).
+pub(crate) const MAX_PARTS: usize = occlusion::combined::MAX_LIGHT_STEP as usize;
+
+/// The optical depths of a step's parts, in order (0 past the step's count).
+pub(crate) type Parts = [f32; MAX_PARTS];
+
+/// Where sample `i` of `n` lies in its slab, in slices from the slab's middle: the middle of
+/// the `i`-th of `n` equal parts (0 for one sample).
+#[inline(always)]
+pub(crate) fn sub_offset(i: u32, n: u32) -> f32 {
+    (i as f32 + 0.5) / n as f32 - 0.5
 }
 
 /// Entries of the exponential's table per unit of `x`, and its entries: `exp(-x)` is tabled on
@@ -1235,6 +1266,70 @@ mod tests {
         }
     }
 
+    #[test]
+    fn a_deep_light_step_takes_the_samples_of_the_steps_a_voxel_deep() {
+        // Slices 0.2 apart, the smallest spacing 40 / 43: a voxel is four slices (the
+        // largest power of two within it). A step of eight slices takes
+        // two samples, at the middles of its halves - the samples of the two steps a voxel
+        // deep it spans - so its optical depth is theirs, clipped or not.
+        let vol = blob([40, 44, 30]);
+        let data = vol.select(None).unwrap().data;
+        let b = vol.bounds();
+        let ev = EaVolume::new(&vol, &data, &tf()).unwrap();
+        let View::F32(data) = ev.data.view() else {
+            panic!("f32 samples expected")
+        };
+        let cam = Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0));
+        // A plane through the middle of the grid, tilted to the slices.
+        let n = DVec3::new(0.3, -0.5, 0.8);
+        let plane = ([n.x, n.y, n.z], (0.5 * (b[0] + b[1])).dot(n));
+        for clip in [vec![], vec![plane]] {
+            let mut view = EaView::new(&vol, cam, 32, 24, None, Some(0.2), [1.0; 3]).unwrap();
+            view.clip = clip.clone();
+            let vs = occlusion::combined::voxel_step(&view);
+            assert_eq!(vs, 4);
+            assert_eq!(occlusion::combined::light_samples(&view, 8), 2);
+            let (fine, coarse) = (
+                occlusion::combined::light_view(&view, vs),
+                occlusion::combined::light_view(&view, 8),
+            );
+            let inv = view.camera.view_projection(32.0 / 24.0).inverse();
+            let (mut checked, mut nonzero) = (0, 0);
+            for py in 0..24 {
+                for px in 0..32 {
+                    let (o, d) = pixel_ray(&inv, &view, [px as f64 + 0.5, py as f64 + 0.5]);
+                    let (rf, rc) = (ev.start(&fine, o, d), ev.start(&coarse, o, d));
+                    for k in 0..coarse.slices {
+                        let (parts, next) = ev.optical_depth(&coarse, data, &rc, k, 2);
+                        for (i, &deep) in parts.iter().enumerate() {
+                            let a = match i {
+                                0 | 1 => {
+                                    ev.optical_depth(&fine, data, &rf, 2 * k + i as u32, 1).0[0]
+                                }
+                                _ => 0.0,
+                            };
+                            assert!(
+                                (deep - a).abs() <= 1e-4 * a + 1e-6,
+                                "clip {}: pixel ({px}, {py}) step {k} part {i}: {deep} against {a}",
+                                !clip.is_empty()
+                            );
+                        }
+                        let deep = parts[0] + parts[1];
+                        // The next step to sample never passes a sample with depth.
+                        if next > k + 1 && next != u32::MAX {
+                            for j in k + 1..next.min(coarse.slices) {
+                                assert_eq!(ev.optical_depth(&coarse, data, &rc, j, 2).0, [0.0; 8]);
+                            }
+                        }
+                        checked += 1;
+                        nonzero += (deep > 0.0) as usize;
+                    }
+                }
+            }
+            assert!(nonzero > 100, "{nonzero} of {checked} steps with depth");
+        }
+    }
+
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn eight_lanes_march_as_the_scalar_march_bit_for_bit_lit_or_not() {
@@ -1285,9 +1380,11 @@ mod tests {
                     theta_deg: 25.0,
                     blur_samples: 3,
                 };
-                // Light steps of two slices: the march reads between steps.
+                // Light steps of two slices: the march reads between steps; of eight: the
+                // sweep takes four samples a step (a voxel apart).
                 let stepped = LightSettings { step: 2, ..light };
-                for light in [None, Some(&light), Some(&stepped)] {
+                let deep = LightSettings { step: 8, ..light };
+                for light in [None, Some(&light), Some(&stepped), Some(&deep)] {
                     let lanes = lanes_equal_scalar(&mut ev, &view, light);
                     marched += lanes.image.iter().filter(|p| p[3] > 0.0).count();
                     halves += lanes.half_depth.iter().filter(|&&z| z != 0.0).count();

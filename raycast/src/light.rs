@@ -23,7 +23,7 @@ use occlusion::emission_absorption::EaView;
 use rayon::prelude::*;
 
 /// How the light volume is computed: `render.occlusion_cell` (as chosen by
-/// `occlusion::combined::light_cell`), `render.occlusion_step` (eye slices per step of the
+/// `occlusion::combined::light_grid`), `render.occlusion_step` (eye slices per step of the
 /// light, a power of two: `occlusion::combined::light_step`), `render.occlusion_model =
 /// "cone"`, `render.theta` (degrees) and `render.blur_samples`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -204,6 +204,9 @@ impl EaVolume {
         // A step of `s.step` eye slices (`occlusion::combined::light_step`): the sweep runs in
         // the light's own view, the eye reads it at fractional slices (`LightVolume::lookup`).
         let step = s.step.clamp(1, occlusion::combined::MAX_LIGHT_STEP) as usize;
+        // Samples a voxel apart whatever the step, and the light stored at each: a step
+        // blurs once and attenuates part by part (`occlusion::combined::light_samples`).
+        let samples = occlusion::combined::light_samples(v, step as u32) as usize;
         let coarse;
         let v = if step > 1 {
             coarse = light_view(v, step as u32);
@@ -217,10 +220,12 @@ impl EaVolume {
         let cells = [w.div_ceil(cell), h.div_ceil(cell)];
         let n = cells[0] * cells[1];
         let slices = v.slices.max(1) as usize;
+        // Stored slices: `samples` a step, each `step / samples` eye slices deep.
+        let stored = slices * samples;
         // The last frame's values, each block reset to 1 at its first slice (below).
         let mut o =
             std::mem::take(&mut *self.light_store.lock().unwrap_or_else(|e| e.into_inner()));
-        let len = n * slices.div_ceil(KB) * KB;
+        let len = n * stored.div_ceil(KB) * KB;
         if o.capacity() > 2 * len {
             // Not a much larger frame's memory held for a small one.
             o = Vec::new();
@@ -230,8 +235,8 @@ impl EaVolume {
         let mut lv = LightVolume {
             cells,
             cell,
-            slices,
-            step,
+            slices: stored,
+            step: step / samples,
             o,
         };
         // The cells' centre rays, as the pixels' (a continuous pixel position).
@@ -292,7 +297,7 @@ impl EaVolume {
                     std::slice::from_raw_parts(shared.reach, cells[1]),
                     std::slice::from_raw_parts_mut(shared.leave[(k + 1) % 2].add(c0), len),
                     std::slice::from_raw_parts_mut(
-                        shared.o.add(((k / KB) * n + c0) * KB),
+                        shared.o.add(((k * samples / KB) * n + c0) * KB),
                         len * KB,
                     ),
                     std::slice::from_raw_parts_mut(shared.next_k.add(c0), len),
@@ -312,6 +317,7 @@ impl EaVolume {
                 min_taps: taps_n,
                 d,
                 k,
+                samples: samples as u32,
                 #[cfg(target_arch = "x86_64")]
                 splat: splat.as_ref(),
             };
@@ -552,6 +558,8 @@ struct Sweep<'a> {
     min_taps: usize,
     d: f32,
     k: usize,
+    /// Volume samples per step (`occlusion::combined::light_samples`).
+    samples: u32,
     /// Where the optical depths are taken eight cells at a time (`crate::lanes`): the CPU has
     /// AVX2 and FMA and `EaVolume::lanes_apply` holds.
     #[cfg(target_arch = "x86_64")]
@@ -567,7 +575,8 @@ impl Sweep<'_> {
     }
 
     /// Slice `k` of rows `r`: each cell's `O_k` (1 where nothing dirty reaches it), stored
-    /// where not 1, and the light leaving it through its slab.
+    /// where not 1 at the step's first stored slice and, attenuated part by part, at its
+    /// others, and the light leaving it through its slab.
     #[inline(always)]
     fn rows<T: Voxel>(&self, ev: &EaVolume, v: &EaView, data: &[T], r: Rows<'_>) {
         let Rows {
@@ -581,7 +590,11 @@ impl Sweep<'_> {
         let (k, d) = (self.k, self.d);
         let kk = k as u32;
         let c0 = first * cw;
-        if k % KB == 0 {
+        // The step's stored slices: `parts` of them from `j0` of the block (`KB` is a
+        // multiple of the power of two `parts`).
+        let parts = self.samples as usize;
+        let j0 = (k * parts) % KB;
+        if j0 == 0 {
             // A new block of slices: its values left from the last frame are reset to 1.
             o.fill(1.0);
         }
@@ -616,12 +629,11 @@ impl Sweep<'_> {
                 occ_row[..s0].fill(1.0);
                 occ_row[s1 + 1..].fill(1.0);
                 let orow = &mut o[ry * cw * KB..][..cw * KB];
-                let j = k % KB;
                 for (o, &occl) in orow[s0 * KB..(s1 + 1) * KB]
                     .chunks_exact_mut(KB)
                     .zip(&occ_row[s0..=s1])
                 {
-                    o[j] = occl;
+                    o[j0..j0 + parts].fill(occl);
                 }
                 for (leave, &occl) in out.iter_mut().zip(&occ_row) {
                     *leave = [occl, (1.0 - occl) * d];
@@ -630,7 +642,18 @@ impl Sweep<'_> {
                 need.clear();
                 // SAFETY: `lanes` is set only where the CPU has AVX2.
                 unsafe { crate::lanes::due(nk, kk, &mut need) };
-                self.sample_due(ev, splat, data, c0 + ry * cw, &need, nk, out, |_, _| {});
+                self.sample_due(
+                    ev,
+                    splat,
+                    data,
+                    c0 + ry * cw,
+                    &need,
+                    nk,
+                    out,
+                    orow,
+                    j0,
+                    |_, _| {},
+                );
                 let lit = |l: &Leave| *l != [1.0, 0.0];
                 *dn = match (out.iter().position(lit), out.iter().rposition(lit)) {
                     (Some(lo), Some(hi)) => (lo as i32, hi as i32),
@@ -655,7 +678,8 @@ impl Sweep<'_> {
                 } else {
                     self.gather(c)
                 };
-                o[(c - c0) * KB + k % KB] = occl;
+                let slots = (c - c0) * KB + j0;
+                o[slots..slots + parts].fill(occl);
                 #[cfg(target_arch = "x86_64")]
                 if kk >= *nk && lanes.is_some() {
                     // The sample's optical depth is taken below, eight cells at a time.
@@ -664,9 +688,10 @@ impl Sweep<'_> {
                     continue;
                 }
                 let tau = if kk >= *nk {
-                    let (tau, after) = ev.optical_depth(v, data, &self.rays[c], kk);
+                    let (tau, after) = ev.optical_depth(v, data, &self.rays[c], kk, self.samples);
                     *nk = after;
-                    tau
+                    store_parts(&mut o[slots..slots + parts], ev, &tau);
+                    tau.iter().sum()
                 } else {
                     0.0
                 };
@@ -678,12 +703,24 @@ impl Sweep<'_> {
             }
             #[cfg(target_arch = "x86_64")]
             if let Some(splat) = lanes {
-                self.sample_due(ev, splat, data, c0 + ry * cw, &need, nk, out, |x, leave| {
-                    if leave[0] != 1.0 || leave[1] != 0.0 {
-                        lo = lo.min(x as i32);
-                        hi = hi.max(x as i32);
-                    }
-                });
+                let orow = &mut o[ry * cw * KB..][..cw * KB];
+                self.sample_due(
+                    ev,
+                    splat,
+                    data,
+                    c0 + ry * cw,
+                    &need,
+                    nk,
+                    out,
+                    orow,
+                    j0,
+                    |x, leave| {
+                        if leave[0] != 1.0 || leave[1] != 0.0 {
+                            lo = lo.min(x as i32);
+                            hi = hi.max(x as i32);
+                        }
+                    },
+                );
                 need.clear();
             }
             *dn = (lo, hi);
@@ -692,7 +729,9 @@ impl Sweep<'_> {
 
     /// The optical depths of the row's cells `need` whose sample is due (the row's first cell
     /// is `row0`), eight at a time (`crate::lanes`): each cell's next slice to sample in `nk`,
-    /// its light leaving in `out` times `exp(-tau)`, then `done(x, leave)`.
+    /// the step's stored slices past its first (`orow`, the row's cells' blocks, from slot
+    /// `j0`) attenuated part by part, its light leaving in `out` times `exp(-tau)`, then
+    /// `done(x, leave)`.
     #[cfg(target_arch = "x86_64")]
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
@@ -705,8 +744,11 @@ impl Sweep<'_> {
         need: &[u32],
         nk: &mut [u32],
         out: &mut [Leave],
+        orow: &mut [f32],
+        j0: usize,
         mut done: impl FnMut(usize, &Leave),
     ) {
+        let parts = self.samples as usize;
         for xs in need.chunks(crate::lanes::LANES) {
             let mut cells = [0u32; crate::lanes::LANES];
             for (c, &x) in cells.iter_mut().zip(xs) {
@@ -722,12 +764,16 @@ impl Sweep<'_> {
                     self.rays,
                     &cells[..xs.len()],
                     self.k as u32,
+                    self.samples,
                 )
             };
             for (i, &x) in xs.iter().enumerate() {
                 let x = x as usize;
                 nk[x] = next[i];
-                out[x][0] *= ev.exp_neg(tau[i]);
+                let t: crate::Parts = std::array::from_fn(|p| tau[p][i]);
+                let slots = x * KB + j0;
+                store_parts(&mut orow[slots..slots + parts], ev, &t);
+                out[x][0] *= ev.exp_neg(t.iter().sum());
                 done(x, &out[x]);
             }
         }
@@ -839,6 +885,19 @@ impl Sweep<'_> {
             self.taps(&self.cone_taps[n], x, y, rc)
         };
         (sum[0], sum[1] / (1.0 - sum[0]).max(1e-6))
+    }
+}
+
+/// A step's stored slices past its first (`slots[0]` holds `O_k`): slice `i` the light
+/// arriving at the step's part `i`, `O_k exp(-(tau_0 + ... + tau_{i-1}))` - the steps a part
+/// deep attenuate so, and the step blurs only at its first.
+#[inline(always)]
+fn store_parts(slots: &mut [f32], ev: &EaVolume, tau: &crate::Parts) {
+    let occl = slots[0];
+    let mut acc = 0.0;
+    for (i, s) in slots.iter_mut().enumerate().skip(1) {
+        acc += tau[i - 1];
+        *s = occl * ev.exp_neg(acc);
     }
 }
 

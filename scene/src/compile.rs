@@ -1187,7 +1187,7 @@ fn cpu_layers(s: &Scene) -> Vec<(&'static str, Option<SurfaceAo>)> {
 }
 
 /// The light volume's settings for the CPU renderer when the method lights the volume: the
-/// GPU pass's cells (`occlusion::combined::light_cell` with the adapter's binding limit),
+/// GPU pass's cells and steps (`occlusion::combined::light_grid` with the adapter's binding limit),
 /// model, angle and taps; an error when the light volume exceeds that limit, as on the GPU.
 fn cpu_light(s: &Scene, v: &EaView, limit: u64) -> Result<Option<raycast::LightSettings>, String> {
     use engine::method::VolumeShading;
@@ -1195,14 +1195,15 @@ fn cpu_light(s: &Scene, v: &EaView, limit: u64) -> Result<Option<raycast::LightS
         return Ok(None);
     }
     let r = &s.render;
-    let cell = occlusion::combined::light_cell(r.occlusion_cell, v, limit);
-    let step = occlusion::combined::light_step(r.occlusion_step, v, false);
-    let steps = v.slices.div_ceil(step);
+    let (cell, step) =
+        occlusion::combined::light_grid(r.occlusion_cell, r.occlusion_step, false, v, limit);
+    // Stored slices: each step's parts (`occlusion::combined::light_samples`).
+    let steps = v.slices.div_ceil(step) * occlusion::combined::light_samples(v, step);
     let cells = v.width.div_ceil(cell) as u64 * v.height.div_ceil(cell) as u64;
     let bytes = cells * steps as u64 * 4;
     if bytes > limit {
         return Err(format!(
-            "scene key render.occlusion_cell: the light volume ({cells} cells x {} steps, {} \
+            "scene key render.occlusion_cell: the light volume ({cells} cells x {} slices, {} \
              MB) exceeds {} MB; raise render.occlusion_cell or lower the slice count",
             steps,
             bytes >> 20,
@@ -1443,6 +1444,13 @@ fn cpu_frame(
             pass_clock: None,
         },
         triangles: 0,
+        light: light.map(|l| renderer::LightGrid {
+            cell: l.cell,
+            step: l.step,
+            samples: occlusion::combined::light_samples(v, l.step),
+            cells: [v.width.div_ceil(l.cell), v.height.div_ceil(l.cell)],
+            steps: v.slices.div_ceil(l.step),
+        }),
     }
 }
 

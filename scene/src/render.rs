@@ -23,6 +23,9 @@ pub struct RenderReport {
     pub slices: u32,
     pub slice_distance: f64,
     pub triangles: u64,
+    /// The occlusion buffer's cells and steps (`dos`, `combined`; absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub light: Option<engine::renderer::LightGrid>,
     pub adapter: String,
     /// Median frame time and per-pass times (see `renderer::Timings`).
     pub total_ms: f64,
@@ -431,6 +434,7 @@ pub(crate) fn run_on(
         slices: 0,
         slice_distance: 0.0,
         triangles: 0,
+        light: None,
         adapter: String::new(),
         total_ms: 0.0,
         passes: Default::default(),
@@ -584,6 +588,7 @@ pub(crate) fn run_on(
     report.slices = v.slices;
     report.slice_distance = v.dz;
     report.triangles = out.triangles;
+    report.light = out.light;
     report.total_ms = if sequence.is_some() {
         engine::renderer::median(&totals)
     } else {

@@ -561,8 +561,22 @@ pub fn summary(r: &RenderReport) -> String {
             .collect();
         format!(" ({})", list.join(", "))
     };
+    // The occlusion buffer's grid where the method swept one.
+    let light = match &r.light {
+        Some(l) => format!(
+            ", light {} x {} cells of {} px in {} steps of {} slices, {} sample{} a step",
+            l.cells[0],
+            l.cells[1],
+            l.cell,
+            l.steps,
+            l.step,
+            l.samples,
+            if l.samples == 1 { "" } else { "s" }
+        ),
+        None => String::new(),
+    };
     format!(
-        "{}: {} x {}, {} slices {:.4} apart, {} triangles, on {}: {:.1} ms per frame{passes}, {:.2} s in all",
+        "{}: {} x {}, {} slices {:.4} apart{light}, {} triangles, on {}: {:.1} ms per frame{passes}, {:.2} s in all",
         r.method,
         r.width,
         r.height,
