@@ -24,8 +24,8 @@ pub struct SliceSettings {
     pub occlusion: bool,
     /// Cell edge of the occlusion buffer in pixels (None: `occlusion::combined::light_grid`).
     pub cell: Option<u32>,
-    /// Eye slices per step of the light volume, 1, 2, 4 or 8 (None: a voxel deep, two where
-    /// a cell spans two voxels across, `occlusion::combined::data_step`; the caller passes 1
+    /// Eye slices per step of the light volume, 1, 2, 4 or 8 (None: four voxels deep,
+    /// sampled and stored a voxel apart, `occlusion::combined::data_step`; the caller passes 1
     /// where tubes or lines cast light, `occlusion::combined::light_step`).
     pub step: Option<u32>,
     /// The cone-following model instead of the paper's constant per-slice blur.
@@ -596,7 +596,7 @@ impl SlicePass {
         let (cell, step) = light_grid(s.cell, s.step, false, v, limit as u64);
         let cells = (v.width.div_ceil(cell), v.height.div_ceil(cell));
         let lv = light_view(v, step);
-        // Each step sampled in `parts` parts a voxel deep, and the light reaching each stored
+        // Each step sampled in parts a voxel deep, and the light reaching each part stored
         // (`occlusion::combined::light_samples`).
         let light_parts = occlusion::combined::light_samples(v, step);
         let stored = lv.slices * light_parts;
@@ -778,7 +778,7 @@ impl SlicePass {
 
     /// The light volume's cells and steps, where the pass sweeps one.
     pub fn light_grid(&self) -> Option<crate::renderer::LightGrid> {
-        self.occlusion.then(|| crate::renderer::LightGrid {
+        self.occlusion.then_some(crate::renderer::LightGrid {
             cell: self.cell,
             step: self.step,
             samples: self.samples,

@@ -3,8 +3,10 @@
 //! `dos` and `combined` methods of volume-only scenes on machines without a GPU.
 //!
 //! The light volume holds `O_k`, the light reaching step k (`LightSettings::step` slices deep,
-//! `occlusion::combined::light_view`; the eye reads step `slice / step` linearly), on cells of
-//! `s x s` pixels: step by step (each blurs the light leaving the previous one, so the steps
+//! `occlusion::combined::light_view`), and the light reaching each of the step's parts a voxel
+//! deep (`occlusion::combined::light_samples`: the volume sampled at each part's middle, the
+//! light attenuated part by part, [`store_parts`]; the eye reads the stored slices linearly),
+//! on cells of `s x s` pixels: step by step (each blurs the light leaving the previous one, so the steps
 //! are a sequence; the rows of a slice are shared by the threads, [`sweep_slices`]), each cell's
 //! `O_k` gathered from `L_{k-1} = O_{k-1} T_{k-1}` of its neighbours with the slice's blur
 //! (`occlusion::combined::blur_rows`: the 3x3 stencil up to two cells, else `n x n` bilinear
@@ -38,9 +40,9 @@ pub struct LightSettings {
 /// Slices per block of a cell's light (16 f32: one cache line).
 pub(crate) const KB: usize = 16;
 
-/// `O_k` per cell and slice (see the module's layout): `slices` steps of the light, each
-/// `step` eye slices deep (a power of two); eye slice `k` reads step `k / step`, linearly
-/// between steps.
+/// `O` per cell and stored slice (see the module's layout): `slices` stored slices, each
+/// `step` eye slices deep (a power of two: a part of a sweep step); eye slice `k` reads stored
+/// slice `k / step`, linearly between them.
 pub(crate) struct LightVolume {
     pub cells: [usize; 2],
     pub cell: usize,
