@@ -534,7 +534,6 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     let k = S.k;
     let n = max(P.light_samples, 1u);
     let d = P.dz * f32(P.light_step * n);
-    let z_k = P.z0 + (f32(k) + 0.5) * d;
     let s = P.cell;
     let centre = (vec2<f32>(id.xy) + vec2<f32>(0.5)) * f32(s);
     let r = pixel_ray(P.frame, centre);
@@ -629,48 +628,40 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     // The light leaving slice k: through the volume's extinction at the cell's ray, and
     // through the tubes where the slice lies inside them (between front and back faces; with
     // flag 4 everywhere behind a front face, the paper's rule), as the mean transmittance of
-    // the cell's pixels. Over the whole slab: occlusion does not stop at the surface.
-    let seg = d * cs.z;
+    // the cell's pixels. Over the whole slab: occlusion does not stop at the surface. The slab
+    // is taken in n equal parts (one: the whole slab), each sampled at its middle and clipped
+    // on its own, as the CPU renderer's `EaVolume::optical_depth` takes them, the tubes'
+    // coverage tested at each part's middle; the light reaching part i is stored at slice
+    // k n + i (`raycast::light::store_parts`).
     var grad = vec3<f32>(0.0);
+    let column = P.column != 0u;
+    let part = d / f32(n);
+    let seg = part * cs.z;
     var t = 1.0;
-    // n samples at the middles of equal parts of the slab (one: its middle), each part clipped
-    // on its own, as the CPU renderer's `EaVolume::optical_depth` takes them; the light
-    // reaching part i stored at slice k n + i (`raycast::light::store_parts`).
-    if (n == 1u) {
-        let iv = depth_interval(r, P.z0 + f32(k) * d, d, 0.0);
+    for (var i = 0u; i < n; i = i + 1u) {
+        if (i > 0u) {
+            light_volume[ci + cw * ch * (k * n + i)] = occl * t;
+        }
+        let iv = depth_interval(r, P.z0 + (f32(k) + f32(i) / f32(n)) * d, part, 0.0);
         if (iv.y > iv.x) {
             let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
-            t = exp(-max(c.a, 0.0) * (iv.y - iv.x) * cs.z);
+            t = t * exp(-max(c.a, 0.0) * (iv.y - iv.x) * cs.z);
         }
-    } else {
-        let part = d / f32(n);
-        var tau = 0.0;
-        for (var i = 0u; i < n; i = i + 1u) {
-            if (i > 0u) {
-                light_volume[ci + cw * ch * (k * n + i)] = occl * exp(-tau);
-            }
-            let iv = depth_interval(r, P.z0 + (f32(k) + f32(i) / f32(n)) * d, part, 0.0);
-            if (iv.y > iv.x) {
-                let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
-                tau = tau + max(c.a, 0.0) * (iv.y - iv.x) * cs.z;
-            }
-        }
-        t = exp(-tau);
-    }
-    let column = P.column != 0u;
-    if (cs.x > 0.0 && z_k >= cs.x && (column || z_k <= cs.y)) {
-        var inside = 0.0;
-        for (var j = 0u; j < s; j = j + 1u) {
-            for (var i = 0u; i < s; i = i + 1u) {
-                let p = vec2<i32>(min(id.xy * s + vec2<u32>(i, j), vec2<u32>(P.frame.size.x, P.frame.size.y) - vec2<u32>(1u)));
-                let f = textureLoad(front_depth, p, 0).r;
-                if (f > 0.0 && z_k >= f && (column || z_k <= textureLoad(back_depth, p, 0).r)) {
-                    inside = inside + 1.0;
+        let z_i = P.z0 + (f32(k) + (f32(i) + 0.5) / f32(n)) * d;
+        if (cs.x > 0.0 && z_i >= cs.x && (column || z_i <= cs.y)) {
+            var inside = 0.0;
+            for (var y = 0u; y < s; y = y + 1u) {
+                for (var x = 0u; x < s; x = x + 1u) {
+                    let p = vec2<i32>(min(id.xy * s + vec2<u32>(x, y), vec2<u32>(P.frame.size.x, P.frame.size.y) - vec2<u32>(1u)));
+                    let f = textureLoad(front_depth, p, 0).r;
+                    if (f > 0.0 && z_i >= f && (column || z_i <= textureLoad(back_depth, p, 0).r)) {
+                        inside = inside + 1.0;
+                    }
                 }
             }
+            let cov = inside / f32(s * s);
+            t = t * (1.0 - cov * (1.0 - exp(-P.geometry_extinction * seg)));
         }
-        let cov = inside / f32(s * s);
-        t = t * (1.0 - cov * (1.0 - exp(-P.geometry_extinction * seg)));
     }
     let leave = occl * t;
     occ_out[2u * ci] = leave;

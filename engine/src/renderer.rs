@@ -163,6 +163,47 @@ pub struct LightGrid {
     pub steps: u32,
 }
 
+impl LightGrid {
+    /// The grid of a light volume on cells of `cell` pixels in steps of `step` slices of view
+    /// `v` (`occlusion::combined::light_grid` chooses both).
+    pub fn new(v: &occlusion::emission_absorption::EaView, cell: u32, step: u32) -> LightGrid {
+        let (cell, step) = (cell.max(1), step.max(1));
+        LightGrid {
+            cell,
+            step,
+            samples: occlusion::combined::light_samples(v, step),
+            cells: [v.width.div_ceil(cell), v.height.div_ceil(cell)],
+            steps: v.slices.div_ceil(step),
+        }
+    }
+
+    /// The slices the light volume stores (`samples` a step).
+    pub fn stored(&self) -> u32 {
+        self.steps * self.samples
+    }
+
+    /// The light volume's size in bytes (f32 values).
+    pub fn bytes(&self) -> u64 {
+        self.cells[0] as u64 * self.cells[1] as u64 * self.stored() as u64 * 4
+    }
+
+    /// The light volume within `limit` bytes (a storage binding), or why not.
+    pub fn fits(&self, limit: u64) -> Result<(), String> {
+        if self.bytes() <= limit {
+            return Ok(());
+        }
+        Err(format!(
+            "the light volume ({} x {} cells x {} slices, {} MB) exceeds the adapter's storage \
+             binding limit ({} MB); raise render.occlusion_cell or lower the slice count",
+            self.cells[0],
+            self.cells[1],
+            self.stored(),
+            self.bytes() >> 20,
+            limit >> 20
+        ))
+    }
+}
+
 impl Output {
     /// The AOV channels by name, in order: `occlusion.volumetric`, `occlusion.<term>` for every
     /// surface term of [`crate::method::TERM_NAMES`] (the frame's layer where its method ran

@@ -521,9 +521,8 @@ pub struct SlicePass {
     cells: (u32, u32),
     /// Cell edge in pixels.
     pub cell: u32,
-    /// Eye slices per step of the light volume, and its parts (stored slices) per step.
-    step: u32,
-    samples: u32,
+    /// The light volume's cells, steps and parts.
+    grid: crate::renderer::LightGrid,
 }
 
 impl SlicePass {
@@ -594,24 +593,14 @@ impl SlicePass {
         // The light's own view: cells of `cell` pixels, steps of `step` eye slices
         // (`occlusion::combined::light_grid`, `light_view`).
         let (cell, step) = light_grid(s.cell, s.step, false, v, limit as u64);
-        let cells = (v.width.div_ceil(cell), v.height.div_ceil(cell));
-        let lv = light_view(v, step);
         // Each step sampled in parts a voxel deep, and the light reaching each part stored
         // (`occlusion::combined::light_samples`).
-        let light_parts = occlusion::combined::light_samples(v, step);
-        let stored = lv.slices * light_parts;
-        let light_bytes = cells.0 as u64 * cells.1 as u64 * stored as u64 * 4;
-        if s.occlusion && light_bytes > limit as u64 {
-            return Err(GpuError::Operation(format!(
-                "the light volume ({} x {} cells x {} slices, {} MB) exceeds this adapter's \
-                 storage binding limit ({} MB); raise render.occlusion_cell or lower the \
-                 slice count",
-                cells.0,
-                cells.1,
-                stored,
-                light_bytes >> 20,
-                limit >> 20
-            )));
+        let grid = crate::renderer::LightGrid::new(v, cell, step);
+        let cells = (grid.cells[0], grid.cells[1]);
+        let lv = light_view(v, step);
+        let light_bytes = grid.bytes();
+        if s.occlusion {
+            grid.fits(limit as u64).map_err(GpuError::Operation)?;
         }
         let has_volume = volume.is_some();
         let vol = volume.cloned().unwrap_or_else(|| GpuVolume::none(gpu));
@@ -652,9 +641,9 @@ impl SlicePass {
             part_len: vol.part_len,
             packing: vol.packing.code(),
             value_offset: vol.value_offset,
-            light_step: step / light_parts,
-            light_slices: stored,
-            light_samples: light_parts,
+            light_step: step / grid.samples,
+            light_slices: grid.stored(),
+            light_samples: grid.samples,
             pad1: 0,
         };
         let (blend_field, blend_lut) = match blend {
@@ -766,8 +755,7 @@ impl SlicePass {
             size: (v.width, v.height),
             cells,
             cell,
-            step,
-            samples: light_parts,
+            grid,
         })
     }
 
@@ -778,13 +766,7 @@ impl SlicePass {
 
     /// The light volume's cells and steps, where the pass sweeps one.
     pub fn light_grid(&self) -> Option<crate::renderer::LightGrid> {
-        self.occlusion.then_some(crate::renderer::LightGrid {
-            cell: self.cell,
-            step: self.step,
-            samples: self.samples,
-            cells: [self.cells.0, self.cells.1],
-            steps: self.slices,
-        })
+        self.occlusion.then_some(self.grid)
     }
 
     /// Records the light volume, slice by slice, in one compute pass.

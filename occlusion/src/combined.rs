@@ -107,7 +107,7 @@ pub fn light_grid(
     loop {
         let m = light_step(step, v, geometry);
         let cells = v.width.div_ceil(c) as u64 * v.height.div_ceil(c) as u64;
-        let stored = v.slices.div_ceil(m) as u64 * light_samples(v, m) as u64;
+        let stored = light_slices(v, m) as u64;
         if c >= 64 || cells * stored * 4 <= budget {
             return (c, m);
         }
@@ -217,11 +217,18 @@ pub fn light_samples(v: &EaView, step: u32) -> u32 {
     (step / voxel_step(v)).max(1)
 }
 
+/// The slices a light volume of steps of `step` eye slices stores: [`light_samples`] a step,
+/// for as many steps as cover the eye's slices ([`light_view`]).
+pub fn light_slices(v: &EaView, step: u32) -> u32 {
+    v.slices.div_ceil(step.max(1)) * light_samples(v, step.max(1))
+}
+
 /// The view the light volume is swept in for a step of `step` slices: the same front, slabs
-/// `step d` deep, as many as cover the eye's slices. The light of eye slice `k` is this view's
-/// at fractional slice `k / step` (linear between its slices): slice `j step` of the eye has
-/// exactly the light of step `j` (both have passed through the same depth), the slices between
-/// lie between the two steps.
+/// `step d` deep, as many as cover the eye's slices. Each step stores the light reaching its
+/// [`light_samples`] parts (`p`), and eye slice `k` reads stored slice `k / (step / p)`
+/// (linear between them): slice `j step` of the eye has exactly the light of step `j` (both
+/// have passed through the same depth), and the slices of a part lie between its light and
+/// the next part's.
 pub fn light_view(v: &EaView, step: u32) -> EaView {
     let m = step.max(1);
     EaView {

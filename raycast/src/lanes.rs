@@ -352,6 +352,7 @@ struct RayLanes {
     seg: __m256,
     k: __m256i,
     k1: __m256i,
+    front: __m256,
 }
 
 impl RayLanes {
@@ -361,12 +362,14 @@ impl RayLanes {
     unsafe fn load<'r>(rays: impl Iterator<Item = &'r Ray>) -> RayLanes {
         let (mut qa, mut dq) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3]);
         let (mut seg, mut k, mut k1) = ([0f32; LANES], [1i32; LANES], [0i32; LANES]);
+        let mut front = [0f32; LANES];
         for (i, r) in rays.take(LANES).enumerate() {
             for a in 0..3 {
                 qa[a][i] = r.qa[a];
                 dq[a][i] = r.dq[a];
             }
             seg[i] = r.seg;
+            front[i] = r.front;
             // Slices are at most `MAX_SLICES` (16,384, checked by `lanes_apply`): they fit.
             (k[i], k1[i]) = (r.k.min(1 << 30) as i32, r.k1.min(1 << 30) as i32);
         }
@@ -379,6 +382,7 @@ impl RayLanes {
                 seg: load(&seg),
                 k: _mm256_loadu_si256(k.as_ptr() as *const __m256i),
                 k1: _mm256_loadu_si256(k1.as_ptr() as *const __m256i),
+                front: load(&front),
             }
         }
     }
@@ -436,7 +440,7 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
         let slab = pi((lv.cells[0] * lv.cells[1] * KB) as i32);
         const { assert!(KB.is_power_of_two()) };
         let kb_shift = _mm_cvtsi32_si128(KB.trailing_zeros() as i32);
-        // Light steps of `lv.step` slices (a power of two).
+        // Stored light slices of `lv.step` eye slices (a power of two).
         debug_assert!(lv.step.is_power_of_two());
         let stepped = LIT && lv.step > 1;
         let step_shift = _mm_cvtsi32_si128(lv.step.trailing_zeros() as i32);
@@ -488,7 +492,7 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
             let al = _mm256_sub_ps(one, e);
             let wgt = _mm256_mul_ps(_mm256_sub_ps(one, alpha), al);
             // The light at the sample (`LightVolume::lookup`: bilinear over the ray's four
-            // cells at step k / step, linear between steps), 1 unlit.
+            // cells at stored slice k / step, linear between them), 1 unlit.
             let o = if LIT {
                 let lit_ps = lit;
                 // The block and slot of step `ks` in the light volume's layout.
@@ -512,7 +516,7 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
                     };
                 }
                 if stepped {
-                    // Steps k0 = k / step and the next (both clamped to the last), and the
+                    // Stored slices k0 = k / step and the next (both clamped to the last), and the
                     // fraction between them, as `LightVolume::cell_at` takes them.
                     let k0 = _mm256_srl_epi32(kv, step_shift);
                     let t = _mm256_mul_ps(
@@ -630,7 +634,9 @@ pub(crate) unsafe fn optical_depths<T: Gather>(
         for (i, t) in t.iter_mut().enumerate().take(n as usize) {
             let at = _mm256_add_ps(kf, _mm256_set1_ps(crate::sub_offset(i as u32, n)));
             let q = std::array::from_fn(|a| _mm256_add_ps(r.qa[a], _mm256_mul_ps(at, r.dq[a])));
-            let st = splat.step(data, q, r.dq, active);
+            // A part behind the ray's origin (a camera inside the grid) is not sampled.
+            let ahead = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(at, r.front));
+            let st = splat.step(data, q, r.dq, _mm256_and_si256(active, ahead));
             let tau = _mm256_and_ps(
                 st.sampled,
                 _mm256_mul_ps(_mm256_max_ps(st.sigma, zero), seg),

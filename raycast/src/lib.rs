@@ -605,6 +605,7 @@ impl EaVolume {
             seg: 0.0,
             k: 1,
             k1: 0,
+            front: 0.0,
             c: [0.0; 3],
             alpha: 0.0,
             light: Footprint::default(),
@@ -623,6 +624,7 @@ impl EaVolume {
         let qa = (w2i * DVec4::from((o + d * s0, 1.0))).truncate();
         let dq = DMat3::from_mat4(w2i) * (d * (v.dz / cosine));
         let hi = self.hi();
+        r.front = ((o_depth - v.z0) / v.dz - 0.5) as f32;
         let front = ((o_depth - v.z0) / v.dz - 0.5).ceil().max(0.0);
         let (mut k0, mut k1) = (front, v.slices as f64 - 1.0);
         for a in 0..3 {
@@ -825,12 +827,8 @@ impl EaVolume {
         for i in 0..n {
             let (q, len) = if clipped {
                 // Each part of the slab clipped on its own, as the steps a part deep would be.
-                let (lo, hi) = if n == 1 {
-                    slab_interval(v, r.o, r.d, k)
-                } else {
-                    let a = v.z0 + (k as f64 + i as f64 / n as f64) * v.dz;
-                    clip_interval(v, r.o, r.d, a, a + v.dz / n as f64)
-                };
+                let a = v.z0 + (k as f64 + i as f64 / n as f64) * v.dz;
+                let (lo, hi) = clip_interval(v, r.o, r.d, a, a + v.dz / n as f64);
                 let s = (0.5 * (lo + hi) - r.o_depth) / r.cosine;
                 if hi <= lo || s < 0.0 {
                     skip = 1;
@@ -843,6 +841,11 @@ impl EaVolume {
                 )
             } else {
                 let kf = k as f32 + sub_offset(i, n);
+                if kf < r.front {
+                    // Behind the ray's origin (a camera inside the grid).
+                    skip = 1;
+                    continue;
+                }
                 ([0, 1, 2].map(|a| r.qa[a] + kf * r.dq[a]), r.seg / n as f32)
             };
             if (0..3).any(|a| !(q[a] >= 0.0 && q[a] <= hi[a])) {
@@ -1064,6 +1067,9 @@ struct Ray {
     seg: f32,
     k: u32,
     k1: u32,
+    /// The fractional slice whose sample lies at the ray's origin: samples before it are
+    /// behind the eye (the first slice `k` is the first at or after it).
+    front: f32,
     c: [f32; 3],
     alpha: f32,
     /// Where the ray reads the light volume (lit frames).
@@ -1271,7 +1277,8 @@ mod tests {
         // Slices 0.2 apart, the smallest spacing 40 / 43: a voxel is four slices (the
         // largest power of two within it). A step of eight slices takes
         // two samples, at the middles of its halves - the samples of the two steps a voxel
-        // deep it spans - so its optical depth is theirs, clipped or not.
+        // deep it spans - so its optical depth is theirs, clipped or not, and with the camera
+        // inside the grid (parts behind the eye unsampled, a step's parts ahead of it sampled).
         let vol = blob([40, 44, 30]);
         let data = vol.select(None).unwrap().data;
         let b = vol.bounds();
@@ -1279,11 +1286,24 @@ mod tests {
         let View::F32(data) = ev.data.view() else {
             panic!("f32 samples expected")
         };
-        let cam = Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0));
+        let outside = Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0));
+        // At the grid's centre, the near plane (the rays' origins) 2.6 deep: the slices start
+        // at the eye, so the first steps (1.6 deep) lie behind the origins, and the second's
+        // middle (2.4) too but not its second part's (2.8).
+        let mut inside = outside;
+        inside.eye = 0.5 * (b[0] + b[1]);
+        inside.target = inside.eye + (outside.target - outside.eye);
+        inside.near = 2.6;
         // A plane through the middle of the grid, tilted to the slices.
         let n = DVec3::new(0.3, -0.5, 0.8);
         let plane = ([n.x, n.y, n.z], (0.5 * (b[0] + b[1])).dot(n));
-        for clip in [vec![], vec![plane]] {
+        let mut behind = 0;
+        for (cam, clip) in [
+            (outside, vec![]),
+            (outside, vec![plane]),
+            (inside, vec![]),
+            (inside, vec![plane]),
+        ] {
             let mut view = EaView::new(&vol, cam, 32, 24, None, Some(0.2), [1.0; 3]).unwrap();
             view.clip = clip.clone();
             let vs = occlusion::combined::voxel_step(&view);
@@ -1298,7 +1318,9 @@ mod tests {
             for py in 0..24 {
                 for px in 0..32 {
                     let (o, d) = pixel_ray(&inv, &view, [px as f64 + 0.5, py as f64 + 0.5]);
-                    let (rf, rc) = (ev.start(&fine, o, d), ev.start(&coarse, o, d));
+                    let (rf, rc) = (ev.start(&fine, o, d), ev.light_start(&coarse, o, d, 2));
+                    behind += (rc.front > 0.5) as usize;
+
                     for k in 0..coarse.slices {
                         let (parts, next) = ev.optical_depth(&coarse, data, &rc, k, 2);
                         for (i, &deep) in parts.iter().enumerate() {
@@ -1328,6 +1350,7 @@ mod tests {
             }
             assert!(nonzero > 100, "{nonzero} of {checked} steps with depth");
         }
+        assert!(behind > 100, "{behind} rays start behind the slices' front");
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -1370,6 +1393,14 @@ mod tests {
                 // Along an axis: rays with direction components of zero.
                 Camera::orbit(b, 0.0, 0.0, 2.0, None),
                 Camera::orbit(b, 90.0, 90.0, 2.0, Some(30.0)),
+                // Inside the grid, the rays' origins past the first slices (the light's
+                // parts behind them unsampled).
+                Camera {
+                    eye: 0.5 * (b[0] + b[1]),
+                    target: 0.5 * (b[0] + b[1]) + DVec3::new(0.6, -0.3, 0.5),
+                    near: 2.6,
+                    ..Camera::orbit(b, 40.0, 25.0, 2.5, Some(60.0))
+                },
             ] {
                 let view = EaView::new(&vol, cam, 37, 29, None, None, [0.1, 0.2, 0.3]).unwrap();
                 // Unlit (`ea`) and with the occlusion buffer (`combined`'s eye march).

@@ -11,7 +11,8 @@
 //! `O_k` gathered from `L_{k-1} = O_{k-1} T_{k-1}` of its neighbours with the slice's blur
 //! (`occlusion::combined::blur_rows`: the 3x3 stencil up to two cells, else `n x n` bilinear
 //! taps on the disk), then `T_k` through the volume along the cell's centre ray, the whole
-//! slab clipped by the clipping planes (occlusion does not stop at the eye's opacity). The
+//! slab - each of its parts clipped by the clipping planes on its own - (occlusion does not
+//! stop at the eye's opacity). The
 //! cone-following model carries the shadow's age as a second channel, as the shader does.
 //!
 //! Unlike the GPU's light volume (cells x slices, slice-major), the CPU's is cell-major in
@@ -70,8 +71,8 @@ impl LightVolume {
     }
 
     /// `O` of eye slice `k` at a pixel: bilinear over the four cells of `f` (offsets and
-    /// fractions from [`LightVolume::footprint`]), at step `k / step` (linear between steps;
-    /// the last step's beyond it).
+    /// fractions from [`LightVolume::footprint`]), at stored slice `k / step` (linear between
+    /// stored slices; the last one's beyond it).
     #[inline(always)]
     pub(crate) fn lookup(&self, f: &Footprint, k: usize) -> f32 {
         if f.shifted {
@@ -189,6 +190,24 @@ pub(crate) struct Footprint {
 type Leave = [f32; 2];
 
 impl EaVolume {
+    /// A cell's ray `o + s d` through the light's view `v` in steps of `samples` parts: as
+    /// [`EaVolume::start`], but where a step's middle lies behind the ray's origin (a camera
+    /// inside the grid) its last parts may not, so the ray starts a step earlier, its parts
+    /// behind the origin unsampled ([`EaVolume::optical_depth`]).
+    pub(crate) fn light_start(
+        &self,
+        v: &EaView,
+        o: glam::DVec3,
+        d: glam::DVec3,
+        samples: u32,
+    ) -> Ray {
+        let mut r = self.start(v, o, d);
+        if samples > 1 && r.k > 0 && r.k <= r.k1 {
+            r.k -= 1;
+        }
+        r
+    }
+
     /// Keeps `lv`'s values for the next frame's sweep (see `EaVolume::light_store`).
     pub(crate) fn keep_light(&self, lv: LightVolume) {
         *self.light_store.lock().unwrap_or_else(|e| e.into_inner()) = lv.o;
@@ -205,7 +224,8 @@ impl EaVolume {
     ) -> LightVolume {
         // A step of `s.step` eye slices (`occlusion::combined::light_step`): the sweep runs in
         // the light's own view, the eye reads it at fractional slices (`LightVolume::lookup`).
-        let step = s.step.clamp(1, occlusion::combined::MAX_LIGHT_STEP) as usize;
+        // (A power of two: a step's parts share a block of `KB` stored slices.)
+        let step = occlusion::combined::light_step(Some(s.step), v, false) as usize;
         // Samples a voxel apart whatever the step, and the light stored at each: a step
         // blurs once and attenuates part by part (`occlusion::combined::light_samples`).
         let samples = occlusion::combined::light_samples(v, step as u32) as usize;
@@ -250,7 +270,7 @@ impl EaVolume {
                     ((c / cells[0]) as f64 + 0.5) * cell as f64,
                 ];
                 let (o, d) = crate::pixel_ray(&inv, v, px);
-                self.start(v, o, d)
+                self.light_start(v, o, d, samples as u32)
             })
             .collect();
         let blur = blur_rows(v, cell as u32, theta_deg);

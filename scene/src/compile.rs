@@ -1197,19 +1197,9 @@ fn cpu_light(s: &Scene, v: &EaView, limit: u64) -> Result<Option<raycast::LightS
     let r = &s.render;
     let (cell, step) =
         occlusion::combined::light_grid(r.occlusion_cell, r.occlusion_step, false, v, limit);
-    // Stored slices: each step's parts (`occlusion::combined::light_samples`).
-    let steps = v.slices.div_ceil(step) * occlusion::combined::light_samples(v, step);
-    let cells = v.width.div_ceil(cell) as u64 * v.height.div_ceil(cell) as u64;
-    let bytes = cells * steps as u64 * 4;
-    if bytes > limit {
-        return Err(format!(
-            "scene key render.occlusion_cell: the light volume ({cells} cells x {} slices, {} \
-             MB) exceeds {} MB; raise render.occlusion_cell or lower the slice count",
-            steps,
-            bytes >> 20,
-            limit >> 20
-        ));
-    }
+    renderer::LightGrid::new(v, cell, step)
+        .fits(limit)
+        .map_err(|e| format!("scene key render.occlusion_cell: {e}"))?;
     Ok(Some(raycast::LightSettings {
         cell,
         step,
@@ -1444,13 +1434,7 @@ fn cpu_frame(
             pass_clock: None,
         },
         triangles: 0,
-        light: light.map(|l| renderer::LightGrid {
-            cell: l.cell,
-            step: l.step,
-            samples: occlusion::combined::light_samples(v, l.step),
-            cells: [v.width.div_ceil(l.cell), v.height.div_ceil(l.cell)],
-            steps: v.slices.div_ceil(l.step),
-        }),
+        light: light.map(|l| renderer::LightGrid::new(v, l.cell, l.step)),
     }
 }
 
