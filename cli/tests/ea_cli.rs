@@ -429,25 +429,12 @@ fn a_deep_light_step_casts_the_shadow_of_a_sheet_one_voxel_thick_on_both_devices
     // same samples), on the GPU as on the CPU. A step sampled only at its middle would see the
     // sheet at one phase in four, its shadow missing or four voxels deep.
     let dir = tempfile::tempdir().unwrap();
-    let n = 32usize;
-    let mut bytes = format!(
-        "NRRD0004\ntype: float\ndimension: 3\nsizes: {n} {n} {n}\nspacings: 1 1 1\nencoding: raw\nendian: little\n\n"
-    )
-    .into_bytes();
-    for z in 0..n {
-        for _y in 0..n {
-            for _x in 0..n {
-                let v: f32 = match z {
-                    17 => 1.0,
-                    2..=4 => 0.5,
-                    _ => 0.0,
-                };
-                bytes.extend_from_slice(&v.to_le_bytes());
-            }
-        }
-    }
     let vol = dir.path().join("sheet.nrrd");
-    std::fs::write(&vol, bytes).unwrap();
+    layered_volume(&vol, 32, |z| match z {
+        17 => 1.0,
+        2..=4 => 0.5,
+        _ => 0.0,
+    });
     let scene = dir.path().join("sheet.toml");
     std::fs::write(
         &scene,
@@ -462,29 +449,8 @@ fn a_deep_light_step_casts_the_shadow_of_a_sheet_one_voxel_thick_on_both_devices
         ),
     )
     .unwrap();
-    let aov = |name: &str, sets: &[&str]| -> Vec<f32> {
-        let exr = dir.path().join(format!("{name}.exr"));
-        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_umbra"));
-        cmd.args([
-            "render",
-            scene.to_str().unwrap(),
-            "-o",
-            exr.to_str().unwrap(),
-            "--aov",
-        ]);
-        for set in sets {
-            cmd.args(["--set", set]);
-        }
-        let out = cmd.output().unwrap();
-        assert!(
-            out.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let img = scene::image_io::read_exr_channels(&exr).unwrap();
-        scene::image_io::exr_channel(&img, "occlusion.volumetric")
-            .unwrap()
-            .to_vec()
+    let aov = |name: &str, sets: &[&str]| {
+        render_aov(&scene, &dir.path().join(format!("{name}.exr")), sets).0
     };
     let mean_diff = |a: &[f32], b: &[f32]| {
         a.iter()
@@ -528,19 +494,8 @@ fn a_deep_light_step_lets_a_tube_shadow_the_volume_part_by_part() {
     // Its parts (a voxel deep) each test the tubes' coverage at their own depth, so a tube
     // just above a sheet shadows it as the steps a voxel deep do, not a whole step late.
     let dir = tempfile::tempdir().unwrap();
-    let n = 32usize;
-    let mut bytes = format!(
-        "NRRD0004\ntype: float\ndimension: 3\nsizes: {n} {n} {n}\nspacings: 1 1 1\nencoding: raw\nendian: little\n\n"
-    )
-    .into_bytes();
-    for z in 0..n {
-        let v: f32 = if (18..=19).contains(&z) { 1.0 } else { 0.0 };
-        for _ in 0..n * n {
-            bytes.extend_from_slice(&v.to_le_bytes());
-        }
-    }
     let vol = dir.path().join("sheet.nrrd");
-    std::fs::write(&vol, bytes).unwrap();
+    layered_volume(&vol, 32, |z| if (18..=19).contains(&z) { 1.0 } else { 0.0 });
     let mut line = tubes::Streamlines::new();
     let pts: Vec<glam::Vec3> = (0..=10)
         .map(|i| glam::Vec3::new(3.0 + 2.5 * i as f32, 15.5, 22.5))
@@ -563,30 +518,8 @@ fn a_deep_light_step_lets_a_tube_shadow_the_volume_part_by_part() {
         ),
     )
     .unwrap();
-    let aov = |name: &str, sets: &[&str]| -> (Vec<f32>, serde_json::Value) {
-        let exr = dir.path().join(format!("{name}.exr"));
-        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_umbra"));
-        cmd.args([
-            "render",
-            scene.to_str().unwrap(),
-            "-o",
-            exr.to_str().unwrap(),
-        ]);
-        cmd.args(["--aov", "--json"]);
-        for set in sets {
-            cmd.args(["--set", set]);
-        }
-        let out = cmd.output().unwrap();
-        assert!(
-            out.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let img = scene::image_io::read_exr_channels(&exr).unwrap();
-        let v = scene::image_io::exr_channel(&img, "occlusion.volumetric")
-            .unwrap()
-            .to_vec();
-        (v, serde_json::from_slice(&out.stdout).unwrap())
+    let aov = |name: &str, sets: &[&str]| {
+        render_aov(&scene, &dir.path().join(format!("{name}.exr")), sets)
     };
     let (voxel, j2) = aov("voxel", &["render.occlusion_step=2"]);
     let (deep, j8) = aov("deep", &["render.occlusion_step=8"]);
@@ -619,4 +552,52 @@ fn a_deep_light_step_lets_a_tube_shadow_the_volume_part_by_part() {
         diff < 0.004 && mx < 0.05,
         "steps of eight against a voxel deep: {diff} in mean, {mx} at most"
     );
+}
+
+/// Writes an `n`^3 NRRD of f32 samples one unit apart, `value(z)` on every sample of plane z.
+fn layered_volume(path: &std::path::Path, n: usize, value: impl Fn(usize) -> f32) {
+    let mut bytes = format!(
+        "NRRD0004\ntype: float\ndimension: 3\nsizes: {n} {n} {n}\nspacings: 1 1 1\nencoding: raw\nendian: little\n\n"
+    )
+    .into_bytes();
+    for z in 0..n {
+        let v = value(z);
+        for _ in 0..n * n {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// `umbra render SCENE -o EXR --aov --json` with the overrides `sets`: the volumetric
+/// occlusion AOV and the JSON report.
+fn render_aov(
+    scene: &std::path::Path,
+    exr: &std::path::Path,
+    sets: &[&str],
+) -> (Vec<f32>, serde_json::Value) {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_umbra"));
+    cmd.args([
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        exr.to_str().unwrap(),
+        "--aov",
+        "--json",
+    ]);
+    for set in sets {
+        cmd.args(["--set", set]);
+    }
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}: {}",
+        exr.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = scene::image_io::read_exr_channels(exr).unwrap();
+    let v = scene::image_io::exr_channel(&img, "occlusion.volumetric")
+        .unwrap()
+        .to_vec();
+    (v, serde_json::from_slice(&out.stdout).unwrap())
 }
