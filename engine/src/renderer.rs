@@ -1,5 +1,5 @@
 //! The frame: the passes of Schott et al.'s combined volume and tube occlusion in order -
-//! G-buffer (raster), light volume (compute, one dispatch per slice; volumetric occlusion),
+//! G-buffer (raster), light volume (compute, one dispatch per step; volumetric occlusion),
 //! march (compute; eye buffer, partial occlusion),
 //! vicinity occlusion, compositing and FXAA (compute) - with per-pass timings.
 //!

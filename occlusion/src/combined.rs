@@ -175,7 +175,7 @@ pub const MAX_STEP_VOXELS: f64 = 4.0;
 /// sample ([`light_samples`]): it is attenuated and read as with steps a voxel deep, and the
 /// step only sets how often it is blurred (the paper's blur once a step, with the angle of
 /// [`step_theta`]). Against the Monte Carlo reference, steps of two, four and eight slices at
-/// the default slice distance (one to four voxels) gave the same RMSE to 2e-5 on the MNI T1
+/// the default slice distance (one to four voxels) gave the same RMSE to 3e-5 on the MNI T1
 /// (128-512^2) and headsq (512^2), while the sweep's cost falls with the steps (the blur, the
 /// bookkeeping and the barrier between steps; docs/accuracy.md "The light's steps and
 /// samples").
