@@ -163,6 +163,24 @@ pub struct LightGrid {
     pub steps: u32,
 }
 
+/// `light 128 x 128 cells of 2 px in 82 steps of 8 slices, 4 samples a step` (the render
+/// summary's and the viewer's words).
+impl std::fmt::Display for LightGrid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "light {} x {} cells of {} px in {} steps of {} slices, {} sample{} a step",
+            self.cells[0],
+            self.cells[1],
+            self.cell,
+            self.steps,
+            self.step,
+            self.samples,
+            if self.samples == 1 { "" } else { "s" }
+        )
+    }
+}
+
 impl LightGrid {
     /// The grid of a light volume on cells of `cell` pixels in steps of `step` slices of view
     /// `v` (`occlusion::combined::light_grid` chooses both).

@@ -66,6 +66,7 @@ struct ImageInfo {
     scene: Scene,
     total_ms: f64,
     passes: Vec<(String, f64)>,
+    light: Option<engine::renderer::LightGrid>,
     notes: Vec<String>,
     device: String,
 }
@@ -295,6 +296,7 @@ impl App {
             scene,
             total_ms: img.total_ms,
             passes: img.passes,
+            light: img.light,
             notes: img.notes,
             device: img.device,
         });
@@ -540,6 +542,9 @@ impl App {
             ));
             for (p, ms) in &i.passes {
                 ui.label(format!("  {p} {ms:.1} ms"));
+            }
+            if let Some(l) = &i.light {
+                ui.label(l.to_string());
             }
             if ui
                 .checkbox(&mut self.time_passes, "time each pass")

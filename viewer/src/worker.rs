@@ -112,6 +112,8 @@ pub struct Image {
     pub depth: Vec<f32>,
     pub total_ms: f64,
     pub passes: Vec<(String, f64)>,
+    /// The occlusion buffer's grid where the method swept one.
+    pub light: Option<engine::renderer::LightGrid>,
     pub notes: Vec<String>,
     pub device: String,
     /// The screenshot the request asked for: its path, or why it was not written.
@@ -515,6 +517,7 @@ pub fn draw_with(
         depth: out.aov.iter().map(|a| a.depth).collect(),
         total_ms: out.timings.total_ms,
         passes: out.timings.passes.into_iter().collect(),
+        light: out.light,
         notes: out.notes,
         device: up.renderer.gpu().report().name,
         saved,

@@ -63,6 +63,13 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
     );
     let mut h = window(&path, [900.0, 800.0], WithEditor::OneD);
     h.run_steps(3);
+    // `ea` sweeps no light: the panel names no light volume.
+    let t = Instant::now();
+    while h.state().shown_level().is_none() && t.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(50));
+        h.run_steps(1);
+    }
+    assert!(h.query_by_label_contains("cells of").is_none());
     let az0 = h.state().orbit.azimuth;
     // A drag of 100 points to the right over the view turns the azimuth by -40 degrees.
     h.drag_at(egui::pos2(450.0, 200.0));
@@ -131,6 +138,13 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
         h.run_steps(1);
     }
     assert_eq!(h.state().shown_level(), Some(Level::Full));
+    // `dos` sweeps the light volume, and the panel says which (as `umbra render` does).
+    let light = h.get_by_label_contains("cells of");
+    let text = format!("{light:?}");
+    assert!(
+        text.contains("light ") && text.contains("steps of"),
+        "{text}"
+    );
     let prefix = dir.path().join("shot");
     h.state_mut().set_prefix(prefix.to_str().unwrap());
     h.get_by_label("screenshot .png").click();

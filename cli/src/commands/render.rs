@@ -563,16 +563,7 @@ pub fn summary(r: &RenderReport) -> String {
     };
     // The occlusion buffer's grid where the method swept one.
     let light = match &r.light {
-        Some(l) => format!(
-            ", light {} x {} cells of {} px in {} steps of {} slices, {} sample{} a step",
-            l.cells[0],
-            l.cells[1],
-            l.cell,
-            l.steps,
-            l.step,
-            l.samples,
-            if l.samples == 1 { "" } else { "s" }
-        ),
+        Some(l) => format!(", {l}"),
         None => String::new(),
     };
     format!(
