@@ -649,4 +649,48 @@ fn the_devices_light_a_volume_around_a_camera_inside_it_alike() {
         d < 2e-3,
         "the devices' volumetric AOVs differ by {d} in mean"
     );
+    // `--timings-json` names the same grid, and the slice distance.
+    let t = dir.path().join("t.json");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_umbra"))
+        .args(["render", scene.to_str().unwrap(), "-o"])
+        .arg(dir.path().join("t.png"))
+        .arg("--timings-json")
+        .arg(&t)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let t: serde_json::Value = serde_json::from_slice(&std::fs::read(&t).unwrap()).unwrap();
+    assert_eq!(t["light"], jg["light"], "{t}");
+    assert_eq!(t["slice_distance"], jg["slice_distance"], "{t}");
+    // A light volume past the adapter's binding is refused on both devices, naming the key.
+    for device in ["gpu", "cpu"] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_umbra"))
+            .args(["render", scene.to_str().unwrap(), "-o"])
+            .arg(dir.path().join("big.png"))
+            .args([
+                "--set",
+                "render.occlusion_cell=1",
+                "--set",
+                "render.occlusion_step=1",
+            ])
+            .args(["--set", "render.width=1024", "--set", "render.height=1024"])
+            .args(["--set", "render.slices=4000"])
+            .arg("--set")
+            .arg(format!("render.device=\"{device}\""))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{device}: {err}");
+        assert!(
+            err.contains("scene key render.occlusion_cell: the light volume (1024 x 1024 cells x 4000 slices")
+                && err.contains("MiB) exceeds the adapter's storage binding limit")
+                && !err.contains("panicked"),
+            "{device}: {err}"
+        );
+        assert!(!dir.path().join("big.png").exists());
+    }
 }

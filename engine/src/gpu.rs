@@ -35,6 +35,9 @@ pub enum GpuError {
     },
     #[error("GPU check failed: {0}")]
     Check(String),
+    /// A scene setting the adapter cannot honour (the message names the scene key).
+    #[error("{0}")]
+    Settings(String),
 }
 
 /// Records one compute pass that dispatches `pipe` with `bind` (group 0) over a `size` image

@@ -169,12 +169,13 @@ impl std::fmt::Display for LightGrid {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "light {} x {} cells of {} px in {} steps of {} slices, {} sample{} a step",
+            "light {} x {} cells of {} px in {} steps of {} slice{}, {} sample{} a step",
             self.cells[0],
             self.cells[1],
             self.cell,
             self.steps,
             self.step,
+            if self.step == 1 { "" } else { "s" },
             self.samples,
             if self.samples == 1 { "" } else { "s" }
         )
@@ -205,14 +206,16 @@ impl LightGrid {
         self.cells[0] as u64 * self.cells[1] as u64 * self.stored() as u64 * 4
     }
 
-    /// The light volume within `limit` bytes (a storage binding), or why not.
+    /// The light volume within `limit` bytes (a storage binding), or why not (naming the
+    /// scene key to change).
     pub fn fits(&self, limit: u64) -> Result<(), String> {
         if self.bytes() <= limit {
             return Ok(());
         }
         Err(format!(
-            "the light volume ({} x {} cells x {} slices, {} MB) exceeds the adapter's storage \
-             binding limit ({} MB); raise render.occlusion_cell or lower the slice count",
+            "scene key render.occlusion_cell: the light volume ({} x {} cells x {} slices, {} \
+             MiB) exceeds the adapter's storage binding limit ({} MiB); raise \
+             render.occlusion_cell or lower the slice count",
             self.cells[0],
             self.cells[1],
             self.stored(),

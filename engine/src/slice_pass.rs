@@ -600,7 +600,7 @@ impl SlicePass {
         let lv = light_view(v, step);
         let light_bytes = grid.bytes();
         if s.occlusion {
-            grid.fits(limit as u64).map_err(GpuError::Operation)?;
+            grid.fits(limit as u64).map_err(GpuError::Settings)?;
         }
         let has_volume = volume.is_some();
         let vol = volume.cloned().unwrap_or_else(|| GpuVolume::none(gpu));

@@ -161,9 +161,12 @@ pub struct EaView {
     /// Clipping planes `(normal, offset)`: samples with `normal . p > offset` are removed
     /// (at most [`MAX_CLIP`]).
     pub clip: Vec<([f64; 3], f64)>,
-    /// The smallest voxel spacing, world units (the finest detail the data hold; 0 where
-    /// unknown): the light volume's cells need not be finer on screen
-    /// (`crate::combined::data_cell`).
+    /// The sampling spacing the data ask for, world units: twice the default slice distance
+    /// (`span`'s `spacing`) - the smallest voxel spacing, or less where a scene's transfer
+    /// function has features narrower than the data's value change per voxel
+    /// (`scene::compile::slice_distance`); 0 where unknown. The light volume's cells need not be
+    /// finer on screen (`crate::combined::data_cell`), nor its parts in depth
+    /// (`crate::combined::voxel_step`).
     pub voxel: f64,
 }
 

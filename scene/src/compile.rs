@@ -1197,9 +1197,7 @@ fn cpu_light(s: &Scene, v: &EaView, limit: u64) -> Result<Option<raycast::LightS
     let r = &s.render;
     let (cell, step) =
         occlusion::combined::light_grid(r.occlusion_cell, r.occlusion_step, false, v, limit);
-    renderer::LightGrid::new(v, cell, step)
-        .fits(limit)
-        .map_err(|e| format!("scene key render.occlusion_cell: {e}"))?;
+    renderer::LightGrid::new(v, cell, step).fits(limit)?;
     Ok(Some(raycast::LightSettings {
         cell,
         step,

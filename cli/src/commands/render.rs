@@ -471,7 +471,7 @@ fn shard_line(
 
 /// What `--timings-json` writes.
 fn timings(r: &RenderReport) -> serde_json::Value {
-    serde_json::json!({
+    let mut t = serde_json::json!({
         "total_ms": r.total_ms,
         "passes": r.passes,
         "pass_clock": r.pass_clock,
@@ -480,6 +480,7 @@ fn timings(r: &RenderReport) -> serde_json::Value {
         "width": r.width,
         "height": r.height,
         "slices": r.slices,
+        "slice_distance": r.slice_distance,
         "triangles": r.triangles,
         "adapter": r.adapter,
         "setup_seconds": r.setup_seconds,
@@ -499,7 +500,12 @@ fn timings(r: &RenderReport) -> serde_json::Value {
             }
             o
         }).collect::<Vec<_>>(),
-    })
+    });
+    // The light volume the frames swept (`dos`, `combined`), as `--json` reports it.
+    if let Some(l) = r.light {
+        t["light"] = serde_json::to_value(l).expect("a light grid serialises");
+    }
+    t
 }
 
 /// `--title`, `--orientation`, `--scale-bar`, `--colorbar` as scene overrides, then the `--set`
