@@ -691,6 +691,16 @@ fn the_devices_light_a_volume_around_a_camera_inside_it_alike() {
                 && !err.contains("panicked"),
             "{device}: {err}"
         );
+        // A single image's failure is the command's error, printed once.
+        assert_eq!(
+            err.matches("the light volume").count(),
+            1,
+            "{device}: {err}"
+        );
+        assert!(
+            !err.contains("FAILED") && !err.contains("frames failed"),
+            "{device}: {err}"
+        );
         assert!(!dir.path().join("big.png").exists());
     }
 }

@@ -63,9 +63,14 @@ impl RenderReport {
     }
 }
 
-/// "2 of 10 frames failed: the first ..." when any did (`what`: "frames", "scenes").
+/// "2 of 10 frames failed: the first ..." when any did (`what`: "frames", "scenes"); the error
+/// itself when the one frame of a single image did.
 pub fn failure_summary(failed: &[FrameOutcome], of: usize, what: &str) -> Option<String> {
     let first = failed.first()?;
+    if of == 1 && failed.len() == 1 {
+        // A single image's failure is its error.
+        return Some(first.error.clone().unwrap_or_else(|| "failed".into()));
+    }
     let which = match &first.name {
         Some(n) => format!("{n} ({})", first.path.display()),
         None => format!("frame {} ({})", first.index, first.path.display()),

@@ -326,12 +326,17 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
             }
         }
         Progress::Skipped(o) => progress.skipped(o.index, o.name.as_deref(), &o.path),
-        Progress::Failed(o) => progress.failed(
-            o.index,
-            o.name.as_deref(),
-            &o.path,
-            o.error.as_deref().unwrap_or(""),
-        ),
+        // A single image's failure is the command's error (printed once, at the end).
+        Progress::Failed(o) => {
+            if sequence || a.manifest.is_some() {
+                progress.failed(
+                    o.index,
+                    o.name.as_deref(),
+                    &o.path,
+                    o.error.as_deref().unwrap_or(""),
+                )
+            }
+        }
         Progress::Stage(m) => progress.stage(m),
     };
     let base = RenderArgs {
