@@ -452,13 +452,6 @@ fn a_deep_light_step_casts_the_shadow_of_a_sheet_one_voxel_thick_on_both_devices
     let aov = |name: &str, sets: &[&str]| {
         render_aov(&scene, &dir.path().join(format!("{name}.exr")), sets).0
     };
-    let mean_diff = |a: &[f32], b: &[f32]| {
-        a.iter()
-            .zip(b)
-            .map(|(x, y)| (x - y).abs() as f64)
-            .sum::<f64>()
-            / a.len() as f64
-    };
     let voxel_gpu = aov(
         "voxel_gpu",
         &["render.occlusion_step=2", "render.device=\"gpu\""],
@@ -475,8 +468,8 @@ fn a_deep_light_step_casts_the_shadow_of_a_sheet_one_voxel_thick_on_both_devices
     let shadowed = voxel_gpu.iter().filter(|&&o| o < 0.7).count();
     assert!(shadowed > 500, "{shadowed} pixels shadowed");
     let (deep, devices) = (
-        mean_diff(&deep_gpu, &voxel_gpu),
-        mean_diff(&deep_gpu, &deep_cpu),
+        mean_abs_diff(&deep_gpu, &voxel_gpu),
+        mean_abs_diff(&deep_gpu, &deep_cpu),
     );
     assert!(
         deep < 0.005,
@@ -589,12 +582,7 @@ fn render_aov(
         cmd.args(["--set", set]);
     }
     let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}: {}",
-        exr.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    test_support::succeeded(&out);
     let img = scene::image_io::read_exr_channels(exr).unwrap();
     let v = scene::image_io::exr_channel(&img, "occlusion.volumetric")
         .unwrap()
@@ -610,8 +598,7 @@ fn the_devices_light_a_volume_around_a_camera_inside_it_alike() {
     // the ones behind; a CPU sweep starting at the first step whose middle is ahead (the eye
     // march's first slice) differs from the GPU by 7.7 levels of 255 in mean.
     let dir = tempfile::tempdir().unwrap();
-    let head = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../datasets/vtk/headsq_64x64x93.nhdr");
+    let head = test_support::root().join("datasets/vtk/headsq_64x64x93.nhdr");
     let scene = dir.path().join("inside.toml");
     std::fs::write(
         &scene,
@@ -639,12 +626,7 @@ fn the_devices_light_a_volume_around_a_camera_inside_it_alike() {
     assert_eq!(jg["light"]["samples"], 4, "{jg}");
     let shadowed = cpu.iter().filter(|&&o| o > 0.0 && o < 0.95).count();
     assert!(shadowed > 200, "{shadowed} pixels in the light's shadow");
-    let d = gpu
-        .iter()
-        .zip(&cpu)
-        .map(|(a, b)| (a - b).abs() as f64)
-        .sum::<f64>()
-        / gpu.len() as f64;
+    let d = mean_abs_diff(&gpu, &cpu);
     assert!(
         d < 2e-3,
         "the devices' volumetric AOVs differ by {d} in mean"
@@ -658,11 +640,7 @@ fn the_devices_light_a_volume_around_a_camera_inside_it_alike() {
         .arg(&t)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    test_support::succeeded(&out);
     let t: serde_json::Value = serde_json::from_slice(&std::fs::read(&t).unwrap()).unwrap();
     assert_eq!(t["light"], jg["light"], "{t}");
     assert_eq!(t["slice_distance"], jg["slice_distance"], "{t}");
@@ -703,4 +681,14 @@ fn the_devices_light_a_volume_around_a_camera_inside_it_alike() {
         );
         assert!(!dir.path().join("big.png").exists());
     }
+}
+
+/// The mean absolute difference of two equally long channels.
+fn mean_abs_diff(a: &[f32], b: &[f32]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() as f64)
+        .sum::<f64>()
+        / a.len().max(1) as f64
 }

@@ -642,11 +642,16 @@ impl Sweep<'_> {
                 occ_row.resize(cw, 0.0);
                 self.stencil_row(y, span_lo, span_hi as usize, &mut occ_row);
             }
+            // The paper's blur with the lanes: the loop below's values, in loops over the row
+            // instead of branches per cell; the due cells' samples below, as the loop's.
             #[cfg(target_arch = "x86_64")]
-            if let (true, Some(splat)) = (by_row, lanes) {
-                // The paper's blur with the lanes: the loop below's values, in loops over the
-                // row instead of branches per cell. Outside the span the light arriving is 1
-                // (the block holds 1 already: nothing to store).
+            let rowwise = by_row && lanes.is_some();
+            #[cfg(not(target_arch = "x86_64"))]
+            let rowwise = false;
+            #[cfg(target_arch = "x86_64")]
+            if rowwise {
+                // Outside the span the light arriving is 1 (the block holds 1 already:
+                // nothing to store).
                 let (s0, s1) = (span_lo, span_hi as usize);
                 occ_row[..s0].fill(1.0);
                 occ_row[s1 + 1..].fill(1.0);
@@ -664,28 +669,15 @@ impl Sweep<'_> {
                 need.clear();
                 // SAFETY: `lanes` is set only where the CPU has AVX2.
                 unsafe { crate::lanes::due(nk, kk, &mut need) };
-                self.sample_due(
-                    ev,
-                    splat,
-                    data,
-                    c0 + ry * cw,
-                    &need,
-                    nk,
-                    out,
-                    orow,
-                    j0,
-                    |_, _| {},
-                );
-                let lit = |l: &Leave| *l != [1.0, 0.0];
-                *dn = match (out.iter().position(lit), out.iter().rposition(lit)) {
-                    (Some(lo), Some(hi)) => (lo as i32, hi as i32),
-                    _ => (i32::MAX, i32::MIN),
-                };
-                need.clear();
-                continue;
             }
             let (mut lo, mut hi) = (i32::MAX, i32::MIN);
-            for (x, (leave, nk)) in out.iter_mut().zip(nk.iter_mut()).enumerate() {
+            let cells_here = if rowwise { 0 } else { cw };
+            for (x, (leave, nk)) in out
+                .iter_mut()
+                .zip(nk.iter_mut())
+                .enumerate()
+                .take(cells_here)
+            {
                 let clear = (x as i32) < rlo || (x as i32) > rhi;
                 if clear && kk < *nk {
                     // Light 1 arrives (the volume holds 1 already) and leaves.
@@ -745,7 +737,16 @@ impl Sweep<'_> {
                 );
                 need.clear();
             }
-            *dn = (lo, hi);
+            *dn = if rowwise {
+                // Every cell's light was set above: the span of those not left at 1.
+                let lit = |l: &Leave| *l != [1.0, 0.0];
+                match (out.iter().position(lit), out.iter().rposition(lit)) {
+                    (Some(lo), Some(hi)) => (lo as i32, hi as i32),
+                    _ => (i32::MAX, i32::MIN),
+                }
+            } else {
+                (lo, hi)
+            };
         }
     }
 
