@@ -101,11 +101,6 @@ struct Params {
     // stored slices per step of the `light` entry (its slabs light_step light_samples d
     // deep): volume samples at the middles of equal parts of its slab (a voxel apart)
     light_samples: u32,
-    // 1: a step's parts are sampled in pairs (occlusion::combined::light_pairs) from the
-    // light's extinction at half resolution, `half_grid` (occlusion::combined::HalfExtinction),
-    // of half_dims nodes per axis
-    half_on: u32,
-    half_dims: vec3<u32>,
     pad1: u32,
 };
 
@@ -151,8 +146,6 @@ struct Slice {
 // The blended overlay's field (NaN as -3e38) and colours (256, or one per label).
 @group(0) @binding(13) var<storage, read> blend_field: array<f32>;
 @group(0) @binding(14) var<storage, read> blend_lut: array<vec4<f32>>;
-// The light's extinction at half resolution (see `half_sigma`), made by `half_grid`.
-@group(0) @binding(15) var<storage, read_write> half_grid: array<f32>;
 @group(1) @binding(0) var<storage, read> S: Slice;
 // Light leaving the previous slice towards the next (L_{k-1} = O_{k-1} (1 - alpha_{k-1})),
 // and the same for this slice, per cell.
@@ -433,45 +426,6 @@ fn depth_interval(r: Ray, a0: f32, depth: f32, front: f32) -> vec2<f32> {
     return vec2<f32>(a, b);
 }
 
-// The light's extinction at half resolution at index position `q` of the full grid
-// (occlusion::combined::HalfExtinction::at): trilinear between its nodes, node j at
-// 2 j + 1/2, clamped to the outermost nodes; x fastest.
-fn half_sigma(q: vec3<f32>) -> f32 {
-    let h = P.half_dims;
-    let x = clamp(q * 0.5 - vec3<f32>(0.25), vec3<f32>(0.0), vec3<f32>(h) - vec3<f32>(1.0));
-    let c = min(vec3<u32>(x), h - vec3<u32>(2u));
-    let f = x - vec3<f32>(c);
-    let i = c.x + h.x * (c.y + h.y * c.z);
-    let sy = h.x;
-    let sz = h.x * h.y;
-    let g = &half_grid;
-    let x00 = (*g)[i] + ((*g)[i + 1u] - (*g)[i]) * f.x;
-    let x10 = (*g)[i + sy] + ((*g)[i + sy + 1u] - (*g)[i + sy]) * f.x;
-    let x01 = (*g)[i + sz] + ((*g)[i + sz + 1u] - (*g)[i + sz]) * f.x;
-    let x11 = (*g)[i + sz + sy] + ((*g)[i + sz + sy + 1u] - (*g)[i + sz + sy]) * f.x;
-    let y0 = x00 + (x10 - x00) * f.y;
-    let y1 = x01 + (x11 - x01) * f.y;
-    return y0 + (y1 - y0) * f.z;
-}
-
-// The extinction a pair of a light step's parts takes (see `half_sigma`) at view depth
-// `depth` along the ray: zero outside the grid or behind the eye, as `volume_sample`.
-fn pair_sigma(r: Ray, depth: f32) -> f32 {
-    if (P.has_volume == 0u) {
-        return 0.0;
-    }
-    let s = (depth - r.o_depth) / r.cosine;
-    if (s < 0.0) {
-        return 0.0;
-    }
-    let q = (P.world_to_index * vec4<f32>(r.o + r.d * s, 1.0)).xyz;
-    let hi = vec3<f32>(P.dims) - vec3<f32>(1.0);
-    if (any(q < vec3<f32>(0.0)) || any(q > hi)) {
-        return 0.0;
-    }
-    return max(half_sigma(q), 0.0);
-}
-
 // A volume sample at view depth `depth` along the ray: colour (rgb) and extinction (a); zero
 // extinction outside the grid, in an empty brick, next to a NaN voxel, or behind the eye.
 // `grad` receives the world-space gradient when the Phong volume asks for it.
@@ -566,37 +520,6 @@ fn concentric(a: vec2<f32>) -> vec2<f32> {
     }
     let t = 1.57079633 - q * a.x / a.y;
     return a.y * vec2<f32>(cos(t), sin(t));
-}
-
-// The light's extinction at half resolution (occlusion::combined::half_extinction): node
-// `id` the mean of the 1-D transfer function's extinction over voxels 2 id and 2 id + 1 per
-// axis (those in the grid; gaps, NaN and negative extinction count as none). Run once a
-// volume and transfer function, before the first frame that samples pairs.
-@compute @workgroup_size(4, 4, 4)
-fn half_grid_make(@builtin(global_invocation_id) id: vec3<u32>) {
-    let h = P.half_dims;
-    if (any(id >= h)) {
-        return;
-    }
-    let lo = 2u * id;
-    let hi = min(lo + vec3<u32>(2u), P.dims);
-    var sum = 0.0;
-    var count = 0.0;
-    for (var z = lo.z; z < hi.z; z = z + 1u) {
-        for (var y = lo.y; y < hi.y; y = y + 1u) {
-            for (var x = lo.x; x < hi.x; x = x + 1u) {
-                let v = voxel(vec3<u32>(x, y, z));
-                if (v >= -1e30) {
-                    let s = transfer(v, 0.0).a;
-                    if (s > 0.0 && s <= 3.4e38) {
-                        sum = sum + s;
-                    }
-                }
-                count = count + 1.0;
-            }
-        }
-    }
-    half_grid[id.x + h.x * (id.y + h.y * id.z)] = sum / count;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -715,41 +638,14 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     let part = d / f32(n);
     let seg = part * cs.z;
     var t = 1.0;
-    // Parts in pairs (occlusion::combined::light_pairs), each pair sampled once at its middle
-    // (clipped as a whole) from the half-resolution extinction, its optical depth shared
-    // equally by its two parts, as `raycast::EaVolume::optical_depth_pairs`.
-    // Where the pair's middle lies behind the ray's origin (a camera inside the grid), its
-    // second part alone is sampled, at its own middle.
-    let pairs = P.half_on != 0u && n >= 2u && n % 2u == 0u;
-    var pair_tau = vec2<f32>(0.0);
     for (var i = 0u; i < n; i = i + 1u) {
         if (i > 0u) {
             light_volume[ci + cw * ch * (k * n + i)] = occl * t;
         }
-        if (pairs) {
-            if (i % 2u == 0u) {
-                let iv = depth_interval(r, P.z0 + (f32(k) + f32(i) / f32(n)) * d, 2.0 * part, 0.0);
-                pair_tau = vec2<f32>(0.0);
-                if (iv.y > iv.x) {
-                    let mid = 0.5 * (iv.x + iv.y);
-                    if (mid >= r.o_depth) {
-                        let tau = 0.5 * pair_sigma(r, mid) * (iv.y - iv.x) * cs.z;
-                        pair_tau = vec2<f32>(tau);
-                    } else {
-                        let iv2 = depth_interval(r, P.z0 + (f32(k) + f32(i + 1u) / f32(n)) * d, part, 0.0);
-                        if (iv2.y > iv2.x) {
-                            pair_tau.y = pair_sigma(r, 0.5 * (iv2.x + iv2.y)) * (iv2.y - iv2.x) * cs.z;
-                        }
-                    }
-                }
-            }
-            t = t * exp(-select(pair_tau.y, pair_tau.x, i % 2u == 0u));
-        } else {
-            let iv = depth_interval(r, P.z0 + (f32(k) + f32(i) / f32(n)) * d, part, 0.0);
-            if (iv.y > iv.x) {
-                let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
-                t = t * exp(-max(c.a, 0.0) * (iv.y - iv.x) * cs.z);
-            }
+        let iv = depth_interval(r, P.z0 + (f32(k) + f32(i) / f32(n)) * d, part, 0.0);
+        if (iv.y > iv.x) {
+            let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);
+            t = t * exp(-max(c.a, 0.0) * (iv.y - iv.x) * cs.z);
         }
         let z_i = P.z0 + (f32(k) + (f32(i) + 0.5) / f32(n)) * d;
         if (cs.x > 0.0 && z_i >= cs.x && (column || z_i <= cs.y)) {

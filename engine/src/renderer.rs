@@ -161,15 +161,10 @@ pub struct LightGrid {
     pub cells: [u32; 2],
     /// Steps of the sweep.
     pub steps: u32,
-    /// Whether the parts are sampled in pairs from the light's extinction at half resolution
-    /// (`occlusion::combined::light_pairs`, `half_extinction`): an even number of parts and a
-    /// volume with the grid (a 1-D transfer function, at most
-    /// `occlusion::combined::HALF_MAX_BYTES` of it).
-    pub half: bool,
 }
 
-/// `light 128 x 128 cells of 2 px in 82 steps of 8 slices, 4 samples a step, in pairs at half
-/// resolution` (the render summary's and the viewer's words).
+/// `light 128 x 128 cells of 2 px in 82 steps of 8 slices, 4 samples a step` (the render
+/// summary's and the viewer's words).
 impl std::fmt::Display for LightGrid {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
@@ -183,33 +178,21 @@ impl std::fmt::Display for LightGrid {
             if self.step == 1 { "" } else { "s" },
             self.samples,
             if self.samples == 1 { "" } else { "s" }
-        )?;
-        if self.half {
-            write!(f, ", in pairs at half resolution")?;
-        }
-        Ok(())
+        )
     }
 }
 
 impl LightGrid {
     /// The grid of a light volume on cells of `cell` pixels in steps of `step` slices of view
-    /// `v` (`occlusion::combined::light_grid` chooses both); `half_grid`: whether the device
-    /// holds the volume's extinction at half resolution.
-    pub fn new(
-        v: &occlusion::emission_absorption::EaView,
-        cell: u32,
-        step: u32,
-        half_grid: bool,
-    ) -> LightGrid {
+    /// `v` (`occlusion::combined::light_grid` chooses both).
+    pub fn new(v: &occlusion::emission_absorption::EaView, cell: u32, step: u32) -> LightGrid {
         let (cell, step) = (cell.max(1), step.max(1));
-        let samples = occlusion::combined::light_samples(v, step);
         LightGrid {
             cell,
             step,
-            samples,
+            samples: occlusion::combined::light_samples(v, step),
             cells: [v.width.div_ceil(cell), v.height.div_ceil(cell)],
             steps: v.slices.div_ceil(step),
-            half: half_grid && occlusion::combined::light_pairs(samples),
         }
     }
 

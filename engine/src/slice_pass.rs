@@ -154,10 +154,6 @@ pub struct SliceParams {
     /// Stored slices (and volume samples, a voxel apart) per step of the `light` entry
     /// (`occlusion::combined::light_samples`).
     pub light_samples: u32,
-    /// 1: a step's parts are sampled in pairs from the light's extinction at half resolution
-    /// (`occlusion::combined::light_pairs`, `HalfExtinction`), whose nodes per axis follow.
-    pub half_on: u32,
-    pub half_dims: [u32; 3],
     pub pad1: u32,
 }
 
@@ -258,7 +254,7 @@ const SLICE_BYTES: u64 = std::mem::size_of::<SliceRow>() as u64;
 pub const MAX_VOLUME_PARTS: usize = 32;
 
 /// The slice pass's bind groups 0 and 1 (group 2 holds the volume's further parts).
-const GROUP0: [Slot; 16] = [
+const GROUP0: [Slot; 15] = [
     Slot::Uniform,
     Slot::Storage,
     Slot::Storage,
@@ -274,7 +270,6 @@ const GROUP0: [Slot; 16] = [
     Slot::UnfilterableTextureArray,
     Slot::Storage,
     Slot::Storage,
-    Slot::StorageRw,
 ];
 const GROUP1: [Slot; 3] = [Slot::StorageDynamic, Slot::Storage, Slot::StorageRw];
 
@@ -366,10 +361,6 @@ pub struct GpuVolume {
     bricks: [usize; 3],
     tf_points: u32,
     tf_rows: u32,
-    /// The light's extinction at half resolution (`occlusion::combined::half_extinction`),
-    /// made by the `half_grid` entry at the first frame that samples a step's parts in pairs
-    /// (`SlicePass::new`), kept for the next; a new transfer function clears it.
-    half: std::sync::Arc<std::sync::OnceLock<wgpu::Buffer>>,
 }
 
 /// A transfer function as the shader reads it: each point `(value, r, g, b, extinction, 0, 0,
@@ -446,7 +437,6 @@ impl GpuVolume {
             bytemuck::cast_slice(&transfer_floats(vi.tf)),
             storage,
         );
-        self.half = Default::default();
         self.occ = gpu.buffer("slice occupancy", bytemuck::cast_slice(&occ), storage);
         self.bricks = bricks;
         self.tf_points = vi.tf.points.len() as u32;
@@ -492,7 +482,6 @@ impl GpuVolume {
             bricks,
             tf_points,
             tf_rows,
-            half: Default::default(),
         })
     }
 
@@ -606,15 +595,7 @@ impl SlicePass {
         let (cell, step) = light_grid(s.cell, s.step, false, v, limit as u64);
         // Each step sampled in parts a voxel deep, and the light reaching each part stored
         // (`occlusion::combined::light_samples`).
-        // In pairs from the light's extinction at half resolution where its grid is one
-        // (`occlusion::combined::half_extinction`: two nodes an axis at least, at most
-        // `HALF_MAX_BYTES` and the binding limit) and the transfer function 1-D.
-        let half_dims = volume.map_or([1; 3], |vi| vi.dims.map(|n| n.div_ceil(2)));
-        let half_bytes = half_dims.iter().product::<usize>() * 4;
-        let half_grid = volume.is_some_and(|vi| vi.tf_rows == 0)
-            && half_dims.iter().all(|&n| n >= 2)
-            && half_bytes <= occlusion::combined::HALF_MAX_BYTES.min(limit);
-        let grid = crate::renderer::LightGrid::new(v, cell, step, half_grid);
+        let grid = crate::renderer::LightGrid::new(v, cell, step);
         let cells = (grid.cells[0], grid.cells[1]);
         let lv = light_view(v, step);
         let light_bytes = grid.bytes();
@@ -663,8 +644,6 @@ impl SlicePass {
             light_step: step / grid.samples,
             light_slices: grid.stored(),
             light_samples: grid.samples,
-            half_on: (s.occlusion && grid.half) as u32,
-            half_dims: u32x3(half_dims),
             pad1: 0,
         };
         let (blend_field, blend_lut) = match blend {
@@ -686,18 +665,6 @@ impl SlicePass {
             wgpu::BufferUsages::empty(),
         );
         let cell_state = gpu.scratch("cell state", ncell * 16, wgpu::BufferUsages::empty());
-        // The half grid, made below by the `half_grid` entry where this volume has none yet.
-        let made = (s.occlusion && grid.half).then(|| vol.half.get().cloned());
-        let half = match &made {
-            Some(Some(h)) => h.clone(),
-            Some(None) => gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("light extinction at half resolution"),
-                size: half_bytes as u64,
-                usage: wgpu::BufferUsages::STORAGE,
-                mapped_at_creation: false,
-            }),
-            None => gpu.scratch("no half grid", 16, wgpu::BufferUsages::empty()),
-        };
         let group0 = gpu.bind(
             "slice group 0",
             &l0,
@@ -717,7 +684,6 @@ impl SlicePass {
                 wgpu::BindingResource::TextureView(&gbuf.peel.nd),
                 blend_field.as_entire_binding(),
                 blend_lut.as_entire_binding(),
-                half.as_entire_binding(),
             ],
         );
         // The field's further parts (unused bindings repeat the first part; never read).
@@ -775,33 +741,6 @@ impl SlicePass {
             )
         };
         let group1 = [g1(&a, &b), g1(&b, &a)];
-        if let Some(None) = made {
-            // The volume's first frame in pairs: its half grid, once (kept in the volume).
-            let pipe = gpu.compute_pipeline_constants(
-                &module,
-                "half_grid_make",
-                &pl,
-                "half grid",
-                &[("TF2D", 0.0), ("PACKING", packing)],
-            );
-            let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("half grid"),
-            });
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("half grid"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&pipe);
-                pass.set_bind_group(0, &group0, &[]);
-                pass.set_bind_group(1, &group1[0], &[0]);
-                pass.set_bind_group(2, &group2, &[]);
-                let g = half_dims.map(|n| (n as u32).div_ceil(4));
-                pass.dispatch_workgroups(g[0], g[1], g[2]);
-            }
-            gpu.queue.submit([enc.finish()]);
-            let _ = vol.half.set(half);
-        }
         Ok(SlicePass {
             light_pipe,
             march_pipe,
@@ -1000,8 +939,6 @@ mod tests {
                 light_step,
                 light_slices,
                 light_samples,
-                half_on,
-                half_dims,
                 pad1,
             }
         );

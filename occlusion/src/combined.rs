@@ -7,7 +7,7 @@
 //! |---|---|---|---|
 //! | §3.2.1 G-buffer | - | `gbuffer.rs`, `gbuffer.wgsl` | `engine/tests/occlusion_render.rs` |
 //! | Alg. 2 eye buffer, E/A | `emission_absorption::reference`; `raycast::EaVolume::render_frame` | `slice_pass.wgsl::march` | `engine/tests/ea_render.rs`, `raycast` tests |
-//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_grid`], [`data_cell`], [`light_step`], [`data_step`], [`voxel_step`], [`light_samples`], [`light_pairs`], [`half_extinction`], [`light_slices`], [`light_view`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only: `EaVolume::sweep`, `light_start`, `store_parts`; a step's parts by `raycast::EaVolume::optical_depth`) | `slice_pass.wgsl::light` (parts and their stores), `light_at`, `light_step_at` | unit tests below, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass; a sheet over a dense floor, a tube over a sheet, a camera inside the head), `raycast` `a_deep_light_step_takes_the_samples_of_the_steps_a_voxel_deep` |
+//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_grid`], [`data_cell`], [`light_step`], [`data_step`], [`voxel_step`], [`light_samples`], [`light_slices`], [`light_view`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only: `EaVolume::sweep`, `light_start`, `store_parts`; a step's parts by `raycast::EaVolume::optical_depth`) | `slice_pass.wgsl::light` (parts and their stores), `light_at`, `light_step_at` | unit tests below, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass; a sheet over a dense floor, a tube over a sheet, a camera inside the head), `raycast` `a_deep_light_step_takes_the_samples_of_the_steps_a_voxel_deep` |
 //! | Alg. 4, eq. 1-3 partial occlusion | `reference::render` (surface AOV) | `slice_pass.wgsl::march` | `occlusion_render.rs` (exp(-sigma z)) |
 //! | Alg. 5, eq. 4-6 vicinity | [`poisson_disk`], `camera::texture_radius` | `vicinity.wgsl` | `occlusion_render.rs` (groove) |
 //! | Alg. 6, eq. 7-10 compositing | - | `composite.wgsl` | `occlusion_render.rs` (eq. 7, 8) |
@@ -217,98 +217,6 @@ pub fn light_samples(v: &EaView, step: u32) -> u32 {
     (step / voxel_step(v)).max(1)
 }
 
-/// Whether the parts of a step of `samples` parts ([`light_samples`]) are sampled in pairs
-/// from the half-resolution extinction ([`half_extinction`], where the device has it): an
-/// even number of parts, i.e. steps at least two voxels deep.
-pub fn light_pairs(samples: u32) -> bool {
-    samples >= 2 && samples % 2 == 0
-}
-
-/// The most bytes [`half_extinction`]'s grid may take (as `f32`): beyond it (a volume of
-/// more than about 268 M samples) the light samples the volume itself.
-pub const HALF_MAX_BYTES: usize = 128 << 20;
-
-/// The light's extinction at half resolution: per axis `ceil(n / 2)` nodes, node `j` the
-/// mean of the transfer function's extinction over voxels `2 j` and `2 j + 1` (those in the
-/// grid), standing at index `2 j + 1/2`; `data` x fastest.
-#[derive(Clone, Debug, PartialEq)]
-pub struct HalfExtinction {
-    pub dims: [usize; 3],
-    pub data: Vec<f32>,
-}
-
-/// [`HalfExtinction`] of a grid of `dims` voxels whose extinction at voxel `(x, y, z)` is
-/// `sigma(x, y, z)` (non-negative; 0 for gaps and NaN); `None` where a half axis would have
-/// fewer than two nodes or the grid would exceed [`HALF_MAX_BYTES`].
-///
-/// Why (docs/benchmarks.md, "The light's extinction at half resolution"): a step's parts in
-/// pairs, each pair sampled once from this grid, take half the samples of the parts a voxel
-/// apart from an eighth of the bytes (the light sweep's samples miss the caches). The box
-/// filter keeps a thin sheet's optical depth: along an axis, samples two voxels apart of the
-/// linear interpolation between nodes sum to the nodes' sum whatever their phase
-/// (`a_sheet_keeps_its_optical_depth_at_any_phase`), where samples two voxels apart of the
-/// full-resolution volume miss a sheet a voxel thick at some phases and double it at others.
-/// Against the Monte Carlo reference it also gave 25-30% less RMSE on the MNI T1 at 128-512^2.
-pub fn half_extinction(
-    dims: [usize; 3],
-    sigma: impl Fn(usize, usize, usize) -> f32 + Sync,
-) -> Option<HalfExtinction> {
-    use rayon::prelude::*;
-    let h = dims.map(|n| n.div_ceil(2));
-    let nodes = h.iter().try_fold(1usize, |a, &n| a.checked_mul(n))?;
-    if h.iter().any(|&n| n < 2) || nodes.checked_mul(4)? > HALF_MAX_BYTES {
-        return None;
-    }
-    let mut data = vec![0f32; nodes];
-    data.par_chunks_mut(h[0] * h[1])
-        .enumerate()
-        .for_each(|(k, plane)| {
-            let zs = 2 * k..(2 * k + 2).min(dims[2]);
-            for j in 0..h[1] {
-                let ys = 2 * j..(2 * j + 2).min(dims[1]);
-                for (i, out) in plane[j * h[0]..][..h[0]].iter_mut().enumerate() {
-                    let xs = 2 * i..(2 * i + 2).min(dims[0]);
-                    let (mut sum, mut count) = (0.0f32, 0u32);
-                    for z in zs.clone() {
-                        for y in ys.clone() {
-                            for x in xs.clone() {
-                                let s = sigma(x, y, z);
-                                sum += if s > 0.0 && s.is_finite() { s } else { 0.0 };
-                                count += 1;
-                            }
-                        }
-                    }
-                    *out = sum / count as f32;
-                }
-            }
-        });
-    Some(HalfExtinction { dims: h, data })
-}
-
-impl HalfExtinction {
-    /// The extinction at index position `q` of the full grid: trilinear between the nodes
-    /// (node `j` at `2 j + 1/2`), clamped to the outermost nodes.
-    pub fn at(&self, q: [f32; 3]) -> f32 {
-        let h = self.dims;
-        let mut c = [0usize; 3];
-        let mut f = [0f32; 3];
-        for a in 0..3 {
-            let x = (q[a] * 0.5 - 0.25).clamp(0.0, (h[a] - 1) as f32);
-            c[a] = (x as usize).min(h[a] - 2);
-            f[a] = x - c[a] as f32;
-        }
-        let at = |dx: usize, dy: usize, dz: usize| {
-            self.data[c[0] + dx + h[0] * (c[1] + dy + h[1] * (c[2] + dz))]
-        };
-        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-        let x00 = lerp(at(0, 0, 0), at(1, 0, 0), f[0]);
-        let x10 = lerp(at(0, 1, 0), at(1, 1, 0), f[0]);
-        let x01 = lerp(at(0, 0, 1), at(1, 0, 1), f[0]);
-        let x11 = lerp(at(0, 1, 1), at(1, 1, 1), f[0]);
-        lerp(lerp(x00, x10, f[1]), lerp(x01, x11, f[1]), f[2])
-    }
-}
-
 /// The slices a light volume of steps of `step` eye slices stores: [`light_samples`] a step,
 /// for as many steps as cover the eye's slices ([`light_view`]).
 pub fn light_slices(v: &EaView, step: u32) -> u32 {
@@ -471,66 +379,6 @@ pub fn poisson_disk(n: usize) -> Vec<[f32; 2]> {
 
 #[cfg(test)]
 mod tests {
-    #[test]
-    fn the_half_extinction_is_the_mean_over_two_cubed_voxels() {
-        // 5 x 4 x 3 voxels: the odd axes' last nodes average the voxels in the grid.
-        let dims = [5, 4, 3];
-        let sigma = |x: usize, y: usize, z: usize| (x + 10 * y + 100 * z) as f32;
-        let h = super::half_extinction(dims, sigma).expect("a grid");
-        assert_eq!(h.dims, [3, 2, 2]);
-        // Node (0, 0, 0): x 0..2, y 0..2, z 0..2 -> mean x 0.5, y 0.5, z 0.5.
-        assert!((h.data[0] - (0.5 + 5.0 + 50.0)).abs() < 1e-4);
-        // Node (2, 1, 1): x 4, y 2..4, z 2 -> 4 + 25 + 200.
-        let last = h.data[2 + 3 * (1 + 2)];
-        assert!((last - (4.0 + 25.0 + 200.0)).abs() < 1e-3, "{last}");
-        // Gaps and NaN count as no extinction; negative extinction too.
-        let g = super::half_extinction([4, 4, 4], |x, _, _| match x {
-            0 => f32::NAN,
-            1 => -1.0,
-            _ => 8.0,
-        })
-        .expect("a grid");
-        assert_eq!(g.data[0], 0.0);
-        assert_eq!(g.data[1], 8.0);
-        // At a node the sample is the node's value; between nodes linear.
-        assert!((g.at([0.5, 0.5, 0.5]) - 0.0).abs() < 1e-6);
-        assert!((g.at([2.5, 0.5, 0.5]) - 8.0).abs() < 1e-6);
-        assert!((g.at([1.5, 0.5, 0.5]) - 4.0).abs() < 1e-6);
-        // Too small a grid, or too large, has none.
-        assert!(super::half_extinction([2, 8, 8], |_, _, _| 1.0).is_none());
-        assert!(super::half_extinction([2048, 2048, 1024], |_, _, _| 1.0).is_none());
-    }
-
-    #[test]
-    fn a_sheet_keeps_its_optical_depth_at_any_phase() {
-        // A sheet a voxel thick across x at every position, sampled along x two voxels apart
-        // at every phase: the half grid's optical depth is the sheet's (sigma 1, one voxel);
-        // the full grid's trilinear samples two voxels apart range from 0 to twice it.
-        let n = 32;
-        for sheet in 8..12 {
-            let h = super::half_extinction([n, 4, 4], |x, _, _| (x == sheet) as u8 as f32)
-                .expect("a grid");
-            for phase in 0..8 {
-                let x0 = 2.0 + phase as f32 * 0.25;
-                let tau: f32 = (0..12)
-                    .map(|i| 2.0 * h.at([x0 + 2.0 * i as f32, 1.5, 1.5]))
-                    .sum();
-                assert!(
-                    (tau - 1.0).abs() < 1e-5,
-                    "sheet {sheet} phase {phase}: {tau}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn parts_come_in_pairs_where_a_step_has_an_even_count() {
-        assert!(!super::light_pairs(1));
-        assert!(super::light_pairs(2));
-        assert!(super::light_pairs(4));
-        assert!(super::light_pairs(8));
-    }
-
     use super::*;
 
     /// The data's cell is the largest power of two a voxel covers on screen (2 to 64): an

@@ -105,28 +105,11 @@ pub(crate) struct Splat<'v> {
     offset: __m256,
     tf: Vec<(__m256, [__m256; 3], __m256)>,
     slopes: Vec<(__m256, [__m256; 3], __m256)>,
-    half: Option<HalfLanes<'v>>,
 }
 
 /// What one slice gives eight rays ([`Splat::step`]): which lanes are inside the grid, in an
 /// empty skip block (and the slices to step past it) or sampled (not a gap), and the sample's
 /// colour and extinction.
-struct Loc {
-    is_empty: __m256i,
-    occupied: __m256i,
-    steps: __m256i,
-    cell: [__m256i; 3],
-}
-
-/// The half-resolution extinction grid as the lanes read it.
-struct HalfLanes<'v> {
-    data: &'v [f32],
-    hi: [__m256; 3],
-    last_cell: [__m256i; 3],
-    grid: [__m256i; 3],
-    corners: [i32; 8],
-}
-
 struct Step {
     is_empty: __m256i,
     steps: __m256i,
@@ -178,19 +161,6 @@ impl<'v> Splat<'v> {
                 .iter()
                 .map(|s| (ps(s.0), s.1.map(ps), ps(s.2)))
                 .collect(),
-            half: vol.half_sigma().map(|h| {
-                let d = h.dims;
-                HalfLanes {
-                    data: &h.data,
-                    hi: d.map(|n| ps(n as f32 - 1.0)),
-                    last_cell: d.map(|n| pi((n.max(2) - 2) as i32)),
-                    grid: d.map(|n| pi(n as i32)),
-                    corners: {
-                        let (sy, sz) = (d[0] as i32, (d[0] * d[1]) as i32);
-                        [0, 1, sy, sy + 1, sz, sz + 1, sz + sy, sz + sy + 1]
-                    },
-                }
-            }),
         }
     }
 
@@ -204,7 +174,13 @@ impl<'v> Splat<'v> {
     /// As [`march`]'s; called only from functions compiled for AVX2 and FMA (inlined into
     /// them, so its intrinsics are compiled with their features).
     #[inline(always)]
-    unsafe fn locate(&self, q: [__m256; 3], dq: [__m256; 3], active: __m256i, shrink: i32) -> Loc {
+    unsafe fn step<T: Gather>(
+        &self,
+        data: &[T],
+        q: [__m256; 3],
+        dq: [__m256; 3],
+        active: __m256i,
+    ) -> Step {
         // SAFETY: the caller's; masked lanes read nothing.
         unsafe {
             let vol = self.vol;
@@ -236,12 +212,6 @@ impl<'v> Splat<'v> {
                 vol.reach32.as_ptr(),
                 block,
                 inside_i,
-            );
-            // (`shrink` 1: empty only where the neighbouring blocks are empty too, and the
-            // empty cube one block smaller.)
-            let d = _mm256_max_epi32(
-                _mm256_sub_epi32(d, _mm256_set1_epi32(shrink)),
-                _mm256_setzero_si256(),
             );
             let is_empty =
                 _mm256_andnot_si256(_mm256_cmpeq_epi32(d, _mm256_setzero_si256()), inside_i);
@@ -277,86 +247,6 @@ impl<'v> Splat<'v> {
                 steps = _mm256_blendv_ps(steps, _mm256_min_ps(steps, n), moving);
             }
             let steps = _mm256_max_epi32(_mm256_cvttps_epi32(steps), onei);
-            Loc {
-                is_empty,
-                occupied,
-                steps,
-                cell,
-            }
-        }
-    }
-
-    /// The half-resolution extinction (`EaVolume::half_sigma`) at full-resolution index
-    /// positions `q` of the `occupied` lanes (0 elsewhere): trilinear between its nodes, node
-    /// `j` at index `2 j + 0.5`.
-    ///
-    /// # Safety
-    /// As [`Splat::step`]'s; `self.half` is set.
-    #[inline(always)]
-    unsafe fn sigma_half(&self, q: [__m256; 3], occupied: __m256i) -> __m256 {
-        // SAFETY: the caller's; masked lanes read nothing; the cell is clamped into the grid.
-        unsafe {
-            let h = self.half.as_ref().expect("the half grid");
-            let zero = _mm256_setzero_ps();
-            let (half, quarter) = (_mm256_set1_ps(0.5), _mm256_set1_ps(0.25));
-            let qh: [__m256; 3] = std::array::from_fn(|a| {
-                _mm256_min_ps(
-                    _mm256_max_ps(_mm256_sub_ps(_mm256_mul_ps(q[a], half), quarter), zero),
-                    h.hi[a],
-                )
-            });
-            let cell: [__m256i; 3] = std::array::from_fn(|a| {
-                _mm256_min_epi32(_mm256_cvttps_epi32(qh[a]), h.last_cell[a])
-            });
-            let f: [__m256; 3] =
-                std::array::from_fn(|a| _mm256_sub_ps(qh[a], _mm256_cvtepi32_ps(cell[a])));
-            let base = _mm256_add_epi32(
-                cell[0],
-                _mm256_mullo_epi32(
-                    h.grid[0],
-                    _mm256_add_epi32(cell[1], _mm256_mullo_epi32(h.grid[1], cell[2])),
-                ),
-            );
-            let m = _mm256_castsi256_ps(occupied);
-            let c = h.corners;
-            macro_rules! corner {
-                ($o:expr) => {
-                    f32::gather(h.data, _mm256_add_epi32(base, _mm256_set1_epi32($o)), m)
-                };
-            }
-            let x00 = lerp!(corner!(c[0]), corner!(c[1]), f[0]);
-            let x10 = lerp!(corner!(c[2]), corner!(c[3]), f[0]);
-            let x01 = lerp!(corner!(c[4]), corner!(c[5]), f[0]);
-            let x11 = lerp!(corner!(c[6]), corner!(c[7]), f[0]);
-            _mm256_and_ps(lerp!(lerp!(x00, x10, f[1]), lerp!(x01, x11, f[1]), f[2]), m)
-        }
-    }
-
-    /// Slice samples `q` (index space) of the `active` lanes, as `EaVolume::advance` and
-    /// `EaVolume::optical_depth` take them: outside the grid nothing; in an empty skip block
-    /// the slices past the empty cube of blocks around it (`Ray::past_block`, at least 1,
-    /// capped far beyond any slice count); else the trilinear sample (a gap below -1e30 is
-    /// not sampled) through the transfer function.
-    ///
-    /// # Safety
-    /// As [`march`]'s; called only from functions compiled for AVX2 and FMA (inlined into
-    /// them, so its intrinsics are compiled with their features).
-    #[inline(always)]
-    unsafe fn step<T: Gather>(
-        &self,
-        data: &[T],
-        q: [__m256; 3],
-        dq: [__m256; 3],
-        active: __m256i,
-    ) -> Step {
-        // SAFETY: the caller's; masked lanes read nothing.
-        unsafe {
-            let Loc {
-                is_empty,
-                occupied,
-                steps,
-                cell,
-            } = self.locate(q, dq, active, 0);
             // Occupied lanes: the trilinear sample.
             let f: [__m256; 3] =
                 std::array::from_fn(|a| _mm256_sub_ps(q[a], _mm256_cvtepi32_ps(cell[a])));
@@ -741,51 +631,19 @@ pub(crate) unsafe fn optical_depths<T: Gather>(
         let mut t = [[0f32; LANES]; crate::MAX_PARTS];
         let mut all_empty = _mm256_set1_epi32(-1);
         let mut steps = _mm256_set1_epi32(i32::MAX);
-        if splat.half.is_some() && occlusion::combined::light_pairs(n) {
-            // Half the samples, each two parts deep, from the half-resolution extinction:
-            // each part gets half of its sample's optical depth.
-            // Where the pair's middle lies behind the ray's origin (a camera inside the
-            // grid), its second part alone at its middle, as `EaVolume::optical_depth_pairs`.
-            let m = n / 2;
-            for i in 0..m as usize {
-                let off = |j: u32, of: u32| _mm256_set1_ps(crate::sub_offset(j, of));
-                let (kp, k1) = (
-                    _mm256_add_ps(kf, off(i as u32, m)),
-                    _mm256_add_ps(kf, off(2 * i as u32 + 1, n)),
-                );
-                let both = _mm256_cmp_ps::<_CMP_GE_OQ>(kp, r.front);
-                let ahead = _mm256_or_ps(both, _mm256_cmp_ps::<_CMP_GE_OQ>(k1, r.front));
-                let at = _mm256_blendv_ps(k1, kp, both);
-                let q = std::array::from_fn(|a| _mm256_add_ps(r.qa[a], _mm256_mul_ps(at, r.dq[a])));
-                // A lane with its second part alone never skips (the scalar's 1).
-                let loc = splat.locate(
-                    q,
-                    r.dq,
-                    _mm256_and_si256(active, _mm256_castps_si256(ahead)),
-                    1,
-                );
-                let tau = _mm256_mul_ps(splat.sigma_half(q, loc.occupied), seg);
-                _mm256_storeu_ps(t[2 * i].as_mut_ptr(), _mm256_and_ps(tau, both));
-                _mm256_storeu_ps(t[2 * i + 1].as_mut_ptr(), tau);
-                let alone = _mm256_castps_si256(_mm256_andnot_ps(both, ahead));
-                all_empty = _mm256_and_si256(all_empty, _mm256_andnot_si256(alone, loc.is_empty));
-                steps = _mm256_min_epi32(steps, loc.steps);
-            }
-        } else {
-            for (i, t) in t.iter_mut().enumerate().take(n as usize) {
-                let at = _mm256_add_ps(kf, _mm256_set1_ps(crate::sub_offset(i as u32, n)));
-                let q = std::array::from_fn(|a| _mm256_add_ps(r.qa[a], _mm256_mul_ps(at, r.dq[a])));
-                // A part behind the ray's origin (a camera inside the grid) is not sampled.
-                let ahead = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(at, r.front));
-                let st = splat.step(data, q, r.dq, _mm256_and_si256(active, ahead));
-                let tau = _mm256_and_ps(
-                    st.sampled,
-                    _mm256_mul_ps(_mm256_max_ps(st.sigma, zero), seg),
-                );
-                _mm256_storeu_ps(t.as_mut_ptr(), tau);
-                all_empty = _mm256_and_si256(all_empty, st.is_empty);
-                steps = _mm256_min_epi32(steps, st.steps);
-            }
+        for (i, t) in t.iter_mut().enumerate().take(n as usize) {
+            let at = _mm256_add_ps(kf, _mm256_set1_ps(crate::sub_offset(i as u32, n)));
+            let q = std::array::from_fn(|a| _mm256_add_ps(r.qa[a], _mm256_mul_ps(at, r.dq[a])));
+            // A part behind the ray's origin (a camera inside the grid) is not sampled.
+            let ahead = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(at, r.front));
+            let st = splat.step(data, q, r.dq, _mm256_and_si256(active, ahead));
+            let tau = _mm256_and_ps(
+                st.sampled,
+                _mm256_mul_ps(_mm256_max_ps(st.sigma, zero), seg),
+            );
+            _mm256_storeu_ps(t.as_mut_ptr(), tau);
+            all_empty = _mm256_and_si256(all_empty, st.is_empty);
+            steps = _mm256_min_epi32(steps, st.steps);
         }
         let next = _mm256_add_epi32(kv, _mm256_blendv_epi8(onei, steps, all_empty));
         let next = _mm256_blendv_epi8(next, r.k, before);

@@ -25,7 +25,6 @@
 //! shading, 2-D transfer functions, geometry and isosurfaces are drawn on the GPU.
 
 use glam::{DMat3, DMat4, DVec3, DVec4};
-use occlusion::combined::{light_pairs, HalfExtinction};
 use occlusion::emission_absorption::{
     clip_interval, occupancy_packed, prepare, slab_interval, EaView, Transfer, BRICK,
 };
@@ -107,9 +106,6 @@ pub struct EaVolume {
     /// (`None`: they are not, or they are stored narrow already), made at the first lit frame
     /// for the light sweep.
     sweep_samples: std::sync::OnceLock<Option<Samples>>,
-    /// The light's extinction at half resolution, made at the first lit frame (`None`
-    /// where the grid is too small or too large for one).
-    half: std::sync::OnceLock<Option<HalfExtinction>>,
     /// The last frame's light volume, kept for the next (`light::LightVolume`): tens of
     /// megabytes a frame allocated afresh cost their page faults and a fill every frame.
     light_store: std::sync::Mutex<Vec<f32>>,
@@ -243,52 +239,12 @@ impl EaVolume {
             slopes,
             hi: vol.dims.map(|n| n as f32 - 1.0),
             sweep_samples: std::sync::OnceLock::new(),
-            half: std::sync::OnceLock::new(),
             light_store: std::sync::Mutex::new(Vec::new()),
             clear_below: points.first().is_none_or(|p| p.2 <= 0.0),
             tf: points,
             exp_table: (0..=EXP_N + 1)
                 .map(|i| (-(i as f64) / EXP_SCALE as f64).exp() as f32)
                 .collect(),
-        })
-    }
-
-    /// The light's extinction at half resolution, where made (at the first lit frame).
-    pub(crate) fn half_sigma(&self) -> Option<&HalfExtinction> {
-        self.half.get().and_then(|h| h.as_ref())
-    }
-
-    /// Whether the lit frames sample the light's extinction at half resolution where a
-    /// step's parts come in pairs (`occlusion::combined::light_pairs`): false until the first
-    /// lit frame made it, and for grids too small or too large for it.
-    pub fn half_extinction(&self) -> bool {
-        self.half_sigma().is_some()
-    }
-
-    /// The light's extinction at half resolution
-    /// (`occlusion::combined::half_extinction`) of this volume's samples `data` (as
-    /// [`EaVolume::corners`] reads them) through its transfer function.
-    fn make_half<T: Voxel>(&self, data: &[T]) -> Option<HalfExtinction> {
-        let d = self.dims;
-        occlusion::combined::half_extinction(d, |x, y, z| {
-            let v = match self.bricks {
-                Some(bricks) => {
-                    // The sample in the brick of a cell it is a corner of (the last cell
-                    // for the far faces).
-                    let p = [x, y, z];
-                    let c = [0, 1, 2].map(|a| p[a].min(d[a].max(2) - 2));
-                    let brick =
-                        c[0] / BRICK + bricks[0] * (c[1] / BRICK + bricks[1] * (c[2] / BRICK));
-                    let l = [0, 1, 2].map(|a| p[a] - c[a] + c[a] % BRICK);
-                    data[brick * APRON.pow(3) + l[0] + APRON * (l[1] + APRON * l[2])].value()
-                }
-                None => data[x + d[0] * (y + d[1] * z)].value(),
-            } + self.offset;
-            if v >= -1e30 {
-                self.transfer(v).1
-            } else {
-                0.0
-            }
         })
     }
 
@@ -435,7 +391,6 @@ impl EaVolume {
         // on the same cell again.
         if light.is_some() {
             self.sweep_samples.get_or_init(|| narrowed(&self.data));
-            self.half.get_or_init(|| self.make_half(data));
         }
         rayon::scope(|_| self.render_in_pool(v, data, light, mode))
     }
@@ -866,9 +821,6 @@ impl EaVolume {
             return (tau, u32::MAX);
         }
         let n = n.clamp(1, MAX_PARTS as u32);
-        if let Some(half) = self.half_sigma().filter(|_| light_pairs(n)) {
-            return self.optical_depth_pairs(v, half, r, k, n);
-        }
         let clipped = !v.clip.is_empty();
         let hi = self.hi();
         let mut skip = u32::MAX;
@@ -913,101 +865,6 @@ impl EaVolume {
                 continue;
             }
             tau[i as usize] = self.transfer(val).1.max(0.0) * len;
-        }
-        (tau, k.saturating_add(skip))
-    }
-
-    /// [`EaVolume::optical_depth`] of a step whose `n` parts come in pairs
-    /// (`occlusion::combined::light_pairs`): each pair sampled once at its middle (clipped as
-    /// a whole) from the half-resolution extinction `half`, its optical depth shared equally
-    /// by its two parts; where the pair's middle lies behind the ray's origin (a camera inside
-    /// the grid), its second part alone, at its own middle. A sample is skipped only in an empty block whose neighbours are empty
-    /// too (the half grid's nodes reach into them: `reach` at most 1 is occupied here), and
-    /// the slices to skip are those past the empty cube one block smaller.
-    fn optical_depth_pairs(
-        &self,
-        v: &EaView,
-        half: &HalfExtinction,
-        r: &Ray,
-        k: u32,
-        n: u32,
-    ) -> (Parts, u32) {
-        let mut tau: Parts = [0.0; MAX_PARTS];
-        let m = n / 2;
-        let clipped = !v.clip.is_empty();
-        let hi = self.hi();
-        let mut skip = u32::MAX;
-        // A pair is sampled at its middle where that lies ahead of the ray's origin, else
-        // (a camera inside the grid) its second part alone at the part's middle where that
-        // does, as the parts a voxel deep would be; `None`: neither. (Position, length.)
-        let part = r.seg / n as f32;
-        let sample = |i: u32| -> Option<(bool, [f32; 3], f32)> {
-            if clipped {
-                let clip = |a0: f64, depth: f64| {
-                    let a = v.z0 + a0 * v.dz;
-                    let (lo, hi) = clip_interval(v, r.o, r.d, a, a + v.dz * depth);
-                    (hi > lo).then_some((lo, hi))
-                };
-                let ahead = |(lo, hi): (f64, f64)| {
-                    let s = (0.5 * (lo + hi) - r.o_depth) / r.cosine;
-                    (s >= 0.0).then(|| {
-                        let p = self.world_to_index * DVec4::from((r.o + r.d * s, 1.0));
-                        (
-                            p.truncate().as_vec3().to_array(),
-                            ((hi - lo) / r.cosine) as f32,
-                        )
-                    })
-                };
-                let pair = clip(k as f64 + i as f64 / m as f64, 1.0 / m as f64)?;
-                if let Some((q, len)) = ahead(pair) {
-                    return Some((true, q, len));
-                }
-                let second = clip(k as f64 + (2 * i + 1) as f64 / n as f64, 1.0 / n as f64)?;
-                ahead(second).map(|(q, len)| (false, q, len))
-            } else {
-                let at = |kf: f32| [0, 1, 2].map(|a| r.qa[a] + kf * r.dq[a]);
-                let (kp, k1) = (
-                    k as f32 + sub_offset(i, m),
-                    k as f32 + sub_offset(2 * i + 1, n),
-                );
-                if kp >= r.front {
-                    // (Twice a part's length, as the lanes take it: the same bits.)
-                    Some((true, at(kp), 2.0 * part))
-                } else if k1 >= r.front {
-                    Some((false, at(k1), part))
-                } else {
-                    None
-                }
-            }
-        };
-        for i in 0..m {
-            let Some((both, q, len)) = sample(i) else {
-                skip = 1;
-                continue;
-            };
-            if (0..3).any(|a| !(q[a] >= 0.0 && q[a] <= hi[a])) {
-                skip = 1;
-                continue;
-            }
-            let (_, block, b) = self.cell(q);
-            let d = self.reach[block] as usize;
-            if d > 1 {
-                skip = skip.min(if clipped || !both {
-                    1
-                } else {
-                    r.past_block(q, b, d - 1)
-                });
-                continue;
-            }
-            skip = 1;
-            let sigma = half.at(q);
-            if both {
-                let t = sigma * (0.5 * len);
-                tau[2 * i as usize] = t;
-                tau[2 * i as usize + 1] = t;
-            } else {
-                tau[2 * i as usize + 1] = sigma * len;
-            }
         }
         (tau, k.saturating_add(skip))
     }
@@ -1494,108 +1351,6 @@ mod tests {
             assert!(nonzero > 100, "{nonzero} of {checked} steps with depth");
         }
         assert!(behind > 100, "{behind} rays start behind the slices' front");
-    }
-
-    #[test]
-    fn a_step_in_pairs_samples_the_half_grid_and_skips_only_where_it_is_empty() {
-        // Steps of eight slices a quarter voxel apart: four parts, in two pairs, each pair
-        // sampled once from the half-resolution extinction. Each pair's parts share its
-        // optical depth, the half grid's at the pair's middle times the pair's length; a ray's
-        // optical depth is within a few percent of the parts a voxel apart from the full
-        // grid (a smooth blob); and a skipped step never has depth - the skip honours the
-        // half grid's reach into the blocks next to occupied ones (a step whose sample the
-        // full grid's blocks would skip has depth where the half grid leaks into them).
-        let vol = blob([40, 44, 30]);
-        let data = vol.select(None).unwrap().data;
-        let b = vol.bounds();
-        let ev = EaVolume::new(&vol, &data, &tf()).unwrap();
-        let View::F32(data) = ev.data.view() else {
-            panic!("f32 samples expected")
-        };
-        assert!(ev.half_sigma().is_none(), "made at the first lit frame");
-        ev.half.get_or_init(|| ev.make_half(data));
-        let half = ev.half_sigma().expect("a half grid");
-        assert_eq!(half.dims, [20, 22, 15]);
-        let outside = Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0));
-        let mut inside = outside;
-        inside.eye = 0.5 * (b[0] + b[1]);
-        inside.target = inside.eye + (outside.target - outside.eye);
-        inside.near = 2.6;
-        let n = DVec3::new(0.3, -0.5, 0.8);
-        let plane = ([n.x, n.y, n.z], (0.5 * (b[0] + b[1])).dot(n));
-        for (cam, clip) in [(outside, vec![]), (outside, vec![plane]), (inside, vec![])] {
-            let mut view = EaView::new(&vol, cam, 32, 24, None, Some(0.25), [1.0; 3]).unwrap();
-            view.clip = clip.clone();
-            let vs = occlusion::combined::voxel_step(&view);
-            let p = occlusion::combined::light_samples(&view, 8);
-            assert_eq!((vs, p), (2, 4));
-            let (fine, coarse) = (
-                occlusion::combined::light_view(&view, vs),
-                occlusion::combined::light_view(&view, 8),
-            );
-            let inv = view.camera.view_projection(32.0 / 24.0).inverse();
-            let (mut sum_pairs, mut sum_fine, mut skipped) = (0.0f64, 0.0f64, 0);
-            for py in 0..24 {
-                for px in 0..32 {
-                    let (o, d) = pixel_ray(&inv, &view, [px as f64 + 0.5, py as f64 + 0.5]);
-                    let (rf, rc) = (ev.start(&fine, o, d), ev.light_start(&coarse, o, d, p));
-                    for k in 0..fine.slices {
-                        let t = ev.optical_depth(&fine, data, &rf, k, 1).0[0];
-                        sum_fine += t as f64;
-                    }
-                    let mut k = 0;
-                    while k < coarse.slices {
-                        let (parts, next) = ev.optical_depth(&coarse, data, &rc, k, p);
-                        for i in [0, 2] {
-                            // A pair's parts share its depth; behind the origin (the camera
-                            // inside) a pair may have its second part's alone.
-                            let alone = parts[i] == 0.0 && rc.front > k as f32 - 0.5;
-                            assert!(
-                                parts[i] == parts[i + 1] || alone,
-                                "pixel ({px}, {py}) step {k}: {parts:?}"
-                            );
-                        }
-                        assert!(parts[4..].iter().all(|&t| t == 0.0));
-                        if clip.is_empty() && parts[0] > 0.0 && rc.front <= k as f32 {
-                            // The first pair at its middle, from the half grid.
-                            let kf = k as f32 + sub_offset(0, 2);
-                            let q = [0, 1, 2].map(|a| rc.qa[a] + kf * rc.dq[a]);
-                            let want = half.at(q) * (rc.seg / 4.0);
-                            assert!((parts[0] - want).abs() <= 1e-6 * want + 1e-9);
-                        }
-                        sum_pairs += parts.iter().map(|&t| t as f64).sum::<f64>();
-                        let next = if next == u32::MAX {
-                            coarse.slices
-                        } else {
-                            next
-                        };
-                        for j in k + 1..next.min(coarse.slices) {
-                            // Skipped: the half grid has no extinction at its pairs.
-                            for i in 0..2 {
-                                let kf = j as f32 + sub_offset(i, 2);
-                                let q = [0, 1, 2].map(|a| rc.qa[a] + kf * rc.dq[a]);
-                                let inside = (0..3).all(|a| q[a] >= 0.0 && q[a] <= ev.hi()[a]);
-                                if inside && clip.is_empty() {
-                                    assert_eq!(half.at(q), 0.0, "({px}, {py}) skipped step {j}");
-                                }
-                            }
-                            skipped += 1;
-                        }
-                        k = next.max(k + 1);
-                    }
-                }
-            }
-            let rel = (sum_pairs - sum_fine).abs() / sum_fine;
-            assert!(sum_fine > 10.0, "{sum_fine}");
-            assert!(
-                rel < 0.05,
-                "clip {}: pairs {sum_pairs} against {sum_fine}",
-                !clip.is_empty()
-            );
-            if clip.is_empty() {
-                assert!(skipped > 1000, "{skipped} steps skipped");
-            }
-        }
     }
 
     #[cfg(target_arch = "x86_64")]

@@ -1197,7 +1197,7 @@ fn cpu_light(s: &Scene, v: &EaView, limit: u64) -> Result<Option<raycast::LightS
     let r = &s.render;
     let (cell, step) =
         occlusion::combined::light_grid(r.occlusion_cell, r.occlusion_step, false, v, limit);
-    renderer::LightGrid::new(v, cell, step, false).fits(limit)?;
+    renderer::LightGrid::new(v, cell, step).fits(limit)?;
     Ok(Some(raycast::LightSettings {
         cell,
         step,
@@ -1432,7 +1432,7 @@ fn cpu_frame(
             pass_clock: None,
         },
         triangles: 0,
-        light: light.map(|l| renderer::LightGrid::new(v, l.cell, l.step, ev.half_extinction())),
+        light: light.map(|l| renderer::LightGrid::new(v, l.cell, l.step)),
     }
 }
 
