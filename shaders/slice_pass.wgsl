@@ -95,7 +95,7 @@ struct Params {
     // added to a packed integer to give the sample's value
     value_offset: f32,
     // eye slices per stored slice of the light volume (a power of two) and the stored slices
-    // it holds: eye slice k reads stored slice k / light_step
+    // it holds: eye slice k's sample reads stored slice (k + 1/2) / light_step (`light_at`)
     light_step: u32,
     light_slices: u32,
     // stored slices per step of the `light` entry (its slabs light_step light_samples d
@@ -184,26 +184,37 @@ fn occ_bilinear(t: vec2<f32>) -> f32 {
     return mix(a, c, f.y);
 }
 
-// O of eye slice k at a continuous pixel position, bilinear over cells: step k / light_step
-// of the light volume, linear between steps (the last step's beyond it).
+// The light at eye slice k's sample at a continuous pixel position, bilinear over cells: at
+// the sample's depth, the middle of slab k - stored slice (k + 1/2) / light_step, linear
+// between stored slices (the last one's beyond it). A stored slice holds the light reaching
+// the front of its slab (occlusion::combined::light_depth).
 fn light_at(px: vec2<f32>, k: u32) -> f32 {
     let c = px / f32(P.cell) - vec2<f32>(0.5);
     let b = vec2<i32>(floor(c));
     let f = c - floor(c);
     let hi = vec2<i32>(P.cells) - vec2<i32>(1);
     var v: array<f32, 4>;
-    if (P.light_step == 1u) {
-        let base = P.cells.x * P.cells.y * min(k, P.light_slices - 1u);
-        for (var i = 0; i < 4; i = i + 1) {
-            let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
-            v[i] = light_volume[base + u32(q.x) + P.cells.x * u32(q.y)];
-        }
-    } else {
-        let kf = f32(k) / f32(P.light_step);
-        for (var i = 0; i < 4; i = i + 1) {
-            let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
-            v[i] = light_step_at(u32(q.x) + P.cells.x * u32(q.y), kf);
-        }
+    let kf = (f32(k) + 0.5) / f32(P.light_step);
+    for (var i = 0; i < 4; i = i + 1) {
+        let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
+        v[i] = light_step_at(u32(q.x) + P.cells.x * u32(q.y), kf);
+    }
+    return mix(mix(v[0], v[1], f.x), mix(v[2], v[3], f.x), f.y);
+}
+
+// O_k of eye slice k (the light reaching the front of slab k) at a continuous pixel position,
+// bilinear over cells: stored slice k / light_step, linear between stored slices. The
+// surfaces' partial occlusion reads it (eq. 1-3).
+fn light_front(px: vec2<f32>, k: u32) -> f32 {
+    let c = px / f32(P.cell) - vec2<f32>(0.5);
+    let b = vec2<i32>(floor(c));
+    let f = c - floor(c);
+    let hi = vec2<i32>(P.cells) - vec2<i32>(1);
+    var v: array<f32, 4>;
+    let kf = f32(k) / f32(P.light_step);
+    for (var i = 0; i < 4; i = i + 1) {
+        let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
+        v[i] = light_step_at(u32(q.x) + P.cells.x * u32(q.y), kf);
     }
     return mix(mix(v[0], v[1], f.x), mix(v[2], v[3], f.x), f.y);
 }
@@ -278,7 +289,8 @@ fn cell_shifts(px: vec2<f32>, r: Ray) -> CellShift {
 }
 
 fn light_shifted(cs: CellShift, k: u32) -> f32 {
-    let kf = f32(k);
+    // (At the sample's depth, as `light_at`.)
+    let kf = f32(k) + 0.5;
     let v0 = light_cell(cs.cells[0], kf + cs.shift[0]);
     let v1 = light_cell(cs.cells[1], kf + cs.shift[1]);
     let v2 = light_cell(cs.cells[2], kf + cs.shift[2]);
@@ -882,6 +894,9 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     eye_buf[idx] = e;
     // Partial occlusion (eq. 1-3): a surface at z between z_{k-1} and z_k receives
     // lerp(O_{k-1}, O_k, (z - z_{k-1}) / d) (O_{-1} = 1; beyond the last slice O of the last).
+    // (Half a slab in front of the surface, as the paper has it: read at the surface's own
+    // depth, the light past the slab the surface lies in is the light the tube itself
+    // attenuated where that slab's middle is inside it - a tube would shadow its own top.)
     // The light volume's cells mix the pixels of s x s blocks: looked up at the nearest
     // surface depth of the cells around the pixel, a tube does not shadow itself; occluders
     // nearer than that within the cell are the vicinity term's.
@@ -901,15 +916,15 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
         if (kf >= 0.0) {
             let k1 = u32(floor(kf)) + 1u;
             let ratio = min(kf - floor(kf), 1.0);
-            let o0 = light_at(px, k1 - 1u);
+            let o0 = light_front(px, k1 - 1u);
             var o1 = o0;
             if (k1 < P.n_slices) {
-                o1 = light_at(px, k1);
+                o1 = light_front(px, k1);
             }
             partial = mix(o0, o1, ratio);
         } else {
             // In front of slice 0: between O_{-1} = 1 and O_0.
-            partial = mix(1.0, light_at(px, 0u), clamp(kf + 1.0, 0.0, 1.0));
+            partial = mix(1.0, light_front(px, 0u), clamp(kf + 1.0, 0.0, 1.0));
         }
     }
     state[2u * idx] = vec4<f32>(1.0, partial, acc.x, acc.y);

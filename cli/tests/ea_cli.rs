@@ -412,7 +412,11 @@ fn both_devices_smooth_a_noisy_volume_alike() {
             "{method}: FXAA moved pixels by at most {moved}"
         );
         let worst = largest(&gpu, &cpu);
-        assert!(worst <= 2, "{method}: the devices differ by {worst} levels");
+        // 3: FXAA's edge test can flip where the devices' images differ by a level (with the
+        // light read at the sample's depth, 2026-12-06: one pixel of 7,680 at 3 levels for
+        // `combined`, at most 1 level anywhere without FXAA, below); a CPU renderer that skips
+        // FXAA differs by tens of levels.
+        assert!(worst <= 3, "{method}: the devices differ by {worst} levels");
         let unsmoothed = largest(&render("gpu", method, false), &plain);
         assert!(
             unsmoothed <= 2,

@@ -442,7 +442,6 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
         let kb_shift = _mm_cvtsi32_si128(KB.trailing_zeros() as i32);
         // Stored light slices of `lv.step` eye slices (a power of two).
         debug_assert!(lv.step.is_power_of_two());
-        let stepped = LIT && lv.step > 1;
         let step_shift = _mm_cvtsi32_si128(lv.step.trailing_zeros() as i32);
         let step_mask = pi(lv.step as i32 - 1);
         let inv_step = ps(1.0 / lv.step as f32);
@@ -492,7 +491,7 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
             let al = _mm256_sub_ps(one, e);
             let wgt = _mm256_mul_ps(_mm256_sub_ps(one, alpha), al);
             // The light at the sample (`LightVolume::lookup`: bilinear over the ray's four
-            // cells at stored slice k / step, linear between them), 1 unlit.
+            // cells at stored slice (k + 1/2) / step, linear between them), 1 unlit.
             let o = if LIT {
                 let lit_ps = lit;
                 // The block and slot of step `ks` in the light volume's layout.
@@ -515,29 +514,23 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
                         )
                     };
                 }
-                if stepped {
-                    // Stored slices k0 = k / step and the next (both clamped to the last), and the
-                    // fraction between them, as `LightVolume::cell_at` takes them.
-                    let k0 = _mm256_srl_epi32(kv, step_shift);
-                    let t = _mm256_mul_ps(
-                        _mm256_cvtepi32_ps(_mm256_and_si256(kv, step_mask)),
-                        inv_step,
-                    );
-                    let a0 = at!(_mm256_min_epi32(k0, last));
-                    let a1 = at!(_mm256_min_epi32(_mm256_add_epi32(k0, onei), last));
-                    let v0 = lerp!(cell!(a0, 0), cell!(a1, 0), t);
-                    let v1 = lerp!(cell!(a0, 1), cell!(a1, 1), t);
-                    let v2 = lerp!(cell!(a0, 2), cell!(a1, 2), t);
-                    let v3 = lerp!(cell!(a0, 3), cell!(a1, 3), t);
-                    let x0 = lerp!(v0, v1, frac[0]);
-                    let x1 = lerp!(v2, v3, frac[0]);
-                    lerp!(x0, x1, frac[1])
-                } else {
-                    let a = at!(kv);
-                    let x0 = lerp!(cell!(a, 0), cell!(a, 1), frac[0]);
-                    let x1 = lerp!(cell!(a, 2), cell!(a, 3), frac[0]);
-                    lerp!(x0, x1, frac[1])
-                }
+                // Stored slices k0 = k / step and the next (both clamped to the last), and the
+                // fraction of the slab's middle between them ((k mod step + 1/2) / step),
+                // as `LightVolume::lookup` takes them.
+                let k0 = _mm256_srl_epi32(kv, step_shift);
+                let t = _mm256_mul_ps(
+                    _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_and_si256(kv, step_mask)), half),
+                    inv_step,
+                );
+                let a0 = at!(_mm256_min_epi32(k0, last));
+                let a1 = at!(_mm256_min_epi32(_mm256_add_epi32(k0, onei), last));
+                let v0 = lerp!(cell!(a0, 0), cell!(a1, 0), t);
+                let v1 = lerp!(cell!(a0, 1), cell!(a1, 1), t);
+                let v2 = lerp!(cell!(a0, 2), cell!(a1, 2), t);
+                let v3 = lerp!(cell!(a0, 3), cell!(a1, 3), t);
+                let x0 = lerp!(v0, v1, frac[0]);
+                let x1 = lerp!(v2, v3, frac[0]);
+                lerp!(x0, x1, frac[1])
             } else {
                 one
             };

@@ -1217,6 +1217,42 @@ mod tests {
     }
 
     #[test]
+    fn a_sample_takes_the_light_at_its_own_depth() {
+        // A uniform medium (extinction 0.1 a unit) seen face on through 40 units, in slabs 5
+        // deep (sigma d = 0.5): with the light at each sample's depth the volumetric AOV -
+        // the opacity-weighted mean light - is the continuous model's (1 + exp(-sigma L)) / 2
+        // to 2%; the paper's light at the slab's front, exp(sigma d / 2) = 1.28 times too
+        // bright in each slab, would give 1.24 times it.
+        let mut vol = blob([41, 41, 41]);
+        vol.fields[0].data.iter_mut().for_each(|v| *v = 0.5);
+        let data = vol.select(None).unwrap().data;
+        let b = vol.bounds();
+        let sigma = 0.1;
+        let flat = Transfer {
+            points: vec![(0.0, [1.0; 3], sigma), (1.0, [1.0; 3], sigma)],
+            rows: vec![],
+        };
+        let ev = EaVolume::new(&vol, &data, &flat).unwrap();
+        let cam = Camera::orbit(b, 0.0, 0.0, 3.0, Some(20.0));
+        let view = EaView::new(&vol, cam, 33, 33, None, Some(5.0), [1.0; 3]).unwrap();
+        let light = LightSettings {
+            cell: 1,
+            step: 1,
+            cone: false,
+            theta_deg: 25.0,
+            blur_samples: 3,
+        };
+        let frame = ev.render_frame(&view, Some(&light));
+        let l = b[1].y - b[0].y;
+        let want = (1.0 + (-sigma * l).exp()) / 2.0;
+        let got = frame.volumetric[16 * 33 + 16] as f64;
+        assert!(
+            (got - want).abs() < 0.02 * want,
+            "volumetric AOV {got} against {want} (L = {l})"
+        );
+    }
+
+    #[test]
     fn a_light_a_voxel_deep_shades_as_the_light_a_slice_deep() {
         // Steps of two and four slices (slices a quarter voxel apart: a step of four is a
         // voxel) against the light of every slice, both models: the volumetric occlusion

@@ -42,8 +42,9 @@ pub struct LightSettings {
 pub(crate) const KB: usize = 16;
 
 /// `O` per cell and stored slice (see the module's layout): `slices` stored slices, each
-/// `step` eye slices deep (a power of two: a part of a sweep step); eye slice `k` reads stored
-/// slice `k / step`, linearly between them.
+/// `step` eye slices deep (a power of two: a part of a sweep step), each the light reaching
+/// its slab's front; eye slice `k`'s sample reads stored slice `(k + 1/2) / step`, linearly
+/// between them ([`LightVolume::lookup`]).
 pub(crate) struct LightVolume {
     pub cells: [usize; 2],
     pub cell: usize,
@@ -70,25 +71,18 @@ impl LightVolume {
         &self.o
     }
 
-    /// `O` of eye slice `k` at a pixel: bilinear over the four cells of `f` (offsets and
-    /// fractions from [`LightVolume::footprint`]), at stored slice `k / step` (linear between
-    /// stored slices; the last one's beyond it).
+    /// The light at eye slice `k`'s sample, at a pixel: bilinear over the four cells of `f`
+    /// (offsets and fractions from [`LightVolume::footprint`]), at the sample's depth - the
+    /// middle of slab `k`, stored slice `(k + 1/2) / step`, linear between stored slices (the
+    /// last one's beyond it). A stored slice holds the light reaching the front of its slab
+    /// (`occlusion::combined::light_depth`).
     #[inline(always)]
     pub(crate) fn lookup(&self, f: &Footprint, k: usize) -> f32 {
         if f.shifted {
             return self.lookup_shifted(f, k);
         }
-        if self.step > 1 {
-            let kf = k as f32 / self.step as f32;
-            let v = [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], kf));
-            let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-            return lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1]);
-        }
-        debug_assert!(k < self.slices);
-        let n = self.cells[0] * self.cells[1];
-        let block = &self.o[(k / KB) * n * KB..];
-        let j = k % KB;
-        let v = f.cells.map(|c| block[c as usize + j]);
+        let kf = occlusion::combined::light_depth(k as f64 + 0.5, self.step as u32) as f32;
+        let v = [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], kf));
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
     }
@@ -116,7 +110,7 @@ impl LightVolume {
     /// [`LightVolume::lookup`] behind a clipping plane: each cell read at the pixel's slice plus
     /// its shift (`light_shifted` in the shader; see [`LightVolume::clip_shifts`]).
     fn lookup_shifted(&self, f: &Footprint, k: usize) -> f32 {
-        let (kf, m) = (k as f32, self.step as f32);
+        let (kf, m) = (k as f32 + 0.5, self.step as f32);
         let v = [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], (kf + f.shift[i]) / m));
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
