@@ -1,0 +1,39 @@
+#!/usr/bin/env python3
+"""Signed error of an image against a reference, both EXR: the mean of (image - reference)
+over the pixels where the reference differs from the background (any channel by more than
+0.01/3 in sum), and its RMS there. A positive mean: the image is brighter than the reference.
+
+Usage: python3 bench/exr_bias.py REFERENCE.exr IMAGE.exr [BACKGROUND]
+  REFERENCE: e.g. the `reference/*.exr` an `umbra bench accuracy` run leaves (channel RGB);
+  IMAGE: `umbra render SCENE -o IMAGE.exr` (channel RGBA); BACKGROUND: the scene's grey level
+  (default 1, white). Needs numpy and OpenEXR (pip install numpy OpenEXR).
+"""
+import sys
+
+import numpy as np
+import OpenEXR
+
+
+def rgb(path):
+    channels = OpenEXR.File(path).parts[0].channels
+    for name in ("RGB", "RGBA"):
+        if name in channels:
+            return np.asarray(channels[name].pixels, dtype=float)[..., :3]
+    sys.exit(f"{path}: no RGB or RGBA channel (has {sorted(channels)})")
+
+
+def main():
+    if len(sys.argv) < 3:
+        sys.exit(__doc__)
+    ref, img = rgb(sys.argv[1]), rgb(sys.argv[2])
+    bg = float(sys.argv[3]) if len(sys.argv) > 3 else 1.0
+    if ref.shape != img.shape:
+        sys.exit(f"sizes differ: {ref.shape} against {img.shape}")
+    mask = np.abs(ref - bg).sum(-1) > 0.01
+    d = (img - ref)[mask]
+    print(f"{mask.sum()} pixels off the background: signed mean {d.mean():+.4f}, "
+          f"RMS {np.sqrt((d ** 2).mean()):.4f}")
+
+
+if __name__ == "__main__":
+    main()
