@@ -184,17 +184,15 @@ fn occ_bilinear(t: vec2<f32>) -> f32 {
     return mix(a, c, f.y);
 }
 
-// The light at eye slice k's sample at a continuous pixel position, bilinear over cells: at
-// the sample's depth, the middle of slab k - stored slice (k + 1/2) / light_step, linear
-// between stored slices (the last one's beyond it). A stored slice holds the light reaching
-// the front of its slab (occlusion::combined::light_depth).
-fn light_at(px: vec2<f32>, k: u32) -> f32 {
+// The light volume at a continuous pixel position, bilinear over cells, at fractional stored
+// slice kf (linear between stored slices, the last one's beyond it). A stored slice holds the
+// light reaching the front of its slab (occlusion::combined::light_depth).
+fn light_bilinear(px: vec2<f32>, kf: f32) -> f32 {
     let c = px / f32(P.cell) - vec2<f32>(0.5);
     let b = vec2<i32>(floor(c));
     let f = c - floor(c);
     let hi = vec2<i32>(P.cells) - vec2<i32>(1);
     var v: array<f32, 4>;
-    let kf = (f32(k) + 0.5) / f32(P.light_step);
     for (var i = 0; i < 4; i = i + 1) {
         let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
         v[i] = light_step_at(u32(q.x) + P.cells.x * u32(q.y), kf);
@@ -202,21 +200,16 @@ fn light_at(px: vec2<f32>, k: u32) -> f32 {
     return mix(mix(v[0], v[1], f.x), mix(v[2], v[3], f.x), f.y);
 }
 
-// O_k of eye slice k (the light reaching the front of slab k) at a continuous pixel position,
-// bilinear over cells: stored slice k / light_step, linear between stored slices. The
-// surfaces' partial occlusion reads it (eq. 1-3).
+// The light at eye slice k's sample: at the sample's depth, the middle of slab k - stored
+// slice (k + 1/2) / light_step.
+fn light_at(px: vec2<f32>, k: u32) -> f32 {
+    return light_bilinear(px, (f32(k) + 0.5) / f32(P.light_step));
+}
+
+// O_k of eye slice k, the light reaching the front of slab k: stored slice k / light_step.
+// The surfaces' partial occlusion reads it (eq. 1-3).
 fn light_front(px: vec2<f32>, k: u32) -> f32 {
-    let c = px / f32(P.cell) - vec2<f32>(0.5);
-    let b = vec2<i32>(floor(c));
-    let f = c - floor(c);
-    let hi = vec2<i32>(P.cells) - vec2<i32>(1);
-    var v: array<f32, 4>;
-    let kf = f32(k) / f32(P.light_step);
-    for (var i = 0; i < 4; i = i + 1) {
-        let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
-        v[i] = light_step_at(u32(q.x) + P.cells.x * u32(q.y), kf);
-    }
-    return mix(mix(v[0], v[1], f.x), mix(v[2], v[3], f.x), f.y);
+    return light_bilinear(px, f32(k) / f32(P.light_step));
 }
 
 // The view depth where the clipping planes let ray r in (the largest entry over the planes it
