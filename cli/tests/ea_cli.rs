@@ -61,6 +61,26 @@ fn umbra_render_draws_the_ea_baseline_and_refuses_bad_settings() {
     }
     let out = run(&[]);
     assert!(out.status.success());
+    // The light volume's keys set for a method without one draw the same and say so.
+    let notes = |extra: &[&str]| {
+        let out = run(&[&["--json"], extra].concat());
+        test_support::succeeded(&out);
+        let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        r["notes"].to_string()
+    };
+    assert!(!notes(&[]).contains("sweeps none"));
+    let note = notes(&["--set", "render.occlusion_step=4"]);
+    assert!(
+        note.contains("render.occlusion_step shapes the light volume of dos and combined; method ea sweeps none"),
+        "{note}"
+    );
+    assert!(!notes(&[
+        "--set",
+        "render.occlusion_step=4",
+        "--set",
+        "render.method=\"dos\""
+    ])
+    .contains("sweeps none"));
 }
 
 #[test]

@@ -1436,6 +1436,31 @@ fn cpu_frame(
     }
 }
 
+/// A note where the scene sets the light volume's keys (`render.occlusion_cell`,
+/// `render.occlusion_step`) for a method that sweeps no light: they change nothing there.
+fn unused_light_keys(s: &Scene) -> Option<String> {
+    let r = &s.render;
+    let set: Vec<&str> = [
+        ("render.occlusion_cell", r.occlusion_cell.is_some()),
+        ("render.occlusion_step", r.occlusion_step.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(k, on)| on.then_some(k))
+    .collect();
+    let desc = r.method.desc();
+    (!set.is_empty() && desc.volume != engine::method::VolumeShading::Occlusion).then(|| {
+        let one = set.len() == 1;
+        format!(
+            "{} {} the light volume of dos and combined; method {} sweeps none, so {} \
+             nothing here",
+            set.join(" and "),
+            if one { "shapes" } else { "shape" },
+            desc.name,
+            if one { "it changes" } else { "they change" }
+        )
+    })
+}
+
 impl<'g> Uploaded<'g> {
     /// This upload drawing a share of its geometry: per tube mesh of the model the triangles
     /// `indices[i]`, per line set the segments `segments[i]` (in point order). The volume,
@@ -1526,7 +1551,7 @@ impl Uploaded<'_> {
             .limits()
             .max_storage_buffer_binding_size;
         let layers = cpu_layers(s);
-        let draw = |v: &EaView| match cpu {
+        let draw_one = |v: &EaView| match cpu {
             Some(ev) => Ok(cpu_frame(
                 ev,
                 v,
@@ -1543,6 +1568,12 @@ impl Uploaded<'_> {
                 .renderer
                 .draw(&self.scene, v, &tube_clip(s), &st, opts)
                 .map_err(|e| e.to_string()),
+        };
+        let unused = unused_light_keys(s);
+        let draw = |v: &EaView| {
+            let mut out = draw_one(v)?;
+            out.notes.extend(unused.clone());
+            Ok::<_, String>(out)
         };
         if s.render.stereo == spec::Stereo::None {
             return Ok((draw(&v)?, v));
