@@ -1244,12 +1244,58 @@ pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result
                 .ok_or_else(|| format!("override {o}: expected KEY=VALUE"))?;
             set(&mut table, k.trim(), v.trim())?;
         }
-        scene = toml::Value::Table(table)
-            .try_into()
-            .map_err(|e| format!("{name} with overrides: {e}"))?;
+        // Through TOML text, so that an error has a place: the key and, in an array of
+        // tables, the entry (`volume.transfer.points[1].extinction`).
+        let merged = toml::to_string(&table).map_err(|e| format!("{name} with overrides: {e}"))?;
+        scene = toml::from_str(&merged)
+            .map_err(|e| format!("{name} with overrides: {}", merged_error(&merged, &e)))?;
     }
     validate(&mut scene, dir).map_err(|e| format!("{name}: {e}"))?;
     Ok(scene)
+}
+
+/// An error of the scene merged with its overrides (`merged`, as `toml::to_string` writes
+/// it: a header per table, `[[...]]` per entry of an array of tables, a key a line) as the
+/// key's dotted path, with the entry's index in an array of tables, and the message.
+fn merged_error(merged: &str, e: &toml::de::Error) -> String {
+    let Some(span) = e.span() else {
+        return e.message().to_string();
+    };
+    let start = span.start.min(merged.len());
+    // An error of a whole table (a missing field) spans it from its header: the header's line
+    // counts as the table's own, with no key.
+    let header = merged[start..].starts_with('[');
+    let end = if header {
+        start + merged[start..].find('\n').unwrap_or(merged.len() - start)
+    } else {
+        start
+    };
+    let before = &merged[..end];
+    let line = before.rsplit('\n').next().unwrap_or("");
+    let key = if header {
+        ""
+    } else {
+        line.split('=').next().unwrap_or("").trim()
+    };
+    // The table the key is in: the last header above it, and for an array of tables how many
+    // of the same header came before (the entry's index).
+    let mut path = String::new();
+    let mut seen: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+    for l in before.lines().map(str::trim) {
+        if let Some(h) = l.strip_prefix("[[").and_then(|h| h.strip_suffix("]]")) {
+            let n = seen.entry(h).or_insert(0);
+            path = format!("{h}[{n}]");
+            *n += 1;
+        } else if let Some(h) = l.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
+            path = h.to_string();
+        }
+    }
+    let full = match (path.is_empty(), key.is_empty()) {
+        (_, true) => path,
+        (true, false) => key.to_string(),
+        (false, false) => format!("{path}.{key}"),
+    };
+    format!("{full}: {}", e.message().trim())
 }
 
 /// Reads a scene file.
@@ -2555,6 +2601,29 @@ mod tests {
         let e = parse(text, "s", Path::new("."), &o(&["tubes.3.radius=1"])).unwrap_err();
         assert!(e.contains("1 entries"), "{e}");
         assert!(parse(text, "s", Path::new("."), &o(&["render.width"])).is_err());
+        // A bad value set by an override is named by its path, with the entry of an array of
+        // tables: the key, its entry and the problem.
+        for (set, want) in [
+            (
+                "tubes=[{path=\"a.trk\"}, {path=\"b.trk\", radius=\"big\"}]",
+                "s with overrides: tubes[1].radius: invalid type: string \"big\", expected f64",
+            ),
+            (
+                "tubes=[{path=\"a.trk\"}, {radius=1.0}]",
+                "s with overrides: tubes[1]: missing field `path`",
+            ),
+            (
+                "render.width=\"wide\"",
+                "s with overrides: render.width: invalid type: string \"wide\", expected u32",
+            ),
+            (
+                "camera.azimuth=true",
+                "s with overrides: camera.azimuth: invalid type",
+            ),
+        ] {
+            let e = parse(text, "s", Path::new("."), &o(&[set])).unwrap_err();
+            assert!(e.starts_with(want), "{set}: {e}");
+        }
     }
 
     #[test]
