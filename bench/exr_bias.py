@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Signed error of an image against a reference, both EXR: the mean of (image - reference)
-over the pixels where the reference differs from the background (any channel by more than
-0.01/3 in sum), and its RMS there. A positive mean: the image is brighter than the reference.
+over the pixels where the reference differs from the background (the channels' absolute
+differences from it summing to more than 0.01), and its RMS there. A positive mean: the image is brighter than the reference.
 
 Usage: python3 bench/exr_bias.py REFERENCE.exr IMAGE.exr [BACKGROUND]
   REFERENCE: e.g. the `reference/*.exr` an `umbra bench accuracy` run leaves (channel RGB);

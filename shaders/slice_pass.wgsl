@@ -11,7 +11,8 @@
 //   the light leaving step k - 1 with the cone blur, the light leaving step k through the
 //   volume and the tubes' thickness, O_k and the light reaching each further part stored in
 //   the light volume (cells x stored slices, `light_samples` a step), which the march reads at
-//   stored slice `slice / light_step` (`light_at`, `light_step_at`).
+//   each sample's depth, stored slice `(slice + 1/2) / light_step` (`light_at`,
+//   `light_step_at`; the surfaces' partial occlusion at `light_front`'s, eq. 1-3).
 // * `march` walks every slice of a pixel in one invocation: the eye buffer (Alg. 2) with the
 //   volume's colour modulated by the light volume when there is one, rays clipped to the
 //   grid's box and to the surface, empty bricks skipped, early termination; then the partial
@@ -885,10 +886,11 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
         next = next + 1u;
     }
     eye_buf[idx] = e;
-    // Partial occlusion (eq. 1-3): the light at the surface's own depth (the paper's
-    // lerp(O_{k-1}, O_k, (z - z_{k-1}) / d) reads it half a slab in front), without the light
-    // the surface's own tube attenuated (below; 1 in front of the slices, the last slice's
-    // beyond them).
+    // Partial occlusion (eq. 1-3): a surface at z between z_{k-1} and z_k receives
+    // lerp(O_{k-1}, O_k, (z - z_{k-1}) / d) (O_{-1} = 1; beyond the last slice O of the last).
+    // (Half a slab in front of the surface, as the paper has it: read at the surface's own
+    // depth, the light past the slab the surface lies in is the light the tube itself
+    // attenuated where that slab's middle is inside it - a tube would shadow its own top.)
     // The light volume's cells mix the pixels of s x s blocks: looked up at the nearest
     // surface depth of the cells around the pixel, a tube does not shadow itself; occluders
     // nearer than that within the cell are the vicinity term's.
@@ -904,29 +906,19 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
                 z = min(z, m);
             }
         }
-        // The surface at x slices from the front (O_k, the light reaching slab k's front, at
-        // x = k): in slab j = floor(x), a fraction f in. Where the slab's middle lies in front
-        // of the surface (f >= 1/2) the slab is outside the tube and O_{j+1} is the light the
-        // medium alone let through: linear between O_j and O_{j+1}. Else slab j is inside the
-        // tube (its light leaving is the tube's shadow): O_j decayed over f of a slab as over
-        // the slab before it, O_j (O_j / O_{j-1})^f.
-        let x = (z - P.z0) / P.dz;
-        if (x > 0.0) {
-            let j = u32(floor(x));
-            let f = x - floor(x);
-            let oj = light_front(px, j);
-            if (f >= 0.5) {
-                partial = mix(oj, light_front(px, j + 1u), f);
-            } else if (j >= 1u) {
-                let before = light_front(px, j - 1u);
-                var decay = 1.0;
-                if (before > 1e-6) {
-                    decay = clamp(oj / before, 0.0, 1.0);
-                }
-                partial = oj * pow(decay, f);
-            } else {
-                partial = oj;
+        let kf = (z - P.z0) / P.dz - 0.5;
+        if (kf >= 0.0) {
+            let k1 = u32(floor(kf)) + 1u;
+            let ratio = min(kf - floor(kf), 1.0);
+            let o0 = light_front(px, k1 - 1u);
+            var o1 = o0;
+            if (k1 < P.n_slices) {
+                o1 = light_front(px, k1);
             }
+            partial = mix(o0, o1, ratio);
+        } else {
+            // In front of slice 0: between O_{-1} = 1 and O_0.
+            partial = mix(1.0, light_front(px, 0u), clamp(kf + 1.0, 0.0, 1.0));
         }
     }
     state[2u * idx] = vec4<f32>(1.0, partial, acc.x, acc.y);

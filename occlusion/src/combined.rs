@@ -7,7 +7,7 @@
 //! |---|---|---|---|
 //! | §3.2.1 G-buffer | - | `gbuffer.rs`, `gbuffer.wgsl` | `engine/tests/occlusion_render.rs` |
 //! | Alg. 2 eye buffer, E/A | `emission_absorption::reference`; `raycast::EaVolume::render_frame` | `slice_pass.wgsl::march` | `engine/tests/ea_render.rs`, `raycast` tests |
-//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_grid`], [`data_cell`], [`light_step`], [`data_step`], [`voxel_step`], [`light_samples`], [`light_slices`], [`light_view`], [`light_depth`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only: `EaVolume::sweep`, `light_start`, `store_parts`; a step's parts by `raycast::EaVolume::optical_depth`) | `slice_pass.wgsl::light` (parts and their stores), `light_at` (at the sample's depth), `light_front` (the surfaces', at their depth), `light_step_at` | unit tests below (`a_sample_reads_the_light_at_its_own_depth`), `raycast` `a_sample_takes_the_light_at_its_own_depth`, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass; a sheet over a dense floor, a tube over a sheet, a camera inside the head), `raycast` `a_deep_light_step_takes_the_samples_of_the_steps_a_voxel_deep` |
+//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_grid`], [`data_cell`], [`light_step`], [`data_step`], [`voxel_step`], [`light_samples`], [`light_slices`], [`light_view`], [`light_depth`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only: `EaVolume::sweep`, `light_start`, `store_parts`; a step's parts by `raycast::EaVolume::optical_depth`) | `slice_pass.wgsl::light` (parts and their stores), `light_at` (at the sample's depth), `light_front` (the surfaces'), `light_step_at` | unit tests below (`a_sample_reads_the_light_at_its_own_depth`), `raycast` `a_sample_takes_the_light_at_its_own_depth`, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass; a sheet over a dense floor, a tube over a sheet, a camera inside the head), `raycast` `a_deep_light_step_takes_the_samples_of_the_steps_a_voxel_deep` |
 //! | Alg. 4, eq. 1-3 partial occlusion | `reference::render` (surface AOV) | `slice_pass.wgsl::march` | `occlusion_render.rs` (exp(-sigma z)) |
 //! | Alg. 5, eq. 4-6 vicinity | [`poisson_disk`], `camera::texture_radius` | `vicinity.wgsl` | `occlusion_render.rs` (groove) |
 //! | Alg. 6, eq. 7-10 compositing | - | `composite.wgsl` | `occlusion_render.rs` (eq. 7, 8) |
@@ -45,16 +45,14 @@
 //!   reaching the slab's front) and `O_{k+1}` ([`light_depth`]). The paper takes `O_k`, the
 //!   light half a slab in front of the sample, which has passed half a slab less of the
 //!   medium: against the Monte Carlo reference that left `combined` 0.031 brighter in mean
-//!   over the MNI T1's volume; the light at the sample's depth has 8-35% less RMSE on every
+//!   over the MNI T1's volume; the light at the sample's depth has 1.4-35% less RMSE on every
 //!   scene measured (docs/accuracy.md, "The light at the sample's depth").
-//! * Partial occlusion (Alg. 4, eq. 1-3): a surface receives the light at its own depth. In
-//!   slab `j`, a fraction `f` in: `lerp(O_j, O_{j+1}, f)` where the slab's middle lies in
-//!   front of the surface (`f >= 1/2`: the slab is outside the tube), else
-//!   `O_j (O_j / O_{j-1})^f` - slab `j` is inside the tube and the light leaving it is the
-//!   tube's own shadow, so `O_j` decays over `f` of a slab as over the slab before. The paper's
-//!   `lerp(O_{k-1}, O_k, (z_s - z_{k-1}) / d)` reads the light half a slab in front of the
-//!   surface (`engine/tests/occlusion_render.rs`, the transmittance above a surface in a
-//!   uniform medium: 0.009 too bright, now within 0.004). Algorithm 1's order of updates with
+//! * Partial occlusion (Alg. 4, eq. 1-3): a surface at depth `z_s` between `z_{k-1}` and `z_k`
+//!   receives `lerp(O_{k-1}, O_k, (z_s - z_{k-1}) / d)` - as the paper has it, half a slab in
+//!   front of the surface: at the surface's own depth the light past the slab it lies in is
+//!   the light the tube itself attenuated where that slab's middle is inside it (a tube would
+//!   shadow its own top; `engine/tests/occlusion_render.rs` checks the transmittance above a
+//!   surface in a uniform medium, within 0.02). Algorithm 1's order of updates with
 //!   Algorithm 3's buffer swap reverses these weights if copied literally.
 //!
 //! The cone-following model (`render.occlusion_model = "cone"`; issue 5 item 5). The paper's
@@ -242,10 +240,10 @@ pub fn light_samples(v: &EaView, step: u32) -> u32 {
 /// light has passed half a slab less of the medium - a light too bright by about
 /// `sigma d / 2` of itself. Against the Monte Carlo reference (docs/accuracy.md, "The light
 /// at the sample's depth"), reading at the sample's depth cut `combined`'s RMSE by 8-19% on
-/// the MNI T1, headsq and a dense CT bone (128-512^2), by 15% on the demo scene and by 35% on
-/// a sheet over a dense floor (its mean over the MNI T1's volume pixels had been 0.031
-/// brighter than the reference). The surfaces' partial occlusion reads the light at their
-/// depth too, without their own tube's shadow (`slice_pass.wgsl`; see the module's model).
+/// the MNI T1 and headsq (128-512^2) and a dense CT bone (128-256^2), by 15-16% on the demo
+/// scene and by 35% on a sheet over a dense floor (its mean over the MNI T1's volume pixels had been 0.031
+/// brighter than the reference). The surfaces' partial occlusion keeps the paper's reading
+/// (`slice_pass.wgsl::light_front`; see the module's model).
 pub fn light_depth(x: f64, step: u32) -> f64 {
     x / step.max(1) as f64
 }
