@@ -15,7 +15,10 @@ import OpenEXR
 
 
 def rgb(path):
-    channels = OpenEXR.File(path).parts[0].channels
+    try:
+        channels = OpenEXR.File(path).parts[0].channels
+    except Exception as e:  # OpenEXR raises plain exceptions for missing or bad files
+        sys.exit(f"{path}: cannot read as EXR: {e}")
     for name in ("RGB", "RGBA"):
         if name in channels:
             return np.asarray(channels[name].pixels, dtype=float)[..., :3]
