@@ -102,7 +102,9 @@ struct Params {
     // stored slices per step of the `light` entry (its slabs light_step light_samples d
     // deep): volume samples at the middles of equal parts of its slab (a voxel apart)
     light_samples: u32,
-    pad1: u32,
+    // the light's extinction factor: its mean path through a slab over the cone's directions,
+    // -ln(cos theta) / (1 - cos theta) (`occlusion::combined::cone_path_factor`)
+    light_path: f32,
 };
 
 const NO_LAYER: u32 = 0xffffffffu;
@@ -558,7 +560,9 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
                 }
             }
         }
-        cs = vec4<f32>(select(0.0, lo, hi > 0.0), hi, 1.0 / r.cosine, 0.0);
+        // The light's path per unit of slab depth: along the ray (1 / cosine), times the cone's
+        // mean slant (light_path), for the volume's and the tubes' extinction alike.
+        cs = vec4<f32>(select(0.0, lo, hi > 0.0), hi, P.light_path / r.cosine, 0.0);
         cell_state[ci] = cs;
     } else {
         cs = cell_state[ci];

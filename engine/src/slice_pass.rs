@@ -154,7 +154,9 @@ pub struct SliceParams {
     /// Stored slices (and volume samples, a voxel apart) per step of the `light` entry
     /// (`occlusion::combined::light_samples`).
     pub light_samples: u32,
-    pub pad1: u32,
+    /// The light's extinction factor, its mean path through a slab over the cone's
+    /// directions (`occlusion::combined::cone_path_factor`).
+    pub light_path: f32,
 }
 
 /// An overlay blended into the volume rendering (`overlays[].volume_blend`): each volume
@@ -644,7 +646,7 @@ impl SlicePass {
             light_step: step / grid.samples,
             light_slices: grid.stored(),
             light_samples: grid.samples,
-            pad1: 0,
+            light_path: occlusion::combined::cone_path_factor(s.theta_deg) as f32,
         };
         let (blend_field, blend_lut) = match blend {
             Some(b) => (b.field.clone(), b.lut.clone()),
@@ -939,7 +941,7 @@ mod tests {
                 light_step,
                 light_slices,
                 light_samples,
-                pad1,
+                light_path,
             }
         );
         crate::prelude::assert_layout!(

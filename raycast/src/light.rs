@@ -231,6 +231,8 @@ impl EaVolume {
             v
         };
         let theta_deg = step_theta(s.theta_deg, step as u32, s.cone);
+        // The light crosses each slab along the cone's directions, not along the ray.
+        let path = occlusion::combined::cone_path_factor(s.theta_deg) as f32;
         let cell = s.cell.max(1) as usize;
         let (w, h) = (v.width as usize, v.height as usize);
         let cells = [w.div_ceil(cell), h.div_ceil(cell)];
@@ -334,6 +336,7 @@ impl EaVolume {
                 d,
                 k,
                 samples: samples as u32,
+                path,
                 #[cfg(target_arch = "x86_64")]
                 splat: splat.as_ref(),
             };
@@ -576,6 +579,9 @@ struct Sweep<'a> {
     k: usize,
     /// Volume samples per step (`occlusion::combined::light_samples`).
     samples: u32,
+    /// The light's extinction factor: its mean path through a slab over the cone's directions
+    /// (`occlusion::combined::cone_path_factor` of the scene's own cone angle).
+    path: f32,
     /// Where the optical depths are taken eight cells at a time (`crate::lanes`): the CPU has
     /// AVX2 and FMA and `EaVolume::lanes_apply` holds.
     #[cfg(target_arch = "x86_64")]
@@ -697,6 +703,7 @@ impl Sweep<'_> {
                 }
                 let tau = if kk >= *nk {
                     let (tau, after) = ev.optical_depth(v, data, &self.rays[c], kk, self.samples);
+                    let tau = tau.map(|t| t * self.path);
                     *nk = after;
                     store_parts(&mut o[slots..slots + parts], ev, &tau);
                     tau.iter().sum()
@@ -787,7 +794,7 @@ impl Sweep<'_> {
             for (i, &x) in xs.iter().enumerate() {
                 let x = x as usize;
                 nk[x] = next[i];
-                let t: crate::Parts = std::array::from_fn(|p| tau[p][i]);
+                let t: crate::Parts = std::array::from_fn(|p| tau[p][i] * self.path);
                 let slots = x * KB + j0;
                 store_parts(&mut orow[slots..slots + parts], ev, &t);
                 out[x][0] *= ev.exp_neg(t.iter().sum());
