@@ -879,8 +879,11 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
             next = next + 1u;
             zl = layer_depth(pid, next);
         }
-        // Early ray termination at occlusion::emission_absorption::OPAQUE (1 - 1/128).
+        // Early ray termination at occlusion::emission_absorption::OPAQUE (1 - 1/128): the rest
+        // of the ray is taken as the mean of what it showed so far (colour over opacity,
+        // opacity 1; `emission_absorption::end_opaque`), not as the background behind it.
         if (e.a > 0.9921875) {
+            e = vec4<f32>(e.rgb / e.a, 1.0);
             break;
         }
     }

@@ -87,7 +87,8 @@
 //! linearly between stored slices. The eye buffer is then one dispatch (`march`): all
 //! slices of a pixel in one invocation, with `O` read bilinearly from the light volume, rays
 //! clipped to the grid's box and to the surface, empty 8^3 bricks skipped (exact, see
-//! `ea_pass::occupancy`), early termination at opacity `OPAQUE` (1 - 1/128) - none of which the
+//! `ea_pass::occupancy`), early termination at opacity `OPAQUE` (1 - 1/128; the rest of the ray taken as the mean of what it
+//! showed, `emission_absorption::end_opaque`) - none of which the
 //! slice-by-slice eye buffer can do. A cell's transmittance through the tubes is the mean over
 //! its pixels (coverage), its volume sample the one on its centre ray. A surface reads its
 //! partial occlusion at the nearest surface depth of the cells around it, so that a tube does

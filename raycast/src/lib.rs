@@ -566,12 +566,18 @@ impl EaVolume {
                     };
                     continue;
                 }
-                let a = r.alpha;
+                // A ray ended at OPAQUE: the rest of it as the mean of what it showed
+                // (`occlusion::emission_absorption::end_opaque`), not the background.
+                let (c, a) = if r.alpha > occlusion::emission_absorption::OPAQUE {
+                    (r.c.map(|x| x / r.alpha), 1.0)
+                } else {
+                    (r.c, r.alpha)
+                };
                 rows[*i] = Pixel {
                     rgba: [
-                        r.c[0] + (1.0 - a) * bg[0],
-                        r.c[1] + (1.0 - a) * bg[1],
-                        r.c[2] + (1.0 - a) * bg[2],
+                        c[0] + (1.0 - a) * bg[0],
+                        c[1] + (1.0 - a) * bg[1],
+                        c[2] + (1.0 - a) * bg[2],
                         a,
                     ],
                     volumetric: if r.acc[1] > 1e-6 {
@@ -1214,6 +1220,31 @@ mod tests {
         assert_eq!(bits(&lanes.volumetric), bits(&scalar.volumetric));
         assert_eq!(bits(&lanes.half_depth), bits(&scalar.half_depth));
         lanes
+    }
+
+    #[test]
+    fn an_opaque_ray_shows_its_medium_not_the_background() {
+        // A dense uniform medium (extinction 5 a unit, grey 0.2) before a white background: the
+        // exact pixel is 0.2; a ray ended at OPAQUE takes the rest as the mean of what it
+        // showed, where the background through the rest gave 0.2 + 0.8 (1 - alpha) (0.205).
+        let mut vol = blob([41, 41, 41]);
+        vol.fields[0].data.iter_mut().for_each(|v| *v = 0.5);
+        let data = vol.select(None).unwrap().data;
+        let grey = Transfer {
+            points: vec![(0.0, [0.2; 3], 5.0), (1.0, [0.2; 3], 5.0)],
+            rows: vec![],
+        };
+        let mut ev = EaVolume::new(&vol, &data, &grey).unwrap();
+        let cam = Camera::orbit(vol.bounds(), 0.0, 0.0, 3.0, None);
+        let view = EaView::new(&vol, cam, 33, 33, None, None, [1.0; 3]).unwrap();
+        for lanes in [true, false] {
+            ev.lanes = lanes;
+            let p = ev.render_frame(&view, None).image[16 * 33 + 16];
+            assert!(p[3] >= 0.9999, "lanes {lanes}: opacity {}", p[3]);
+            for x in &p[..3] {
+                assert!((x - 0.2).abs() < 1e-3, "lanes {lanes}: {x} against 0.2");
+            }
+        }
     }
 
     #[test]
