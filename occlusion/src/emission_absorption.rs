@@ -193,7 +193,7 @@ pub const OPAQUE: f32 = 1.0 - 1.0 / 128.0;
 /// more of the medium, not the background, is what the rest of the ray would meet. Letting the
 /// background show through it (as VTK's ray casters do) made opaque pixels up to 1/128 of
 /// (background - volume) too bright on a white background: against the Monte Carlo
-/// reference, which follows every ray to its end, +0.0078 in mean over the MNI T1's volume for
+/// reference, which follows every ray to its end, +0.0069 in mean over the MNI T1's volume for
 /// `combined` with a cone of 1 degree, whose light deep in the head is near 0, and +0.0022 for
 /// `ea` (docs/accuracy.md, "The end of an opaque ray"). The GPU pass (`slice_pass.wgsl`) and
 /// the CPU renderer end their rays the same way.

@@ -807,7 +807,8 @@ impl EaVolume {
     /// (each clipped by the clipping planes only, and sampled at its middle;
     /// `occlusion::combined::light_samples`; 1: the whole slab at its middle): 0 outside the grid, in
     /// an empty block, next to a gap or where the transfer function is transparent. The light
-    /// leaving a cell through a slice is `exp(-` this `)`. Also the next slice whose optical
+    /// leaving a cell through a slice is `exp(-f` this `)`, `f` the light's path factor
+    /// (`occlusion::combined::cone_path_factor`, applied by `light::Sweep`). Also the next slice whose optical
     /// depth may not be 0 (past an empty block where every sample is in one, the ray's first
     /// slice in the grid; `u32::MAX` past its last).
     #[inline(always)]
