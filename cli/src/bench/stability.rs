@@ -93,6 +93,17 @@ pub fn stability(
     write_grid(&sdir.join("sheet.nrrd"), 81, |p| {
         (-(p.z / 0.15).powi(8)).exp()
     })?;
+    // A sheet one sample thick (value 1 in the plane z = 0, samples 0.5 apart) over a floor
+    // of value 0.5: with `peak` below, the sheet's interpolated edges pass the denser 0.5.
+    write_grid(&sdir.join("peak.nrrd"), 41, |p| {
+        if p.z.abs() < 0.01 {
+            1.0
+        } else if (-7.01..=-4.99).contains(&p.z) {
+            0.5
+        } else {
+            0.0
+        }
+    })?;
     write_grid(&sdir.join("blob.nrrd"), 41, |p| {
         (-(p - glam::DVec3::new(1.0, -1.0, 0.5)).length_squared() / 20.0).exp()
     })?;
@@ -139,6 +150,10 @@ pub fn stability(
         )
     };
     let dense = "points = [{ value = 0.1, color = [0.9, 0.8, 0.7], extinction = 0.0 }, { value = 0.5, color = [0.9, 0.8, 0.7], extinction = 1.5 }]";
+    // Extinction peaking at 0.5, between the sheet's value and the empty space's: a feature of
+    // the transfer function narrower than a voxel (docs/accuracy.md, "Where light samples a
+    // voxel apart fail").
+    let peak = "points = [{ value = 0.0, color = [0.9, 0.6, 0.3], extinction = 0.0 }, { value = 0.5, color = [0.9, 0.6, 0.3], extinction = 4.0 }, { value = 1.0, color = [0.9, 0.6, 0.3], extinction = 1.2 }]";
     let soft = "points = [{ value = 0.1, color = [0.8, 0.8, 0.9], extinction = 0.0 }, { value = 1.0, color = [0.8, 0.8, 0.9], extinction = 0.4 }]";
     let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
     use Method::{Combined, Dos, Ea, Vicinity};
@@ -157,6 +172,13 @@ pub fn stability(
             scene: scene("sheet.nrrd", "azimuth = 20.0", dense),
             sweeps: vec![("camera.elevation".into(), s(&["2.0", "5.0", "20.0"]))],
             methods: all.clone(),
+        },
+        Case {
+            name: "tf-peak",
+            what: "a sheet one voxel thick whose transfer function peaks between its value and 0, light steps of 1 and 8 slices",
+            scene: scene("peak.nrrd", "azimuth = 10.0\nelevation = 75.0", peak),
+            sweeps: vec![("occlusion_step".into(), s(&["1", "8"]))],
+            methods: vec![Dos],
         },
         Case {
             name: "few-slices",
