@@ -317,7 +317,7 @@ fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(
         lines[0],
-        "method,slices,cone,ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface,rmse_vicinity"
+        "method,slices,cone,ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface,rmse_vicinity,bias"
     );
     assert_eq!(lines.len(), 5, "{csv}");
     let rmse = |m: &str, sl: &str| -> f64 {
@@ -327,9 +327,20 @@ fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
             .unwrap();
         l.split(',').nth(4).unwrap().parse().unwrap()
     };
-    // Directional occlusion is the light model of the reference; leaving it out (ea) costs.
+    // Directional occlusion is the light model of the reference; leaving it out (ea) costs,
+    // and makes the image brighter than the reference (a positive bias), by more than the
+    // occlusion method's own.
+    let bias = |m: &str, sl: &str| -> f64 {
+        let l = lines
+            .iter()
+            .find(|l| l.starts_with(&format!("{m},{sl},")))
+            .unwrap();
+        l.split(',').nth(12).unwrap().parse().unwrap()
+    };
     for sl in ["48", "96"] {
         assert!(rmse("dos", sl) < 0.7 * rmse("ea", sl), "{csv}");
+        assert!(bias("ea", sl) > 0.01, "{csv}");
+        assert!(bias("dos", sl).abs() < 0.5 * bias("ea", sl), "{csv}");
     }
     assert!(out_dir.join("errors/dos_48_30.png").exists());
     for f in ["pareto.svg", "pareto.png"] {

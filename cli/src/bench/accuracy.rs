@@ -89,13 +89,14 @@ pub fn run(a: Args) -> Result<(), String> {
     drop(progress);
     for r in &report.rows {
         out(format!(
-            "{:9} {:>16} {:9.1} ms  rmse {:.5}  psnr {:6.2}  ssim {:.4}",
+            "{:9} {:>16} {:9.1} ms  rmse {:.5}  psnr {:6.2}  ssim {:.4}  bias {:+.5}",
             r.method,
             r.values.join(" "),
             r.ms,
             r.rmse,
             r.psnr,
-            r.ssim
+            r.ssim,
+            r.bias
         ))?;
     }
     eprintln!(
@@ -142,10 +143,36 @@ pub struct Row {
     /// RMSE of the vicinity AOV on surfaces against the geometry-only cone visibility within
     /// l_vicinity.
     pub rmse_vicinity: f64,
+    /// The signed mean error: colour minus reference, the mean of the channels, over the
+    /// pixels where the reference is off the background ([`signed_bias`]); positive where
+    /// the renderer is brighter.
+    pub bias: f64,
     /// The renderer's volumetric AOV and the reference's (NaN where undefined), for
     /// frame-to-frame comparisons.
     pub aov_volumetric: Vec<f64>,
     pub ref_volumetric: Vec<f64>,
+}
+
+/// The mean of `img - reference` (the mean of the three channels) over the pixels where the
+/// reference differs from the background `bg` (the channels' absolute differences summing to
+/// more than 0.01, as `bench/exr_bias.py` takes them); NaN where there are none. Positive: the
+/// image is brighter than the reference.
+pub fn signed_bias(img: &[[f64; 3]], reference: &[[f64; 3]], bg: [f64; 3]) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (p, q) in img.iter().zip(reference) {
+        if (0..3).map(|k| (q[k] - bg[k]).abs()).sum::<f64>() > 0.01 {
+            let d = (0..3).map(|k| p[k] - q[k]).sum::<f64>() / 3.0;
+            if d.is_finite() {
+                sum += d;
+                n += 1;
+            }
+        }
+    }
+    if n == 0 {
+        f64::NAN
+    } else {
+        sum / n as f64
+    }
 }
 
 impl Row {
@@ -364,6 +391,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
                 .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
                 .collect();
             let [rmse, max_err, psnr, ssim] = metrics(&img, &ref_rgb, w, h);
+            let bias = signed_bias(&img, &ref_rgb, view.background);
             // The occlusion AOVs where both the renderer and the reference have a value: the
             // volumetric term where the volume is seen (some opacity), the combined term on
             // surfaces (coverage 1, a tube hit).
@@ -440,6 +468,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
                 rmse_volumetric,
                 rmse_surface,
                 rmse_vicinity,
+                bias,
                 aov_volumetric: (0..w * h)
                     .map(|i| {
                         if out.image[i][3] > 0.05 {
@@ -458,7 +487,7 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
     let keys: Vec<&str> = a.sweeps.iter().map(|(k, _)| k.as_str()).collect();
     let _ = writeln!(
         csv,
-        "method{}{},ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface,rmse_vicinity",
+        "method{}{},ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface,rmse_vicinity,bias",
         if keys.is_empty() { "" } else { "," },
         keys.join(",")
     );
@@ -472,14 +501,15 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
     for r in &rows {
         let _ = writeln!(
             csv,
-            "{}{}{},{},{:.6},{:.6},{:.6}",
+            "{}{}{},{},{:.6},{:.6},{:.6},{:.6}",
             r.method,
             if r.values.is_empty() { "" } else { "," },
             r.values.iter().map(quote).collect::<Vec<_>>().join(","),
             r.measured(),
             r.rmse_volumetric,
             r.rmse_surface,
-            r.rmse_vicinity
+            r.rmse_vicinity,
+            r.bias
         );
     }
     volume::write_atomic(&a.out.join("results.csv"), &csv).map_err(|e| e.to_string())?;

@@ -354,6 +354,7 @@ pub fn stability(
                 rmse_volumetric: f64::NAN,
                 rmse_surface: f64::NAN,
                 rmse_vicinity: f64::NAN,
+                bias: f64::NAN,
                 aov_volumetric: vec![],
                 ref_volumetric: vec![],
             },
