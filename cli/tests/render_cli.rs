@@ -320,23 +320,19 @@ fn bench_accuracy_writes_results_charts_and_a_cached_reference() {
         "method,slices,cone,ms,rmse,max_err,psnr,ssim,ref_stderr,rmse_volumetric,rmse_surface,rmse_vicinity,bias"
     );
     assert_eq!(lines.len(), 5, "{csv}");
-    let rmse = |m: &str, sl: &str| -> f64 {
+    // Column `col` of the row of method `m` at `sl` slices.
+    let column = |m: &str, sl: &str, col: usize| -> f64 {
         let l = lines
             .iter()
             .find(|l| l.starts_with(&format!("{m},{sl},")))
             .unwrap();
-        l.split(',').nth(4).unwrap().parse().unwrap()
+        l.split(',').nth(col).unwrap().parse().unwrap()
     };
+    let rmse = |m: &str, sl: &str| column(m, sl, 4);
     // Directional occlusion is the light model of the reference; leaving it out (ea) costs,
     // and makes the image brighter than the reference (a positive bias), by more than the
     // occlusion method's own.
-    let bias = |m: &str, sl: &str| -> f64 {
-        let l = lines
-            .iter()
-            .find(|l| l.starts_with(&format!("{m},{sl},")))
-            .unwrap();
-        l.split(',').nth(12).unwrap().parse().unwrap()
-    };
+    let bias = |m: &str, sl: &str| column(m, sl, 12);
     for sl in ["48", "96"] {
         assert!(rmse("dos", sl) < 0.7 * rmse("ea", sl), "{csv}");
         assert!(bias("ea", sl) > 0.01, "{csv}");
