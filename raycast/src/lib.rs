@@ -569,7 +569,11 @@ impl EaVolume {
                 // A ray ended at OPAQUE: the rest of it as the mean of what it showed
                 // (`occlusion::emission_absorption::end_opaque`), not the background.
                 let (c, a) = if r.alpha > occlusion::emission_absorption::OPAQUE {
-                    (r.c.map(|x| x / r.alpha), 1.0)
+                    let (c, a) = occlusion::emission_absorption::end_opaque(
+                        r.c.map(f64::from),
+                        r.alpha as f64,
+                    );
+                    (c.map(|x| x as f32), a as f32)
                 } else {
                     (r.c, r.alpha)
                 };
