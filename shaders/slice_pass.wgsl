@@ -108,6 +108,9 @@ struct Params {
 };
 
 const NO_LAYER: u32 = 0xffffffffu;
+// Arriving light below which the light pass takes no samples: the cell passes its light on
+// unattenuated (occlusion::combined::DARK, 1/1024; the CPU sweep alike).
+const DARK: f32 = 0.0009765625;
 
 // Per slice (a dynamic offset into a storage buffer): the index, whether the blur needs the
 // tap loop (radius above one cell), the radius in cells, and otherwise the blur as a 3x3
@@ -647,10 +650,15 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     let column = P.column != 0u;
     let part = d / f32(n);
     let seg = part * cs.z;
+    // Light below DARK passes on unattenuated: no samples, no tubes.
+    let lit = occl >= DARK;
     var t = 1.0;
     for (var i = 0u; i < n; i = i + 1u) {
         if (i > 0u) {
             light_volume[ci + cw * ch * (k * n + i)] = occl * t;
+        }
+        if (!lit) {
+            continue;
         }
         let iv = depth_interval(r, P.z0 + (f32(k) + f32(i) / f32(n)) * d, part, 0.0);
         if (iv.y > iv.x) {

@@ -819,6 +819,17 @@ mod tests {
     }
 
     #[test]
+    fn the_light_pass_stops_attenuating_at_the_models_dark_light() {
+        // The WGSL literal and the Rust constant the CPU sweep uses.
+        let dark = occlusion::combined::DARK;
+        assert!(
+            SHADER.contains(&format!("const DARK: f32 = {dark};"))
+                && SHADER.contains("let lit = occl >= DARK;"),
+            "shaders/slice_pass.wgsl does not stop its light at {dark}"
+        );
+    }
+
+    #[test]
     fn the_settings_check_names_the_field() {
         let ok = SliceSettings {
             occlusion: true,

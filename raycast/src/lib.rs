@@ -1253,6 +1253,70 @@ mod tests {
     }
 
     #[test]
+    fn light_below_dark_passes_on_within_dark_of_the_full_sweep() {
+        // A dense blob: deep in it the light falls below DARK, where the sweep stops sampling
+        // (occlusion::combined::DARK). Against the sweep that samples every cell, each stored
+        // light may be brighter, by less than DARK; and the skip is taken, alike in the lanes
+        // and the scalar sweep.
+        let vol = blob([40, 44, 30]);
+        let data = vol.select(None).unwrap().data;
+        let dense = Transfer {
+            points: vec![
+                (0.05, [1.0; 3], 0.0),
+                (0.3, [1.0; 3], 2.0),
+                (1.0, [1.0; 3], 4.0),
+            ],
+            rows: vec![],
+        };
+        let mut ev = EaVolume::new(&vol, &data, &dense).unwrap();
+        let dark = occlusion::combined::DARK;
+        let cam = Camera::orbit(vol.bounds(), 40.0, 25.0, 2.5, Some(40.0));
+        let view = EaView::new(&vol, cam, 48, 40, None, None, [1.0; 3]).unwrap();
+        let inv = view.camera.view_projection(48.0 / 40.0).inverse();
+        for (step, cone) in [(1, false), (8, false), (2, true)] {
+            let light = LightSettings {
+                cell: 2,
+                step,
+                cone,
+                theta_deg: 30.0,
+                blur_samples: 3,
+            };
+            let mut swept = vec![];
+            for lanes in [true, false] {
+                ev.lanes = lanes;
+                let View::F32(d) = ev.data.view() else {
+                    panic!("f32 samples expected")
+                };
+                let skip = ev.sweep(&view, d, &light, inv).values().to_vec();
+                let full = ev
+                    .sweep_until_dark(&view, d, &light, inv, 0.0)
+                    .values()
+                    .to_vec();
+                let (mut worst, mut skipped, mut lit) = (0.0f32, 0, 0);
+                for (&s, &f) in skip.iter().zip(&full) {
+                    // (The cone model's blur widens with the shadow's age, which the skip
+                    // changes too: there only the bound.)
+                    assert!(
+                        cone || s >= f,
+                        "step {step}: skipped light {s} darker than {f}"
+                    );
+                    worst = worst.max((s - f).abs());
+                    skipped += (s != f) as usize;
+                    lit += (f > 2.0 * dark) as usize;
+                }
+                assert!(worst < dark, "step {step}: light moved by {worst}");
+                assert!(
+                    skipped > 1000,
+                    "step {step}: {skipped} light values skipped"
+                );
+                assert!(lit > 1000, "step {step}: {lit} values lit");
+                swept.push(skip);
+            }
+            assert_eq!(swept[0], swept[1], "step {step}: lanes and scalar differ");
+        }
+    }
+
+    #[test]
     fn a_sample_takes_the_light_at_its_own_depth() {
         // A uniform medium (extinction 0.1 a unit) seen face on through 40 units, in slabs 5
         // deep (sigma d = 0.5), lit by a cone of 45 degrees. The continuous model's light at

@@ -12,8 +12,9 @@
 //! (`occlusion::combined::blur_rows`: the 3x3 stencil up to two cells, else `n x n` bilinear
 //! taps on the disk), then `T_k` through the volume along the cell's centre ray, the whole
 //! slab - each of its parts clipped by the clipping planes on its own - (occlusion does not
-//! stop at the eye's opacity). The
-//! cone-following model carries the shadow's age as a second channel, as the shader does.
+//! stop at the eye's opacity; it stops where the light arriving is below
+//! `occlusion::combined::DARK`, which passes on unattenuated: [`EaVolume::sweep_until_dark`]).
+//! The cone-following model carries the shadow's age as a second channel, as the shader does.
 //!
 //! Unlike the GPU's light volume (cells x slices, slice-major), the CPU's is cell-major in
 //! blocks of [`KB`] slices: a ray reads the light of consecutive slices of the same four
@@ -216,6 +217,19 @@ impl EaVolume {
         s: &LightSettings,
         inv: glam::DMat4,
     ) -> LightVolume {
+        self.sweep_until_dark(v, data, s, inv, occlusion::combined::DARK)
+    }
+
+    /// [`EaVolume::sweep`] with cells whose arriving light is below `dark` left unsampled
+    /// (`occlusion::combined::DARK`; 0: every cell sampled).
+    pub(crate) fn sweep_until_dark<T: Voxel>(
+        &self,
+        v: &EaView,
+        data: &[T],
+        s: &LightSettings,
+        inv: glam::DMat4,
+        dark: f32,
+    ) -> LightVolume {
         // A step of `s.step` eye slices (`occlusion::combined::light_step`): the sweep runs in
         // the light's own view, the eye reads it at fractional slices (`LightVolume::lookup`).
         // (A power of two: a step's parts share a block of `KB` stored slices.)
@@ -337,6 +351,7 @@ impl EaVolume {
                 k,
                 samples: samples as u32,
                 path,
+                dark,
                 #[cfg(target_arch = "x86_64")]
                 splat: splat.as_ref(),
             };
@@ -582,6 +597,8 @@ struct Sweep<'a> {
     /// The light's extinction factor: its mean path through a slab over the cone's directions
     /// (`occlusion::combined::cone_path_factor` of the scene's own cone angle).
     path: f32,
+    /// Arriving light below which a cell takes no samples (`occlusion::combined::DARK`).
+    dark: f32,
     /// Where the optical depths are taken eight cells at a time (`crate::lanes`): the CPU has
     /// AVX2 and FMA and `EaVolume::lanes_apply` holds.
     #[cfg(target_arch = "x86_64")]
@@ -669,6 +686,8 @@ impl Sweep<'_> {
                 need.clear();
                 // SAFETY: `lanes` is set only where the CPU has AVX2.
                 unsafe { crate::lanes::due(nk, kk, &mut need) };
+                // Light below `dark` passes on unattenuated (`occlusion::combined::DARK`).
+                need.retain(|&x| occ_row[x as usize] >= self.dark);
             }
             let (mut lo, mut hi) = (i32::MAX, i32::MIN);
             let cells_here = if rowwise { 0 } else { cw };
@@ -694,14 +713,16 @@ impl Sweep<'_> {
                 };
                 let slots = (c - c0) * KB + j0;
                 o[slots..slots + parts].fill(occl);
+                // Light below `dark` is not sampled: it passes on unattenuated.
+                let due = kk >= *nk && occl >= self.dark;
                 #[cfg(target_arch = "x86_64")]
-                if kk >= *nk && lanes.is_some() {
+                if due && lanes.is_some() {
                     // The sample's optical depth is taken below, eight cells at a time.
                     need.push(x as u32);
                     *leave = [occl, (1.0 - occl) * (age + d)];
                     continue;
                 }
-                let tau = if kk >= *nk {
+                let tau = if due {
                     let (tau, after) = ev.optical_depth(v, data, &self.rays[c], kk, self.samples);
                     let tau = tau.map(|t| t * self.path);
                     *nk = after;
