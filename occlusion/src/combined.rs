@@ -293,15 +293,20 @@ pub fn step_theta(theta_deg: f64, step: u32, cone: bool) -> f64 {
 /// `O_k` on unchanged, to its stored parts and as the light leaving it (`raycast::light`,
 /// `slice_pass.wgsl::light`, where the tubes' coverage is skipped too). Deep in a dense
 /// volume most cells are that dark long before the far side: on the MNI T1 at 256^2 55% of
-/// the sweep's due samples are skipped (headsq 25%), the light pass 20-35% faster.
+/// the sweep's due cell-steps are (headsq: 25% at 1/4096, 39% at 1/256), the CPU light pass
+/// 16-49% faster at 128-512^2 (docs/benchmarks.md, "Dark light is not swept").
 ///
-/// What it may change: the light a skipped cell passes on is `O_k` instead of
-/// `O_k exp(-tau) <= O_k`, too bright by less than `DARK`; the blur averages (its weights sum
-/// to 1) and the attenuation only lowers, so no light in the buffer moves by more than `DARK`
-/// (a cell brightened past `DARK` by a neighbour's light samples again), and an eye sample's
-/// colour `c alpha O` by at most `DARK` of `c alpha`: a pixel by at most `DARK` (a quarter of
-/// a level of 255). On the MNI T1 and headsq at 128-512^2 the 8-bit images are identical with
-/// and without the skip (docs/benchmarks.md, "Dark light is not swept").
+/// What it may change, for the paper's blur: let `L'`, `O'` be the light with the skip and
+/// `L`, `O` without, and `0 <= L' - L <= e` leaving step k - 1. The blur's weights are
+/// non-negative and sum to 1, so `0 <= O'_k - O_k <= e`; a lit cell leaves
+/// `(O' - O) exp(-tau)`, within the same bound; a dark cell leaves `O'_k` against
+/// `O_k exp(-tau)`, between `O'_k - O_k >= 0` and `O'_k < DARK`. From `e = 0` at the first
+/// step: every light in the buffer is at least the full sweep's and less than `DARK` above it,
+/// and an eye sample's colour `c alpha O` at most `c alpha DARK` above: a pixel's channel less
+/// than `DARK` (a quarter of a level of 255). The cone model's blur widens with the shadow's
+/// age, which the skip changes too: there the bound is measured (`raycast`
+/// `light_below_dark_passes_on_within_dark_of_the_full_sweep`), not derived. On the MNI T1 and
+/// headsq at 128-1024^2 the 8-bit images are identical with and without the skip.
 pub const DARK: f32 = 1.0 / 1024.0;
 
 /// How much longer the head light's path through a slab is, on average over its cone, than the
