@@ -821,11 +821,26 @@ mod tests {
     #[test]
     fn the_light_pass_stops_attenuating_at_the_models_dark_light() {
         // The WGSL literal and the Rust constant the CPU sweep uses.
+        // The skip comes after a part's store (a dark cell stores its light at every part)
+        // and before its samples; the CPU sweep's agreement with the GPU pass (cli/tests/ea_cli.rs)
+        // is looser than DARK, so the shader's text is checked here.
         let dark = occlusion::combined::DARK;
         assert!(
             SHADER.contains(&format!("const DARK: f32 = {dark};"))
                 && SHADER.contains("let lit = occl >= DARK;"),
             "shaders/slice_pass.wgsl does not stop its light at {dark}"
+        );
+        let at = |s: &str| {
+            SHADER
+                .find(s)
+                .unwrap_or_else(|| panic!("no `{s}` in the shader"))
+        };
+        let store = at("light_volume[ci + cw * ch * (k * n + i)] = occl * t;");
+        let skip = at("if (!lit) {\n            continue;\n        }");
+        let sample = at("let c = volume_sample(r, 0.5 * (iv.x + iv.y), &grad);");
+        assert!(
+            store < skip && skip < sample,
+            "the light pass's skip is not between a part's store and its sample"
         );
     }
 

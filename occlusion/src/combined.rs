@@ -303,7 +303,8 @@ pub fn step_theta(theta_deg: f64, step: u32, cone: bool) -> f64 {
 /// `O_k exp(-tau)`, between `O'_k - O_k >= 0` and `O'_k < DARK`. From `e = 0` at the first
 /// step: every light in the buffer is at least the full sweep's and less than `DARK` above it,
 /// and an eye sample's colour `c alpha O` at most `c alpha DARK` above: a pixel's channel less
-/// than `DARK` (a quarter of a level of 255). The cone model's blur widens with the shadow's
+/// than `DARK` (a quarter of a level of 255; colours at most 1, and up to the f32 rounding of
+/// weights that sum to 1 only to within it). The cone model's blur widens with the shadow's
 /// age, which the skip changes too: there the bound is measured (`raycast`
 /// `light_below_dark_passes_on_within_dark_of_the_full_sweep`), not derived. On the MNI T1 and
 /// headsq at 128-1024^2 the 8-bit images are identical with and without the skip.

@@ -1257,7 +1257,8 @@ mod tests {
         // A dense blob: deep in it the light falls below DARK, where the sweep stops sampling
         // (occlusion::combined::DARK). Against the sweep that samples every cell, each stored
         // light may be brighter, by less than DARK; and the skip is taken, alike in the lanes
-        // and the scalar sweep.
+        // and the scalar sweep (where the CPU has no AVX2 and FMA both runs are the scalar
+        // sweep: `lanes_here` says so).
         let vol = blob([40, 44, 30]);
         let data = vol.select(None).unwrap().data;
         let dense = Transfer {
@@ -1273,6 +1274,8 @@ mod tests {
         let cam = Camera::orbit(vol.bounds(), 40.0, 25.0, 2.5, Some(40.0));
         let view = EaView::new(&vol, cam, 48, 40, None, None, [1.0; 3]).unwrap();
         let inv = view.camera.view_projection(48.0 / 40.0).inverse();
+        #[cfg(target_arch = "x86_64")]
+        lanes_here();
         for (step, cone) in [(1, false), (8, false), (2, true)] {
             let light = LightSettings {
                 cell: 2,
