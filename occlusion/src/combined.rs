@@ -292,9 +292,8 @@ pub fn step_theta(theta_deg: f64, step: u32, cone: bool) -> f64 {
 /// `O_k` is below `DARK` (of the unoccluded light, 1) takes no samples of its slab and passes
 /// `O_k` on unchanged, to its stored parts and as the light leaving it (`raycast::light`,
 /// `slice_pass.wgsl::light`, where the tubes' coverage is skipped too). Deep in a dense
-/// volume most cells are that dark long before the far side: on the MNI T1 at 256^2 55% of
-/// the sweep's due cell-steps are (headsq: 25% at 1/4096, 39% at 1/256), the CPU light pass
-/// 16-49% faster at 128-512^2 (docs/benchmarks.md, "Dark light is not swept").
+/// volume cells are that dark long before the far side: the MNI T1's CPU light pass is 16-49%
+/// faster at 128-512^2 (docs/benchmarks.md, "Dark light is not swept").
 ///
 /// What it may change, for the paper's blur: let `L'`, `O'` be the light with the skip and
 /// `L`, `O` without, and `0 <= L' - L <= e` leaving step k - 1. The blur's weights are
