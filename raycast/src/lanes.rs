@@ -7,7 +7,10 @@
 //! Here eight rays of a packet take their next sample together, every operation on eight
 //! lanes, the cell's corners, the skip reach, the exponential's table and the light read by
 //! gathers (masked, so lanes that are done, outside the grid or in an empty block read
-//! nothing). Each lane does exactly what [`EaVolume::advance`] does for its ray, in the same
+//! nothing). Values that sit side by side in memory come in pairs, one gather element each
+//! (a cell's corners along x, [`Gather::gather_pair`]; a light cell's two stored slices where
+//! both are in one block of [`KB`]): half the gathered elements, the same values.
+//! Each lane does exactly what [`EaVolume::advance`] does for its ray, in the same
 //! order and with the same operations (no fused multiply-adds where the scalar march has
 //! none), so the image is the scalar march's bit for bit (tested): a lane outside the grid
 //! steps one slice, a lane in an empty block steps past the cube of empty blocks around it
@@ -37,13 +40,76 @@ pub(crate) trait Gather: Copy {
     /// AVX2 is available; the masked lanes' indices lie in `data`, which holds at least four
     /// samples.
     unsafe fn gather(data: &[Self], idx: __m256i, mask: __m256) -> __m256;
+
+    /// Whether [`Gather::gather_pair`] takes its indices and mask in [`pair_order`].
+    const PAIR_ORDER: bool;
+
+    /// The samples at `idx` and `idx + 1` (as [`Gather::gather`] of each) in one gather per
+    /// pair: `idx` and `mask` in [`pair_order`] where [`Gather::PAIR_ORDER`], else in lane
+    /// order; the results in lane order.
+    ///
+    /// # Safety
+    /// As [`Gather::gather`]'s, for the masked lanes' `idx` and `idx + 1`.
+    unsafe fn gather_pair(data: &[Self], idx: __m256i, mask: __m256) -> (__m256, __m256);
+}
+
+/// The lane order the pair gathers take indices in: lanes 0, 1, 4, 5 by the first gather of
+/// four 64-bit pairs, 2, 3, 6, 7 by the second, so that one shuffle within each half of a
+/// register puts the pairs' values back in lane order (`_mm256_permutevar8x32_epi32` with
+/// this puts a vector in it; the permutation is its own inverse).
+#[inline(always)]
+pub(crate) unsafe fn pair_order() -> __m256i {
+    // SAFETY: AVX (callers are compiled for AVX2).
+    unsafe { _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7) }
+}
+
+/// The two 32-bit values of each lane pair gathered as 64-bit words at `idx` (in
+/// [`pair_order`], in units of 4 bytes from `base`), masked by `mask` (also in pair order):
+/// the first and second of each pair, in lane order.
+///
+/// # Safety
+/// AVX2; the masked lanes' 8 bytes lie in the buffer at `base`.
+#[inline(always)]
+unsafe fn gather_pairs_32(base: *const u8, idx: __m256i, mask: __m256) -> (__m256, __m256) {
+    // SAFETY: the caller's.
+    unsafe {
+        let m = _mm256_castps_si256(mask);
+        let m_lo = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(_mm256_castsi256_si128(m)));
+        let m_hi = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(_mm256_extracti128_si256::<1>(m)));
+        let base = base as *const f64;
+        let lo = _mm256_castpd_ps(_mm256_mask_i32gather_pd::<4>(
+            _mm256_setzero_pd(),
+            base,
+            _mm256_castsi256_si128(idx),
+            m_lo,
+        ));
+        let hi = _mm256_castpd_ps(_mm256_mask_i32gather_pd::<4>(
+            _mm256_setzero_pd(),
+            base,
+            _mm256_extracti128_si256::<1>(idx),
+            m_hi,
+        ));
+        // lo: the pairs of lanes 0, 1 | 4, 5; hi: of 2, 3 | 6, 7.
+        (
+            _mm256_shuffle_ps::<0b10_00_10_00>(lo, hi),
+            _mm256_shuffle_ps::<0b11_01_11_01>(lo, hi),
+        )
+    }
 }
 
 impl Gather for f32 {
+    const PAIR_ORDER: bool = true;
+
     #[inline(always)]
     unsafe fn gather(data: &[f32], idx: __m256i, mask: __m256) -> __m256 {
         // SAFETY: the caller's.
         unsafe { _mm256_mask_i32gather_ps::<4>(_mm256_setzero_ps(), data.as_ptr(), idx, mask) }
+    }
+
+    #[inline(always)]
+    unsafe fn gather_pair(data: &[f32], idx: __m256i, mask: __m256) -> (__m256, __m256) {
+        // SAFETY: the caller's: both samples of each masked lane lie in `data`.
+        unsafe { gather_pairs_32(data.as_ptr() as *const u8, idx, mask) }
     }
 }
 
@@ -76,18 +142,68 @@ unsafe fn gather_narrow<const BYTES: i32>(base: *const u8, idx: __m256i, mask: _
 }
 
 impl Gather for u16 {
+    const PAIR_ORDER: bool = false;
+
     #[inline(always)]
     unsafe fn gather(data: &[u16], idx: __m256i, mask: __m256) -> __m256 {
         // SAFETY: the caller's (at least four samples: eight bytes).
         unsafe { gather_narrow::<2>(data.as_ptr() as *const u8, idx, mask) }
     }
+
+    /// Both samples in the one 32-bit word they fill.
+    #[inline(always)]
+    unsafe fn gather_pair(data: &[u16], idx: __m256i, mask: __m256) -> (__m256, __m256) {
+        // SAFETY: the caller's: the word's four bytes are the two samples, both in `data`.
+        unsafe {
+            let word = _mm256_mask_i32gather_epi32::<2>(
+                _mm256_setzero_si256(),
+                data.as_ptr() as *const i32,
+                idx,
+                _mm256_castps_si256(mask),
+            );
+            // Little-endian: the first sample in the low half.
+            (
+                _mm256_cvtepi32_ps(_mm256_and_si256(word, _mm256_set1_epi32(0xffff))),
+                _mm256_cvtepi32_ps(_mm256_srli_epi32::<16>(word)),
+            )
+        }
+    }
 }
 
 impl Gather for u8 {
+    const PAIR_ORDER: bool = false;
+
     #[inline(always)]
     unsafe fn gather(data: &[u8], idx: __m256i, mask: __m256) -> __m256 {
         // SAFETY: the caller's (at least four samples: four bytes).
         unsafe { gather_narrow::<1>(data.as_ptr(), idx, mask) }
+    }
+
+    /// Both samples in the 32-bit word that ends with the second (or starts at the buffer's
+    /// first byte), as [`gather_narrow`] takes one.
+    #[inline(always)]
+    unsafe fn gather_pair(data: &[u8], idx: __m256i, mask: __m256) -> (__m256, __m256) {
+        // SAFETY: the caller's: the word lies in `data` (at least four bytes, the second
+        // sample in it).
+        unsafe {
+            let start = _mm256_max_epi32(
+                _mm256_sub_epi32(idx, _mm256_set1_epi32(2)),
+                _mm256_setzero_si256(),
+            );
+            let word = _mm256_mask_i32gather_epi32::<1>(
+                _mm256_setzero_si256(),
+                data.as_ptr() as *const i32,
+                start,
+                _mm256_castps_si256(mask),
+            );
+            let shift = _mm256_slli_epi32::<3>(_mm256_sub_epi32(idx, start));
+            let v = _mm256_srlv_epi32(word, shift);
+            let byte = _mm256_set1_epi32(0xff);
+            (
+                _mm256_cvtepi32_ps(_mm256_and_si256(v, byte)),
+                _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<8>(v), byte)),
+            )
+        }
     }
 }
 
@@ -102,6 +218,9 @@ pub(crate) struct Splat<'v> {
     bricks: Option<[__m256i; 3]>,
     grid: [__m256i; 3],
     corners: [i32; 8],
+    /// Each even corner's next is one sample further (x has two samples): the pairs come in
+    /// one gather each.
+    pairs: bool,
     offset: __m256,
     tf: Vec<(__m256, [__m256; 3], __m256)>,
     slopes: Vec<(__m256, [__m256; 3], __m256)>,
@@ -149,6 +268,10 @@ impl<'v> Splat<'v> {
                     [0, 1, sy, sy + 1, sz, sz + 1, sz + sy, sz + sy + 1]
                 }
                 None => vol.corner.map(|o| o as i32),
+            },
+            pairs: match vol.bricks {
+                Some(_) => true,
+                None => (0..4).all(|i| vol.corner[2 * i + 1] == vol.corner[2 * i] + 1),
             },
             offset: ps(vol.offset),
             tf: vol
@@ -293,10 +416,41 @@ impl<'v> Splat<'v> {
                     T::gather(data, _mm256_add_epi32(base, _mm256_set1_epi32($o)), occ_ps)
                 };
             }
-            let x00 = lerp!(corner!(corners[0]), corner!(corners[1]), f[0]);
-            let x10 = lerp!(corner!(corners[2]), corner!(corners[3]), f[0]);
-            let x01 = lerp!(corner!(corners[4]), corner!(corners[5]), f[0]);
-            let x11 = lerp!(corner!(corners[6]), corner!(corners[7]), f[0]);
+            let (x00, x10, x01, x11) = if self.pairs {
+                // Each pair of corners along x in one gather ([`Gather::gather_pair`]).
+                let (base, occ) = if T::PAIR_ORDER {
+                    let order = pair_order();
+                    (
+                        _mm256_permutevar8x32_epi32(base, order),
+                        _mm256_permutevar8x32_ps(occ_ps, order),
+                    )
+                } else {
+                    (base, occ_ps)
+                };
+                macro_rules! pair {
+                    ($o:expr) => {{
+                        let (a, b) = T::gather_pair(
+                            data,
+                            _mm256_add_epi32(base, _mm256_set1_epi32($o)),
+                            occ,
+                        );
+                        lerp!(a, b, f[0])
+                    }};
+                }
+                (
+                    pair!(corners[0]),
+                    pair!(corners[2]),
+                    pair!(corners[4]),
+                    pair!(corners[6]),
+                )
+            } else {
+                (
+                    lerp!(corner!(corners[0]), corner!(corners[1]), f[0]),
+                    lerp!(corner!(corners[2]), corner!(corners[3]), f[0]),
+                    lerp!(corner!(corners[4]), corner!(corners[5]), f[0]),
+                    lerp!(corner!(corners[6]), corner!(corners[7]), f[0]),
+                )
+            };
             let val = _mm256_add_ps(
                 lerp!(lerp!(x00, x10, f[1]), lerp!(x01, x11, f[1]), f[2]),
                 self.offset,
@@ -435,6 +589,9 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
         let ps = |x: f32| _mm256_set1_ps(x);
         let pi = |x: i32| _mm256_set1_epi32(x);
         let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
+        // The cells in the order the light's pair gathers take them.
+        let order = pair_order();
+        let cells_p = cells.map(|c| _mm256_permutevar8x32_epi32(c, order));
         let frac = frac.map(|f| _mm256_loadu_ps(f.as_ptr()));
         let light = lv.values().as_ptr();
         let slab = pi((lv.cells[0] * lv.cells[1] * KB) as i32);
@@ -523,11 +680,36 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
                     inv_step,
                 );
                 let a0 = at!(_mm256_min_epi32(k0, last));
-                let a1 = at!(_mm256_min_epi32(_mm256_add_epi32(k0, onei), last));
-                let v0 = lerp!(cell!(a0, 0), cell!(a1, 0), t);
-                let v1 = lerp!(cell!(a0, 1), cell!(a1, 1), t);
-                let v2 = lerp!(cell!(a0, 2), cell!(a1, 2), t);
-                let v3 = lerp!(cell!(a0, 3), cell!(a1, 3), t);
+                // Stored slices k0 and k0 + 1 of a cell are neighbours in memory unless k0 is
+                // the last of its block or of the volume: then each cell's pair comes in one
+                // 64-bit load (two gathers of four pairs instead of two of eight values; the
+                // same values, so the same light).
+                let split = _mm256_or_si256(
+                    _mm256_cmpeq_epi32(_mm256_and_si256(k0, kb_mask), kb_mask),
+                    _mm256_cmpgt_epi32(_mm256_add_epi32(k0, onei), last),
+                );
+                let (v0, v1, v2, v3);
+                if _mm256_testz_si256(split, _mm256_castps_si256(lit_ps)) != 0 {
+                    let a0p = _mm256_permutevar8x32_epi32(a0, order);
+                    let lit_p = _mm256_permutevar8x32_ps(lit_ps, order);
+                    macro_rules! pair {
+                        ($j:expr) => {{
+                            let (a, b) = gather_pairs_32(
+                                light as *const u8,
+                                _mm256_add_epi32(a0p, cells_p[$j]),
+                                lit_p,
+                            );
+                            lerp!(a, b, t)
+                        }};
+                    }
+                    (v0, v1, v2, v3) = (pair!(0), pair!(1), pair!(2), pair!(3));
+                } else {
+                    let a1 = at!(_mm256_min_epi32(_mm256_add_epi32(k0, onei), last));
+                    v0 = lerp!(cell!(a0, 0), cell!(a1, 0), t);
+                    v1 = lerp!(cell!(a0, 1), cell!(a1, 1), t);
+                    v2 = lerp!(cell!(a0, 2), cell!(a1, 2), t);
+                    v3 = lerp!(cell!(a0, 3), cell!(a1, 3), t);
+                }
                 let x0 = lerp!(v0, v1, frac[0]);
                 let x1 = lerp!(v2, v3, frac[0]);
                 lerp!(x0, x1, frac[1])
