@@ -572,73 +572,166 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
     // `reach32`, the exponential's table and the light volume (masked lanes read nothing).
     unsafe {
         debug_assert!(rays.len() <= LANES);
-        let vol = splat.vol;
-        let r = RayLanes::load(rays.iter().map(|(_, r)| r));
-        // Lit: each ray's four light cells (offsets into a block of slices) and fractions.
-        let (mut cells, mut frac) = ([[0i32; LANES]; 4], [[0f32; LANES]; 2]);
-        if LIT {
-            for (i, (_, r)) in rays.iter().enumerate() {
-                debug_assert!(!r.light.shifted, "clipped frames take the scalar march");
-                for (j, c) in r.light.cells.iter().enumerate() {
-                    cells[j][i] = *c as i32;
-                }
-                frac[0][i] = r.light.f[0];
-                frac[1][i] = r.light.f[1];
-            }
-        }
-        let ps = |x: f32| _mm256_set1_ps(x);
-        let pi = |x: i32| _mm256_set1_epi32(x);
-        let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
-        // The cells in the order the light's pair gathers take them.
-        let order = pair_order();
-        let cells_p = cells.map(|c| _mm256_permutevar8x32_epi32(c, order));
-        let frac = frac.map(|f| _mm256_loadu_ps(f.as_ptr()));
-        let light = lv.values().as_ptr();
-        let slab = pi((lv.cells[0] * lv.cells[1] * KB) as i32);
-        const { assert!(KB.is_power_of_two()) };
-        let kb_shift = _mm_cvtsi32_si128(KB.trailing_zeros() as i32);
-        // Stored light slices of `lv.step` eye slices (a power of two).
-        debug_assert!(lv.step.is_power_of_two());
-        let step_shift = _mm_cvtsi32_si128(lv.step.trailing_zeros() as i32);
-        let step_mask = pi(lv.step as i32 - 1);
-        let inv_step = ps(1.0 / lv.step as f32);
-        let last = pi(lv.slices as i32 - 1);
-        let kb_mask = pi(KB as i32 - 1);
-        let (mut kv, mut k1v) = (r.k, r.k1);
-        let zero = _mm256_setzero_ps();
-        let (one, onei) = (ps(1.0), pi(1));
-        let (mut c, mut alpha, mut acc, mut weights) = ([zero; 3], zero, zero, zero);
-        let mut half_k = pi(-1);
-        let table = vol.exp_table.as_ptr();
-        let (exp_scale, exp_n) = (ps(EXP_SCALE), ps(EXP_N as f32));
-        let (opaque, half) = (ps(OPAQUE), ps(0.5));
+        let m = Marching::new(splat, lv);
+        let mut p = Packet::load::<LIT>(rays);
         loop {
-            // k <= k1 (both below 2^30).
-            let active = _mm256_cmpgt_epi32(_mm256_add_epi32(k1v, onei), kv);
+            let active = p.active();
             if _mm256_movemask_epi8(active) == 0 {
                 break;
             }
+            p.advance::<T, LIT>(&m, data, active);
+        }
+        p.store(rays, v);
+    }
+}
+
+/// What a [`march`] reads besides its packet: the volume's constants and the light volume's.
+struct Marching<'s, 'v> {
+    splat: &'s Splat<'v>,
+    light: *const f32,
+    slab: __m256i,
+    kb_shift: __m128i,
+    kb_mask: __m256i,
+    step_shift: __m128i,
+    step_mask: __m256i,
+    inv_step: __m256,
+    last: __m256i,
+    order: __m256i,
+}
+
+impl<'s, 'v> Marching<'s, 'v> {
+    /// # Safety
+    /// The CPU has AVX2 (called from functions compiled for it).
+    #[inline(always)]
+    unsafe fn new(splat: &'s Splat<'v>, lv: &LightVolume) -> Self {
+        // SAFETY: the caller's.
+        unsafe {
+            const { assert!(KB.is_power_of_two()) };
+            // Stored light slices of `lv.step` eye slices (a power of two).
+            debug_assert!(lv.step.is_power_of_two());
+            let pi = |x: i32| _mm256_set1_epi32(x);
+            Marching {
+                splat,
+                light: lv.values().as_ptr(),
+                slab: pi((lv.cells[0] * lv.cells[1] * KB) as i32),
+                kb_shift: _mm_cvtsi32_si128(KB.trailing_zeros() as i32),
+                kb_mask: pi(KB as i32 - 1),
+                step_shift: _mm_cvtsi32_si128(lv.step.trailing_zeros() as i32),
+                step_mask: pi(lv.step as i32 - 1),
+                inv_step: _mm256_set1_ps(1.0 / lv.step as f32),
+                last: pi(lv.slices as i32 - 1),
+                order: pair_order(),
+            }
+        }
+    }
+}
+
+/// The eight rays of [`march`] (missing lanes: done from the start) and what they have
+/// gathered.
+struct Packet {
+    r: RayLanes,
+    /// Lit: each ray's four light cells (offsets into a block of slices), in lane order and in
+    /// [`pair_order`], and fractions.
+    cells: [__m256i; 4],
+    cells_p: [__m256i; 4],
+    frac: [__m256; 2],
+    kv: __m256i,
+    k1v: __m256i,
+    c: [__m256; 3],
+    alpha: __m256,
+    acc: __m256,
+    weights: __m256,
+    half_k: __m256i,
+}
+
+impl Packet {
+    /// # Safety
+    /// The CPU has AVX2 (called from functions compiled for it); at most [`LANES`] rays.
+    #[inline(always)]
+    unsafe fn load<const LIT: bool>(rays: &[(usize, Ray)]) -> Packet {
+        // SAFETY: the caller's; loads from local arrays of eight elements.
+        unsafe {
+            debug_assert!(rays.len() <= LANES);
+            let r = RayLanes::load(rays.iter().map(|(_, r)| r));
+            let (mut cells, mut frac) = ([[0i32; LANES]; 4], [[0f32; LANES]; 2]);
+            if LIT {
+                for (i, (_, r)) in rays.iter().enumerate() {
+                    debug_assert!(!r.light.shifted, "clipped frames take the scalar march");
+                    for (j, c) in r.light.cells.iter().enumerate() {
+                        cells[j][i] = *c as i32;
+                    }
+                    frac[0][i] = r.light.f[0];
+                    frac[1][i] = r.light.f[1];
+                }
+            }
+            let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
+            let zero = _mm256_setzero_ps();
+            Packet {
+                cells,
+                cells_p: cells.map(|c| _mm256_permutevar8x32_epi32(c, pair_order())),
+                frac: frac.map(|f| _mm256_loadu_ps(f.as_ptr())),
+                kv: r.k,
+                k1v: r.k1,
+                r,
+                c: [zero; 3],
+                alpha: zero,
+                acc: zero,
+                weights: zero,
+                half_k: _mm256_set1_epi32(-1),
+            }
+        }
+    }
+
+    /// The lanes still marching: k <= k1 (both below 2^30).
+    #[inline(always)]
+    unsafe fn active(&self) -> __m256i {
+        // SAFETY: called from functions compiled for AVX2.
+        unsafe { _mm256_cmpgt_epi32(_mm256_add_epi32(self.k1v, _mm256_set1_epi32(1)), self.kv) }
+    }
+
+    /// One slice of the `active` lanes, as [`EaVolume::advance`] takes it.
+    ///
+    /// # Safety
+    /// As [`march`]'s.
+    #[inline(always)]
+    unsafe fn advance<T: Gather, const LIT: bool>(
+        &mut self,
+        m: &Marching<'_, '_>,
+        data: &[T],
+        active: __m256i,
+    ) {
+        // SAFETY: the caller's; masked lanes read nothing.
+        unsafe {
+            let ps = |x: f32| _mm256_set1_ps(x);
+            let zero = _mm256_setzero_ps();
+            let (one, onei) = (ps(1.0), _mm256_set1_epi32(1));
+            let half = ps(0.5);
+            let (r, kv) = (&self.r, self.kv);
             let Step {
                 is_empty,
                 steps,
                 sampled,
                 rgb,
                 sigma,
-            } = splat.step(data, r.at(kv), r.dq, active);
+            } = m.splat.step(data, r.at(kv), r.dq, active);
             let lit = _mm256_and_ps(sampled, _mm256_cmp_ps::<_CMP_NLE_UQ>(sigma, zero));
             // 1 - exp(-sigma len), the exponential from its table (`EaVolume::exp_neg`).
-            let t = _mm256_mul_ps(_mm256_mul_ps(sigma, r.seg), exp_scale);
+            let t = _mm256_mul_ps(_mm256_mul_ps(sigma, r.seg), ps(EXP_SCALE));
             let inner = _mm256_and_ps(
                 lit,
                 _mm256_and_ps(
                     _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
-                    _mm256_cmp_ps::<_CMP_LT_OQ>(t, exp_n),
+                    _mm256_cmp_ps::<_CMP_LT_OQ>(t, ps(EXP_N as f32)),
                 ),
             );
             let ti = _mm256_cvttps_epi32(_mm256_and_ps(t, inner));
             let tf_ = _mm256_sub_ps(t, _mm256_cvtepi32_ps(ti));
-            let e0 = _mm256_mask_i32gather_ps::<4>(zero, table, ti, inner);
-            let e1 = _mm256_mask_i32gather_ps::<4>(zero, table, _mm256_add_epi32(ti, onei), inner);
+            // The table's neighbours `ti` and `ti + 1` in one gather element each.
+            let (e0, e1) = gather_pairs_32(
+                m.splat.vol.exp_table.as_ptr() as *const u8,
+                _mm256_permutevar8x32_epi32(ti, m.order),
+                _mm256_permutevar8x32_ps(inner, m.order),
+            );
             let e = _mm256_blendv_ps(
                 // Outside the table: 1 at or below 0 (and NaN), 0 beyond its end.
                 _mm256_blendv_ps(zero, one, _mm256_cmp_ps::<_CMP_NGT_UQ>(t, zero)),
@@ -646,84 +739,24 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
                 inner,
             );
             let al = _mm256_sub_ps(one, e);
-            let wgt = _mm256_mul_ps(_mm256_sub_ps(one, alpha), al);
+            let wgt = _mm256_mul_ps(_mm256_sub_ps(one, self.alpha), al);
             // The light at the sample (`LightVolume::lookup`: bilinear over the ray's four
             // cells at stored slice (k + 1/2) / step, linear between them), 1 unlit.
-            let o = if LIT {
-                let lit_ps = lit;
-                // The block and slot of step `ks` in the light volume's layout.
-                macro_rules! at {
-                    ($ks:expr) => {{
-                        let ks = $ks;
-                        _mm256_add_epi32(
-                            _mm256_mullo_epi32(_mm256_srl_epi32(ks, kb_shift), slab),
-                            _mm256_and_si256(ks, kb_mask),
-                        )
-                    }};
-                }
-                macro_rules! cell {
-                    ($at:expr, $j:expr) => {
-                        _mm256_mask_i32gather_ps::<4>(
-                            zero,
-                            light,
-                            _mm256_add_epi32($at, cells[$j]),
-                            lit_ps,
-                        )
-                    };
-                }
-                // Stored slices k0 = k / step and the next (both clamped to the last), and the
-                // fraction of the slab's middle between them ((k mod step + 1/2) / step),
-                // as `LightVolume::lookup` takes them.
-                let k0 = _mm256_srl_epi32(kv, step_shift);
-                let t = _mm256_mul_ps(
-                    _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_and_si256(kv, step_mask)), half),
-                    inv_step,
-                );
-                let a0 = at!(_mm256_min_epi32(k0, last));
-                // Stored slices k0 and k0 + 1 of a cell are neighbours in memory unless k0 is
-                // the last of its block or of the volume: then each cell's pair comes in one
-                // 64-bit load (two gathers of four pairs instead of two of eight values; the
-                // same values, so the same light).
-                let split = _mm256_or_si256(
-                    _mm256_cmpeq_epi32(_mm256_and_si256(k0, kb_mask), kb_mask),
-                    _mm256_cmpgt_epi32(_mm256_add_epi32(k0, onei), last),
-                );
-                let (v0, v1, v2, v3);
-                if _mm256_testz_si256(split, _mm256_castps_si256(lit_ps)) != 0 {
-                    let a0p = _mm256_permutevar8x32_epi32(a0, order);
-                    let lit_p = _mm256_permutevar8x32_ps(lit_ps, order);
-                    macro_rules! pair {
-                        ($j:expr) => {{
-                            let (a, b) = gather_pairs_32(
-                                light as *const u8,
-                                _mm256_add_epi32(a0p, cells_p[$j]),
-                                lit_p,
-                            );
-                            lerp!(a, b, t)
-                        }};
-                    }
-                    (v0, v1, v2, v3) = (pair!(0), pair!(1), pair!(2), pair!(3));
-                } else {
-                    let a1 = at!(_mm256_min_epi32(_mm256_add_epi32(k0, onei), last));
-                    v0 = lerp!(cell!(a0, 0), cell!(a1, 0), t);
-                    v1 = lerp!(cell!(a0, 1), cell!(a1, 1), t);
-                    v2 = lerp!(cell!(a0, 2), cell!(a1, 2), t);
-                    v3 = lerp!(cell!(a0, 3), cell!(a1, 3), t);
-                }
-                let x0 = lerp!(v0, v1, frac[0]);
-                let x1 = lerp!(v2, v3, frac[0]);
-                lerp!(x0, x1, frac[1])
-            } else {
-                one
-            };
+            let o = if LIT { self.light(m, lit) } else { one };
+            let c = &mut self.c;
             for ch in 0..3 {
                 let x = _mm256_mul_ps(_mm256_mul_ps(wgt, rgb[ch]), o);
                 c[ch] = _mm256_blendv_ps(c[ch], _mm256_add_ps(c[ch], x), lit);
             }
-            let before = alpha;
-            alpha = _mm256_blendv_ps(alpha, _mm256_add_ps(alpha, wgt), lit);
-            acc = _mm256_blendv_ps(acc, _mm256_add_ps(acc, _mm256_mul_ps(wgt, o)), lit);
-            weights = _mm256_blendv_ps(weights, _mm256_add_ps(weights, wgt), lit);
+            let before = self.alpha;
+            let alpha = _mm256_blendv_ps(before, _mm256_add_ps(before, wgt), lit);
+            self.alpha = alpha;
+            self.acc = _mm256_blendv_ps(
+                self.acc,
+                _mm256_add_ps(self.acc, _mm256_mul_ps(wgt, o)),
+                lit,
+            );
+            self.weights = _mm256_blendv_ps(self.weights, _mm256_add_ps(self.weights, wgt), lit);
             let crossed = _mm256_and_ps(
                 lit,
                 _mm256_and_ps(
@@ -731,36 +764,132 @@ pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
                     _mm256_cmp_ps::<_CMP_LT_OQ>(before, half),
                 ),
             );
-            half_k = _mm256_castps_si256(_mm256_blendv_ps(
-                _mm256_castsi256_ps(half_k),
+            self.half_k = _mm256_castps_si256(_mm256_blendv_ps(
+                _mm256_castsi256_ps(self.half_k),
                 _mm256_castsi256_ps(kv),
                 crossed,
             ));
             // Next slices: one for lanes outside the grid or sampled, past the empty cube for
             // empty ones; rays that became opaque end (k = 1 > k1 = 0).
             let step = _mm256_blendv_epi8(_mm256_and_si256(active, onei), steps, is_empty);
-            kv = _mm256_add_epi32(kv, step);
+            let kv = _mm256_add_epi32(kv, step);
             let done = _mm256_castps_si256(_mm256_and_ps(
                 lit,
-                _mm256_cmp_ps::<_CMP_GT_OQ>(alpha, opaque),
+                _mm256_cmp_ps::<_CMP_GT_OQ>(alpha, ps(OPAQUE)),
             ));
-            kv = _mm256_blendv_epi8(kv, onei, done);
-            k1v = _mm256_blendv_epi8(k1v, _mm256_setzero_si256(), done);
+            self.kv = _mm256_blendv_epi8(kv, onei, done);
+            self.k1v = _mm256_blendv_epi8(self.k1v, _mm256_setzero_si256(), done);
         }
-        let store = |x: __m256| {
-            let mut o = [0f32; LANES];
-            _mm256_storeu_ps(o.as_mut_ptr(), x);
-            o
-        };
-        let (c, alpha, acc, weights) = (c.map(store), store(alpha), store(acc), store(weights));
-        let mut hk = [0i32; LANES];
-        _mm256_storeu_si256(hk.as_mut_ptr() as *mut __m256i, half_k);
-        for (i, (_, r)) in rays.iter_mut().enumerate() {
-            r.c = [c[0][i], c[1][i], c[2][i]];
-            r.alpha = alpha[i];
-            r.acc = [acc[i], weights[i]];
-            if hk[i] >= 0 {
-                r.half = (v.z0 + (hk[i] as f64 + 0.5) * v.dz) as f32;
+    }
+
+    /// The light at the current slice's samples of the `lit` lanes (`LightVolume::lookup`).
+    ///
+    /// # Safety
+    /// As [`march`]'s.
+    #[inline(always)]
+    unsafe fn light(&self, m: &Marching<'_, '_>, lit: __m256) -> __m256 {
+        // SAFETY: the caller's; masked lanes read nothing.
+        unsafe {
+            let (zero, onei, half) = (
+                _mm256_setzero_ps(),
+                _mm256_set1_epi32(1),
+                _mm256_set1_ps(0.5),
+            );
+            let (kv, last, kb_mask) = (self.kv, m.last, m.kb_mask);
+            // The block and slot of step `ks` in the light volume's layout.
+            macro_rules! at {
+                ($ks:expr) => {{
+                    let ks = $ks;
+                    _mm256_add_epi32(
+                        _mm256_mullo_epi32(_mm256_srl_epi32(ks, m.kb_shift), m.slab),
+                        _mm256_and_si256(ks, kb_mask),
+                    )
+                }};
+            }
+            macro_rules! cell {
+                ($at:expr, $j:expr) => {
+                    _mm256_mask_i32gather_ps::<4>(
+                        zero,
+                        m.light,
+                        _mm256_add_epi32($at, self.cells[$j]),
+                        lit,
+                    )
+                };
+            }
+            // Stored slices k0 = k / step and the next (both clamped to the last), and the
+            // fraction of the slab's middle between them ((k mod step + 1/2) / step), as
+            // `LightVolume::lookup` takes them.
+            let k0 = _mm256_srl_epi32(kv, m.step_shift);
+            let t = _mm256_mul_ps(
+                _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_and_si256(kv, m.step_mask)), half),
+                m.inv_step,
+            );
+            let a0 = at!(_mm256_min_epi32(k0, last));
+            // Stored slices k0 and k0 + 1 of a cell are neighbours in memory unless k0 is the
+            // last of its block or of the volume: then each cell's pair comes in one 64-bit
+            // load (two gathers of four pairs instead of two of eight values; the same values,
+            // so the same light).
+            let split = _mm256_or_si256(
+                _mm256_cmpeq_epi32(_mm256_and_si256(k0, kb_mask), kb_mask),
+                _mm256_cmpgt_epi32(_mm256_add_epi32(k0, onei), last),
+            );
+            let (v0, v1, v2, v3);
+            if _mm256_testz_si256(split, _mm256_castps_si256(lit)) != 0 {
+                let a0p = _mm256_permutevar8x32_epi32(a0, m.order);
+                let lit_p = _mm256_permutevar8x32_ps(lit, m.order);
+                macro_rules! pair {
+                    ($j:expr) => {{
+                        let (a, b) = gather_pairs_32(
+                            m.light as *const u8,
+                            _mm256_add_epi32(a0p, self.cells_p[$j]),
+                            lit_p,
+                        );
+                        lerp!(a, b, t)
+                    }};
+                }
+                (v0, v1, v2, v3) = (pair!(0), pair!(1), pair!(2), pair!(3));
+            } else {
+                let a1 = at!(_mm256_min_epi32(_mm256_add_epi32(k0, onei), last));
+                v0 = lerp!(cell!(a0, 0), cell!(a1, 0), t);
+                v1 = lerp!(cell!(a0, 1), cell!(a1, 1), t);
+                v2 = lerp!(cell!(a0, 2), cell!(a1, 2), t);
+                v3 = lerp!(cell!(a0, 3), cell!(a1, 3), t);
+            }
+            let x0 = lerp!(v0, v1, self.frac[0]);
+            let x1 = lerp!(v2, v3, self.frac[0]);
+            lerp!(x0, x1, self.frac[1])
+        }
+    }
+
+    /// Leaves in each ray what the scalar march leaves (colour, opacity, the volumetric sums
+    /// and the half-opacity depth).
+    ///
+    /// # Safety
+    /// Called from functions compiled for AVX2.
+    #[inline(always)]
+    unsafe fn store(&self, rays: &mut [(usize, Ray)], v: &EaView) {
+        // SAFETY: stores to local arrays of eight elements.
+        unsafe {
+            let store = |x: __m256| {
+                let mut o = [0f32; LANES];
+                _mm256_storeu_ps(o.as_mut_ptr(), x);
+                o
+            };
+            let (c, alpha, acc, weights) = (
+                self.c.map(store),
+                store(self.alpha),
+                store(self.acc),
+                store(self.weights),
+            );
+            let mut hk = [0i32; LANES];
+            _mm256_storeu_si256(hk.as_mut_ptr() as *mut __m256i, self.half_k);
+            for (i, (_, r)) in rays.iter_mut().enumerate() {
+                r.c = [c[0][i], c[1][i], c[2][i]];
+                r.alpha = alpha[i];
+                r.acc = [acc[i], weights[i]];
+                if hk[i] >= 0 {
+                    r.half = (v.z0 + (hk[i] as f64 + 0.5) * v.dz) as f32;
+                }
             }
         }
     }
