@@ -511,13 +511,20 @@ impl EaVolume {
         let w = v.width as usize;
         let y0 = band * TILE;
         let nrows = rows.len() / w;
+        // Made once a band: the view's direction, the tiles' rays, the lanes' constants.
+        let forward = v.camera.forward();
+        let mut rays: Vec<(usize, Ray)> = Vec::with_capacity(TILE * TILE);
+        #[cfg(target_arch = "x86_64")]
+        let splat = (simd && MODE == 0 && self.lanes_apply(v, data, LIT.then_some(lv)))
+            // SAFETY: `simd` is set only where the CPU has AVX2 and FMA.
+            .then(|| unsafe { lanes::Splat::new(self) });
         for x0 in (0..w).step_by(TILE) {
-            let mut rays: Vec<(usize, Ray)> = Vec::with_capacity(TILE * TILE);
+            rays.clear();
             for dy in 0..nrows {
                 for x in x0..(x0 + TILE).min(w) {
                     let px = [x as f64 + 0.5, (y0 + dy) as f64 + 0.5];
                     let (o, d) = pixel_ray(&inv, v, px);
-                    let mut r = self.start(v, o, d);
+                    let mut r = self.start_along(v, forward, o, d);
                     if LIT {
                         r.light = lv.footprint(px);
                         if !v.clip.is_empty() {
@@ -530,10 +537,10 @@ impl EaVolume {
             }
             let mut live = true;
             #[cfg(target_arch = "x86_64")]
-            if simd && MODE == 0 && self.lanes_apply(v, data, LIT.then_some(lv)) {
-                // SAFETY: `simd` is set only where the CPU has AVX2 and FMA; `lanes_apply`
-                // checked the volume, the view and the light volume.
-                live = !unsafe { self.march_lanes::<T, LIT>(v, data, lv, &mut rays) };
+            if let Some(splat) = &splat {
+                // SAFETY: `splat` is made only where the CPU has AVX2 and FMA and
+                // `lanes_apply` holds for the volume, the view and the light volume.
+                live = !unsafe { self.march_lanes::<T, LIT>(splat, v, data, lv, &mut rays) };
             }
             // March together, a step of each ray a turn (neighbours stay near each other in
             // depth as long as they skip alike).
@@ -602,7 +609,12 @@ impl EaVolume {
     /// frame of the MNI T1 was setting rays up).
     #[inline(always)]
     fn start(&self, v: &EaView, o: DVec3, d: DVec3) -> Ray {
-        let f = v.camera.forward();
+        self.start_along(v, v.camera.forward(), o, d)
+    }
+
+    /// [`EaVolume::start`] with the view's direction `f = v.camera.forward()` given.
+    #[inline(always)]
+    fn start_along(&self, v: &EaView, f: DVec3, o: DVec3, d: DVec3) -> Ray {
         let cosine = d.dot(f);
         let o_depth = (o - v.camera.eye).dot(f);
         let mut r = Ray {
@@ -679,22 +691,21 @@ impl EaVolume {
     ///
     /// # Safety
     /// The CPU has AVX2 and FMA, and [`EaVolume::lanes_apply`] holds for `v`, `data` (the
-    /// volume's samples) and `lv` (the light volume swept for `v`, for a lit frame); `rays`
-    /// come from [`EaVolume::start`] for `v`.
+    /// volume's samples) and `lv` (the light volume swept for `v`, for a lit frame); `splat`
+    /// is this volume's; `rays` come from [`EaVolume::start`] for `v`.
     #[cfg(target_arch = "x86_64")]
     unsafe fn march_lanes<T: Voxel, const LIT: bool>(
         &self,
+        splat: &lanes::Splat<'_>,
         v: &EaView,
         data: &[T],
         lv: &LightVolume,
         rays: &mut [(usize, Ray)],
     ) -> bool {
         lanes::by_stored_type!(T, data, d: G => {
-            // SAFETY: the caller's.
-            let splat = unsafe { lanes::Splat::new(self) };
             for l in rays.chunks_mut(lanes::LANES) {
                 // SAFETY: the caller's.
-                unsafe { lanes::march::<G, LIT>(&splat, d, v, lv, l) };
+                unsafe { lanes::march::<G, LIT>(splat, d, v, lv, l) };
             }
             true
         }, else false)
