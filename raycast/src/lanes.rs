@@ -702,10 +702,8 @@ impl Packet {
     ) {
         // SAFETY: the caller's; masked lanes read nothing.
         unsafe {
-            let ps = |x: f32| _mm256_set1_ps(x);
             let zero = _mm256_setzero_ps();
-            let (one, onei) = (ps(1.0), _mm256_set1_epi32(1));
-            let half = ps(0.5);
+            let onei = _mm256_set1_epi32(1);
             let (r, kv) = (&self.r, self.kv);
             let Step {
                 is_empty,
@@ -715,6 +713,43 @@ impl Packet {
                 sigma,
             } = m.splat.step(data, r.at(kv), r.dq, active);
             let lit = _mm256_and_ps(sampled, _mm256_cmp_ps::<_CMP_NLE_UQ>(sigma, zero));
+            // A packet none of whose samples absorbs composites nothing (and reads no light).
+            let opaque = if _mm256_movemask_ps(lit) != 0 {
+                self.composite::<LIT>(m, lit, sigma, rgb, kv)
+            } else {
+                zero
+            };
+            // Next slices: one for lanes outside the grid or sampled, past the empty cube for
+            // empty ones; rays that became opaque end (k = 1 > k1 = 0).
+            let step = _mm256_blendv_epi8(_mm256_and_si256(active, onei), steps, is_empty);
+            let kv = _mm256_add_epi32(kv, step);
+            let done = _mm256_castps_si256(opaque);
+            self.kv = _mm256_blendv_epi8(kv, onei, done);
+            self.k1v = _mm256_blendv_epi8(self.k1v, _mm256_setzero_si256(), done);
+        }
+    }
+
+    /// Composites the samples of the `lit` lanes (colour `rgb`, extinction `sigma`) at slice
+    /// `kv`, as [`EaVolume::advance`] does; the lanes that became opaque.
+    ///
+    /// # Safety
+    /// As [`march`]'s.
+    #[inline(always)]
+    unsafe fn composite<const LIT: bool>(
+        &mut self,
+        m: &Marching<'_, '_>,
+        lit: __m256,
+        sigma: __m256,
+        rgb: [__m256; 3],
+        kv: __m256i,
+    ) -> __m256 {
+        // SAFETY: the caller's; masked lanes read nothing.
+        unsafe {
+            let ps = |x: f32| _mm256_set1_ps(x);
+            let zero = _mm256_setzero_ps();
+            let one = ps(1.0);
+            let half = ps(0.5);
+            let r = &self.r;
             // 1 - exp(-sigma len), the exponential from its table (`EaVolume::exp_neg`).
             let t = _mm256_mul_ps(_mm256_mul_ps(sigma, r.seg), ps(EXP_SCALE));
             let inner = _mm256_and_ps(
@@ -769,16 +804,7 @@ impl Packet {
                 _mm256_castsi256_ps(kv),
                 crossed,
             ));
-            // Next slices: one for lanes outside the grid or sampled, past the empty cube for
-            // empty ones; rays that became opaque end (k = 1 > k1 = 0).
-            let step = _mm256_blendv_epi8(_mm256_and_si256(active, onei), steps, is_empty);
-            let kv = _mm256_add_epi32(kv, step);
-            let done = _mm256_castps_si256(_mm256_and_ps(
-                lit,
-                _mm256_cmp_ps::<_CMP_GT_OQ>(alpha, ps(OPAQUE)),
-            ));
-            self.kv = _mm256_blendv_epi8(kv, onei, done);
-            self.k1v = _mm256_blendv_epi8(self.k1v, _mm256_setzero_si256(), done);
+            _mm256_and_ps(lit, _mm256_cmp_ps::<_CMP_GT_OQ>(alpha, ps(OPAQUE)))
         }
     }
 
