@@ -339,10 +339,12 @@ impl<'v> Splat<'v> {
             let is_empty =
                 _mm256_andnot_si256(_mm256_cmpeq_epi32(d, _mm256_setzero_si256()), inside_i);
             let occupied = _mm256_andnot_si256(is_empty, inside_i);
-            // Empty lanes: the slices to the first past the empty cube of blocks around them.
+            // Empty lanes: the slices to the first past the empty cube of blocks around them
+            // (the other lanes' counts are never read: none where no lane is empty).
             let mut steps = _mm256_set1_ps((1 << 20) as f32);
             let skip = _mm256_set1_epi32(SKIP as i32);
-            for a in 0..3 {
+            let any_empty = _mm256_testz_si256(is_empty, is_empty) == 0;
+            for a in (0..3).filter(|_| any_empty) {
                 let dqa = dq[a];
                 let moving = _mm256_cmp_ps::<_CMP_GE_OQ>(
                     _mm256_andnot_ps(_mm256_set1_ps(-0.0), dqa),
@@ -370,6 +372,17 @@ impl<'v> Splat<'v> {
                 steps = _mm256_blendv_ps(steps, _mm256_min_ps(steps, n), moving);
             }
             let steps = _mm256_max_epi32(_mm256_cvttps_epi32(steps), onei);
+            let occ_ps = _mm256_castsi256_ps(occupied);
+            if _mm256_testz_si256(occupied, occupied) != 0 {
+                // No lane samples: nothing to gather.
+                return Step {
+                    is_empty,
+                    steps,
+                    sampled: zero,
+                    rgb: [zero; 3],
+                    sigma: zero,
+                };
+            }
             // Occupied lanes: the trilinear sample.
             let f: [__m256; 3] =
                 std::array::from_fn(|a| _mm256_sub_ps(q[a], _mm256_cvtepi32_ps(cell[a])));
@@ -409,7 +422,6 @@ impl<'v> Splat<'v> {
                     ),
                 )
             };
-            let occ_ps = _mm256_castsi256_ps(occupied);
             let corners = self.corners;
             macro_rules! corner {
                 ($o:expr) => {
