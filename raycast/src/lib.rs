@@ -142,18 +142,25 @@ impl EaVolume {
     }
 
     /// A volume reading the packed samples `data` of `vol` (as `emission_absorption::prepare`
-    /// leaves them: gaps below -1e30): where a copy of them in `f32` bricks would take at most
-    /// [`COPY_AT_MOST`] bytes the volume keeps one, which frames read fastest (the narrow
-    /// types cost 4-9% a frame, the grid's layout 20-35%); larger volumes are read where they
-    /// are, shared and not copied, in their stored type and the grid's layout - rendering
-    /// then holds no more than the model's samples.
+    /// leaves them: gaps below -1e30): where a copy of them in bricks, in their own packing
+    /// (`u8`, `u16` or `f32`), would take at most [`COPY_AT_MOST`] bytes the volume keeps one,
+    /// which frames read fastest (the grid's layout costs 20-35% a frame; since a cell's
+    /// corners along x come in one gather element, `u8` bricks are read faster than `f32`
+    /// ones: docs/benchmarks.md); larger volumes are read where they are, shared and not
+    /// copied, in their stored type and the grid's layout - rendering then holds no more
+    /// than the model's samples.
     pub fn shared(
         vol: &volume::Volume,
         data: Arc<Samples>,
         tf: &Transfer,
     ) -> Result<EaVolume, String> {
-        let bricks = data.len() as f64 * 4.0 * (APRON as f64 / BRICK as f64).powi(3);
-        let copy = (bricks <= COPY_AT_MOST as f64).then_some(Packing::F32);
+        let bytes = match data.packing() {
+            Packing::U8 { .. } => 1.0,
+            Packing::U16 { .. } => 2.0,
+            Packing::F32 => 4.0,
+        };
+        let bricks = data.len() as f64 * bytes * (APRON as f64 / BRICK as f64).powi(3);
+        let copy = (bricks <= COPY_AT_MOST as f64).then_some(data.packing());
         EaVolume::build(vol, data, tf, copy)
     }
 
@@ -989,8 +996,9 @@ fn reach_of(occ: &[u32], nb: [usize; 3]) -> Vec<u8> {
 /// Bytes of `f32` samples beyond which integer data is kept in `u8` or `u16`.
 pub const NARROW_ABOVE: usize = 256 << 20;
 
-/// The largest copy of a shared volume's samples in `f32` bricks [`EaVolume::shared`] makes
-/// (the MNI T1 template's is 50 MB; a 256^3 volume's would be 95 MB).
+/// The largest copy of a shared volume's samples in bricks [`EaVolume::shared`] makes (the
+/// MNI T1 template's is 12 MB in `u8`, 50 MB in `f32`; a 256^3 volume's in `f32` would be 95
+/// MB).
 pub const COPY_AT_MOST: usize = 64 << 20;
 
 /// Samples per brick edge in memory: a brick of `BRICK^3` cells with its far faces, so that
@@ -1781,7 +1789,7 @@ mod tests {
     }
 
     #[test]
-    fn shared_samples_in_their_stored_type_render_as_a_copy_in_f32_bricks() {
+    fn shared_samples_in_their_stored_type_render_as_a_copy_in_bricks() {
         // A CT-like int16 volume: integers from -1024 (air) up, packed as u16 above -1024.
         let dims = [29, 23, 19];
         let blob = blob(dims);
@@ -1813,9 +1821,11 @@ mod tests {
         assert_eq!(copy.storage(), "f32");
         assert!(copy.bricks.is_some());
         let small = EaVolume::shared(&vol, packed.clone(), &tf).unwrap();
-        assert!(
-            small.bricks.is_some(),
-            "small volumes are copied to f32 bricks"
+        assert!(small.bricks.is_some(), "small volumes are copied to bricks");
+        assert_eq!(
+            small.storage(),
+            "u16",
+            "the copy keeps the samples' packing"
         );
         let cam = Camera::orbit(vol.bounds(), 25.0, 35.0, 2.0, Some(45.0));
         let view = EaView::new(&vol, cam, 32, 24, None, None, [1.0; 3]).unwrap();
@@ -1848,6 +1858,14 @@ mod tests {
             copy.render_projection(&view, Extremum::Max).image,
         );
         assert!(diff(&a, &b) < 1e-5, "mip: {}", diff(&a, &b));
+        // The bricked copy in u16 as the f32 copy, lit or not.
+        for light in [None, Some(&light)] {
+            let (a, b) = (
+                small.render_frame(&view, light).image,
+                copy.render_frame(&view, light).image,
+            );
+            assert!(diff(&a, &b) < 1e-5, "u16 bricks: {}", diff(&a, &b));
+        }
         let twin = reference(&data, &vol, &tf, &view);
         let worst = shared
             .render(&view)
