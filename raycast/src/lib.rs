@@ -281,9 +281,11 @@ impl EaVolume {
 
     /// How the samples are stored: `u8`, `u16` (data whose every value is an integer in
     /// their range, e.g. a uint8 MRI: 4 or 2 times less memory, the same values) or `f32`.
-    /// Measured (`examples/storage.rs`, MNI T1 and headsq at 512^2): the narrow types cost
-    /// 5-8% more time a frame (the conversion to float per corner), so they are used only
-    /// where the memory matters.
+    /// Measured once one corner took a gather element (`examples/storage.rs`, MNI T1 and
+    /// headsq at 512^2): the narrow types cost 5-8% more time a frame (the conversion to
+    /// float per corner); since a cell's corners along x share one, `u8` bricks of the MNI T1
+    /// draw 8-20% faster than `f32` ones (docs/benchmarks.md, "Packets with nothing to do"),
+    /// so [`EaVolume::shared`] keeps the samples' own type.
     pub fn storage(&self) -> &'static str {
         match self.data.packing() {
             Packing::U8 { .. } => "u8",
