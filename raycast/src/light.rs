@@ -149,7 +149,10 @@ impl LightVolume {
     }
 
     /// The four cells around pixel position `px` (centres at half-integers of cells, clamped
-    /// at the border) and the bilinear fractions, as `light_at` in the shader.
+    /// at the border) and the bilinear fractions, as `light_at` in the shader. Inlined into
+    /// the march's setup, compiled for AVX2 where the CPU has it (its `floor` an instruction,
+    /// not a call into libm).
+    #[inline(always)]
     pub(crate) fn footprint(&self, px: [f64; 2]) -> Footprint {
         let s = self.cell as f64;
         let c = [px[0] / s - 0.5, px[1] / s - 0.5];
@@ -189,6 +192,7 @@ impl EaVolume {
     /// [`EaVolume::start`], but where a step's middle lies behind the ray's origin (a camera
     /// inside the grid) its last parts may not, so the ray starts a step earlier, its parts
     /// behind the origin unsampled ([`EaVolume::optical_depth`]).
+    #[inline(always)]
     pub(crate) fn light_start(
         &self,
         v: &EaView,
@@ -201,6 +205,27 @@ impl EaVolume {
             r.k -= 1;
         }
         r
+    }
+
+    /// The ray of the cell centred at pixel position `px` ([`EaVolume::light_start`]).
+    #[inline(always)]
+    fn light_ray(&self, v: &EaView, inv: &glam::DMat4, px: [f64; 2], samples: u32) -> Ray {
+        let (o, d) = crate::pixel_ray(inv, v, px);
+        self.light_start(v, o, d, samples)
+    }
+
+    /// [`EaVolume::light_ray`] compiled for AVX2 and FMA (the ray's `floor` and `ceil` are
+    /// instructions there, calls into libm otherwise; the arithmetic is the same).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn light_ray_fma(
+        &self,
+        v: &EaView,
+        inv: &glam::DMat4,
+        px: [f64; 2],
+        samples: u32,
+    ) -> Ray {
+        self.light_ray(v, inv, px, samples)
     }
 
     /// Keeps `lv`'s values for the next frame's sweep (see `EaVolume::light_store`).
@@ -272,6 +297,8 @@ impl EaVolume {
             o,
         };
         // The cells' centre rays, as the pixels' (a continuous pixel position).
+        #[cfg(target_arch = "x86_64")]
+        let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
         let rays: Vec<Ray> = (0..n)
             .into_par_iter()
             .map(|c| {
@@ -279,8 +306,12 @@ impl EaVolume {
                     ((c % cells[0]) as f64 + 0.5) * cell as f64,
                     ((c / cells[0]) as f64 + 0.5) * cell as f64,
                 ];
-                let (o, d) = crate::pixel_ray(&inv, v, px);
-                self.light_start(v, o, d, samples as u32)
+                #[cfg(target_arch = "x86_64")]
+                if fma {
+                    // SAFETY: the CPU has AVX2 and FMA (checked above).
+                    return unsafe { self.light_ray_fma(v, &inv, px, samples as u32) };
+                }
+                self.light_ray(v, &inv, px, samples as u32)
             })
             .collect();
         let blur = blur_rows(v, cell as u32, theta_deg);
