@@ -44,7 +44,7 @@ pub(crate) trait Gather: Copy {
     /// Whether [`Gather::gather_pair`] takes its indices and mask in [`pair_order`].
     const PAIR_ORDER: bool;
 
-    /// The samples at `idx` and `idx + 1` (as [`Gather::gather`] of each) in one gather per
+    /// The samples at `idx` and `idx + 1` (as [`Gather::gather`] of each), one gather element a
     /// pair: `idx` and `mask` in [`pair_order`] where [`Gather::PAIR_ORDER`], else in lane
     /// order; the results in lane order.
     ///

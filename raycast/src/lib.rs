@@ -10,8 +10,9 @@
 //! where the ray is inside the grid are solved for once; empty blocks of 4^3 cells
 //! (`occlusion::emission_absorption::occupancy_of`) are stepped over whole, to the first
 //! slice past the block, instead of sample by sample; rays end when the opacity passes `OPAQUE`
-//! (as the shader); the samples are read where the model keeps them, in their stored type
-//! (`volume::samples`: `u8`/`u16` plus an offset, or `f32`; shared, not copied); rays
+//! (as the shader); the samples are read in their stored type (`volume::samples`:
+//! `u8`/`u16` plus an offset, or `f32`), from a copy in bricks of that type where it is small
+//! ([`EaVolume::shared`]), else where the model keeps them (shared, not copied); rays
 //! march in packets of 4 x 4; the transfer function is evaluated exactly (piecewise linear,
 //! not a table) and the exponential from a table (within 8e-6); bands of rows run on rayon's
 //! threads, compiled for AVX2 and FMA where the CPU has them, where the `ea` march (unlit, or
@@ -68,7 +69,8 @@ pub(crate) fn pixel_ray(inv: &DMat4, v: &EaView, px: [f64; 2]) -> (DVec3, DVec3)
 /// its empty-space blocks and its transfer function.
 pub struct EaVolume {
     dims: [usize; 3],
-    /// The samples, x fastest (shared with the model that holds them).
+    /// The samples: in bricks (`bricks` `Some`: a copy in the samples' own type), or x
+    /// fastest (`None`: shared with the model that holds them).
     data: Arc<Samples>,
     /// What is added to a stored sample to give its value (`Packing::offset`).
     offset: f32,
@@ -201,8 +203,10 @@ impl EaVolume {
         let (data, bricks) = match bricked_as {
             Some(packing) => {
                 let bricks = vol.dims.map(|d| d.saturating_sub(1).max(1).div_ceil(BRICK));
-                let b = bricked(&data.to_f32(), vol.dims, bricks, |v| v);
-                (Arc::new(Samples::pack_as(b, packing)), Some(bricks))
+                (
+                    Arc::new(bricks_of(&data, vol.dims, bricks, packing)),
+                    Some(bricks),
+                )
             }
             None => (data, None),
         };
@@ -1018,8 +1022,49 @@ fn bricked<T: Voxel>(
     bricks: [usize; 3],
     to: impl Fn(f32) -> T + Sync,
 ) -> Vec<T> {
+    let mut out = vec![to(0.0); APRON.pow(3) * bricks.iter().product::<usize>()];
+    bricked_into(data, dims, bricks, &mut out, to);
+    out
+}
+
+/// The samples `data` (as [`EaVolume::shared`] holds them) copied to bricks in `packing`,
+/// straight from their stored type where it is the packing's (no `f32` copy on the way: a
+/// narrow copy's peak is its own size), else through their values.
+fn bricks_of(data: &Samples, dims: [usize; 3], bricks: [usize; 3], packing: Packing) -> Samples {
+    let n = APRON.pow(3) * bricks.iter().product::<usize>();
+    let o = packing.offset();
+    match (data.view(), packing) {
+        (View::F32(d), Packing::F32) => Samples::f32(bricked(d, dims, bricks, |v| v)),
+        (View::U8(d, _), Packing::U8 { .. }) if data.packing() == packing => {
+            Samples::from_fill(n, packing, |b: &mut [u8]| {
+                bricked_into(d, dims, bricks, b, |v| v)
+            })
+        }
+        (View::U16(d, _), Packing::U16 { .. }) if data.packing() == packing => {
+            Samples::from_fill(n, packing, |h: &mut [u16]| {
+                bricked_into(d, dims, bricks, h, |v| v)
+            })
+        }
+        (View::F32(d), Packing::U8 { .. }) => Samples::from_fill(n, packing, |b: &mut [u8]| {
+            bricked_into(d, dims, bricks, b, |v| (v - o) as u8)
+        }),
+        (View::F32(d), Packing::U16 { .. }) => Samples::from_fill(n, packing, |h: &mut [u16]| {
+            bricked_into(d, dims, bricks, h, |v| (v - o) as u16)
+        }),
+        _ => Samples::pack_as(bricked(&data.to_f32(), dims, bricks, |v| v), packing),
+    }
+}
+
+/// [`bricked`] into `out` (`APRON^3` samples a brick), from samples of any stored type.
+fn bricked_into<S: Copy + Sync, T: Copy + Send>(
+    data: &[S],
+    dims: [usize; 3],
+    bricks: [usize; 3],
+    out: &mut [T],
+    to: impl Fn(S) -> T + Sync,
+) {
     let n = APRON.pow(3);
-    let mut out = vec![to(0.0); n * bricks.iter().product::<usize>()];
+    debug_assert_eq!(out.len(), n * bricks.iter().product::<usize>());
     out.par_chunks_mut(n).enumerate().for_each(|(b, brick)| {
         let (bx, by, bz) = (
             b % bricks[0],
@@ -1039,7 +1084,6 @@ fn bricked<T: Voxel>(
             }
         }
     });
-    out
 }
 
 /// `f32` samples in `u8` or `u16` (offset 0) where every one is an integer from 0 to 255 or
@@ -1787,6 +1831,35 @@ mod tests {
                     "cone {cone}, theta {theta_deg}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn bricks_are_copied_straight_in_the_samples_type_as_through_f32() {
+        // u8 and u16 samples with and without an offset, and f32 samples packed narrow (the
+        // `with_storage` route): the bricks equal the route through an f32 copy, word for word.
+        let dims = [19, 11, 7];
+        let n: usize = dims.iter().product();
+        let bricks = dims.map(|d: usize| d.saturating_sub(1).max(1).div_ceil(BRICK));
+        for (lo, span) in [
+            (0.0f32, 200.0f32),
+            (-128.0, 250.0),
+            (-1024.0, 3000.0),
+            (0.0, 60000.0),
+        ] {
+            let data: Vec<f32> = (0..n)
+                .map(|i| lo + ((i * 7919) % (span as usize + 1)) as f32)
+                .collect();
+            let packed = Samples::pack(data.clone());
+            assert_ne!(
+                packed.packing(),
+                Packing::F32,
+                "the test needs narrow samples"
+            );
+            let want = Samples::pack_as(bricked(&data, dims, bricks, |v| v), packed.packing());
+            assert_eq!(bricks_of(&packed, dims, bricks, packed.packing()), want);
+            let f32s = Samples::f32(data.clone());
+            assert_eq!(bricks_of(&f32s, dims, bricks, packed.packing()), want);
         }
     }
 

@@ -178,6 +178,32 @@ impl Samples {
         }
     }
 
+    /// `len` samples of `packing` written by `fill` into zeroed words, seen as the packing's
+    /// type `T` (`f32`, `u16` or `u8`: sample `i` at element `i`). For copies made straight in
+    /// a narrow type, without an `f32` copy of them first.
+    ///
+    /// # Panics
+    /// If `T` is not the packing's width (4, 2 or 1 bytes).
+    pub fn from_fill<T: bytemuck::Pod>(
+        len: usize,
+        packing: Packing,
+        fill: impl FnOnce(&mut [T]),
+    ) -> Samples {
+        assert_eq!(
+            std::mem::size_of::<T>() * packing.per_word(),
+            4,
+            "samples of {packing:?} are not {} bytes",
+            std::mem::size_of::<T>()
+        );
+        let mut words = vec![0u32; len.div_ceil(packing.per_word())];
+        fill(&mut bytemuck::cast_slice_mut::<u32, T>(&mut words)[..len]);
+        Samples {
+            words,
+            len,
+            packing,
+        }
+    }
+
     /// 8 or 16-bit integer samples as a file stores them (`ty`; `big_endian` or little), in
     /// that type: `uint8`/`uint16` as they are, `int8`/`int16` above -128/-32,768 (their sign
     /// bit flipped). `Ok(None)` for other types; an error when the memory cannot be had.
