@@ -15,7 +15,8 @@ for i in $(seq "$N"); do
     bin=$A; [ $b = B ] && bin=$B
     "$bin" render "$SCENE" -o "$OUT/$b.png" --set render.method="$M" --set render.width="$W" \
       --set render.height="$W" --set render.slice_distance="$D" --frames 9 \
-      --timings-json "$OUT/$b$i.json" > /dev/null 2>&1
+      --timings-json "$OUT/$b$i.json" > /dev/null 2> "$OUT/err" || {
+      echo "cpu_ab.sh: $bin render $SCENE failed:" >&2; cat "$OUT/err" >&2; exit 1; }
     python3 -c "import json,sys; t=json.load(open(sys.argv[1])); f=sorted(t['frames_ms']); \
 print(sys.argv[2], 'median %.1f ms' % f[len(f)//2], {k: round(v, 1) for k, v in t['passes'].items()})" \
       "$OUT/$b$i.json" $b
