@@ -1780,17 +1780,24 @@ mod tests {
         };
         let vol = Volume::new(dims, blob.affine, Space::File, field).unwrap();
         let tf = Transfer::ramp(0.1, 0.9, [1.0, 0.8, 0.6], 3.0);
-        let view = |az: f64, w: u32, h: u32, slices: Option<u32>| {
-            let cam = Camera::orbit(vol.bounds(), az, 25.0, 2.0, Some(40.0));
+        let view_at = |az: f64, dist: f64, w: u32, h: u32, slices: Option<u32>| {
+            let cam = Camera::orbit(vol.bounds(), az, 25.0, dist, Some(40.0));
             EaView::new(&vol, cam, w, h, slices, None, [1.0; 3]).unwrap()
         };
+        let view = |az: f64, w: u32, h: u32, slices: Option<u32>| view_at(az, 2.0, w, h, slices);
         // 57 slices: the last block of KB slices is partly used.
         let target = view(30.0, 40, 30, Some(57));
-        // The cone model, the paper's blur on narrow stencils (the row path) and on wide ones.
-        for (cone, theta_deg) in [(true, 30.0), (false, 30.0), (false, 80.0)] {
+        // The cone model, the paper's blur on narrow stencils (the row path) and on wide ones;
+        // steps of a slice and of eight (stored slices past a step's first, attenuated).
+        for (cone, theta_deg, step) in [
+            (true, 30.0, 1),
+            (false, 30.0, 1),
+            (false, 80.0, 1),
+            (false, 30.0, 8),
+        ] {
             let light = LightSettings {
                 cell: 2,
-                step: 1,
+                step,
                 cone,
                 theta_deg,
                 blur_samples: 3,
@@ -1800,9 +1807,19 @@ mod tests {
                 .filter(|r| r.wide)
                 .count();
             assert_eq!(wide > 0, theta_deg > 45.0, "theta {theta_deg}: {wide} wide");
+            let samples = occlusion::combined::light_samples(&target, step);
+            assert_eq!(
+                samples > 1,
+                step > 1,
+                "step {step}: {samples} samples a step"
+            );
             let fresh = EaVolume::new(&vol, &data, &tf).unwrap();
             let want = fresh.render_frame(&target, Some(&light));
             assert!(want.image.iter().any(|p| p[3] > 0.3), "an opaque part");
+            // The light volume kept (every value, read by the frame or not).
+            let kept = |ev: &EaVolume| ev.light_store.lock().unwrap().clone();
+            let want_light = kept(&fresh);
+            assert!(want_light.iter().any(|&o| o < 0.5), "a dark part");
             // The same frame whatever the threads sharing the sweep's slices.
             for threads in [1, 4] {
                 let pool = rayon::ThreadPoolBuilder::new()
@@ -1819,6 +1836,8 @@ mod tests {
             let ev = EaVolume::new(&vol, &data, &tf).unwrap();
             // Frames within twice the target's light volume (a larger one's memory is dropped).
             let others = [
+                // The target's layout, nearer.
+                view_at(30.0, 1.3, 40, 30, Some(57)),
                 view(200.0, 40, 30, Some(64)),
                 view(120.0, 48, 36, Some(80)),
                 view(300.0, 36, 26, Some(50)),
@@ -1828,7 +1847,11 @@ mod tests {
                 let got = ev.render_frame(&target, Some(&light));
                 assert!(
                     got.image == want.image && got.volumetric == want.volumetric,
-                    "cone {cone}, theta {theta_deg}"
+                    "cone {cone}, theta {theta_deg}, step {step}"
+                );
+                assert!(
+                    kept(&ev) == want_light,
+                    "light volume: cone {cone}, theta {theta_deg}, step {step}"
                 );
             }
         }
