@@ -55,6 +55,9 @@ pub struct App {
     /// and when the last frame began.
     pace: Option<Duration>,
     last_frame: Instant,
+    /// The clipping plane (an index of `scene.clip`) that ctrl + drag over the view moves,
+    /// outlined over the view.
+    pub clip_drag: Option<usize>,
 }
 
 /// What the shown image was.
@@ -80,7 +83,9 @@ impl App {
         on_first_image: Option<crate::OnFirstImage>,
     ) -> App {
         let orbit = Orbit::of(&scene.camera, bounds);
+        let clip_drag = (!scene.clip.is_empty()).then_some(0);
         App {
+            clip_drag,
             scene,
             orbit,
             initial: orbit,
@@ -302,14 +307,27 @@ impl App {
         });
     }
 
-    /// Mouse over the view and keys: orbit (left drag, arrows), pan (right or middle drag,
-    /// shift+arrows), zoom (wheel, +/-), standard views (L R A P S I), reset (Home or 0),
-    /// projection (O). Returns whether anything changed.
+    /// Mouse over the view and keys: orbit (left drag, arrows), the chosen clipping plane
+    /// moved (ctrl + left drag), pan (right or middle drag, shift+arrows), zoom (wheel, +/-),
+    /// standard views (L R A P S I), reset (Home or 0), projection (O). Returns whether
+    /// anything changed.
     fn input(&mut self, ui: &egui::Ui, response: &egui::Response) -> bool {
         let before = self.orbit;
+        let mut clip_moved = false;
         let d = response.drag_delta();
+        let ctrl = ui.input(|i| i.modifiers.ctrl || i.modifiers.command);
+        let clip = self.clip_drag.filter(|&c| c < self.scene.clip.len());
         if response.dragged_by(egui::PointerButton::Primary) {
-            self.orbit = self.orbit.drag(d.x as f64, d.y as f64);
+            match clip {
+                Some(c) if ctrl => {
+                    let per_point = self.world_per_point(response.rect.height() as f64);
+                    let p = &mut self.scene.clip[c];
+                    let n = DVec3::from(p.normal);
+                    p.offset += self.orbit.clip_drag(n, d.x as f64, d.y as f64, per_point);
+                    clip_moved = d != egui::Vec2::ZERO;
+                }
+                _ => self.orbit = self.orbit.drag(d.x as f64, d.y as f64),
+            }
         } else if response.dragged_by(egui::PointerButton::Secondary)
             || response.dragged_by(egui::PointerButton::Middle)
         {
@@ -382,7 +400,31 @@ impl App {
                 _ => self.orbit,
             };
         }
-        self.orbit != before
+        self.orbit != before || clip_moved
+    }
+
+    /// The outline of the clipping plane that ctrl + drag moves, where it cuts the scene's
+    /// bounds, over the view (`rect`) as the shown camera projects it.
+    fn clip_outline(&self, painter: &egui::Painter, rect: egui::Rect) {
+        let Some(c) = self.clip_drag.and_then(|c| self.scene.clip.get(c)) else {
+            return;
+        };
+        let pts = crate::controls::plane_outline(DVec3::from(c.normal), c.offset, self.bounds);
+        let Ok(cam) = scene::compile::camera(&self.state(), self.bounds) else {
+            return;
+        };
+        let (w, h) = (rect.width() as usize, rect.height() as usize);
+        let screen: Option<Vec<egui::Pos2>> = pts
+            .iter()
+            .map(|p| {
+                let (x, y, _) = cam.to_pixel(*p, w.max(1), h.max(1))?;
+                Some(egui::pos2(rect.left() + x as f32, rect.top() + y as f32))
+            })
+            .collect();
+        if let Some(screen) = screen.filter(|s| s.len() >= 3) {
+            let stroke = egui::Stroke::new(1.5, egui::Color32::from_rgb(250, 200, 40));
+            painter.add(egui::Shape::closed_line(screen, stroke));
+        }
     }
 
     /// Double click: the orbit turns about the point the image shows under the pointer (its
@@ -525,7 +567,7 @@ impl App {
                 .open(std::path::Path::new(self.open_path.trim()));
         }
         let centre = ((self.bounds[0] + self.bounds[1]) * 0.5).to_array();
-        changed |= crate::settings::panel(ui, &mut self.scene, centre);
+        changed |= crate::settings::panel(ui, &mut self.scene, centre, &mut self.clip_drag);
         ui.separator();
         ui.label(format!(
             "azimuth {:.1}°, elevation {:.1}°, distance {:.2}",
@@ -603,8 +645,9 @@ impl App {
         }
         ui.separator();
         ui.label(
-            "drag: orbit · right drag: pan · wheel: zoom\narrows, shift+arrows, +/-\nL R A P S I: \
-             standard views · O: projection · Home: reset",
+            "drag: orbit · right drag: pan · wheel: zoom\nctrl+drag: move the chosen clip plane\n\
+             arrows, shift+arrows, +/-\nL R A P S I: standard views · O: projection · Home: \
+             reset",
         );
         changed
     }
@@ -665,6 +708,7 @@ impl App {
                     );
                 }
                 self.triad(ui.painter(), rect);
+                self.clip_outline(ui.painter(), rect);
                 // The render follows the view's size in physical pixels.
                 let ppp = ctx.pixels_per_point();
                 let (w, h) = (

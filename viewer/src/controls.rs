@@ -116,9 +116,7 @@ impl Orbit {
 
     /// Pan by `(dx, dy)` in world units along the view's right and up axes.
     pub fn pan(self, dx: f64, dy: f64) -> Orbit {
-        let f = self.forward();
-        let right = f.cross(DVec3::Z).try_normalize().unwrap_or(DVec3::X);
-        let up = right.cross(f);
+        let (right, up) = self.axes();
         Orbit {
             target: self.target - right * dx + up * dy,
             ..self
@@ -152,6 +150,23 @@ impl Orbit {
         Orbit::of(&c, bounds)
     }
 
+    /// The view's right and up axes (unit; as [`Orbit::pan`] moves along them).
+    fn axes(&self) -> (DVec3, DVec3) {
+        let f = self.forward();
+        let right = f.cross(DVec3::Z).try_normalize().unwrap_or(DVec3::X);
+        (right, right.cross(f))
+    }
+
+    /// How much a drag of `(dx, dy)` logical points (x right, y down) changes the `offset` of
+    /// a clipping plane `normal . x <= offset` (`clip[]` of a scene, in world units): the
+    /// plane follows the pointer along its normal, the drag taken as a move on the view plane
+    /// (`per_point` world units a point, right and up as the view's) and, upwards, as a push
+    /// away from the eye, so that a plane facing the camera moves too (up: further).
+    pub fn clip_drag(&self, normal: DVec3, dx: f64, dy: f64, per_point: f64) -> f64 {
+        let (right, up) = self.axes();
+        normal.dot(right * dx - up * dy - self.forward() * dy) * per_point
+    }
+
     /// Writes the orbit into a scene's camera (an orbit camera: `eye` cleared, `up` +z).
     pub fn apply(&self, c: &mut CameraSpec) {
         c.eye = None;
@@ -166,6 +181,50 @@ impl Orbit {
             ProjectionKind::Perspective
         };
     }
+}
+
+/// Where the plane `normal . x = offset` cuts the box `bounds`: the points where it crosses
+/// the box's twelve edges, in order around the plane (a polygon of three to six corners), or
+/// nothing where it misses the box or `normal` is zero. The viewer outlines the clipping plane
+/// being dragged with it.
+pub fn plane_outline(normal: DVec3, offset: f64, bounds: [DVec3; 2]) -> Vec<DVec3> {
+    let Some(n) = normal.try_normalize() else {
+        return vec![];
+    };
+    let corner = |i: usize| {
+        DVec3::new(
+            if i & 1 == 0 { bounds[0].x } else { bounds[1].x },
+            if i & 2 == 0 { bounds[0].y } else { bounds[1].y },
+            if i & 4 == 0 { bounds[0].z } else { bounds[1].z },
+        )
+    };
+    let mut pts: Vec<DVec3> = vec![];
+    for a in 0..8 {
+        for bit in [1, 2, 4] {
+            if a & bit != 0 {
+                continue;
+            }
+            let (pa, pb) = (corner(a), corner(a | bit));
+            let (da, db) = (normal.dot(pa) - offset, normal.dot(pb) - offset);
+            if (da < 0.0) != (db < 0.0) {
+                let p = pa + (pb - pa) * (da / (da - db));
+                // A plane through a corner crosses its three edges there: once.
+                let scale = (bounds[1] - bounds[0]).length().max(1e-12);
+                if pts.iter().all(|q| (*q - p).length() > 1e-9 * scale) {
+                    pts.push(p);
+                }
+            }
+        }
+    }
+    if pts.len() < 3 {
+        return vec![];
+    }
+    let c = pts.iter().sum::<DVec3>() / pts.len() as f64;
+    let u = n.any_orthonormal_vector();
+    let v = n.cross(u);
+    let angle = |p: &DVec3| (*p - c).dot(v).atan2((*p - c).dot(u));
+    pts.sort_by(|p, q| angle(p).total_cmp(&angle(q)));
+    pts
 }
 
 /// A camera path file (`umbra render --camera-path`, `scene::camera_path`) through the
@@ -259,6 +318,67 @@ mod tests {
         assert!((a.forward() + DVec3::Y).length() < 1e-12);
         assert!(o.standard(StandardView::Superior).forward().z < -0.99);
         assert!(o.standard(StandardView::Inferior).forward().z > 0.99);
+    }
+
+    #[test]
+    fn a_dragged_clip_plane_follows_the_pointer_along_its_normal() {
+        let o = Orbit::of(&CameraSpec::default(), bounds());
+        let (right, up) = o.axes();
+        let f = o.forward();
+        assert!(right.dot(f).abs() < 1e-12 && up.dot(f).abs() < 1e-12 && up.z > 0.0);
+        // A plane whose normal is the view's right moves right with a drag to the right, by
+        // the drag's length in world units, and not with a drag up or down.
+        assert!((o.clip_drag(right, 30.0, 0.0, 0.5) - 15.0).abs() < 1e-9);
+        assert!(o.clip_drag(right, 0.0, 40.0, 0.5).abs() < 1e-9);
+        // Facing up: a drag up (negative y) raises it; facing away from the eye: a drag up
+        // pushes it further.
+        assert!((o.clip_drag(up, 0.0, -20.0, 0.5) - 10.0).abs() < 1e-9);
+        assert!((o.clip_drag(f, 0.0, -20.0, 0.5) - 10.0).abs() < 1e-9);
+        assert!((o.clip_drag(-f, 0.0, -20.0, 0.5) + 10.0).abs() < 1e-9);
+        // An unnormalised normal keeps `normal . x <= offset` moving by the same distance.
+        assert!((o.clip_drag(right * 2.0, 30.0, 0.0, 0.5) - 30.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_plane_cuts_the_box_in_a_polygon_around_its_normal() {
+        let b = bounds();
+        let centre = (b[0] + b[1]) * 0.5;
+        let on_box = |p: DVec3| {
+            let inside = (0..3).all(|a| p[a] >= b[0][a] - 1e-9 && p[a] <= b[1][a] + 1e-9);
+            let face =
+                (0..3).any(|a| (p[a] - b[0][a]).abs() < 1e-9 || (p[a] - b[1][a]).abs() < 1e-9);
+            inside && face
+        };
+        for (n, corners) in [
+            (DVec3::X, 4),
+            (DVec3::new(0.0, 1.0, 1.0), 4),
+            (DVec3::new(1.0, 1.0, 1.0), 6),
+            // Through two of the box's edges: their corners once each.
+            (DVec3::new(1.0, 1.0, 0.0), 4),
+        ] {
+            let offset = n.dot(centre);
+            let poly = plane_outline(n, offset, b);
+            assert_eq!(poly.len(), corners, "{n}");
+            for (i, p) in poly.iter().enumerate() {
+                assert!((n.dot(*p) - offset).abs() < 1e-9 && on_box(*p), "{n}: {p}");
+                // In order: each turn about the normal has the same sense (a convex polygon,
+                // no crossing sides).
+                let (q, r) = (poly[(i + 1) % poly.len()], poly[(i + 2) % poly.len()]);
+                assert!((q - *p).cross(r - q).dot(n) > 0.0, "{n}: corner {i}");
+            }
+        }
+        // An axis plane through the box cuts it in its cross-section.
+        let x = plane_outline(DVec3::X, 5.0, b);
+        let area: f64 = (0..x.len())
+            .map(|i| x[i].cross(x[(i + 1) % x.len()]).dot(DVec3::X) * 0.5)
+            .sum();
+        assert!((area.abs() - 40.0 * 40.0).abs() < 1e-6, "{area}");
+        // Outside the box, or without a direction: nothing.
+        assert!(plane_outline(DVec3::X, 31.0, b).is_empty());
+        assert!(plane_outline(DVec3::ZERO, 0.0, b).is_empty());
+        // Touching the box at a corner only (where three edges meet the plane): nothing.
+        let n = DVec3::ONE;
+        assert!(plane_outline(n, n.dot(b[1]), b).is_empty());
     }
 
     #[test]

@@ -153,8 +153,14 @@ fn number<T: egui::emath::Numeric>(
     .inner
 }
 
-/// The panel; true when the scene changed. New clip planes pass through `centre`.
-pub fn panel(ui: &mut egui::Ui, s: &mut Scene, centre: [f64; 3]) -> bool {
+/// The panel; true when the scene changed. New clip planes pass through `centre`;
+/// `dragged` is the clip plane that ctrl + drag over the view moves (a new plane's, at first).
+pub fn panel(
+    ui: &mut egui::Ui,
+    s: &mut Scene,
+    centre: [f64; 3],
+    dragged: &mut Option<usize>,
+) -> bool {
     let before = (
         s.render.clone(),
         s.light.clone(),
@@ -320,7 +326,9 @@ pub fn panel(ui: &mut egui::Ui, s: &mut Scene, centre: [f64; 3]) -> bool {
                 ui.label("background");
             });
         });
+    // (A fixed id: the count in the title would close the section as a plane is added.)
     egui::CollapsingHeader::new(format!("clip planes ({})", s.clip.len()))
+        .id_salt("clip planes")
         .default_open(false)
         .show(ui, |ui| {
             let mut remove = None;
@@ -343,9 +351,19 @@ pub fn panel(ui: &mut egui::Ui, s: &mut Scene, centre: [f64; 3]) -> bool {
                         remove = Some(i);
                     }
                 });
+                ui.radio_value(
+                    dragged,
+                    Some(i),
+                    format!("clip[{i}]: ctrl+drag in the view"),
+                );
             }
             if let Some(i) = remove {
                 s.clip.remove(i);
+                *dragged = match *dragged {
+                    Some(d) if d == i => None,
+                    Some(d) if d > i => Some(d - 1),
+                    d => d,
+                };
             }
             if s.clip.len() < occlusion::emission_absorption::MAX_CLIP
                 && ui.button("add clip plane").clicked()
@@ -355,6 +373,7 @@ pub fn panel(ui: &mut egui::Ui, s: &mut Scene, centre: [f64; 3]) -> bool {
                     offset: centre[0],
                     volume_only: false,
                 });
+                *dragged = Some(s.clip.len() - 1);
             }
         });
     // A plane needs a direction: a normal dragged to zero becomes +x again.

@@ -378,3 +378,99 @@ fn a_paced_window_stops_waiting_for_a_request_the_worker_failed() {
     assert!(h.state().shown_level().is_none());
     assert!(req_rx.try_recv().is_err(), "no request was made again");
 }
+
+/// Ctrl + drag over the view moves the chosen clipping plane along its normal (a plane facing
+/// the view's right follows a drag to the right by the drag's length in world units), a plain
+/// drag still orbits, and a plane added in the panel becomes the one dragged.
+#[test]
+fn ctrl_drag_moves_the_chosen_clip_plane_along_its_normal() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = test_support::headsq_scene(
+        dir.path(),
+        "background = [1.0, 1.0, 1.0]\n[[clip]]\nnormal = [1.0, 0.0, 0.0]\noffset = 100.0\n",
+        "bone",
+        "method = \"ea\"\nfxaa = false\n",
+    );
+    let (w, h_points) = (900.0, 800.0);
+    let mut h = window(&path, [w, h_points], WithEditor::No);
+    h.run_steps(3);
+    assert_eq!(
+        h.state().clip_drag,
+        Some(0),
+        "a scene's first plane is the one dragged"
+    );
+    // Look along +y: the view's right is +x, the plane's normal.
+    h.state_mut().orbit.azimuth = 0.0;
+    h.state_mut().orbit.elevation = 0.0;
+    let o = h.state().orbit;
+    let b = scene::compile::model(&h.state().scene).unwrap().bounds;
+    let radius = (b[1] - b[0]).length() * 0.5;
+    // World units a point at the target's depth, the view as tall as the window.
+    let fov = h.state().scene.camera.fov_y.to_radians();
+    let per_point = 2.0 * o.distance * radius * (fov * 0.5).tan() / h_points as f64;
+    let drag = |h: &mut Harness<'static, App>, ctrl: bool, dx: f32| {
+        let m = if ctrl {
+            egui::Modifiers::CTRL
+        } else {
+            egui::Modifiers::NONE
+        };
+        h.event(egui::Event::ModifiersChanged(m));
+        h.run_steps(1);
+        h.drag_at(egui::pos2(500.0, 300.0));
+        h.run_steps(1);
+        for i in 1..=4 {
+            h.hover_at(egui::pos2(500.0 + dx * i as f32 / 4.0, 300.0));
+            h.run_steps(1);
+        }
+        h.drop_at(egui::pos2(500.0 + dx, 300.0));
+        h.run_steps(1);
+        h.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+        h.run_steps(1);
+    };
+    drag(&mut h, true, 100.0);
+    let moved = h.state().scene.clip[0].offset - 100.0;
+    let want = 100.0 * per_point;
+    assert!(
+        (moved - want).abs() < 0.03 * want,
+        "offset moved {moved}, {want} wanted"
+    );
+    assert_eq!(
+        h.state().orbit,
+        o,
+        "a ctrl + drag moves the plane, not the camera"
+    );
+    // The renderer is asked for the moved plane.
+    assert_eq!(h.state().state().clip[0].offset, 100.0 + moved);
+    // A plain drag orbits and leaves the plane.
+    drag(&mut h, false, 100.0);
+    assert!((h.state().orbit.azimuth - (o.azimuth - 40.0)).abs() < 1.0);
+    assert_eq!(h.state().scene.clip[0].offset, 100.0 + moved);
+    // A second plane from the panel is the one dragged now; the first stays.
+    h.get_by_label("clip planes (1)").click();
+    h.run_steps(2);
+    h.get_by_label("add clip plane").click();
+    h.run_steps(2);
+    assert_eq!(h.state().clip_drag, Some(1));
+    let before = h.state().scene.clip[1].offset;
+    drag(&mut h, true, -60.0);
+    assert_eq!(h.state().scene.clip[0].offset, 100.0 + moved);
+    assert!(h.state().scene.clip[1].offset != before);
+    // The section stays open as a plane is added; its radio button picks the first again.
+    h.get_by_label("clip[0]: ctrl+drag in the view").click();
+    h.run_steps(2);
+    assert_eq!(h.state().clip_drag, Some(0));
+    // Removing a plane before the dragged one keeps dragging that plane (now the first);
+    // removing the dragged plane drags none.
+    h.get_by_label("clip[1]: ctrl+drag in the view").click();
+    h.run_steps(2);
+    let second = h.state().scene.clip[1].offset;
+    h.query_all_by_label("remove").next().unwrap().click();
+    h.run_steps(2);
+    assert_eq!(h.state().scene.clip.len(), 1);
+    assert_eq!(h.state().scene.clip[0].offset, second);
+    assert_eq!(h.state().clip_drag, Some(0));
+    h.get_by_label("remove").click();
+    h.run_steps(2);
+    assert!(h.state().scene.clip.is_empty());
+    assert_eq!(h.state().clip_drag, None);
+}
