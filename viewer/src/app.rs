@@ -308,7 +308,7 @@ impl App {
     }
 
     /// Mouse over the view and keys: orbit (left drag, arrows), the chosen clipping plane
-    /// moved (ctrl + left drag), pan (right or middle drag, shift+arrows), zoom (wheel, +/-),
+    /// moved (ctrl + left drag) or tilted (ctrl + shift + left drag), pan (right or middle drag, shift+arrows), zoom (wheel, +/-),
     /// standard views (L R A P S I), reset (Home or 0), projection (O). Returns whether
     /// anything changed.
     fn input(&mut self, ui: &egui::Ui, response: &egui::Response) -> bool {
@@ -318,7 +318,20 @@ impl App {
         let ctrl = ui.input(|i| i.modifiers.ctrl || i.modifiers.command);
         let clip = self.clip_drag.filter(|&c| c < self.scene.clip.len());
         if response.dragged_by(egui::PointerButton::Primary) {
+            let shift = ui.input(|i| i.modifiers.shift);
             match clip {
+                Some(c) if ctrl && shift => {
+                    let p = &mut self.scene.clip[c];
+                    let (n, offset) = self.orbit.clip_tilt(
+                        DVec3::from(p.normal),
+                        p.offset,
+                        d.x as f64,
+                        d.y as f64,
+                        self.orbit.target,
+                    );
+                    (p.normal, p.offset) = (n.to_array(), offset);
+                    clip_moved = d != egui::Vec2::ZERO;
+                }
                 Some(c) if ctrl => {
                     let per_point = self.world_per_point(response.rect.height() as f64);
                     let p = &mut self.scene.clip[c];
@@ -645,7 +658,7 @@ impl App {
         }
         ui.separator();
         ui.label(
-            "drag: orbit · right drag: pan · wheel: zoom\nctrl+drag: move the chosen clip plane\n\
+            "drag: orbit · right drag: pan · wheel: zoom\nctrl+drag: move the chosen clip plane, +shift: tilt it\n\
              arrows, shift+arrows, +/-\nL R A P S I: standard views · O: projection · Home: \
              reset",
         );

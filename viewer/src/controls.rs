@@ -167,6 +167,30 @@ impl Orbit {
         normal.dot(right * dx - up * dy - self.forward() * dy) * per_point
     }
 
+    /// A clipping plane `normal . x <= offset` tilted by a drag of `(dx, dy)` logical points:
+    /// its normal turned [`DEGREES_PER_PIXEL`] a point about the view's up axis (across) and
+    /// right axis (down), the plane turned about `pivot` (it keeps its distance from it: a
+    /// plane through the pivot turns in place; a drag in steps ends where one drag of their
+    /// sum does); the normal keeps its length. Returns the new normal and offset.
+    pub fn clip_tilt(
+        &self,
+        normal: DVec3,
+        offset: f64,
+        dx: f64,
+        dy: f64,
+        pivot: DVec3,
+    ) -> (DVec3, f64) {
+        let len = normal.length();
+        if len == 0.0 {
+            return (normal, offset);
+        }
+        let (right, up) = self.axes();
+        let turn = glam::DQuat::from_axis_angle(up, (dx * DEGREES_PER_PIXEL).to_radians())
+            * glam::DQuat::from_axis_angle(right, (dy * DEGREES_PER_PIXEL).to_radians());
+        let turned = turn * normal;
+        (turned, offset + (turned - normal).dot(pivot))
+    }
+
     /// Writes the orbit into a scene's camera (an orbit camera: `eye` cleared, `up` +z).
     pub fn apply(&self, c: &mut CameraSpec) {
         c.eye = None;
@@ -337,6 +361,51 @@ mod tests {
         assert!((o.clip_drag(-f, 0.0, -20.0, 0.5) + 10.0).abs() < 1e-9);
         // An unnormalised normal keeps `normal . x <= offset` moving by the same distance.
         assert!((o.clip_drag(right * 2.0, 30.0, 0.0, 0.5) - 30.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_tilted_clip_plane_turns_about_the_pivot() {
+        let o = Orbit::of(&CameraSpec::default(), bounds());
+        let (right, up) = o.axes();
+        let pivot = DVec3::new(3.0, -4.0, 12.0);
+        // A plane facing the view's right, 5 units past the pivot.
+        let normal = right * 2.0;
+        let offset = normal.dot(pivot) + 2.0 * 5.0;
+        let distance = |n: DVec3, off: f64| (off - n.dot(pivot)) / n.length();
+        // 225 points across: 90 degrees about the view's up axis.
+        let (n, off) = o.clip_tilt(normal, offset, 225.0, 0.0, pivot);
+        assert!(
+            (n.length() - 2.0).abs() < 1e-9,
+            "the normal keeps its length"
+        );
+        assert!(
+            (n.normalize().dot(right)).abs() < 1e-9,
+            "turned a right angle: {n}"
+        );
+        assert!(n.normalize().dot(up).abs() < 1e-9, "about the up axis: {n}");
+        assert!(
+            (distance(n, off) - 5.0).abs() < 1e-9,
+            "5 units from the pivot still"
+        );
+        // In steps: where one drag of their sum ends.
+        let mut step = (normal, offset);
+        for _ in 0..5 {
+            step = o.clip_tilt(step.0, step.1, 45.0, 0.0, pivot);
+        }
+        assert!((step.0 - n).length() < 1e-9 && (step.1 - off).abs() < 1e-9);
+        // Down turns it about the right axis: a plane facing up tips towards the view.
+        let (n2, _) = o.clip_tilt(up, up.dot(pivot), 0.0, 225.0, pivot);
+        assert!(
+            n2.dot(right).abs() < 1e-9 && n2.dot(up).abs() < 1e-9,
+            "{n2}"
+        );
+        // No drag, no change; no direction, no change.
+        let (n3, off3) = o.clip_tilt(normal, offset, 0.0, 0.0, pivot);
+        assert!((n3 - normal).length() < 1e-12 && (off3 - offset).abs() < 1e-9);
+        assert_eq!(
+            o.clip_tilt(DVec3::ZERO, 1.0, 10.0, 0.0, pivot),
+            (DVec3::ZERO, 1.0)
+        );
     }
 
     #[test]

@@ -408,12 +408,7 @@ fn ctrl_drag_moves_the_chosen_clip_plane_along_its_normal() {
     // World units a point at the target's depth, the view as tall as the window.
     let fov = h.state().scene.camera.fov_y.to_radians();
     let per_point = 2.0 * o.distance * radius * (fov * 0.5).tan() / h_points as f64;
-    let drag = |h: &mut Harness<'static, App>, ctrl: bool, dx: f32| {
-        let m = if ctrl {
-            egui::Modifiers::CTRL
-        } else {
-            egui::Modifiers::NONE
-        };
+    let drag = |h: &mut Harness<'static, App>, m: egui::Modifiers, dx: f32| {
         h.event(egui::Event::ModifiersChanged(m));
         h.run_steps(1);
         h.drag_at(egui::pos2(500.0, 300.0));
@@ -427,7 +422,7 @@ fn ctrl_drag_moves_the_chosen_clip_plane_along_its_normal() {
         h.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
         h.run_steps(1);
     };
-    drag(&mut h, true, 100.0);
+    drag(&mut h, egui::Modifiers::CTRL, 100.0);
     let moved = h.state().scene.clip[0].offset - 100.0;
     let want = 100.0 * per_point;
     assert!(
@@ -442,9 +437,24 @@ fn ctrl_drag_moves_the_chosen_clip_plane_along_its_normal() {
     // The renderer is asked for the moved plane.
     assert_eq!(h.state().state().clip[0].offset, 100.0 + moved);
     // A plain drag orbits and leaves the plane.
-    drag(&mut h, false, 100.0);
+    drag(&mut h, egui::Modifiers::NONE, 100.0);
     assert!((h.state().orbit.azimuth - (o.azimuth - 40.0)).abs() < 1.0);
     assert_eq!(h.state().scene.clip[0].offset, 100.0 + moved);
+    // Ctrl + shift + drag tilts it: 50 points across turn its normal 20 degrees about the
+    // view's up axis, the plane keeping its distance from the camera's target.
+    let target = h.state().orbit.target;
+    let n0 = glam::DVec3::from(h.state().scene.clip[0].normal);
+    let gap = h.state().scene.clip[0].offset - n0.dot(target);
+    drag(&mut h, egui::Modifiers::CTRL | egui::Modifiers::SHIFT, 50.0);
+    let c = &h.state().scene.clip[0];
+    let n1 = glam::DVec3::from(c.normal);
+    let turned = n0.angle_between(n1).to_degrees();
+    assert!((turned - 20.0).abs() < 0.5, "turned {turned} degrees");
+    assert!(
+        (c.offset - n1.dot(target) - gap).abs() < 1e-6,
+        "as far from the target"
+    );
+    let tilted = c.clone();
     // A second plane from the panel is the one dragged now; the first stays.
     h.get_by_label("clip planes (1)").click();
     h.run_steps(2);
@@ -452,8 +462,8 @@ fn ctrl_drag_moves_the_chosen_clip_plane_along_its_normal() {
     h.run_steps(2);
     assert_eq!(h.state().clip_drag, Some(1));
     let before = h.state().scene.clip[1].offset;
-    drag(&mut h, true, -60.0);
-    assert_eq!(h.state().scene.clip[0].offset, 100.0 + moved);
+    drag(&mut h, egui::Modifiers::CTRL, -60.0);
+    assert_eq!(h.state().scene.clip[0], tilted);
     assert!(h.state().scene.clip[1].offset != before);
     // The section stays open as a plane is added; its radio button picks the first again.
     h.get_by_label("clip[0]: ctrl+drag in the view").click();

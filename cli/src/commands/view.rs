@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 
 /// Open a scene in a window: drag to orbit, right-drag to pan, wheel to zoom, ctrl+drag to
-/// move the clip plane chosen in the panel (outlined in yellow) along its normal; arrows
+/// move the clip plane chosen in the panel (outlined in yellow) along its normal and
+/// ctrl+shift+drag to tilt it about the camera's target; arrows
 /// (orbit) and shift+arrows (pan), + and - (zoom), L R A P S I (standard views of RAS data:
 /// from the left, right, front, back, top, bottom), O (orthographic/perspective), Home or 0
 /// (reset). A draft (a quarter of the resolution, ea, at most 128 slices, fewer slices and
