@@ -534,18 +534,31 @@ impl EaVolume {
         for x0 in (0..w).step_by(TILE) {
             rays.clear();
             for dy in 0..nrows {
-                for x in x0..(x0 + TILE).min(w) {
-                    let px = [x as f64 + 0.5, (y0 + dy) as f64 + 0.5];
-                    let (o, d) = pixel_ray(&inv, v, px);
-                    let mut r = self.start_along(v, forward, o, d);
-                    if LIT {
+                let y = (y0 + dy) as f64 + 0.5;
+                let first = rays.len();
+                // A row of four pixels' rays at once where the CPU has AVX2 and FMA.
+                #[cfg(target_arch = "x86_64")]
+                if simd && x0 + TILE <= w {
+                    const { assert!(TILE == 4) };
+                    let xs = [0.5, 1.5, 2.5, 3.5].map(|i| x0 as f64 + i);
+                    // SAFETY: `simd` is set only where the CPU has AVX2 and FMA.
+                    unsafe { self.rays4(v, &inv, forward, xs, y, &mut rays, x0 + w * dy) };
+                }
+                if rays.len() == first {
+                    for x in x0..(x0 + TILE).min(w) {
+                        let (o, d) = pixel_ray(&inv, v, [x as f64 + 0.5, y]);
+                        rays.push((x + w * dy, self.start_along(v, forward, o, d)));
+                    }
+                }
+                if LIT {
+                    for (i, r) in rays[first..].iter_mut() {
+                        let px = [(*i % w) as f64 + 0.5, y];
                         r.light = lv.footprint(px);
                         if !v.clip.is_empty() {
-                            let entry = occlusion::emission_absorption::clip_entry(v, o, d);
+                            let entry = occlusion::emission_absorption::clip_entry(v, r.o, r.d);
                             lv.clip_shifts(&mut r.light, px, v, entry, |p| pixel_ray(&inv, v, p));
                         }
                     }
-                    rays.push((x + w * dy, r));
                 }
             }
             let mut live = true;
@@ -682,6 +695,236 @@ impl EaVolume {
         r.seg = (v.dz / cosine) as f32;
         (r.k, r.k1) = (k0 as u32, k1 as u32);
         r
+    }
+
+    /// The rays of four pixels of a row, `(xs[i], y)` (continuous positions), as
+    /// [`pixel_ray`] and [`EaVolume::start_along`] give them, bit for bit: the same operations
+    /// in the same order (glam's: a matrix times a vector column by column, a dot product
+    /// left to right, no fused multiply-adds), each on four pixels at once in AVX lanes of
+    /// f64, pushed to `out` with indices `at..at + 4`. A lane the scalar setup would leave
+    /// early (a direction not into the slices, an axis the ray runs along, values that are not
+    /// finite) is set up by the scalar code. (No closures: they would be compiled without
+    /// AVX, each intrinsic a call.)
+    ///
+    /// # Safety
+    /// The CPU has AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn rays4(
+        &self,
+        v: &EaView,
+        inv: &DMat4,
+        f: DVec3,
+        xs: [f64; 4],
+        y: f64,
+        out: &mut Vec<(usize, Ray)>,
+        at: usize,
+    ) {
+        use std::arch::x86_64::*;
+        macro_rules! s {
+            ($x:expr) => {
+                _mm256_set1_pd($x)
+            };
+        }
+        macro_rules! add {
+            ($a:expr, $b:expr) => {
+                _mm256_add_pd($a, $b)
+            };
+        }
+        macro_rules! mul {
+            ($a:expr, $b:expr) => {
+                _mm256_mul_pd($a, $b)
+            };
+        }
+        macro_rules! sub {
+            ($a:expr, $b:expr) => {
+                _mm256_sub_pd($a, $b)
+            };
+        }
+        macro_rules! div {
+            ($a:expr, $b:expr) => {
+                _mm256_div_pd($a, $b)
+            };
+        }
+        // `m` (four columns) times `(x, y, z, w)` per lane, component `c`, as glam's
+        // `DMat4 * DVec4`: ((X x + Y y) + Z z) + W w.
+        macro_rules! mat4 {
+            ($m:expr, $c:expr, $x:expr, $y:expr, $z:expr) => {
+                add!(
+                    add!(
+                        add!(mul!(s!($m[0][$c]), $x), mul!(s!($m[1][$c]), $y)),
+                        mul!(s!($m[2][$c]), $z)
+                    ),
+                    mul!(s!($m[3][$c]), s!(1.0))
+                )
+            };
+        }
+        // `u . w`, left to right.
+        macro_rules! dot3 {
+            ($u:expr, $w:expr) => {
+                add!(
+                    add!(mul!($u[0], s!($w[0])), mul!($u[1], s!($w[1]))),
+                    mul!($u[2], s!($w[2]))
+                )
+            };
+        }
+        macro_rules! lanes {
+            ($x:expr) => {{
+                let mut o = [0f64; 4];
+                // SAFETY: four f64 written to an array of four.
+                unsafe { _mm256_storeu_pd(o.as_mut_ptr(), $x) };
+                o
+            }};
+        }
+        if v.slices == 0 {
+            for (i, &x) in xs.iter().enumerate() {
+                let (o, d) = pixel_ray(inv, v, [x, y]);
+                out.push((at + i, self.start_along(v, f, o, d)));
+            }
+            return;
+        }
+        // pixel_ray.
+        // SAFETY: four f64 read from an array of four.
+        let px = unsafe { _mm256_loadu_pd(xs.as_ptr()) };
+        let ndc_x = sub!(div!(mul!(s!(2.0), px), s!(v.width as f64)), s!(1.0));
+        let ndc_y = s!(1.0 - 2.0 * y / v.height as f64);
+        let cols = [inv.x_axis, inv.y_axis, inv.z_axis, inv.w_axis];
+        let p0 = [
+            mat4!(cols, 0, ndc_x, ndc_y, s!(0.0)),
+            mat4!(cols, 1, ndc_x, ndc_y, s!(0.0)),
+            mat4!(cols, 2, ndc_x, ndc_y, s!(0.0)),
+            mat4!(cols, 3, ndc_x, ndc_y, s!(0.0)),
+        ];
+        let p1 = [
+            mat4!(cols, 0, ndc_x, ndc_y, s!(1.0)),
+            mat4!(cols, 1, ndc_x, ndc_y, s!(1.0)),
+            mat4!(cols, 2, ndc_x, ndc_y, s!(1.0)),
+            mat4!(cols, 3, ndc_x, ndc_y, s!(1.0)),
+        ];
+        let a = [div!(p0[0], p0[3]), div!(p0[1], p0[3]), div!(p0[2], p0[3])];
+        let b = [div!(p1[0], p1[3]), div!(p1[1], p1[3]), div!(p1[2], p1[3])];
+        let dd = [sub!(b[0], a[0]), sub!(b[1], a[1]), sub!(b[2], a[2])];
+        let len2 = add!(
+            add!(mul!(dd[0], dd[0]), mul!(dd[1], dd[1])),
+            mul!(dd[2], dd[2])
+        );
+        let recip = div!(s!(1.0), _mm256_sqrt_pd(len2));
+        let d = [mul!(dd[0], recip), mul!(dd[1], recip), mul!(dd[2], recip)];
+        // start_along.
+        let fa = f.to_array();
+        let cosine = dot3!(d, fa);
+        let eye = v.camera.eye;
+        let oe = [
+            sub!(a[0], s!(eye.x)),
+            sub!(a[1], s!(eye.y)),
+            sub!(a[2], s!(eye.z)),
+        ];
+        let o_depth = dot3!(oe, fa);
+        let s0 = div!(sub!(s!(v.z0 + 0.5 * v.dz), o_depth), cosine);
+        let w2i = self.world_to_index;
+        let m = [w2i.x_axis, w2i.y_axis, w2i.z_axis, w2i.w_axis];
+        let p = [
+            add!(a[0], mul!(d[0], s0)),
+            add!(a[1], mul!(d[1], s0)),
+            add!(a[2], mul!(d[2], s0)),
+        ];
+        let qa = [
+            mat4!(m, 0, p[0], p[1], p[2]),
+            mat4!(m, 1, p[0], p[1], p[2]),
+            mat4!(m, 2, p[0], p[1], p[2]),
+        ];
+        let t = div!(s!(v.dz), cosine);
+        let e = [mul!(d[0], t), mul!(d[1], t), mul!(d[2], t)];
+        // `DMat3::from_mat4(m) * e`: ((X x + Y y) + Z z).
+        let dq = [
+            add!(
+                add!(mul!(s!(m[0][0]), e[0]), mul!(s!(m[1][0]), e[1])),
+                mul!(s!(m[2][0]), e[2])
+            ),
+            add!(
+                add!(mul!(s!(m[0][1]), e[0]), mul!(s!(m[1][1]), e[1])),
+                mul!(s!(m[2][1]), e[2])
+            ),
+            add!(
+                add!(mul!(s!(m[0][2]), e[0]), mul!(s!(m[1][2]), e[1])),
+                mul!(s!(m[2][2]), e[2])
+            ),
+        ];
+        let front_f = sub!(div!(sub!(o_depth, s!(v.z0)), s!(v.dz)), s!(0.5));
+        let front = _mm256_max_pd(_mm256_round_pd::<_MM_FROUND_TO_POS_INF>(front_f), s!(0.0));
+        let hi = self.hi();
+        let (mut k0, mut k1) = (front, s!(v.slices as f64 - 1.0));
+        let sign = s!(-0.0);
+        let inf = s!(f64::INFINITY);
+        // Lanes the scalar code takes: not into the slices (or NaN), along an axis, not finite.
+        let mut odd = _mm256_cmp_pd::<_CMP_NGT_UQ>(cosine, s!(1e-9));
+        odd = _mm256_or_pd(
+            odd,
+            _mm256_cmp_pd::<_CMP_NLT_UQ>(_mm256_andnot_pd(sign, front_f), inf),
+        );
+        for c in 0..3 {
+            let (qc, dc) = (qa[c], dq[c]);
+            odd = _mm256_or_pd(
+                odd,
+                _mm256_cmp_pd::<_CMP_LT_OQ>(_mm256_andnot_pd(sign, dc), s!(1e-12)),
+            );
+            let e0 = div!(_mm256_xor_pd(qc, sign), dc);
+            let e1 = div!(sub!(s!(hi[c] as f64), qc), dc);
+            odd = _mm256_or_pd(
+                odd,
+                _mm256_cmp_pd::<_CMP_NLT_UQ>(_mm256_andnot_pd(sign, e0), inf),
+            );
+            odd = _mm256_or_pd(
+                odd,
+                _mm256_cmp_pd::<_CMP_NLT_UQ>(_mm256_andnot_pd(sign, e1), inf),
+            );
+            let lo = _mm256_round_pd::<_MM_FROUND_TO_NEG_INF>(_mm256_min_pd(e0, e1));
+            let up = _mm256_round_pd::<_MM_FROUND_TO_POS_INF>(_mm256_max_pd(e0, e1));
+            k0 = _mm256_max_pd(k0, sub!(lo, s!(1.0)));
+            k1 = _mm256_min_pd(k1, add!(up, s!(1.0)));
+        }
+        k0 = _mm256_max_pd(k0, front);
+        let odd = _mm256_movemask_pd(odd);
+        let (ax, ay, az) = (lanes!(a[0]), lanes!(a[1]), lanes!(a[2]));
+        let (dx, dy, dz) = (lanes!(d[0]), lanes!(d[1]), lanes!(d[2]));
+        let (cosine, o_depth, front_f) = (lanes!(cosine), lanes!(o_depth), lanes!(front_f));
+        let (qx, qy, qz) = (lanes!(qa[0]), lanes!(qa[1]), lanes!(qa[2]));
+        let (ex, ey, ez) = (lanes!(dq[0]), lanes!(dq[1]), lanes!(dq[2]));
+        let (k0, k1) = (lanes!(k0), lanes!(k1));
+        for i in 0..4 {
+            if odd & (1 << i) != 0 {
+                let (o, d) = pixel_ray(inv, v, [xs[i], y]);
+                out.push((at + i, self.start_along(v, f, o, d)));
+                continue;
+            }
+            let mut r = Ray {
+                o: DVec3::new(ax[i], ay[i], az[i]),
+                d: DVec3::new(dx[i], dy[i], dz[i]),
+                cosine: cosine[i],
+                o_depth: o_depth[i],
+                qa: [0.0; 3],
+                dq: [0.0; 3],
+                seg: 0.0,
+                k: 1,
+                k1: 0,
+                front: front_f[i] as f32,
+                c: [0.0; 3],
+                alpha: 0.0,
+                light: Footprint::default(),
+                acc: [0.0; 2],
+                half: 0.0,
+                m: 0.0,
+                found: false,
+            };
+            if k1[i] >= k0[i] {
+                r.qa = [qx[i] as f32, qy[i] as f32, qz[i] as f32];
+                r.dq = [ex[i] as f32, ey[i] as f32, ez[i] as f32];
+                r.seg = (v.dz / cosine[i]) as f32;
+                (r.k, r.k1) = (k0[i] as u32, k1[i] as u32);
+            }
+            out.push((at + i, r));
+        }
     }
 
     /// Whether `lanes` can march this volume's `data` in view `v` (with the light volume `lv`
@@ -1270,6 +1513,95 @@ mod tests {
             eprintln!("no AVX2/FMA on this CPU: both marches are the scalar one");
         }
         here
+    }
+
+    /// Four pixels' rays at once (`EaVolume::rays4`) are the scalar setup's, field for field
+    /// and bit for bit: perspective and orthographic views from several sides, a camera
+    /// inside the grid, views along an axis (rays parallel to two of them: the scalar code's
+    /// lanes) and pixels off the grid (empty rays), at sub-pixel positions.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn four_rays_at_once_are_the_scalar_rays_bit_for_bit() {
+        if !lanes_here() {
+            return;
+        }
+        let vol = blob([40, 44, 30]);
+        let data = vol.select(None).unwrap().data;
+        let ev = EaVolume::new(&vol, &data, &tf()).unwrap();
+        let b = vol.bounds();
+        let centre = (b[0] + b[1]) * 0.5;
+        let mut cams = vec![];
+        for (az, el, dist) in [(30.0, 20.0, 2.5), (-150.0, -35.0, 1.6), (90.0, 0.0, 3.0)] {
+            cams.push(Camera::orbit(b, az, el, dist, Some(40.0)));
+            cams.push(Camera::orbit(b, az, el, dist, None));
+        }
+        // Straight down an axis (orthographic: every ray parallel to x and y), and a camera
+        // inside the grid.
+        cams.push(Camera::orbit(b, 0.0, 89.9999999, 2.0, None));
+        cams.push(Camera::orbit(b, 0.0, 0.0, 2.0, None));
+        let inside = Camera::look_at(
+            centre + DVec3::new(1.0, -2.0, 0.5),
+            centre + DVec3::new(20.0, 3.0, 1.0),
+            DVec3::Z,
+            occlusion::camera::Projection::Perspective { fov_y_deg: 60.0 },
+            b,
+        )
+        .unwrap();
+        cams.push(inside);
+        let (mut odd, mut empty, mut full) = (0, 0, 0);
+        for cam in cams {
+            let (w, h) = (37u32, 29u32);
+            let view = EaView::new(&vol, cam, w, h, None, None, [1.0; 3]).unwrap();
+            let inv = view.camera.view_projection(w as f64 / h as f64).inverse();
+            let f = view.camera.forward();
+            for py in 0..h {
+                for x0 in (0..w - 4).step_by(3) {
+                    let y = py as f64 + 0.37;
+                    let xs =
+                        std::array::from_fn(|i| (x0 as usize + i) as f64 + 0.5 + 0.1 * i as f64);
+                    let mut four = vec![];
+                    // SAFETY: the CPU has AVX2 and FMA (checked above).
+                    unsafe { ev.rays4(&view, &inv, f, xs, y, &mut four, 7) };
+                    assert_eq!(
+                        four.iter().map(|(i, _)| *i).collect::<Vec<_>>(),
+                        [7, 8, 9, 10]
+                    );
+                    for ((_, r), &x) in four.iter().zip(&xs) {
+                        let (o, d) = pixel_ray(&inv, &view, [x, y]);
+                        let want = ev.start_along(&view, f, o, d);
+                        let bits = |r: &Ray| {
+                            let mut v: Vec<u64> = [r.o, r.d]
+                                .iter()
+                                .flat_map(|p| p.to_array())
+                                .chain([r.cosine, r.o_depth])
+                                .map(f64::to_bits)
+                                .collect();
+                            v.extend(
+                                r.qa.iter()
+                                    .chain(&r.dq)
+                                    .chain([&r.seg, &r.front])
+                                    .map(|x| x.to_bits() as u64),
+                            );
+                            v.extend([r.k as u64, r.k1 as u64]);
+                            v
+                        };
+                        assert_eq!(bits(r), bits(&want), "pixel ({x}, {y})");
+                        if r.k > r.k1 {
+                            empty += 1;
+                        } else {
+                            full += 1;
+                        }
+                        if r.dq.iter().any(|q| q.abs() < 1e-6) {
+                            odd += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            empty > 100 && full > 1000 && odd > 100,
+            "{empty} {full} {odd}"
+        );
     }
 
     /// The frame of `view` with the lanes and with the scalar march, asserted equal bit for
