@@ -1,5 +1,5 @@
-//! The `ea` march - unlit, or lit by the light volume of `dos`/`combined` - with eight rays in
-//! the lanes of AVX2 registers.
+//! The `ea` march - unlit, or lit by the light volume of `dos`/`combined` - and the
+//! projections' with eight rays in the lanes of AVX2 registers.
 //!
 //! [`EaVolume::advance`] takes one sample of one ray at a time: about 20 cycles a sample
 //! (`perf annotate` on headsq: the trilinear sample, the transfer function's walk, the
@@ -17,12 +17,13 @@
 //! ([`crate::Ray::past_block`]), a lane in an occupied block samples and composites.
 //!
 //! The light volume's sweep takes its cells' optical depths the same way, eight cells at a
-//! time ([`optical_depths`], the same per-slice step).
+//! time ([`optical_depths`], the same per-slice step), and the projections their extremes
+//! ([`march_extreme`], the same sampling without the transfer function).
 //!
-//! Used where the scalar march would use the same model without extras: `ea` and the eye
-//! march of `dos`/`combined` (not the projections), no clipping planes, samples in any stored
-//! type, bricked or in the grid's layout ([`EaVolume::lanes_apply`]), on CPUs with AVX2 and
-//! FMA.
+//! Used where the scalar march would use the same model without extras: `ea`, the eye
+//! march of `dos`/`combined` and the projections `mip`/`minip`, no clipping planes, samples
+//! in any stored type, bricked or in the grid's layout ([`EaVolume::lanes_apply`]), on CPUs
+//! with AVX2 and FMA.
 
 use crate::light::{LightVolume, KB};
 use crate::{EaVolume, Ray, APRON, EXP_N, EXP_SCALE, SKIP};
@@ -237,6 +238,16 @@ struct Step {
     sigma: __m256,
 }
 
+/// What [`Splat::sample`] finds: the empty lanes and their slices to skip (as [`Step`]), the
+/// occupied lanes, and the trilinear sample without the samples' offset (`any`: of some lane).
+struct Found {
+    is_empty: __m256i,
+    steps: __m256i,
+    occupied: __m256,
+    raw: __m256,
+    any: bool,
+}
+
 // (Macros, not closures, so that every intrinsic is compiled with the calling function's
 // target features.)
 macro_rules! lerp {
@@ -290,20 +301,21 @@ impl<'v> Splat<'v> {
     /// Slice samples `q` (index space) of the `active` lanes, as `EaVolume::advance` and
     /// `EaVolume::optical_depth` take them: outside the grid nothing; in an empty skip block
     /// the slices past the empty cube of blocks around it (`Ray::past_block`, at least 1,
-    /// capped far beyond any slice count); else the trilinear sample (a gap below -1e30 is
-    /// not sampled) through the transfer function.
+    /// capped far beyond any slice count); else the trilinear sample, without the samples'
+    /// offset - in occupied blocks, and in empty ones too `WITH_EMPTY` (a projection's ray
+    /// ends at a sample there, unless a gap) - ([`Found`]).
     ///
     /// # Safety
     /// As [`march`]'s; called only from functions compiled for AVX2 and FMA (inlined into
     /// them, so its intrinsics are compiled with their features).
     #[inline(always)]
-    unsafe fn step<T: Gather>(
+    unsafe fn sample<T: Gather, const WITH_EMPTY: bool>(
         &self,
         data: &[T],
         q: [__m256; 3],
         dq: [__m256; 3],
         active: __m256i,
-    ) -> Step {
+    ) -> Found {
         // SAFETY: the caller's; masked lanes read nothing.
         unsafe {
             let vol = self.vol;
@@ -373,17 +385,18 @@ impl<'v> Splat<'v> {
             }
             let steps = _mm256_max_epi32(_mm256_cvttps_epi32(steps), onei);
             let occ_ps = _mm256_castsi256_ps(occupied);
-            if _mm256_testz_si256(occupied, occupied) != 0 {
+            let mask = if WITH_EMPTY { inside } else { occ_ps };
+            if _mm256_testz_ps(mask, mask) != 0 {
                 // No lane samples: nothing to gather.
-                return Step {
+                return Found {
                     is_empty,
                     steps,
-                    sampled: zero,
-                    rgb: [zero; 3],
-                    sigma: zero,
+                    occupied: zero,
+                    raw: zero,
+                    any: false,
                 };
             }
-            // Occupied lanes: the trilinear sample.
+            // The lanes of `mask`: the trilinear sample.
             let f: [__m256; 3] =
                 std::array::from_fn(|a| _mm256_sub_ps(q[a], _mm256_cvtepi32_ps(cell[a])));
             // The cell's first corner: in its brick, or in the grid's own layout.
@@ -425,7 +438,7 @@ impl<'v> Splat<'v> {
             let corners = self.corners;
             macro_rules! corner {
                 ($o:expr) => {
-                    T::gather(data, _mm256_add_epi32(base, _mm256_set1_epi32($o)), occ_ps)
+                    T::gather(data, _mm256_add_epi32(base, _mm256_set1_epi32($o)), mask)
                 };
             }
             let (x00, x10, x01, x11) = if self.pairs {
@@ -434,10 +447,10 @@ impl<'v> Splat<'v> {
                     let order = pair_order();
                     (
                         _mm256_permutevar8x32_epi32(base, order),
-                        _mm256_permutevar8x32_ps(occ_ps, order),
+                        _mm256_permutevar8x32_ps(mask, order),
                     )
                 } else {
-                    (base, occ_ps)
+                    (base, mask)
                 };
                 macro_rules! pair {
                     ($o:expr) => {{
@@ -463,10 +476,51 @@ impl<'v> Splat<'v> {
                     lerp!(corner!(corners[6]), corner!(corners[7]), f[0]),
                 )
             };
-            let val = _mm256_add_ps(
-                lerp!(lerp!(x00, x10, f[1]), lerp!(x01, x11, f[1]), f[2]),
-                self.offset,
-            );
+            Found {
+                is_empty,
+                steps,
+                occupied: occ_ps,
+                raw: lerp!(lerp!(x00, x10, f[1]), lerp!(x01, x11, f[1]), f[2]),
+                any: true,
+            }
+        }
+    }
+
+    /// [`Splat::sample`] in occupied blocks through the transfer function (a gap below -1e30
+    /// is not sampled).
+    ///
+    /// # Safety
+    /// As [`Splat::sample`]'s.
+    #[inline(always)]
+    unsafe fn step<T: Gather>(
+        &self,
+        data: &[T],
+        q: [__m256; 3],
+        dq: [__m256; 3],
+        active: __m256i,
+    ) -> Step {
+        // SAFETY: the caller's; masked lanes read nothing.
+        unsafe {
+            let zero = _mm256_setzero_ps();
+            let Found {
+                is_empty,
+                steps,
+                occupied: occ_ps,
+                raw,
+                any,
+                ..
+            } = self.sample::<T, false>(data, q, dq, active);
+            if !any {
+                return Step {
+                    is_empty,
+                    steps,
+                    sampled: zero,
+                    rgb: [zero; 3],
+                    sigma: zero,
+                };
+            }
+            let val = _mm256_add_ps(raw, self.offset);
+
             // Gaps (below -1e30) are not sampled.
             let sampled = _mm256_andnot_ps(
                 _mm256_cmp_ps::<_CMP_LT_OQ>(val, _mm256_set1_ps(-1e30)),
@@ -929,6 +983,83 @@ impl Packet {
                     r.half = (v.z0 + (hk[i] as f64 + 0.5) * v.dz) as f32;
                 }
             }
+        }
+    }
+}
+
+/// Marches `rays` (at most [`LANES`]) to their ends as [`EaVolume::advance`] does for an
+/// unclipped projection (`MODE` 1: the largest sample, 2: the smallest) of the samples `data`,
+/// leaving in each ray its extreme (`m`, `found`) as the scalar march does. `ends`: the
+/// transparent side of empty blocks is the extreme's, so a sample there (not a gap) ends the
+/// ray transparent; else empty blocks are stepped over.
+///
+/// # Safety
+/// As [`march`]'s (without a light volume).
+#[target_feature(enable = "avx2,fma")]
+pub(crate) unsafe fn march_extreme<T: Gather, const MODE: u8>(
+    splat: &Splat<'_>,
+    data: &[T],
+    rays: &mut [(usize, Ray)],
+    ends: bool,
+) {
+    // SAFETY: the caller's; masked lanes read nothing; loads and stores of local arrays of
+    // eight elements.
+    unsafe {
+        debug_assert!(rays.len() <= LANES);
+        let r = RayLanes::load(rays.iter().map(|(_, r)| r));
+        let (mut kv, mut k1v) = (r.k, r.k1);
+        let (mut m0, mut f0) = ([0f32; LANES], [0i32; LANES]);
+        for (i, (_, ray)) in rays.iter().enumerate() {
+            m0[i] = ray.m;
+            f0[i] = if ray.found { -1 } else { 0 };
+        }
+        let mut m = _mm256_loadu_ps(m0.as_ptr());
+        let mut found = _mm256_castsi256_ps(_mm256_loadu_si256(f0.as_ptr() as *const __m256i));
+        let (zeroi, onei) = (_mm256_setzero_si256(), _mm256_set1_epi32(1));
+        let all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+        let gap = _mm256_set1_ps(-1e30);
+        loop {
+            let active = _mm256_cmpgt_epi32(_mm256_add_epi32(k1v, onei), kv);
+            if _mm256_movemask_epi8(active) == 0 {
+                break;
+            }
+            let q = r.at(kv);
+            let s = if ends {
+                splat.sample::<T, true>(data, q, r.dq, active)
+            } else {
+                splat.sample::<T, false>(data, q, r.dq, active)
+            };
+            // An occupied lane's sample, unless a gap: the extreme so far.
+            let val = _mm256_add_ps(s.raw, splat.offset);
+            let ok = _mm256_andnot_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(val, gap), s.occupied);
+            let better = if MODE == 1 {
+                _mm256_cmp_ps::<_CMP_GT_OQ>(val, m)
+            } else {
+                _mm256_cmp_ps::<_CMP_LT_OQ>(val, m)
+            };
+            let take = _mm256_and_ps(ok, _mm256_or_ps(_mm256_xor_ps(found, all), better));
+            m = _mm256_blendv_ps(m, val, take);
+            found = _mm256_or_ps(found, take);
+            let one = _mm256_and_si256(active, onei);
+            if ends {
+                // A sample in an empty block (not a gap: compared without the offset, as the
+                // scalar march) ends the ray transparent (k = 1 > k1 = 0).
+                let end = _mm256_and_si256(
+                    s.is_empty,
+                    _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(s.raw, gap)),
+                );
+                found = _mm256_andnot_ps(_mm256_castsi256_ps(end), found);
+                kv = _mm256_blendv_epi8(_mm256_add_epi32(kv, one), onei, end);
+                k1v = _mm256_blendv_epi8(k1v, zeroi, end);
+            } else {
+                kv = _mm256_add_epi32(kv, _mm256_blendv_epi8(one, s.steps, s.is_empty));
+            }
+        }
+        _mm256_storeu_ps(m0.as_mut_ptr(), m);
+        _mm256_storeu_si256(f0.as_mut_ptr() as *mut __m256i, _mm256_castps_si256(found));
+        for (i, (_, ray)) in rays.iter_mut().enumerate() {
+            ray.m = m0[i];
+            ray.found = f0[i] != 0;
         }
     }
 }

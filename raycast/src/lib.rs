@@ -16,8 +16,8 @@
 //! march in packets of 4 x 4; the transfer function is evaluated exactly (piecewise linear,
 //! not a table) and the exponential from a table (within 8e-6); bands of rows run on rayon's
 //! threads, compiled for AVX2 and FMA where the CPU has them, where the `ea` march (unlit, or
-//! lit by the light volume) takes eight rays of a packet at a time in AVX2 lanes (`lanes`,
-//! bit for bit the scalar march).
+//! lit by the light volume) and the projections' take eight rays of a packet at a time in AVX2
+//! lanes (`lanes`, bit for bit the scalar march) and four pixels' rays are set up at once.
 //!
 //! Scope: volume-only scenes with 1-D transfer functions and clipping planes: `ea` (unshaded
 //! emission-absorption), with a light volume ([`light`]: Schott et al.'s occlusion buffer on
@@ -528,7 +528,7 @@ impl EaVolume {
         let forward = v.camera.forward();
         let mut rays: Vec<(usize, Ray)> = Vec::with_capacity(TILE * TILE);
         #[cfg(target_arch = "x86_64")]
-        let splat = (simd && MODE == 0 && self.lanes_apply(v, data, LIT.then_some(lv)))
+        let splat = (simd && self.lanes_apply(v, data, LIT.then_some(lv)))
             // SAFETY: `simd` is set only where the CPU has AVX2 and FMA.
             .then(|| unsafe { lanes::Splat::new(self) });
         for x0 in (0..w).step_by(TILE) {
@@ -566,7 +566,13 @@ impl EaVolume {
             if let Some(splat) = &splat {
                 // SAFETY: `splat` is made only where the CPU has AVX2 and FMA and
                 // `lanes_apply` holds for the volume, the view and the light volume.
-                live = !unsafe { self.march_lanes::<T, LIT>(splat, v, data, lv, &mut rays) };
+                live = !unsafe {
+                    if MODE == 0 {
+                        self.march_lanes::<T, LIT>(splat, v, data, lv, &mut rays)
+                    } else {
+                        self.march_lanes_extreme::<T, MODE>(splat, data, &mut rays)
+                    }
+                };
             }
             // March together, a step of each ray a turn (neighbours stay near each other in
             // depth as long as they skip alike).
@@ -962,6 +968,29 @@ impl EaVolume {
             for l in rays.chunks_mut(lanes::LANES) {
                 // SAFETY: the caller's.
                 unsafe { lanes::march::<G, LIT>(splat, d, v, lv, l) };
+            }
+            true
+        }, else false)
+    }
+
+    /// [`EaVolume::march_lanes`] for a projection (`MODE` 1 or 2): `lanes::march_extreme`.
+    ///
+    /// # Safety
+    /// As [`EaVolume::march_lanes`]'s.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn march_lanes_extreme<T: Voxel, const MODE: u8>(
+        &self,
+        splat: &lanes::Splat<'_>,
+        data: &[T],
+        rays: &mut [(usize, Ray)],
+    ) -> bool {
+        // As the scalar march: the transparent side of empty blocks is the extreme's.
+        let ends = (MODE == 1) != self.clear_below;
+        lanes::by_stored_type!(T, data, d: G => {
+            for l in rays.chunks_mut(lanes::LANES) {
+                // SAFETY: the caller's.
+                unsafe { lanes::march_extreme::<G, MODE>(splat, d, l, ends) };
             }
             true
         }, else false)
@@ -2419,6 +2448,118 @@ mod tests {
         assert_eq!(ev.exp_neg(0.0), 1.0);
         assert_eq!(ev.exp_neg(f32::NAN), 1.0);
         assert_eq!(ev.exp_neg(17.0), 0.0);
+    }
+
+    /// A projection marched eight rays at a time (`lanes::march_extreme`) is the scalar
+    /// march's image bit for bit: maximum and minimum, a window transparent below and one
+    /// turned round (empty blocks stepped over, and ending the ray), f32 samples with a NaN
+    /// hole (a gap) and u8 and u16 samples in bricks and in the grid's layout, views from
+    /// several sides, along an axis and from inside the grid.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn eight_lanes_project_as_the_scalar_march_bit_for_bit() {
+        if !lanes_here() {
+            return;
+        }
+        let vol = blob([40, 34, 30]);
+        let mut data = vol.select(None).unwrap().data;
+        // Gaps across the blob's shells too (every value of a window), not only its centre.
+        for i in (2..38).step_by(3) {
+            data[vol.index(i, 17, 15)] = f32::NAN;
+            data[vol.index(20, 17, i.min(29))] = f32::NAN;
+        }
+        let b = vol.bounds();
+        let ramp = |lo: f64, hi: f64| {
+            let mut points: Vec<(f64, [f64; 3], f64)> = (0..=8)
+                .map(|k| {
+                    let t = k as f64 / 8.0;
+                    (lo + (hi - lo) * t, [t, 0.5 * t, 1.0 - t], 0.9)
+                })
+                .collect();
+            points.push((lo - 1e-6 * (hi - lo), [0.0; 3], 0.0));
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            Transfer {
+                points,
+                rows: vec![],
+            }
+        };
+        // Integers 0..=250 (u8) and 0..=60,000 (u16) with an offset, for the narrow types.
+        let ints = |scale: f32, offset: f32| -> Vec<f32> {
+            data.iter()
+                .map(|v| {
+                    if v.is_nan() {
+                        offset
+                    } else {
+                        (v * scale).round() + offset
+                    }
+                })
+                .collect()
+        };
+        let (u8s, u16s) = (ints(250.0, 0.0), ints(60000.0, -1000.0));
+        let (mut shown, mut ended, mut frames) = (0, 0, 0);
+        for (samples, scale, offset, narrow) in [
+            (&data, 1.0, 0.0, false),
+            (&u8s, 250.0, 0.0, true),
+            (&u16s, 60000.0, -1000.0, true),
+        ] {
+            for (lo, hi) in [(0.2, 0.9), (0.3, 0.05)] {
+                let t = ramp(lo * scale + offset, hi * scale + offset);
+                for in_place in [false, true] {
+                    let mut ev = match in_place {
+                        false => EaVolume::with_storage(&vol, samples, &t, narrow).unwrap(),
+                        true => {
+                            EaVolume::in_place(&vol, Arc::new(Samples::pack(prepare(samples))), &t)
+                                .unwrap()
+                        }
+                    };
+                    // (The f32 samples hold empty blocks on both sides of the windows.)
+                    assert!(
+                        narrow || ev.occupied.iter().any(|o| !o),
+                        "some blocks are empty: window {lo}-{hi} in place {in_place}"
+                    );
+                    for cam in [
+                        Camera::orbit(b, 35.0, 25.0, 2.5, Some(40.0)),
+                        Camera::orbit(b, -120.0, -40.0, 3.0, None),
+                        Camera::orbit(b, 0.0, 0.0, 2.0, None),
+                        Camera {
+                            eye: 0.5 * (b[0] + b[1]),
+                            target: 0.5 * (b[0] + b[1]) + DVec3::new(0.6, -0.3, 0.5),
+                            near: 2.6,
+                            ..Camera::orbit(b, 40.0, 25.0, 2.5, Some(60.0))
+                        },
+                    ] {
+                        let v =
+                            EaView::new(&vol, cam, 37, 29, None, None, [0.1, 0.2, 0.3]).unwrap();
+                        for which in [Extremum::Max, Extremum::Min] {
+                            ev.lanes = true;
+                            let lanes = ev.render_projection(&v, which);
+                            ev.lanes = false;
+                            let scalar = ev.render_projection(&v, which);
+                            let bits = |f: &Frame| {
+                                f.image
+                                    .iter()
+                                    .flatten()
+                                    .map(|x| x.to_bits())
+                                    .collect::<Vec<_>>()
+                            };
+                            assert_eq!(
+                                bits(&lanes),
+                                bits(&scalar),
+                                "{} {which:?} window {lo}-{hi} in place {in_place}",
+                                ev.storage()
+                            );
+                            shown += lanes.image.iter().filter(|p| p[3] > 0.0).count();
+                            ended += lanes.image.iter().filter(|p| p[3] == 0.0).count();
+                            frames += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            shown > 20 * frames && ended > 20 * frames,
+            "{shown} {ended} {frames}"
+        );
     }
 
     #[test]
