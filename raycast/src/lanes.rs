@@ -355,7 +355,8 @@ impl<'v> Splat<'v> {
             // (the other lanes' counts are never read: none where no lane is empty).
             let mut steps = _mm256_set1_ps((1 << 20) as f32);
             let skip = _mm256_set1_epi32(SKIP as i32);
-            let any_empty = _mm256_testz_si256(is_empty, is_empty) == 0;
+            // (Not where a sample in an empty block ends the ray: `WITH_EMPTY`.)
+            let any_empty = !WITH_EMPTY && _mm256_testz_si256(is_empty, is_empty) == 0;
             for a in (0..3).filter(|_| any_empty) {
                 let dqa = dq[a];
                 let moving = _mm256_cmp_ps::<_CMP_GE_OQ>(
@@ -1057,9 +1058,14 @@ pub(crate) unsafe fn march_extreme<T: Gather, const MODE: u8>(
         }
         _mm256_storeu_ps(m0.as_mut_ptr(), m);
         _mm256_storeu_si256(f0.as_mut_ptr() as *mut __m256i, _mm256_castps_si256(found));
+        let (mut k, mut k1) = ([0i32; LANES], [0i32; LANES]);
+        _mm256_storeu_si256(k.as_mut_ptr() as *mut __m256i, kv);
+        _mm256_storeu_si256(k1.as_mut_ptr() as *mut __m256i, k1v);
+        // What the scalar march leaves: the extreme, and the ray done (k > k1).
         for (i, (_, ray)) in rays.iter_mut().enumerate() {
             ray.m = m0[i];
             ray.found = f0[i] != 0;
+            (ray.k, ray.k1) = (k[i] as u32, k1[i] as u32);
         }
     }
 }

@@ -536,9 +536,10 @@ impl EaVolume {
             for dy in 0..nrows {
                 let y = (y0 + dy) as f64 + 0.5;
                 let first = rays.len();
-                // A row of four pixels' rays at once where the CPU has AVX2 and FMA.
+                // A row of four pixels' rays at once where the CPU has AVX2 and FMA (and the
+                // lanes are on: off, the frame is the scalar code's throughout).
                 #[cfg(target_arch = "x86_64")]
-                if simd && x0 + TILE <= w {
+                if simd && self.lanes && x0 + TILE <= w {
                     const { assert!(TILE == 4) };
                     let xs = [0.5, 1.5, 2.5, 3.5].map(|i| x0 as f64 + i);
                     // SAFETY: `simd` is set only where the CPU has AVX2 and FMA.
@@ -1620,7 +1621,8 @@ mod tests {
                         } else {
                             full += 1;
                         }
-                        if r.dq.iter().any(|q| q.abs() < 1e-6) {
+                        // A ray along an axis (the scalar code's lanes).
+                        if r.k <= r.k1 && r.dq.iter().any(|q| q.abs() < 1e-12) {
                             odd += 1;
                         }
                     }
