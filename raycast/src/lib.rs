@@ -1482,6 +1482,23 @@ mod tests {
         v
     }
 
+    /// A projection's window as a transfer function: nine points from `lo` to `hi` (colour
+    /// and extinction), transparent just past `lo` (below it, or above a window turned round).
+    fn window_ramp(lo: f64, hi: f64) -> Transfer {
+        let mut points: Vec<(f64, [f64; 3], f64)> = (0..=8)
+            .map(|k| {
+                let t = k as f64 / 8.0;
+                (lo + (hi - lo) * t, [t, 0.5 * t, 1.0 - t], 0.9)
+            })
+            .collect();
+        points.push((lo - 1e-6 * (hi - lo), [0.0; 3], 0.0));
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Transfer {
+            points,
+            rows: vec![],
+        }
+    }
+
     fn tf() -> Transfer {
         Transfer {
             points: vec![
@@ -2471,20 +2488,6 @@ mod tests {
             data[vol.index(20, 17, i.min(29))] = f32::NAN;
         }
         let b = vol.bounds();
-        let ramp = |lo: f64, hi: f64| {
-            let mut points: Vec<(f64, [f64; 3], f64)> = (0..=8)
-                .map(|k| {
-                    let t = k as f64 / 8.0;
-                    (lo + (hi - lo) * t, [t, 0.5 * t, 1.0 - t], 0.9)
-                })
-                .collect();
-            points.push((lo - 1e-6 * (hi - lo), [0.0; 3], 0.0));
-            points.sort_by(|a, b| a.0.total_cmp(&b.0));
-            Transfer {
-                points,
-                rows: vec![],
-            }
-        };
         // Integers 0..=250 (u8) and 0..=60,000 (u16) with an offset, for the narrow types.
         let ints = |scale: f32, offset: f32| -> Vec<f32> {
             data.iter()
@@ -2505,7 +2508,7 @@ mod tests {
             (&u16s, 60000.0, -1000.0, true),
         ] {
             for (lo, hi) in [(0.2, 0.9), (0.3, 0.05)] {
-                let t = ramp(lo * scale + offset, hi * scale + offset);
+                let t = window_ramp(lo * scale + offset, hi * scale + offset);
                 for in_place in [false, true] {
                     let mut ev = match in_place {
                         false => EaVolume::with_storage(&vol, samples, &t, narrow).unwrap(),
@@ -2575,25 +2578,11 @@ mod tests {
         // (transparent above): both sides of the empty-block rules, which must not change the
         // image (on a continuous field skipping where the rule ends the ray gives the same
         // image too: this does not tell the two apart; a test cannot, only their time does).
-        let ramp = |lo: f64, hi: f64| {
-            let mut points: Vec<(f64, [f64; 3], f64)> = (0..=8)
-                .map(|k| {
-                    let t = k as f64 / 8.0;
-                    (lo + (hi - lo) * t, [t, 0.5 * t, 1.0 - t], 0.9)
-                })
-                .collect();
-            points.push((lo - 1e-6 * (hi - lo), [0.0; 3], 0.0));
-            points.sort_by(|a, b| a.0.total_cmp(&b.0));
-            Transfer {
-                points,
-                rows: vec![],
-            }
-        };
         let cam = Camera::orbit(vol.bounds(), 35.0, 25.0, 2.5, Some(40.0));
         for (t, clip) in [
-            (ramp(0.2, 0.9), vec![]),
-            (ramp(0.2, 0.9), vec![([1.0, 0.2, 0.0], 2.0)]),
-            (ramp(0.3, 0.05), vec![]),
+            (window_ramp(0.2, 0.9), vec![]),
+            (window_ramp(0.2, 0.9), vec![([1.0, 0.2, 0.0], 2.0)]),
+            (window_ramp(0.3, 0.05), vec![]),
         ] {
             let ev = EaVolume::new(&vol, &data, &t).unwrap();
             assert!(ev.occupied.iter().any(|o| !o), "some blocks are empty");
