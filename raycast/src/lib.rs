@@ -734,23 +734,18 @@ impl EaVolume {
                 _mm256_set1_pd($x)
             };
         }
-        macro_rules! add {
-            ($a:expr, $b:expr) => {
+        // Four lanes' `a op b` (a macro, not closures: see above).
+        macro_rules! v {
+            (add, $a:expr, $b:expr) => {
                 _mm256_add_pd($a, $b)
             };
-        }
-        macro_rules! mul {
-            ($a:expr, $b:expr) => {
-                _mm256_mul_pd($a, $b)
-            };
-        }
-        macro_rules! sub {
-            ($a:expr, $b:expr) => {
+            (sub, $a:expr, $b:expr) => {
                 _mm256_sub_pd($a, $b)
             };
-        }
-        macro_rules! div {
-            ($a:expr, $b:expr) => {
+            (mul, $a:expr, $b:expr) => {
+                _mm256_mul_pd($a, $b)
+            };
+            (div, $a:expr, $b:expr) => {
                 _mm256_div_pd($a, $b)
             };
         }
@@ -758,21 +753,24 @@ impl EaVolume {
         // `DMat4 * DVec4`: ((X x + Y y) + Z z) + W w.
         macro_rules! mat4 {
             ($m:expr, $c:expr, $x:expr, $y:expr, $z:expr) => {
-                add!(
-                    add!(
-                        add!(mul!(s!($m[0][$c]), $x), mul!(s!($m[1][$c]), $y)),
-                        mul!(s!($m[2][$c]), $z)
+                v!(
+                    add,
+                    v!(
+                        add,
+                        v!(add, v!(mul, s!($m[0][$c]), $x), v!(mul, s!($m[1][$c]), $y)),
+                        v!(mul, s!($m[2][$c]), $z)
                     ),
-                    mul!(s!($m[3][$c]), s!(1.0))
+                    v!(mul, s!($m[3][$c]), s!(1.0))
                 )
             };
         }
         // `u . w`, left to right.
         macro_rules! dot3 {
             ($u:expr, $w:expr) => {
-                add!(
-                    add!(mul!($u[0], s!($w[0])), mul!($u[1], s!($w[1]))),
-                    mul!($u[2], s!($w[2]))
+                v!(
+                    add,
+                    v!(add, v!(mul, $u[0], s!($w[0])), v!(mul, $u[1], s!($w[1]))),
+                    v!(mul, $u[2], s!($w[2]))
                 )
             };
         }
@@ -794,7 +792,11 @@ impl EaVolume {
         // pixel_ray.
         // SAFETY: four f64 read from an array of four.
         let px = unsafe { _mm256_loadu_pd(xs.as_ptr()) };
-        let ndc_x = sub!(div!(mul!(s!(2.0), px), s!(v.width as f64)), s!(1.0));
+        let ndc_x = v!(
+            sub,
+            v!(div, v!(mul, s!(2.0), px), s!(v.width as f64)),
+            s!(1.0)
+        );
         let ndc_y = s!(1.0 - 2.0 * y / v.height as f64);
         let cols = [inv.x_axis, inv.y_axis, inv.z_axis, inv.w_axis];
         let p0 = [
@@ -809,56 +811,76 @@ impl EaVolume {
             mat4!(cols, 2, ndc_x, ndc_y, s!(1.0)),
             mat4!(cols, 3, ndc_x, ndc_y, s!(1.0)),
         ];
-        let a = [div!(p0[0], p0[3]), div!(p0[1], p0[3]), div!(p0[2], p0[3])];
-        let b = [div!(p1[0], p1[3]), div!(p1[1], p1[3]), div!(p1[2], p1[3])];
-        let dd = [sub!(b[0], a[0]), sub!(b[1], a[1]), sub!(b[2], a[2])];
-        let len2 = add!(
-            add!(mul!(dd[0], dd[0]), mul!(dd[1], dd[1])),
-            mul!(dd[2], dd[2])
+        let a = [
+            v!(div, p0[0], p0[3]),
+            v!(div, p0[1], p0[3]),
+            v!(div, p0[2], p0[3]),
+        ];
+        let b = [
+            v!(div, p1[0], p1[3]),
+            v!(div, p1[1], p1[3]),
+            v!(div, p1[2], p1[3]),
+        ];
+        let dd = [
+            v!(sub, b[0], a[0]),
+            v!(sub, b[1], a[1]),
+            v!(sub, b[2], a[2]),
+        ];
+        let len2 = v!(
+            add,
+            v!(add, v!(mul, dd[0], dd[0]), v!(mul, dd[1], dd[1])),
+            v!(mul, dd[2], dd[2])
         );
-        let recip = div!(s!(1.0), _mm256_sqrt_pd(len2));
-        let d = [mul!(dd[0], recip), mul!(dd[1], recip), mul!(dd[2], recip)];
+        let recip = v!(div, s!(1.0), _mm256_sqrt_pd(len2));
+        let d = [
+            v!(mul, dd[0], recip),
+            v!(mul, dd[1], recip),
+            v!(mul, dd[2], recip),
+        ];
         // start_along.
         let fa = f.to_array();
         let cosine = dot3!(d, fa);
         let eye = v.camera.eye;
         let oe = [
-            sub!(a[0], s!(eye.x)),
-            sub!(a[1], s!(eye.y)),
-            sub!(a[2], s!(eye.z)),
+            v!(sub, a[0], s!(eye.x)),
+            v!(sub, a[1], s!(eye.y)),
+            v!(sub, a[2], s!(eye.z)),
         ];
         let o_depth = dot3!(oe, fa);
-        let s0 = div!(sub!(s!(v.z0 + 0.5 * v.dz), o_depth), cosine);
+        let s0 = v!(div, v!(sub, s!(v.z0 + 0.5 * v.dz), o_depth), cosine);
         let w2i = self.world_to_index;
         let m = [w2i.x_axis, w2i.y_axis, w2i.z_axis, w2i.w_axis];
         let p = [
-            add!(a[0], mul!(d[0], s0)),
-            add!(a[1], mul!(d[1], s0)),
-            add!(a[2], mul!(d[2], s0)),
+            v!(add, a[0], v!(mul, d[0], s0)),
+            v!(add, a[1], v!(mul, d[1], s0)),
+            v!(add, a[2], v!(mul, d[2], s0)),
         ];
         let qa = [
             mat4!(m, 0, p[0], p[1], p[2]),
             mat4!(m, 1, p[0], p[1], p[2]),
             mat4!(m, 2, p[0], p[1], p[2]),
         ];
-        let t = div!(s!(v.dz), cosine);
-        let e = [mul!(d[0], t), mul!(d[1], t), mul!(d[2], t)];
+        let t = v!(div, s!(v.dz), cosine);
+        let e = [v!(mul, d[0], t), v!(mul, d[1], t), v!(mul, d[2], t)];
         // `DMat3::from_mat4(m) * e`: ((X x + Y y) + Z z).
         let dq = [
-            add!(
-                add!(mul!(s!(m[0][0]), e[0]), mul!(s!(m[1][0]), e[1])),
-                mul!(s!(m[2][0]), e[2])
+            v!(
+                add,
+                v!(add, v!(mul, s!(m[0][0]), e[0]), v!(mul, s!(m[1][0]), e[1])),
+                v!(mul, s!(m[2][0]), e[2])
             ),
-            add!(
-                add!(mul!(s!(m[0][1]), e[0]), mul!(s!(m[1][1]), e[1])),
-                mul!(s!(m[2][1]), e[2])
+            v!(
+                add,
+                v!(add, v!(mul, s!(m[0][1]), e[0]), v!(mul, s!(m[1][1]), e[1])),
+                v!(mul, s!(m[2][1]), e[2])
             ),
-            add!(
-                add!(mul!(s!(m[0][2]), e[0]), mul!(s!(m[1][2]), e[1])),
-                mul!(s!(m[2][2]), e[2])
+            v!(
+                add,
+                v!(add, v!(mul, s!(m[0][2]), e[0]), v!(mul, s!(m[1][2]), e[1])),
+                v!(mul, s!(m[2][2]), e[2])
             ),
         ];
-        let front_f = sub!(div!(sub!(o_depth, s!(v.z0)), s!(v.dz)), s!(0.5));
+        let front_f = v!(sub, v!(div, v!(sub, o_depth, s!(v.z0)), s!(v.dz)), s!(0.5));
         let front = _mm256_max_pd(_mm256_round_pd::<_MM_FROUND_TO_POS_INF>(front_f), s!(0.0));
         let hi = self.hi();
         let (mut k0, mut k1) = (front, s!(v.slices as f64 - 1.0));
@@ -876,8 +898,8 @@ impl EaVolume {
                 odd,
                 _mm256_cmp_pd::<_CMP_LT_OQ>(_mm256_andnot_pd(sign, dc), s!(1e-12)),
             );
-            let e0 = div!(_mm256_xor_pd(qc, sign), dc);
-            let e1 = div!(sub!(s!(hi[c] as f64), qc), dc);
+            let e0 = v!(div, _mm256_xor_pd(qc, sign), dc);
+            let e1 = v!(div, v!(sub, s!(hi[c] as f64), qc), dc);
             odd = _mm256_or_pd(
                 odd,
                 _mm256_cmp_pd::<_CMP_NLT_UQ>(_mm256_andnot_pd(sign, e0), inf),
@@ -888,8 +910,8 @@ impl EaVolume {
             );
             let lo = _mm256_round_pd::<_MM_FROUND_TO_NEG_INF>(_mm256_min_pd(e0, e1));
             let up = _mm256_round_pd::<_MM_FROUND_TO_POS_INF>(_mm256_max_pd(e0, e1));
-            k0 = _mm256_max_pd(k0, sub!(lo, s!(1.0)));
-            k1 = _mm256_min_pd(k1, add!(up, s!(1.0)));
+            k0 = _mm256_max_pd(k0, v!(sub, lo, s!(1.0)));
+            k1 = _mm256_min_pd(k1, v!(add, up, s!(1.0)));
         }
         k0 = _mm256_max_pd(k0, front);
         let odd = _mm256_movemask_pd(odd);
