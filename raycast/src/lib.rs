@@ -96,6 +96,9 @@ pub struct EaVolume {
     /// Whether `ea` frames (unlit, or lit by the light volume) march eight rays at a time
     /// where the CPU can (`lanes`; on by default, off to compare with the scalar march).
     lanes: bool,
+    /// Whether clipped rays sample the slabs wholly behind the planes as without them
+    /// ([`EaVolume::clip_slabs`]; off only in tests: every slab cut slab by slab).
+    clip_slabs: bool,
     tf: Vec<(f32, [f32; 3], f32)>,
     /// Per point `i > 0`: the segment from point `i - 1` as `1 / (v_i - v_{i-1})` (0 for a
     /// step) and the colour and extinction differences (no division per sample).
@@ -247,6 +250,7 @@ impl EaVolume {
             reach: reach_of(&occ, blocks),
             reach32: reach_of(&occ, blocks).into_iter().map(i32::from).collect(),
             lanes: true,
+            clip_slabs: true,
             slopes,
             hi: vol.dims.map(|n| n as f32 - 1.0),
             sweep_samples: std::sync::OnceLock::new(),
@@ -551,6 +555,11 @@ impl EaVolume {
                         rays.push((x + w * dy, self.start_along(v, forward, o, d)));
                     }
                 }
+                if !v.clip.is_empty() && self.clip_slabs {
+                    for (_, r) in rays[first..].iter_mut() {
+                        self.clip_slabs(v, r);
+                    }
+                }
                 if LIT {
                     for (i, r) in rays[first..].iter_mut() {
                         let px = [(*i % w) as f64 + 0.5, y];
@@ -635,6 +644,50 @@ impl EaVolume {
         }
     }
 
+    /// Behind clipping planes, the ray's slabs: the planes keep one interval of its depths
+    /// (`occlusion::emission_absorption::clip_interval` over all depths), so only the slabs
+    /// where it begins and ends are cut (their parts found slab by slab, as before); the
+    /// slabs wholly inside it (a slab of margin each way for rounding) are sampled as without
+    /// planes (`Ray::inner`: the same sample, and empty blocks stepped over), and the ray's
+    /// slices end a slab past the interval. Without this every slice of a clipped frame took
+    /// the planes' intersections and a matrix product, and stepped over empty blocks a slice
+    /// at a time (an `ea` frame of the MNI T1 at 512^2 with one plane: 910 ms against 38).
+    #[inline(always)]
+    fn clip_slabs(&self, v: &EaView, r: &mut Ray) {
+        if r.k > r.k1 {
+            return;
+        }
+        let (a, b) = occlusion::emission_absorption::clip_interval(
+            v,
+            r.o,
+            r.d,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+        );
+        // NaN or nothing kept: every slab cut slab by slab (nothing behind the planes).
+        if a.is_nan() || b.is_nan() || a >= b {
+            return;
+        }
+        let (fa, fb) = (((a - v.z0) / v.dz).floor(), ((b - v.z0) / v.dz).floor());
+        let last = r.k1 as f64;
+        // The slabs holding the interval's ends, a slab of margin around them.
+        if fa.is_finite() {
+            r.k = r.k.max((fa - 1.0).clamp(0.0, last + 1.0) as u32);
+        }
+        if fb.is_finite() {
+            r.k1 = r.k1.min((fb + 1.0).max(0.0).min(last) as u32);
+            if fb + 1.0 < 0.0 {
+                (r.k, r.k1) = (1, 0);
+                return;
+            }
+        }
+        let lo = if fa.is_finite() { fa + 2.0 } else { 0.0 };
+        let hi = if fb.is_finite() { fb - 2.0 } else { last };
+        if lo <= hi && hi >= 0.0 {
+            r.inner = (lo.max(0.0).min(u32::MAX as f64) as u32, hi.min(last) as u32);
+        }
+    }
+
     /// A ray `o + s d` before its first sample: the slices in front of the eye where it is
     /// inside the grid (one slice of margin each way; every sample is checked again).
     /// Inlined into the march, which is compiled for AVX2 where the CPU has it: on its own
@@ -668,6 +721,7 @@ impl EaVolume {
             half: 0.0,
             m: 0.0,
             found: false,
+            inner: (1, 0),
         };
         if cosine.is_nan() || cosine <= 1e-9 || v.slices == 0 {
             return r;
@@ -945,6 +999,7 @@ impl EaVolume {
                 half: 0.0,
                 m: 0.0,
                 found: false,
+                inner: (1, 0),
             };
             if k1[i] >= k0[i] {
                 r.qa = [qx[i] as f32, qy[i] as f32, qz[i] as f32];
@@ -1040,7 +1095,9 @@ impl EaVolume {
         let mut q = [0, 1, 2].map(|a| r.qa[a] + kf * r.dq[a]);
         let mut len = r.seg;
         let mut depth = v.z0 + (k as f64 + 0.5) * v.dz;
-        let clipped = !v.clip.is_empty();
+        let planes = !v.clip.is_empty();
+        // Slabs wholly behind the planes are sampled as without them (`EaVolume::clip_slabs`).
+        let clipped = planes && !(r.inner.0 <= k && k <= r.inner.1);
         if clipped {
             // The slab's part behind the clipping planes, sampled at its middle.
             let (lo, hi) = slab_interval(v, r.o, r.d, k);
@@ -1078,6 +1135,11 @@ impl EaVolume {
             // samples before it are in empty blocks, transparent.
             let d = self.reach[block] as usize;
             r.k = k.saturating_add(if clipped { 1 } else { r.past_block(q, b, d) });
+            if planes {
+                // Not past the cut slabs at the back: their parts' samples are not the
+                // slices'.
+                r.k = r.k.min(r.inner.1.saturating_add(1).max(k + 1));
+            }
             return;
         }
         r.k += 1;
@@ -1452,6 +1514,10 @@ struct Ray {
     /// Projections: the extreme sample so far, and whether there is one.
     m: f32,
     found: bool,
+    /// Behind clipping planes: the slabs wholly inside the depths the planes keep of the ray
+    /// (`inner.0..=inner.1`, none by default), sampled as without planes; the others' parts
+    /// behind the planes are found slab by slab ([`EaVolume::clip_slabs`]).
+    inner: (u32, u32),
 }
 
 impl Ray {
@@ -2587,6 +2653,79 @@ mod tests {
             shown > 20 * frames && ended > 20 * frames,
             "{shown} {ended} {frames}"
         );
+    }
+
+    /// Clipped rays sampling the slabs wholly behind the planes as without them
+    /// (`EaVolume::clip_slabs`) give the frame of every slab cut slab by slab, to f32 rounding:
+    /// a dense blob cut by one, two and three planes (faces across its middle, tilted to the
+    /// slices), views from several sides and from inside the grid, `ea` and `combined`, the
+    /// projections.
+    #[test]
+    fn slabs_behind_the_planes_are_sampled_as_without_them() {
+        let vol = blob([40, 34, 30]);
+        let data = vol.select(None).unwrap().data;
+        let b = vol.bounds();
+        let c = 0.5 * (b[0] + b[1]);
+        let dense = Transfer {
+            points: vec![(0.1, [0.9, 0.5, 0.2], 0.0), (0.6, [0.2, 0.6, 1.0], 4.0)],
+            rows: vec![],
+        };
+        let mut ev = EaVolume::new(&vol, &data, &dense).unwrap();
+        let plane = |n: [f64; 3], at: DVec3| (n, DVec3::from(n).dot(at));
+        let planes = [
+            vec![plane([1.0, 0.0, 0.0], c)],
+            vec![
+                plane([0.6, -0.8, 0.2], c),
+                plane([-0.3, 0.1, 1.0], c + DVec3::Z * 3.0),
+            ],
+            vec![
+                plane([0.0, 1.0, 0.0], c - DVec3::Y * 4.0),
+                plane([0.0, -1.0, 0.3], c - DVec3::Y * 9.0),
+                plane([1.0, 1.0, 0.0], c + DVec3::X * 5.0),
+            ],
+        ];
+        let (mut worst, mut shown) = (0.0f32, 0);
+        for clip in planes {
+            for cam in [
+                Camera::orbit(b, 35.0, 25.0, 2.5, Some(40.0)),
+                Camera::orbit(b, -120.0, -40.0, 3.0, None),
+                Camera {
+                    eye: c,
+                    target: c + DVec3::new(0.6, -0.3, 0.5),
+                    near: 2.6,
+                    ..Camera::orbit(b, 40.0, 25.0, 2.5, Some(60.0))
+                },
+            ] {
+                let mut view = EaView::new(&vol, cam, 37, 29, None, None, [1.0; 3]).unwrap();
+                view.clip = clip.clone();
+                let light = LightSettings {
+                    cell: 2,
+                    step: 1,
+                    cone: false,
+                    theta_deg: 30.0,
+                    blur_samples: 3,
+                };
+                let frame = |ev: &EaVolume, i: usize| match i {
+                    0 => ev.render_frame(&view, None).image,
+                    1 => ev.render_frame(&view, Some(&light)).image,
+                    _ => ev.render_projection(&view, Extremum::Max).image,
+                };
+                for i in 0..3 {
+                    ev.clip_slabs = true;
+                    let fast = frame(&ev, i);
+                    ev.clip_slabs = false;
+                    let cut = frame(&ev, i);
+                    for (p, q) in fast.iter().zip(&cut) {
+                        for k in 0..4 {
+                            worst = worst.max((p[k] - q[k]).abs());
+                        }
+                    }
+                    shown += fast.iter().filter(|p| p[3] > 0.5).count();
+                }
+            }
+        }
+        assert!(worst < 1e-4, "the frames differ by {worst}");
+        assert!(shown > 500, "{shown} pixels show the volume");
     }
 
     #[test]
