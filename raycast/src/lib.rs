@@ -1570,6 +1570,18 @@ mod tests {
         v
     }
 
+    /// A camera at the centre of the grid `b` (its near plane past the first slices), looking
+    /// off the axes.
+    fn inside_camera(b: [DVec3; 2]) -> Camera {
+        let c = 0.5 * (b[0] + b[1]);
+        Camera {
+            eye: c,
+            target: c + DVec3::new(0.6, -0.3, 0.5),
+            near: 2.6,
+            ..Camera::orbit(b, 40.0, 25.0, 2.5, Some(60.0))
+        }
+    }
+
     /// A projection's window as a transfer function: nine points from `lo` to `hi` (colour
     /// and extinction), transparent just past `lo` (below it, or above a window turned round).
     fn window_ramp(lo: f64, hi: f64) -> Transfer {
@@ -2085,12 +2097,7 @@ mod tests {
                 Camera::orbit(b, 90.0, 90.0, 2.0, Some(30.0)),
                 // Inside the grid, the rays' origins past the first slices (the light's
                 // parts behind them unsampled).
-                Camera {
-                    eye: 0.5 * (b[0] + b[1]),
-                    target: 0.5 * (b[0] + b[1]) + DVec3::new(0.6, -0.3, 0.5),
-                    near: 2.6,
-                    ..Camera::orbit(b, 40.0, 25.0, 2.5, Some(60.0))
-                },
+                inside_camera(b),
             ] {
                 let view = EaView::new(&vol, cam, 37, 29, None, None, [0.1, 0.2, 0.3]).unwrap();
                 // Unlit (`ea`) and with the occlusion buffer (`combined`'s eye march).
@@ -2614,12 +2621,7 @@ mod tests {
                         Camera::orbit(b, 35.0, 25.0, 2.5, Some(40.0)),
                         Camera::orbit(b, -120.0, -40.0, 3.0, None),
                         Camera::orbit(b, 0.0, 0.0, 2.0, None),
-                        Camera {
-                            eye: 0.5 * (b[0] + b[1]),
-                            target: 0.5 * (b[0] + b[1]) + DVec3::new(0.6, -0.3, 0.5),
-                            near: 2.6,
-                            ..Camera::orbit(b, 40.0, 25.0, 2.5, Some(60.0))
-                        },
+                        inside_camera(b),
                     ] {
                         let v =
                             EaView::new(&vol, cam, 37, 29, None, None, [0.1, 0.2, 0.3]).unwrap();
@@ -2689,12 +2691,7 @@ mod tests {
             for cam in [
                 Camera::orbit(b, 35.0, 25.0, 2.5, Some(40.0)),
                 Camera::orbit(b, -120.0, -40.0, 3.0, None),
-                Camera {
-                    eye: c,
-                    target: c + DVec3::new(0.6, -0.3, 0.5),
-                    near: 2.6,
-                    ..Camera::orbit(b, 40.0, 25.0, 2.5, Some(60.0))
-                },
+                inside_camera(b),
             ] {
                 let mut view = EaView::new(&vol, cam, 37, 29, None, None, [1.0; 3]).unwrap();
                 view.clip = clip.clone();
