@@ -651,7 +651,7 @@ impl EaVolume {
     /// planes (`Ray::inner`: the same sample, and empty blocks stepped over), and the ray's
     /// slices end a slab past the interval. Without this every slice of a clipped frame took
     /// the planes' intersections and a matrix product, and stepped over empty blocks a slice
-    /// at a time (an `ea` frame of the MNI T1 at 512^2 with one plane: 910 ms against 38).
+    /// at a time (docs/benchmarks.md, "Clipped frames").
     #[inline(always)]
     fn clip_slabs(&self, v: &EaView, r: &mut Ray) {
         if r.k > r.k1 {
