@@ -733,7 +733,7 @@ impl Packet {
             }
             let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
             let zero = _mm256_setzero_ps();
-            Packet {
+            let p = Packet {
                 cells,
                 cells_p: cells.map(|c| _mm256_permutevar8x32_epi32(c, pair_order())),
                 frac: frac.map(|f| _mm256_loadu_ps(f.as_ptr())),
@@ -745,6 +745,24 @@ impl Packet {
                 acc: zero,
                 weights: zero,
                 half_k: _mm256_set1_epi32(-1),
+            };
+            // What the rays have gathered before (a clipped frame's cut slabs in front).
+            let mut got = [[0f32; LANES]; 6];
+            for (i, (_, r)) in rays.iter().enumerate() {
+                for (g, x) in got
+                    .iter_mut()
+                    .zip([r.c[0], r.c[1], r.c[2], r.alpha, r.acc[0], r.acc[1]])
+                {
+                    g[i] = x;
+                }
+            }
+            let got = got.map(|g| _mm256_loadu_ps(g.as_ptr()));
+            Packet {
+                c: [got[0], got[1], got[2]],
+                alpha: got[3],
+                acc: got[4],
+                weights: got[5],
+                ..p
             }
         }
     }
@@ -974,9 +992,13 @@ impl Packet {
                 store(self.acc),
                 store(self.weights),
             );
-            let mut hk = [0i32; LANES];
+            let (mut hk, mut k, mut k1) = ([0i32; LANES], [0i32; LANES], [0i32; LANES]);
             _mm256_storeu_si256(hk.as_mut_ptr() as *mut __m256i, self.half_k);
+            _mm256_storeu_si256(k.as_mut_ptr() as *mut __m256i, self.kv);
+            _mm256_storeu_si256(k1.as_mut_ptr() as *mut __m256i, self.k1v);
             for (i, (_, r)) in rays.iter_mut().enumerate() {
+                // Done (k > k1), or ended early (k = 1, k1 = 0).
+                (r.k, r.k1) = (k[i] as u32, k1[i] as u32);
                 r.c = [c[0][i], c[1][i], c[2][i]];
                 r.alpha = alpha[i];
                 r.acc = [acc[i], weights[i]];

@@ -532,9 +532,15 @@ impl EaVolume {
         let forward = v.camera.forward();
         let mut rays: Vec<(usize, Ray)> = Vec::with_capacity(TILE * TILE);
         #[cfg(target_arch = "x86_64")]
-        let splat = (simd && self.lanes_apply(v, data, LIT.then_some(lv)))
-            // SAFETY: `simd` is set only where the CPU has AVX2 and FMA.
-            .then(|| unsafe { lanes::Splat::new(self) });
+        let splat = (simd
+            && if v.clip.is_empty() {
+                self.lanes_apply(v, data, LIT.then_some(lv))
+            } else {
+                // Clipped: unlit frames only (a lit one's light footprints are shifted).
+                !LIT && self.clip_slabs && self.lanes_apply_planes(v, data, None)
+            })
+        // SAFETY: `simd` is set only where the CPU has AVX2 and FMA.
+        .then(|| unsafe { lanes::Splat::new(self) });
         for x0 in (0..w).step_by(TILE) {
             rays.clear();
             for dy in 0..nrows {
@@ -577,7 +583,9 @@ impl EaVolume {
                 // SAFETY: `splat` is made only where the CPU has AVX2 and FMA and
                 // `lanes_apply` holds for the volume, the view and the light volume.
                 live = !unsafe {
-                    if MODE == 0 {
+                    if !v.clip.is_empty() {
+                        self.march_clipped::<T, MODE>(splat, v, data, lv, &mut rays)
+                    } else if MODE == 0 {
                         self.march_lanes::<T, LIT>(splat, v, data, lv, &mut rays)
                     } else {
                         self.march_lanes_extreme::<T, MODE>(splat, data, &mut rays)
@@ -1018,9 +1026,21 @@ impl EaVolume {
     /// `self.lanes` on.
     #[cfg(target_arch = "x86_64")]
     fn lanes_apply<T: Voxel>(&self, v: &EaView, data: &[T], lv: Option<&LightVolume>) -> bool {
+        v.clip.is_empty() && self.lanes_apply_planes(v, data, lv)
+    }
+
+    /// [`EaVolume::lanes_apply`] but for the clipping planes: the eye's march of a clipped
+    /// unlit frame (`ea` or a projection) samples the slabs wholly behind the planes
+    /// (`Ray::inner`) as without them, eight rays at a time ([`EaVolume::march_clipped`]).
+    #[cfg(target_arch = "x86_64")]
+    fn lanes_apply_planes<T: Voxel>(
+        &self,
+        v: &EaView,
+        data: &[T],
+        lv: Option<&LightVolume>,
+    ) -> bool {
         self.lanes
             && !self.tf.is_empty()
-            && v.clip.is_empty()
             && v.slices <= occlusion::emission_absorption::MAX_SLICES
             && (4..i32::MAX as usize).contains(&data.len())
             && lv.is_none_or(|l| l.values().len() < i32::MAX as usize)
@@ -1049,6 +1069,73 @@ impl EaVolume {
             }
             true
         }, else false)
+    }
+
+    /// The rays of a clipped unlit frame (`MODE` 0: `ea`; 1, 2: a projection) marched to
+    /// their ends: the slabs before their `Ray::inner` (cut by the planes) by the scalar
+    /// march, the slabs of `inner` - sampled as without planes - eight rays at a time (the
+    /// same samples and operations, so the same pixels bit for bit), the cut slabs after it by
+    /// the scalar march again. Rays whose `inner` is empty are marched by the scalar march
+    /// alone. `false`
+    /// (nothing done) for a type `lanes` does not gather.
+    ///
+    /// # Safety
+    /// As [`EaVolume::march_lanes`]'s, with [`EaVolume::lanes_apply_planes`] for `v` (unlit).
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn march_clipped<T: Voxel, const MODE: u8>(
+        &self,
+        splat: &lanes::Splat<'_>,
+        v: &EaView,
+        data: &[T],
+        lv: &LightVolume,
+        rays: &mut [(usize, Ray)],
+    ) -> bool {
+        if !lanes::gathers::<T>() {
+            return false;
+        }
+        let has_inner = |r: &Ray| r.inner.0 <= r.inner.1;
+        // The cut slabs in front of `inner` (all of a ray's slabs without one).
+        for (_, r) in rays.iter_mut() {
+            while r.next().is_some() && !(has_inner(r) && r.k >= r.inner.0) {
+                self.advance::<T, false, MODE>(v, data, r, lv);
+            }
+        }
+        // `inner`: the rays still marching end there for the lanes (`last`: their own last
+        // slice). A lane that ends early (opaque, or a projection's transparent end) leaves
+        // k1 = 0, k = 1; one that does not, k1 as given.
+        // (Rays already past `inner` sit the lanes out: k1 = 0 < k.)
+        let mut last = [None; TILE * TILE];
+        for ((_, r), l) in rays.iter_mut().zip(&mut last) {
+            if r.next().is_some() {
+                let lanes = r.k <= r.inner.1;
+                *l = Some((r.k1, lanes));
+                r.k1 = if lanes { r.k1.min(r.inner.1) } else { 0 };
+            }
+        }
+        // SAFETY: the caller's; the rays' slices k..=k1 lie in `inner`, where the planes
+        // change no sample (`EaVolume::advance`).
+        unsafe {
+            if MODE == 0 {
+                self.march_lanes::<T, false>(splat, v, data, lv, rays);
+            } else {
+                self.march_lanes_extreme::<T, MODE>(splat, data, rays);
+            }
+        }
+        // Past `inner`, the scalar march; a lane's step over empty blocks not past `inner`'s
+        // end, as `advance` takes it. (Where `last` is 0 both cases leave the ray done.)
+        for ((_, r), l) in rays.iter_mut().zip(last) {
+            let Some((l, lanes)) = l else { continue };
+            if !lanes {
+                r.k1 = l;
+            } else if r.k1 == l.min(r.inner.1) {
+                r.k1 = l;
+                r.k = r.k.min(r.inner.1.saturating_add(1));
+            }
+            while r.next().is_some() {
+                self.advance::<T, false, MODE>(v, data, r, lv);
+            }
+        }
+        true
     }
 
     /// [`EaVolume::march_lanes`] for a projection (`MODE` 1 or 2): `lanes::march_extreme`.
@@ -2654,6 +2741,106 @@ mod tests {
         assert!(
             shown > 20 * frames && ended > 20 * frames,
             "{shown} {ended} {frames}"
+        );
+    }
+
+    /// Clipped unlit frames - `ea` and the projections, whose rays take the slabs of their
+    /// `Ray::inner` eight at a time between the scalar march's cut slabs
+    /// (`EaVolume::march_clipped`) - are the scalar march's bit for bit: one to three planes,
+    /// views from several sides and from inside the grid, transfer functions that leave
+    /// blocks empty on either side (a projection's transparent end), gaps, rays ending opaque.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn clipped_frames_march_in_lanes_as_the_scalar_march_bit_for_bit() {
+        if !lanes_here() {
+            return;
+        }
+        let vol = blob([40, 34, 30]);
+        let mut data = vol.select(None).unwrap().data;
+        for i in (2..38).step_by(3) {
+            data[vol.index(i, 17, 15)] = f32::NAN;
+        }
+        let b = vol.bounds();
+        let c = 0.5 * (b[0] + b[1]);
+        let plane = |n: [f64; 3], at: DVec3| (n, DVec3::from(n).dot(at));
+        let planes = [
+            vec![plane([1.0, 0.0, 0.0], c)],
+            vec![
+                plane([0.6, -0.8, 0.2], c),
+                plane([-0.3, 0.1, 1.0], c + DVec3::Z * 3.0),
+            ],
+            vec![
+                plane([0.0, 1.0, 0.0], c - DVec3::Y * 4.0),
+                plane([0.0, -1.0, 0.3], c - DVec3::Y * 9.0),
+                plane([1.0, 1.0, 0.0], c + DVec3::X * 5.0),
+            ],
+        ];
+        let dense = Transfer {
+            points: vec![(0.1, [0.9, 0.5, 0.2], 0.0), (0.6, [0.2, 0.6, 1.0], 4.0)],
+            rows: vec![],
+        };
+        let bits = |f: &Frame| {
+            let mut b: Vec<u32> = f.image.iter().flatten().map(|x| x.to_bits()).collect();
+            b.extend(
+                f.volumetric
+                    .iter()
+                    .chain(&f.half_depth)
+                    .map(|x| x.to_bits()),
+            );
+            b
+        };
+        let (mut inner, mut opaque, mut ended, mut frames) = (0, 0, 0, 0);
+        for t in [dense, window_ramp(0.2, 0.9), window_ramp(0.3, 0.05)] {
+            let mut ev = EaVolume::new(&vol, &data, &t).unwrap();
+            for clip in &planes {
+                for cam in [
+                    Camera::orbit(b, 35.0, 25.0, 2.5, Some(40.0)),
+                    Camera::orbit(b, -120.0, -40.0, 3.0, None),
+                    Camera::orbit(b, 0.0, 0.0, 2.0, None),
+                    inside_camera(b),
+                ] {
+                    let mut v =
+                        EaView::new(&vol, cam, 37, 29, None, None, [0.1, 0.2, 0.3]).unwrap();
+                    v.clip = clip.clone();
+                    let inv = v.camera.view_projection(37.0 / 29.0).inverse();
+                    for y in 0..29 {
+                        for x in 0..37 {
+                            let (o, d) = pixel_ray(&inv, &v, [x as f64 + 0.5, y as f64 + 0.5]);
+                            let mut r = ev.start(&v, o, d);
+                            ev.clip_slabs(&v, &mut r);
+                            inner += (r.inner.0 <= r.inner.1) as usize;
+                        }
+                    }
+                    for mode in 0..3 {
+                        let frame = |ev: &EaVolume| match mode {
+                            0 => ev.render_frame(&v, None),
+                            1 => ev.render_projection(&v, Extremum::Max),
+                            _ => ev.render_projection(&v, Extremum::Min),
+                        };
+                        ev.lanes = true;
+                        let lanes = frame(&ev);
+                        ev.lanes = false;
+                        let scalar = frame(&ev);
+                        assert!(
+                            bits(&lanes) == bits(&scalar),
+                            "mode {mode} planes {clip:?} camera {cam:?}"
+                        );
+                        if mode == 0 {
+                            opaque += lanes.image.iter().filter(|p| p[3] > 0.99).count();
+                        }
+                        ended += lanes.image.iter().filter(|p| p[3] == 0.0).count();
+                        frames += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            inner > 100 * frames / 3,
+            "{inner} rays with slabs behind the planes"
+        );
+        assert!(
+            opaque > 100 && ended > 20 * frames,
+            "{opaque} {ended} {frames}"
         );
     }
 
