@@ -1184,7 +1184,7 @@ impl EaVolume {
         let mut depth = v.z0 + (k as f64 + 0.5) * v.dz;
         let planes = !v.clip.is_empty();
         // Slabs wholly behind the planes are sampled as without them (`EaVolume::clip_slabs`).
-        let clipped = planes && !(r.inner.0 <= k && k <= r.inner.1);
+        let clipped = planes && !r.inner_has(k);
         if clipped {
             // The slab's part behind the clipping planes, sampled at its middle.
             let (lo, hi) = slab_interval(v, r.o, r.d, k);
@@ -1300,7 +1300,9 @@ impl EaVolume {
             return (tau, u32::MAX);
         }
         let n = n.clamp(1, MAX_PARTS as u32);
-        let clipped = !v.clip.is_empty();
+        let planes = !v.clip.is_empty();
+        // Slabs wholly behind the planes are sampled as without them (`EaVolume::clip_slabs`).
+        let clipped = planes && !r.inner_has(k);
         let hi = self.hi();
         let mut skip = u32::MAX;
         for i in 0..n {
@@ -1630,6 +1632,12 @@ impl Ray {
             steps = steps.min(n.saturating_add(1));
         }
         steps.max(1)
+    }
+
+    /// Whether slice `k` lies in [`Ray::inner`] (behind the planes, sampled as without them).
+    #[inline(always)]
+    fn inner_has(&self, k: u32) -> bool {
+        self.inner.0 <= k && k <= self.inner.1
     }
 
     /// The next slice to take, if any.
@@ -2746,7 +2754,8 @@ mod tests {
 
     /// Clipped unlit frames - `ea` and the projections, whose rays take the slabs of their
     /// `Ray::inner` eight at a time between the scalar march's cut slabs
-    /// (`EaVolume::march_clipped`) - are the scalar march's bit for bit: one to three planes,
+    /// (`EaVolume::march_clipped`) - are the scalar march's bit for bit, and so are clipped
+    /// `combined` frames, whose light cells take those slabs eight at a time: one to three planes,
     /// views from several sides and from inside the grid, transfer functions that leave
     /// blocks empty on either side (a projection's transparent end), gaps, rays ending opaque.
     #[cfg(target_arch = "x86_64")]
@@ -2790,6 +2799,7 @@ mod tests {
             b
         };
         let (mut inner, mut opaque, mut ended, mut frames) = (0, 0, 0, 0);
+        let mut shadowed = 0;
         for t in [dense, window_ramp(0.2, 0.9), window_ramp(0.3, 0.05)] {
             let mut ev = EaVolume::new(&vol, &data, &t).unwrap();
             for clip in &planes {
@@ -2811,11 +2821,24 @@ mod tests {
                             inner += (r.inner.0 <= r.inner.1) as usize;
                         }
                     }
-                    for mode in 0..3 {
+                    // `combined`: its light swept with the lanes behind the planes, its eye
+                    // by the scalar march either way (a step a slice, and of eight slices
+                    // sampled in parts).
+                    let light = LightSettings {
+                        cell: 2,
+                        step: 1,
+                        cone: false,
+                        theta_deg: 30.0,
+                        blur_samples: 3,
+                    };
+                    let deep = LightSettings { step: 8, ..light };
+                    for mode in 0..5 {
                         let frame = |ev: &EaVolume| match mode {
                             0 => ev.render_frame(&v, None),
                             1 => ev.render_projection(&v, Extremum::Max),
-                            _ => ev.render_projection(&v, Extremum::Min),
+                            2 => ev.render_projection(&v, Extremum::Min),
+                            3 => ev.render_frame(&v, Some(&light)),
+                            _ => ev.render_frame(&v, Some(&deep)),
                         };
                         ev.lanes = true;
                         let lanes = frame(&ev);
@@ -2827,6 +2850,9 @@ mod tests {
                         );
                         if mode == 0 {
                             opaque += lanes.image.iter().filter(|p| p[3] > 0.99).count();
+                        }
+                        if mode >= 3 {
+                            shadowed += lanes.volumetric.iter().filter(|&&o| o < 0.9).count();
                         }
                         ended += lanes.image.iter().filter(|p| p[3] == 0.0).count();
                         frames += 1;

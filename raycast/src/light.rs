@@ -299,6 +299,9 @@ impl EaVolume {
         // The cells' centre rays, as the pixels' (a continuous pixel position).
         #[cfg(target_arch = "x86_64")]
         let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+        // Behind clipping planes, the slabs wholly inside each ray's kept depths are sampled
+        // as without planes (`EaVolume::clip_slabs`, as the eye's).
+        let planes = !v.clip.is_empty() && self.clip_slabs;
         let rays: Vec<Ray> = (0..n)
             .into_par_iter()
             .map(|c| {
@@ -307,11 +310,18 @@ impl EaVolume {
                     ((c / cells[0]) as f64 + 0.5) * cell as f64,
                 ];
                 #[cfg(target_arch = "x86_64")]
-                if fma {
+                let mut r = if fma {
                     // SAFETY: the CPU has AVX2 and FMA (checked above).
-                    return unsafe { self.light_ray_fma(v, &inv, px, samples as u32) };
+                    unsafe { self.light_ray_fma(v, &inv, px, samples as u32) }
+                } else {
+                    self.light_ray(v, &inv, px, samples as u32)
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let mut r = self.light_ray(v, &inv, px, samples as u32);
+                if planes {
+                    self.clip_slabs(v, &mut r);
                 }
-                self.light_ray(v, &inv, px, samples as u32)
+                r
             })
             .collect();
         let blur = blur_rows(v, cell as u32, theta_deg);
@@ -341,7 +351,12 @@ impl EaVolume {
         let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
         // SAFETY: the CPU has AVX2 and FMA (checked).
         #[cfg(target_arch = "x86_64")]
-        let splat = (fma && self.lanes_apply(v, data, None) && crate::lanes::gathers::<T>())
+        let splat =
+            (fma && if planes {
+                self.lanes_apply_planes(v, data, None)
+            } else {
+                self.lanes_apply(v, data, None)
+            } && crate::lanes::gathers::<T>())
             .then(|| unsafe { crate::lanes::Splat::new(self) });
         let taps_n = s.blur_samples.clamp(1, 9) as usize;
         // The rows of job `j` of slice `k` (`shared`: the buffers above, written in disjoint
@@ -383,6 +398,7 @@ impl EaVolume {
                 samples: samples as u32,
                 path,
                 dark,
+                planes,
                 #[cfg(target_arch = "x86_64")]
                 splat: splat.as_ref(),
             };
@@ -630,6 +646,9 @@ struct Sweep<'a> {
     path: f32,
     /// Arriving light below which a cell takes no samples (`occlusion::combined::DARK`).
     dark: f32,
+    /// Clipping planes, the rays' slabs behind them found (`Ray::inner`): the lanes take
+    /// only those (the others are cut part by part by `EaVolume::optical_depth`).
+    planes: bool,
     /// Where the optical depths are taken eight cells at a time (`crate::lanes`): the CPU has
     /// AVX2 and FMA and `EaVolume::lanes_apply` holds.
     #[cfg(target_arch = "x86_64")]
@@ -693,7 +712,7 @@ impl Sweep<'_> {
             // The paper's blur with the lanes: the loop below's values, in loops over the row
             // instead of branches per cell; the due cells' samples below, as the loop's.
             #[cfg(target_arch = "x86_64")]
-            let rowwise = by_row && lanes.is_some();
+            let rowwise = by_row && lanes.is_some() && !self.planes;
             #[cfg(not(target_arch = "x86_64"))]
             let rowwise = false;
             #[cfg(target_arch = "x86_64")]
@@ -747,7 +766,7 @@ impl Sweep<'_> {
                 // Light below `dark` is not sampled: it passes on unattenuated.
                 let due = kk >= *nk && occl >= self.dark;
                 #[cfg(target_arch = "x86_64")]
-                if due && lanes.is_some() {
+                if due && lanes.is_some() && (!self.planes || self.rays[c].inner_has(kk)) {
                     // The sample's optical depth is taken below, eight cells at a time.
                     need.push(x as u32);
                     *leave = [occl, (1.0 - occl) * (age + d)];
@@ -845,6 +864,8 @@ impl Sweep<'_> {
             };
             for (i, &x) in xs.iter().enumerate() {
                 let x = x as usize;
+                // (A step over empty blocks past `Ray::inner`'s end steps over cut slabs whose
+                // parts lie before the empty cube's far side too: nothing is missed.)
                 nk[x] = next[i];
                 let t: crate::Parts = std::array::from_fn(|p| tau[p][i] * self.path);
                 let slots = x * KB + j0;
