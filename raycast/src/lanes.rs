@@ -702,6 +702,9 @@ struct Packet {
     cells: [__m256i; 4],
     cells_p: [__m256i; 4],
     frac: [__m256; 2],
+    /// Behind clipping planes: each cell read this many slices further than the ray's slice
+    /// (`Footprint::shift`; `LightVolume::lookup_shifted`), for every ray of the packet.
+    shift: Option<[__m256; 4]>,
     kv: __m256i,
     k1v: __m256i,
     c: [__m256; 3],
@@ -721,14 +724,17 @@ impl Packet {
             debug_assert!(rays.len() <= LANES);
             let r = RayLanes::load(rays.iter().map(|(_, r)| r));
             let (mut cells, mut frac) = ([[0i32; LANES]; 4], [[0f32; LANES]; 2]);
+            let mut shift = [[0f32; LANES]; 4];
+            let mut shifted = false;
             if LIT {
                 for (i, (_, r)) in rays.iter().enumerate() {
-                    debug_assert!(!r.light.shifted, "clipped frames take the scalar march");
                     for (j, c) in r.light.cells.iter().enumerate() {
                         cells[j][i] = *c as i32;
+                        shift[j][i] = r.light.shift[j];
                     }
                     frac[0][i] = r.light.f[0];
                     frac[1][i] = r.light.f[1];
+                    shifted |= r.light.shifted;
                 }
             }
             let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
@@ -736,6 +742,7 @@ impl Packet {
             let p = Packet {
                 cells,
                 cells_p: cells.map(|c| _mm256_permutevar8x32_epi32(c, pair_order())),
+                shift: shifted.then(|| shift.map(|x| _mm256_loadu_ps(x.as_ptr()))),
                 frac: frac.map(|f| _mm256_loadu_ps(f.as_ptr())),
                 kv: r.k,
                 k1v: r.k1,
@@ -862,7 +869,11 @@ impl Packet {
             let wgt = _mm256_mul_ps(_mm256_sub_ps(one, self.alpha), al);
             // The light at the sample (`LightVolume::lookup`: bilinear over the ray's four
             // cells at stored slice (k + 1/2) / step, linear between them), 1 unlit.
-            let o = if LIT { self.light(m, lit) } else { one };
+            let o = match (LIT, &self.shift) {
+                (false, _) => one,
+                (true, None) => self.light(m, lit),
+                (true, Some(shift)) => self.light_shifted(m, lit, shift),
+            };
             let c = &mut self.c;
             for ch in 0..3 {
                 let x = _mm256_mul_ps(_mm256_mul_ps(wgt, rgb[ch]), o);
@@ -968,6 +979,79 @@ impl Packet {
             }
             let x0 = lerp!(v0, v1, self.frac[0]);
             let x1 = lerp!(v2, v3, self.frac[0]);
+            lerp!(x0, x1, self.frac[1])
+        }
+    }
+
+    /// [`Packet::light`] behind clipping planes (`LightVolume::lookup_shifted`): each of the
+    /// four cells at its own fractional stored slice `(k + 1/2 + shift) / step` (a product by
+    /// `1 / step`, a power of two: the quotient's bits), 1 at or before -1, towards the first
+    /// stored slice between -1 and 0, else linear between its two stored slices (clamped to the
+    /// last), as `LightVolume::cell_at`.
+    ///
+    /// # Safety
+    /// As [`march`]'s.
+    #[inline(always)]
+    unsafe fn light_shifted(
+        &self,
+        m: &Marching<'_, '_>,
+        lit: __m256,
+        shift: &[__m256; 4],
+    ) -> __m256 {
+        // SAFETY: the caller's; masked lanes read nothing.
+        unsafe {
+            let (zero, one, half) = (
+                _mm256_setzero_ps(),
+                _mm256_set1_ps(1.0),
+                _mm256_set1_ps(0.5),
+            );
+            let onei = _mm256_set1_epi32(1);
+            let last_f = _mm256_cvtepi32_ps(m.last);
+            let kf = _mm256_add_ps(_mm256_cvtepi32_ps(self.kv), half);
+            let mut v = [zero; 4];
+            for (j, v) in v.iter_mut().enumerate() {
+                let x = _mm256_mul_ps(_mm256_add_ps(kf, shift[j]), m.inv_step);
+                let fl = _mm256_floor_ps(x);
+                // The stored slice below (0 before the first; clamped in f32 first, so that no
+                // conversion overflows), and the next.
+                let k0 = _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(fl, zero), last_f));
+                let k1 = _mm256_min_epi32(_mm256_add_epi32(k0, onei), m.last);
+                // (A macro, not a closure: closures are compiled without AVX2.)
+                macro_rules! at {
+                    ($ks:expr) => {
+                        _mm256_add_epi32(
+                            _mm256_mullo_epi32(_mm256_srl_epi32($ks, m.kb_shift), m.slab),
+                            _mm256_and_si256($ks, m.kb_mask),
+                        )
+                    };
+                }
+                let a = _mm256_mask_i32gather_ps::<4>(
+                    zero,
+                    m.light,
+                    _mm256_add_epi32(at!(k0), self.cells[j]),
+                    lit,
+                );
+                let b = _mm256_mask_i32gather_ps::<4>(
+                    zero,
+                    m.light,
+                    _mm256_add_epi32(at!(k1), self.cells[j]),
+                    lit,
+                );
+                let inside = lerp!(a, b, _mm256_sub_ps(x, fl));
+                // Between -1 and 0: from 1 towards the first stored slice (`a` there).
+                let before = _mm256_add_ps(
+                    one,
+                    _mm256_mul_ps(_mm256_sub_ps(a, one), _mm256_add_ps(x, one)),
+                );
+                let val = _mm256_blendv_ps(inside, before, _mm256_cmp_ps::<_CMP_LT_OQ>(x, zero));
+                *v = _mm256_blendv_ps(
+                    val,
+                    one,
+                    _mm256_cmp_ps::<_CMP_LE_OQ>(x, _mm256_set1_ps(-1.0)),
+                );
+            }
+            let x0 = lerp!(v[0], v[1], self.frac[0]);
+            let x1 = lerp!(v[2], v[3], self.frac[0]);
             lerp!(x0, x1, self.frac[1])
         }
     }

@@ -451,6 +451,11 @@ impl EaVolume {
         } else {
             0.0
         };
+        // Behind clipping planes, where the light cells' rays enter the kept depths.
+        let entries = match &lv {
+            Some(lv) if !v.clip.is_empty() => lv.clip_entries(v, |p| pixel_ray(&inv, v, p)),
+            _ => vec![],
+        };
         #[cfg(target_arch = "x86_64")]
         let fma = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
         out.par_chunks_mut(w * TILE)
@@ -464,6 +469,7 @@ impl EaVolume {
                     band,
                     rows,
                     light: lv.as_ref(),
+                    entries: &entries,
                     mode,
                     simd: false,
                 };
@@ -523,6 +529,7 @@ impl EaVolume {
             band,
             rows,
             simd,
+            entries,
             ..
         } = job;
         let w = v.width as usize;
@@ -536,8 +543,8 @@ impl EaVolume {
             && if v.clip.is_empty() {
                 self.lanes_apply(v, data, LIT.then_some(lv))
             } else {
-                // Clipped: unlit frames only (a lit one's light footprints are shifted).
-                !LIT && self.clip_slabs && self.lanes_apply_planes(v, data, None)
+                // Clipped: the slabs behind the planes (`EaVolume::march_clipped`).
+                self.clip_slabs && self.lanes_apply_planes(v, data, LIT.then_some(lv))
             })
         // SAFETY: `simd` is set only where the CPU has AVX2 and FMA.
         .then(|| unsafe { lanes::Splat::new(self) });
@@ -572,7 +579,7 @@ impl EaVolume {
                         r.light = lv.footprint(px);
                         if !v.clip.is_empty() {
                             let entry = occlusion::emission_absorption::clip_entry(v, r.o, r.d);
-                            lv.clip_shifts(&mut r.light, px, v, entry, |p| pixel_ray(&inv, v, p));
+                            lv.clip_shifts(&mut r.light, px, v, entry, entries);
                         }
                     }
                 }
@@ -584,7 +591,7 @@ impl EaVolume {
                 // `lanes_apply` holds for the volume, the view and the light volume.
                 live = !unsafe {
                     if !v.clip.is_empty() {
-                        self.march_clipped::<T, MODE>(splat, v, data, lv, &mut rays)
+                        self.march_clipped::<T, LIT, MODE>(splat, v, data, lv, &mut rays)
                     } else if MODE == 0 {
                         self.march_lanes::<T, LIT>(splat, v, data, lv, &mut rays)
                     } else {
@@ -1082,7 +1089,7 @@ impl EaVolume {
     /// # Safety
     /// As [`EaVolume::march_lanes`]'s, with [`EaVolume::lanes_apply_planes`] for `v` (unlit).
     #[cfg(target_arch = "x86_64")]
-    unsafe fn march_clipped<T: Voxel, const MODE: u8>(
+    unsafe fn march_clipped<T: Voxel, const LIT: bool, const MODE: u8>(
         &self,
         splat: &lanes::Splat<'_>,
         v: &EaView,
@@ -1097,7 +1104,7 @@ impl EaVolume {
         // The cut slabs in front of `inner` (all of a ray's slabs without one).
         for (_, r) in rays.iter_mut() {
             while r.next().is_some() && !(has_inner(r) && r.k >= r.inner.0) {
-                self.advance::<T, false, MODE>(v, data, r, lv);
+                self.advance::<T, LIT, MODE>(v, data, r, lv);
             }
         }
         // `inner`: the rays still marching end there for the lanes (`last`: their own last
@@ -1116,7 +1123,7 @@ impl EaVolume {
         // change no sample (`EaVolume::advance`).
         unsafe {
             if MODE == 0 {
-                self.march_lanes::<T, false>(splat, v, data, lv, rays);
+                self.march_lanes::<T, LIT>(splat, v, data, lv, rays);
             } else {
                 self.march_lanes_extreme::<T, MODE>(splat, data, rays);
             }
@@ -1132,7 +1139,7 @@ impl EaVolume {
                 r.k = r.k.min(r.inner.1.saturating_add(1));
             }
             while r.next().is_some() {
-                self.advance::<T, false, MODE>(v, data, r, lv);
+                self.advance::<T, LIT, MODE>(v, data, r, lv);
             }
         }
         true
@@ -1560,6 +1567,8 @@ struct Band<'a, T> {
     band: usize,
     rows: &'a mut [Pixel],
     light: Option<&'a LightVolume>,
+    /// Behind clipping planes, lit: the light cells' entries ([`LightVolume::clip_entries`]).
+    entries: &'a [Option<f64>],
     /// 0: emission-absorption; 1, 2: the maximum or minimum projection.
     mode: u8,
     /// The CPU has AVX2 and FMA (`lanes` may march the packets).

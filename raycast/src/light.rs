@@ -117,30 +117,50 @@ impl LightVolume {
         lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
     }
 
+    /// Where each cell's centre ray enters the depths the clipping planes keep
+    /// ([`occlusion::emission_absorption::clip_entry`]), cell by cell in raster order, for
+    /// [`LightVolume::clip_shifts`]: once a frame, not four times a pixel. `ray` gives a pixel
+    /// position's ray.
+    pub(crate) fn clip_entries(
+        &self,
+        v: &EaView,
+        ray: impl Fn([f64; 2]) -> (glam::DVec3, glam::DVec3) + Sync,
+    ) -> Vec<Option<f64>> {
+        let s = self.cell as f64;
+        let cw = self.cells[0];
+        (0..cw * self.cells[1])
+            .into_par_iter()
+            .map(|c| {
+                let (x, y) = (c % cw, c / cw);
+                let (o, d) = ray([(x as f64 + 0.5) * s, (y as f64 + 0.5) * s]);
+                occlusion::emission_absorption::clip_entry(v, o, d)
+            })
+            .collect()
+    }
+
     /// Sets `f`'s shifts for a pixel behind clipping planes (`cell_shifts` in the shader): a
     /// cut face tilted to the slices meets a cell's rays in different slabs, and read at equal
     /// depth a cell whose cut is a slab nearer has absorbed a slab more (a band per slice on
     /// the face); each cell is read instead at the same distance behind the planes as the
     /// pixel, `(entry_cell - entry_pixel) / dz` slices further. `entry` is the pixel's
-    /// [`occlusion::emission_absorption::clip_entry`]; `ray` gives a pixel position's ray.
+    /// [`occlusion::emission_absorption::clip_entry`], `entries` the cells'
+    /// ([`LightVolume::clip_entries`]).
     pub(crate) fn clip_shifts(
         &self,
         f: &mut Footprint,
         px: [f64; 2],
         v: &EaView,
         entry: Option<f64>,
-        ray: impl Fn([f64; 2]) -> (glam::DVec3, glam::DVec3),
+        entries: &[Option<f64>],
     ) {
         let s = self.cell as f64;
         let c = [px[0] / s - 0.5, px[1] / s - 0.5];
         let b = c.map(|x| x.floor());
         let hi = [self.cells[0] as i64 - 1, self.cells[1] as i64 - 1];
         for (i, (dx, dy)) in [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate() {
-            let x = (b[0] as i64 + dx).clamp(0, hi[0]);
-            let y = (b[1] as i64 + dy).clamp(0, hi[1]);
-            let (o, d) = ray([(x as f64 + 0.5) * s, (y as f64 + 0.5) * s]);
-            let a_c = occlusion::emission_absorption::clip_entry(v, o, d);
-            f.shift[i] = match (entry, a_c) {
+            let x = (b[0] as i64 + dx).clamp(0, hi[0]) as usize;
+            let y = (b[1] as i64 + dy).clamp(0, hi[1]) as usize;
+            f.shift[i] = match (entry, entries[x + self.cells[0] * y]) {
                 (Some(a), Some(b)) => ((b - a) / v.dz) as f32,
                 _ => 0.0,
             };
