@@ -2668,6 +2668,18 @@ mod tests {
         assert_eq!(ev.exp_neg(17.0), 0.0);
     }
 
+    /// A 40 x 34 x 30 blob with NaN gaps (holes) across its shells too (every value of a
+    /// window), not only its centre, and its samples.
+    fn gapped_blob() -> (Volume, Vec<f32>) {
+        let vol = blob([40, 34, 30]);
+        let mut data = vol.select(None).unwrap().data;
+        for i in (2..38).step_by(3) {
+            data[vol.index(i, 17, 15)] = f32::NAN;
+            data[vol.index(20, 17, i.min(29))] = f32::NAN;
+        }
+        (vol, data)
+    }
+
     /// A projection marched eight rays at a time (`lanes::march_extreme`) is the scalar
     /// march's image bit for bit: maximum and minimum, a window transparent below and one
     /// turned round (empty blocks stepped over, and ending the ray), f32 samples with a NaN
@@ -2679,13 +2691,7 @@ mod tests {
         if !lanes_here() {
             return;
         }
-        let vol = blob([40, 34, 30]);
-        let mut data = vol.select(None).unwrap().data;
-        // Gaps across the blob's shells too (every value of a window), not only its centre.
-        for i in (2..38).step_by(3) {
-            data[vol.index(i, 17, 15)] = f32::NAN;
-            data[vol.index(20, 17, i.min(29))] = f32::NAN;
-        }
+        let (vol, data) = gapped_blob();
         let b = vol.bounds();
         // Integers 0..=250 (u8) and 0..=60,000 (u16) with an offset, for the narrow types.
         let ints = |scale: f32, offset: f32| -> Vec<f32> {
@@ -2761,6 +2767,24 @@ mod tests {
         );
     }
 
+    /// One, two and three clipping planes (faces across a grid's middle `c`, tilted to the
+    /// slices), as `EaView::clip` holds them.
+    fn test_planes(c: DVec3) -> [Vec<([f64; 3], f64)>; 3] {
+        let plane = |n: [f64; 3], at: DVec3| (n, DVec3::from(n).dot(at));
+        [
+            vec![plane([1.0, 0.0, 0.0], c)],
+            vec![
+                plane([0.6, -0.8, 0.2], c),
+                plane([-0.3, 0.1, 1.0], c + DVec3::Z * 3.0),
+            ],
+            vec![
+                plane([0.0, 1.0, 0.0], c - DVec3::Y * 4.0),
+                plane([0.0, -1.0, 0.3], c - DVec3::Y * 9.0),
+                plane([1.0, 1.0, 0.0], c + DVec3::X * 5.0),
+            ],
+        ]
+    }
+
     /// Clipped unlit frames - `ea` and the projections, whose rays take the slabs of their
     /// `Ray::inner` eight at a time between the scalar march's cut slabs
     /// (`EaVolume::march_clipped`) - are the scalar march's bit for bit, and so are clipped
@@ -2773,26 +2797,10 @@ mod tests {
         if !lanes_here() {
             return;
         }
-        let vol = blob([40, 34, 30]);
-        let mut data = vol.select(None).unwrap().data;
-        for i in (2..38).step_by(3) {
-            data[vol.index(i, 17, 15)] = f32::NAN;
-        }
+        let (vol, data) = gapped_blob();
         let b = vol.bounds();
         let c = 0.5 * (b[0] + b[1]);
-        let plane = |n: [f64; 3], at: DVec3| (n, DVec3::from(n).dot(at));
-        let planes = [
-            vec![plane([1.0, 0.0, 0.0], c)],
-            vec![
-                plane([0.6, -0.8, 0.2], c),
-                plane([-0.3, 0.1, 1.0], c + DVec3::Z * 3.0),
-            ],
-            vec![
-                plane([0.0, 1.0, 0.0], c - DVec3::Y * 4.0),
-                plane([0.0, -1.0, 0.3], c - DVec3::Y * 9.0),
-                plane([1.0, 1.0, 0.0], c + DVec3::X * 5.0),
-            ],
-        ];
+        let planes = test_planes(c);
         let dense = Transfer {
             points: vec![(0.1, [0.9, 0.5, 0.2], 0.0), (0.6, [0.2, 0.6, 1.0], 4.0)],
             rows: vec![],
@@ -2870,13 +2878,14 @@ mod tests {
             }
         }
         assert!(
-            inner > 100 * frames / 3,
+            inner > 100 * frames / 5,
             "{inner} rays with slabs behind the planes"
         );
         assert!(
             opaque > 100 && ended > 20 * frames,
             "{opaque} {ended} {frames}"
         );
+        assert!(shadowed > 1000, "{shadowed} pixels in the light's shadow");
     }
 
     /// Clipped rays sampling the slabs wholly behind the planes as without them
@@ -2895,19 +2904,7 @@ mod tests {
             rows: vec![],
         };
         let mut ev = EaVolume::new(&vol, &data, &dense).unwrap();
-        let plane = |n: [f64; 3], at: DVec3| (n, DVec3::from(n).dot(at));
-        let planes = [
-            vec![plane([1.0, 0.0, 0.0], c)],
-            vec![
-                plane([0.6, -0.8, 0.2], c),
-                plane([-0.3, 0.1, 1.0], c + DVec3::Z * 3.0),
-            ],
-            vec![
-                plane([0.0, 1.0, 0.0], c - DVec3::Y * 4.0),
-                plane([0.0, -1.0, 0.3], c - DVec3::Y * 9.0),
-                plane([1.0, 1.0, 0.0], c + DVec3::X * 5.0),
-            ],
-        ];
+        let planes = test_planes(c);
         let (mut worst, mut shown) = (0.0f32, 0);
         for clip in planes {
             for cam in [
