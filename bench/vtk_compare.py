@@ -77,7 +77,11 @@ Usage:
         [--umbra target/release/umbra] [--cases mni,headsq] [--volume PATH ...] \\
         [--ramp 0.25,1.0] [--sigma S] [--view 120,15] [--sizes 512] [--frames 3] \\
         [--rounds 1] [--methods ea,combined] [--peers cpu,gl] [--threads 2] \\
-        [--sampling-check] [--fxaa] [--offscreen]
+        [--sampling-check] [--fxaa] [--offscreen] [--clip NX,NY,NZ]
+
+--clip cuts the volume on both sides by one plane through the centre of its world box (umbra
+`[[clip]]`, VTK `AddClippingPlane` with the normal reversed: VTK keeps the side its normal
+points to); the images are compared as without it.
 """
 import argparse
 import atexit
@@ -287,7 +291,7 @@ def toml_list(v):
     return "[" + ", ".join("%.9g" % x for x in v) + "]"
 
 
-def write_scene(path, vol, cam, tf, fxaa):
+def write_scene(path, vol, cam, tf, fxaa, clip=None):
     head = """background = %s
 [camera]
 eye = %s
@@ -316,6 +320,9 @@ fxaa = %s
         txt = ("# Written by bench/vtk_compare.py: the scene VTK renders too (explicit look-at "
                "camera).\n" + head + "[volume.transfer]\npoints = [\n  %s,\n]\n" % pts
                + tail % ("ea", fx))
+    if clip is not None:
+        # umbra keeps normal . x <= offset.
+        txt += "[[clip]]\nnormal = %s\noffset = %.9g\n" % (toml_list(clip[0]), clip[1])
     with open(path, "w") as f:
         f.write(txt)
 
@@ -383,7 +390,8 @@ def projection_tf(rng, lo_f, hi_f, opacity):
 class VtkPeer:
     """One render window with one volume mapper (kind 'cpu' or 'gl')."""
 
-    def __init__(self, kind, image, user_matrix, tf, cam, d, threads, onscreen, blend="composite"):
+    def __init__(self, kind, image, user_matrix, tf, cam, d, threads, onscreen, blend="composite",
+                 clip=None):
         import vtkmodules.all as vtk
         self.vtk = vtk
         self.kind = kind
@@ -427,6 +435,15 @@ class VtkPeer:
         else:
             m.SetBlendModeToComposite()
         m.SetInputData(image)
+        if clip is not None:
+            # VTK keeps the side a clipping plane's normal points to (world coordinates):
+            # umbra's kept side normal . x <= offset is VTK's plane with the normal reversed.
+            (n, off) = clip
+            nn = sum(x * x for x in n)
+            plane = vtk.vtkPlane()
+            plane.SetOrigin(*[x * off / nn for x in n])
+            plane.SetNormal(*[-x for x in n])
+            m.AddClippingPlane(plane)
         self.mapper = m
 
         prop = vtk.vtkVolumeProperty()
@@ -649,6 +666,10 @@ def main():
                          "projections (umbra's methods of that name, VTK's blend modes), grey "
                          "over the case's ramp window, opacity --opacity")
     ap.add_argument("--opacity", type=float, default=1.0, help="--blend mip/minip: opacity")
+    ap.add_argument("--clip", default=None, metavar="NX,NY,NZ",
+                    help="one clipping plane with this normal through the volume's centre on "
+                         "both sides (umbra keeps normal . x <= normal . centre; a leading "
+                         "minus needs the = form: --clip=-1,0,0)")
     ap.add_argument("--sampling-check", action="store_true",
                     help="time VTK's mappers on the last case (headsq by default) at 2d, d, d/2")
     a = ap.parse_args()
@@ -683,6 +704,14 @@ def main():
         die("--ramp and --view take two numbers each, as lo,hi and azimuth,elevation")
     if not 0.0 <= lo_f < hi_f <= 1.0:
         die("--ramp %s: lo and hi are fractions of the data range, 0 <= lo < hi <= 1" % a.ramp)
+    clip_n = None
+    if a.clip is not None:
+        try:
+            clip_n = [float(x) for x in a.clip.split(",")]
+        except ValueError:
+            clip_n = []
+        if len(clip_n) != 3 or not all(math.isfinite(x) for x in clip_n) or not any(clip_n):
+            die("--clip %s: a plane's normal, three finite numbers not all 0" % a.clip)
     if a.sigma is not None and not (a.sigma > 0 and math.isfinite(a.sigma)):
         die("--sigma %s: a positive extinction per world unit" % a.sigma)
     for vpath in a.volume:
@@ -730,7 +759,12 @@ def main():
             tf = projection_tf(info["range"], lo_f, hi_f, a.opacity)
         cam = orbit_camera(info["bounds"], az, el, dist, FOV_Y, up)
         scene = os.path.join(os.path.abspath(a.out), case + ".toml")
-        write_scene(scene, path, cam, tf, a.fxaa)
+        clip = None
+        if clip_n is not None:
+            bl, bh = info["bounds"]
+            centre = [0.5 * (x + y) for x, y in zip(bl, bh)]
+            clip = (clip_n, sum(n * c for n, c in zip(clip_n, centre)))
+        write_scene(scene, path, cam, tf, a.fxaa, clip)
         img, reader_m, qfac = vtk_read(path)
         um = user_matrix_for(img, info["affine"])
         cn = []
@@ -771,7 +805,7 @@ def main():
             if p == "gl" and not gl_ok:
                 continue
             try:
-                vpeers[p] = VtkPeer(p, img, um, tf, cam, d, a.threads, onscreen, a.blend)
+                vpeers[p] = VtkPeer(p, img, um, tf, cam, d, a.threads, onscreen, a.blend, clip)
             except Exception as e:  # pragma: no cover
                 notes.append("VTK %s mapper could not be set up: %s" % (p, e))
                 if p == "gl":
