@@ -732,7 +732,7 @@ impl Sweep<'_> {
             // The paper's blur with the lanes: the loop below's values, in loops over the row
             // instead of branches per cell; the due cells' samples below, as the loop's.
             #[cfg(target_arch = "x86_64")]
-            let rowwise = by_row && lanes.is_some() && !self.planes;
+            let rowwise = by_row && lanes.is_some();
             #[cfg(not(target_arch = "x86_64"))]
             let rowwise = false;
             #[cfg(target_arch = "x86_64")]
@@ -758,6 +758,25 @@ impl Sweep<'_> {
                 unsafe { crate::lanes::due(nk, kk, &mut need) };
                 // Light below `dark` passes on unattenuated (`occlusion::combined::DARK`).
                 need.retain(|&x| occ_row[x as usize] >= self.dark);
+                if self.planes {
+                    // Behind clipping planes the lanes take the slabs of the cells' `inner`;
+                    // the others' parts are cut one by one here (as the loop below does).
+                    let row0 = c0 + ry * cw;
+                    let orow = &mut o[ry * cw * KB..][..cw * KB];
+                    need.retain(|&x| {
+                        let x = x as usize;
+                        let r = &self.rays[row0 + x];
+                        if r.inner_has(kk) {
+                            return true;
+                        }
+                        let (tau, after) = ev.optical_depth(v, data, r, kk, self.samples);
+                        let tau = tau.map(|t| t * self.path);
+                        nk[x] = after;
+                        store_parts(&mut orow[x * KB + j0..x * KB + j0 + parts], ev, &tau);
+                        out[x][0] *= ev.exp_neg(tau.iter().sum());
+                        false
+                    });
+                }
             }
             let (mut lo, mut hi) = (i32::MAX, i32::MIN);
             let cells_here = if rowwise { 0 } else { cw };
