@@ -1028,9 +1028,9 @@ impl EaVolume {
 
     /// Whether `lanes` can march this volume's `data` in view `v` (with the light volume `lv`
     /// for a lit frame): samples bricked or in the grid's layout (at least four, fewer than
-    /// 2^31: the gathers' indices), a transfer function with points, no clipping planes (so no shifted light
-    /// footprints), at most `MAX_SLICES` slices, a light volume of fewer than 2^31 values, and
-    /// `self.lanes` on.
+    /// 2^31: the gathers' indices), a transfer function with points, no clipping planes (with
+    /// planes: [`EaVolume::lanes_apply_planes`]), at most `MAX_SLICES` slices, a light volume of
+    /// fewer than 2^31 values, and `self.lanes` on.
     #[cfg(target_arch = "x86_64")]
     fn lanes_apply<T: Voxel>(&self, v: &EaView, data: &[T], lv: Option<&LightVolume>) -> bool {
         v.clip.is_empty() && self.lanes_apply_planes(v, data, lv)
@@ -1087,7 +1087,8 @@ impl EaVolume {
     /// (nothing done) for a type `lanes` does not gather.
     ///
     /// # Safety
-    /// As [`EaVolume::march_lanes`]'s, with [`EaVolume::lanes_apply_planes`] for `v` (unlit).
+    /// As [`EaVolume::march_lanes`]'s, with [`EaVolume::lanes_apply_planes`] for `v` (and
+    /// `lv`, lit).
     #[cfg(target_arch = "x86_64")]
     unsafe fn march_clipped<T: Voxel, const LIT: bool, const MODE: u8>(
         &self,
@@ -1110,13 +1111,19 @@ impl EaVolume {
         // `inner`: the rays still marching end there for the lanes (`last`: their own last
         // slice). A lane that ends early (opaque, or a projection's transparent end) leaves
         // k1 = 0, k = 1; one that does not, k1 as given.
-        // (Rays already past `inner` sit the lanes out: k1 = 0 < k.)
+        // (Rays already past `inner` sit the lanes out as done rays, k = 1 > k1 = 0. So do
+        // rays whose `inner` is slice 0 alone: a lane that ends there early leaves k1 = 0 =
+        // inner.1, as one that does not - the scalar march takes slice 0 as the lanes would.)
         let mut last = [None; TILE * TILE];
         for ((_, r), l) in rays.iter_mut().zip(&mut last) {
             if r.next().is_some() {
-                let lanes = r.k <= r.inner.1;
-                *l = Some((r.k1, lanes));
-                r.k1 = if lanes { r.k1.min(r.inner.1) } else { 0 };
+                let lanes = r.k <= r.inner.1 && r.inner.1 > 0;
+                *l = Some((r.k, r.k1, lanes));
+                (r.k, r.k1) = if lanes {
+                    (r.k, r.k1.min(r.inner.1))
+                } else {
+                    (1, 0)
+                };
             }
         }
         // SAFETY: the caller's; the rays' slices k..=k1 lie in `inner`, where the planes
@@ -1129,11 +1136,12 @@ impl EaVolume {
             }
         }
         // Past `inner`, the scalar march; a lane's step over empty blocks not past `inner`'s
-        // end, as `advance` takes it. (Where `last` is 0 both cases leave the ray done.)
+        // end, as `advance` takes it. (inner.1 > 0: a lane that ended early has k1 = 0 <
+        // min(last, inner.1) unless `last` is 0, where both cases leave the ray done.)
         for ((_, r), l) in rays.iter_mut().zip(last) {
-            let Some((l, lanes)) = l else { continue };
+            let Some((k, l, lanes)) = l else { continue };
             if !lanes {
-                r.k1 = l;
+                (r.k, r.k1) = (k, l);
             } else if r.k1 == l.min(r.inner.1) {
                 r.k1 = l;
                 r.k = r.k.min(r.inner.1.saturating_add(1));
@@ -2816,10 +2824,18 @@ mod tests {
             b
         };
         let (mut inner, mut opaque, mut ended, mut frames) = (0, 0, 0, 0);
-        let mut shadowed = 0;
-        for t in [dense, window_ramp(0.2, 0.9), window_ramp(0.3, 0.05)] {
+        let (mut shadowed, mut first_only) = (0, 0);
+        // Past OPAQUE (not 1) at any sample a slice deep: rays end at their first sample in
+        // the grid.
+        let wall = Transfer {
+            points: vec![(0.0, [0.4, 0.8, 0.3], 12.0)],
+            rows: vec![],
+        };
+        for t in [dense, wall, window_ramp(0.2, 0.9), window_ramp(0.3, 0.05)] {
             let mut ev = EaVolume::new(&vol, &data, &t).unwrap();
-            for clip in &planes {
+            // The three sets of planes, and a plane parallel to the slices 2.5 slabs behind
+            // the first, keeping the front: the rays' `inner` is slice 0 alone.
+            for clip in 0..4 {
                 for cam in [
                     Camera::orbit(b, 35.0, 25.0, 2.5, Some(40.0)),
                     Camera::orbit(b, -120.0, -40.0, 3.0, None),
@@ -2828,7 +2844,13 @@ mod tests {
                 ] {
                     let mut v =
                         EaView::new(&vol, cam, 37, 29, None, None, [0.1, 0.2, 0.3]).unwrap();
-                    v.clip = clip.clone();
+                    v.clip = match planes.get(clip) {
+                        Some(p) => p.clone(),
+                        None => {
+                            let f = cam.forward();
+                            vec![(f.to_array(), f.dot(cam.eye) + v.z0 + 2.5 * v.dz)]
+                        }
+                    };
                     let inv = v.camera.view_projection(37.0 / 29.0).inverse();
                     for y in 0..29 {
                         for x in 0..37 {
@@ -2836,11 +2858,12 @@ mod tests {
                             let mut r = ev.start(&v, o, d);
                             ev.clip_slabs(&v, &mut r);
                             inner += (r.inner.0 <= r.inner.1) as usize;
+                            first_only += (r.inner == (0, 0) && r.k == 0) as usize;
                         }
                     }
-                    // `combined`: its light swept with the lanes behind the planes, its eye
-                    // by the scalar march either way (a step a slice, and of eight slices
-                    // sampled in parts).
+                    // `combined`: its light swept and its eye marched with the lanes behind
+                    // the planes (the light read at the cells' shifts), a step a slice, and
+                    // of eight slices sampled in parts.
                     let light = LightSettings {
                         cell: 2,
                         step: 1,
@@ -2863,7 +2886,8 @@ mod tests {
                         let scalar = frame(&ev);
                         assert!(
                             bits(&lanes) == bits(&scalar),
-                            "mode {mode} planes {clip:?} camera {cam:?}"
+                            "mode {mode} planes {:?} camera {cam:?}",
+                            v.clip
                         );
                         if mode == 0 {
                             opaque += lanes.image.iter().filter(|p| p[3] > 0.99).count();
@@ -2886,6 +2910,10 @@ mod tests {
             "{opaque} {ended} {frames}"
         );
         assert!(shadowed > 1000, "{shadowed} pixels in the light's shadow");
+        assert!(
+            first_only > 1000,
+            "{first_only} rays behind the planes in slice 0 alone"
+        );
     }
 
     /// Clipped rays sampling the slabs wholly behind the planes as without them
