@@ -21,9 +21,11 @@
 //! ([`march_extreme`], the same sampling without the transfer function).
 //!
 //! Used where the scalar march would use the same model without extras: `ea`, the eye
-//! march of `dos`/`combined` and the projections `mip`/`minip`, no clipping planes, samples
-//! in any stored type, bricked or in the grid's layout ([`EaVolume::lanes_apply`]), on CPUs
-//! with AVX2 and FMA.
+//! march of `dos`/`combined` and the projections `mip`/`minip`, samples in any stored type,
+//! bricked or in the grid's layout ([`EaVolume::lanes_apply`]), on CPUs with AVX2 and FMA;
+//! behind clipping planes, the slabs of each ray (and light cell) wholly inside the depths
+//! the planes keep (`crate::Ray::inner`: `EaVolume::march_clipped`, the light read at each
+//! cell's shift, [`Packet::light_shifted`]).
 
 use crate::light::{LightVolume, KB};
 use crate::{EaVolume, Ray, APRON, EXP_N, EXP_SCALE, SKIP};
@@ -626,7 +628,8 @@ impl RayLanes {
 /// samples in its layout: at least four, fewer than 2^31) and, when `LIT`, `lv` (the light
 /// volume swept for `v`, fewer than 2^31 values); `splat` is the volume's; the rays come from
 /// [`EaVolume::start`] for `v` (so `k1 < lv.slices`), their light footprints from
-/// [`LightVolume::footprint`] (not shifted: no clipping planes).
+/// [`LightVolume::footprint`] (shifted behind clipping planes: `LightVolume::clip_shifts`;
+/// then the rays' slices `k..=k1` lie in their `inner`, `EaVolume::march_clipped`).
 #[target_feature(enable = "avx2,fma")]
 pub(crate) unsafe fn march<T: Gather, const LIT: bool>(
     splat: &Splat<'_>,
@@ -1025,18 +1028,30 @@ impl Packet {
                         )
                     };
                 }
-                let a = _mm256_mask_i32gather_ps::<4>(
-                    zero,
-                    m.light,
-                    _mm256_add_epi32(at!(k0), self.cells[j]),
-                    lit,
+                let a0 = _mm256_add_epi32(at!(k0), self.cells[j]);
+                // Neighbours in memory unless k0 is the last of its block or of the volume
+                // (as in `Packet::light`): then one 64-bit element a pair.
+                let split = _mm256_or_si256(
+                    _mm256_cmpeq_epi32(_mm256_and_si256(k0, m.kb_mask), m.kb_mask),
+                    _mm256_cmpgt_epi32(_mm256_add_epi32(k0, onei), m.last),
                 );
-                let b = _mm256_mask_i32gather_ps::<4>(
-                    zero,
-                    m.light,
-                    _mm256_add_epi32(at!(k1), self.cells[j]),
-                    lit,
-                );
+                let (a, b) = if _mm256_testz_si256(split, _mm256_castps_si256(lit)) != 0 {
+                    gather_pairs_32(
+                        m.light as *const u8,
+                        _mm256_permutevar8x32_epi32(a0, m.order),
+                        _mm256_permutevar8x32_ps(lit, m.order),
+                    )
+                } else {
+                    (
+                        _mm256_mask_i32gather_ps::<4>(zero, m.light, a0, lit),
+                        _mm256_mask_i32gather_ps::<4>(
+                            zero,
+                            m.light,
+                            _mm256_add_epi32(at!(k1), self.cells[j]),
+                            lit,
+                        ),
+                    )
+                };
                 let inside = lerp!(a, b, _mm256_sub_ps(x, fl));
                 // Between -1 and 0: from 1 towards the first stored slice (`a` there).
                 let before = _mm256_add_ps(
