@@ -480,6 +480,41 @@ fn volume_sample(r: Ray, depth: f32, grad: ptr<function, vec3<f32>>) -> vec4<f32
     return transfer(v, length(*grad));
 }
 
+// Empty space ahead: the slabs after the one whose sample lies at view depth `m` whose samples
+// lie in the same empty brick (0 where `m`'s does not), for the march to step past - their
+// samples are transparent. A later slab's sample may sit anywhere in its slab (clipping
+// planes, layers), so within a slab of where the first's step puts it: slabs up to the one
+// before the brick's edge minus that slab are certain. As `raycast`'s `Ray::past_block` on
+// the CPU (bricks, not the cube of empty blocks around them).
+fn empty_slabs(r: Ray, m: f32) -> u32 {
+    let s = (m - r.o_depth) / r.cosine;
+    let q = (P.world_to_index * vec4<f32>(r.o + r.d * s, 1.0)).xyz;
+    let hi = vec3<f32>(P.dims) - vec3<f32>(1.0);
+    // (NaN fails both bounds.)
+    if (s < 0.0 || !(all(q >= vec3<f32>(0.0)) && all(q <= hi))) {
+        return 0u;
+    }
+    let last = P.bricks - vec3<u32>(1u);
+    let br = min(vec3<u32>(q) / P.brick, last);
+    if (occupied[br.x + P.bricks.x * (br.y + P.bricks.y * br.z)] != 0u) {
+        return 0u;
+    }
+    // The index-space step from a slab's sample to the next's, unclipped.
+    let dq = (P.world_to_index * vec4<f32>(r.d, 0.0)).xyz * (P.dz / r.cosine);
+    let lo = vec3<f32>(br * P.brick);
+    // The last brick reaches the grid's end (samples past it are outside: transparent).
+    let up = select(vec3<f32>((br + vec3<u32>(1u)) * P.brick), vec3<f32>(3.0e38), br == last);
+    var n = 3.0e38;
+    for (var a = 0u; a < 3u; a = a + 1u) {
+        if (dq[a] > 1e-12) {
+            n = min(n, (up[a] - q[a]) / dq[a]);
+        } else if (dq[a] < -1e-12) {
+            n = min(n, (q[a] - lo[a]) / -dq[a]);
+        }
+    }
+    return u32(clamp(floor(n) - 2.0, 0.0, f32(P.n_slices)));
+}
+
 // Colour of a volume sample under the head light: unshaded emission, or Phong with the
 // gradient as normal (two-sided; flat regions keep their emission).
 fn shade_volume(c: vec3<f32>, grad: vec3<f32>, view_dir: vec3<f32>) -> vec3<f32> {
@@ -723,6 +758,8 @@ fn projection(r: Ray) -> vec4<f32> {
         let br = min(vec3<u32>(q) / P.brick, P.bricks - vec3<u32>(1u));
         let empty = occupied[br.x + P.bricks.x * (br.y + P.bricks.y * br.z)] == 0u;
         if (empty && !ends) {
+            // Past the empty brick (`empty_slabs`).
+            k = k + empty_slabs(r, 0.5 * (iv.x + iv.y));
             continue;
         }
         let v = trilinear(q);
@@ -867,6 +904,8 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
             o = light_at(px, k);
         }
         var a = iv.x;
+        // Whether the slab took nothing (no absorbing sample, no layer).
+        var clear = true;
         loop {
             // The part of the slab up to the next layer in it, or to its end.
             let in_slab = zl > 0.0 && zl <= iv.y;
@@ -875,6 +914,7 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
                 var grad = vec3<f32>(0.0);
                 let c = volume_sample(r, 0.5 * (a + b), &grad);
                 if (c.a > 0.0) {
+                    clear = false;
                     let cb = blended(c, r, 0.5 * (a + b));
                     composite_eye(&e, &acc, &half, r, vec2<f32>(a, b), cb, grad, o);
                 }
@@ -882,6 +922,7 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
             if (!in_slab) {
                 break;
             }
+            clear = false;
             composite_layer(&e, &half, pid, next, r);
             a = max(a, zl);
             next = next + 1u;
@@ -893,6 +934,11 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
         if (e.a > 0.9921875) {
             e = vec4<f32>(e.rgb / e.a, 1.0);
             break;
+        }
+        if (clear) {
+            // Past the empty brick. (A layer in the slabs stepped over is composited at the
+            // start of the next slab taken, before its samples: nothing lay between.)
+            k = k + empty_slabs(r, 0.5 * (iv.x + iv.y));
         }
     }
     // Layers behind the volume (or with none), in front of the opaque surface.

@@ -325,3 +325,96 @@ fn integer_volumes_packed_in_8_and_16_bits_render_as_f32() {
         assert!(parts == packed, "{want:?}: the parts' image differs");
     }
 }
+
+/// The march steps over empty bricks (`empty_slabs` in `shaders/slice_pass.wgsl`) without
+/// missing a sample: thin sheets and a small cube in a large empty grid (every brick in front
+/// of them empty), seen from oblique, axis-aligned and clipped views, match the f64 twin,
+/// which takes every slice. A step that went a few slices too far passes through a sheet.
+#[test]
+fn empty_bricks_are_stepped_over_without_missing_a_sample() {
+    let gpu = Gpu::new().expect("a GPU adapter (CI installs mesa-vulkan-drivers for lavapipe)");
+    let mut vol =
+        volume::synthetic::gaussian_blob([64, 48, 40], DVec3::new(-32.0, -21.0, -24.0), 30.0);
+    let dims = vol.dims;
+    let mut field = vec![0.0f32; dims[0] * dims[1] * dims[2]];
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                // Sheets one voxel thick across the grid, tilted ones, and a cube.
+                let sheet = i == 41 || j == 13 || (i + 2 * k) % 37 == 0;
+                let cube = (20..24).contains(&i) && (30..34).contains(&j) && (18..22).contains(&k);
+                if sheet || cube {
+                    field[vol.index(i, j, k)] = 1.0;
+                }
+            }
+        }
+    }
+    vol.fields[0].data = field;
+    let data = vol.select(None).unwrap().data;
+    let dense = Transfer {
+        points: vec![
+            (0.05, [0.9, 0.5, 0.2], 0.0),
+            (0.5, [0.3, 0.7, 0.9], 0.4),
+            (1.0, [0.2, 0.6, 1.0], 0.8),
+        ],
+        rows: vec![],
+    };
+    let b = vol.bounds();
+    let mut shown = 0;
+    for (cam, clip) in [
+        (Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0)), vec![]),
+        (Camera::orbit(b, -110.0, -35.0, 2.2, Some(30.0)), vec![]),
+        (Camera::orbit(b, 0.0, 0.0, 2.0, None), vec![]),
+        (Camera::orbit(b, 90.0, 0.0, 2.0, None), vec![]),
+        (
+            Camera::orbit(b, 40.0, 25.0, 2.5, Some(40.0)),
+            vec![([0.6, 0.8, 0.0], 2.0)],
+        ),
+    ] {
+        let mut view = EaView::new(&vol, cam, 64, 48, None, None, [1.0; 3]).unwrap();
+        view.clip = clip;
+        let gpu_img = render(&gpu, &data, &vol, &dense, &view);
+        let cpu_img = reference(&data, &vol, &dense, &view);
+        let mut worst = 0.0f64;
+        for (g, c) in gpu_img.iter().zip(&cpu_img) {
+            for k in 0..4 {
+                worst = worst.max((g[k] as f64 - c[k]).abs());
+            }
+        }
+        assert!(worst < 2e-3, "{cam:?}: GPU and CPU differ by {worst}");
+        shown += cpu_img.iter().filter(|p| p[3] > 0.05).count();
+        // The maximum projection steps over the same bricks: its maximum is a sheet's.
+        let samples = Samples::pack(data.clone());
+        let vi = VolumeInput {
+            vol: &vol,
+            data: &samples,
+            tf: &dense,
+        };
+        let mip = draw(&gpu, &vi, &view, Method::Mip, None).unwrap();
+        let (w, h) = (64usize, 48usize);
+        let w2i = vol.affine.inverse();
+        let mut worst = 0.0f64;
+        for y in 0..h {
+            for x in 0..w {
+                let (o, d) = view.camera.ray(x as f64, y as f64, w, h);
+                let e = occlusion::projection::extreme(
+                    &data,
+                    dims,
+                    &w2i,
+                    &view,
+                    o,
+                    d,
+                    occlusion::projection::Extremum::Max,
+                );
+                let c = occlusion::projection::shade(&dense, e);
+                let px = mip[x + w * y];
+                for k in 0..3 {
+                    let want = c[k] + (1.0 - c[3]) * view.background[k];
+                    worst = worst.max((px[k] as f64 - want).abs());
+                }
+            }
+        }
+        assert!(worst < 2e-3, "{cam:?}: the GPU's MIP differs by {worst}");
+    }
+    assert!(shown > 2000, "{shown} pixels show a sheet");
+}
