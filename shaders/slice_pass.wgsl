@@ -897,12 +897,9 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
         if (iv.y <= iv.x) {
             continue;
         }
+        // The light at the slab, read when a sample absorbs (most slabs of a ray take none).
         var o = 1.0;
-        if (shifted) {
-            o = light_shifted(cs, k);
-        } else if (lit) {
-            o = light_at(px, k);
-        }
+        var o_read = !lit;
         var a = iv.x;
         // Whether the slab took nothing (no absorbing sample, no layer).
         var clear = true;
@@ -916,6 +913,14 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
                 if (c.a > 0.0) {
                     clear = false;
                     let cb = blended(c, r, 0.5 * (a + b));
+                    if (!o_read) {
+                        if (shifted) {
+                            o = light_shifted(cs, k);
+                        } else {
+                            o = light_at(px, k);
+                        }
+                        o_read = true;
+                    }
                     composite_eye(&e, &acc, &half, r, vec2<f32>(a, b), cb, grad, o);
                 }
             }
