@@ -2213,13 +2213,7 @@ mod tests {
             ] {
                 let view = EaView::new(&vol, cam, 37, 29, None, None, [0.1, 0.2, 0.3]).unwrap();
                 // Unlit (`ea`) and with the occlusion buffer (`combined`'s eye march).
-                let light = LightSettings {
-                    cell: 2,
-                    step: 1,
-                    cone: false,
-                    theta_deg: 25.0,
-                    blur_samples: 3,
-                };
+                let light = paper_light(1, 25.0);
                 // Light steps of two slices: the march reads between steps; of eight: the
                 // sweep takes four samples a step (a voxel apart).
                 let stepped = LightSettings { step: 2, ..light };
@@ -2514,13 +2508,7 @@ mod tests {
         );
         let cam = Camera::orbit(vol.bounds(), 25.0, 35.0, 2.0, Some(45.0));
         let view = EaView::new(&vol, cam, 32, 24, None, None, [1.0; 3]).unwrap();
-        let light = LightSettings {
-            cell: 2,
-            step: 1,
-            cone: false,
-            theta_deg: 25.0,
-            blur_samples: 3,
-        };
+        let light = paper_light(1, 25.0);
         let diff = |a: &[[f32; 4]], b: &[[f32; 4]]| {
             a.iter()
                 .zip(b)
@@ -2775,6 +2763,26 @@ mod tests {
         );
     }
 
+    /// The paper's light model on cells of two pixels, steps of `step` slices, a cone of
+    /// `theta_deg` degrees, three blur samples a side.
+    fn paper_light(step: u32, theta_deg: f64) -> LightSettings {
+        LightSettings {
+            cell: 2,
+            step,
+            cone: false,
+            theta_deg,
+            blur_samples: 3,
+        }
+    }
+
+    /// A blob's shell clear, its core dense (extinction 4 a unit): rays end opaque in it.
+    fn dense_tf() -> Transfer {
+        Transfer {
+            points: vec![(0.1, [0.9, 0.5, 0.2], 0.0), (0.6, [0.2, 0.6, 1.0], 4.0)],
+            rows: vec![],
+        }
+    }
+
     /// One, two and three clipping planes (faces across a grid's middle `c`, tilted to the
     /// slices), as `EaView::clip` holds them.
     fn test_planes(c: DVec3) -> [Vec<([f64; 3], f64)>; 3] {
@@ -2809,10 +2817,7 @@ mod tests {
         let b = vol.bounds();
         let c = 0.5 * (b[0] + b[1]);
         let planes = test_planes(c);
-        let dense = Transfer {
-            points: vec![(0.1, [0.9, 0.5, 0.2], 0.0), (0.6, [0.2, 0.6, 1.0], 4.0)],
-            rows: vec![],
-        };
+        let dense = dense_tf();
         let bits = |f: &Frame| {
             let mut b: Vec<u32> = f.image.iter().flatten().map(|x| x.to_bits()).collect();
             b.extend(
@@ -2864,13 +2869,7 @@ mod tests {
                     // `combined`: its light swept and its eye marched with the lanes behind
                     // the planes (the light read at the cells' shifts), a step a slice, and
                     // of eight slices sampled in parts.
-                    let light = LightSettings {
-                        cell: 2,
-                        step: 1,
-                        cone: false,
-                        theta_deg: 30.0,
-                        blur_samples: 3,
-                    };
+                    let light = paper_light(1, 30.0);
                     let deep = LightSettings { step: 8, ..light };
                     for mode in 0..5 {
                         let frame = |ev: &EaVolume| match mode {
@@ -2927,10 +2926,7 @@ mod tests {
         let data = vol.select(None).unwrap().data;
         let b = vol.bounds();
         let c = 0.5 * (b[0] + b[1]);
-        let dense = Transfer {
-            points: vec![(0.1, [0.9, 0.5, 0.2], 0.0), (0.6, [0.2, 0.6, 1.0], 4.0)],
-            rows: vec![],
-        };
+        let dense = dense_tf();
         let mut ev = EaVolume::new(&vol, &data, &dense).unwrap();
         let planes = test_planes(c);
         let (mut worst, mut shown) = (0.0f32, 0);
@@ -2942,13 +2938,7 @@ mod tests {
             ] {
                 let mut view = EaView::new(&vol, cam, 37, 29, None, None, [1.0; 3]).unwrap();
                 view.clip = clip.clone();
-                let light = LightSettings {
-                    cell: 2,
-                    step: 1,
-                    cone: false,
-                    theta_deg: 30.0,
-                    blur_samples: 3,
-                };
+                let light = paper_light(1, 30.0);
                 let frame = |ev: &EaVolume, i: usize| match i {
                     0 => ev.render_frame(&view, None).image,
                     1 => ev.render_frame(&view, Some(&light)).image,
