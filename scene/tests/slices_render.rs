@@ -413,12 +413,12 @@ fn translucent_slices_over_the_volume_match_the_cpu_twin() {
     // volume, the nearer slice, more volume, the farther slice, in depth order. With the
     // transfer function's first point at 150 much of the volume is empty bricks, which the
     // march steps over, layers or not.
-    for lo in [60.0, 150.0] {
-        translucent_slices_case(dir.path(), &anat, lo);
+    for (lo, ext) in [(60.0, 0.05), (150.0, 0.5)] {
+        translucent_slices_case(dir.path(), &anat, lo, ext);
     }
 }
 
-fn translucent_slices_case(dir: &Path, anat: &str, lo: f64) {
+fn translucent_slices_case(dir: &Path, anat: &str, lo: f64, ext: f64) {
     let text = format!(
         r#"
 background = [0.0, 0.0, 0.0]
@@ -431,7 +431,7 @@ path = "{anat}"
 [volume.transfer]
 points = [
   {{ value = {lo}, color = [0.2, 0.4, 1.0], extinction = 0.0 }},
-  {{ value = 200.0, color = [1.0, 0.8, 0.3], extinction = 0.05 }},
+  {{ value = 200.0, color = [1.0, 0.8, 0.3], extinction = {ext} }},
 ]
 [[slices]]
 axis = "axial"
@@ -461,6 +461,14 @@ slice_distance = 0.5
     let (vol, data, tf) = m.volume.as_ref().unwrap();
     let data = data.to_f32();
     let data: &[f32] = &data;
+    let (_, occ) = occlusion::emission_absorption::occupancy(data, vol.dims, tf);
+    let empty = occ.iter().filter(|o| **o == 0).count();
+    // The second case's bricks are partly empty: the march steps over them, layers or not.
+    assert!(
+        (lo < 100.0 || empty > 0) && empty < occ.len(),
+        "lo {lo}: {empty} of {} bricks empty",
+        occ.len()
+    );
     let view = scene::compile::view(&s, &m).unwrap();
     let planes = m.planes.as_ref().unwrap();
     let grid = planes.grid();
