@@ -6,7 +6,7 @@
 //! | paper | CPU (this crate; the CPU renderer `raycast`) | GPU (`engine`, `shaders/`) | checked by |
 //! |---|---|---|---|
 //! | §3.2.1 G-buffer | - | `gbuffer.rs`, `gbuffer.wgsl` | `engine/tests/occlusion_render.rs` |
-//! | Alg. 2 eye buffer, E/A | `emission_absorption::reference`; `raycast::EaVolume::render_frame` | `slice_pass.wgsl::march` | `engine/tests/ea_render.rs`, `raycast` tests |
+//! | Alg. 2 eye buffer, E/A | `emission_absorption::reference`; `raycast::EaVolume::render_frame` (eight rays at a time: `raycast::lanes::march`; behind clipping planes `raycast::EaVolume::clip_slabs`, `march_clipped`) | `slice_pass.wgsl::march` (empty bricks stepped over: `empty_slabs`) | `engine/tests/ea_render.rs` (`empty_bricks_are_stepped_over_without_missing_a_sample`), `raycast` tests (`clipped_frames_march_in_lanes_as_the_scalar_march_bit_for_bit`, `slabs_behind_the_planes_are_sampled_as_without_them`) |
 //! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_grid`], [`DARK`], [`data_cell`], [`light_step`], [`data_step`], [`voxel_step`], [`light_samples`], [`light_slices`], [`light_view`], [`light_depth`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only: `EaVolume::sweep`, `light_start`, `store_parts`; a step's parts by `raycast::EaVolume::optical_depth`) | `slice_pass.wgsl::light` (parts and their stores), `light_at` (at the sample's depth), `light_front` (the surfaces'), `light_step_at` | unit tests below (`a_sample_reads_the_light_at_its_own_depth`), `raycast` `a_sample_takes_the_light_at_its_own_depth`, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass; a sheet over a dense floor, a tube over a sheet, a camera inside the head), `raycast` `a_deep_light_step_takes_the_samples_of_the_steps_a_voxel_deep` |
 //! | Alg. 3, the light's attenuation through a slab (not in the paper: along the cone) | [`cone_path_factor`]; `raycast::light` (`Sweep::path`) | `Params::light_path` in `slice_pass.wgsl::light` | unit test below (`the_cone_path_factor_is_the_mean_path_through_a_slab`), `raycast` `a_sample_takes_the_light_at_its_own_depth` (45 degrees), `occlusion_render.rs` (partial occlusion in a uniform medium), `cli/tests/ea_cli.rs` (devices alike) |
 //! | Alg. 4, eq. 1-3 partial occlusion | `reference::render` (surface AOV) | `slice_pass.wgsl::march` | `occlusion_render.rs` (the cone's mean of exp(-sigma z / cos phi)) |
@@ -35,8 +35,11 @@
 //!   with `a` the view depth where the planes let a ray in
 //!   ([`crate::emission_absorption::clip_entry`]), interpolated between slices. Read at equal
 //!   depth, a cut face tilted to the slices shows a band per slice, because neighbouring cells
-//!   meet the plane in different slabs (`slice_pass.wgsl::cell_shifts`,
-//!   `raycast::light::LightVolume::clip_shifts`; `cli/tests/render_cli.rs`, a tilted cut face).
+//!   meet the plane in different slabs (`slice_pass.wgsl::cell_shifts`, `light_shifted`;
+//!   `raycast::light::LightVolume::clip_shifts` with the cells' entries once a frame,
+//!   `clip_entries`, read by `lookup_shifted` and, eight rays at a time,
+//!   `raycast::lanes::Packet::light_shifted`; `cli/tests/render_cli.rs`, a tilted cut face;
+//!   `raycast` `clipped_frames_march_in_lanes_as_the_scalar_march_bit_for_bit`).
 //! * Geometry into volume (Alg. 3): where slice k lies inside a tube (`front <= z_k <= back`),
 //!   the tube's extinction `geometry_extinction` adds to the volume's for the light leaving
 //!   the slice. The paper, with the front depth only, replaces the opacity of every sample
