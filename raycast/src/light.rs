@@ -723,41 +723,55 @@ impl Sweep<'_> {
             // vectorised); the cone model and wide blurs per cell.
             let span_lo = rlo.max(0) as usize;
             let span_hi = rhi.min(cw as i32 - 1);
-            let by_row = !self.cone && !self.row.wide && span_hi >= span_lo as i32;
+            let spanned = span_hi >= span_lo as i32;
+            let stencil = !self.cone && !self.row.wide;
+            let by_row = stencil && spanned;
             if by_row {
                 occ_row.clear();
                 occ_row.resize(cw, 0.0);
                 self.stencil_row(y, span_lo, span_hi as usize, &mut occ_row);
             }
             // The paper's blur with the lanes: the loop below's values, in loops over the row
-            // instead of branches per cell; the due cells' samples below, as the loop's.
+            // instead of branches per cell (a row the blur does not reach too: its light
+            // arrives at 1); the due cells' samples below, as the loop's.
             #[cfg(target_arch = "x86_64")]
-            let rowwise = by_row && lanes.is_some();
+            let rowwise = stencil && lanes.is_some();
             #[cfg(not(target_arch = "x86_64"))]
             let rowwise = false;
+            let (mut lo, mut hi) = (i32::MAX, i32::MIN);
             #[cfg(target_arch = "x86_64")]
             if rowwise {
                 // Outside the span the light arriving is 1 (the block holds 1 already:
-                // nothing to store).
-                let (s0, s1) = (span_lo, span_hi as usize);
-                occ_row[..s0].fill(1.0);
-                occ_row[s1 + 1..].fill(1.0);
-                let orow = &mut o[ry * cw * KB..][..cw * KB];
-                for (o, &occl) in orow[s0 * KB..(s1 + 1) * KB]
-                    .chunks_exact_mut(KB)
-                    .zip(&occ_row[s0..=s1])
-                {
-                    o[j0..j0 + parts].fill(occl);
-                }
-                for (leave, &occl) in out.iter_mut().zip(&occ_row) {
-                    *leave = [occl, (1.0 - occl) * d];
+                // nothing to store) and leaves so unless sampled below.
+                out.fill([1.0, 0.0]);
+                if spanned {
+                    let (s0, s1) = (span_lo, span_hi as usize);
+                    occ_row[..s0].fill(1.0);
+                    occ_row[s1 + 1..].fill(1.0);
+                    let orow = &mut o[ry * cw * KB..][..cw * KB];
+                    for ((o, &occl), leave) in orow[s0 * KB..(s1 + 1) * KB]
+                        .chunks_exact_mut(KB)
+                        .zip(&occ_row[s0..=s1])
+                        .zip(&mut out[s0..=s1])
+                    {
+                        o[j0..j0 + parts].fill(occl);
+                        *leave = [occl, (1.0 - occl) * d];
+                    }
+                    // The span's cells not left at 1 (the sampled ones are added below).
+                    let lit = |l: &Leave| *l != [1.0, 0.0];
+                    if let Some(a) = out[s0..=s1].iter().position(lit) {
+                        lo = (s0 + a) as i32;
+                        hi = (s0 + out[s0..=s1].iter().rposition(lit).unwrap_or(a)) as i32;
+                    }
                 }
                 // The cells whose sample is due: its optical depth, eight cells at a time.
                 need.clear();
                 // SAFETY: `lanes` is set only where the CPU has AVX2.
                 unsafe { crate::lanes::due(nk, kk, &mut need) };
-                // Light below `dark` passes on unattenuated (`occlusion::combined::DARK`).
-                need.retain(|&x| occ_row[x as usize] >= self.dark);
+                if spanned {
+                    // Light below `dark` passes on unattenuated (`occlusion::combined::DARK`).
+                    need.retain(|&x| occ_row[x as usize] >= self.dark);
+                }
                 if self.planes {
                     // Behind clipping planes the lanes take the slabs of the cells' `inner`;
                     // the others' parts are cut one by one here (as the loop below does).
@@ -774,11 +788,14 @@ impl Sweep<'_> {
                         nk[x] = after;
                         store_parts(&mut orow[x * KB + j0..x * KB + j0 + parts], ev, &tau);
                         out[x][0] *= ev.exp_neg(tau.iter().sum());
+                        if out[x] != [1.0, 0.0] {
+                            lo = lo.min(x as i32);
+                            hi = hi.max(x as i32);
+                        }
                         false
                     });
                 }
             }
-            let (mut lo, mut hi) = (i32::MAX, i32::MIN);
             let cells_here = if rowwise { 0 } else { cw };
             for (x, (leave, nk)) in out
                 .iter_mut()
@@ -848,16 +865,7 @@ impl Sweep<'_> {
                 );
                 need.clear();
             }
-            *dn = if rowwise {
-                // Every cell's light was set above: the span of those not left at 1.
-                let lit = |l: &Leave| *l != [1.0, 0.0];
-                match (out.iter().position(lit), out.iter().rposition(lit)) {
-                    (Some(lo), Some(hi)) => (lo as i32, hi as i32),
-                    _ => (i32::MAX, i32::MIN),
-                }
-            } else {
-                (lo, hi)
-            };
+            *dn = (lo, hi);
         }
     }
 
