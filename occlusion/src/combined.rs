@@ -196,7 +196,7 @@ pub const MAX_STEP_VOXELS: f64 = 4.0;
 /// [`step_theta`]). Against the Monte Carlo reference, steps of two, four and eight slices at
 /// the default slice distance (one to four voxels) gave the same RMSE to 3e-5 on the MNI T1
 /// (128-512^2) and headsq (512^2), while the sweep's cost falls with the steps (the blur, the
-/// bookkeeping and the barrier between steps; docs/accuracy.md "The light's steps and
+/// bookkeeping and the threads meeting between steps; docs/accuracy.md "The light's steps and
 /// samples").
 pub fn data_step(v: &EaView) -> u32 {
     if !(v.voxel > 0.0 && v.dz > 0.0) {

@@ -386,13 +386,51 @@ impl EaVolume {
             let first = j * rows_per_job;
             let rows = rows_per_job.min(cells[1] - first);
             let (c0, len) = (first * cells[0], rows * cells[0]);
-            // SAFETY: the jobs of slice k write disjoint rows `first..first + rows` of the
-            // slice's outputs and only read its inputs (`leave[k % 2]`, `reach`), which no job
-            // of the slice writes; slices are separated by a barrier (`sweep_slices`).
+            // The job's rows' reach in slice k, from the dirty spans of the light they read
+            // (rows up to `reach_rows(row)` away: jobs `sweep_slices` has finished slice k - 1
+            // of).
+            // The rows of the slice before that the job reads (all of them for the cone
+            // model, whose jobs wait for every job).
+            let reach_r = reach_rows(&row);
+            let (p0, p1) = if s.cone {
+                (0, cells[1])
+            } else {
+                let r = reach_r as usize;
+                (first.saturating_sub(r), (first + rows + r).min(cells[1]))
+            };
+            {
+                // SAFETY: rows p0..p1 of `dirty[k % 2]` were written by slice k - 1's jobs
+                // of these rows and their neighbours, finished; only this job writes its rows
+                // of `reach`.
+                let (dirty, reach) = unsafe {
+                    (
+                        std::slice::from_raw_parts(shared.dirty[k % 2].add(p0), p1 - p0),
+                        std::slice::from_raw_parts_mut(shared.reach.add(first), rows),
+                    )
+                };
+                for (y, r) in (first as i32..).zip(reach.iter_mut()) {
+                    let (mut lo, mut hi) = (i32::MAX, i32::MIN);
+                    for yy in (y - reach_r).max(0)..=(y + reach_r).min(cells[1] as i32 - 1) {
+                        let (a, b) = dirty[yy as usize - p0];
+                        if a <= b {
+                            lo = lo.min(a - reach_r);
+                            hi = hi.max(b + reach_r);
+                        }
+                    }
+                    *r = (lo, hi);
+                }
+            }
+            // SAFETY: job j of slice k writes its rows `first..first + rows` of the slice's
+            // outputs and reads its inputs (`leave[k % 2]`, `dirty[k % 2]`) in the rows of the
+            // jobs within `reach_jobs`: `sweep_slices` runs it after their slice k - 1 and
+            // before their slice k + 1 (which overwrites `leave[k % 2]`).
             let (prev, reach, out, o, nk, dn) = unsafe {
                 (
-                    std::slice::from_raw_parts(shared.leave[k % 2], n),
-                    std::slice::from_raw_parts(shared.reach, cells[1]),
+                    std::slice::from_raw_parts(
+                        shared.leave[k % 2].add(p0 * cells[0]),
+                        (p1 - p0) * cells[0],
+                    ),
+                    std::slice::from_raw_parts(shared.reach.add(first), rows),
                     std::slice::from_raw_parts_mut(shared.leave[(k + 1) % 2].add(c0), len),
                     std::slice::from_raw_parts_mut(
                         shared.o.add(((k * samples / KB) * n + c0) * KB),
@@ -404,6 +442,7 @@ impl EaVolume {
             };
             let job = Sweep {
                 prev,
+                prev_row0: p0,
                 reach,
                 rays: &rays,
                 cells,
@@ -437,36 +476,14 @@ impl EaVolume {
             }
             job.rows(self, v, data, rows);
         };
-        // Between slices, on one thread: the next slice's reach from the dirty spans of the
-        // light it reads.
-        let between = |shared: &Shared, k: usize| {
-            let Some(row) = blur.get(k) else { return };
-            // Cells further than the blur reaches from every dirty cell gather 1.
-            let reach_r = if row.wide {
-                row.rpx[0].max(row.rpx[1]).ceil() as i32 + 1
-            } else {
-                1
-            };
-            // SAFETY: called while no job runs (before the first slice, or by the last
-            // thread to finish slice k - 1).
-            let (dirty, reach) = unsafe {
-                (
-                    std::slice::from_raw_parts(shared.dirty[k % 2], cells[1]),
-                    std::slice::from_raw_parts_mut(shared.reach, cells[1]),
-                )
-            };
-            for (y, r) in reach.iter_mut().enumerate() {
-                let y = y as i32;
-                let (mut lo, mut hi) = (i32::MAX, i32::MIN);
-                for yy in (y - reach_r).max(0)..=(y + reach_r).min(cells[1] as i32 - 1) {
-                    let (a, b) = dirty[yy as usize];
-                    if a <= b {
-                        lo = lo.min(a - reach_r);
-                        hi = hi.max(b + reach_r);
-                    }
-                }
-                *r = (lo, hi);
-            }
+        // The jobs a job's slice reads of the slice before on each side: the rows its blur and
+        // its reach read (`reach_rows`); the cone model's taps widen with the shadow's age,
+        // so it waits for every job.
+        let reach_jobs = if s.cone {
+            jobs
+        } else {
+            let r = blur.iter().map(reach_rows).max().unwrap_or(1) as usize;
+            r.div_ceil(rows_per_job)
         };
         let [l0, l1] = &mut leave;
         let [d0, d1] = &mut dirty;
@@ -481,9 +498,9 @@ impl EaVolume {
             &shared,
             blur.len().min(slices),
             jobs,
+            reach_jobs,
             threads,
             &run,
-            &between,
         );
         lv
     }
@@ -498,56 +515,49 @@ struct Shared {
     o: *mut f32,
 }
 
-// SAFETY: the threads write disjoint parts of the buffers within a slice, and a barrier
-// orders one slice's writes before the next slice's reads (`sweep_slices`).
+// SAFETY: the threads write disjoint rows of the buffers, and `sweep_slices` orders a job's
+// slice after the slice before of the jobs whose rows it reads, and before their next.
 unsafe impl Sync for Shared {}
 
-/// Runs `jobs` jobs of each of `slices` slices in order (`run(shared, k, j)`), with
-/// `between(shared, k)` on one thread before slice k starts (and `between(shared, slices)`
-/// after the last). A slice has a few jobs of a few
-/// microseconds each, so a fork-join per slice would pay a wake-up or a steal every slice.
-/// Instead the threads that join (the caller and up to `threads - 1` helpers in rayon's pool)
-/// claim the jobs of the open slice themselves, in pairs: each pair owns a contiguous range of
-/// jobs, one thread claiming from its first job onwards and the other from its last
-/// backwards, so that a thread keeps to the same rows (and their cache lines) slice after
-/// slice while the two meet wherever the work splits evenly; a thread whose range is done
-/// takes jobs from the other ranges. The thread that finishes the slice's last job runs
-/// `between` and opens the next slice, while the others spin. Nothing waits for a helper that
-/// has not started (a busy pool only means fewer hands), so the sweep cannot deadlock inside
-/// the pool.
+/// Cells further than a slice's blur reaches from every dirty cell gather 1: the rows (and
+/// cells) it reaches, from the row's blur (1 for the 3x3 stencil).
+fn reach_rows(row: &BlurRow) -> i32 {
+    if row.wide {
+        row.rpx[0].max(row.rpx[1]).ceil() as i32 + 1
+    } else {
+        1
+    }
+}
+
+/// Runs `jobs` jobs of each of `slices` slices (`run(shared, k, j)`), job j's slice k after
+/// slice k - 1 of the jobs within `reach` of it (j - reach ..= j + reach) and before their
+/// slice k + 1 - a wavefront, not a barrier: a slice has a few jobs of a few microseconds
+/// each, and a thread need not wait for the whole slice to finish before taking the next
+/// slice's jobs whose neighbours are done. The threads that join (the caller and up to
+/// `threads - 1` helpers in rayon's pool) claim jobs themselves, half of them scanning from
+/// the first job and half from the last, each taking the first job it may run, so that a
+/// thread keeps to the same rows (and their cache lines) slice after slice while the two
+/// meet wherever the work splits evenly. Nothing waits for a helper that has not started (one
+/// thread alone can run every job), so the sweep cannot deadlock inside the pool.
 fn sweep_slices<S: Sync>(
     shared: &S,
     slices: usize,
     jobs: usize,
+    reach: usize,
     threads: usize,
     run: &(impl Fn(&S, usize, usize) + Sync),
-    between: &(impl Fn(&S, usize) + Sync),
 ) {
-    use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-    between(shared, 0);
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
     if slices == 0 || jobs == 0 {
         return;
     }
-    assert!(jobs < 1 << 16 && slices < 1 << 32, "the sweep's counters");
     let hands = threads.clamp(1, jobs);
-    let pairs = hands.div_ceil(2);
-    // A range's state: the slice it is open for (bits 32..), the next job to claim from the
-    // front (bits 16..32) and one past the next from the back (bits 0..16).
-    let pack =
-        |k: usize, lo: usize, hi: usize| ((k as u64) << 32) | ((lo as u64) << 16) | hi as u64;
-    let unpack = |s: u64| {
-        let k = (s >> 32) as usize;
-        (k, ((s >> 16) & 0xffff) as usize, (s & 0xffff) as usize)
-    };
-    let bounds = |p: usize| (p * jobs / pairs, (p + 1) * jobs / pairs);
-    let open = |k: usize, p: usize| {
-        let (lo, hi) = bounds(p);
-        pack(k, lo, hi)
-    };
-    let ranges: Vec<AtomicU64> = (0..pairs).map(|p| AtomicU64::new(open(0, p))).collect();
-    // Jobs of the open slice finished.
-    let finished = AtomicUsize::new(0);
-    // Set when a job panicked: the others stop waiting for it (rayon then passes the panic on).
+    // Per job: slices claimed, and slices finished (release: the slice's writes).
+    let claimed: Vec<AtomicUsize> = (0..jobs).map(|_| AtomicUsize::new(0)).collect();
+    let done: Vec<AtomicUsize> = (0..jobs).map(|_| AtomicUsize::new(0)).collect();
+    // Jobs with every slice finished.
+    let complete = AtomicUsize::new(0);
+    // Set when a job panicked: the others stop (rayon then passes the panic on).
     let failed = AtomicBool::new(false);
     struct Failed<'a>(&'a AtomicBool);
     impl Drop for Failed<'_> {
@@ -557,69 +567,52 @@ fn sweep_slices<S: Sync>(
             }
         }
     }
-    // Claims a job of slice `k` from range `r` (from its back if `backwards`): Err(()) when
-    // the range has none left for slice k, Ok(None) when another thread changed it first.
-    let claim = |r: usize, k: usize, backwards: bool| -> Result<Option<usize>, ()> {
-        let state = ranges[r].load(Ordering::Acquire);
-        let (kr, lo, hi) = unpack(state);
-        if kr != k || lo >= hi {
-            return Err(());
+    // Job j's next slice, where it may run now: its own last one finished and its
+    // neighbours' slice before it too (acquire: their writes).
+    let next = |j: usize| -> Option<usize> {
+        let k = claimed[j].load(Ordering::Acquire);
+        if k >= slices || done[j].load(Ordering::Acquire) != k {
+            return None;
         }
-        let (j, next) = if backwards {
-            (hi - 1, pack(k, lo, hi - 1))
-        } else {
-            (lo, pack(k, lo + 1, hi))
-        };
-        Ok(ranges[r]
-            .compare_exchange_weak(state, next, Ordering::AcqRel, Ordering::Relaxed)
-            .is_ok()
-            .then_some(j))
+        let (lo, hi) = (j.saturating_sub(reach), (j + reach).min(jobs - 1));
+        (lo..=hi)
+            .all(|i| done[i].load(Ordering::Acquire) >= k)
+            .then_some(k)
     };
     let work = |t: usize| {
-        let (own, backwards) = (t / 2, t % 2 == 1);
+        let backwards = t % 2 == 1;
         let mut spins = 0u32;
         loop {
-            let (k, _, _) = unpack(ranges[own].load(Ordering::Acquire));
-            if k >= slices {
+            if failed.load(Ordering::Relaxed) || complete.load(Ordering::Acquire) == jobs {
                 return;
             }
-            let mut got = claim(own, k, backwards);
-            for q in 1..pairs {
-                if got.is_ok() {
-                    break;
+            let found = (0..jobs)
+                .map(|i| if backwards { jobs - 1 - i } else { i })
+                .find_map(|j| next(j).map(|k| (k, j)));
+            let Some((k, j)) = found else {
+                if spins < 4096 {
+                    std::hint::spin_loop();
+                    spins += 1;
+                } else {
+                    std::thread::yield_now();
                 }
-                got = claim((own + q) % pairs, k, backwards);
-            }
-            let j = match got {
-                Ok(Some(j)) => j,
-                // Lost a race: look again.
-                Ok(None) => continue,
-                // Every job of the slice is taken: wait for the last to finish.
-                Err(()) => {
-                    if failed.load(Ordering::Relaxed) {
-                        return;
-                    }
-                    if spins < 4096 {
-                        std::hint::spin_loop();
-                        spins += 1;
-                    } else {
-                        std::thread::yield_now();
-                    }
-                    continue;
-                }
+                continue;
             };
+            if claimed[j]
+                .compare_exchange(k, k + 1, Ordering::AcqRel, Ordering::Relaxed)
+                .is_err()
+            {
+                // Another thread took it first: look again.
+                continue;
+            }
             spins = 0;
             let guard = Failed(&failed);
             run(shared, k, j);
-            // Release: this job's writes; acquire: the other jobs' (for `between`).
-            if finished.fetch_add(1, Ordering::AcqRel) + 1 == jobs {
-                finished.store(0, Ordering::Relaxed);
-                between(shared, k + 1);
-                for (p, r) in ranges.iter().enumerate() {
-                    r.store(open(k + 1, p), Ordering::Release);
-                }
-            }
             drop(guard);
+            done[j].store(k + 1, Ordering::Release);
+            if k + 1 == slices {
+                complete.fetch_add(1, Ordering::AcqRel);
+            }
         }
     };
     rayon::scope(|scope| {
@@ -645,7 +638,10 @@ struct Rows<'a> {
 /// One slice of the sweep: what every cell's gather reads.
 struct Sweep<'a> {
     prev: &'a [Leave],
-    /// Per row, the cells the blur of a dirty cell may reach (outside: clear).
+    /// The row of the light volume where `prev` begins (the rows the job reads).
+    prev_row0: usize,
+    /// Per row of the job (from `Rows::first`), the cells the blur of a dirty cell may
+    /// reach (outside: clear).
     reach: &'a [(i32, i32)],
     /// The cells' centre rays.
     rays: &'a [Ray],
@@ -718,7 +714,7 @@ impl Sweep<'_> {
             .enumerate()
         {
             let y = first + ry;
-            let (rlo, rhi) = self.reach[y];
+            let (rlo, rhi) = self.reach[ry];
             // The paper's blur over the row's reachable span at once (the 3x3 stencil,
             // vectorised); the cone model and wide blurs per cell.
             let span_lo = rlo.max(0) as usize;
@@ -928,7 +924,7 @@ impl Sweep<'_> {
     fn texel(&self, x: i64, y: i64) -> Leave {
         let x = x.clamp(0, self.cells[0] as i64 - 1) as usize;
         let y = y.clamp(0, self.cells[1] as i64 - 1) as usize;
-        self.prev[x + self.cells[0] * y]
+        self.prev[x + self.cells[0] * (y - self.prev_row0)]
     }
 
     /// Bilinear read at a continuous cell position (centres at half-integers).
@@ -974,7 +970,7 @@ impl Sweep<'_> {
         let [cw, ch] = self.cells;
         let rows = [y.saturating_sub(1), y, (y + 1).min(ch - 1)];
         for (j, &ry) in rows.iter().enumerate() {
-            let p = &self.prev[ry * cw..][..cw];
+            let p = &self.prev[(ry - self.prev_row0) * cw..][..cw];
             let [a, b, c] = self.w32[j];
             let at = |x: usize| {
                 a * p[x.saturating_sub(1)][0] + b * p[x][0] + c * p[(x + 1).min(cw - 1)][0]
@@ -1051,65 +1047,61 @@ mod tests {
     use rayon::prelude::*;
     use std::sync::atomic::{AtomicU64, Ordering};
 
-    /// A sequence of slices, each job reading its neighbours' values of the previous slice
-    /// and `between` summing the slice: any job run early, late or twice changes the result.
-    fn sequence(slices: usize, jobs: usize, threads: usize) -> (Vec<u64>, Vec<u64>) {
+    /// A sequence of slices, each job reading the values of the jobs within `reach` of it in
+    /// the previous slice: any job run early, late or twice changes the result.
+    fn sequence(slices: usize, jobs: usize, reach: usize, threads: usize) -> Vec<u64> {
         // Each job must run exactly once.
         let runs: Vec<AtomicU64> = (0..slices * jobs).map(|_| AtomicU64::new(0)).collect();
         let vals: [Vec<AtomicU64>; 2] = [
             (0..jobs).map(|j| AtomicU64::new(j as u64 + 1)).collect(),
             (0..jobs).map(|_| AtomicU64::new(0)).collect(),
         ];
-        let sums: Vec<AtomicU64> = (0..=slices).map(|_| AtomicU64::new(0)).collect();
         // Relaxed on purpose: the sweep's own ordering must make the reads see the writes.
         let run = |v: &[Vec<AtomicU64>; 2], k: usize, j: usize| {
             runs[k * jobs + j].fetch_add(1, Ordering::Relaxed);
             let prev = &v[k % 2];
-            let at = |i: usize| prev[i].load(Ordering::Relaxed);
-            let x = at(j.saturating_sub(1)) + 3 * at(j) + at((j + 1).min(jobs - 1));
+            let (lo, hi) = (j.saturating_sub(reach), (j + reach).min(jobs - 1));
+            let x: u64 = (lo..=hi)
+                .map(|i| (i.abs_diff(j) as u64 + 2) * prev[i].load(Ordering::Relaxed))
+                .sum();
             v[(k + 1) % 2][j].store(x % 1_000_003 + k as u64, Ordering::Relaxed);
         };
-        let between = |v: &[Vec<AtomicU64>; 2], k: usize| {
-            let s = v[k % 2].iter().map(|x| x.load(Ordering::Relaxed)).sum();
-            sums[k].store(s, Ordering::Relaxed);
-        };
-        sweep_slices(&vals, slices, jobs, threads, &run, &between);
+        sweep_slices(&vals, slices, jobs, reach, threads, &run);
         assert!(runs.iter().all(|r| r.load(Ordering::Relaxed) == 1));
-        let last = vals[slices % 2]
+        vals[slices % 2]
             .iter()
             .map(|x| x.load(Ordering::Relaxed))
-            .collect();
-        (
-            last,
-            sums.iter().map(|x| x.load(Ordering::Relaxed)).collect(),
-        )
+            .collect()
     }
 
     #[test]
     fn slices_run_in_order_on_any_number_of_threads() {
-        let want = sequence(300, 13, 1);
-        assert!(want.1[300] > 0, "{:?}", &want.1[295..]);
         // In a pool of 8 workers, so that 3 and 8 threads do run at once.
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(8)
             .build()
             .unwrap();
-        for threads in [2, 3, 8] {
-            let got = pool.install(|| sequence(300, 13, threads));
-            assert_eq!(got, want, "{threads} threads");
+        // Neighbours one job away (the 3x3 stencil), two (a wide blur) and every job (the
+        // cone model).
+        for reach in [1, 2, 13] {
+            let want = sequence(300, 13, reach, 1);
+            for threads in [2, 3, 8] {
+                let got = pool.install(|| sequence(300, 13, reach, threads));
+                assert_eq!(got, want, "{threads} threads, reach {reach}");
+            }
         }
+        let want = sequence(300, 13, 1, 1);
+        assert!(want.iter().all(|&v| v > 0));
         // Sweeps at once from inside rayon's pool (frames drawn in parallel): no deadlock,
         // the same values.
         let got: Vec<_> = (0..6)
             .into_par_iter()
-            .map(|_| sequence(300, 13, 2))
+            .map(|_| sequence(300, 13, 1, 2))
             .collect();
         assert!(got.iter().all(|g| *g == want));
-        // No slices: the values stay, and `between` still runs once, before slice 0.
-        let (none, sums) = sequence(0, 13, 2);
-        assert_eq!(none, (1..=13).collect::<Vec<u64>>());
-        assert_eq!(sums, vec![91]);
-        assert_eq!(sequence(5, 1, 2), sequence(5, 1, 1));
+        // No slices: the values stay.
+        assert_eq!(sequence(0, 13, 1, 2), (1..=13).collect::<Vec<u64>>());
+        assert_eq!(sequence(5, 1, 1, 2), sequence(5, 1, 1, 1));
     }
 
     #[test]
@@ -1121,14 +1113,9 @@ mod tests {
         for (threads, bad_job) in [(2, 0), (2, 12), (4, 5)] {
             let r = pool.install(|| {
                 std::panic::catch_unwind(|| {
-                    sweep_slices(
-                        &(),
-                        100,
-                        13,
-                        threads,
-                        &|_, k, j| assert!(!(k == 7 && j == bad_job), "job {j} of slice {k}"),
-                        &|_, _| {},
-                    )
+                    sweep_slices(&(), 100, 13, 1, threads, &|_, k, j| {
+                        assert!(!(k == 7 && j == bad_job), "job {j} of slice {k}")
+                    })
                 })
             });
             let payload = r.expect_err("the job's panic");
