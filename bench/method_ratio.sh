@@ -8,7 +8,13 @@
 # From the repository root.
 set -e
 SCENE=$1; SIZES=${2:-128,256,512,1024}; N=${3:-3}; BIN=${4:-target/release/umbra}; D=${5:-0.5}
+[ -n "$SCENE" ] || { echo "usage: bash bench/method_ratio.sh SCENE [SIZES] [ROUNDS] [BIN] [D]" >&2; exit 2; }
+[ -f "$SCENE" ] || { echo "method_ratio.sh: no scene file $SCENE" >&2; exit 2; }
+[[ "$N" =~ ^[1-9][0-9]*$ ]] || { echo "method_ratio.sh: ROUNDS must be a positive integer, got '$N'" >&2; exit 2; }
+[[ "$SIZES" =~ ^[1-9][0-9]*(,[1-9][0-9]*)*$ ]] || { echo "method_ratio.sh: SIZES must be comma-separated pixel counts, got '$SIZES'" >&2; exit 2; }
+[ -x "$BIN" ] || { echo "method_ratio.sh: no umbra binary at $BIN (cargo build --release)" >&2; exit 2; }
 OUT=$(mktemp -d)
+trap 'rm -rf "$OUT"' EXIT
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
 for w in ${SIZES//,/ }; do
   for i in $(seq "$N"); do
@@ -31,4 +37,3 @@ for w in sizes:
         med[m] = st.median(r[len(r) // 2] for r in runs)
     print(f"{w}^2  {med['ea']:.1f}  {med['combined']:.1f}  {med['combined'] / med['ea']:.2f}")
 PY
-rm -rf "$OUT"
