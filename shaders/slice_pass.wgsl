@@ -10,9 +10,10 @@
 //   sampled in `light_samples` parts (`occlusion::combined::light_samples`); O_k gathered from
 //   the light leaving step k - 1 with the cone blur, the light leaving step k through the
 //   volume and the tubes' thickness, O_k and the light reaching each further part stored in
-//   the light volume (cells x stored slices, `light_samples` a step), which the march reads at
-//   each sample's depth, stored slice `(slice + 1/2) / light_step` (`light_at`,
-//   `light_step_at`; the surfaces' partial occlusion at `light_front`'s, eq. 1-3).
+//   the light volume (cells x stored slices, `light_samples` a step); the march reads each
+//   step's front (`light_step_front`) and carries it along the pixel's own ray through the
+//   step (`composite_eye`; occlusion::combined::light_in_slab); the surfaces' partial
+//   occlusion reads `light_front`'s (eq. 1-3).
 // * `march` walks every slice of a pixel in one invocation: the eye buffer (Alg. 2) with the
 //   volume's colour modulated by the light volume when there is one, rays clipped to the
 //   grid's box and to the surface, empty bricks skipped, early termination; then the partial
@@ -96,7 +97,8 @@ struct Params {
     // added to a packed integer to give the sample's value
     value_offset: f32,
     // eye slices per stored slice of the light volume (a power of two) and the stored slices
-    // it holds: eye slice k's sample reads stored slice (k + 1/2) / light_step (`light_at`)
+    // it holds (the march reads step fronts, `light_step_front`; the surfaces any slice's front,
+    // `light_front`)
     light_step: u32,
     light_slices: u32,
     // stored slices per step of the `light` entry (its slabs light_step light_samples d
@@ -105,6 +107,13 @@ struct Params {
     // the light's extinction factor: its mean path through a slab over the cone's directions,
     // -ln(cos theta) / (1 - cos theta) (`occlusion::combined::cone_path_factor`)
     light_path: f32,
+    // eye slices between the march's reads of the light volume: a step (light_step
+    // light_samples), or a stored slice (light_step) where tubes, lines or planes cast light
+    // (their coverage is in the light's parts, not in the pixel's own samples)
+    light_read: u32,
+    light_pad0: u32,
+    light_pad1: u32,
+    light_pad2: u32,
 };
 
 const NO_LAYER: u32 = 0xffffffffu;
@@ -192,7 +201,7 @@ fn occ_bilinear(t: vec2<f32>) -> f32 {
 
 // The light volume at a continuous pixel position, bilinear over cells, at fractional stored
 // slice kf (linear between stored slices, the last one's beyond it). A stored slice holds the
-// light reaching the front of its slab (occlusion::combined::light_depth).
+// light reaching the front of its slab (occlusion::combined::light_view).
 fn light_bilinear(px: vec2<f32>, kf: f32) -> f32 {
     let c = px / f32(P.cell) - vec2<f32>(0.5);
     let b = vec2<i32>(floor(c));
@@ -206,10 +215,13 @@ fn light_bilinear(px: vec2<f32>, kf: f32) -> f32 {
     return mix(mix(v[0], v[1], f.x), mix(v[2], v[3], f.x), f.y);
 }
 
-// The light at eye slice k's sample: at the sample's depth, the middle of slab k - stored
-// slice (k + 1/2) / light_step.
-fn light_at(px: vec2<f32>, k: u32) -> f32 {
-    return light_bilinear(px, (f32(k) + 0.5) / f32(P.light_step));
+// The light reaching the front of the march's light read s (`light_read` eye slices each: a
+// light step, or where tubes cast light a stored slice): stored slice
+// s light_read / light_step (`LightVolume::front` in raycast/src/light.rs). The march carries
+// it along the pixel's own ray to the next read (`composite_eye`;
+// occlusion::combined::light_in_slab).
+fn light_step_front(px: vec2<f32>, s: u32) -> f32 {
+    return light_bilinear(px, f32(s * (P.light_read / P.light_step)));
 }
 
 // O_k of eye slice k, the light reaching the front of slab k: stored slice k / light_step.
@@ -251,11 +263,6 @@ fn light_step_at(ci: u32, kf: f32) -> f32 {
     return mix(a, b, t);
 }
 
-// Cell ci's light at fractional eye slice kf.
-fn light_cell(ci: u32, kf: f32) -> f32 {
-    return light_step_at(ci, kf / f32(P.light_step));
-}
-
 // Where a pixel behind a clipping plane reads its four cells: each cell at the same distance
 // behind the plane as the pixel's sample (slice k + shift), not at the same depth. A cut face
 // tilted to the slices meets a 2-pixel cell's rays in different slabs; read at equal depth, a
@@ -287,14 +294,22 @@ fn cell_shifts(px: vec2<f32>, r: Ray) -> CellShift {
     return cs;
 }
 
-fn light_shifted(cs: CellShift, k: u32) -> f32 {
-    // (At the sample's depth, as `light_at`.)
-    let kf = f32(k) + 0.5;
-    let v0 = light_cell(cs.cells[0], kf + cs.shift[0]);
-    let v1 = light_cell(cs.cells[1], kf + cs.shift[1]);
-    let v2 = light_cell(cs.cells[2], kf + cs.shift[2]);
-    let v3 = light_cell(cs.cells[3], kf + cs.shift[3]);
-    return mix(mix(v0, v1, cs.f.x), mix(v2, v3, cs.f.x), cs.f.y);
+// Each cell at its own slice k + shift (the same distance behind the planes as the front of
+// the pixel's slab k), linear between stored slices: the light read where a ray enters the
+// medium at the cut, and after each step, follows the cut (`LightVolume::front` in
+// raycast/src/light.rs).
+fn light_shifted(cs: CellShift, k: u32, first: bool) -> f32 {
+    let e = f32(P.light_read);
+    let kf = f32(k / P.light_read * P.light_read);
+    var v: array<f32, 4>;
+    for (var i = 0; i < 4; i = i + 1) {
+        var x = kf + cs.shift[i];
+        if (first) {
+            x = floor((f32(k) + cs.shift[i]) / e) * e;
+        }
+        v[i] = light_step_at(cs.cells[i], x / f32(P.light_step));
+    }
+    return mix(mix(v[0], v[1], cs.f.x), mix(v[2], v[3], cs.f.x), cs.f.y);
 }
 
 // A volume larger than one storage binding is split into parts of `part_len` words (in file
@@ -537,18 +552,29 @@ fn shade_volume(c: vec3<f32>, grad: vec3<f32>, view_dir: vec3<f32>) -> vec3<f32>
 // `half`.
 fn composite_eye(
     e: ptr<function, vec4<f32>>, acc: ptr<function, vec2<f32>>, half: ptr<function, f32>,
-    r: Ray, iv: vec2<f32>, c: vec4<f32>, grad: vec3<f32>, occlusion: f32,
+    r: Ray, iv: vec2<f32>, c: vec4<f32>, grad: vec3<f32>, lit: bool, lrun: ptr<function, f32>,
 ) {
     let len = iv.y - iv.x;
     if (len <= 0.0 || c.a <= 0.0) {
         return;
     }
-    let a = 1.0 - exp(-c.a * len / r.cosine);
-    let rgb = shade_volume(c.rgb, grad, -r.d) * occlusion;
+    let tau = c.a * len / r.cosine;
+    let et = exp(-tau);
+    let a = 1.0 - et;
     let w = (1.0 - (*e).a) * a;
+    // Lit: the light along the ray's own path through its light step, weighted by the eye's
+    // attenuation within the slab (occlusion::combined::light_in_slab): `lrun` is the light
+    // reaching the slab's front along the ray, then the light leaving it.
+    var lw = w;
+    if (lit) {
+        let ef = exp(-P.light_path * tau);
+        lw = (1.0 - (*e).a) * (*lrun * ((1.0 - et * ef) / (1.0 + P.light_path)));
+        *lrun = *lrun * ef;
+    }
+    let rgb = shade_volume(c.rgb, grad, -r.d);
     let before = (*e).a;
-    *e = vec4<f32>((*e).rgb + w * rgb, (*e).a + w);
-    *acc = *acc + vec2<f32>(w * occlusion, w);
+    *e = vec4<f32>((*e).rgb + lw * rgb, (*e).a + w);
+    *acc = *acc + vec2<f32>(lw, w);
     if ((*e).a >= 0.5 && before < 0.5) {
         *half = 0.5 * (iv.x + iv.y);
     }
@@ -887,6 +913,9 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     if (shifted) {
         cs = cell_shifts(px, r);
     }
+    // The light step last read (none yet) and the light reaching the next sample along the ray.
+    var lstep = 0xffffffffu;
+    var lrun = 1.0;
     // Translucent layers are composited where the ray reaches their depth: a slab they lie in
     // is split there, each part sampled at its middle as clipping planes split slabs.
     let pid = vec2<i32>(id.xy);
@@ -897,9 +926,9 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
         if (iv.y <= iv.x) {
             continue;
         }
-        // The light at the slab, read when a sample absorbs (most slabs of a ray take none).
-        var o = 1.0;
-        var o_read = !lit;
+        // The light step's front, read when a sample absorbs in a step not read yet (most
+        // slabs of a ray take none).
+        let ls = k / P.light_read;
         var a = iv.x;
         // Whether the slab took nothing (no absorbing sample, no layer).
         var clear = true;
@@ -913,15 +942,15 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
                 if (c.a > 0.0) {
                     clear = false;
                     let cb = blended(c, r, 0.5 * (a + b));
-                    if (!o_read) {
+                    if (lit && ls != lstep) {
                         if (shifted) {
-                            o = light_shifted(cs, k);
+                            lrun = light_shifted(cs, k, lstep == 0xffffffffu);
                         } else {
-                            o = light_at(px, k);
+                            lrun = light_step_front(px, ls);
                         }
-                        o_read = true;
+                        lstep = ls;
                     }
-                    composite_eye(&e, &acc, &half, r, vec2<f32>(a, b), cb, grad, o);
+                    composite_eye(&e, &acc, &half, r, vec2<f32>(a, b), cb, grad, lit, &lrun);
                 }
             }
             if (!in_slab) {

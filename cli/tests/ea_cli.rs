@@ -451,7 +451,11 @@ fn a_deep_light_step_casts_the_shadow_of_a_sheet_one_voxel_thick_on_both_devices
     // steps of eight slices (four voxels at half a voxel apart) take four samples a voxel
     // apart, so the sheet's shadow on the floor is the one the steps a voxel deep cast (the
     // same samples), on the GPU as on the CPU. A step sampled only at its middle would see the
-    // sheet at one phase in four, its shadow missing or four voxels deep.
+    // sheet at one phase in four, its shadow missing or four voxels deep. Since the eye carries
+    // the light along its own ray between a step's fronts (`occlusion::combined::light_in_slab`)
+    // the two steps no longer read the same light: 0.0093 apart in mean (measured 2026-12-07;
+    // below 0.005 when both read the stored parts), both nearer the Monte Carlo reference than
+    // before (docs/accuracy.md, "The light along the eye's ray").
     let dir = tempfile::tempdir().unwrap();
     let vol = dir.path().join("sheet.nrrd");
     layered_volume(&vol, 32, |z| match z {
@@ -496,7 +500,7 @@ fn a_deep_light_step_casts_the_shadow_of_a_sheet_one_voxel_thick_on_both_devices
         mean_abs_diff(&deep_gpu, &deep_cpu),
     );
     assert!(
-        deep < 0.005,
+        deep < 0.015,
         "steps of eight against a voxel deep: {deep} in mean"
     );
     assert!(

@@ -464,10 +464,13 @@ fn bench_stability_measures_every_case_with_a_verdict() {
         "{csv}"
     );
     // A transfer function peaking between a one-voxel sheet's value and 0 is where light
-    // samples a voxel apart (steps of 8 slices) break: 1.9x the error of steps of a slice at
-    // 256 paths a pixel (docs/accuracy.md); the case must keep showing it.
+    // samples a voxel apart (steps of 8 slices) broke while the eye read the light stored a
+    // voxel apart: 1.9x the error of steps of a slice at 256 paths a pixel (docs/accuracy.md).
+    // Carried along the eye's own samples within a step (`occlusion::combined::light_in_slab`)
+    // the light sees the peak as the eye does: 0.0262 against 0.0271 in this run's setting
+    // (2026-12-07). Reading the stored parts again fails this.
     assert!(
-        rmse("tf-peak", "dos", "8") > 1.3 * rmse("tf-peak", "dos", "1"),
+        rmse("tf-peak", "dos", "8") < 1.2 * rmse("tf-peak", "dos", "1"),
         "{csv}"
     );
 }
@@ -947,7 +950,12 @@ fn a_tilted_cut_face_shows_no_band_per_slice_on_either_device() {
     // A uniform medium cut by a plane tilted to the slices: the cut face is smooth. Read at
     // equal depth, the 2-pixel light cells (the default) put a band per slice on it (2.9 of
     // ripple against 0.8 with 1-pixel cells, measured before the light lookup followed the
-    // cut); read at equal distance behind the plane, they do not.
+    // cut); read at equal distance behind the plane, they do not. Since the eye carries the
+    // light along its own ray through a step (`occlusion::combined::light_in_slab`), a ray
+    // takes its first light at the front of the step each cell's own cut lies in: read at the
+    // pixel's step's front instead, the cells lie further in front of their cuts the further
+    // the pixel's lies behind it, a line per step (3.5 against 2.1; 2.3 as read, measured
+    // 2026-12-07, when the stored parts read at each sample's depth gave 1.0 and 7.6).
     let dir = tempfile::tempdir().unwrap();
     let mut nrrd =
         b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 40 40 40\nspacing: 1 1 1\nencoding: raw\n\n"

@@ -734,6 +734,9 @@ impl Frame {
                 geometry_extinction: s.geometry_extinction,
                 light: s.light,
                 partial_layer: layer("partial"),
+                geometry_light: !(scene.meshes.is_empty()
+                    && scene.lines.is_empty()
+                    && scene.planes.is_empty()),
             },
             scene.blend.as_ref(),
         )?;

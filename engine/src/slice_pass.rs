@@ -46,6 +46,10 @@ pub struct SliceSettings {
     pub light: [f64; 4],
     /// The layer of the surface terms the partial occlusion goes to (`march`), if any.
     pub partial_layer: Option<u32>,
+    /// Tubes, lines or planes cast light: the march reads the light volume at every stored
+    /// slice (their coverage is in the light's parts, not in the pixel's own samples), else
+    /// at every step's front (`occlusion::combined::light_in_slab`).
+    pub geometry_light: bool,
 }
 
 impl SliceSettings {
@@ -157,6 +161,13 @@ pub struct SliceParams {
     /// The light's extinction factor, its mean path through a slab over the cone's
     /// directions (`occlusion::combined::cone_path_factor`).
     pub light_path: f32,
+    /// Eye slices between the march's reads of the light volume: a step
+    /// (`light_step light_samples`), or a stored slice (`light_step`) where tubes, lines or
+    /// planes cast light ([`SliceSettings::geometry_light`]).
+    pub light_read: u32,
+    pub light_pad0: u32,
+    pub light_pad1: u32,
+    pub light_pad2: u32,
 }
 
 /// An overlay blended into the volume rendering (`overlays[].volume_blend`): each volume
@@ -647,6 +658,14 @@ impl SlicePass {
             light_slices: grid.stored(),
             light_samples: grid.samples,
             light_path: occlusion::combined::cone_path_factor(s.theta_deg) as f32,
+            light_read: if s.geometry_light {
+                step / grid.samples
+            } else {
+                step
+            },
+            light_pad0: 0,
+            light_pad1: 0,
+            light_pad2: 0,
         };
         let (blend_field, blend_lut) = match blend {
             Some(b) => (b.field.clone(), b.lut.clone()),
@@ -859,6 +878,7 @@ mod tests {
             geometry_extinction: 10.0,
             light: [0.3, 0.7, 0.3, 32.0],
             partial_layer: None,
+            geometry_light: false,
         };
         assert!(ok.check().is_ok());
         let field = |s: SliceSettings| s.check().unwrap_err().field;
@@ -968,6 +988,10 @@ mod tests {
                 light_slices,
                 light_samples,
                 light_path,
+                light_read,
+                light_pad0,
+                light_pad1,
+                light_pad2,
             }
         );
         crate::prelude::assert_layout!(

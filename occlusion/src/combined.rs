@@ -7,7 +7,7 @@
 //! |---|---|---|---|
 //! | §3.2.1 G-buffer | - | `gbuffer.rs`, `gbuffer.wgsl` | `engine/tests/occlusion_render.rs` |
 //! | Alg. 2 eye buffer, E/A | `emission_absorption::reference`; `raycast::EaVolume::render_frame` (eight rays at a time: `raycast::lanes::march`; behind clipping planes `raycast::EaVolume::clip_slabs`, `march_clipped`) | `slice_pass.wgsl::march` (empty bricks stepped over: `empty_slabs`) | `engine/tests/ea_render.rs` (`empty_bricks_are_stepped_over_without_missing_a_sample`), `raycast` tests (`clipped_frames_march_in_lanes_as_the_scalar_march_bit_for_bit`, `slabs_behind_the_planes_are_sampled_as_without_them`) |
-//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_grid`], [`DARK`], [`data_cell`], [`light_step`], [`data_step`], [`voxel_step`], [`light_samples`], [`light_slices`], [`light_view`], [`light_depth`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only: `EaVolume::sweep`, `light_start`, `store_parts`; a step's parts by `raycast::EaVolume::optical_depth`) | `slice_pass.wgsl::light` (parts and their stores), `light_at` (at the sample's depth), `light_front` (the surfaces'), `light_step_at` | unit tests below (`a_sample_reads_the_light_at_its_own_depth`), `raycast` `a_sample_takes_the_light_at_its_own_depth`, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass; a sheet over a dense floor, a tube over a sheet, a camera inside the head), `raycast` `a_deep_light_step_takes_the_samples_of_the_steps_a_voxel_deep` |
+//! | Alg. 3 occlusion buffer (ComputeDOS) | [`blur_stencil`], [`blur_rows`], [`blur_taps`], [`light_grid`], [`DARK`], [`data_cell`], [`light_step`], [`data_step`], [`voxel_step`], [`light_samples`], [`light_slices`], [`light_view`], [`light_in_slab`], [`step_theta`], `reference::render`; `raycast::light` (the sweep, volume-only: `EaVolume::sweep`, `light_start`, `store_parts`; a step's parts by `raycast::EaVolume::optical_depth`) | `slice_pass.wgsl::light` (parts and their stores), `light_step_front` and `composite_eye` (along the eye's ray), `light_front` (the surfaces'), `light_step_at` | unit tests below (`the_light_in_a_slab_is_exact_however_the_slabs_cut_the_medium`), `raycast` `a_sample_takes_the_light_at_its_own_depth`, `occlusion_render.rs`, `cli/tests/ea_cli.rs` (CPU sweep against the GPU pass; a sheet over a dense floor, a tube over a sheet, a camera inside the head), `raycast` `a_deep_light_step_takes_the_samples_of_the_steps_a_voxel_deep` |
 //! | Alg. 3, the light's attenuation through a slab (not in the paper: along the cone) | [`cone_path_factor`]; `raycast::light` (`Sweep::path`) | `Params::light_path` in `slice_pass.wgsl::light` | unit test below (`the_cone_path_factor_is_the_mean_path_through_a_slab`), `raycast` `a_sample_takes_the_light_at_its_own_depth` (45 degrees), `occlusion_render.rs` (partial occlusion in a uniform medium), `cli/tests/ea_cli.rs` (devices alike) |
 //! | Alg. 4, eq. 1-3 partial occlusion | `reference::render` (surface AOV) | `slice_pass.wgsl::march` | `occlusion_render.rs` (the cone's mean of exp(-sigma z / cos phi)) |
 //! | Alg. 5, eq. 4-6 vicinity | [`poisson_disk`], `camera::texture_radius` | `vicinity.wgsl` | `occlusion_render.rs` (groove) |
@@ -48,12 +48,14 @@
 //! * Eye buffer (Alg. 2): volume colour `c alpha O` composited front to back (`dos`,
 //!   `combined`; `ea` and `vicinity` leave `O` out, `phong` shades `c` with the gradient), the
 //!   sampling distance clipped where the ray meets the nearest surface of the G-buffer. `O` is
-//!   the light at the sample's depth, the middle of slab k: halfway between `O_k` (the light
-//!   reaching the slab's front) and `O_{k+1}` ([`light_depth`]). The paper takes `O_k`, the
-//!   light half a slab in front of the sample, which has passed half a slab less of the
-//!   medium: against the Monte Carlo reference that left `combined` 0.031 brighter in mean
-//!   over the MNI T1's volume; the light at the sample's depth has 1.4-35% less RMSE on every
-//!   scene measured (docs/accuracy.md, "The light at the sample's depth").
+//!   the light reaching slab k along the eye's own ray, weighted by the eye within the slab
+//!   ([`light_in_slab`]: the light volume read at each light step's front, then attenuated by
+//!   the ray's own samples). The paper takes `O_k`, the light half a slab in front of the
+//!   sample, which has passed half a slab less of the medium: against the Monte Carlo
+//!   reference that left `combined` 0.031 brighter in mean over the MNI T1's volume; the
+//!   light at the sample's depth had 1.4-35% less RMSE on every scene measured, and carried
+//!   along the eye's ray a further 3-67% (docs/accuracy.md, "The light at the sample's
+//!   depth", "The light along the eye's ray").
 //! * Partial occlusion (Alg. 4, eq. 1-3): a surface at depth `z_s` between `z_{k-1}` and `z_k`
 //!   receives `lerp(O_{k-1}, O_k, (z_s - z_{k-1}) / d)` - as the paper has it, half a slab in
 //!   front of the surface: at the surface's own depth the light past the slab it lies in is
@@ -85,9 +87,9 @@
 //! `light` entry; the dispatch is the barrier the blur needs), and stores every step's `O` -
 //! and the light reaching each of its parts - in a light volume (cells x stored slices). A
 //! step is the paper's slice in the light's own view ([`light_view`]: slabs `m d` deep) with
-//! the blur's angle of [`step_theta`]; eye slice `k`'s sample reads stored slice
-//! `(k + 1/2) / (m / p)` for `p` parts a step ([`light_depth`]: at its slab's middle),
-//! linearly between stored slices. The eye buffer is then one dispatch (`march`): all
+//! the blur's angle of [`step_theta`]; the eye reads each step's `O` at its front and carries
+//! it along its own ray ([`light_in_slab`]; where tubes, lines or planes cast light, each
+//! stored part's). The eye buffer is then one dispatch (`march`): all
 //! slices of a pixel in one invocation, with `O` read bilinearly from the light volume, rays
 //! clipped to the grid's box and to the surface, empty 8^3 bricks skipped (exact, see
 //! `ea_pass::occupancy`), early termination at opacity `OPAQUE` (1 - 1/128; the rest of the ray taken as the mean of what it
@@ -236,24 +238,39 @@ pub fn light_samples(v: &EaView, step: u32) -> u32 {
     (step / voxel_step(v)).max(1)
 }
 
-/// Where the light at view depth `z0 + x d` lies in a light volume storing a slice every
-/// `step` eye slices (`d` apart): stored slice `x / step`, read linearly between stored
-/// slices. Stored slice `j` holds the light reaching the front of its slab (depth
-/// `z0 + j step d`: the light gathered from the slab before it, `O_k` of the paper for
-/// `step` 1), so eye slice `k`'s sample, at its slab's middle, reads `x = k + 1/2`, and a
-/// surface at depth `z` reads `x = (z - z0) / d`.
+/// The light a volume sample receives, along the eye's own ray (not in the paper): within a
+/// light step the light reaching the step's front (`O`, bilinear over the light cells) is
+/// carried along the pixel's ray, attenuated by the ray's own samples `f` times (the cone's
+/// path factor, [`cone_path_factor`]), and each sample's share is weighted by the eye's
+/// attenuation within its slab. For a slab of optical depth `tau` along the ray and the light
+/// `run` reaching its front, returns `(lo, leave)`: the slab's light-weighted opacity
+/// `int_0^1 tau exp(-tau s) run exp(-f tau s) ds = run (1 - exp(-(1 + f) tau)) / (1 + f)` (the
+/// sample adds `c lo` of its colour, where unlit it adds `c (1 - exp(-tau))`; its light is
+/// `lo / (1 - exp(-tau))`), and the light leaving it, `run exp(-f tau)`.
 ///
-/// The paper reads `O_k` itself for slab `k` (Alg. 2) and puts `O_k` at the slab's middle
-/// for the surfaces (Alg. 4, eq. 1-3): both half a slab in front of the sample, where the
-/// light has passed half a slab less of the medium - a light too bright by about
-/// `sigma d / 2` of itself. Against the Monte Carlo reference (docs/accuracy.md, "The light
-/// at the sample's depth"), reading at the sample's depth cut `combined`'s RMSE by 8-19% on
-/// the MNI T1 and headsq (128-512^2) and a dense CT bone (128-256^2), by 15-16% on the demo
-/// scene and by 35% on a sheet over a dense floor (its mean over the MNI T1's volume pixels had been 0.031
-/// brighter than the reference). The surfaces' partial occlusion keeps the paper's reading
-/// (`slice_pass.wgsl::light_front`; see the module's model).
-pub fn light_depth(x: f64, step: u32) -> f64 {
-    x / step.max(1) as f64
+/// The paper reads `O_k` itself for slab `k` (Alg. 2): half a slab in front of the sample, a
+/// light too bright by about `sigma d / 2` of itself (docs/accuracy.md, "The light at the
+/// sample's depth"). Both values here are exact for a medium uniform within each slab, so the
+/// light a surface shows does not
+/// depend on where it lies between the slices or the light's stored slices: the light read
+/// linearly between stored slices a voxel apart (what umbra did until 2026-12-07) drew a hatch
+/// on dense surfaces cut at a slant (docs/accuracy.md, "A hatch on dense surfaces"), and its
+/// chord lay above the light's exponential decay. A slab too dense to see through shows
+/// `run / (1 + f)` of the light reaching it (about half: the eye sees into it as far as the
+/// light reaches), where the light at the slab's middle would go to 0 and the chord to
+/// `run / 2`. The blur, within a step, is left to the steps' fronts (the light volume's
+/// cells); the cells' own samples serve the next front. Against the Monte Carlo reference the
+/// RMSE fell 3-67% on the scenes of docs/accuracy.md, most on dense media ("The light along
+/// the eye's ray").
+/// `raycast::EaVolume::advance` (and `raycast::lanes`) and `slice_pass.wgsl::composite_eye`
+/// compute it in f32, incrementally.
+pub fn light_in_slab(run: f64, tau: f64, path: f64) -> (f64, f64) {
+    let f = path.max(0.0);
+    let tau = tau.max(0.0);
+    (
+        run * -(-(1.0 + f) * tau).exp_m1() / (1.0 + f),
+        run * (-f * tau).exp(),
+    )
 }
 
 /// The slices a light volume of steps of `step` eye slices stores: [`light_samples`] a step,
@@ -264,10 +281,10 @@ pub fn light_slices(v: &EaView, step: u32) -> u32 {
 
 /// The view the light volume is swept in for a step of `step` slices: the same front, slabs
 /// `step d` deep, as many as cover the eye's slices. Each step stores the light reaching its
-/// [`light_samples`] parts (`p`), and eye slice `k`'s sample reads stored slice
-/// `(k + 1/2) / (step / p)` (linear between them; [`light_depth`]): the front of eye slab
-/// `j step` has exactly the light of step `j` (both have passed through the same depth), and
-/// the samples of a part lie between its light and the next part's.
+/// [`light_samples`] parts (`p`): the front of eye slab `j step` has exactly the light of
+/// step `j` (both have passed through the same depth), which the eye reads there and carries
+/// along its own ray through the step ([`light_in_slab`]); the parts serve the next step's
+/// front (and the eye where tubes, lines or planes cast light).
 pub fn light_view(v: &EaView, step: u32) -> EaView {
     let m = step.max(1);
     EaView {
@@ -480,29 +497,44 @@ pub fn poisson_disk(n: usize) -> Vec<[f32; 2]> {
 #[cfg(test)]
 mod tests {
     #[test]
-    fn a_sample_reads_the_light_at_its_own_depth() {
-        // Steps of one slice: slab k's sample (k + 1/2) halfway between O_k and O_{k+1}; a
-        // surface on slab k's front reads O_k. Stored slices two eye slices apart: eye slice 3's
-        // sample at 3.5 slices, three quarters of the way from stored slice 1 to 2.
-        assert_eq!(super::light_depth(2.5, 1), 2.5);
-        assert_eq!(super::light_depth(2.0, 1), 2.0);
-        assert_eq!(super::light_depth(3.5, 2), 1.75);
-        // In a homogeneous medium (no blur), reading between the stored slices at x is the
-        // light at x to second order: the slab's middle, not its front.
-        let (sigma, d) = (0.4f64, 0.5f64);
-        let o = |j: f64| (-sigma * d * j).exp();
-        for k in 0..6 {
-            let x = super::light_depth(k as f64 + 0.5, 1);
-            let (j, t) = (x.floor(), x - x.floor());
-            let read = o(j) + (o(j + 1.0) - o(j)) * t;
-            let exact = (-sigma * d * (k as f64 + 0.5)).exp();
+    fn the_light_in_a_slab_is_exact_however_the_slabs_cut_the_medium() {
+        // A uniform medium (sigma 0.4 a unit, 6 units deep) cut into n slabs: the slabs' lit
+        // opacities add up to the continuous model's int sigma exp(-sigma z) exp(-f sigma z) dz
+        // for every n (one slab or 200), and the light leaving the last is exp(-f sigma L).
+        // The light at each slab's middle (the midpoint rule) or the chord between the slabs'
+        // fronts depends on n (one slab: off by more than 3%).
+        let (sigma, l, f) = (0.4f64, 6.0f64, cone_path_factor(45.0));
+        let exact = (1.0 - (-(1.0 + f) * sigma * l).exp()) / (1.0 + f);
+        for n in [1usize, 2, 3, 7, 50, 200] {
+            let tau = sigma * l / n as f64;
+            let (mut run, mut sum, mut mid, mut chord) = (1.0, 0.0, 0.0, 0.0);
+            for k in 0..n {
+                let (lo, leave) = light_in_slab(run, tau, f);
+                let a = 1.0 - (-tau).exp();
+                let eye = (-tau * k as f64).exp();
+                sum += eye * lo;
+                mid += eye * a * run * (-0.5 * f * tau).exp();
+                chord += eye * a * 0.5 * (run + leave);
+                run = leave;
+            }
             assert!(
-                (read - exact).abs() < 0.01 * exact,
-                "slab {k}: {read} against {exact}"
+                (sum - exact).abs() < 1e-12,
+                "{n} slabs: {sum} against {exact}"
             );
-            // The paper's O_k is a factor exp(sigma d / 2) too bright.
-            assert!(o(k as f64) > 1.09 * exact);
+            assert!((run - (-f * sigma * l).exp()).abs() < 1e-12);
+            if n == 1 {
+                assert!((mid - exact).abs() > 0.03 * exact, "{n}: midpoint {mid}");
+                assert!((chord - exact).abs() > 0.03 * exact, "{n}: chord {chord}");
+            }
         }
+        // A slab too dense to see through shows 1 / (1 + f) of the light reaching it, and
+        // passes none on; a transparent one adds nothing and passes all.
+        let (lo, leave) = light_in_slab(0.8, 1e3, f);
+        assert!((lo - 0.8 / (1.0 + f)).abs() < 1e-12 && leave == 0.0);
+        assert_eq!(light_in_slab(0.8, 0.0, f), (0.0, 0.8));
+        // A thin slab: its opacity tau times the light.
+        let (lo, _) = light_in_slab(0.8, 1e-6, f);
+        assert!((lo / (0.8 * 1e-6) - 1.0).abs() < 1e-5);
     }
 
     use super::*;

@@ -662,11 +662,15 @@ struct Marching<'s, 'v> {
     slab: __m256i,
     kb_shift: __m128i,
     kb_mask: __m256i,
-    step_shift: __m128i,
-    step_mask: __m256i,
     inv_step: __m256,
     last: __m256i,
     order: __m256i,
+    /// Light steps: eye slices as a shift, stored slices a step, the path factor `f` and
+    /// `1 / (1 + f)`.
+    eye_step_shift: __m128i,
+    parts: __m256i,
+    path: __m256,
+    inv_1f: __m256,
 }
 
 impl<'s, 'v> Marching<'s, 'v> {
@@ -686,11 +690,13 @@ impl<'s, 'v> Marching<'s, 'v> {
                 slab: pi((lv.cells[0] * lv.cells[1] * KB) as i32),
                 kb_shift: _mm_cvtsi32_si128(KB.trailing_zeros() as i32),
                 kb_mask: pi(KB as i32 - 1),
-                step_shift: _mm_cvtsi32_si128(lv.step.trailing_zeros() as i32),
-                step_mask: pi(lv.step as i32 - 1),
                 inv_step: _mm256_set1_ps(1.0 / lv.step as f32),
                 last: pi(lv.slices as i32 - 1),
                 order: pair_order(),
+                eye_step_shift: _mm_cvtsi32_si128(lv.eye_step_shift as i32),
+                parts: pi(lv.parts as i32),
+                path: _mm256_set1_ps(lv.path),
+                inv_1f: _mm256_set1_ps(lv.inv_1f),
             }
         }
     }
@@ -700,21 +706,59 @@ impl<'s, 'v> Marching<'s, 'v> {
 /// gathered.
 struct Packet {
     r: RayLanes,
-    /// Lit: each ray's four light cells (offsets into a block of slices), in lane order and in
-    /// [`pair_order`], and fractions.
+    /// Lit: each ray's four light cells (offsets into a block of slices) and fractions.
     cells: [__m256i; 4],
-    cells_p: [__m256i; 4],
     frac: [__m256; 2],
     /// Behind clipping planes: each cell read this many slices further than the ray's slice
-    /// (`Footprint::shift`; `LightVolume::lookup_shifted`), for every ray of the packet.
+    /// (`Footprint::shift`; `LightVolume::front`), for every ray of the packet.
     shift: Option<[__m256; 4]>,
     kv: __m256i,
     k1v: __m256i,
+    /// Lit: the light step each ray last read (`Ray::lstep`) and the light reaching its next
+    /// sample (`Ray::lrun`).
+    lstep: __m256i,
+    lrun: __m256,
     c: [__m256; 3],
     alpha: __m256,
     acc: __m256,
     weights: __m256,
     half_k: __m256i,
+}
+
+/// `exp(-x)` from the volume's table in the `mask` lanes, as `EaVolume::exp_neg` (1 at or
+/// below 0 and for NaN, 0 beyond the table; masked lanes read nothing).
+///
+/// # Safety
+/// As [`march`]'s.
+#[inline(always)]
+unsafe fn exp_neg(m: &Marching<'_, '_>, x: __m256, mask: __m256) -> __m256 {
+    // SAFETY: the caller's; masked lanes read nothing.
+    unsafe {
+        let ps = |x: f32| _mm256_set1_ps(x);
+        let (zero, one) = (_mm256_setzero_ps(), ps(1.0));
+        let t = _mm256_mul_ps(x, ps(EXP_SCALE));
+        let inner = _mm256_and_ps(
+            mask,
+            _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(t, ps(EXP_N as f32)),
+            ),
+        );
+        let ti = _mm256_cvttps_epi32(_mm256_and_ps(t, inner));
+        let tf_ = _mm256_sub_ps(t, _mm256_cvtepi32_ps(ti));
+        // The table's neighbours `ti` and `ti + 1` in one gather element each.
+        let (e0, e1) = gather_pairs_32(
+            m.splat.vol.exp_table.as_ptr() as *const u8,
+            _mm256_permutevar8x32_epi32(ti, m.order),
+            _mm256_permutevar8x32_ps(inner, m.order),
+        );
+        _mm256_blendv_ps(
+            // Outside the table: 1 at or below 0 (and NaN), 0 beyond its end.
+            _mm256_blendv_ps(zero, one, _mm256_cmp_ps::<_CMP_NGT_UQ>(t, zero)),
+            _mm256_add_ps(e0, _mm256_mul_ps(_mm256_sub_ps(e1, e0), tf_)),
+            inner,
+        )
+    }
 }
 
 impl Packet {
@@ -729,6 +773,7 @@ impl Packet {
             let (mut cells, mut frac) = ([[0i32; LANES]; 4], [[0f32; LANES]; 2]);
             let mut shift = [[0f32; LANES]; 4];
             let mut shifted = false;
+            let (mut lstep, mut lrun) = ([-1i32; LANES], [1f32; LANES]);
             if LIT {
                 for (i, (_, r)) in rays.iter().enumerate() {
                     for (j, c) in r.light.cells.iter().enumerate() {
@@ -738,17 +783,21 @@ impl Packet {
                     frac[0][i] = r.light.f[0];
                     frac[1][i] = r.light.f[1];
                     shifted |= r.light.shifted;
+                    // (`u32::MAX`, none yet, is -1: no step of fewer than 2^30 slices.)
+                    lstep[i] = r.lstep as i32;
+                    lrun[i] = r.lrun;
                 }
             }
             let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
             let zero = _mm256_setzero_ps();
             let p = Packet {
                 cells,
-                cells_p: cells.map(|c| _mm256_permutevar8x32_epi32(c, pair_order())),
                 shift: shifted.then(|| shift.map(|x| _mm256_loadu_ps(x.as_ptr()))),
                 frac: frac.map(|f| _mm256_loadu_ps(f.as_ptr())),
                 kv: r.k,
                 k1v: r.k1,
+                lstep: _mm256_loadu_si256(lstep.as_ptr() as *const __m256i),
+                lrun: _mm256_loadu_ps(lrun.as_ptr()),
                 r,
                 c: [zero; 3],
                 alpha: zero,
@@ -841,55 +890,49 @@ impl Packet {
         // SAFETY: the caller's; masked lanes read nothing.
         unsafe {
             let ps = |x: f32| _mm256_set1_ps(x);
-            let zero = _mm256_setzero_ps();
             let one = ps(1.0);
             let half = ps(0.5);
             let r = &self.r;
             // 1 - exp(-sigma len), the exponential from its table (`EaVolume::exp_neg`).
-            let t = _mm256_mul_ps(_mm256_mul_ps(sigma, r.seg), ps(EXP_SCALE));
-            let inner = _mm256_and_ps(
-                lit,
-                _mm256_and_ps(
-                    _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
-                    _mm256_cmp_ps::<_CMP_LT_OQ>(t, ps(EXP_N as f32)),
-                ),
-            );
-            let ti = _mm256_cvttps_epi32(_mm256_and_ps(t, inner));
-            let tf_ = _mm256_sub_ps(t, _mm256_cvtepi32_ps(ti));
-            // The table's neighbours `ti` and `ti + 1` in one gather element each.
-            let (e0, e1) = gather_pairs_32(
-                m.splat.vol.exp_table.as_ptr() as *const u8,
-                _mm256_permutevar8x32_epi32(ti, m.order),
-                _mm256_permutevar8x32_ps(inner, m.order),
-            );
-            let e = _mm256_blendv_ps(
-                // Outside the table: 1 at or below 0 (and NaN), 0 beyond its end.
-                _mm256_blendv_ps(zero, one, _mm256_cmp_ps::<_CMP_NGT_UQ>(t, zero)),
-                _mm256_add_ps(e0, _mm256_mul_ps(_mm256_sub_ps(e1, e0), tf_)),
-                inner,
-            );
+            let e = exp_neg(m, _mm256_mul_ps(sigma, r.seg), lit);
             let al = _mm256_sub_ps(one, e);
             let wgt = _mm256_mul_ps(_mm256_sub_ps(one, self.alpha), al);
-            // The light at the sample (`LightVolume::lookup`: bilinear over the ray's four
-            // cells at stored slice (k + 1/2) / step, linear between them), 1 unlit.
-            let o = match (LIT, &self.shift) {
-                (false, _) => one,
-                (true, None) => self.light(m, lit),
-                (true, Some(shift)) => self.light_shifted(m, lit, shift),
+            // The light along the ray's own path through its light step
+            // (`occlusion::combined::light_in_slab`, as `EaVolume::advance`): the step's front
+            // from the light volume where the ray enters a step, then attenuated by its
+            // samples; this sample's light weighted by the eye's attenuation within its slab
+            // (`lw`, for `wgt` unlit).
+            let lw = if LIT {
+                let st = _mm256_srl_epi32(kv, m.eye_step_shift);
+                let stale =
+                    _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(st, self.lstep)), lit);
+                if _mm256_movemask_ps(stale) != 0 {
+                    let front = match &self.shift {
+                        None => self.front(m, stale, st),
+                        Some(shift) => self.front_shifted(m, stale, shift),
+                    };
+                    self.lrun = _mm256_blendv_ps(self.lrun, front, stale);
+                    self.lstep = _mm256_blendv_epi8(self.lstep, st, _mm256_castps_si256(stale));
+                }
+                let ef = exp_neg(m, _mm256_mul_ps(m.path, _mm256_mul_ps(sigma, r.seg)), lit);
+                let lo = _mm256_mul_ps(
+                    self.lrun,
+                    _mm256_mul_ps(_mm256_sub_ps(one, _mm256_mul_ps(e, ef)), m.inv_1f),
+                );
+                self.lrun = _mm256_blendv_ps(self.lrun, _mm256_mul_ps(self.lrun, ef), lit);
+                _mm256_mul_ps(_mm256_sub_ps(one, self.alpha), lo)
+            } else {
+                wgt
             };
             let c = &mut self.c;
             for ch in 0..3 {
-                let x = _mm256_mul_ps(_mm256_mul_ps(wgt, rgb[ch]), o);
+                let x = _mm256_mul_ps(lw, rgb[ch]);
                 c[ch] = _mm256_blendv_ps(c[ch], _mm256_add_ps(c[ch], x), lit);
             }
             let before = self.alpha;
             let alpha = _mm256_blendv_ps(before, _mm256_add_ps(before, wgt), lit);
             self.alpha = alpha;
-            self.acc = _mm256_blendv_ps(
-                self.acc,
-                _mm256_add_ps(self.acc, _mm256_mul_ps(wgt, o)),
-                lit,
-            );
+            self.acc = _mm256_blendv_ps(self.acc, _mm256_add_ps(self.acc, lw), lit);
             self.weights = _mm256_blendv_ps(self.weights, _mm256_add_ps(self.weights, wgt), lit);
             let crossed = _mm256_and_ps(
                 lit,
@@ -907,87 +950,43 @@ impl Packet {
         }
     }
 
-    /// The light at the current slice's samples of the `lit` lanes (`LightVolume::lookup`).
+    /// The light reaching the front of light step `st` of the `lit` lanes
+    /// (`LightVolume::front`): bilinear over the ray's four cells at stored slice `st parts`.
     ///
     /// # Safety
     /// As [`march`]'s.
     #[inline(always)]
-    unsafe fn light(&self, m: &Marching<'_, '_>, lit: __m256) -> __m256 {
+    unsafe fn front(&self, m: &Marching<'_, '_>, lit: __m256, st: __m256i) -> __m256 {
         // SAFETY: the caller's; masked lanes read nothing.
         unsafe {
-            let (zero, onei, half) = (
-                _mm256_setzero_ps(),
-                _mm256_set1_epi32(1),
-                _mm256_set1_ps(0.5),
+            let ks = _mm256_min_epi32(_mm256_mullo_epi32(st, m.parts), m.last);
+            // The block and slot of stored slice `ks` in the light volume's layout.
+            let at = _mm256_add_epi32(
+                _mm256_mullo_epi32(_mm256_srl_epi32(ks, m.kb_shift), m.slab),
+                _mm256_and_si256(ks, m.kb_mask),
             );
-            let (kv, last, kb_mask) = (self.kv, m.last, m.kb_mask);
-            // The block and slot of step `ks` in the light volume's layout.
-            macro_rules! at {
-                ($ks:expr) => {{
-                    let ks = $ks;
-                    _mm256_add_epi32(
-                        _mm256_mullo_epi32(_mm256_srl_epi32(ks, m.kb_shift), m.slab),
-                        _mm256_and_si256(ks, kb_mask),
-                    )
-                }};
-            }
+            let zero = _mm256_setzero_ps();
+            // (A macro, not a closure: closures are compiled without AVX2.)
             macro_rules! cell {
-                ($at:expr, $j:expr) => {
+                ($j:expr) => {
                     _mm256_mask_i32gather_ps::<4>(
                         zero,
                         m.light,
-                        _mm256_add_epi32($at, self.cells[$j]),
+                        _mm256_add_epi32(at, self.cells[$j]),
                         lit,
                     )
                 };
             }
-            // Stored slices k0 = k / step and the next (both clamped to the last), and the
-            // fraction of the slab's middle between them ((k mod step + 1/2) / step), as
-            // `LightVolume::lookup` takes them.
-            let k0 = _mm256_srl_epi32(kv, m.step_shift);
-            let t = _mm256_mul_ps(
-                _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_and_si256(kv, m.step_mask)), half),
-                m.inv_step,
-            );
-            let a0 = at!(_mm256_min_epi32(k0, last));
-            // Stored slices k0 and k0 + 1 of a cell are neighbours in memory unless k0 is the
-            // last of its block or of the volume: then each cell's pair comes in one 64-bit
-            // load (two gathers of four pairs instead of two of eight values; the same values,
-            // so the same light).
-            let split = _mm256_or_si256(
-                _mm256_cmpeq_epi32(_mm256_and_si256(k0, kb_mask), kb_mask),
-                _mm256_cmpgt_epi32(_mm256_add_epi32(k0, onei), last),
-            );
-            let (v0, v1, v2, v3);
-            if _mm256_testz_si256(split, _mm256_castps_si256(lit)) != 0 {
-                let a0p = _mm256_permutevar8x32_epi32(a0, m.order);
-                let lit_p = _mm256_permutevar8x32_ps(lit, m.order);
-                macro_rules! pair {
-                    ($j:expr) => {{
-                        let (a, b) = gather_pairs_32(
-                            m.light as *const u8,
-                            _mm256_add_epi32(a0p, self.cells_p[$j]),
-                            lit_p,
-                        );
-                        lerp!(a, b, t)
-                    }};
-                }
-                (v0, v1, v2, v3) = (pair!(0), pair!(1), pair!(2), pair!(3));
-            } else {
-                let a1 = at!(_mm256_min_epi32(_mm256_add_epi32(k0, onei), last));
-                v0 = lerp!(cell!(a0, 0), cell!(a1, 0), t);
-                v1 = lerp!(cell!(a0, 1), cell!(a1, 1), t);
-                v2 = lerp!(cell!(a0, 2), cell!(a1, 2), t);
-                v3 = lerp!(cell!(a0, 3), cell!(a1, 3), t);
-            }
-            let x0 = lerp!(v0, v1, self.frac[0]);
-            let x1 = lerp!(v2, v3, self.frac[0]);
+            let v = [cell!(0), cell!(1), cell!(2), cell!(3)];
+            let x0 = lerp!(v[0], v[1], self.frac[0]);
+            let x1 = lerp!(v[2], v[3], self.frac[0]);
             lerp!(x0, x1, self.frac[1])
         }
     }
 
-    /// [`Packet::light`] behind clipping planes (`LightVolume::lookup_shifted`): each of the
-    /// four cells at its own fractional stored slice `(k + 1/2 + shift) / step` (a product by
+    /// [`Packet::front`] behind clipping planes (`LightVolume::front`): each of the four cells
+    /// at its own fractional stored slice `(k + shift) / step`, the front of the lanes' slabs
+    /// `k` (a product by
     /// `1 / step`, a power of two: the quotient's bits), 1 at or before -1, towards the first
     /// stored slice between -1 and 0, else linear between its two stored slices (clamped to the
     /// last), as `LightVolume::cell_at`.
@@ -995,7 +994,7 @@ impl Packet {
     /// # Safety
     /// As [`march`]'s.
     #[inline(always)]
-    unsafe fn light_shifted(
+    unsafe fn front_shifted(
         &self,
         m: &Marching<'_, '_>,
         lit: __m256,
@@ -1003,17 +1002,24 @@ impl Packet {
     ) -> __m256 {
         // SAFETY: the caller's; masked lanes read nothing.
         unsafe {
-            let (zero, one, half) = (
-                _mm256_setzero_ps(),
-                _mm256_set1_ps(1.0),
-                _mm256_set1_ps(0.5),
-            );
+            let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
             let onei = _mm256_set1_epi32(1);
             let last_f = _mm256_cvtepi32_ps(m.last);
-            let kf = _mm256_add_ps(_mm256_cvtepi32_ps(self.kv), half);
+            let kf = _mm256_cvtepi32_ps(_mm256_sll_epi32(
+                _mm256_srl_epi32(self.kv, m.eye_step_shift),
+                m.eye_step_shift,
+            ));
+            let kr = _mm256_cvtepi32_ps(self.kv);
+            let eye = _mm256_cvtepi32_ps(_mm256_sll_epi32(_mm256_set1_epi32(1), m.eye_step_shift));
+            let first = _mm256_castsi256_ps(_mm256_cmpeq_epi32(self.lstep, _mm256_set1_epi32(-1)));
             let mut v = [zero; 4];
             for (j, v) in v.iter_mut().enumerate() {
-                let x = _mm256_mul_ps(_mm256_add_ps(kf, shift[j]), m.inv_step);
+                let own = _mm256_mul_ps(
+                    _mm256_floor_ps(_mm256_div_ps(_mm256_add_ps(kr, shift[j]), eye)),
+                    eye,
+                );
+                let pos = _mm256_blendv_ps(_mm256_add_ps(kf, shift[j]), own, first);
+                let x = _mm256_mul_ps(pos, m.inv_step);
                 let fl = _mm256_floor_ps(x);
                 // The stored slice below (0 before the first; clamped in f32 first, so that no
                 // conversion overflows), and the next.
@@ -1095,7 +1101,11 @@ impl Packet {
             _mm256_storeu_si256(hk.as_mut_ptr() as *mut __m256i, self.half_k);
             _mm256_storeu_si256(k.as_mut_ptr() as *mut __m256i, self.kv);
             _mm256_storeu_si256(k1.as_mut_ptr() as *mut __m256i, self.k1v);
+            let (mut lstep, mut lrun) = ([0i32; LANES], [0f32; LANES]);
+            _mm256_storeu_si256(lstep.as_mut_ptr() as *mut __m256i, self.lstep);
+            _mm256_storeu_ps(lrun.as_mut_ptr(), self.lrun);
             for (i, (_, r)) in rays.iter_mut().enumerate() {
+                (r.lstep, r.lrun) = (lstep[i] as u32, lrun[i]);
                 // Done (k > k1), or ended early (k = 1, k1 = 0).
                 (r.k, r.k1) = (k[i] as u32, k1[i] as u32);
                 r.c = [c[0][i], c[1][i], c[2][i]];

@@ -44,13 +44,23 @@ pub(crate) const KB: usize = 16;
 
 /// `O` per cell and stored slice (see the module's layout): `slices` stored slices, each
 /// `step` eye slices deep (a power of two: a part of a sweep step), each the light reaching
-/// its slab's front; eye slice `k`'s sample reads stored slice `(k + 1/2) / step`, linearly
-/// between them ([`LightVolume::lookup`]).
+/// its slab's front. The eye reads the light reaching the front of the light step its sample
+/// lies in ([`LightVolume::front`]: stored slice `parts s` for step `s`, `eye_step` eye slices
+/// deep) and attenuates it along its own ray through the step
+/// (`occlusion::combined::light_in_slab`, with the light's path factor `path` and
+/// `inv_1f = 1 / (1 + path)`).
 pub(crate) struct LightVolume {
     pub cells: [usize; 2],
     pub cell: usize,
     pub slices: usize,
     pub step: usize,
+    /// Stored slices a light step (its parts), and the step's eye slices as a shift
+    /// (`step parts = 1 << eye_step_shift`).
+    pub parts: usize,
+    pub eye_step_shift: u32,
+    /// The light's path factor (`occlusion::combined::cone_path_factor`) and `1 / (1 + path)`.
+    pub path: f32,
+    pub inv_1f: f32,
     o: Vec<f32>,
 }
 
@@ -62,6 +72,10 @@ impl LightVolume {
             cell: 1,
             slices: 1,
             step: 1,
+            parts: 1,
+            eye_step_shift: 0,
+            path: 1.0,
+            inv_1f: 0.5,
             o: vec![1.0; KB],
         }
     }
@@ -72,18 +86,32 @@ impl LightVolume {
         &self.o
     }
 
-    /// The light at eye slice `k`'s sample, at a pixel: bilinear over the four cells of `f`
-    /// (offsets and fractions from [`LightVolume::footprint`]), at the sample's depth - the
-    /// middle of slab `k`, stored slice `(k + 1/2) / step`, linear between stored slices (the
-    /// last one's beyond it). A stored slice holds the light reaching the front of its slab
-    /// (`occlusion::combined::light_depth`).
-    #[inline(always)]
-    pub(crate) fn lookup(&self, f: &Footprint, k: usize) -> f32 {
-        if f.shifted {
-            return self.lookup_shifted(f, k);
-        }
-        let kf = occlusion::combined::light_depth(k as f64 + 0.5, self.step as u32) as f32;
-        let v = [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], kf));
+    /// The light reaching the front of the light step eye slice `k` lies in, at a pixel, `O`
+    /// of the step: bilinear over the four cells of `f` (offsets and fractions from
+    /// [`LightVolume::footprint`]), at stored slice `parts (k >> eye_step_shift)`. Behind
+    /// clipping planes each cell at its own slice `k + shift` - the same distance behind the
+    /// planes as the front of the pixel's slab `k` ([`LightVolume::clip_shifts`]) - linear
+    /// between stored slices, so that the light read where a ray enters the medium at the
+    /// cut, and after each step, follows the cut (read at the step's front, the cells would
+    /// lie further in front of their cuts the further the pixel's lies behind its step's
+    /// front: a line per step on a cut face tilted to the slices). The eye carries it along
+    /// its own ray through the step (`occlusion::combined::light_in_slab`).
+    pub(crate) fn front(&self, f: &Footprint, k: u32, first: bool) -> f32 {
+        let v = if f.shifted {
+            let (m, e) = (self.step as f32, (1u32 << self.eye_step_shift) as f32);
+            let kf = ((k >> self.eye_step_shift) << self.eye_step_shift) as f32;
+            [0, 1, 2, 3].map(|i| {
+                let x = if first {
+                    ((k as f32 + f.shift[i]) / e).floor() * e
+                } else {
+                    kf + f.shift[i]
+                };
+                self.cell_at(f.cells[i], x / m)
+            })
+        } else {
+            let s = ((k >> self.eye_step_shift) as usize * self.parts) as f32;
+            [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], s))
+        };
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
     }
@@ -106,15 +134,6 @@ impl LightVolume {
         let t = kf - kf.floor();
         let (a, b) = (at(k0), at(k0.saturating_add(1)));
         a + (b - a) * t
-    }
-
-    /// [`LightVolume::lookup`] behind a clipping plane: each cell read at the pixel's slice plus
-    /// its shift (`light_shifted` in the shader; see [`LightVolume::clip_shifts`]).
-    fn lookup_shifted(&self, f: &Footprint, k: usize) -> f32 {
-        let (kf, m) = (k as f32 + 0.5, self.step as f32);
-        let v = [0, 1, 2, 3].map(|i| self.cell_at(f.cells[i], (kf + f.shift[i]) / m));
-        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-        lerp(lerp(v[0], v[1], f.f[0]), lerp(v[2], v[3], f.f[0]), f.f[1])
     }
 
     /// Where each cell's centre ray enters the depths the clipping planes keep
@@ -169,7 +188,7 @@ impl LightVolume {
     }
 
     /// The four cells around pixel position `px` (centres at half-integers of cells, clamped
-    /// at the border) and the bilinear fractions, as `light_at` in the shader. Inlined into
+    /// at the border) and the bilinear fractions, as `light_bilinear` in the shader. Inlined into
     /// the march's setup, compiled for AVX2 where the CPU has it (its `floor` an instruction,
     /// not a call into libm).
     #[inline(always)]
@@ -276,7 +295,7 @@ impl EaVolume {
         dark: f32,
     ) -> LightVolume {
         // A step of `s.step` eye slices (`occlusion::combined::light_step`): the sweep runs in
-        // the light's own view, the eye reads it at fractional slices (`LightVolume::lookup`).
+        // the light's own view, the eye reads it at its steps' fronts (`LightVolume::front`).
         // (A power of two: a step's parts share a block of `KB` stored slices.)
         let step = occlusion::combined::light_step(Some(s.step), v, false) as usize;
         // Samples a voxel apart whatever the step, and the light stored at each: a step
@@ -314,6 +333,10 @@ impl EaVolume {
             cell,
             slices: stored,
             step: step / samples,
+            parts: samples,
+            eye_step_shift: step.trailing_zeros(),
+            path,
+            inv_1f: 1.0 / (1.0 + path),
             o,
         };
         // The cells' centre rays, as the pixels' (a continuous pixel position).

@@ -2193,6 +2193,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         geometry_extinction: r.geometry_extinction,
         light: [0.0; 4],
         partial_layer: None,
+        geometry_light: false,
     };
     if let Err(e) = slices.check() {
         let key = match e.field {
