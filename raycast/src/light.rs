@@ -3,10 +3,15 @@
 //! `dos` and `combined` methods of volume-only scenes on machines without a GPU.
 //!
 //! The light volume holds `O_k`, the light reaching step k (`LightSettings::step` slices deep,
-//! `occlusion::combined::light_view`), and the light reaching each of the step's parts a voxel
-//! deep (`occlusion::combined::light_samples`: the volume sampled at each part's middle, the
-//! light attenuated part by part, [`store_parts`]; the eye reads the stored slices linearly),
-//! on cells of `s x s` pixels: step by step (each blurs the light leaving the previous one, so the steps
+//! `occlusion::combined::light_view`), which the eye reads at the step's front and carries
+//! along its own ray (`occlusion::combined::light_in_slab`); behind clipping planes also the
+//! light reaching each of the step's parts a voxel deep ([`store_parts`]: the eye's first read
+//! takes each cell at the pixel's distance behind the planes). The step's volume samples are
+//! a voxel apart whatever it stores (`occlusion::combined::light_samples`: the volume sampled
+//! at each part's middle, the light attenuated part by part). Storing only the fronts where
+//! there are no planes keeps the volume a quarter of the size at the default step (the GPU's
+//! stores every part: its tubes' coverage is in them). The volume lives on cells of `s x s`
+//! pixels: step by step (each blurs the light leaving the previous one, so the steps
 //! are a sequence; the rows of a slice are shared by the threads, [`sweep_slices`]), each cell's
 //! `O_k` gathered from `L_{k-1} = O_{k-1} T_{k-1}` of its neighbours with the slice's blur
 //! (`occlusion::combined::blur_rows`: the 3x3 stencil up to two cells, else `n x n` bilinear
@@ -301,6 +306,10 @@ impl EaVolume {
         // Samples a voxel apart whatever the step, and the light stored at each: a step
         // blurs once and attenuates part by part (`occlusion::combined::light_samples`).
         let samples = occlusion::combined::light_samples(v, step as u32) as usize;
+        // The light volume stores each step's front, which the eye reads and carries along its
+        // own ray (`LightVolume::front`); behind clipping planes each part's too, for the
+        // cells read at the pixel's distance behind the planes.
+        let kept = if v.clip.is_empty() { 1 } else { samples };
         let coarse;
         let v = if step > 1 {
             coarse = light_view(v, step as u32);
@@ -316,8 +325,8 @@ impl EaVolume {
         let cells = [w.div_ceil(cell), h.div_ceil(cell)];
         let n = cells[0] * cells[1];
         let slices = v.slices.max(1) as usize;
-        // Stored slices: `samples` a step, each `step / samples` eye slices deep.
-        let stored = slices * samples;
+        // Stored slices: `kept` a step, each `step / kept` eye slices deep.
+        let stored = slices * kept;
         // The last frame's values, each block reset to 1 at its first slice (below).
         let mut o =
             std::mem::take(&mut *self.light_store.lock().unwrap_or_else(|e| e.into_inner()));
@@ -332,8 +341,8 @@ impl EaVolume {
             cells,
             cell,
             slices: stored,
-            step: step / samples,
-            parts: samples,
+            step: step / kept,
+            parts: kept,
             eye_step_shift: step.trailing_zeros(),
             path,
             inv_1f: 1.0 / (1.0 + path),
@@ -456,7 +465,7 @@ impl EaVolume {
                     std::slice::from_raw_parts(shared.reach.add(first), rows),
                     std::slice::from_raw_parts_mut(shared.leave[(k + 1) % 2].add(c0), len),
                     std::slice::from_raw_parts_mut(
-                        shared.o.add(((k * samples / KB) * n + c0) * KB),
+                        shared.o.add(((k * kept / KB) * n + c0) * KB),
                         len * KB,
                     ),
                     std::slice::from_raw_parts_mut(shared.next_k.add(c0), len),
@@ -478,6 +487,7 @@ impl EaVolume {
                 d,
                 k,
                 samples: samples as u32,
+                kept: kept as u32,
                 path,
                 dark,
                 planes,
@@ -680,6 +690,9 @@ struct Sweep<'a> {
     k: usize,
     /// Volume samples per step (`occlusion::combined::light_samples`).
     samples: u32,
+    /// Stored slices per step: its front, and behind clipping planes each part's
+    /// (`samples`).
+    kept: u32,
     /// The light's extinction factor: its mean path through a slab over the cone's directions
     /// (`occlusion::combined::cone_path_factor` of the scene's own cone angle).
     path: f32,
@@ -720,7 +733,7 @@ impl Sweep<'_> {
         let c0 = first * cw;
         // The step's stored slices: `parts` of them from `j0` of the block (`KB` is a
         // multiple of the power of two `parts`).
-        let parts = self.samples as usize;
+        let parts = self.kept as usize;
         let j0 = (k * parts) % KB;
         if j0 == 0 {
             // A new block of slices: its values left from the last frame are reset to 1.
@@ -909,7 +922,7 @@ impl Sweep<'_> {
         j0: usize,
         mut done: impl FnMut(usize, &Leave),
     ) {
-        let parts = self.samples as usize;
+        let parts = self.kept as usize;
         for xs in need.chunks(crate::lanes::LANES) {
             let mut cells = [0u32; crate::lanes::LANES];
             for (c, &x) in cells.iter_mut().zip(xs) {
