@@ -294,9 +294,12 @@ fn cell_shifts(px: vec2<f32>, r: Ray) -> CellShift {
     return cs;
 }
 
-// Each cell at its own slice k + shift (the same distance behind the planes as the front of
-// the pixel's slab k), linear between stored slices: the light read where a ray enters the
-// medium at the cut, and after each step, follows the cut (`LightVolume::front` in
+// Each cell with its shift (the same distance behind the planes as the pixel), linear between
+// stored slices: on a ray's first read (where it enters the medium at the cut) at the front of
+// the read its own slice k + shift lies in, later at the pixel's read's front plus the shift
+// (the stored parts there hold the cell's own attenuation). Read at the pixel's front from the
+// start, the cells would lie further in front of their cuts the further the pixel's lies
+// behind its front: a line a step on a tilted cut face (`LightVolume::front` in
 // raycast/src/light.rs).
 fn light_shifted(cs: CellShift, k: u32, first: bool) -> f32 {
     let e = f32(P.light_read);

@@ -237,7 +237,7 @@ fn the_cpu_renderer_lights_the_volume_as_the_gpu_light_pass_does() {
             "step1",
             vec!["render.method=\"combined\"", "render.occlusion_step=1"],
         ),
-        // Without the plane: the march reads its own four cells, between steps.
+        // Without the plane: the march reads its own four cells at its steps' fronts.
         ("unclipped", vec!["render.method=\"combined\"", "clip=[]"]),
         (
             "cone_step4",
@@ -449,8 +449,8 @@ fn both_devices_smooth_a_noisy_volume_alike() {
 fn a_deep_light_step_casts_the_shadow_of_a_sheet_one_voxel_thick_on_both_devices() {
     // A sheet one voxel thick over a floor, seen from above with the head light: the light's
     // steps of eight slices (four voxels at half a voxel apart) take four samples a voxel
-    // apart, so the sheet's shadow on the floor is the one the steps a voxel deep cast (the
-    // same samples), on the GPU as on the CPU. A step sampled only at its middle would see the
+    // apart, so the light leaving each step is the one steps a voxel deep leave (the same
+    // samples) and the sheet's shadow reaches the floor, on the GPU as on the CPU. A step sampled only at its middle would see the
     // sheet at one phase in four, its shadow missing or four voxels deep. Since the eye carries
     // the light along its own ray between a step's fronts (`occlusion::combined::light_in_slab`)
     // the two steps no longer read the same light: 0.0093 apart in mean (measured 2026-12-07;

@@ -31,14 +31,16 @@
 //!   concentrically onto the disk, bilinear ([`blur_stencil`]). This is the paper's incremental
 //!   blur ("ComputeDOS", after Schott et al. 2009): each slice blurs the previous one.
 //! * Behind clipping planes (not in the paper): a pixel reads each of its four light cells at
-//!   the same distance behind the planes as its own sample, slice `k + (a_cell - a_pixel) / d`
+//!   the same distance behind the planes as its own slice, slice `k + (a_cell - a_pixel) / d`
 //!   with `a` the view depth where the planes let a ray in
-//!   ([`crate::emission_absorption::clip_entry`]), interpolated between slices. Read at equal
-//!   depth, a cut face tilted to the slices shows a band per slice, because neighbouring cells
-//!   meet the plane in different slabs (`slice_pass.wgsl::cell_shifts`, `light_shifted`;
-//!   `raycast::light::LightVolume::clip_shifts` with the cells' entries once a frame,
-//!   `clip_entries`, read by `lookup_shifted` and, eight rays at a time,
-//!   `raycast::lanes::Packet::light_shifted`; `cli/tests/render_cli.rs`, a tilted cut face;
+//!   ([`crate::emission_absorption::clip_entry`]): its first read (where it enters the medium
+//!   at the cut) at the front of the light step that shifted slice lies in, its later reads
+//!   at its own step's front plus the shift, interpolated between stored slices. Read at
+//!   equal depth, a cut face tilted to the slices shows a band per slice, because neighbouring
+//!   cells meet the plane in different slabs (`slice_pass.wgsl::cell_shifts`,
+//!   `light_shifted`; `raycast::light::LightVolume::clip_shifts` with the cells' entries once a
+//!   frame, `clip_entries`, read by `LightVolume::front` and, eight rays at a time,
+//!   `raycast::lanes::Packet::front_shifted`; `cli/tests/render_cli.rs`, a tilted cut face;
 //!   `raycast` `clipped_frames_march_in_lanes_as_the_scalar_march_bit_for_bit`).
 //! * Geometry into volume (Alg. 3): where slice k lies inside a tube (`front <= z_k <= back`),
 //!   the tube's extinction `geometry_extinction` adds to the volume's for the light leaving
@@ -54,7 +56,7 @@
 //!   sample, which has passed half a slab less of the medium: against the Monte Carlo
 //!   reference that left `combined` 0.031 brighter in mean over the MNI T1's volume; the
 //!   light at the sample's depth had 1.4-35% less RMSE on every scene measured, and carried
-//!   along the eye's ray a further 3-67% (docs/accuracy.md, "The light at the sample's
+//!   along the eye's ray a further 0.3-67% (docs/accuracy.md, "The light at the sample's
 //!   depth", "The light along the eye's ray").
 //! * Partial occlusion (Alg. 4, eq. 1-3): a surface at depth `z_s` between `z_{k-1}` and `z_k`
 //!   receives `lerp(O_{k-1}, O_k, (z_s - z_{k-1}) / d)` - as the paper has it, half a slab in
@@ -192,14 +194,15 @@ pub const MAX_STEP_VOXELS: f64 = 4.0;
 /// two `m` up to [`MAX_LIGHT_STEP`] with `m d` within [`MAX_STEP_VOXELS`] voxels (of the
 /// smallest spacing, `v.voxel`); 1 where the spacing is unknown.
 ///
-/// Whatever the step, the light samples the data a voxel apart and stores the light at each
-/// sample ([`light_samples`]): it is attenuated and read as with steps a voxel deep, and the
-/// step only sets how often it is blurred (the paper's blur once a step, with the angle of
-/// [`step_theta`]). Against the Monte Carlo reference, steps of two, four and eight slices at
-/// the default slice distance (one to four voxels) gave the same RMSE to 3e-5 on the MNI T1
-/// (128-512^2) and headsq (512^2), while the sweep's cost falls with the steps (the blur, the
-/// bookkeeping and the threads meeting between steps; docs/accuracy.md "The light's steps and
-/// samples").
+/// Whatever the step, the light samples the data a voxel apart ([`light_samples`]): the light
+/// leaving a step is attenuated as by steps a voxel deep, blurred once a step (the paper's
+/// blur with the angle of [`step_theta`]), and the eye carries the light from each step's
+/// front along its own ray ([`light_in_slab`]). While the eye read the light stored a voxel
+/// apart (until 2026-12-07), steps of two, four and eight slices at the default slice distance
+/// (one to four voxels) gave the same RMSE against the Monte Carlo reference to 3e-5 on the
+/// MNI T1 (128-512^2) and headsq (512^2), while the sweep's cost falls with the steps (the
+/// blur, the bookkeeping and the threads meeting between steps; docs/accuracy.md "The light's
+/// steps and samples").
 pub fn data_step(v: &EaView) -> u32 {
     if !(v.voxel > 0.0 && v.dz > 0.0) {
         return 1;
@@ -227,13 +230,14 @@ pub fn voxel_step(v: &EaView) -> u32 {
 }
 
 /// Volume samples a step of `step` eye slices takes: as many as keep them a voxel apart
-/// (`step / voxel_step`, 1 at least), at the middles of equal parts of the step's slab, and
-/// the light reaching each part is stored (the part's light attenuated by the parts before
-/// it). A step deeper than a voxel then attenuates and stores the light as the steps a voxel
-/// deep would (the same samples; the eye reads it a part at a time): only its blur is
-/// coarser. A sheet thinner than the step cannot fall between its samples, and a dense
-/// medium's light decays within the step as it does (`umbra bench stability`'s thin sheet,
-/// `cli/tests/ea_cli.rs`'s sheet over a floor).
+/// (`step / voxel_step`, 1 at least), at the middles of equal parts of the step's slab; the
+/// light reaching each part is stored where the eye reads the parts (on the GPU, for the
+/// tubes' coverage and the surfaces; on the CPU behind clipping planes; else only the step's
+/// front). A step deeper than a voxel then attenuates the light it passes on as the steps a
+/// voxel deep would (the same samples): only its blur is coarser. A sheet thinner than the
+/// step cannot fall between its samples, and a dense medium's light decays within the step as
+/// it does (`umbra bench stability`'s thin sheet, `cli/tests/ea_cli.rs`'s sheet over a
+/// floor).
 pub fn light_samples(v: &EaView, step: u32) -> u32 {
     (step / voxel_step(v)).max(1)
 }
@@ -260,7 +264,7 @@ pub fn light_samples(v: &EaView, step: u32) -> u32 {
 /// light reaches), where the light at the slab's middle would go to 0 and the chord to
 /// `run / 2`. The blur, within a step, is left to the steps' fronts (the light volume's
 /// cells); the cells' own samples serve the next front. Against the Monte Carlo reference the
-/// RMSE fell 3-67% on the scenes of docs/accuracy.md, most on dense media ("The light along
+/// RMSE fell 0.3-67% on the scenes of docs/accuracy.md, most on dense media ("The light along
 /// the eye's ray").
 /// `raycast::EaVolume::advance` (and `raycast::lanes`) and `slice_pass.wgsl::composite_eye`
 /// compute it in f32, incrementally.
@@ -283,8 +287,8 @@ pub fn light_slices(v: &EaView, step: u32) -> u32 {
 /// `step d` deep, as many as cover the eye's slices. Each step stores the light reaching its
 /// [`light_samples`] parts (`p`): the front of eye slab `j step` has exactly the light of
 /// step `j` (both have passed through the same depth), which the eye reads there and carries
-/// along its own ray through the step ([`light_in_slab`]); the parts serve the next step's
-/// front (and the eye where tubes, lines or planes cast light).
+/// along its own ray through the step ([`light_in_slab`]); the parts are read by the eye where
+/// tubes, lines or planes cast light and behind clipping planes, and by the surfaces.
 pub fn light_view(v: &EaView, step: u32) -> EaView {
     let m = step.max(1);
     EaView {

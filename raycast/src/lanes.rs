@@ -25,7 +25,7 @@
 //! bricked or in the grid's layout ([`EaVolume::lanes_apply`]), on CPUs with AVX2 and FMA;
 //! behind clipping planes, the slabs of each ray (and light cell) wholly inside the depths
 //! the planes keep (`crate::Ray::inner`: `EaVolume::march_clipped`, the light read at each
-//! cell's shift, [`Packet::light_shifted`]).
+//! cell's shift, [`Packet::front_shifted`]).
 
 use crate::light::{LightVolume, KB};
 use crate::{EaVolume, Ray, APRON, EXP_N, EXP_SCALE, SKIP};
@@ -627,7 +627,8 @@ impl RayLanes {
 /// The CPU has AVX2 and FMA; [`EaVolume::lanes_apply`] holds for `v`, `data` (the volume's
 /// samples in its layout: at least four, fewer than 2^31) and, when `LIT`, `lv` (the light
 /// volume swept for `v`, fewer than 2^31 values); `splat` is the volume's; the rays come from
-/// [`EaVolume::start`] for `v` (so `k1 < lv.slices`), their light footprints from
+/// [`EaVolume::start`] for `v` (the stored slices they read are clamped to the light volume's
+/// last, `Marching::last`), their light footprints from
 /// [`LightVolume::footprint`] (shifted behind clipping planes: `LightVolume::clip_shifts`;
 /// then the rays' slices `k..=k1` lie in their `inner`, `EaVolume::march_clipped`).
 #[target_feature(enable = "avx2,fma")]
@@ -985,11 +986,12 @@ impl Packet {
     }
 
     /// [`Packet::front`] behind clipping planes (`LightVolume::front`): each of the four cells
-    /// at its own fractional stored slice `(k + shift) / step`, the front of the lanes' slabs
-    /// `k` (a product by
-    /// `1 / step`, a power of two: the quotient's bits), 1 at or before -1, towards the first
-    /// stored slice between -1 and 0, else linear between its two stored slices (clamped to the
-    /// last), as `LightVolume::cell_at`.
+    /// at its own fractional stored slice `pos / step` - `pos` the front of the light step
+    /// `k + shift` lies in on a ray's first read (`lstep` none yet), else the front of the
+    /// lanes' own step plus `shift` (`k` the lanes' slices; a product by `1 / step`, a power of
+    /// two: the quotient's bits) - 1 at or before -1, towards the first stored slice between -1
+    /// and 0, else linear between its two stored slices (clamped to the last), as
+    /// `LightVolume::cell_at`.
     ///
     /// # Safety
     /// As [`march`]'s.
@@ -1036,7 +1038,7 @@ impl Packet {
                 }
                 let a0 = _mm256_add_epi32(at!(k0), self.cells[j]);
                 // Neighbours in memory unless k0 is the last of its block or of the volume
-                // (as in `Packet::light`): then one 64-bit element a pair.
+                // (`KB` slices a block): then one 64-bit element a pair.
                 let split = _mm256_or_si256(
                     _mm256_cmpeq_epi32(_mm256_and_si256(k0, m.kb_mask), m.kb_mask),
                     _mm256_cmpgt_epi32(_mm256_add_epi32(k0, onei), m.last),

@@ -5,8 +5,9 @@
 //! The light volume holds `O_k`, the light reaching step k (`LightSettings::step` slices deep,
 //! `occlusion::combined::light_view`), which the eye reads at the step's front and carries
 //! along its own ray (`occlusion::combined::light_in_slab`); behind clipping planes also the
-//! light reaching each of the step's parts a voxel deep ([`store_parts`]: the eye's first read
-//! takes each cell at the pixel's distance behind the planes). The step's volume samples are
+//! light reaching each of the step's parts a voxel deep ([`store_parts`]: the eye's reads
+//! after its first take each cell at the pixel's distance behind the planes, between parts,
+//! [`LightVolume::front`]). The step's volume samples are
 //! a voxel apart whatever it stores (`occlusion::combined::light_samples`: the volume sampled
 //! at each part's middle, the light attenuated part by part). Storing only the fronts where
 //! there are no planes keeps the volume a quarter of the size at the default step (the GPU's
@@ -94,13 +95,15 @@ impl LightVolume {
     /// The light reaching the front of the light step eye slice `k` lies in, at a pixel, `O`
     /// of the step: bilinear over the four cells of `f` (offsets and fractions from
     /// [`LightVolume::footprint`]), at stored slice `parts (k >> eye_step_shift)`. Behind
-    /// clipping planes each cell at its own slice `k + shift` - the same distance behind the
-    /// planes as the front of the pixel's slab `k` ([`LightVolume::clip_shifts`]) - linear
-    /// between stored slices, so that the light read where a ray enters the medium at the
-    /// cut, and after each step, follows the cut (read at the step's front, the cells would
-    /// lie further in front of their cuts the further the pixel's lies behind its step's
-    /// front: a line per step on a cut face tilted to the slices). The eye carries it along
-    /// its own ray through the step (`occlusion::combined::light_in_slab`).
+    /// clipping planes each cell `i` is read with its shift ([`LightVolume::clip_shifts`]: the
+    /// same distance behind the planes as the pixel), linear between stored slices: on the
+    /// ray's `first` read (where it enters the medium at the cut) at the front of the step its
+    /// own slice `k + shift_i` lies in, later at the pixel's step's front plus `shift_i` (the
+    /// stored parts there hold the cell's own attenuation). Read at the pixel's step's front
+    /// from the start, the cells would lie further in front of their cuts the further the
+    /// pixel's cut lies behind its step's front: a line a step on a cut face tilted to the
+    /// slices. The eye carries the light along its own ray through the step
+    /// (`occlusion::combined::light_in_slab`).
     pub(crate) fn front(&self, f: &Footprint, k: u32, first: bool) -> f32 {
         let v = if f.shifted {
             let (m, e) = (self.step as f32, (1u32 << self.eye_step_shift) as f32);
