@@ -703,6 +703,10 @@ impl Frame {
             n * 4 * MAX_TERMS as u64,
             wgpu::BufferUsages::COPY_SRC,
         );
+        // Tubes, lines or planes cast light: a step a slice by default, and the march reads
+        // the light's parts, which hold their coverage.
+        let geometry_light =
+            !(scene.meshes.is_empty() && scene.lines.is_empty() && scene.planes.is_empty());
         let slices = SlicePass::new(
             gpu,
             scene.volume.as_ref(),
@@ -714,13 +718,10 @@ impl Frame {
                 cell: s.occlusion_cell,
                 // Tubes, lines and planes in the light keep a step a slice
                 // (`occlusion::combined::light_step`); the pass resolves the volume's own.
-                step: if scene.meshes.is_empty()
-                    && scene.lines.is_empty()
-                    && scene.planes.is_empty()
-                {
-                    s.occlusion_step
-                } else {
+                step: if geometry_light {
                     Some(s.occlusion_step.unwrap_or(1))
+                } else {
+                    s.occlusion_step
                 },
                 cone: s.cone,
                 phong: desc.volume == VolumeShading::Phong,
@@ -734,9 +735,7 @@ impl Frame {
                 geometry_extinction: s.geometry_extinction,
                 light: s.light,
                 partial_layer: layer("partial"),
-                geometry_light: !(scene.meshes.is_empty()
-                    && scene.lines.is_empty()
-                    && scene.planes.is_empty()),
+                geometry_light,
             },
             scene.blend.as_ref(),
         )?;
