@@ -107,6 +107,9 @@ fn quiet_device_select() {
 
 fn main() -> ExitCode {
     quiet_device_select();
+    // A command never writes over a file it has read, whatever the names say (README,
+    // "Command line").
+    volume::guard_inputs();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {

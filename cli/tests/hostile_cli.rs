@@ -493,6 +493,25 @@ fn a_synthetic_volume_named_for_another_format_is_refused() {
         "-o",
         s(&d.path().join("ph.NRRD")),
     ]);
+    // Each scene's output folder is made when missing, and a path under a regular file is
+    // refused before the scene is made (it failed after the work, or on the folder).
+    let file = d.path().join("plain");
+    std::fs::write(&file, b"x").unwrap();
+    for (scene, name, extra) in [
+        ("phantom", "p.nrrd", vec!["--n", "8"]),
+        ("bundles", "b.tck", vec!["--n", "10", "--points", "8"]),
+        ("double-gyre", "g.nii", vec!["--n", "5", "--frames", "2"]),
+    ] {
+        let made = d.path().join("new").join(scene).join(name);
+        let mut args = vec!["synth", scene, "-o", s(&made)];
+        args.extend(&extra);
+        succeeds(&args);
+        assert!(made.is_file(), "{scene}");
+        let under = file.join(name);
+        let mut args = vec!["synth", scene, "-o", s(&under)];
+        args.extend(&extra);
+        refused(&args, "cannot write the output here");
+    }
 }
 
 /// Options that would be ignored are refused: `--tolerance` without `--distance sweeping`,
@@ -693,6 +712,33 @@ fn line_sets_with_nothing_to_draw_say_why() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("apply to stereo images only"), "{err}");
+    // `camera.up` without `eye`: the orbit turns about +z, and a note says so (a y-up user's
+    // image was the default one, silently); a zero `up` is refused.
+    let out = umbra()
+        .args([
+            "render",
+            s(&two_s),
+            "-o",
+            s(&png),
+            "--set",
+            "camera.up=[0, 1, 0]",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("applies to a look-at camera"), "{err}");
+    refused(
+        &[
+            "render",
+            s(&two_s),
+            "-o",
+            s(&png),
+            "--set",
+            "camera.up=[0, 0, 0]",
+        ],
+        "camera.up",
+    );
 }
 
 /// An output that names the command's input is refused before anything is written (`umbra
@@ -740,6 +786,53 @@ fn outputs_never_overwrite_the_input() {
         );
         assert_eq!(std::fs::read(&scene).unwrap(), text, "{flag}");
     }
+    // Nor a file the scene's data were read from, under any name (`--timings-json` once
+    // replaced a scene's volume): refused once the data are read, before any frame.
+    let vol = d.join("v.nrrd");
+    std::fs::copy(fixture("spacings_ascii.nrrd"), &vol).unwrap();
+    let vbytes = std::fs::read(&vol).unwrap();
+    let vscene = d.join("v.toml");
+    std::fs::write(
+        &vscene,
+        "[volume]\npath = \"v.nrrd\"\n[render]\nwidth = 16\nheight = 16\nmethod = \"ea\"\ndevice = \"cpu\"\n",
+    )
+    .unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&vol, d.join("alias.json")).unwrap();
+    let png = d.join("v.png");
+    for (flag, target) in [
+        ("--timings-json", d.join("sub").join("..").join("v.nrrd")),
+        ("--record", d.join("v.nrrd")),
+        #[cfg(unix)]
+        ("--timings-json", d.join("alias.json")),
+    ] {
+        refused(
+            &["render", s(&vscene), "-o", s(&png), flag, s(&target)],
+            "the same file as the input",
+        );
+        assert_eq!(
+            std::fs::read(&vol).unwrap(),
+            vbytes,
+            "{flag} {}",
+            target.display()
+        );
+        assert!(!png.exists(), "no frame drawn");
+    }
+    // A tractogram's colour volume is an input of `umbra tubes` too.
+    refused(
+        &[
+            "tubes",
+            s(&tck),
+            "-o",
+            s(&ply),
+            "--color",
+            &format!("volume:{}", s(&vol)),
+            "--stats-json",
+            s(&vol),
+        ],
+        "the same file as the input",
+    );
+    assert_eq!(std::fs::read(&vol).unwrap(), vbytes);
 }
 
 /// `umbra tubes` says what the statistics alone hid: no tube at all, a fit that does not honour

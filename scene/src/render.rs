@@ -165,6 +165,10 @@ pub struct RenderArgs {
     pub skip_existing: bool,
     /// The GPU adapter to open (default: `UMBRA_ADAPTER`, else the best one).
     pub adapter: Option<AdapterChoice>,
+    /// The command's other outputs (`umbra render`'s timings and record): checked, with the
+    /// frames', against every file the scene's data were read from before any frame is drawn
+    /// ([`volume::check_not_read`]).
+    pub also_written: Vec<PathBuf>,
 }
 
 impl Default for Shard {
@@ -474,6 +478,10 @@ pub(crate) fn run_on(
         check_colorbar_method(&s).map_err(|e| format!("{}: {e}", path.display()))?;
         progress(Progress::Stage("reading the scene's data"));
         let mut m = model(&s).map_err(|e| format!("{}: {e}", path.display()))?;
+        // No output may replace a file the scene's data came from (a volume, a tractogram,
+        // a colour table), whatever its name.
+        let outputs = owned.iter().map(|(_, f)| f).chain(&a.also_written);
+        volume::check_not_read(&outputs.map(|f| Some(f.as_path())).collect::<Vec<_>>())?;
         let gpu = gpu_of(gpu_cell, a.adapter.as_ref())?;
         progress(Progress::Stage("uploading to the GPU"));
         // The frames read the lines from the GPU only: their points are freed as they go up.

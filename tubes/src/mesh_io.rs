@@ -149,6 +149,7 @@ impl PlyStream {
     /// Creates the temporary file beside `path`.
     pub fn create(path: &Path) -> Result<PlyStream> {
         let t = std::time::Instant::now();
+        volume::check_not_read(&[Some(path)]).map_err(volume::VolumeError::Invalid)?;
         let tmp = volume::temp_path(path)?;
         let file = std::fs::File::create(&tmp).map_err(|e| TubesError::io(path, e))?;
         let seconds = t.elapsed().as_secs_f64();

@@ -197,6 +197,9 @@ impl App {
     /// Writes the shown scene as TOML that `umbra render` reproduces.
     fn save_scene(&mut self) {
         let path = self.file(".toml");
+        // Saving over the scene file the viewer opened is the user's choice (an editor's
+        // "save"); the data files it read stay protected (`volume::check_not_read`).
+        volume::forget_input(&path);
         self.message = Some(
             scene::spec::to_toml(&self.state())
                 .and_then(|t| crate::write_atomic(&path, t.as_bytes()))

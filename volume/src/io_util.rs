@@ -72,7 +72,112 @@ pub fn open_regular(path: &Path) -> std::io::Result<(std::fs::File, u64)> {
         ));
     }
     let f = std::fs::File::open(path)?;
+    note_input(path, &meta);
     Ok((f, meta.len()))
+}
+
+/// A file's identity on the file system: its device and inode on Unix (so that a second
+/// name for it - `./x`, a symbolic or hard link - is the same file), else its canonical path.
+#[derive(Clone, Debug, PartialEq, Eq)]
+enum FileId {
+    #[cfg(unix)]
+    Inode(u64, u64),
+    #[cfg(not(unix))]
+    Path(std::path::PathBuf),
+}
+
+fn file_id(path: &Path, meta: &std::fs::Metadata) -> Option<FileId> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let _ = path;
+        Some(FileId::Inode(meta.dev(), meta.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = meta;
+        path.canonicalize().ok().map(FileId::Path)
+    }
+}
+
+/// The files this process has read through [`open_regular`] (every reader's way in), once
+/// [`guard_inputs`] is called: what no write of this process may replace
+/// ([`write_atomic_with`], [`check_not_read`]).
+static READ: std::sync::Mutex<Vec<(FileId, std::path::PathBuf)>> =
+    std::sync::Mutex::new(Vec::new());
+
+static GUARD: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// From now on no write of this process replaces a file it has read (a command: `umbra
+/// render --timings-json` named after the scene's volume replaced the volume). Off by default:
+/// a program that reads a file and later saves a new version of it on purpose (a script, a
+/// test) is not refused.
+pub fn guard_inputs() {
+    GUARD.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+fn note_input(path: &Path, meta: &std::fs::Metadata) {
+    if !GUARD.load(std::sync::atomic::Ordering::Relaxed) {
+        return;
+    }
+    if let Some(id) = file_id(path, meta) {
+        let mut read = READ.lock().unwrap_or_else(|e| e.into_inner());
+        if !read.iter().any(|(i, _)| *i == id) {
+            read.push((id, path.to_path_buf()));
+        }
+    }
+}
+
+/// Lets this process's writes replace `path` although it was read: a command that rewrites
+/// its input on purpose (`umbra convert` in place, the viewer saving the scene it opened).
+pub fn forget_input(path: &Path) {
+    let Some(id) = std::fs::metadata(path).ok().and_then(|m| file_id(path, &m)) else {
+        return;
+    };
+    READ.lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .retain(|(i, _)| *i != id);
+}
+
+/// The path under which this process read the file `path` names, if it did. A file read
+/// and since removed (or replaced) is no input any more: its entry is dropped, so that a new
+/// file that reuses its inode is not taken for it.
+fn read_as(path: &Path) -> Option<std::path::PathBuf> {
+    let id = std::fs::metadata(path)
+        .ok()
+        .and_then(|m| file_id(path, &m))?;
+    let mut read = READ.lock().unwrap_or_else(|e| e.into_inner());
+    read.retain(|(i, p)| {
+        std::fs::metadata(p)
+            .ok()
+            .and_then(|m| file_id(p, &m))
+            .is_some_and(|now| now == *i)
+    });
+    read.iter().find(|(i, _)| *i == id).map(|(_, p)| p.clone())
+}
+
+/// Refuses an output that names a file this process has read (a volume, a tractogram, a
+/// colour table, a camera path...: whatever went through [`open_regular`]) since
+/// [`guard_inputs`]: writing it would destroy an input. [`check_not_input`] compares with the inputs a command names; this one
+/// with those its inputs led it to (a scene's data), once read.
+pub fn check_not_read(outputs: &[Option<&Path>]) -> std::result::Result<(), String> {
+    if !GUARD.load(std::sync::atomic::Ordering::Relaxed) {
+        return Ok(());
+    }
+    for o in outputs.iter().flatten() {
+        if let Some(i) = read_as(o) {
+            return Err(input_clash(o, &i));
+        }
+    }
+    Ok(())
+}
+
+fn input_clash(output: &Path, input: &Path) -> String {
+    format!(
+        "{}: the same file as the input {}; writing it would destroy the input",
+        output.display(),
+        input.display()
+    )
 }
 
 /// Reads at most `limit` bytes of a regular file (all of it with `None`), never more than the
@@ -600,6 +705,7 @@ pub fn write_atomic_with(
     path: &Path,
     write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
 ) -> Result<()> {
+    check_not_read(&[Some(path)]).map_err(VolumeError::Invalid)?;
     let tmp = temp_path(path)?;
     let res = (|| -> std::io::Result<()> {
         let mut f = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&tmp)?);
@@ -613,6 +719,29 @@ pub fn write_atomic_with(
         return Err(VolumeError::io(path, e));
     }
     Ok(())
+}
+
+/// Writes two outputs of one command, both or neither: `write_first(staged)` writes the first
+/// beside `first` (under the name of its temporary file, so that a killed run's is removed by
+/// the next, [`remove_stale_temps`]), then `write_second()` writes the second (itself through a
+/// temporary file), and the first is renamed into place only once the second is written. A
+/// failure of either leaves `first` as it was and removes the staged file.
+pub fn write_pair(
+    first: &Path,
+    write_first: impl FnOnce(&Path) -> std::result::Result<(), String>,
+    write_second: impl FnOnce() -> std::result::Result<(), String>,
+) -> std::result::Result<(), String> {
+    let staged = temp_path(first).map_err(|e| e.to_string())?;
+    let done = write_first(&staged)
+        .and_then(|()| write_second())
+        .and_then(|()| {
+            check_not_read(&[Some(first)])?;
+            std::fs::rename(&staged, first).map_err(|e| format!("{}: {e}", first.display()))
+        });
+    if done.is_err() {
+        let _ = std::fs::remove_file(&staged);
+    }
+    done
 }
 
 /// The folder a file path lies in: its parent, or `.` for a bare name.
@@ -729,11 +858,7 @@ pub fn check_not_input(
     let key = file_key;
     for o in outputs.iter().flatten() {
         if let Some(i) = inputs.iter().flatten().find(|i| key(i) == key(o)) {
-            return Err(format!(
-                "{}: the same file as the input {}; writing it would destroy the input",
-                o.display(),
-                i.display()
-            ));
+            return Err(input_clash(o, i));
         }
     }
     Ok(())
@@ -802,6 +927,32 @@ pub fn gzip_bytes(bytes: &[u8]) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two outputs, both or neither: the second failing (a full disk) leaves the first as an
+    /// earlier run wrote it (a sweep replaced its distance and then failed on its octants).
+    #[test]
+    fn a_pair_is_written_both_or_neither() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("d.nrrd"), dir.path().join("o.nrrd"));
+        let put = |p: &Path, s: &str| write_atomic(p, s.as_bytes()).map_err(|e| e.to_string());
+        write_pair(&a, |st| put(st, "a1"), || put(&b, "b1")).unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"a1");
+        assert_eq!(std::fs::read(&b).unwrap(), b"b1");
+        // The second fails: the first keeps the earlier run's bytes.
+        let e = write_pair(&a, |st| put(st, "a2"), || Err("disk full".into())).unwrap_err();
+        assert_eq!(e, "disk full");
+        // The first fails: nothing changes.
+        write_pair(&a, |_| Err("no".into()), || put(&b, "b3")).unwrap_err();
+        assert_eq!(std::fs::read(&a).unwrap(), b"a1");
+        assert_eq!(std::fs::read(&b).unwrap(), b"b1");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 2, "no staged file left: {names:?}");
+        write_pair(&a, |st| put(st, "a4"), || put(&b, "b4")).unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"a4");
+    }
 
     #[test]
     fn stale_temporary_files_of_one_output_are_removed_and_nothing_else() {

@@ -54,6 +54,10 @@ pub fn convert(
     let f = vol
         .select(field)
         .map_err(|e| VolumeError::Invalid(format!("{}: {e}", input.display())))?;
+    if volume::check_not_input(&[Some(input)], &[Some(output)]).is_err() {
+        // In place, on purpose (through a temporary file): the one input a command rewrites.
+        volume::forget_input(input);
+    }
     write_field(output, &vol, &f, gzip)?;
     let mut warnings = vol.warnings.clone();
     warnings.extend(precision_warning(&f));

@@ -351,6 +351,11 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
         shard,
         skip_existing,
         adapter: a.adapter.clone(),
+        also_written: [&a.timings_json, &a.record]
+            .into_iter()
+            .flatten()
+            .cloned()
+            .collect(),
     };
     let record = |done: &[FrameOutcome],
                   skipped: &[FrameOutcome],

@@ -2,7 +2,7 @@
 //! OBJ, with statistics.
 
 use clap::builder::RangedU64ValueParser;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use tubes::bspline_fit::FitMethod;
 use tubes::tube_mesh::{FrameMethod, RadiusMode};
 
@@ -148,8 +148,10 @@ pub fn run(a: Args) -> Result<(), String> {
         transform: a.transform,
     };
     volume::check_outputs(&[Some(args.output.as_path()), a.stats_json.as_deref()])?;
+    // The colour volume of `volume:PATH` is an input too.
+    let colour_volume = args.color.strip_prefix("volume:").map(Path::new);
     volume::check_not_input(
-        &[Some(args.input.as_path())],
+        &[Some(args.input.as_path()), colour_volume],
         &[Some(args.output.as_path()), a.stats_json.as_deref()],
     )?;
     let s = scene::tube_sets::run(&args)?;
