@@ -231,7 +231,7 @@ fn list(path: &Path) -> Result<(Container, Vec<Member>)> {
         }
         return Ok((Container::Dir(path.to_path_buf()), members));
     }
-    let f = std::fs::File::open(path).map_err(|e| TubesError::io(path, e))?;
+    let (f, _) = volume::open_regular(path).map_err(|e| TubesError::io(path, e))?;
     let mut z = zip::ZipArchive::new(f)
         .map_err(|e| TubesError::format(path, "zip archive", e.to_string()))?;
     let mut members = Vec::new();
@@ -370,8 +370,30 @@ pub fn read(path: &Path) -> Result<Streamlines> {
         ));
     }
     let need = (nv as u64) * 3 * dt.size() as u64;
-    // Streamed into the points (reserved once): the member's bytes are never held whole.
-    s.points.reserve_exact(nv);
+    let short = |got: u64| {
+        TubesError::format(
+            path,
+            &pm.name,
+            format!(
+                "{got} bytes; NB_VERTICES {nv} x 3 x {} need {need}",
+                dt.size()
+            ),
+        )
+    };
+    // The member's own size (a file's, or the archive's entry) bounds what the header may
+    // ask for: NB_VERTICES past it is refused before anything is allocated.
+    if pm.size < need {
+        return Err(short(pm.size));
+    }
+    // Streamed into the points (reserved once, fallibly: an archive's entry may claim more
+    // than it holds): the member's bytes are never held whole.
+    s.points.try_reserve_exact(nv).map_err(|_| {
+        TubesError::format(
+            path,
+            &pm.name,
+            format!("NB_VERTICES {nv}: not enough memory for its points ({need} bytes)"),
+        )
+    })?;
     let (mut xyz, mut k, mut bad) = ([0f64; 3], 0, None);
     let points = &mut s.points;
     let got = c.stream(path, pm, need, dt.size(), |piece| {
@@ -389,14 +411,7 @@ pub fn read(path: &Path) -> Result<Streamlines> {
         }
     })?;
     if got != need {
-        return Err(TubesError::format(
-            path,
-            &pm.name,
-            format!(
-                "{got} bytes; NB_VERTICES {nv} x 3 x {} need {need}",
-                dt.size()
-            ),
-        ));
+        return Err(short(got));
     }
     if let Some((i, x)) = bad {
         return Err(TubesError::format(
