@@ -391,6 +391,22 @@ pub fn write_with(
         for i in 0..count {
             points.clear();
             line(i, &mut points);
+            // A point of three NaNs or three infinities is the format's own mark (the end of
+            // a streamline, of the data): written, it would split the streamline or cut the
+            // file short, silently.
+            if let Some(j) = points.iter().position(|p| {
+                let c = [p.x, p.y, p.z];
+                c.iter().all(|v| v.is_nan()) || c.iter().all(|v| v.is_infinite())
+            }) {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    format!(
+                        "streamline {i} point {j} is ({}, {}, {}), which .tck reads as the end of \
+                         a streamline or of the data; write .trk or .trx to keep such points",
+                        points[j].x, points[j].y, points[j].z
+                    ),
+                ));
+            }
             bytes.clear();
             for p in points.iter().chain(&[Vec3::NAN]) {
                 for v in [p.x, p.y, p.z] {

@@ -457,6 +457,16 @@ fn trx_directories_old_offsets_and_malformed_archives() {
             ],
             "NB_VERTICES",
         ),
+        // A count below the absurd but past what the file holds: refused before the points
+        // are allocated (3 TB of them aborted the process).
+        (
+            vec![
+                ("header.json", header(1 << 38, 2)),
+                ("positions.3.float64", pos.clone()),
+                ("offsets.uint32", offs(&[0, 2, 5])),
+            ],
+            "NB_VERTICES 274877906944 x 3 x 8 need",
+        ),
         (
             vec![
                 ("header.json", header(6, 2)),
@@ -593,6 +603,52 @@ fn non_finite_points_leave_bounds_and_meshes_finite() {
         assert!(a.is_finite() && b.is_finite(), "segment {i}");
     }
     assert_eq!(set.segments.len(), 3);
+}
+
+/// `.tck` marks the end of a streamline with three NaNs and the end of the data with three
+/// infinities: a point with some NaN components is written and read back as a point, one that
+/// is all NaN or all infinite is refused (written, it split the streamline: a TrackVis point
+/// with a NaN x is all NaN once in world space), and nothing is written.
+#[test]
+fn tck_refuses_points_it_would_read_as_its_own_marks() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("o.tck");
+    let mut s = Streamlines::new();
+    s.push(&[
+        Vec3::ZERO,
+        Vec3::new(f32::NAN, 1.0, 2.0),
+        Vec3::new(f32::INFINITY, f32::NAN, 0.0),
+        Vec3::ONE,
+    ]);
+    s.push(&[Vec3::X, Vec3::Y]);
+    tubes::save(&out, &s).unwrap();
+    let back = tubes::load(&out).unwrap();
+    assert_eq!(back.offsets, s.offsets);
+    assert_eq!(back.points[1].y, 1.0);
+    assert!(back.points[1].x.is_nan() && back.points[2].y.is_nan());
+    std::fs::remove_file(&out).unwrap();
+    for (bad, shown) in [
+        (Vec3::NAN, "(NaN, NaN, NaN)"),
+        (
+            Vec3::new(f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY),
+            "(inf, -inf, inf)",
+        ),
+    ] {
+        let mut t = Streamlines::new();
+        t.push(&[Vec3::X, Vec3::Y]);
+        t.push(&[Vec3::ZERO, bad, Vec3::ONE]);
+        let e = tubes::save(&out, &t).unwrap_err().to_string();
+        assert!(
+            e.contains("o.tck") && e.contains("streamline 1 point 1") && e.contains(shown),
+            "{e}"
+        );
+        assert!(!out.exists());
+        assert_eq!(
+            std::fs::read_dir(d.path()).unwrap().count(),
+            0,
+            "no temporary left"
+        );
+    }
 }
 
 /// Issue 17's hostile tractograms, one per case: header values that overflow f32 when applied
