@@ -279,6 +279,22 @@ pub fn rmf(x: &[DVec3], t: &[DVec3]) -> Vec<DVec3> {
     for i in 0..x.len() - 1 {
         let v1 = x[i + 1] - x[i];
         let c1 = v1.dot(v1);
+        // The double reflection assumes the chord runs along the curve: where it turns more than
+        // 30 degrees from the tangent at either end (a hair-length side step of a rough tract,
+        // between tangents that hardly differ), its two planes turn the frame by an arbitrary
+        // angle about the tangent - 180 degrees on HCP1065's TR_S_R, a tube pinched to its
+        // axis. There the frame is carried by the rotation that takes one tangent to the next
+        // (the least roll those tangents allow).
+        let (a0, a1) = (v1.dot(t[i]), v1.dot(t[i + 1]));
+        if !(a0 > 0.0 && a1 > 0.0 && 4.0 * a0 * a0 > 3.0 * c1 && 4.0 * a1 * a1 > 3.0 * c1) {
+            let next = rotated(t[i], t[i + 1], carry);
+            let fixed = (next - t[i + 1] * next.dot(t[i + 1]))
+                .try_normalize()
+                .unwrap_or_else(|| any_perpendicular(t[i + 1]));
+            r.push(fixed);
+            carry = fixed;
+            continue;
+        }
         let (rl, tl) = if c1 > 1e-300 {
             (
                 carry - v1 * (2.0 / c1 * v1.dot(carry)),
@@ -346,18 +362,23 @@ pub fn twist_deg(t0: DVec3, t1: DVec3, r0: DVec3, r1: DVec3) -> f64 {
 /// The cosine of [`twist_deg`]'s angle (the largest twist along a tube is the arccosine of the
 /// smallest of these, one arccosine per tube).
 fn twist_cos(t0: DVec3, t1: DVec3, r0: DVec3, r1: DVec3) -> f64 {
+    rotated(t0, t1, r0).dot(r1).clamp(-1.0, 1.0)
+}
+
+/// `r0` turned by the rotation that takes the unit tangent `t0` to `t1` about their common
+/// normal (the least rotation between them; `r0` as it is where they are parallel).
+fn rotated(t0: DVec3, t1: DVec3, r0: DVec3) -> DVec3 {
     let axis = t0.cross(t1);
     let s2 = axis.length_squared();
     let c = t0.dot(t1).clamp(-1.0, 1.0);
-    let carried = if s2 < 1e-30 {
+    if s2 < 1e-30 {
         r0
     } else {
         // Rodrigues about the unit axis k = axis / s (s = sin of the angle), written with the
         // unnormalised axis: (k x r0) s = axis x r0 and k (k . r0) (1 - c) = axis (axis . r0)
         // (1 - c) / s^2 - no square root.
         r0 * c + axis.cross(r0) + axis * (axis.dot(r0) * (1.0 - c) / s2)
-    };
-    carried.dot(r1).clamp(-1.0, 1.0)
+    }
 }
 
 /// A curve point with its first two derivatives: `(u, C(u), C'(u), C''(u))`.
@@ -1712,6 +1733,16 @@ mod tests {
             let v1 = x[i + 1] - x[i];
             let c1 = v1.dot(v1);
             let ri = r[i];
+            let (a0, a1) = (v1.dot(t[i]), v1.dot(t[i + 1]));
+            if !(a0 > 0.0 && a1 > 0.0 && 4.0 * a0 * a0 > 3.0 * c1 && 4.0 * a1 * a1 > 3.0 * c1) {
+                let next = rotated(t[i], t[i + 1], ri);
+                r.push(
+                    (next - t[i + 1] * next.dot(t[i + 1]))
+                        .try_normalize()
+                        .unwrap_or_else(|| any_perpendicular(t[i + 1])),
+                );
+                continue;
+            }
             let (rl, tl) = if c1 > 1e-300 {
                 (
                     ri - v1 * (2.0 / c1 * v1.dot(ri)),
@@ -1810,5 +1841,46 @@ mod tests {
             }
         }
         assert!(skipped > 2000, "{skipped} turns skipped");
+    }
+
+    /// A hair-length step a little backwards between two points of a straight run (HCP1065's
+    /// TR_S_R, streamline 1027, points 92-101 as stored at 1/32 mm): the tangents on either
+    /// side hardly differ, the chord between them is 98 degrees from both. The double
+    /// reflection there turned the frame by 180 degrees about the tangent (a tube pinched to
+    /// its axis, `max_twist_deg` 179); carried by the tangents' rotation it does not roll.
+    #[test]
+    fn a_hair_length_side_step_does_not_roll_the_tube() {
+        let p = [
+            [-48.9062, -117.75, 82.3125],
+            [-49.0625, -118.0938, 82.6562],
+            [-49.2188, -118.4375, 82.9688],
+            [-49.375, -118.7812, 83.3125],
+            [-49.5312, -119.125, 83.6562],
+            [-49.5625, -119.1562, 83.5938],
+            [-49.7188, -119.5, 83.875],
+            [-49.9062, -119.875, 84.1875],
+            [-50.0938, -120.25, 84.4688],
+            [-50.2812, -120.625, 84.75],
+        ];
+        let mut s = Streamlines::new();
+        s.push(&p.map(|q| glam::Vec3::from_array(q.map(|v| v as f32))));
+        let o = TubeOptions::defaults(0.5, 8, 0.05);
+        let (mesh, st) = build(&s, &o);
+        assert!(!mesh.indices.is_empty());
+        assert!(st.max_twist_deg < 5.0, "{} degrees", st.max_twist_deg);
+        // The frames themselves: no ring's frame vector turns by more than the tangents do
+        // (here a few degrees) from the one before.
+        let x: Vec<DVec3> = p.iter().map(|q| DVec3::from_array(*q)).collect();
+        let n = x.len();
+        let t: Vec<DVec3> = (0..n)
+            .map(|i| (x[(i + 1).min(n - 1)] - x[i.saturating_sub(1)]).normalize())
+            .collect();
+        let r = rmf(&x, &t);
+        for i in 1..n {
+            let roll = twist_cos(t[i - 1], t[i], r[i - 1], r[i])
+                .acos()
+                .to_degrees();
+            assert!(roll < 1.0, "ring {i}: {roll} degrees");
+        }
     }
 }
