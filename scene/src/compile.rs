@@ -457,6 +457,14 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 .into(),
         );
     }
+    if s.camera.eye.is_none() && s.camera.up != [0.0, 0.0, 1.0] {
+        notes.push(format!(
+            "camera.up {:?} applies to a look-at camera (camera.eye given); the orbit \
+             (camera.azimuth, camera.elevation) turns about +z whatever up is: give camera.eye \
+             and camera.target to look with another up",
+            s.camera.up
+        ));
+    }
     let mut colorbar = None;
     let mut space = None;
     // The volume, loaded once: drawn by its transfer function, or in isosurface mode as its
@@ -748,6 +756,16 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         .iter()
         .fold(first, |a, b| [a[0].min(b[0]), a[1].max(b[1])]);
     let spacing = match &volume {
+        // The projections use no transfer function: its features ask for no shorter slices.
+        Some((v, _, _))
+            if matches!(
+                s.render.method,
+                engine::method::Method::Mip | engine::method::Method::MinIp
+            ) =>
+        {
+            let sp = v.spacing();
+            sp.iter().cloned().fold(f64::INFINITY, f64::min).max(1e-12)
+        }
         Some((v, data, tf)) => {
             let (d, why) = slice_distance(v, data, tf);
             if s.render.slices.is_none()

@@ -374,14 +374,21 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
         id,
         level: level_tag(args.iso, args.inside),
     };
-    write_distance(&args.output, &vol, &df, &tag)?;
     let oct_path = match (&oct, args.sdf_only) {
         (Some(o), false) => {
+            // Both files or neither (a failure leaves an earlier run's pair as it was).
             let p = octants_path.clone().unwrap_or_default();
-            write_octants(&p, &vol, o, &tag)?;
+            volume::write_pair(
+                &args.output,
+                |staged| write_distance(staged, &vol, &df, &tag),
+                || write_octants(&p, &vol, o, &tag),
+            )?;
             Some(p)
         }
-        _ => None,
+        _ => {
+            write_distance(&args.output, &vol, &df, &tag)?;
+            None
+        }
     };
     let t_write = t2.elapsed().as_secs_f64();
     Ok(SweepSummary {

@@ -1192,7 +1192,15 @@ fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
             t.insert(p.to_string(), v);
             return Ok(());
         }
-        // `tubes.0.radius`: an index into an array of tables.
+        // `tubes.0.radius`: an index into an array of tables - one the scene has (an index
+        // makes no table of its own: `tubes.0` with no `[[tubes]]` is not a first entry).
+        if !t.contains_key(*p) && parts.get(i + 1).is_some_and(|s| s.parse::<usize>().is_ok()) {
+            let path = parts[..=i].join(".");
+            return Err(format!(
+                "override {key}: the scene has no '{path}' entries to index; add them to the file \
+                 (e.g. [[{path}]]) and set their keys there or with {path}.N.KEY"
+            ));
+        }
         let entry = t
             .entry(p.to_string())
             .or_insert_with(|| toml::Value::Table(toml::Table::new()));
@@ -1770,6 +1778,9 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             return bad(key, format!("{v:?} is not a finite point"));
         }
     }
+    if c.up == [0.0; 3] {
+        return bad("camera.up", "[0, 0, 0] has no direction".into());
+    }
     for (key, v) in [("camera.near", c.near), ("camera.far", c.far)] {
         if let Some(v) = v.filter(|v| !(v.is_finite() && *v > 0.0)) {
             return bad(key, format!("{v} is not a positive finite distance"));
@@ -1945,6 +1956,26 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         }
         if twod == 0 && t.points.windows(2).any(|w| w[1].value < w[0].value) {
             return bad("volume.transfer.points", "values must not decrease".into());
+        }
+        // 2-D: each row (the points of one gradient, in the order written) as a 1-D function
+        // (a decreasing row was sorted silently).
+        for (i, p) in t.points.iter().enumerate().filter(|_| twod != 0) {
+            let before = t.points[..i]
+                .iter()
+                .rev()
+                .find(|q| q.gradient.map(f64::to_bits) == p.gradient.map(f64::to_bits));
+            if let Some(q) = before.filter(|q| p.value < q.value) {
+                return bad(
+                    &format!("volume.transfer.points[{i}].value"),
+                    format!(
+                        "{} after {} in the row of gradient {}: values must not decrease \
+                         within a row",
+                        p.value,
+                        q.value,
+                        p.gradient.unwrap_or(0.0)
+                    ),
+                );
+            }
         }
         if t.points
             .iter()
@@ -2578,6 +2609,26 @@ mod tests {
     }
 
     #[test]
+    fn two_d_transfer_rows_must_not_decrease() {
+        let scene = |pts: &str| {
+            format!("[volume]\npath = \"v.nrrd\"\n[volume.transfer]\npoints = [{pts}]\n")
+        };
+        let p = |v: f64, g: f64| {
+            format!("{{value = {v}, color = [1, 1, 1], extinction = 1, gradient = {g}}},")
+        };
+        // Two rows, written interleaved: each non-decreasing.
+        let ok = scene(&[p(0.0, 0.0), p(0.0, 40.0), p(100.0, 0.0), p(100.0, 40.0)].concat());
+        parse(&ok, "s", Path::new("."), &[]).unwrap();
+        // The row of gradient 0 goes 0, 300, 255: refused, naming the point.
+        let bad = scene(&[p(0.0, 0.0), p(300.0, 0.0), p(0.0, 40.0), p(255.0, 0.0)].concat());
+        let e = parse(&bad, "s", Path::new("."), &[]).unwrap_err();
+        assert!(
+            e.contains("volume.transfer.points[3].value") && e.contains("255 after 300"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn set_overrides_by_dotted_path() {
         let text = "[render]\nwidth = 100\n[[tubes]]\npath = \"a.trk\"\n";
         let o = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
@@ -2601,6 +2652,19 @@ mod tests {
         assert!(e.contains("nope"), "{e}");
         let e = parse(text, "s", Path::new("."), &o(&["tubes.3.radius=1"])).unwrap_err();
         assert!(e.contains("1 entries"), "{e}");
+        // An index into a list the scene does not have names the list (it read
+        // "render.[: invalid type: map, expected a sequence").
+        for (set, list) in [
+            ("lines.0.width=2", "'lines'"),
+            ("clip.0.offset=1", "'clip'"),
+            (
+                "volume.transfer.points.0.value=1",
+                "'volume.transfer.points'",
+            ),
+        ] {
+            let e = parse(text, "s", Path::new("."), &o(&[set])).unwrap_err();
+            assert!(e.contains(&format!("has no {list} entries")), "{set}: {e}");
+        }
         assert!(parse(text, "s", Path::new("."), &o(&["render.width"])).is_err());
         // A bad value set by an override is named by its path, with the entry of an array of
         // tables: the key, its entry and the problem.

@@ -80,13 +80,14 @@ pub fn run(a: Args) -> Result<(), String> {
     }
     if a.scene == "double-gyre" {
         let n = a.n.unwrap_or(33);
-        let s = double_gyre(n, a.frames.unwrap_or(20))?;
         if !is_nifti(&a.output) {
             return Err(format!(
                 "{}: double-gyre is a time series: write it as .nii or .nii.gz (5-D NIfTI)",
                 a.output.display()
             ));
         }
+        volume::check_output(&a.output)?;
+        let s = double_gyre(n, a.frames.unwrap_or(20))?;
         volume::nifti::write_series(&a.output, &s).map_err(|e| e.to_string())?;
         let d = s.frames[0].dims;
         eprintln!(
@@ -115,6 +116,7 @@ pub fn run(a: Args) -> Result<(), String> {
         ));
     }
     let n = a.n.unwrap_or(100);
+    volume::check_output(&a.output)?;
     let vol = scene(&a.scene, n)?;
     if is_nifti(&a.output) {
         volume::nifti::write(&a.output, &vol, &vol.fields[0])
@@ -159,6 +161,7 @@ fn bundles(a: &Args) -> Result<(), String> {
             u32::MAX
         ));
     }
+    volume::check_output(&a.output)?;
     let bar = crate::progress::Counter::new("streamlines", b.count as u64);
     tubes::tck::write_with(&a.output, b.count, |i, out| {
         if i % 4096 == 0 {

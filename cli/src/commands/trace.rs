@@ -319,18 +319,25 @@ pub fn parse_seeds(spec: &str, bounds: [DVec3; 2], rng: u64) -> Result<Vec<DVec3
     let path = Path::new(spec);
     let text = volume::read_text(path, volume::MAX_FILE_BYTES).map_err(|e| format!("--seeds {spec}: not grid:N, random:N or plane:x=V:N, and not a readable CSV file ({e})"))?;
     let mut out = Vec::new();
+    let mut header_allowed = true;
     for (ln, line) in text.lines().enumerate() {
         let t = line.trim();
-        if t.is_empty() || t.starts_with('#') || t.chars().next().is_some_and(|c| c.is_alphabetic())
-        {
+        if t.is_empty() || t.starts_with('#') {
             continue;
         }
-        let v: Vec<f64> = t
+        let v: Result<Vec<f64>, _> = t
             .split(|c: char| c == ',' || c.is_whitespace())
             .filter(|s| !s.is_empty())
             .map(|s| s.parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|_| format!("{spec}: line {}: expected x,y,z", ln + 1))?;
+            .collect();
+        // The first line that is not numbers is a header ("x,y,z"); "nan" and "inf" are
+        // numbers (refused below), not a header to skip.
+        let first = std::mem::replace(&mut header_allowed, false);
+        let v = match v {
+            Ok(v) => v,
+            Err(_) if first && t.chars().next().is_some_and(|c| c.is_alphabetic()) => continue,
+            Err(_) => return Err(format!("{spec}: line {}: expected x,y,z", ln + 1)),
+        };
         if v.len() < 3 || !v[..3].iter().all(|x| x.is_finite()) {
             return Err(format!(
                 "{spec}: line {}: expected three finite numbers",
@@ -592,6 +599,31 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A seed file's first line may be a header; after it every line is three finite numbers
+    /// (`nan,2,1` was skipped as a header, silently).
+    #[test]
+    fn seed_files_refuse_non_finite_rows_and_a_second_header() {
+        let dir = tempfile::tempdir().unwrap();
+        let b = [DVec3::ZERO, DVec3::ONE];
+        let parse = |text: &str| {
+            let p = dir.path().join("s.csv");
+            std::fs::write(&p, text).unwrap();
+            parse_seeds(p.to_str().unwrap(), b, 1)
+        };
+        let ok = parse("# seeds\nx,y,z\n0.5,0,0\n\n0.25 0 0.1\n").unwrap();
+        assert_eq!(ok, [DVec3::new(0.5, 0.0, 0.0), DVec3::new(0.25, 0.0, 0.1)]);
+        for (text, line) in [
+            ("x,y,z\nnan,2,1\n", 2),
+            ("inf,2,1\n", 1),
+            ("0,0,0\n1,-inf,0\n", 2),
+            ("x,y,z\n0,0,0\nx,y,z\n", 3),
+            ("0,0,0\nseed,1,2\n", 2),
+        ] {
+            let e = parse(text).unwrap_err();
+            assert!(e.contains(&format!("line {line}:")), "{text:?}: {e}");
+        }
+    }
 
     #[test]
     fn seed_times_are_constant_or_drawn_deterministically_in_their_range() {
