@@ -1243,19 +1243,38 @@ pub(crate) unsafe fn optical_depths<T: Gather>(
         let mut t = [[0f32; LANES]; crate::MAX_PARTS];
         let mut all_empty = _mm256_set1_epi32(-1);
         let mut steps = _mm256_set1_epi32(i32::MAX);
+        // Lanes whose first sample's empty cube of blocks holds all of the slab's samples.
+        let mut whole = _mm256_setzero_si256();
         for (i, t) in t.iter_mut().enumerate().take(n as usize) {
             let at = _mm256_add_ps(kf, _mm256_set1_ps(crate::sub_offset(i as u32, n)));
             let q = std::array::from_fn(|a| _mm256_add_ps(r.qa[a], _mm256_mul_ps(at, r.dq[a])));
             // A part behind the ray's origin (a camera inside the grid) is not sampled.
             let ahead = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(at, r.front));
-            let st = splat.step(data, q, r.dq, _mm256_and_si256(active, ahead));
+            let live = _mm256_andnot_si256(whole, _mm256_and_si256(active, ahead));
+            let st = splat.step(data, q, r.dq, live);
             let tau = _mm256_and_ps(
                 st.sampled,
                 _mm256_mul_ps(_mm256_max_ps(st.sigma, zero), seg),
             );
             _mm256_storeu_ps(t.as_mut_ptr(), tau);
-            all_empty = _mm256_and_si256(all_empty, st.is_empty);
-            steps = _mm256_min_epi32(steps, st.steps);
+            all_empty = _mm256_and_si256(all_empty, _mm256_or_si256(st.is_empty, whole));
+            steps = _mm256_min_epi32(
+                steps,
+                _mm256_blendv_epi8(st.steps, _mm256_set1_epi32(i32::MAX), whole),
+            );
+            if i == 0 {
+                // The slab's samples lie less than a slice beyond its first: where the first's
+                // empty cube reaches a slice or more further (`steps` >= 2), they all lie in
+                // it, and the last leaves it no sooner than `steps - 1` slices on (the next
+                // slice to sample; measured on hydrogen at 256^2: 22% fewer calls here,
+                // images identical).
+                whole = _mm256_and_si256(st.is_empty, _mm256_cmpgt_epi32(st.steps, onei));
+                steps = _mm256_blendv_epi8(steps, _mm256_sub_epi32(st.steps, onei), whole);
+                let rest = _mm256_andnot_si256(whole, active);
+                if _mm256_testz_si256(rest, rest) != 0 {
+                    break;
+                }
+            }
         }
         let next = _mm256_add_epi32(kv, _mm256_blendv_epi8(onei, steps, all_empty));
         let next = _mm256_blendv_epi8(next, r.k, before);

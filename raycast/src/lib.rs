@@ -87,6 +87,8 @@ pub struct EaVolume {
     /// (`occupancy_of`): the empty ones are stepped over.
     blocks: [usize; 3],
     occupied: Vec<bool>,
+    /// The indices of the occupied blocks (`light::EaVolume::steps_occupied`).
+    occupied_blocks: Vec<u32>,
     /// Per block, its Chebyshev distance in blocks to the nearest occupied one (0: occupied;
     /// at most [`REACH`]): a ray in an empty block may step over the whole cube of blocks
     /// around it that this distance leaves empty.
@@ -99,6 +101,9 @@ pub struct EaVolume {
     /// Whether clipped rays sample the slabs wholly behind the planes as without them
     /// ([`EaVolume::clip_slabs`]; off only in tests: every slab cut slab by slab).
     clip_slabs: bool,
+    /// Whether the light sweep samples a cell only in the steps an occupied block's box
+    /// reaches (`light::EaVolume::steps_occupied`; off only in tests: the same light).
+    step_mask: bool,
     tf: Vec<(f32, [f32; 3], f32)>,
     /// Per point `i > 0`: the segment from point `i - 1` as `1 / (v_i - v_{i-1})` (0 for a
     /// step) and the colour and extinction differences (no division per sample).
@@ -247,10 +252,14 @@ impl EaVolume {
             world_to_index: vol.affine.inverse(),
             blocks,
             occupied: occ.iter().map(|&o| o != 0).collect(),
+            occupied_blocks: (0..occ.len() as u32)
+                .filter(|&b| occ[b as usize] != 0)
+                .collect(),
             reach: reach_of(&occ, blocks),
             reach32: reach_of(&occ, blocks).into_iter().map(i32::from).collect(),
             lanes: true,
             clip_slabs: true,
+            step_mask: true,
             slopes,
             hi: vol.dims.map(|n| n as f32 - 1.0),
             sweep_samples: std::sync::OnceLock::new(),
