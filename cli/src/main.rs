@@ -105,6 +105,21 @@ fn quiet_device_select() {
     }
 }
 
+/// A thread that waits for SIGINT or SIGTERM, then removes the temporary files being written
+/// (`volume::remove_temps_being_written`) and exits with 128 + the signal.
+fn remove_temps_on_signal() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            volume::remove_temps_being_written();
+            std::process::exit(128 + sig);
+        }
+    });
+}
+
 fn main() -> ExitCode {
     quiet_device_select();
     // A command never writes over a file it has read, whatever the names say (README,
@@ -141,6 +156,12 @@ fn main() -> ExitCode {
             return ExitCode::from(code as u8);
         }
     };
+    // Interrupted (SIGINT, SIGTERM), a command removes the temporary files it is writing
+    // before it exits (status 128 + the signal): its outputs are as they were. The viewer
+    // ends on those signals itself.
+    if !matches!(cli.command, Command::View(_)) {
+        remove_temps_on_signal();
+    }
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -835,6 +835,47 @@ fn outputs_never_overwrite_the_input() {
     assert_eq!(std::fs::read(&vol).unwrap(), vbytes);
 }
 
+/// A command interrupted by SIGINT or SIGTERM removes the temporary file it is writing and
+/// exits with 128 + the signal (a 243 MB `.b.tck.PID.tmp` was left by `umbra synth bundles`).
+#[test]
+fn an_interrupted_command_leaves_no_temporary_file() {
+    let dir = tempfile::tempdir().unwrap();
+    for (sig, code) in [("-INT", 130), ("-TERM", 143)] {
+        let out = dir.path().join("b.tck");
+        let mut child = umbra()
+            .args(["synth", "bundles", "--n", "1000000", "-o", s(&out)])
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        // Wait for the temporary file, then interrupt.
+        let t0 = std::time::Instant::now();
+        let temp = loop {
+            let t = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .find(|p| p.to_string_lossy().ends_with(".tmp"));
+            if let Some(t) = t {
+                break t;
+            }
+            assert!(t0.elapsed().as_secs() < 30, "no temporary file appeared");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        };
+        let killed = Command::new("kill")
+            .args([sig, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        let status = child.wait().unwrap();
+        if status.code() == Some(0) {
+            // Finished before the signal arrived: nothing to check this time.
+            continue;
+        }
+        assert_eq!(status.code(), Some(code), "{sig}");
+        assert!(!temp.exists(), "{sig}: {} left", temp.display());
+        assert!(!out.exists(), "{sig}");
+    }
+}
+
 /// `umbra tubes` says what the statistics alone hid: no tube at all, a fit that does not honour
 /// the tolerance, coordinates too large for the radius to resolve; `--chordal` decides the
 /// sides, so `--sides` beside it is refused.

@@ -151,7 +151,11 @@ impl PlyStream {
         let t = std::time::Instant::now();
         volume::check_not_read(&[Some(path)]).map_err(volume::VolumeError::Invalid)?;
         let tmp = volume::temp_path(path)?;
-        let file = std::fs::File::create(&tmp).map_err(|e| TubesError::io(path, e))?;
+        volume::writing(&tmp, true);
+        let file = std::fs::File::create(&tmp).map_err(|e| {
+            volume::writing(&tmp, false);
+            TubesError::io(path, e)
+        })?;
         let seconds = t.elapsed().as_secs_f64();
         Ok(PlyStream {
             path: path.to_path_buf(),
@@ -203,6 +207,7 @@ impl Drop for PlyStream {
         if !self.finished {
             let _ = std::fs::remove_file(&self.tmp);
         }
+        volume::writing(&self.tmp, false);
     }
 }
 

@@ -707,6 +707,7 @@ pub fn write_atomic_with(
 ) -> Result<()> {
     check_not_read(&[Some(path)]).map_err(VolumeError::Invalid)?;
     let tmp = temp_path(path)?;
+    writing(&tmp, true);
     let res = (|| -> std::io::Result<()> {
         let mut f = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&tmp)?);
         write(&mut f)?;
@@ -714,11 +715,33 @@ pub fn write_atomic_with(
         f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();
-    if let Err(e) = res {
+    if res.is_err() {
         let _ = std::fs::remove_file(&tmp);
-        return Err(VolumeError::io(path, e));
     }
-    Ok(())
+    writing(&tmp, false);
+    res.map_err(|e| VolumeError::io(path, e))
+}
+
+/// The temporary files this process is writing ([`write_atomic_with`], a streamed PLY).
+static WRITING: std::sync::Mutex<Vec<std::path::PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Notes that `tmp` is being written (`true`) or no longer is (`false`: renamed into place or
+/// removed), for [`remove_temps_being_written`].
+pub fn writing(tmp: &Path, on: bool) {
+    let mut w = WRITING.lock().unwrap_or_else(|e| e.into_inner());
+    if on {
+        w.push(tmp.to_path_buf());
+    } else if let Some(i) = w.iter().position(|p| p == tmp) {
+        w.swap_remove(i);
+    }
+}
+
+/// Removes the temporary files this process is writing: what a command interrupted by a
+/// signal calls before it exits (its outputs are left as they were; the next run of the
+/// command would remove them too, [`remove_stale_temps`]). Returns how many it removed.
+pub fn remove_temps_being_written() -> usize {
+    let w = WRITING.lock().unwrap_or_else(|e| e.into_inner());
+    w.iter().filter(|p| std::fs::remove_file(p).is_ok()).count()
 }
 
 /// Writes two outputs of one command, both or neither: `write_first(staged)` writes the first
@@ -732,6 +755,7 @@ pub fn write_pair(
     write_second: impl FnOnce() -> std::result::Result<(), String>,
 ) -> std::result::Result<(), String> {
     let staged = temp_path(first).map_err(|e| e.to_string())?;
+    writing(&staged, true);
     let done = write_first(&staged)
         .and_then(|()| write_second())
         .and_then(|()| {
@@ -741,6 +765,7 @@ pub fn write_pair(
     if done.is_err() {
         let _ = std::fs::remove_file(&staged);
     }
+    writing(&staged, false);
     done
 }
 
