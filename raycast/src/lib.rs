@@ -657,8 +657,10 @@ impl EaVolume {
                         c[2] + (1.0 - a) * bg[2],
                         a,
                     ],
+                    // A weighted mean of light in [0, 1]: the tabled exponentials' rounding
+                    // reached 1.000054.
                     volumetric: if r.acc[1] > 1e-6 {
-                        r.acc[0] / r.acc[1]
+                        (r.acc[0] / r.acc[1]).min(1.0)
                     } else {
                         1.0
                     },

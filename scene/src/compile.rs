@@ -692,8 +692,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         }
         let (sl, note) =
             crate::tube_sets::apply_selection(sl, t.select.as_ref(), &format!("tubes[{i}]"))?;
-        let sl = crate::slices::crop(sl, &slabs, 2);
         notes.extend(note);
+        let sl = crop_noted(sl, &slabs, 2, &format!("tubes[{i}]"), &mut notes);
         notes.extend(sl.warnings.iter().map(|w| format!("tubes[{i}]: {w}")));
         if s.annotate.colorbar.as_deref() == Some(&format!("tubes.{i}")) {
             colorbar = crate::tube_sets::color_bar(&sl, &t.color, named_map(&t.colormap))
@@ -809,8 +809,8 @@ fn line_set(
     }
     let (sl, note) =
         crate::tube_sets::apply_selection(sl, l.select.as_ref(), &format!("lines[{i}]"))?;
-    let sl = crate::slices::crop(sl, slabs, 2);
     notes.extend(note);
+    let sl = crop_noted(sl, slabs, 2, &format!("lines[{i}]"), notes);
     let bar = match want_bar {
         true => crate::tube_sets::color_bar(&sl, &l.color, named_map(&l.colormap))
             .map_err(|e| format!("lines[{i}].color: {e}"))?,
@@ -906,6 +906,32 @@ fn line_set(
     Ok((set, bar))
 }
 
+/// [`crate::slices::crop`] with a note of what the slices' slabs kept (a slab placed away from
+/// a tractogram removed all of it, silently).
+fn crop_noted(
+    sl: tubes::Streamlines,
+    slabs: &[crate::slices::Slab],
+    min_points: usize,
+    what: &str,
+    notes: &mut Vec<String>,
+) -> tubes::Streamlines {
+    if slabs.is_empty() {
+        return sl;
+    }
+    let before = sl.points.len();
+    let sl = crate::slices::crop(sl, slabs, min_points);
+    notes.push(format!(
+        "{what}: the slices' slabs keep {} of {before} points{}",
+        sl.points.len(),
+        if sl.points.is_empty() && before > 0 {
+            " (nothing of it is drawn: move the slab, widen it, or leave it out)"
+        } else {
+            ""
+        }
+    ));
+    sl
+}
+
 /// The point cloud of `[[points]]` number `i` as a line set of discs (`LineSet::points`).
 fn point_set(
     i: usize,
@@ -919,7 +945,7 @@ fn point_set(
         let key = format!("points[{i}].transform");
         sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);
     }
-    let sl = crate::slices::crop(sl, slabs, 1);
+    let sl = crop_noted(sl, slabs, 1, &format!("points[{i}]"), notes);
     notes.extend(sl.warnings.iter().map(|w| format!("points[{i}]: {w}")));
     if sl.points.is_empty() {
         notes.push(format!("points[{i}] ({}): no points", p.path.display()));

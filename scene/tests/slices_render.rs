@@ -275,6 +275,9 @@ height = 64
     assert!(z.iter().all(|z| (z - 1.0).abs() <= 3.0 + 1e-5), "{z:?}");
     let want = 10 * (-20..20).filter(|i| (*i as f64 - 1.0).abs() <= 3.0).count();
     assert_eq!(z.len(), want);
+    // And a note says what the slab kept (a slab away from the lines removed them silently).
+    let note = format!("lines[0]: the slices' slabs keep {want} of 400 points");
+    assert!(m.notes.contains(&note), "{:?}", m.notes);
 }
 
 /// Infinite labels are out of range like 70000 (they were accepted and drew nothing), and an
