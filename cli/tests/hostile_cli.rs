@@ -697,37 +697,21 @@ fn line_sets_with_nothing_to_draw_say_why() {
         err.contains("1 of 2 streamlines have a single point"),
         "{err}"
     );
-    // Stereo settings on an image that is not stereo: said so (they were ignored silently).
-    let out = umbra()
-        .args([
-            "render",
-            s(&two_s),
-            "-o",
-            s(&png),
-            "--set",
-            "render.eye_separation=5",
-        ])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    assert!(err.contains("apply to stereo images only"), "{err}");
-    // `camera.up` without `eye`: the orbit turns about +z, and a note says so (a y-up user's
-    // image was the default one, silently); a zero `up` is refused.
-    let out = umbra()
-        .args([
-            "render",
-            s(&two_s),
-            "-o",
-            s(&png),
-            "--set",
-            "camera.up=[0, 1, 0]",
-        ])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    assert!(err.contains("applies to a look-at camera"), "{err}");
+    // A setting the image does not use is drawn without it, and said so.
+    let noted = |set: &str, note: &str| {
+        let out = umbra()
+            .args(["render", s(&two_s), "-o", s(&png), "--set", set])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{set}: {err}");
+        assert!(err.contains(note), "{set}: {err}");
+    };
+    // Stereo settings on an image that is not stereo (they were ignored silently).
+    noted("render.eye_separation=5", "apply to stereo images only");
+    // `camera.up` without `eye`: the orbit turns about +z (a y-up user's image was the
+    // default one, silently); a zero `up` is refused.
+    noted("camera.up=[0, 1, 0]", "applies to a look-at camera");
     refused(
         &[
             "render",
