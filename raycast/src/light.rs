@@ -586,8 +586,8 @@ impl EaVolume {
     /// over the steps its corners' depths span (depth is linear, so the extremes are corners';
     /// a block reaching behind the eye covers every cell). The rest are empty for certain:
     /// hydrogen's light took 20 times more samples in empty blocks than in occupied ones,
-    /// stepping over them a block at a time. `None` where most blocks are occupied (nothing
-    /// to gain).
+    /// stepping over them a block at a time. `None` where nine blocks in ten are occupied
+    /// (little to gain; headsq's 51% gained 4-16% of its light pass, neghip's 14% at 128^2).
     pub(crate) fn steps_occupied(
         &self,
         v: &EaView,
@@ -596,7 +596,7 @@ impl EaVolume {
         slices: usize,
     ) -> Option<(Vec<u64>, u32)> {
         let occupied = &self.occupied_blocks;
-        if !self.step_mask || slices == 0 || 2 * occupied.len() > self.occupied.len() {
+        if !self.step_mask || slices == 0 || 10 * occupied.len() > 9 * self.occupied.len() {
             return None;
         }
         let g = slices.div_ceil(64).max(1) as u32;
