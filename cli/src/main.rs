@@ -106,7 +106,9 @@ fn quiet_device_select() {
 }
 
 /// A thread that waits for SIGINT or SIGTERM, then removes the temporary files being written
-/// (`volume::remove_temps_being_written`) and exits with 128 + the signal.
+/// (`volume::remove_temps_being_written`) and ends the process as the signal would have (a
+/// shell's loop sees the command interrupted, status 128 + the signal).
+#[cfg(unix)]
 fn remove_temps_on_signal() {
     use signal_hook::consts::{SIGINT, SIGTERM};
     let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
@@ -115,10 +117,14 @@ fn remove_temps_on_signal() {
     std::thread::spawn(move || {
         if let Some(sig) = signals.forever().next() {
             volume::remove_temps_being_written();
+            let _ = signal_hook::low_level::emulate_default_handler(sig);
             std::process::exit(128 + sig);
         }
     });
 }
+
+#[cfg(not(unix))]
+fn remove_temps_on_signal() {}
 
 fn main() -> ExitCode {
     quiet_device_select();

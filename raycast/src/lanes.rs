@@ -1262,7 +1262,7 @@ pub(crate) unsafe fn optical_depths<T: Gather>(
                 steps,
                 _mm256_blendv_epi8(st.steps, _mm256_set1_epi32(i32::MAX), whole),
             );
-            if i == 0 {
+            if i == 0 && n > 1 {
                 // The slab's samples lie less than a slice beyond its first: where the first's
                 // empty cube reaches a slice or more further (`steps` >= 2), they all lie in
                 // it, and the last leaves it no sooner than `steps - 1` slices on (the next

@@ -459,9 +459,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     }
     if s.camera.eye.is_none() && s.camera.up != [0.0, 0.0, 1.0] {
         notes.push(format!(
-            "camera.up {:?} applies to a look-at camera (camera.eye given); the orbit \
-             (camera.azimuth, camera.elevation) turns about +z whatever up is: give camera.eye \
-             and camera.target to look with another up",
+            "camera.up {:?} applies to a look-at camera (camera.eye given, or a camera path's \
+             eye keys); the orbit (camera.azimuth, camera.elevation) turns about +z whatever up \
+             is: give camera.eye and camera.target to look with another up",
             s.camera.up
         ));
     }

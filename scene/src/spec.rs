@@ -1963,7 +1963,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             let before = t.points[..i]
                 .iter()
                 .rev()
-                .find(|q| q.gradient.map(f64::to_bits) == p.gradient.map(f64::to_bits));
+                .find(|q| q.gradient == p.gradient);
             if let Some(q) = before.filter(|q| p.value < q.value) {
                 return bad(
                     &format!("volume.transfer.points[{i}].value"),

@@ -231,7 +231,8 @@ fn list(path: &Path) -> Result<(Container, Vec<Member>)> {
         }
         return Ok((Container::Dir(path.to_path_buf()), members));
     }
-    let (f, _) = volume::open_regular(path).map_err(|e| TubesError::io(path, e))?;
+    let f = std::fs::File::open(path).map_err(|e| TubesError::io(path, e))?;
+    volume::note_read(path);
     let mut z = zip::ZipArchive::new(f)
         .map_err(|e| TubesError::format(path, "zip archive", e.to_string()))?;
     let mut members = Vec::new();

@@ -116,6 +116,14 @@ pub fn guard_inputs() {
     GUARD.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
+/// Notes that `path` is read by this process (for a reader that opens it its own way: a TRX
+/// archive past [`MAX_FILE_BYTES`], read member by member).
+pub fn note_read(path: &Path) {
+    if let Ok(meta) = std::fs::metadata(path) {
+        note_input(path, &meta);
+    }
+}
+
 fn note_input(path: &Path, meta: &std::fs::Metadata) {
     if !GUARD.load(std::sync::atomic::Ordering::Relaxed) {
         return;
@@ -143,17 +151,25 @@ pub fn forget_input(path: &Path) {
 /// and since removed (or replaced) is no input any more: its entry is dropped, so that a new
 /// file that reuses its inode is not taken for it.
 fn read_as(path: &Path) -> Option<std::path::PathBuf> {
-    let id = std::fs::metadata(path)
+    // The entry the output's name is (not a link's target: a write renames over the link
+    // itself, and the file it points to is left as it was).
+    let id = std::fs::symlink_metadata(path)
         .ok()
         .and_then(|m| file_id(path, &m))?;
     let mut read = READ.lock().unwrap_or_else(|e| e.into_inner());
-    read.retain(|(i, p)| {
+    // Only the entries of that id are checked again (every write asks).
+    let still = |(i, p): &(FileId, std::path::PathBuf)| {
         std::fs::metadata(p)
             .ok()
             .and_then(|m| file_id(p, &m))
             .is_some_and(|now| now == *i)
-    });
-    read.iter().find(|(i, _)| *i == id).map(|(_, p)| p.clone())
+    };
+    let at = read.iter().position(|e| e.0 == id)?;
+    if still(&read[at]) {
+        return Some(read[at].1.clone());
+    }
+    read.swap_remove(at);
+    None
 }
 
 /// Refuses an output that names a file this process has read (a volume, a tractogram, a
@@ -754,6 +770,7 @@ pub fn write_pair(
     write_first: impl FnOnce(&Path) -> std::result::Result<(), String>,
     write_second: impl FnOnce() -> std::result::Result<(), String>,
 ) -> std::result::Result<(), String> {
+    check_not_read(&[Some(first)])?;
     let staged = temp_path(first).map_err(|e| e.to_string())?;
     writing(&staged, true);
     let done = write_first(&staged)
@@ -919,18 +936,22 @@ pub fn remove_stale_temps(paths: &[&Path]) -> usize {
         for e in entries.flatten() {
             let f = e.file_name();
             let f = f.to_string_lossy();
-            // `.NAME.PID.tmp` with NAME one of ours and PID digits, not ours.
-            let stale = f
-                .strip_prefix('.')
-                .and_then(|r| r.strip_suffix(".tmp"))
-                .and_then(|r| r.rsplit_once('.'))
-                .is_some_and(|(name, pid)| {
-                    names.contains(name)
-                        && !pid.is_empty()
-                        && pid.bytes().all(|b| b.is_ascii_digit())
-                        && pid != own
-                        && !process_alive(pid)
-                });
+            // `.NAME.PID.tmp` with NAME one of ours and PID digits, not ours - or the temporary
+            // of such a file (`write_pair` writes its first output under that name, through a
+            // temporary of its own).
+            let parse = |f: &str| -> Option<(String, String)> {
+                let (name, pid) = f
+                    .strip_prefix('.')?
+                    .strip_suffix(".tmp")?
+                    .rsplit_once('.')?;
+                (!pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
+                    .then(|| (name.to_string(), pid.to_string()))
+            };
+            let stale = parse(&f).is_some_and(|(name, pid)| {
+                let ours = names.contains(&name)
+                    || parse(&name).is_some_and(|(inner, _)| names.contains(&inner));
+                ours && pid != own && !process_alive(&pid)
+            });
             if stale
                 && e.file_type().is_ok_and(|t| t.is_file())
                 && std::fs::remove_file(e.path()).is_ok()
@@ -987,6 +1008,8 @@ mod tests {
         // Left by processes that are gone (PIDs above Linux's largest, 2^22): removed.
         touch(&temp_name("f_03.png", 999_999_917));
         touch(&temp_name("f_03.png", 999_994_242));
+        // A staged first output's own temporary (`write_pair`), from a process that is gone.
+        touch(&temp_name(&temp_name("f_03.png", 999_999_917), 999_999_917));
         // Not stale or not ours: kept; among them a live process's (our parent's).
         let own = temp_name("f_03.png", std::process::id());
         touch(&own);
@@ -1004,7 +1027,7 @@ mod tests {
         ] {
             touch(keep);
         }
-        assert_eq!(remove_stale_temps(&[out.as_path()]), 2);
+        assert_eq!(remove_stale_temps(&[out.as_path()]), 3);
         let mut left: Vec<String> = std::fs::read_dir(dir.path())
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

@@ -52,8 +52,8 @@ pub use error::{Result, VolumeError};
 use glam::{DMat4, DVec3, DVec4};
 pub use io_util::{
     check_distinct, check_not_input, check_not_read, check_output, check_outputs, clip_text,
-    folder_of, forget_input, guard_inputs, gzip_bytes, open_regular, read_regular, read_text,
-    remove_stale_temps, remove_temps_being_written, show_number, temp_name, temp_path,
+    folder_of, forget_input, guard_inputs, gzip_bytes, note_read, open_regular, read_regular,
+    read_text, remove_stale_temps, remove_temps_being_written, show_number, temp_name, temp_path,
     write_atomic, write_atomic_with, write_pair, writing, Bytes, MAX_FILE_BYTES,
 };
 pub use series::VolumeSeries;

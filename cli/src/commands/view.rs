@@ -56,7 +56,11 @@ fn frame_log(
     Ok(Box::new(move |e: &umbra_viewer::ViewEvent| {
         let t = started.elapsed().as_secs_f64();
         if out.is_none() && !failed {
-            match std::fs::File::create(&path).map(std::io::LineWriter::new) {
+            // The scene's data are read by now: the log may not replace one of them.
+            let created = volume::check_not_read(&[Some(&path)])
+                .map_err(std::io::Error::other)
+                .and_then(|()| std::fs::File::create(&path));
+            match created.map(std::io::LineWriter::new) {
                 Ok(mut f) => {
                     let _ = writeln!(f, "seconds,event,level,width,height,total_ms");
                     out = Some(f);
