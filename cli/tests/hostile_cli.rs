@@ -886,6 +886,34 @@ fn an_interrupted_command_leaves_no_temporary_file() {
     assert!(checked > 0, "every run finished before its signal");
 }
 
+/// A single image's error names no frame (it read "frame 0:").
+#[test]
+fn a_single_images_error_names_no_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[volume]\npath = \"{}\"\n[render]\nwidth = 16\nheight = 16\n",
+            s(&fixture("spacings_ascii.nrrd"))
+        ),
+    )
+    .unwrap();
+    let png = dir.path().join("o.png");
+    let e = refused(
+        &[
+            "render",
+            s(&scene),
+            "-o",
+            s(&png),
+            "--set",
+            "render.slice_distance=1e-6",
+        ],
+        "render.slice_distance",
+    );
+    assert!(!e.contains("frame 0"), "{e}");
+}
+
 /// `umbra tubes` says what the statistics alone hid: no tube at all, a fit that does not honour
 /// the tolerance, coordinates too large for the radius to resolve; `--chordal` decides the
 /// sides, so `--sides` beside it is refused.

@@ -538,7 +538,11 @@ pub(crate) fn run_on(
         progress(Progress::Stage(&format!("drawing frame {k}")));
         let drawn = up
             .draw_at(&sk, &m, opts, now)
-            .map_err(|e| format!("{}: frame {k}: {e}", path.display()))
+            .map_err(|e| match sequence.is_some() {
+                true => format!("{}: frame {k}: {e}", path.display()),
+                // A single image has no frame number to name.
+                false => format!("{}: {e}", path.display()),
+            })
             .and_then(|(mut out, v)| {
                 annotate_frame(&sk, &m, &mut out, &v)?;
                 write_image(&file, exr, a.aov, s.render.bits, &out, &v)?;

@@ -1231,11 +1231,13 @@ fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
 /// Reads a scene from TOML text; `name` labels errors, relative paths resolve against `dir`.
 pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result<Scene, String> {
     // Parse as written first: serde's errors then carry the line of an unknown or bad key.
-    // The parser quotes the line (and marks it): each line of its message is cut to 400
+    // The parser quotes the line (and marks it): each line of its message is cut to 1000
     // characters, so that a 5 MB value gives a short error.
     let short = |e: &dyn std::fmt::Display| {
         let text = e.to_string();
-        let lines: Vec<String> = text.lines().map(|l| volume::clip_text(l, 400)).collect();
+        // (As the CLI cuts what it prints; long enough for the list of a table's keys after an
+        // unknown one, which 400 cut mid-word.)
+        let lines: Vec<String> = text.lines().map(|l| volume::clip_text(l, 1000)).collect();
         let mut out = format!("{name}: {}", lines.join("\n"));
         if text.contains("missing field `path`") {
             out += " (every [volume], [[tubes]], [[lines]], [[points]] and [[overlays]] entry \
@@ -1303,6 +1305,11 @@ fn merged_error(merged: &str, e: &toml::de::Error) -> String {
         (true, false) => key.to_string(),
         (false, false) => format!("{path}.{key}"),
     };
+    // A key at the top level (`--set foo=1`) has no table to name: the message alone (it
+    // read ": unknown field `foo`").
+    if full.is_empty() {
+        return e.message().trim().to_string();
+    }
     format!("{full}: {}", e.message().trim())
 }
 
@@ -2650,6 +2657,16 @@ mod tests {
         assert_eq!(s.render.method, Method::Vicinity);
         let e = parse(text, "s", Path::new("."), &o(&["render.nope=1"])).unwrap_err();
         assert!(e.contains("nope"), "{e}");
+        // A key at the top level: the message, not an empty path (": unknown field").
+        let e = parse(text, "s", Path::new("."), &o(&["foo=1"])).unwrap_err();
+        assert!(
+            e.contains("unknown field `foo`") && !e.contains(": :"),
+            "{e}"
+        );
+        // A typo inside the file lists every key of its table, uncut (400 characters cut the
+        // list of [render]'s keys mid-word).
+        let e = parse("[render]\nwidht = 5\n", "s", Path::new("."), &[]).unwrap_err();
+        assert!(e.contains("`width`") && !e.contains("in all)"), "{e}");
         let e = parse(text, "s", Path::new("."), &o(&["tubes.3.radius=1"])).unwrap_err();
         assert!(e.contains("1 entries"), "{e}");
         // An index into a list the scene does not have names the list (it read
