@@ -230,14 +230,20 @@ impl Camera {
     pub fn to_pixel(&self, p: DVec3, width: usize, height: usize) -> Option<(f64, f64, f64)> {
         let aspect = width as f64 / height.max(1) as f64;
         let c = self.view_projection(aspect) * DVec4::from((p, 1.0));
-        if c.w <= 0.0 {
+        let (x, y) = Camera::clip_to_pixel(c, width as f64, height as f64)?;
+        Some((x, y, c.z / c.w))
+    }
+
+    /// Pixel coordinates, as [`Camera::to_pixel`] gives them, of a point in clip space (for a
+    /// caller that has its clip coordinates already), or `None` behind the eye (`w <= 0`, or
+    /// not a number).
+    pub fn clip_to_pixel(c: DVec4, width: f64, height: f64) -> Option<(f64, f64)> {
+        if c.w.is_nan() || c.w <= 0.0 {
             return None;
         }
-        let ndc = c.truncate() / c.w;
         Some((
-            (ndc.x + 1.0) * 0.5 * width as f64,
-            (1.0 - ndc.y) * 0.5 * height as f64,
-            ndc.z,
+            (c.x / c.w + 1.0) * 0.5 * width,
+            (1.0 - c.y / c.w) * 0.5 * height,
         ))
     }
 

@@ -28,6 +28,7 @@
 //! cell every [`KB`] slices.
 
 use crate::{EaVolume, Ray, Voxel, SKIP};
+use occlusion::camera::Camera;
 use occlusion::combined::{blur_rows, blur_taps, light_view, step_theta, BlurRow};
 use occlusion::emission_absorption::EaView;
 use rayon::prelude::*;
@@ -623,8 +624,7 @@ impl EaVolume {
         // resolution.
         let mid = glam::DVec4::from((self.hi.map(|x| x as f64 * 0.5).into(), 1.0));
         let at = |q: glam::DVec4| {
-            let k = clip_of * q;
-            (k.w > 1e-12).then(|| glam::DVec2::new(k.x / k.w * 0.5 * w, k.y / k.w * 0.5 * h))
+            Camera::clip_to_pixel(clip_of * q, w, h).map(|(x, y)| glam::DVec2::new(x, y))
         };
         let across = (0..3)
             .filter_map(|a| Some((at(mid + axis(a) * SKIP as f64)? - at(mid)?).length()))
@@ -689,12 +689,10 @@ impl EaVolume {
                         let k = base + *oc;
                         let d = dbase + od;
                         (lo, hi) = (lo.min(d), hi.max(d));
-                        if k.w.is_nan() || k.w <= 1e-12 {
+                        let Some((x, y)) = Camera::clip_to_pixel(k, w, h) else {
                             behind = true;
                             continue;
-                        }
-                        let inv = 1.0 / k.w;
-                        let (x, y) = ((k.x * inv + 1.0) * 0.5 * w, (1.0 - k.y * inv) * 0.5 * h);
+                        };
                         px = [px[0].min(x), px[1].max(x)];
                         py = [py[0].min(y), py[1].max(y)];
                     }

@@ -6,7 +6,11 @@
 //! * Rotation-minimizing frames by the double reflection method (Wang, Juttler, Zheng and Liu,
 //!   ACM TOG 27(1), 2008), the default: for ring points `x_i`, unit tangents `t_i` and frame
 //!   vector `r_i`, reflect `r_i` and `t_i` in the plane normal to `v1 = x_{i+1} - x_i`
-//!   (`r_L`, `t_L`), then reflect `r_L` in the plane normal to `v2 = t_{i+1} - t_L`.
+//!   (`r_L`, `t_L`), then reflect `r_L` in the plane normal to `v2 = t_{i+1} - t_L`. Where the
+//!   chord `v1` turns more than 30 degrees from `t_i` or `t_{i+1}` (the reflections' premise,
+//!   a chord along the curve, fails: a hair-length side step of a rough tract), `r_i` is turned
+//!   by the least rotation taking `t_i` to `t_{i+1}` instead (the rotation method, Klok, CAGD
+//!   3(3), 1986; Wang et al. §2), which is also what `max_twist_deg` measures against.
 //! * Frenet frames with the paper's flip correction (the normal `C'' - (C'' . t) t` is negated
 //!   whenever it turns by more than 90 degrees from the previous ring's, and the previous normal
 //!   is carried over where the curvature vanishes), for comparison.
