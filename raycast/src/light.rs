@@ -586,7 +586,7 @@ impl EaVolume {
     /// rounding) projected to the cells whose centres its corners' bounding rectangle holds,
     /// over the steps its corners' depths span (depth is linear, so the extremes are corners';
     /// a block reaching behind the eye covers every cell). The rest are empty for certain:
-    /// hydrogen's light took 20 times more samples in empty blocks than in occupied ones,
+    /// hydrogen's light took 19 times more samples in empty blocks than in occupied ones,
     /// stepping over them a block at a time. `None` where nine blocks in ten are occupied
     /// (little to gain; headsq's 51% gained 4-16% of its light pass, neghip's 14% at 128^2).
     pub(crate) fn steps_occupied(
