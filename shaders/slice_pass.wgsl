@@ -263,6 +263,27 @@ fn light_step_at(ci: u32, kf: f32) -> f32 {
     return mix(a, b, t);
 }
 
+// light_step_at for a cell whose ray enters the medium at stored slice `entry` (its cut; -1e30
+// none): within the stored slice `entry` lies in, constant up to `entry` and linear from there to
+// the next (`LightVolume::cell_from` in raycast/src/light.rs): nothing before the cut absorbs.
+fn light_step_from(ci: u32, kf: f32, entry: f32) -> f32 {
+    if (kf < 0.0) {
+        return light_step_at(ci, kf);
+    }
+    let n = P.light_slices;
+    let base = P.cells.x * P.cells.y;
+    let fl = floor(kf);
+    let k0 = u32(fl);
+    let s = max(entry, fl);
+    var t = 0.0;
+    if (s < kf) {
+        t = (kf - s) / (fl + 1.0 - s);
+    }
+    let a = light_volume[ci + base * min(k0, n - 1u)];
+    let b = light_volume[ci + base * min(k0 + 1u, n - 1u)];
+    return mix(a, b, t);
+}
+
 // Where a pixel behind a clipping plane reads its four cells: each cell at the same distance
 // behind the plane as the pixel's sample (slice k + shift), not at the same depth. A cut face
 // tilted to the slices meets a 2-pixel cell's rays in different slabs; read at equal depth, a
@@ -271,6 +292,8 @@ fn light_step_at(ci: u32, kf: f32) -> f32 {
 struct CellShift {
     cells: array<u32, 4>,
     shift: vec4<f32>,
+    // Where each cell's ray enters the medium at the cut, in eye slices (-1e30: no cut).
+    start: vec4<f32>,
     f: vec2<f32>,
 };
 
@@ -286,10 +309,13 @@ fn cell_shifts(px: vec2<f32>, r: Ray) -> CellShift {
         cs.cells[i] = u32(q.x) + P.cells.x * u32(q.y);
         let a_c = clip_entry(pixel_ray(P.frame, (vec2<f32>(q) + vec2<f32>(0.5)) * f32(P.cell)));
         var sh = 0.0;
+        var st = -1e30;
         if (a_px >= 0.0 && a_c >= 0.0) {
             sh = (a_c - a_px) / P.dz;
+            st = (a_c - P.z0) / P.dz;
         }
         cs.shift[i] = sh;
+        cs.start[i] = st;
     }
     return cs;
 }
@@ -310,7 +336,7 @@ fn light_shifted(cs: CellShift, k: u32, first: bool) -> f32 {
         if (first) {
             x = floor((f32(k) + cs.shift[i]) / e) * e;
         }
-        v[i] = light_step_at(cs.cells[i], x / f32(P.light_step));
+        v[i] = light_step_from(cs.cells[i], x / f32(P.light_step), cs.start[i] / f32(P.light_step));
     }
     return mix(mix(v[0], v[1], cs.f.x), mix(v[2], v[3], cs.f.x), cs.f.y);
 }

@@ -956,8 +956,14 @@ fn a_tilted_cut_face_shows_no_band_per_slice_on_either_device() {
     // pixel's step's front instead, the cells lie further in front of their cuts the further
     // the pixel's lies behind it, a line per step (3.5 against 2.1; 2.3 as read, both devices
     // alike, measured 2026-12-07, when the stored parts read at each sample's depth gave 1.0
-    // with 2-pixel cells and 7.6 with 1-pixel cells, a band per slice). Either cell size above
-    // 3 is a band the cut face did not have.
+    // with 2-pixel cells and 7.6 with 1-pixel cells, a band per slice). The line left at 2.3
+    // was a seam where a ray enters just in front of a step's front: its read at that front,
+    // each cell a fraction of a slice past its cut, was linear over the whole stored slice the
+    // cut lies in, so it took part of the attenuation of the medium a stored slice deeper
+    // (docs/accuracy.md, "Seams on cut faces"). Constant up to the cut and linear from there
+    // (`LightVolume::cell_from`), 0.91 with 2-pixel cells and 2.07 with 1-pixel cells on both
+    // devices. Either cell size above 3, or 2-pixel cells above 1.5, is a band or a seam the
+    // cut face did not have.
     let dir = tempfile::tempdir().unwrap();
     let mut nrrd =
         b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 40 40 40\nspacing: 1 1 1\nencoding: raw\n\n"
@@ -996,7 +1002,7 @@ fn a_tilted_cut_face_shows_no_band_per_slice_on_either_device() {
             "{device}: cut-face ripple {two:.2} with 2-pixel cells, {one:.2} with 1-pixel cells"
         );
         assert!(
-            two < 1.5 * one.max(0.5) && two < 3.0 && one < 3.0,
+            two < 1.5 * one.max(0.5) && two < 1.5 && one < 3.0,
             "{device}: {two:.2} with 2-pixel cells, {one:.2} with 1"
         );
     }

@@ -711,8 +711,9 @@ struct Packet {
     cells: [__m256i; 4],
     frac: [__m256; 2],
     /// Behind clipping planes: each cell read this many slices further than the ray's slice
-    /// (`Footprint::shift`; `LightVolume::front`), for every ray of the packet.
-    shift: Option<[__m256; 4]>,
+    /// (`Footprint::shift`; `LightVolume::front`), for every ray of the packet, and where each
+    /// cell's ray enters the medium (`Footprint::start`).
+    shift: Option<([__m256; 4], [__m256; 4])>,
     kv: __m256i,
     k1v: __m256i,
     /// Lit: the light step each ray last read (`Ray::lstep`) and the light reaching its next
@@ -773,6 +774,7 @@ impl Packet {
             let r = RayLanes::load(rays.iter().map(|(_, r)| r));
             let (mut cells, mut frac) = ([[0i32; LANES]; 4], [[0f32; LANES]; 2]);
             let mut shift = [[0f32; LANES]; 4];
+            let mut start = [[f32::NEG_INFINITY; LANES]; 4];
             let mut shifted = false;
             let (mut lstep, mut lrun) = ([-1i32; LANES], [1f32; LANES]);
             if LIT {
@@ -780,6 +782,7 @@ impl Packet {
                     for (j, c) in r.light.cells.iter().enumerate() {
                         cells[j][i] = *c as i32;
                         shift[j][i] = r.light.shift[j];
+                        start[j][i] = r.light.start[j];
                     }
                     frac[0][i] = r.light.f[0];
                     frac[1][i] = r.light.f[1];
@@ -793,7 +796,12 @@ impl Packet {
             let zero = _mm256_setzero_ps();
             let p = Packet {
                 cells,
-                shift: shifted.then(|| shift.map(|x| _mm256_loadu_ps(x.as_ptr()))),
+                shift: shifted.then(|| {
+                    (
+                        shift.map(|x| _mm256_loadu_ps(x.as_ptr())),
+                        start.map(|x| _mm256_loadu_ps(x.as_ptr())),
+                    )
+                }),
                 frac: frac.map(|f| _mm256_loadu_ps(f.as_ptr())),
                 kv: r.k,
                 k1v: r.k1,
@@ -910,7 +918,7 @@ impl Packet {
                 if _mm256_movemask_ps(stale) != 0 {
                     let front = match &self.shift {
                         None => self.front(m, stale, st),
-                        Some(shift) => self.front_shifted(m, stale, shift),
+                        Some((shift, start)) => self.front_shifted(m, stale, shift, start),
                     };
                     self.lrun = _mm256_blendv_ps(self.lrun, front, stale);
                     self.lstep = _mm256_blendv_epi8(self.lstep, st, _mm256_castps_si256(stale));
@@ -1001,6 +1009,7 @@ impl Packet {
         m: &Marching<'_, '_>,
         lit: __m256,
         shift: &[__m256; 4],
+        start: &[__m256; 4],
     ) -> __m256 {
         // SAFETY: the caller's; masked lanes read nothing.
         unsafe {
@@ -1060,7 +1069,15 @@ impl Packet {
                         ),
                     )
                 };
-                let inside = lerp!(a, b, _mm256_sub_ps(x, fl));
+                // Constant up to where the cell's ray enters the medium within the stored
+                // slice, linear from there (`LightVolume::cell_from`).
+                let s = _mm256_max_ps(_mm256_mul_ps(start[j], m.inv_step), fl);
+                let t = _mm256_div_ps(
+                    _mm256_sub_ps(x, s),
+                    _mm256_sub_ps(_mm256_add_ps(fl, one), s),
+                );
+                let t = _mm256_blendv_ps(t, zero, _mm256_cmp_ps::<_CMP_GE_OQ>(s, x));
+                let inside = lerp!(a, b, t);
                 // Between -1 and 0: from 1 towards the first stored slice (`a` there).
                 let before = _mm256_add_ps(
                     one,

@@ -115,7 +115,7 @@ impl LightVolume {
                 } else {
                     kf + f.shift[i]
                 };
-                self.cell_at(f.cells[i], x / m)
+                self.cell_from(f.cells[i], x / m, f.start[i] / m)
             })
         } else {
             let s = ((k >> self.eye_step_shift) as usize * self.parts) as f32;
@@ -128,6 +128,21 @@ impl LightVolume {
     /// Cell `c`'s (an offset `cell KB`) light at fractional step `kf`, as `light_step_at` in the
     /// shader: interpolated between steps, `O_{-1} = 1` before step 0, the last beyond it.
     fn cell_at(&self, c: u32, kf: f32) -> f32 {
+        self.cell_from(c, kf, f32::NEG_INFINITY)
+    }
+
+    /// [`LightVolume::cell_at`] for a cell whose ray enters the medium at stored slice `from`
+    /// (behind clipping planes: its cut; `-inf` none): within the stored slice `from` lies in,
+    /// the light is constant up to `from` and linear from there to the next stored slice
+    /// (`light_step_from` in the shader). Nothing before the cut absorbs, so the change
+    /// between the two stored slices - the cell's own attenuation, and at a step's front the
+    /// blur - happens past it; linear over the whole stored slice, a read just past the cut
+    /// took part of the change of the medium a stored slice deeper, and where the eye's ray
+    /// entered just in front of a step's front its read at that front (a cell a fraction of a
+    /// slice past its cut) fell below its neighbours' first reads: a dark seam a step on a cut
+    /// face (docs/accuracy.md, "Seams on cut faces"). Equal to `cell_at` wherever `from` is
+    /// at or before the stored slice below `kf`.
+    fn cell_from(&self, c: u32, kf: f32, from: f32) -> f32 {
         if kf <= -1.0 {
             return 1.0;
         }
@@ -139,8 +154,15 @@ impl LightVolume {
         if kf < 0.0 {
             return 1.0 + (at(0) - 1.0) * (kf + 1.0);
         }
-        let k0 = kf.floor() as usize;
-        let t = kf - kf.floor();
+        let fl = kf.floor();
+        let k0 = fl as usize;
+        // Where the medium begins within the stored slice, and the fraction past it.
+        let s = from.max(fl);
+        let t = if s >= kf {
+            0.0
+        } else {
+            (kf - s) / (fl + 1.0 - s)
+        };
         let (a, b) = (at(k0), at(k0.saturating_add(1)));
         a + (b - a) * t
     }
@@ -188,9 +210,9 @@ impl LightVolume {
         for (i, (dx, dy)) in [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate() {
             let x = (b[0] as i64 + dx).clamp(0, hi[0]) as usize;
             let y = (b[1] as i64 + dy).clamp(0, hi[1]) as usize;
-            f.shift[i] = match (entry, entries[x + self.cells[0] * y]) {
-                (Some(a), Some(b)) => ((b - a) / v.dz) as f32,
-                _ => 0.0,
+            (f.shift[i], f.start[i]) = match (entry, entries[x + self.cells[0] * y]) {
+                (Some(a), Some(b)) => (((b - a) / v.dz) as f32, ((b - v.z0) / v.dz) as f32),
+                _ => (0.0, f32::NEG_INFINITY),
             };
         }
         f.shifted = true;
@@ -215,6 +237,7 @@ impl LightVolume {
             cells: [at(0, 0), at(1, 0), at(0, 1), at(1, 1)],
             f: [(c[0] - b[0]) as f32, (c[1] - b[1]) as f32],
             shift: [0.0; 4],
+            start: [f32::NEG_INFINITY; 4],
             shifted: false,
         }
     }
@@ -228,6 +251,8 @@ pub(crate) struct Footprint {
     pub f: [f32; 2],
     /// Slices each cell is read further than the pixel's (behind clipping planes).
     pub shift: [f32; 4],
+    /// Where each cell's ray enters the medium at the cut, in eye slices (`-inf`: no cut).
+    pub start: [f32; 4],
     pub shifted: bool,
 }
 
