@@ -127,7 +127,10 @@ fn axis_label(axis: usize, positive: bool, ras: bool) -> String {
 /// The labels of the right, left, top and bottom edges for `camera` on a `w` x `h` image.
 pub fn orientation_labels(camera: &Camera, w: usize, h: usize, ras: bool) -> [String; 4] {
     let t = camera.target;
-    let step = (camera.eye - t).length().max(1e-9) * 0.01;
+    // A millionth of the distance: the projection's derivative at the target (with a
+    // hundredth, perspective made of two axes at 45 degrees the one towards the eye longer by
+    // 1.4%, and it named the edge alone).
+    let step = (camera.eye - t).length().max(1e-9) * 1e-6;
     let p0 = camera.to_pixel(t, w, h);
     // Screen direction (pixels, y down) of each of the six world directions.
     let dirs: Vec<(String, f64, f64)> = (0..6)
@@ -141,11 +144,19 @@ pub fn orientation_labels(camera: &Camera, w: usize, h: usize, ras: bool) -> [St
             Some((axis_label(axis, positive, ras), p1.0 - p0.0, p1.1 - p0.1))
         })
         .collect();
+    // The direction pointing most towards the edge; where two or three tie (a camera at
+    // exactly 45 degrees between two axes), all of them in axis order ("RA", "+X+Y"): which
+    // one won was the rounding's choice, and could flip between two such views.
     let best = |score: &dyn Fn(f64, f64) -> f64| {
+        let top = dirs
+            .iter()
+            .map(|d| score(d.1, d.2))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let tie = 1e-4 * top.abs().max(1e-300);
         dirs.iter()
-            .max_by(|a, b| score(a.1, a.2).total_cmp(&score(b.1, b.2)))
-            .map(|d| d.0.clone())
-            .unwrap_or_default()
+            .filter(|d| score(d.1, d.2) >= top - tie)
+            .map(|d| d.0.as_str())
+            .collect::<String>()
     };
     [
         best(&|x, _| x),
@@ -530,6 +541,25 @@ mod tests {
             orientation_labels(&side, 100, 100, false),
             ["+Y", "-Y", "+Z", "-Z"].map(String::from)
         );
+        // Exactly between the right side and the front (eye at +x +y, azimuth 45 degrees): the
+        // two axes tie on the left and right edges and both are named, in axis order, the
+        // same for the eye a hair either way of the diagonal (one of the two won by the
+        // rounding before).
+        for dx in [0.0, 1e-12, -1e-12] {
+            let diagonal = cam(DVec3::new(400.0 + dx, 400.0, 0.0), DVec3::Z);
+            assert_eq!(
+                orientation_labels(&diagonal, 100, 100, true),
+                ["LA", "RP", "S", "I"].map(String::from)
+            );
+        }
+        // Off the diagonal by a degree, one axis names each edge again.
+        let a = 46f64.to_radians();
+        let near = cam(DVec3::new(400.0 * a.cos(), 400.0 * a.sin(), 0.0), DVec3::Z);
+        assert_eq!(
+            orientation_labels(&near, 100, 100, true)[2..],
+            ["S", "I"].map(String::from)
+        );
+        assert_eq!(orientation_labels(&near, 100, 100, true)[0].len(), 1);
     }
 
     #[test]
