@@ -8,7 +8,7 @@ mod output;
 mod progress;
 
 use clap::error::{ContextKind, ContextValue, ErrorKind};
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 use commands::{
     convert, demo, info, iso, render, resample, scene, sweep, synth, trace, tracts, tubes, view,
 };
@@ -162,6 +162,14 @@ fn main() -> ExitCode {
             return ExitCode::from(code as u8);
         }
     };
+    // Options that conflict by their values are a command line that does not parse (exit 2,
+    // as clap's own conflicts; README, "Command line").
+    if let Command::Sweep(a) = &cli.command {
+        if let Some(c) = sweep::conflict(a) {
+            let _ = Cli::command().error(ErrorKind::ArgumentConflict, c).print();
+            return ExitCode::from(2);
+        }
+    }
     // Interrupted (SIGINT, SIGTERM), a command removes the temporary files it is writing
     // before it exits (status 128 + the signal): its outputs are as they were. The viewer
     // ends on those signals itself.

@@ -160,6 +160,25 @@ fn sweep_trace_and_resample_values_are_range_checked() {
             needle,
         );
     }
+    // --tolerance with closest points: options that conflict, a usage error (status 2, as the
+    // README says; it was 1).
+    let out = umbra()
+        .args([
+            "sweep",
+            s(&vol),
+            "--iso",
+            "5",
+            "-o",
+            s(&o),
+            "--tolerance",
+            "0.01",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("closest points need none"), "{err}");
+    assert!(!o.exists());
     let field = fixture("ras_vec_raw.nrrd");
     let trk = d.path().join("t.trk");
     // NaN lengths and tolerances gave "0 streamlines".

@@ -89,12 +89,17 @@ impl From<Init> for InitMethod {
     }
 }
 
+/// Options that conflict by their values, which clap's `conflicts_with` cannot say: the
+/// message for a usage error (exit status 2, as clap's conflicts), or none.
+pub fn conflict(a: &Args) -> Option<&'static str> {
+    (a.tolerance.is_some() && !matches!(a.distance, Distance::Sweeping)).then_some(
+        "--tolerance is the convergence of --distance sweeping; closest points need none",
+    )
+}
+
 pub fn run(a: Args) -> Result<(), String> {
-    if a.tolerance.is_some() && !matches!(a.distance, Distance::Sweeping) {
-        return Err(
-            "--tolerance is the convergence of --distance sweeping; closest points need none"
-                .into(),
-        );
+    if let Some(c) = conflict(&a) {
+        return Err(c.into());
     }
     let args = scene::fields::SweepArgs {
         input: a.input,
