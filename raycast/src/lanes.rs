@@ -1071,12 +1071,20 @@ impl Packet {
                 };
                 // Constant up to where the cell's ray enters the medium within the stored
                 // slice, linear from there (`LightVolume::cell_from`).
+                // (Most reads lie a stored slice or more past the cut, `s = fl`: there the
+                // quotient is `x - fl` to the bit, without the division, which cost 3.5% of
+                // the march of a clipped frame.)
                 let s = _mm256_max_ps(_mm256_mul_ps(start[j], m.inv_step), fl);
-                let t = _mm256_div_ps(
-                    _mm256_sub_ps(x, s),
-                    _mm256_sub_ps(_mm256_add_ps(fl, one), s),
-                );
-                let t = _mm256_blendv_ps(t, zero, _mm256_cmp_ps::<_CMP_GE_OQ>(s, x));
+                let cut = _mm256_and_ps(lit, _mm256_cmp_ps::<_CMP_GT_OQ>(s, fl));
+                let t = if _mm256_movemask_ps(cut) == 0 {
+                    _mm256_sub_ps(x, fl)
+                } else {
+                    let t = _mm256_div_ps(
+                        _mm256_sub_ps(x, s),
+                        _mm256_sub_ps(_mm256_add_ps(fl, one), s),
+                    );
+                    _mm256_blendv_ps(t, zero, _mm256_cmp_ps::<_CMP_GE_OQ>(s, x))
+                };
                 let inside = lerp!(a, b, t);
                 // Between -1 and 0: from 1 towards the first stored slice (`a` there).
                 let before = _mm256_add_ps(
