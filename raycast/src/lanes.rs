@@ -664,6 +664,8 @@ struct Marching<'s, 'v> {
     kb_shift: __m128i,
     kb_mask: __m256i,
     inv_step: __m256,
+    /// A stored slice's eye slices and one more (`Packet::front_shifted`'s reach of a cut).
+    cut_reach: __m256,
     last: __m256i,
     order: __m256i,
     /// Light steps: eye slices as a shift, stored slices a step, the path factor `f` and
@@ -692,6 +694,7 @@ impl<'s, 'v> Marching<'s, 'v> {
                 kb_shift: _mm_cvtsi32_si128(KB.trailing_zeros() as i32),
                 kb_mask: pi(KB as i32 - 1),
                 inv_step: _mm256_set1_ps(1.0 / lv.step as f32),
+                cut_reach: _mm256_set1_ps(lv.step as f32 + 1.0),
                 last: pi(lv.slices as i32 - 1),
                 order: pair_order(),
                 eye_step_shift: _mm_cvtsi32_si128(lv.eye_step_shift as i32),
@@ -712,8 +715,9 @@ struct Packet {
     frac: [__m256; 2],
     /// Behind clipping planes: each cell read this many slices further than the ray's slice
     /// (`Footprint::shift`; `LightVolume::front`), for every ray of the packet, and where each
-    /// cell's ray enters the medium (`Footprint::start`).
-    shift: Option<([__m256; 4], [__m256; 4])>,
+    /// cell's ray enters the medium (`Footprint::start`) and where the ray does
+    /// (`Footprint::entry`).
+    shift: Option<([__m256; 4], [__m256; 4], __m256)>,
     kv: __m256i,
     k1v: __m256i,
     /// Lit: the light step each ray last read (`Ray::lstep`) and the light reaching its next
@@ -775,6 +779,7 @@ impl Packet {
             let (mut cells, mut frac) = ([[0i32; LANES]; 4], [[0f32; LANES]; 2]);
             let mut shift = [[0f32; LANES]; 4];
             let mut start = [[f32::NEG_INFINITY; LANES]; 4];
+            let mut entry = [f32::NEG_INFINITY; LANES];
             let mut shifted = false;
             let (mut lstep, mut lrun) = ([-1i32; LANES], [1f32; LANES]);
             if LIT {
@@ -784,6 +789,7 @@ impl Packet {
                         shift[j][i] = r.light.shift[j];
                         start[j][i] = r.light.start[j];
                     }
+                    entry[i] = r.light.entry;
                     frac[0][i] = r.light.f[0];
                     frac[1][i] = r.light.f[1];
                     shifted |= r.light.shifted;
@@ -800,6 +806,7 @@ impl Packet {
                     (
                         shift.map(|x| _mm256_loadu_ps(x.as_ptr())),
                         start.map(|x| _mm256_loadu_ps(x.as_ptr())),
+                        _mm256_loadu_ps(entry.as_ptr()),
                     )
                 }),
                 frac: frac.map(|f| _mm256_loadu_ps(f.as_ptr())),
@@ -918,7 +925,9 @@ impl Packet {
                 if _mm256_movemask_ps(stale) != 0 {
                     let front = match &self.shift {
                         None => self.front(m, stale, st),
-                        Some((shift, start)) => self.front_shifted(m, stale, shift, start),
+                        Some((shift, start, entry)) => {
+                            self.front_shifted(m, stale, shift, start, *entry)
+                        }
                     };
                     self.lrun = _mm256_blendv_ps(self.lrun, front, stale);
                     self.lstep = _mm256_blendv_epi8(self.lstep, st, _mm256_castps_si256(stale));
@@ -1010,6 +1019,7 @@ impl Packet {
         lit: __m256,
         shift: &[__m256; 4],
         start: &[__m256; 4],
+        entry: __m256,
     ) -> __m256 {
         // SAFETY: the caller's; masked lanes read nothing.
         unsafe {
@@ -1023,6 +1033,16 @@ impl Packet {
             let kr = _mm256_cvtepi32_ps(self.kv);
             let eye = _mm256_cvtepi32_ps(_mm256_sll_epi32(_mm256_set1_epi32(1), m.eye_step_shift));
             let first = _mm256_castsi256_ps(_mm256_cmpeq_epi32(self.lstep, _mm256_set1_epi32(-1)));
+            // A cell's cut lies in the stored slice read only where the ray's own cut lies
+            // less than a stored slice (one eye slice more for the rounding) in front of its
+            // step's front, or on its first read (a stored slice, where `cell_from` gives `a`
+            // either way): elsewhere `LightVolume::cell_from`'s quotient is `x - fl` to the
+            // bit, without the cuts or the division (done for every read, they cost 5% of the
+            // march of a clipped frame).
+            let near = _mm256_movemask_ps(_mm256_and_ps(
+                lit,
+                _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_sub_ps(kf, entry), m.cut_reach),
+            )) != 0;
             let mut v = [zero; 4];
             for (j, v) in v.iter_mut().enumerate() {
                 let own = _mm256_mul_ps(
@@ -1071,14 +1091,10 @@ impl Packet {
                 };
                 // Constant up to where the cell's ray enters the medium within the stored
                 // slice, linear from there (`LightVolume::cell_from`).
-                // (Most reads lie a stored slice or more past the cut, `s = fl`: there the
-                // quotient is `x - fl` to the bit, without the division, which cost 3.5% of
-                // the march of a clipped frame.)
-                let s = _mm256_max_ps(_mm256_mul_ps(start[j], m.inv_step), fl);
-                let cut = _mm256_and_ps(lit, _mm256_cmp_ps::<_CMP_GT_OQ>(s, fl));
-                let t = if _mm256_movemask_ps(cut) == 0 {
+                let t = if !near {
                     _mm256_sub_ps(x, fl)
                 } else {
+                    let s = _mm256_max_ps(_mm256_mul_ps(start[j], m.inv_step), fl);
                     let t = _mm256_div_ps(
                         _mm256_sub_ps(x, s),
                         _mm256_sub_ps(_mm256_add_ps(fl, one), s),

@@ -215,6 +215,7 @@ impl LightVolume {
                 _ => (0.0, f32::NEG_INFINITY),
             };
         }
+        f.entry = entry.map_or(f32::NEG_INFINITY, |a| ((a - v.z0) / v.dz) as f32);
         f.shifted = true;
     }
 
@@ -238,6 +239,7 @@ impl LightVolume {
             f: [(c[0] - b[0]) as f32, (c[1] - b[1]) as f32],
             shift: [0.0; 4],
             start: [f32::NEG_INFINITY; 4],
+            entry: f32::NEG_INFINITY,
             shifted: false,
         }
     }
@@ -253,6 +255,9 @@ pub(crate) struct Footprint {
     pub shift: [f32; 4],
     /// Where each cell's ray enters the medium at the cut, in eye slices (`-inf`: no cut).
     pub start: [f32; 4],
+    /// Where the pixel's ray enters it (`-inf`: no cut): the lanes read a cell's `start` only
+    /// within a stored slice of it.
+    pub entry: f32,
     pub shifted: bool,
 }
 
