@@ -133,3 +133,69 @@ fn tubes_and_the_isosurface_share_the_image() {
     let b = out.image[px([70.0, 30.0, 49.0])];
     assert!((b[0] - b[1]).abs() < 0.02 && b[0] > 0.1, "box top {b:?}");
 }
+
+/// A hollow ball (a shell from radius 6 to 10) cut in half by a clipping plane through its
+/// centre and seen through the cut: the cavity's floor, shut off from the sky in the uncut
+/// solid, sees it through the opening. Its swept ambient term was 0 (black) when the octants
+/// described the uncut solid; exactly, the bowl's bottom sees a cone of 45 degrees (the rim
+/// at 45 degrees from its normal): cosine-weighted visibility 1/2.
+#[test]
+fn a_cut_opens_the_cavity_behind_it_to_the_sky() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 33usize;
+    let mut nrrd = format!(
+        "NRRD0004\ntype: uint8\ndimension: 3\nsizes: {n} {n} {n}\nspacing: 1 1 1\n\
+         encoding: raw\n\n"
+    )
+    .into_bytes();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let r = [i, j, k]
+                    .map(|x| (x as f64 - 16.0).powi(2))
+                    .iter()
+                    .sum::<f64>()
+                    .sqrt();
+                nrrd.push(((r - 8.0).abs() * 10.0).min(255.0).round() as u8);
+            }
+        }
+    }
+    std::fs::write(dir.path().join("shell.nrrd"), nrrd).unwrap();
+    let text = |clip: &str| {
+        format!(
+            "background = [0.0, 0.0, 0.0]\n[camera]\nazimuth = 90.0\nelevation = 0.0\n\
+             [volume]\npath = \"shell.nrrd\"\n[volume.iso]\nvalue = 20.0\ninside = \"below\"\n\
+             {clip}[render]\nwidth = 48\nheight = 48\nfxaa = false\n"
+        )
+    };
+    let gpu = engine::gpu::Gpu::new().expect("a GPU adapter (lavapipe in CI)");
+    let cut = "[[clip]]\nnormal = [-1.0, 0.0, 0.0]\noffset = -16.0\n";
+    let s = scene::spec::parse(&text(cut), "shell.toml", dir.path(), &[]).unwrap();
+    let m = model(&s).unwrap();
+    let (out, v) = render_scene(&gpu, &s, &m, 1).unwrap();
+    let (w, h) = (v.width as usize, v.height as usize);
+    let centre = out.aov[w / 2 + w * (h / 2)];
+    // The same frame with the octants of the uncut solid (as before the cut was swept).
+    let whole = scene::spec::parse(&text(""), "shell.toml", dir.path(), &[]).unwrap();
+    let mut shut = model(&s).unwrap();
+    shut.iso.as_mut().unwrap().octants = model(&whole).unwrap().iso.unwrap().octants;
+    let (uncut, _) = render_scene(&gpu, &s, &shut, 1).unwrap();
+    let before = uncut.aov[w / 2 + w * (h / 2)];
+    eprintln!(
+        "the cavity's floor: ambient {:.3} at depth {:.2} (uncut octants: {:.3})",
+        centre.combined, centre.depth, before.combined
+    );
+    // The pixel shows the floor (x = 22), not the cut face (x = 16).
+    let floor = (DVec3::new(22.0, 16.0, 16.0) - v.camera.eye).dot(v.camera.forward());
+    assert!(
+        (centre.depth as f64 - floor).abs() < 0.5,
+        "depth {}",
+        centre.depth
+    );
+    assert!(before.combined < 0.05, "{}", before.combined);
+    assert!(
+        (0.25..0.75).contains(&centre.combined),
+        "{}",
+        centre.combined
+    );
+}

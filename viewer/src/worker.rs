@@ -178,6 +178,7 @@ type DataKey = (
     Vec<scene::spec::TubesSpec>,
     Vec<scene::spec::LinesSpec>,
     Vec<scene::spec::PointsSpec>,
+    Vec<scene::spec::ClipSpec>,
 );
 
 fn data_key(s: &Scene) -> DataKey {
@@ -185,7 +186,17 @@ fn data_key(s: &Scene) -> DataKey {
         v.transfer = Default::default();
         v
     });
-    (volume, s.tubes.clone(), s.lines.clone(), s.points.clone())
+    // An isosurface's octant fields are swept for the scene's clipping planes
+    // (`scene::compile::model`): another cut is another model.
+    let iso = s.volume.as_ref().is_some_and(|v| v.iso.is_some());
+    let clip = if iso { s.clip.clone() } else { vec![] };
+    (
+        volume,
+        s.tubes.clone(),
+        s.lines.clone(),
+        s.points.clone(),
+        clip,
+    )
 }
 
 /// The finite range of a model's volume samples (gaps excluded), `[0, 1]` without a volume.
@@ -366,7 +377,14 @@ impl Session {
         let tf = req.scene.volume.as_ref().map(|v| v.transfer.clone());
         let key = data_key(&req.scene);
         let mut rebuilt = None;
-        if key != self.data {
+        // While a clipping plane is dragged, the drafts keep the isosurface's octants of the
+        // cut before (sweeping them anew takes a load of the volume and a sweep); the full
+        // image at rest is swept for its own cut, as `umbra render` draws it.
+        let cut_only = key.0 == self.data.0
+            && key.1 == self.data.1
+            && key.2 == self.data.2
+            && key.3 == self.data.3;
+        if key != self.data && !(cut_only && req.level == Level::Draft) {
             // Other objects (opened, removed, hidden, resized, recoloured): the model anew.
             // Both made before either is kept: a failed upload leaves model and upload as
             // they were, in step (drafts take lists from the one into the other's buffers).

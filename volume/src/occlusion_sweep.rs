@@ -123,6 +123,83 @@ pub fn transmittance(init: &Initial, alpha: Option<f32>) -> Vec<u8> {
     tau
 }
 
+/// Quantised transmittance of an isosurface's solid cut by clipping planes (each keeping
+/// `normal . p <= offset`, world units; `affine` maps voxel indices to world), from its signed
+/// distance field `distance` (world units, negative inside): eq. (7) from the distance,
+/// `clamp(D / h + 1/2, 0, 1)` with `h` the smallest spacing, and the removed half-spaces
+/// transparent by the same rule from the distance past each plane - a voxel keeps the larger
+/// of the two. The octants swept from it ([`sweep_octants`]) describe the cut solid: a cavity
+/// the cut opens sees the sky through the opening, where the uncut fields (the sky shut out
+/// by the removed wall) left it black. `None` where no plane comes within half a voxel of a
+/// voxel centre (the uncut fields hold). Off the band the distance decides as the
+/// classification does, except where closest points put a voxel off the band within half a
+/// voxel of the surface (the module doc): there `tau` is fractional, not 0 or 1. A NaN
+/// distance is open.
+pub fn transmittance_clipped(
+    distance: &[f32],
+    dims: [usize; 3],
+    affine: &DMat4,
+    planes: &[([f64; 3], f64)],
+) -> Option<Vec<u8>> {
+    use rayon::prelude::*;
+    let [nx, ny, nz] = dims;
+    assert_eq!(distance.len(), nx * ny * nz);
+    let axes = [affine.x_axis, affine.y_axis, affine.z_axis].map(|a| a.truncate());
+    let h = axes
+        .iter()
+        .map(|a| a.length())
+        .fold(f64::INFINITY, f64::min);
+    // Per plane, its signed distance past the plane (world units) at voxel (0, 0, 0) and its
+    // steps along the three axes: affine in the index.
+    let planes: Vec<(f64, [f64; 3])> = planes
+        .iter()
+        .filter_map(|(n, off)| {
+            let n = DVec3::from(*n);
+            let len = n.length();
+            (len > 0.0 && len.is_finite()).then(|| {
+                let n = n / len;
+                let o = affine.w_axis.truncate();
+                (n.dot(o) - off / len, axes.map(|a| n.dot(a)))
+            })
+        })
+        .collect();
+    let cut = |i: usize, j: usize, k: usize| {
+        planes
+            .iter()
+            .map(|(d0, s)| d0 + s[0] * i as f64 + s[1] * j as f64 + s[2] * k as f64)
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    // Nothing within half a voxel of a plane: the extremes of an affine function are at the
+    // grid's corners.
+    let reach = (0..8)
+        .map(|c| {
+            let at = |b: usize, n: usize| if c & b != 0 { n.saturating_sub(1) } else { 0 };
+            cut(at(1, nx), at(2, ny), at(4, nz))
+        })
+        .fold(f64::NEG_INFINITY, f64::max);
+    if planes.is_empty() || reach <= -0.5 * h {
+        return None;
+    }
+    let quantise = |t: f64| (t.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+    let mut tau = crate::memory::zeroed(distance.len(), 0u8);
+    tau.par_chunks_mut(nx)
+        .zip(distance.par_chunks(nx))
+        .enumerate()
+        .for_each(|(row, (t, d))| {
+            let (j, k) = (row % ny, row / ny);
+            for (i, (t, &d)) in t.iter_mut().zip(d).enumerate() {
+                let solid = if d.is_nan() {
+                    f64::INFINITY
+                } else {
+                    d as f64 / h + 0.5
+                };
+                let open = cut(i, j, k) / h + 0.5;
+                *t = quantise(solid.max(open));
+            }
+        });
+    Some(tau)
+}
+
 /// Sweeps the four octants with z direction `sz` (+1 or -1) in one pass, one octant per lane.
 ///
 /// Each octant is swept in its own coordinates, mirrored in x and y so that all four go
@@ -285,6 +362,63 @@ pub fn sky_direction_world(s: usize, affine: &DMat4) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A hollow ball (a shell from radius 6 to 10 about the centre of a 33^3 grid) cut in
+    /// half by the plane x = 16 (keeping x <= 16): the cavity, black inside the uncut shell,
+    /// sees the sky through the cut on the side it faces and not on the other.
+    #[test]
+    fn a_cut_opens_the_cavity_it_crosses_to_the_sky_on_its_side() {
+        let n = 33;
+        let dims = [n; 3];
+        let c = 16.0;
+        let mut sdf = vec![0f32; n * n * n];
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let r =
+                        ((i as f64 - c).powi(2) + (j as f64 - c).powi(2) + (k as f64 - c).powi(2))
+                            .sqrt();
+                    sdf[i + n * (j + n * k)] = (r - 10.0).max(6.0 - r) as f32;
+                }
+            }
+        }
+        let solid: Vec<u8> = sdf
+            .iter()
+            .map(|&d| ((d as f64 + 0.5).clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+            .collect();
+        let uncut = sweep_octants(&solid, dims);
+        let affine = DMat4::IDENTITY;
+        // A plane past the grid cuts nothing.
+        assert!(transmittance_clipped(&sdf, dims, &affine, &[([1.0, 0.0, 0.0], 40.0)]).is_none());
+        // Within the grid but past the shell (x = 28): the transmittance is the uncut one.
+        let far = transmittance_clipped(&sdf, dims, &affine, &[([2.0, 0.0, 0.0], 56.0)]).unwrap();
+        assert_eq!(sweep_octants(&far, dims), uncut);
+        let tau = transmittance_clipped(&sdf, dims, &affine, &[([2.0, 0.0, 0.0], 32.0)]).unwrap();
+        // Past the plane, open; the plane's own voxels half open; the shell before it solid.
+        assert_eq!(tau[30 + n * (16 + n * 16)], 255);
+        assert_eq!(tau[16 + n * (16 + n * 24)], 128);
+        assert_eq!(tau[8 + n * (16 + n * 16)], 0);
+        let cut = sweep_octants(&tau, dims);
+        // In the cavity, four voxels in front of the cut.
+        let p = 12 + n * (16 + n * 16);
+        let sky_x = |s: usize| -crate::distance_sweep::SWEEP_DIRECTIONS[s][0];
+        for s in 0..8 {
+            assert!(uncut.v(s, p) < 0.02, "octant {s} uncut: {}", uncut.v(s, p));
+            if sky_x(s) > 0 {
+                assert!(
+                    cut.v(s, p) > 0.2,
+                    "octant {s} towards the cut: {}",
+                    cut.v(s, p)
+                );
+            } else {
+                assert!(
+                    cut.v(s, p) < 0.02,
+                    "octant {s} away from the cut: {}",
+                    cut.v(s, p)
+                );
+            }
+        }
+    }
 
     fn sweep_scalar(values: &[f32], dims: [usize; 3]) -> OctantFields {
         let opts = DistanceOptions::default();
