@@ -369,3 +369,59 @@ fn a_share_of_the_lines_drawn_with_the_shared_volume_equals_its_own_upload() {
         "blue tubes are drawn"
     );
 }
+
+/// An isosurface's octant fields are swept for the scene's cut: a clipping plane moved, the
+/// drafts keep the octants of the cut before (no new model while it is dragged), the image at
+/// rest has its own cut's, those `umbra render` sweeps for it.
+#[test]
+fn a_moved_clipping_plane_resweeps_the_isosurface_at_rest() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap();
+    let scene_at = |offset: f64| {
+        let text = format!(
+            "[volume]\npath = \"{}\"\n[volume.iso]\nvalue = 1000.0\n\
+             [[clip]]\nnormal = [1.0, 0.0, 0.0]\noffset = {offset}\n\
+             [render]\nwidth = 32\nheight = 24\nfxaa = false\n",
+            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        );
+        scene::spec::parse(&text, "iso.toml", dir.path(), &[]).unwrap()
+    };
+    let (a, b) = (scene_at(100.0), scene_at(120.0));
+    let mut session =
+        umbra_viewer::worker::Session::new(scene::compile::model(&a).unwrap(), &a).unwrap();
+    let req = |scene: &scene::spec::Scene, level: Level| Request {
+        id: 0,
+        scene: scene.clone(),
+        level,
+        save: None,
+        pass_timings: false,
+    };
+    let octants = |m: &scene::compile::Model| m.iso.as_ref().unwrap().octants.clone();
+    let (cut_a, cut_b) = (
+        octants(&scene::compile::model(&a).unwrap()),
+        octants(&scene::compile::model(&b).unwrap()),
+    );
+    assert_ne!(
+        cut_a, cut_b,
+        "the two cuts open different voxels to the sky"
+    );
+    assert!(session
+        .frame(&req(&a, Level::Full))
+        .unwrap()
+        .rebuilt
+        .is_none());
+    let draft = session.frame(&req(&b, Level::Draft)).unwrap();
+    assert!(
+        draft.rebuilt.is_none(),
+        "a draft keeps the model of the cut before"
+    );
+    assert!(octants(session.model()) == cut_a);
+    let full = session.frame(&req(&b, Level::Full)).unwrap();
+    assert!(
+        full.rebuilt.is_some(),
+        "the image at rest is swept for its cut"
+    );
+    assert!(octants(session.model()) == cut_b);
+}
