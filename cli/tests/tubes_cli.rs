@@ -64,7 +64,11 @@ fn tubes_writes_ply_and_obj_with_statistics() {
     assert_eq!(j["streamlines_in"], 300);
     assert!(j["max_deviation"].as_f64().unwrap() <= 0.1 + 1e-9);
     assert!(j["control_points"].as_u64().unwrap() < j["points_in"].as_u64().unwrap());
-    assert!(j["max_twist_deg"].as_f64().unwrap() <= 1.5);
+    // Most of these lines are meshed as polylines at this tolerance (their fits placed more
+    // rings than their polylines need): a polyline's frames twist more between its rings than
+    // a fitted curve's (2.94 degrees here; 1.32 when 14 of the 300 were polylines).
+    assert!(j["max_twist_deg"].as_f64().unwrap() <= 3.5);
+    assert!(j["polyline_pieces"].as_u64().unwrap() > 150);
     assert!(j["min_section_ratio"].as_f64().unwrap() >= 0.5);
     // The PLY header lists what the issue asks for, and the body has the announced size.
     let bytes = std::fs::read(&ply).unwrap();
@@ -338,4 +342,38 @@ fn a_ply_larger_than_the_memory_limit_is_written_part_by_part() {
         "{err}"
     );
     assert!(!obj.exists());
+}
+
+/// A looser tolerance never costs many more triangles: HCP1065's TR_S_R took 808,768 at
+/// tolerance 0.1 against 458,080 at 0.05 while a fitted line could take more rings than its
+/// polyline (its lines rough enough at 0.05 to be polylines, smooth enough at 0.1 to be
+/// fitted, their fits wiggling within the tolerance); now 446,368 against 427,360 (the lines
+/// with a sharp turn keep their fits) and 380,896 at 0.2.
+#[test]
+fn a_looser_tolerance_does_not_cost_more_triangles_on_hcp1065() {
+    let Some(shared) = test_support::shared_or_skip("a_looser_tolerance") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = umbra()
+        .args(["bench", "tubes"])
+        .arg(shared.join("tracts/hcp1065/TR_S_R.trk.gz"))
+        .arg("-o")
+        .arg(dir.path())
+        .args(["--tolerances", "0.05,0.1,0.2", "--runs", "1"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.path().join("tubes.csv")).unwrap();
+    let tri: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(tri.len(), 3, "{csv}");
+    assert!(tri[1] <= 1.1 * tri[0] && tri[2] <= tri[1], "{tri:?}");
 }

@@ -790,6 +790,28 @@ fn sharp_ranges(points: &[DVec3], a: usize, b: usize) -> Vec<(usize, usize)> {
     out
 }
 
+/// The points whose rings a piece meshed as its polyline needs, and the largest deviation of
+/// the others from the rings' polyline: those the tolerance lets go are dropped where the
+/// colour does not come from them (`simplify_polyline`), unless the rings left would turn
+/// sharply at a point and fold there.
+fn polyline_rings(points: &[DVec3], o: &TubeOptions) -> (Vec<usize>, f64) {
+    let all = || (0..points.len()).collect::<Vec<usize>>();
+    match o.color {
+        ColorMode::Direction | ColorMode::Constant(_) => {
+            let (keep, d) = simplify_polyline(points, o.fit.epsilon, SIMPLIFY_TURN_DEG);
+            if keep
+                .windows(3)
+                .any(|w| sharp(&[points[w[0]], points[w[1]], points[w[2]]]))
+            {
+                (all(), 0.0)
+            } else {
+                (keep, d)
+            }
+        }
+        ColorMode::Scalar(..) | ColorMode::Field(..) => (all(), 0.0),
+    }
+}
+
 /// Builds the tube of one cleaned polyline piece.
 ///
 /// `None` where the fit would place more rings than the piece has points (or keep every point)
@@ -824,6 +846,8 @@ fn tube(
     let mut polyline = rmf_iterative && too_rough(points, o.fit.epsilon) && !sharp_turn(points);
     let fitted = (!polyline).then(|| fit(points, &o.fit));
     let mut fit_params = Vec::new();
+    // The polyline's rings, where the decision below took them.
+    let mut kept: Option<(Vec<usize>, f64)> = None;
     if let Some(f) = &fitted {
         // Meshed as its polyline (deviation 0) where the fit keeps every point (which tells a
         // rough line only from eight points up, or in a part between sharp turns: a cubic
@@ -846,8 +870,20 @@ fn tube(
                 && (w[0].2.normalize_or_zero().dot(chord) < 0.5
                     || w[1].2.normalize_or_zero().dot(chord) < 0.5)
         });
-        let as_polyline = in_vain || fit_params.len() > points.len() || loops;
         let sharp = sharp_turn(points);
+        // Against the rings its polyline would place (the points the tolerance cannot let
+        // go), not its points: on HCP1065's TR_S_R at tolerance 0.1, lines smooth enough to be
+        // fitted took more rings than their polylines, 808,768 triangles against 458,080 at
+        // the tighter 0.05, where they were rough enough to be polylines.
+        // (Not for a line that turns sharply: split at its turns, a smooth hairpin would show
+        // a corner where its fit bends.)
+        if rmf_iterative && !in_vain && !loops && !sharp && fit_params.len() <= points.len() {
+            let keep = polyline_rings(points, o);
+            if fit_params.len() > keep.0.len() {
+                kept = Some(keep);
+            }
+        }
+        let as_polyline = in_vain || fit_params.len() > points.len() || loops || kept.is_some();
         if rmf_iterative && as_polyline && sharp && !between_turns {
             return None;
         }
@@ -871,21 +907,7 @@ fn tube(
         // The points whose rings the tube needs: those the tolerance lets go are dropped
         // where the colour does not come from them (`simplify_polyline`), unless the rings
         // left would turn sharply at a point and fold there.
-        let all = || (0..points.len()).collect::<Vec<usize>>();
-        let (keep, deviation) = match o.color {
-            ColorMode::Direction | ColorMode::Constant(_) => {
-                let (keep, d) = simplify_polyline(points, o.fit.epsilon, SIMPLIFY_TURN_DEG);
-                if keep
-                    .windows(3)
-                    .any(|w| sharp(&[points[w[0]], points[w[1]], points[w[2]]]))
-                {
-                    (all(), 0.0)
-                } else {
-                    (keep, d)
-                }
-            }
-            ColorMode::Scalar(..) | ColorMode::Field(..) => (all(), 0.0),
-        };
+        let (keep, deviation) = kept.take().unwrap_or_else(|| polyline_rings(points, o));
         st.control_points = keep.len();
         st.max_deviation = deviation;
         let n = keep.len();
