@@ -264,8 +264,8 @@ fn light_step_at(ci: u32, kf: f32) -> f32 {
 }
 
 // light_step_at for a cell whose ray enters the medium at stored slice `entry` (its cut; -1e30
-// none): within the stored slice `entry` lies in, constant up to `entry` and linear from there to
-// the next (`LightVolume::cell_from` in raycast/src/light.rs): nothing before the cut absorbs.
+// none): within the stored slice `entry` lies in, constant up to `entry` and geometric from there
+// to the next (`LightVolume::cell_from` in raycast/src/light.rs): nothing before the cut absorbs.
 fn light_step_from(ci: u32, kf: f32, entry: f32) -> f32 {
     if (kf < 0.0) {
         return light_step_at(ci, kf);
@@ -281,7 +281,16 @@ fn light_step_from(ci: u32, kf: f32, entry: f32) -> f32 {
     }
     let a = light_volume[ci + base * min(k0, n - 1u)];
     let b = light_volume[ci + base * min(k0 + 1u, n - 1u)];
-    return mix(a, b, t);
+    // Geometric from a cut within the stored slice, a (b / a)^t: exact for a medium uniform
+    // between the two (`geometric` in raycast/src/light.rs, there by its own logarithm and
+    // exponential); linear elsewhere, and within 1% of each other.
+    let lo = min(a, b);
+    if (t == 0.0 || !(lo > 1e-20) || !(s > fl) || !(max(a, b) - lo > 0.01 * max(a, b))) {
+        return mix(a, b, t);
+    }
+    let hi = max(a, b);
+    let u = select(1.0 - t, t, a >= b);
+    return hi * exp(-u * log(hi / lo));
 }
 
 // Where a pixel behind a clipping plane reads its four cells: each cell at the same distance
