@@ -302,8 +302,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let look = p + n * (P.offset * h_min);
     var am = ambient(sample_octants((P.world_to_index * vec4<f32>(look, 1.0)).xyz), n);
     if (cut >= 0 && hit == t0) {
-        // The swept fields describe the uncut volume, in which a cut face lies inside the
-        // solid: it faces the removed, empty half-space and is shaded unoccluded.
+        // A cut face faces the removed, empty half-space: its hemisphere is open, shaded
+        // unoccluded (the fields, swept for the cut solid, would read octants that straddle
+        // the plane as partly shut).
         am = 1.0;
     }
     // Shaded as the tubes are (eq. 9): A colour (ambient + diffuse (n.l)) + specular.

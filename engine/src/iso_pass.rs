@@ -14,8 +14,9 @@
 //! The surface is shaded as the tubes are (eq. 9): `A colour (ambient + diffuse (N.L)) +
 //! specular` under the head light. Tested against the CPU reference on lavapipe. Clipping
 //! planes that cut the volume cut the isosurface: a ray entering a kept half-space inside the
-//! solid meets the cut face (normal: the plane's; unoccluded, as it faces the removed half,
-//! which the swept fields of the uncut volume do not know is empty).
+//! solid meets the cut face (normal: the plane's; unoccluded, as it faces the removed half),
+//! and the octant fields are swept for the cut solid (`scene::fields::iso_fields`), so a
+//! cavity the cut opens sees the sky through the opening.
 
 use crate::gpu::{Gpu, Slot};
 use crate::prelude::{clip_planes, mat4, vec4, with_prelude, FrameUniform, LightUniform};

@@ -500,6 +500,10 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 &vspec.path,
             )
             .map_err(|e| format!("volume.iso.value: {e}"))?;
+            // The octants describe the solid cut by the scene's clipping planes: a cavity the
+            // cut opens sees the sky through it (`volume::occlusion_sweep::open_cut`).
+            let planes: Vec<([f64; 3], f64)> =
+                s.clip.iter().map(|c| (c.normal, c.offset)).collect();
             let (sdf, octants) = crate::fields::iso_fields(
                 &vol,
                 &values,
@@ -509,18 +513,10 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 None,
                 true,
                 None,
+                &planes,
             )
             .map_err(|e| format!("volume.iso.fields: {e}"))?;
-            let mut octants = octants.ok_or("volume.iso: the octant fields are missing")?;
-            // Cut by the scene's clipping planes: a cavity the cut opens sees the sky through
-            // it (the uncut fields keep it black: `transmittance_clipped`).
-            let planes: Vec<([f64; 3], f64)> =
-                s.clip.iter().map(|c| (c.normal, c.offset)).collect();
-            if let Some(tau) =
-                volume::occlusion_sweep::transmittance_clipped(&sdf, vol.dims, &vol.affine, &planes)
-            {
-                octants = volume::occlusion_sweep::sweep_octants(&tau, vol.dims);
-            }
+            let octants = octants.ok_or("volume.iso: the octant fields are missing")?;
             let surface = occlusion::isosurface::IsoSurface::new(
                 vol.dims,
                 vol.affine,

@@ -8,7 +8,7 @@ use std::time::Instant;
 use volume::distance_sweep::classify_and_initialise_owned;
 use volume::distance_sweep::{DistanceField, DistanceMethod, DistanceOptions, InitMethod, Inside};
 use volume::nrrd::{self, Array, ArrayData, WriteEncoding};
-use volume::occlusion_sweep::{fields_from_band, sweep_fields, OcclusionOptions, OctantFields};
+use volume::occlusion_sweep::{fields_from_band, OcclusionOptions, OctantFields};
 use volume::{FieldSelector, ScalarType, Volume};
 
 /// What `umbra sweep` is asked to do.
@@ -178,9 +178,42 @@ pub fn write_octants(
             content: "octant visibility x 255 (Table 1 order)",
         },
         WriteEncoding::Raw,
-        &[(SWEEP_KEY, &sweep.id), (LEVEL_KEY, &sweep.level)],
+        &[
+            (SWEEP_KEY, &sweep.id),
+            (LEVEL_KEY, &sweep.level),
+            (
+                SUBSURFACE_KEY,
+                &sweep.subsurface.map_or("none".into(), |a| format!("{a:?}")),
+            ),
+        ],
     )
     .map_err(|e| e.to_string())
+}
+
+/// The NRRD key of an octants file holding the subsurface opacity it was swept with (`none`,
+/// or the opacity): the octants swept again for a cut keep it ([`iso_fields`]).
+pub const SUBSURFACE_KEY: &str = "umbra_subsurface";
+
+/// The subsurface opacity an octants file was swept with: `None` for `none`, for a file
+/// without the key (other writers, umbra before 2026-12-07) and for a format without keys.
+fn subsurface_of(octants: &Path) -> Result<Option<f32>, String> {
+    let Ok(kv) = nrrd::key_values(octants) else {
+        return Ok(None);
+    };
+    match kv.into_iter().find(|(k, _)| k == SUBSURFACE_KEY) {
+        Some((_, v)) if v != "none" => v
+            .parse::<f32>()
+            .ok()
+            .filter(|a| (0.0..=1.0).contains(a))
+            .map(Some)
+            .ok_or_else(|| {
+                format!(
+                    "{}: {SUBSURFACE_KEY} {v:?} is not an opacity from 0 to 1",
+                    octants.display()
+                )
+            }),
+        _ => Ok(None),
+    }
 }
 
 /// The NRRD key whose value pairs a distance file with the octant fields of the same sweep:
@@ -196,6 +229,8 @@ pub const LEVEL_KEY: &str = "umbra_iso";
 pub struct SweepTag {
     pub id: String,
     pub level: String,
+    /// The subsurface opacity the octants were swept with ([`SUBSURFACE_KEY`]).
+    pub subsurface: Option<f32>,
 }
 
 /// The [`LEVEL_KEY`] value of an iso level and side.
@@ -373,6 +408,7 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
     let tag = SweepTag {
         id,
         level: level_tag(args.iso, args.inside),
+        subsurface: args.subsurface_alpha,
     };
     let oct_path = match (&oct, args.sdf_only) {
         (Some(o), false) => {
@@ -416,7 +452,10 @@ pub fn run(args: &SweepArgs, stage: &dyn Fn(&str)) -> Result<SweepSummary, Strin
 
 /// The distance field and (when `need_octants`) the eight octant visibilities of an
 /// isosurface: read from `fields` (the octants from `octants` or beside it) when given, else
-/// swept in memory.
+/// swept in memory. The octants describe the solid cut by the clipping planes `cut` (each
+/// keeping `normal . p <= offset`; `volume::occlusion_sweep::open_cut`): swept in memory with
+/// the cut, or, read from files, swept again from the distance field where a plane reaches the
+/// grid (with the subsurface opacity the octants file records, [`SUBSURFACE_KEY`]).
 #[allow(clippy::too_many_arguments)]
 pub fn iso_fields(
     vol: &volume::Volume,
@@ -427,6 +466,7 @@ pub fn iso_fields(
     octants: Option<&std::path::Path>,
     need_octants: bool,
     subsurface_alpha: Option<f32>,
+    cut: &[([f64; 3], f64)],
 ) -> Result<(Vec<f32>, Option<volume::occlusion_sweep::OctantFields>), String> {
     match fields {
         Some(p) => {
@@ -445,7 +485,18 @@ pub fn iso_fields(
                     .map(|o| o.to_path_buf())
                     .unwrap_or_else(|| default_octants_path(p));
                 check_pair(p, &op)?;
-                Some(read_octants(&op, vol.dims)?)
+                let alpha = subsurface_of(&op)?;
+                let distance = &d.fields[0].data;
+                let mut tau = volume::occlusion_sweep::transmittance_from_distance(
+                    distance,
+                    vol.spacing(),
+                    alpha,
+                );
+                if volume::occlusion_sweep::open_cut(&mut tau, vol.dims, &vol.affine, cut) {
+                    Some(volume::occlusion_sweep::sweep_octants(&tau, vol.dims))
+                } else {
+                    Some(read_octants(&op, vol.dims)?)
+                }
             } else {
                 None
             };
@@ -460,13 +511,15 @@ pub fn iso_fields(
             };
             dopts.check()?;
             OcclusionOptions { subsurface_alpha }.check()?;
-            let (df, oct) = sweep_fields(
-                values,
-                vol.dims,
-                [sp[0] as f32, sp[1] as f32, sp[2] as f32],
+            let spacing = [sp[0] as f32, sp[1] as f32, sp[2] as f32];
+            let init =
+                volume::distance_sweep::classify_and_initialise(values, vol.dims, spacing, &dopts);
+            let (df, oct) = volume::occlusion_sweep::fields_from_band_cut(
+                init,
                 &dopts,
                 &OcclusionOptions { subsurface_alpha },
-                true,
+                need_octants,
+                (!cut.is_empty()).then_some((&vol.affine, cut)),
             );
             Ok((df.distance, oct))
         }

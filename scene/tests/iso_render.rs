@@ -198,4 +198,81 @@ fn a_cut_opens_the_cavity_behind_it_to_the_sky() {
         "{}",
         centre.combined
     );
+    // Nothing but the isosurface: `combined` (the default method) draws it as `ea` does,
+    // without sweeping a light volume over the empty medium (most of its frame before).
+    assert!(
+        out.light.is_none(),
+        "a light volume swept for an isosurface alone"
+    );
+    let mut ea = s.clone();
+    ea.render.method = engine::method::Method::Ea;
+    let (ea_out, _) = render_scene(&gpu, &ea, &m, 1).unwrap();
+    assert_eq!(ea_out.image, out.image);
+}
+
+/// Fields read from files are swept again for the scene's cut with the subsurface opacity
+/// their octants file records (`umbra_subsurface`): a sweep with `--subsurface 0.5` and one
+/// without give other octants for the same cut, and the uncut scene keeps the files' own.
+#[test]
+fn fields_from_files_keep_their_subsurface_opacity_when_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = volume::synthetic::validation_scene(24);
+    let path = dir.path().join("v.nrrd");
+    volume::nrrd::write(
+        &path,
+        &vol,
+        &vol.fields[0],
+        volume::nrrd::WriteEncoding::Raw,
+    )
+    .unwrap();
+    let sweep = |name: &str, alpha: Option<f32>| {
+        let out = dir.path().join(format!("{name}.nrrd"));
+        scene::fields::run(
+            &scene::fields::SweepArgs {
+                input: path.clone(),
+                iso: 0.0,
+                output: out.clone(),
+                octants_out: None,
+                inside: volume::distance_sweep::Inside::Below,
+                field: None,
+                sdf_only: false,
+                init: volume::distance_sweep::InitMethod::Gradient,
+                method: volume::distance_sweep::DistanceMethod::ClosestPoint,
+                tolerance: 1e-3,
+                subsurface_alpha: alpha,
+            },
+            &|_| {},
+        )
+        .unwrap();
+        let octants = scene::fields::default_octants_path(&out);
+        let header = std::fs::read(&octants).unwrap();
+        let text = String::from_utf8_lossy(&header[..header.len().min(2000)]).to_string();
+        let want = alpha.map_or("umbra_subsurface:=none".to_string(), |a| {
+            format!("umbra_subsurface:={a:?}")
+        });
+        assert!(text.contains(&want), "{want} in\n{text}");
+        out
+    };
+    let (plain, soft) = (sweep("plain", None), sweep("soft", Some(0.5)));
+    let octants = |fields: &std::path::Path, clip: &str| {
+        let text = format!(
+            "[volume]\npath = \"v.nrrd\"\n[volume.iso]\nvalue = 0.0\ninside = \"below\"\n\
+             fields = \"{}\"\n{clip}[render]\nwidth = 16\nheight = 16\n",
+            fields.display()
+        );
+        let s = scene::spec::parse(&text, "iso.toml", dir.path(), &[]).unwrap();
+        model(&s).unwrap().iso.unwrap().octants
+    };
+    let cut = "[[clip]]\nnormal = [1.0, 0.0, 0.0]\noffset = 50.0\n";
+    let (plain_cut, soft_cut) = (octants(&plain, cut), octants(&soft, cut));
+    assert_ne!(
+        plain_cut, soft_cut,
+        "the subsurface opacity kept through the cut"
+    );
+    // Soft everywhere at least as open; the cut opens the plain solid.
+    let sum = |o: &volume::occlusion_sweep::OctantFields| -> u64 {
+        o.octants.iter().flatten().map(|&v| v as u64).sum()
+    };
+    assert!(sum(&soft_cut) > sum(&plain_cut));
+    assert!(sum(&plain_cut) > sum(&octants(&plain, "")));
 }

@@ -178,7 +178,7 @@ type DataKey = (
     Vec<scene::spec::TubesSpec>,
     Vec<scene::spec::LinesSpec>,
     Vec<scene::spec::PointsSpec>,
-    Vec<scene::spec::ClipSpec>,
+    Vec<([f64; 3], f64)>,
 );
 
 fn data_key(s: &Scene) -> DataKey {
@@ -189,7 +189,10 @@ fn data_key(s: &Scene) -> DataKey {
     // An isosurface's octant fields are swept for the scene's clipping planes
     // (`scene::compile::model`): another cut is another model.
     let iso = s.volume.as_ref().is_some_and(|v| v.iso.is_some());
-    let clip = if iso { s.clip.clone() } else { vec![] };
+    let clip = match iso {
+        true => s.clip.iter().map(|c| (c.normal, c.offset)).collect(),
+        false => vec![],
+    };
     (
         volume,
         s.tubes.clone(),

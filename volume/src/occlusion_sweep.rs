@@ -123,34 +123,29 @@ pub fn transmittance(init: &Initial, alpha: Option<f32>) -> Vec<u8> {
     tau
 }
 
-/// Quantised transmittance of an isosurface's solid cut by clipping planes (each keeping
-/// `normal . p <= offset`, world units; `affine` maps voxel indices to world), from its signed
-/// distance field `distance` (world units, negative inside): eq. (7) from the distance,
-/// `clamp(D / h + 1/2, 0, 1)` with `h` the smallest spacing, and the removed half-spaces
-/// transparent by the same rule from the distance past each plane - a voxel keeps the larger
-/// of the two. The octants swept from it ([`sweep_octants`]) describe the cut solid: a cavity
-/// the cut opens sees the sky through the opening, where the uncut fields (the sky shut out
-/// by the removed wall) left it black. `None` where no plane comes within half a voxel of a
-/// voxel centre (the uncut fields hold). Off the band the distance decides as the
-/// classification does, except where closest points put a voxel off the band within half a
-/// voxel of the surface (the module doc): there `tau` is fractional, not 0 or 1. A NaN
-/// distance is open.
-pub fn transmittance_clipped(
-    distance: &[f32],
-    dims: [usize; 3],
-    affine: &DMat4,
-    planes: &[([f64; 3], f64)],
-) -> Option<Vec<u8>> {
+/// A clipping plane: its normal and offset, keeping `normal . p <= offset` (world units).
+pub type ClipPlane = ([f64; 3], f64);
+
+/// Opens the transmittance `tau` (quantised, as [`transmittance`] gives it) of an isosurface's
+/// solid to the half-spaces clipping planes remove (each plane keeps `normal . p <= offset`,
+/// world units; `affine` maps voxel indices to world): a voxel takes the larger of its own
+/// transmittance and the plane's, by eq. (7)'s rule from the distance past the plane,
+/// `clamp(d / h + 1/2, 0, 1)` with `h` the smallest spacing. The octants swept from it
+/// ([`sweep_octants`]) describe the cut solid: a cavity the cut opens sees the sky through the
+/// opening, where the uncut fields (the sky shut out by the removed wall) left it black.
+/// `false`, `tau` untouched, where no plane comes within half a voxel of a voxel centre (the
+/// uncut fields hold).
+pub fn open_cut(tau: &mut [u8], dims: [usize; 3], affine: &DMat4, planes: &[ClipPlane]) -> bool {
     use rayon::prelude::*;
     let [nx, ny, nz] = dims;
-    assert_eq!(distance.len(), nx * ny * nz);
+    assert_eq!(tau.len(), nx * ny * nz);
     let axes = [affine.x_axis, affine.y_axis, affine.z_axis].map(|a| a.truncate());
     let h = axes
         .iter()
         .map(|a| a.length())
         .fold(f64::INFINITY, f64::min);
-    // Per plane, its signed distance past the plane (world units) at voxel (0, 0, 0) and its
-    // steps along the three axes: affine in the index.
+    // Per plane, the signed distance past it (world units) at voxel (0, 0, 0) and its steps
+    // along the three axes: affine in the index.
     let planes: Vec<(f64, [f64; 3])> = planes
         .iter()
         .filter_map(|(n, off)| {
@@ -163,41 +158,63 @@ pub fn transmittance_clipped(
             })
         })
         .collect();
-    let cut = |i: usize, j: usize, k: usize| {
+    let past = |i: usize, j: usize, k: usize| {
         planes
             .iter()
             .map(|(d0, s)| d0 + s[0] * i as f64 + s[1] * j as f64 + s[2] * k as f64)
             .fold(f64::NEG_INFINITY, f64::max)
     };
-    // Nothing within half a voxel of a plane: the extremes of an affine function are at the
-    // grid's corners.
+    // Nothing within half a voxel of a plane: the largest of affine functions is convex, its
+    // maximum over the grid at a corner.
     let reach = (0..8)
         .map(|c| {
             let at = |b: usize, n: usize| if c & b != 0 { n.saturating_sub(1) } else { 0 };
-            cut(at(1, nx), at(2, ny), at(4, nz))
+            past(at(1, nx), at(2, ny), at(4, nz))
         })
         .fold(f64::NEG_INFINITY, f64::max);
-    if planes.is_empty() || reach <= -0.5 * h {
-        return None;
+    if planes.is_empty() || nx == 0 || reach.is_nan() || reach <= -0.5 * h {
+        return false;
     }
-    let quantise = |t: f64| (t.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+    tau.par_chunks_mut(nx).enumerate().for_each(|(row, t)| {
+        let (j, k) = (row % ny, row / ny);
+        for (i, t) in t.iter_mut().enumerate() {
+            let open = (past(i, j, k) / h + 0.5).clamp(0.0, 1.0);
+            *t = (*t).max((open * 255.0 + 0.5) as u8);
+        }
+    });
+    true
+}
+
+/// Quantised transmittance from a signed distance field (world units, negative inside) alone,
+/// for octant fields swept again from a distance file: eq. (7) with `h` the smallest spacing,
+/// eq. (8) as derived with `alpha` (a NaN distance open). Equal to [`transmittance`] but
+/// where closest points put a voxel off the band within half a voxel of the surface (the
+/// module doc): there it is fractional, not 0 or 1.
+pub fn transmittance_from_distance(
+    distance: &[f32],
+    spacing: [f64; 3],
+    alpha: Option<f32>,
+) -> Vec<u8> {
+    use rayon::prelude::*;
+    let h = spacing.iter().cloned().fold(f64::INFINITY, f64::min) as f32;
     let mut tau = crate::memory::zeroed(distance.len(), 0u8);
-    tau.par_chunks_mut(nx)
-        .zip(distance.par_chunks(nx))
-        .enumerate()
-        .for_each(|(row, (t, d))| {
-            let (j, k) = (row % ny, row / ny);
-            for (i, (t, &d)) in t.iter_mut().zip(d).enumerate() {
-                let solid = if d.is_nan() {
-                    f64::INFINITY
+    tau.par_chunks_mut(1 << 16)
+        .zip(distance.par_chunks(1 << 16))
+        .for_each(|(t, d)| {
+            for (t, &d) in t.iter_mut().zip(d) {
+                let x = if d.is_nan() {
+                    1.0
                 } else {
-                    d as f64 / h + 0.5
+                    (d / h + 0.5).clamp(0.0, 1.0)
                 };
-                let open = cut(i, j, k) / h + 0.5;
-                *t = quantise(solid.max(open));
+                let x = match alpha {
+                    Some(a) => 1.0 - a.clamp(0.0, 1.0) * (1.0 - x),
+                    None => x,
+                };
+                *t = (x * 255.0 + 0.5) as u8;
             }
         });
-    Some(tau)
+    tau
 }
 
 /// Sweeps the four octants with z direction `sz` (+1 or -1) in one pass, one octant per lane.
@@ -332,11 +349,26 @@ pub fn fields_from_band(
     oopts: &OcclusionOptions,
     octants: bool,
 ) -> (DistanceField, Option<OctantFields>) {
+    fields_from_band_cut(init, dopts, oopts, octants, None)
+}
+
+/// [`fields_from_band`] with the octants swept for the solid cut by clipping planes
+/// (`cut`: the grid's index-to-world affine and the planes, [`open_cut`]).
+pub fn fields_from_band_cut(
+    init: Initial,
+    dopts: &DistanceOptions,
+    oopts: &OcclusionOptions,
+    octants: bool,
+    cut: Option<(&DMat4, &[ClipPlane])>,
+) -> (DistanceField, Option<OctantFields>) {
     if !octants {
         return (distance_from_band(init, dopts), None);
     }
     let dims = init.dims;
-    let tau = transmittance(&init, oopts.subsurface_alpha);
+    let mut tau = transmittance(&init, oopts.subsurface_alpha);
+    if let Some((affine, planes)) = cut {
+        open_cut(&mut tau, dims, affine, planes);
+    }
     let (df, oct) = rayon::join(
         || distance_from_band(init, dopts),
         || sweep_octants(&tau, dims),
@@ -382,22 +414,25 @@ mod tests {
                 }
             }
         }
-        let solid: Vec<u8> = sdf
-            .iter()
-            .map(|&d| ((d as f64 + 0.5).clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
-            .collect();
-        let uncut = sweep_octants(&solid, dims);
         let affine = DMat4::IDENTITY;
+        let solid = transmittance_from_distance(&sdf, [1.0; 3], None);
+        let uncut = sweep_octants(&solid, dims);
+        let cut_by = |planes: &[([f64; 3], f64)]| {
+            let mut tau = solid.clone();
+            open_cut(&mut tau, dims, &affine, planes).then_some(tau)
+        };
         // A plane past the grid cuts nothing.
-        assert!(transmittance_clipped(&sdf, dims, &affine, &[([1.0, 0.0, 0.0], 40.0)]).is_none());
+        assert!(cut_by(&[([1.0, 0.0, 0.0], 40.0)]).is_none());
         // Within the grid but past the shell (x = 28): the transmittance is the uncut one.
-        let far = transmittance_clipped(&sdf, dims, &affine, &[([2.0, 0.0, 0.0], 56.0)]).unwrap();
-        assert_eq!(sweep_octants(&far, dims), uncut);
-        let tau = transmittance_clipped(&sdf, dims, &affine, &[([2.0, 0.0, 0.0], 32.0)]).unwrap();
+        assert_eq!(cut_by(&[([2.0, 0.0, 0.0], 56.0)]).unwrap(), solid);
+        let tau = cut_by(&[([2.0, 0.0, 0.0], 32.0)]).unwrap();
         // Past the plane, open; the plane's own voxels half open; the shell before it solid.
         assert_eq!(tau[30 + n * (16 + n * 16)], 255);
         assert_eq!(tau[16 + n * (16 + n * 24)], 128);
         assert_eq!(tau[8 + n * (16 + n * 16)], 0);
+        // With a subsurface opacity the solid lets light in, the removed half-space all of it.
+        let soft = transmittance_from_distance(&sdf, [1.0; 3], Some(0.5));
+        assert_eq!((soft[8 + n * (16 + n * 16)], soft[16]), (128, 255));
         let cut = sweep_octants(&tau, dims);
         // In the cavity, four voxels in front of the cut.
         let p = 12 + n * (16 + n * 16);

@@ -223,6 +223,7 @@ pub fn render_to_file(args: &IsoArgs) -> Result<(IsoImage, IsoStats), String> {
         args.octants.as_deref(),
         need_octants,
         args.subsurface_alpha,
+        &[],
     )?;
     let surface = IsoSurface::new(
         vol.dims,
