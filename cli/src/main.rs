@@ -166,7 +166,11 @@ fn main() -> ExitCode {
     // as clap's own conflicts; README, "Command line").
     if let Command::Sweep(a) = &cli.command {
         if let Some(c) = sweep::conflict(a) {
-            let _ = Cli::command().error(ErrorKind::ArgumentConflict, c).print();
+            // With the sweep's own usage line, as clap's errors of its options have.
+            let mut cmd = Cli::command();
+            cmd.build();
+            let sweep = cmd.find_subcommand_mut("sweep").expect("the sweep command");
+            let _ = sweep.error(ErrorKind::ArgumentConflict, c).print();
             return ExitCode::from(2);
         }
     }

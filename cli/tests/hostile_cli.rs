@@ -78,13 +78,22 @@ fn tube_settings_out_of_range_are_refused_before_reading() {
             "chordal tolerance",
         );
     }
-    // --radius 1e300 gave 0 triangles; 1e6 cannot bend with these lines.
+    // --radius 1e300 gave 0 triangles; 1e6 cannot bend with curved lines (these straight
+    // ones are meshed as their polylines since their fits are weighed against them: a
+    // straight tube of any radius folds nowhere).
     refused(
         &["tubes", s(&trk), "-o", s(&out), "--radius", "1e300"],
         "radius 1e300",
     );
     refused(
-        &["tubes", s(&trk), "-o", s(&out), "--radius", "1e6"],
+        &[
+            "tubes",
+            s(&fixture("tracts/dipy/tracks300.trk")),
+            "-o",
+            s(&out),
+            "--radius",
+            "1e6",
+        ],
         "no tube could be built",
     );
     assert!(!out.exists());
@@ -178,7 +187,17 @@ fn sweep_trace_and_resample_values_are_range_checked() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("closest points need none"), "{err}");
+    assert!(err.contains("umbra sweep"), "the sweep's usage: {err}");
     assert!(!o.exists());
+    // A negative value is a value out of range (status 1), however it is written.
+    let neg = umbra()
+        .args(["sweep", s(&vol), "--iso", "5", "-o", s(&o)])
+        .args(["--distance", "sweeping", "--tolerance", "-1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&neg.stderr);
+    assert_eq!(neg.status.code(), Some(1), "{err}");
+    assert!(err.contains("--tolerance"), "{err}");
     let field = fixture("ras_vec_raw.nrrd");
     let trk = d.path().join("t.trk");
     // NaN lengths and tolerances gave "0 streamlines".

@@ -75,7 +75,10 @@ pub fn tubes(
         if !(tol > 0.0 && tol.is_finite()) {
             return Err(format!("--tolerances: {tol} is not positive"));
         }
-        let args = scene::tube_sets::TubesArgs::defaults(radius, 8, tol, "direction");
+        // As `umbra tubes` meshes by default: no caps (the scene's tubes have them), so
+        // that its counts are the command's (they differed by the caps' triangles).
+        let mut args = scene::tube_sets::TubesArgs::defaults(radius, 8, tol, "direction");
+        args.caps = false;
         let mut times = vec![];
         let mut stats = None;
         for _ in 0..runs.max(1) {

@@ -45,10 +45,10 @@ pub struct Args {
     distance: Distance,
     /// Convergence tolerance of the distance sweeps (--distance sweeping only), in voxels
     /// [default: 1e-3].
-    #[arg(long, value_parser = super::positive32)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::positive32)]
     tolerance: Option<f32>,
     /// Subsurface variant: per-voxel opacity alpha in [0, 1] for the octant sweeps.
-    #[arg(long, value_parser = super::unit)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::unit)]
     subsurface: Option<f32>,
     /// Print the summary as one JSON object on standard output.
     #[arg(long)]
