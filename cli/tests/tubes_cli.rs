@@ -7,6 +7,15 @@ fn umbra() -> Command {
     Command::new(env!("CARGO_BIN_EXE_umbra"))
 }
 
+/// Asserts that a run succeeded, printing its standard error where it did not.
+fn succeeded(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn fixture(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .parent()
@@ -38,11 +47,7 @@ fn tubes_writes_ply_and_obj_with_statistics() {
         .arg(&stats)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let j: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
     for k in [
         "streamlines_in",
@@ -249,11 +254,7 @@ fn bundles_30k(dir: &std::path::Path) -> std::path::PathBuf {
         .arg(&tck)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     tck
 }
 
@@ -364,11 +365,7 @@ fn a_looser_tolerance_does_not_cost_more_triangles_on_hcp1065() {
         .args(["--tolerances", "0.05,0.1,0.2", "--runs", "1"])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let csv = std::fs::read_to_string(dir.path().join("tubes.csv")).unwrap();
     let tri: Vec<f64> = csv
         .lines()
@@ -388,11 +385,7 @@ fn a_looser_tolerance_does_not_cost_more_triangles_on_hcp1065() {
         .arg(&stats)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let j: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
     assert_eq!(
         j["triangles"].as_f64(),

@@ -6,8 +6,9 @@ use glam::DVec3;
 use occlusion::isosurface::{ambient_at, AmbientSource, IsoSurface};
 use scene::compile::{model, render_scene};
 
-fn scene(dir: &std::path::Path, extra: &str) -> scene::spec::Scene {
-    let vol = volume::synthetic::validation_scene(40);
+/// Singh et al.'s validation scene at `n^3` written as `dir/v.nrrd`.
+fn validation_nrrd(dir: &std::path::Path, n: usize) -> std::path::PathBuf {
+    let vol = volume::synthetic::validation_scene(n);
     let path = dir.join("v.nrrd");
     volume::nrrd::write(
         &path,
@@ -16,6 +17,11 @@ fn scene(dir: &std::path::Path, extra: &str) -> scene::spec::Scene {
         volume::nrrd::WriteEncoding::Raw,
     )
     .unwrap();
+    path
+}
+
+fn scene(dir: &std::path::Path, extra: &str) -> scene::spec::Scene {
+    let path = validation_nrrd(dir, 40);
     let text = format!(
         "background = [0.0, 0.0, 0.0]\n[camera]\nazimuth = 35.0\nelevation = 30.0\n\
          [volume]\npath = \"{}\"\n[volume.iso]\nvalue = 0.0\ninside = \"below\"\n{extra}\
@@ -216,15 +222,7 @@ fn a_cut_opens_the_cavity_behind_it_to_the_sky() {
 #[test]
 fn fields_from_files_keep_their_subsurface_opacity_when_cut() {
     let dir = tempfile::tempdir().unwrap();
-    let vol = volume::synthetic::validation_scene(24);
-    let path = dir.path().join("v.nrrd");
-    volume::nrrd::write(
-        &path,
-        &vol,
-        &vol.fields[0],
-        volume::nrrd::WriteEncoding::Raw,
-    )
-    .unwrap();
+    let path = validation_nrrd(dir.path(), 24);
     let sweep = |name: &str, alpha: Option<f32>| {
         let out = dir.path().join(format!("{name}.nrrd"));
         scene::fields::run(
