@@ -345,12 +345,12 @@ fn a_ply_larger_than_the_memory_limit_is_written_part_by_part() {
     assert!(!obj.exists());
 }
 
-/// A looser tolerance costs no more than a few triangles more on HCP1065's TR_S_R: 785,248 at
-/// tolerance 0.1 against 430,896 at 0.05 while a fitted line could take more rings than its
-/// polyline (its lines rough enough at 0.05 to be polylines, smooth enough at 0.1 to be
-/// fitted, their fits wiggling within the tolerance); now 422,848 against 400,176 (the lines
-/// with a sharp turn keep their fits) and 360,880 at 0.2 (no caps: `bench tubes` counts as
-/// `umbra tubes` meshes by default).
+/// A looser tolerance costs no more triangles on HCP1065's TR_S_R: 785,248 at tolerance 0.1
+/// against 430,896 at 0.05 while a fitted line could take more rings than its polyline (its
+/// lines rough enough at 0.05 to be polylines, smooth enough at 0.1 to be fitted, their fits
+/// wiggling within the tolerance); 422,848 when the fits were weighed against their
+/// polylines but lines with a sharp turn kept theirs; now 369,376, and 311,680 at 0.2 (no
+/// caps: `bench tubes` counts as `umbra tubes` meshes by default).
 #[test]
 fn a_looser_tolerance_does_not_cost_more_triangles_on_hcp1065() {
     let Some(shared) = test_support::shared_or_skip("a_looser_tolerance") else {
@@ -373,7 +373,7 @@ fn a_looser_tolerance_does_not_cost_more_triangles_on_hcp1065() {
         .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
         .collect();
     assert_eq!(tri.len(), 3, "{csv}");
-    assert!(tri[1] <= 1.1 * tri[0] && tri[2] <= tri[1], "{tri:?}");
+    assert!(tri[1] <= tri[0] && tri[2] <= tri[1], "{tri:?}");
     // The command's own count at 0.05 (no caps).
     let stats = dir.path().join("s.json");
     let out = umbra()

@@ -873,21 +873,25 @@ fn tube(
         let sharp = sharp_turn(points);
         // Against the rings its polyline would place (the points the tolerance cannot let
         // go), not its points: on HCP1065's TR_S_R at tolerance 0.1, lines smooth enough to be
-        // fitted took more rings than their polylines, 808,768 triangles against 458,080 at
-        // the tighter 0.05, where they were rough enough to be polylines.
-        // (Not for a line that turns sharply: split at its turns, a smooth hairpin would show
-        // a corner where its fit bends.)
-        if rmf_iterative && !in_vain && !loops && !sharp && fit_params.len() <= points.len() {
+        // fitted took more rings than their polylines, 785,248 triangles against 430,896 at
+        // the tighter 0.05, where they were rough enough to be polylines (369,376 since).
+        // A line that turns sharply at a point too, where its rings would not (the points the
+        // tolerance keeps turn by at most 10 degrees at each: HCP1065's hair-length side steps
+        // let go); where they would fold, `polyline_rings` keeps every point, more rings than
+        // the fit's, and the fit stays (a smooth hairpin).
+        let mut kept_sharp = false;
+        if rmf_iterative && !in_vain && !loops && fit_params.len() <= points.len() {
             let keep = polyline_rings(points, o);
             if fit_params.len() > keep.0.len() {
+                kept_sharp = sharp;
                 kept = Some(keep);
             }
         }
         let as_polyline = in_vain || fit_params.len() > points.len() || loops || kept.is_some();
-        if rmf_iterative && as_polyline && sharp && !between_turns {
+        if rmf_iterative && as_polyline && sharp && !kept_sharp && !between_turns {
             return None;
         }
-        polyline = rmf_iterative && as_polyline && !sharp;
+        polyline = rmf_iterative && as_polyline && (!sharp || kept_sharp);
         if !polyline && fit_params.is_empty() {
             fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
         }
