@@ -659,8 +659,8 @@ impl Frame {
             !(scene.meshes.is_empty() && scene.lines.is_empty() && scene.planes.is_empty());
         // Nothing in the scene but an isosurface (its ambient term swept, `iso_pass`): every
         // method's volume pass draws it as `ea`'s does - the same image - without the light
-        // pass, which `combined` and `dos` ran over an empty medium (871 of 1,050 ms for
-        // embryo.slc at 256^2 on lavapipe).
+        // pass, which `combined` and `dos` ran over an empty medium (563-649 of 761-861 ms a
+        // frame for `docs/images/bench/iso_embryo_cut.toml` at 256^2 on lavapipe).
         let iso_only = scene.volume.is_none() && !geometry_light && scene.iso.is_some();
         let desc = match iso_only {
             true => crate::method::Method::Ea.desc(),
