@@ -1497,14 +1497,26 @@ fn unused_light_keys(s: &Scene) -> Option<String> {
     .filter_map(|(k, on)| on.then_some(k))
     .collect();
     let desc = r.method.desc();
-    (!set.is_empty() && desc.volume != engine::method::VolumeShading::Occlusion).then(|| {
+    // An isosurface alone is drawn as `ea` draws it, whatever the method (the renderer's
+    // `iso_only`): no light volume.
+    let iso_alone = s.volume.as_ref().is_some_and(|v| v.iso.is_some())
+        && s.tubes.is_empty()
+        && s.lines.is_empty()
+        && s.points.is_empty()
+        && s.slices.is_empty()
+        && s.overlays.is_empty();
+    let unused = desc.volume != engine::method::VolumeShading::Occlusion || iso_alone;
+    (!set.is_empty() && unused).then(|| {
         let one = set.len() == 1;
+        let who = match iso_alone {
+            true => "an isosurface alone".to_string(),
+            false => format!("method {}", desc.name),
+        };
         format!(
-            "{} {} the light volume of dos and combined; method {} sweeps none, so {} \
-             nothing here",
+            "{} {} the light volume of dos and combined; {who} sweeps none, so {} nothing \
+             here",
             set.join(" and "),
             if one { "shapes" } else { "shape" },
-            desc.name,
             if one { "it changes" } else { "they change" }
         )
     })

@@ -210,6 +210,21 @@ fn a_cut_opens_the_cavity_behind_it_to_the_sky() {
         out.light.is_none(),
         "a light volume swept for an isosurface alone"
     );
+    // A light key set there changes nothing, and the frame says so.
+    let mut keyed = s.clone();
+    keyed.render.occlusion_step = Some(2);
+    let (keyed_out, _) = scene::compile::upload(&gpu, &m)
+        .unwrap()
+        .draw(&keyed, &m, Default::default())
+        .unwrap();
+    assert!(
+        keyed_out
+            .notes
+            .iter()
+            .any(|n| n.contains("render.occlusion_step") && n.contains("isosurface alone")),
+        "{:?}",
+        keyed_out.notes
+    );
     let mut ea = s.clone();
     ea.render.method = engine::method::Method::Ea;
     let (ea_out, _) = render_scene(&gpu, &ea, &m, 1).unwrap();
