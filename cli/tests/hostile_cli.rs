@@ -37,6 +37,17 @@ fn refused(args: &[&str], needle: &str) -> String {
     err
 }
 
+/// `dir/s.toml`: a scene of the volume `path` with the `rest` of its keys.
+fn volume_scene(dir: &std::path::Path, path: &std::path::Path, rest: &str) -> PathBuf {
+    let scene = dir.join("s.toml");
+    std::fs::write(
+        &scene,
+        format!("[volume]\npath = \"{}\"\n{rest}", path.display()),
+    )
+    .unwrap();
+    scene
+}
+
 /// Runs `umbra ARGS`, expecting success.
 fn succeeds(args: &[&str]) {
     let out = umbra().args(args).output().unwrap();
@@ -408,19 +419,15 @@ fn a_subsample_of_nothing_is_refused() {
 #[test]
 fn a_cpu_frame_past_the_memory_limit_is_refused_cleanly() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("s.toml");
-    std::fs::write(
-        &scene,
-        format!(
-            "[volume]\npath = \"{}\"\n[render]\ndevice = \"cpu\"\nmethod = \"ea\"\n",
-            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-                .parent()
-                .unwrap()
-                .join("datasets/vtk/headsq_64x64x93.nhdr")
-                .display()
-        ),
-    )
-    .unwrap();
+    let headsq = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .join("datasets/vtk/headsq_64x64x93.nhdr");
+    let scene = volume_scene(
+        dir.path(),
+        &headsq,
+        "[render]\ndevice = \"cpu\"\nmethod = \"ea\"\n",
+    );
     let png = dir.path().join("huge.png");
     // 6 GB of address space: enough to start (lavapipe included), not for 16 GiB of frame.
     let out = Command::new("sh")
@@ -928,15 +935,11 @@ fn an_interrupted_command_leaves_no_temporary_file() {
 #[test]
 fn a_single_images_error_names_no_frame() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("s.toml");
-    std::fs::write(
-        &scene,
-        format!(
-            "[volume]\npath = \"{}\"\n[render]\nwidth = 16\nheight = 16\n",
-            s(&fixture("spacings_ascii.nrrd"))
-        ),
-    )
-    .unwrap();
+    let scene = volume_scene(
+        dir.path(),
+        &fixture("spacings_ascii.nrrd"),
+        "[render]\nwidth = 16\nheight = 16\n",
+    );
     let png = dir.path().join("o.png");
     let e = refused(
         &[
