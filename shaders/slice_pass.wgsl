@@ -304,6 +304,8 @@ struct CellShift {
     // Where each cell's ray enters the medium at the cut, in eye slices (-1e30: no cut).
     start: vec4<f32>,
     f: vec2<f32>,
+    // Where the pixel's ray enters the medium at the cut, in eye slices (-1e30: no cut).
+    entry: f32,
 };
 
 fn cell_shifts(px: vec2<f32>, r: Ray) -> CellShift {
@@ -313,6 +315,7 @@ fn cell_shifts(px: vec2<f32>, r: Ray) -> CellShift {
     cs.f = c - floor(c);
     let hi = vec2<i32>(P.cells) - vec2<i32>(1);
     let a_px = clip_entry(r);
+    cs.entry = select(-1e30, (a_px - P.z0) / P.dz, a_px >= 0.0);
     for (var i = 0; i < 4; i = i + 1) {
         let q = clamp(b + vec2<i32>(i & 1, i >> 1u), vec2<i32>(0), hi);
         cs.cells[i] = u32(q.x) + P.cells.x * u32(q.y);
@@ -329,20 +332,26 @@ fn cell_shifts(px: vec2<f32>, r: Ray) -> CellShift {
     return cs;
 }
 
-// Each cell with its shift (the same distance behind the planes as the pixel), linear between
-// stored slices: on a ray's first read (where it enters the medium at the cut) at the front of
-// the read its own slice k + shift lies in, later at the pixel's read's front plus the shift
-// (the stored parts there hold the cell's own attenuation). Read at the pixel's front from the
+// Each cell with its shift (the same distance behind the planes as the pixel), between stored
+// slices: on a ray's first read, where it enters the medium at the cut (its first sample in its
+// cut's slice), at the cell's cut (the parts hold the step's blur brought in through them:
+// spread_blur), a first read deeper at the front of the read its own slice k + shift lies in,
+// later at the pixel's read's front plus the shift (the stored parts there hold the cell's own
+// attenuation). Read at the pixel's front from the
 // start, the cells would lie further in front of their cuts the further the pixel's lies
 // behind its front: a line a step on a tilted cut face (`LightVolume::front` in
 // raycast/src/light.rs).
 fn light_shifted(cs: CellShift, k: u32, first: bool) -> f32 {
     let e = f32(P.light_read);
     let kf = f32(k / P.light_read * P.light_read);
+    // The ray's first sample is its cut's slice: it enters the medium at the cut.
+    let at_cut = first && f32(k) < cs.entry + 1.0;
     var v: array<f32, 4>;
     for (var i = 0; i < 4; i = i + 1) {
         var x = kf + cs.shift[i];
-        if (first) {
+        if (at_cut) {
+            x = max(f32(k) + cs.shift[i], cs.start[i]);
+        } else if (first) {
             x = floor((f32(k) + cs.shift[i]) / e) * e;
         }
         v[i] = light_step_from(cs.cells[i], x / f32(P.light_step), cs.start[i] / f32(P.light_step));
@@ -632,6 +641,25 @@ fn concentric(a: vec2<f32>) -> vec2<f32> {
     return a.y * vec2<f32>(cos(t), sin(t));
 }
 
+// The previous step's blur brought in through its parts (behind clipping planes, where the eye
+// reads them): part i of n (stored slices s0 + i) gains i / n of O_k - L_{k-1} (`next` -
+// `leave`), within [0, max(front, O_k)]; nothing at or below SPREAD_MIN; the front unchanged
+// (`occlusion::combined::spread_blur`, whose docs say why).
+const SPREAD_MIN: f32 = 0.0001;
+
+fn spread_blur(ci: u32, base: u32, s0: u32, n: u32, next: f32, leave: f32) {
+    let d = next - leave;
+    if (!(abs(d) > SPREAD_MIN)) {
+        return;
+    }
+    let cap = max(light_volume[ci + base * s0], next);
+    let dp = d / f32(n);
+    for (var i = 1u; i < n; i = i + 1u) {
+        let at = ci + base * (s0 + i);
+        light_volume[at] = clamp(light_volume[at] + f32(i) * dp, 0.0, cap);
+    }
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     let cw = P.cells.x;
@@ -735,6 +763,9 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
             }
             occl = sum / f32(n * n);
         }
+    }
+    if (k > 0u && n > 1u && P.n_clip > 0u) {
+        spread_blur(ci, cw * ch, (k - 1u) * n, n, occl, occ_in[2u * ci]);
     }
     light_volume[ci + cw * ch * k * n] = occl;
     // The light leaving slice k: through the volume's extinction at the cell's ray, and

@@ -1064,8 +1064,9 @@ impl Packet {
     }
 
     /// [`Packet::front`] behind clipping planes (`LightVolume::front`): each of the four cells
-    /// at its own fractional stored slice `pos / step` - `pos` the front of the light step
-    /// `k + shift` lies in on a ray's first read (`lstep` none yet), else the front of the
+    /// at its own fractional stored slice `pos / step` - `pos` on a ray's first read (`lstep`
+    /// none yet) the cell's cut where the ray's first sample is its cut's slice (else the
+    /// front of the light step `k + shift` lies in), else the front of the
     /// lanes' own step plus `shift` (`k` the lanes' slices; a product by `1 / step`, a power of
     /// two: the quotient's bits) - 1 at or before -1, towards the first stored slice between -1
     /// and 0, else constant up to the cell's cut and geometric from there to the next stored
@@ -1092,23 +1093,29 @@ impl Packet {
                 m.eye_step_shift,
             ));
             let kr = _mm256_cvtepi32_ps(self.kv);
-            let eye = _mm256_cvtepi32_ps(_mm256_sll_epi32(_mm256_set1_epi32(1), m.eye_step_shift));
             let first = _mm256_castsi256_ps(_mm256_cmpeq_epi32(self.lstep, _mm256_set1_epi32(-1)));
+            let eye = _mm256_cvtepi32_ps(_mm256_sll_epi32(_mm256_set1_epi32(1), m.eye_step_shift));
+            // The ray's first sample is its cut's slice: it enters the medium at the cut.
+            let at_cut = _mm256_cmp_ps::<_CMP_LT_OQ>(kr, _mm256_add_ps(entry, one));
             // A cell's cut lies in the stored slice read only where the ray's own cut lies
             // less than a stored slice (one eye slice more for the rounding) in front of its
-            // step's front, or on its first read (a stored slice, where `cell_from` gives `a`
-            // either way): elsewhere `LightVolume::cell_from`'s quotient is `x - fl` to the
+            // step's front, or on its first read (at the cut or past it): elsewhere `LightVolume::cell_from`'s quotient is `x - fl` to the
             // bit, without the cuts or the division (done for every read, they cost 5% of the
             // march of a clipped frame).
             let near = _mm256_movemask_ps(_mm256_and_ps(
                 lit,
-                _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_sub_ps(kf, entry), m.cut_reach),
+                _mm256_or_ps(
+                    _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_sub_ps(kf, entry), m.cut_reach),
+                    first,
+                ),
             )) != 0;
             let mut v = [zero; 4];
             for (j, v) in v.iter_mut().enumerate() {
-                let own = _mm256_mul_ps(
-                    _mm256_floor_ps(_mm256_div_ps(_mm256_add_ps(kr, shift[j]), eye)),
-                    eye,
+                let ks = _mm256_add_ps(kr, shift[j]);
+                let own = _mm256_blendv_ps(
+                    _mm256_mul_ps(_mm256_floor_ps(_mm256_div_ps(ks, eye)), eye),
+                    _mm256_max_ps(ks, start[j]),
+                    at_cut,
                 );
                 let pos = _mm256_blendv_ps(_mm256_add_ps(kf, shift[j]), own, first);
                 let x = _mm256_mul_ps(pos, m.inv_step);
