@@ -233,6 +233,9 @@ pub struct TubeStats {
     /// Pieces meshed as their polyline (a ring on each point the tolerance cannot let go,
     /// `simplify_polyline`) because the fit could not shorten them within the tolerance.
     pub polyline_pieces: usize,
+    /// End points dropped where a streamline's first or last segment, no longer than the
+    /// tolerance, turns back by more than 100 degrees (a tracker's hook, [`trim_hooks`]).
+    pub hooks: usize,
 }
 
 /// Splits a cleaned polyline where its direction reverses (turn > 179.9 degrees).
@@ -761,6 +764,39 @@ fn simplify_polyline(points: &[DVec3], tolerance: f64, max_turn_deg: f64) -> (Ve
     (keep, worst2.sqrt())
 }
 
+/// The range `lo..hi` of a cleaned polyline's points left once its hooks are dropped, and the
+/// longest segment dropped (a bound of the dropped points' distance to the tube's axis, which
+/// ends at the point the segment led to): while its first segment is no longer than
+/// `tolerance` and the line turns by more than 100 degrees at its end (the segment doubles
+/// back), the first point goes, and the last likewise. Trackers leave such hooks - HCP1065's
+/// AF_R has 1,771 turns that sharp, 1,566 of its 3,356 lines, nearly all between a line's first
+/// or last segment (0.03-0.34 mm long) and the next (0.5 mm) - and a sharp turn keeps a line
+/// from being meshed as its polyline (its rings would fold), so at coarse tolerances such
+/// lines kept fits with more rings than their polylines needed (0.2 cost more triangles than
+/// 0.1 on nine of the ten bundles, docs/benchmarks.md). At least two points are kept.
+fn trim_hooks(points: &[DVec3], tolerance: f64) -> (usize, usize, f64) {
+    let (mut lo, mut hi) = (0, points.len());
+    let t2 = tolerance * tolerance;
+    let mut worst2 = 0.0f64;
+    while hi - lo >= 3 && sharp(&points[lo..lo + 3]) {
+        let l2 = (points[lo + 1] - points[lo]).length_squared();
+        if l2 > t2 {
+            break;
+        }
+        worst2 = worst2.max(l2);
+        lo += 1;
+    }
+    while hi - lo >= 3 && sharp(&points[hi - 3..hi]) {
+        let l2 = (points[hi - 1] - points[hi - 2]).length_squared();
+        if l2 > t2 {
+            break;
+        }
+        worst2 = worst2.max(l2);
+        hi -= 1;
+    }
+    (lo, hi, worst2.sqrt())
+}
+
 /// Whether the polyline turns by more than 100 degrees at the middle point of `w`.
 fn sharp(w: &[DVec3]) -> bool {
     // a . b < -0.17 |a| |b|, squared (no square roots): a . b < 0 and (a . b)^2 > 0.17^2
@@ -812,13 +848,52 @@ fn polyline_rings(points: &[DVec3], o: &TubeOptions) -> (Vec<usize>, f64) {
     }
 }
 
+/// The rings the parts of `points` between its sharp turns (more than 100 degrees at a point,
+/// [`sharp_ranges`]) would need as polylines ([`polyline_rings`]; none of them turns sharply,
+/// so their rings do not fold), the points of the turns counted in both parts; `usize::MAX`
+/// where a sharp turn is one at the tube's scale too (twice its radius, or four tolerances
+/// where longer): the chords that long before and after its point turn by more than 60
+/// degrees (a hairpin, whose parts' open ends would show as a notch at its apex where the fit
+/// makes a narrowed tip; a hair-length side step of a straight run turns by little at that
+/// scale, and two tubes meeting there look as one; a hook at the line's end, shorter than
+/// that, leaves a stub about as long as the tube is wide).
+fn split_rings(points: &[DVec3], o: &TubeOptions) -> usize {
+    // The tube's scale: twice its radius, or four tolerances where they are the longer.
+    let scale = (2.0 * o.radius).max(4.0 * o.fit.epsilon);
+    let r2 = scale * scale;
+    let n = points.len();
+    for i in 1..n - 1 {
+        if !sharp(&points[i - 1..=i + 1]) {
+            continue;
+        }
+        // (A leg shorter than the scale - a hook at the line's end - leaves a stub about as
+        // long as the tube is wide: no apex to show.)
+        let p = points[i];
+        let back = (0..i)
+            .rev()
+            .find(|&j| (points[j] - p).length_squared() >= r2);
+        let ahead = (i + 1..n).find(|&j| (points[j] - p).length_squared() >= r2);
+        if let (Some(back), Some(ahead)) = (back, ahead) {
+            let (a, b) = (p - points[back], points[ahead] - p);
+            if a.dot(b) < 0.5 * (a.length_squared() * b.length_squared()).sqrt() {
+                return usize::MAX;
+            }
+        }
+    }
+    sharp_ranges(points, 0, n - 1)
+        .into_iter()
+        .map(|(a, b)| polyline_rings(&points[a..=b], o).0.len())
+        .sum()
+}
+
 /// Builds the tube of one cleaned polyline piece.
 ///
 /// `None` where the fit would place more rings than the piece has points (or keep every point)
 /// and the piece turns sharply (more than 100 degrees at a point), which keeps it from being
-/// meshed as its polyline: the caller splits it at its sharp turns and meshes the parts with
-/// `between_turns`, each as its polyline where the fit would again place more rings than it
-/// has points, whatever its length. So no piece gets more rings than points - vtkTubeFilter's
+/// meshed as its polyline, or where the fit places more rings than the parts between its sharp
+/// turns would as polylines ([`split_rings`]): the caller splits it at its sharp turns and
+/// meshes the parts with `between_turns`, each as its polyline where the fit would again place
+/// more rings than it has points, whatever its length. So no piece gets more rings than points - vtkTubeFilter's
 /// ring per point - unless its fit places fewer (HCP1065 at tolerance 0.02: 4,071 pieces had
 /// 94,114 rings more than points, 1.2% more triangles than VTK).
 fn tube(
@@ -879,12 +954,18 @@ fn tube(
         // tolerance keeps turn by at most 10 degrees at each: HCP1065's hair-length side steps
         // let go); where they would fold, `polyline_rings` keeps every point, more rings than
         // the fit's, and the fit stays (a smooth hairpin).
+        // Where they would fold and the fit still places more rings than the parts between
+        // the sharp turns would as polylines, the line is split there instead (`None`: the
+        // caller meshes the parts, each fitted or not on its own): at tolerance 0.2 such fits
+        // kept nine of HCP1065's ten bundles 6-25% above their triangles at 0.1.
         let mut kept_sharp = false;
         if rmf_iterative && !in_vain && !loops && fit_params.len() <= points.len() {
             let keep = polyline_rings(points, o);
             if fit_params.len() > keep.0.len() {
                 kept_sharp = sharp;
                 kept = Some(keep);
+            } else if sharp && !between_turns && split_rings(points, o) < fit_params.len() {
+                return None;
             }
         }
         let as_polyline = in_vain || fit_params.len() > points.len() || loops || kept.is_some();
@@ -1248,6 +1329,17 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
             clean(&line.iter().map(|p| p.as_dvec3()).collect::<Vec<_>>()).0
         );
         st.dropped_points = line.len() - pts.len();
+        let (lo, hi, hook) = trim_hooks(&pts, o.fit.epsilon);
+        if lo > 0 || hi < pts.len() {
+            st.hooks = lo + pts.len() - hi;
+            st.max_deviation = hook;
+            pts.truncate(hi);
+            pts.drain(..lo);
+            if vals.is_some() {
+                kept_vals.truncate(hi);
+                kept_vals.drain(..lo);
+            }
+        }
         if pts.len() < 2 {
             st.skipped_streamlines = 1;
             return (Vec::new(), st);
@@ -1319,6 +1411,8 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
                 stats.streamlines_in += st.streamlines_in;
                 stats.points_in += st.points_in;
                 stats.dropped_points += st.dropped_points;
+                stats.hooks += st.hooks;
+                stats.max_deviation = stats.max_deviation.max(st.max_deviation);
                 stats.skipped_streamlines += st.skipped_streamlines;
                 stats.splits += st.splits;
                 for p in parts {

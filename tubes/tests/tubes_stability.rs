@@ -572,3 +572,92 @@ fn a_rough_polyline_keeps_the_points_the_tolerance_needs() {
     assert_eq!(st.control_points, pts.len());
     assert_eq!(st.max_deviation, 0.0);
 }
+
+/// `check`'s invariants at a tolerance of the test's own (finite, no twist, full sections).
+fn sound(name: &str, mesh: &TubeMesh, st: &TubeStats) {
+    assert!(
+        mesh.positions
+            .iter()
+            .chain(&mesh.normals)
+            .all(|v| v.is_finite()),
+        "{name}: NaN in the mesh"
+    );
+    assert!(
+        st.max_twist_deg <= 1.0 && st.min_section_ratio >= 0.5,
+        "{name}: {st:?}"
+    );
+}
+
+/// A tracker's hook: a smooth arc whose last segment doubles back. Shorter than the tolerance,
+/// the hook's point is dropped (`hooks`, its length within `max_deviation`) and the arc is
+/// fitted as a line without a sharp turn; longer than the tolerance but shorter than the
+/// tube's scale (twice its radius), the line is split there instead of keeping a fit with more rings than its
+/// two parts need as polylines (HCP1065 at tolerance 0.2 cost more triangles than at 0.1 on
+/// nine of its ten bundles before, docs/benchmarks.md); a hairpin whose legs are longer than
+/// the radius keeps its fit (`hairpins_of_150_179_and_180_degrees`).
+#[test]
+fn a_hook_at_a_lines_end_is_dropped_within_the_tolerance_or_split_off() {
+    // A gentle arc (radius 40 mm, 0.5 mm steps over 30 mm), then a hook of length h turning
+    // back by 150 degrees.
+    let arc = |h: f64| {
+        let mut p: Vec<DVec3> = (0..=60)
+            .map(|i| {
+                let a = i as f64 * 0.5 / 40.0;
+                DVec3::new(40.0 * a.sin(), 40.0 * (1.0 - a.cos()), 0.0)
+            })
+            .collect();
+        let n = p.len();
+        let d = (p[n - 1] - p[n - 2]).normalize();
+        let side = DVec3::Z.cross(d);
+        let back = -d * 150f64.to_radians().cos().abs() + side * 150f64.to_radians().sin();
+        p.push(p[n - 1] + back.normalize() * h);
+        p
+    };
+    let o = TubeOptions {
+        fit: FitOptions {
+            epsilon: 0.2,
+            ..opts(0.5).fit
+        },
+        ..opts(0.5)
+    };
+    // No hook: the reference.
+    let plain = {
+        let mut p = arc(0.1);
+        p.pop();
+        lines(&[p])
+    };
+    let (_, st0) = build(&plain, &o);
+    assert_eq!((st0.hooks, st0.splits), (0, 0), "{st0:?}");
+    // A hook of 0.1 mm: dropped, the same tube as without it.
+    let (mesh, st) = build(&lines(&[arc(0.1)]), &o);
+    sound("hook 0.1", &mesh, &st);
+    assert_eq!(st.hooks, 1, "{st:?}");
+    assert_eq!(st.splits, 0);
+    assert_eq!(st.triangles, st0.triangles);
+    assert!(st.max_deviation >= 0.1 - 1e-9 && st.max_deviation <= 0.2 + 1e-9);
+    // A hook of 0.3 mm (above the tolerance, below the scale): kept, the line split there,
+    // no more triangles than the fit of the arc alone and a two-point stub.
+    let (mesh, st) = build(&lines(&[arc(0.3)]), &o);
+    sound("hook 0.3", &mesh, &st);
+    assert_eq!(
+        (st.hooks, st.splits, st.streamlines_out),
+        (0, 1, 2),
+        "{st:?}"
+    );
+    assert!(st.max_deviation <= 0.2 + 1e-9);
+    assert!(
+        st.triangles <= st0.triangles + 2 * o.sides + 2 * 2 * 2 * o.sides,
+        "{} triangles against {} without the hook",
+        st.triangles,
+        st0.triangles
+    );
+    // At least two points stay: a line of a segment and its hook is not trimmed away.
+    let tiny = lines(&[vec![
+        DVec3::ZERO,
+        DVec3::X,
+        DVec3::X + DVec3::new(-0.05, 0.03, 0.0),
+    ]]);
+    let (_, st) = build(&tiny, &o);
+    assert_eq!(st.streamlines_out, 1, "{st:?}");
+    assert!(st.hooks <= 1);
+}
