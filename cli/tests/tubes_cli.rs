@@ -349,11 +349,11 @@ fn a_ply_larger_than_the_memory_limit_is_written_part_by_part() {
 /// tolerance 0.1 against 430,896 at 0.05 while a fitted line could take more rings than its
 /// polyline (its lines rough enough at 0.05 to be polylines, smooth enough at 0.1 to be fitted,
 /// their fits wiggling within the tolerance); 422,848 when the fits were weighed against their
-/// polylines but lines with a sharp turn kept theirs; 352,496 now, and 292,528 at 0.2. SCP and
+/// polylines but lines with a sharp turn kept theirs; 351,424 now, and 286,960 at 0.2. SCP and
 /// MCP cost 17% and 14% more at 0.2 than at 0.1 while lines with a tracker's hook at an end (a
 /// sharp turn, which keeps a line from being meshed as its polyline) kept fits with more rings
-/// than their polylines needed; with hooks within the tolerance dropped and the others split
-/// off (`tubes::tube_mesh::trim_hooks`, `split_rings`), 0.05 > 0.1 > 0.2 on all ten bundles
+/// than their polylines needed; with kinks within the tolerance dropped and the other hooks
+/// split off (`tubes::tube_mesh::drop_kinks`, `split_rings`), 0.05 > 0.1 > 0.2 on all ten bundles
 /// (docs/benchmarks.md, "A fit weighed against its polyline's rings"). No caps: `bench tubes`
 /// counts as `umbra tubes` meshes by default. Skipped without `../shared/data`.
 #[test]

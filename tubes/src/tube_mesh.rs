@@ -233,9 +233,9 @@ pub struct TubeStats {
     /// Pieces meshed as their polyline (a ring on each point the tolerance cannot let go,
     /// `simplify_polyline`) because the fit could not shorten them within the tolerance.
     pub polyline_pieces: usize,
-    /// End points dropped where a streamline's first or last segment, no longer than the
-    /// tolerance, turns back by more than 100 degrees (a tracker's hook, [`trim_hooks`]).
-    pub hooks: usize,
+    /// Points dropped where the line turns by more than 100 degrees next to a segment no
+    /// longer than the tolerance (trackers' hooks and side steps, [`drop_kinks`]).
+    pub kinks: usize,
 }
 
 /// Splits a cleaned polyline where its direction reverses (turn > 179.9 degrees).
@@ -764,37 +764,76 @@ fn simplify_polyline(points: &[DVec3], tolerance: f64, max_turn_deg: f64) -> (Ve
     (keep, worst2.sqrt())
 }
 
-/// The range `lo..hi` of a cleaned polyline's points left once its hooks are dropped, and the
-/// longest segment dropped (a bound of the dropped points' distance to the tube's axis, which
-/// ends at the point the segment led to): while its first segment is no longer than
-/// `tolerance` and the line turns by more than 100 degrees at its end (the segment doubles
-/// back), the first point goes, and the last likewise. Trackers leave such hooks - HCP1065's
-/// AF_R has 1,771 turns that sharp, 1,566 of its 3,356 lines, nearly all between a line's first
-/// or last segment (0.03-0.34 mm long) and the next (0.5 mm) - and a sharp turn keeps a line
-/// from being meshed as its polyline (its rings would fold), so at coarse tolerances such
-/// lines kept fits with more rings than their polylines needed (0.2 cost more triangles than
-/// 0.1 on nine of the ten bundles, docs/benchmarks.md). At least two points are kept.
-fn trim_hooks(points: &[DVec3], tolerance: f64) -> (usize, usize, f64) {
-    let (mut lo, mut hi) = (0, points.len());
+/// The points of a cleaned polyline left once its kinks are dropped, and their largest distance
+/// to the polyline through the points left: where the line turns by more than 100 degrees at a
+/// point next to a segment no longer than `tolerance`, the point goes, if every point dropped
+/// between the kept points around it stays within `tolerance` of the segment that replaces them.
+/// Trackers leave such kinks: a hook at a line's end (its first or last step doubling back) and
+/// hair-length side steps (HCP1065's 1/32 mm): 1,392 of AF_R's 3,356 lines end in a hook 0.03-0.52
+/// mm long. A sharp turn keeps a line from being meshed as its polyline (its rings would fold) or
+/// splits it there, so at coarse tolerances such lines kept fits with more rings than their
+/// polylines needed (0.2 cost more triangles than 0.1 on nine of HCP1065's ten bundles), or were
+/// split into pieces a side step long that showed as cracks and slivers (docs/benchmarks.md).
+/// First a hook's tip goes where it lies within `tolerance` of the segment before the turn (the
+/// hook runs back inside the tube, however long); then a short hook's turn point (the line
+/// ends at the hook's tip, within the tolerance of where it turned). At least two points stay.
+fn drop_kinks(points: &[DVec3], tolerance: f64) -> (Vec<usize>, f64) {
     let t2 = tolerance * tolerance;
+    let mut keep: Vec<usize> = Vec::with_capacity(points.len());
     let mut worst2 = 0.0f64;
+    // A hook that runs back along the line (an end turning sharply, its tip within the
+    // tolerance of the segment before the turn) loses its tip, however long: the tube covers
+    // it (HCP1065's TR_S_R ends in exact reversals up to 0.52 mm long, whose stubs showed
+    // through the end caps).
+    let (mut lo, mut hi) = (0, points.len());
     while hi - lo >= 3 && sharp(&points[lo..lo + 3]) {
-        let l2 = (points[lo + 1] - points[lo]).length_squared();
-        if l2 > t2 {
+        let w2 = segment_distance2(points[lo], points[lo + 1], points[lo + 2]);
+        if w2 > t2 {
             break;
         }
-        worst2 = worst2.max(l2);
+        worst2 = worst2.max(w2);
         lo += 1;
     }
     while hi - lo >= 3 && sharp(&points[hi - 3..hi]) {
-        let l2 = (points[hi - 1] - points[hi - 2]).length_squared();
-        if l2 > t2 {
+        let w2 = segment_distance2(points[hi - 1], points[hi - 3], points[hi - 2]);
+        if w2 > t2 {
             break;
         }
-        worst2 = worst2.max(l2);
+        worst2 = worst2.max(w2);
         hi -= 1;
     }
-    (lo, hi, worst2.sqrt())
+    for (i, &q) in points.iter().enumerate().take(hi).skip(lo) {
+        while let [.., ia, ib] = keep[..] {
+            let (a, b) = (points[ia], points[ib]);
+            if !sharp(&[a, b, q]) || (b - a).length_squared().min((q - b).length_squared()) > t2 {
+                break;
+            }
+            // Every point between a and q, b and those dropped before it, against a-q.
+            let w2 = points[ia + 1..i]
+                .iter()
+                .map(|&x| segment_distance2(x, a, q))
+                .fold(0.0f64, f64::max);
+            if w2 > t2 {
+                break;
+            }
+            worst2 = worst2.max(w2);
+            keep.pop();
+        }
+        keep.push(i);
+    }
+    (keep, worst2.sqrt())
+}
+
+/// The squared distance from `x` to the segment `a`-`b`.
+fn segment_distance2(x: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let (v, d) = (b - a, x - a);
+    let vv = v.length_squared();
+    let u = if vv > 0.0 {
+        (d.dot(v) / vv).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (d - v * u).length_squared()
 }
 
 /// Whether the polyline turns by more than 100 degrees at the middle point of `w`.
@@ -1329,15 +1368,13 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
             clean(&line.iter().map(|p| p.as_dvec3()).collect::<Vec<_>>()).0
         );
         st.dropped_points = line.len() - pts.len();
-        let (lo, hi, hook) = trim_hooks(&pts, o.fit.epsilon);
-        if lo > 0 || hi < pts.len() {
-            st.hooks = lo + pts.len() - hi;
-            st.max_deviation = hook;
-            pts.truncate(hi);
-            pts.drain(..lo);
+        let (keep, dev) = drop_kinks(&pts, o.fit.epsilon);
+        if keep.len() < pts.len() {
+            st.kinks = pts.len() - keep.len();
+            st.max_deviation = dev;
+            pts = keep.iter().map(|&k| pts[k]).collect();
             if vals.is_some() {
-                kept_vals.truncate(hi);
-                kept_vals.drain(..lo);
+                kept_vals = keep.iter().map(|&k| kept_vals[k]).collect();
             }
         }
         if pts.len() < 2 {
@@ -1411,7 +1448,7 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
                 stats.streamlines_in += st.streamlines_in;
                 stats.points_in += st.points_in;
                 stats.dropped_points += st.dropped_points;
-                stats.hooks += st.hooks;
+                stats.kinks += st.kinks;
                 stats.max_deviation = stats.max_deviation.max(st.max_deviation);
                 stats.skipped_streamlines += st.skipped_streamlines;
                 stats.splits += st.splits;
