@@ -359,6 +359,23 @@ fn light_shifted(cs: CellShift, k: u32, first: bool) -> f32 {
     return mix(mix(v[0], v[1], cs.f.x), mix(v[2], v[3], cs.f.x), cs.f.y);
 }
 
+// Behind clipping planes, where a ray reaches its next light read: the light it carries on and
+// the factor each sample multiplies it by (besides its own attenuation), so that the carried
+// light reaches the front read over the read's eye slices instead of jumping there,
+// (front / carried)^(1 / light_read) within [1e-3, 1e3] by square roots (light_read is a power
+// of two); a ray's first read, or a light carried below 1e-20, takes the front
+// (`raycast::light::front_gain`, whose docs say why).
+fn front_gain(carried: f32, front: f32, first: bool) -> vec2<f32> {
+    if (first || !(carried > 1e-20)) {
+        return vec2<f32>(front, 1.0);
+    }
+    var g = clamp(front / carried, 1e-3, 1e3);
+    for (var n = P.light_read; n > 1u; n = n >> 1u) {
+        g = sqrt(g);
+    }
+    return vec2<f32>(carried, g);
+}
+
 // A volume larger than one storage binding is split into parts of `part_len` words (in file
 // order): `field` holds the first, `field1`, `field2`, ... (group 2) the rest, as many as the
 // adapter binds (`slice_pass::volume_parts`). Their declarations and `field_word`, which picks
@@ -600,6 +617,7 @@ fn shade_volume(c: vec3<f32>, grad: vec3<f32>, view_dir: vec3<f32>) -> vec3<f32>
 fn composite_eye(
     e: ptr<function, vec4<f32>>, acc: ptr<function, vec2<f32>>, half: ptr<function, f32>,
     r: Ray, iv: vec2<f32>, c: vec4<f32>, grad: vec3<f32>, lit: bool, lrun: ptr<function, f32>,
+    lgain: f32,
 ) {
     let len = iv.y - iv.x;
     if (len <= 0.0 || c.a <= 0.0) {
@@ -616,7 +634,7 @@ fn composite_eye(
     if (lit) {
         let ef = exp(-P.light_path * tau);
         lw = (1.0 - (*e).a) * (*lrun * ((1.0 - et * ef) / (1.0 + P.light_path)));
-        *lrun = *lrun * ef;
+        *lrun = *lrun * (ef * lgain);
     }
     let rgb = shade_volume(c.rgb, grad, -r.d);
     let before = (*e).a;
@@ -985,6 +1003,9 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     // The light step last read (none yet) and the light reaching the next sample along the ray.
     var lstep = 0xffffffffu;
     var lrun = 1.0;
+    // Behind clipping planes, the factor each sample brings the light towards the last front
+    // read (front_gain).
+    var lgain = 1.0;
     // Translucent layers are composited where the ray reaches their depth: a slab they lie in
     // is split there, each part sampled at its middle as clipping planes split slabs.
     let pid = vec2<i32>(id.xy);
@@ -1013,13 +1034,16 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
                     let cb = blended(c, r, 0.5 * (a + b));
                     if (lit && ls != lstep) {
                         if (shifted) {
-                            lrun = light_shifted(cs, k, lstep == 0xffffffffu);
+                            let fr = light_shifted(cs, k, lstep == 0xffffffffu);
+                            let g = front_gain(lrun, fr, lstep == 0xffffffffu);
+                            lrun = g.x;
+                            lgain = g.y;
                         } else {
                             lrun = light_step_front(px, ls);
                         }
                         lstep = ls;
                     }
-                    composite_eye(&e, &acc, &half, r, vec2<f32>(a, b), cb, grad, lit, &lrun);
+                    composite_eye(&e, &acc, &half, r, vec2<f32>(a, b), cb, grad, lit, &lrun, lgain);
                 }
             }
             if (!in_slab) {

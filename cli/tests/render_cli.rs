@@ -962,8 +962,10 @@ fn a_tilted_cut_face_shows_no_band_per_slice_on_either_device() {
     // cut lies in, so it took part of the attenuation of the medium a stored slice deeper
     // (docs/accuracy.md, "Seams on cut faces"). Constant up to the cut and linear from there
     // (`LightVolume::cell_from`), 0.91 with 2-pixel cells and 2.07 with 1-pixel cells on both
-    // devices. Either cell size above 3, or 2-pixel cells above 1.5, is a band or a seam the
-    // cut face did not have.
+    // devices. Since the light a ray carries approaches each front it reads over the step
+    // instead of jumping there (`raycast::light::front_gain`), 0.45 and 1.59. Either cell size
+    // above 2, or 2-pixel cells above 0.7, is a band, a seam or a line a step the cut face did
+    // not have.
     let dir = tempfile::tempdir().unwrap();
     let mut nrrd =
         b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 40 40 40\nspacing: 1 1 1\nencoding: raw\n\n"
@@ -1002,7 +1004,7 @@ fn a_tilted_cut_face_shows_no_band_per_slice_on_either_device() {
             "{device}: cut-face ripple {two:.2} with 2-pixel cells, {one:.2} with 1-pixel cells"
         );
         assert!(
-            two < 1.5 * one.max(0.5) && two < 1.5 && one < 3.0,
+            two < 1.5 * one.max(0.5) && two < 0.7 && one < 2.0,
             "{device}: {two:.2} with 2-pixel cells, {one:.2} with 1"
         );
     }
@@ -1031,8 +1033,11 @@ fn a_cut_face_shows_no_line_per_light_step_on_either_device() {
     // front the face took it a step at a time - faint light and dark lines a step apart, over
     // the bone's own texture (`ea`, no light, measures it). Read at each cell's cut, with the
     // step's blur brought in through its parts (`occlusion::combined::spread_blur`), the
-    // face's ripple is 1.16x `ea`'s at 384^2 on both devices; 1.40x read at the step's front
-    // (umbra fe40b88), 1.23x read at the cut without the blur brought in.
+    // face's ripple was 1.16x `ea`'s at 384^2 on both devices; 1.40x read at the step's front
+    // (umbra fe40b88), 1.23x read at the cut without the blur brought in. Seen at a grazing
+    // angle (azimuth 200, elevation 0), a ray crosses fronts in the bright bone under the face
+    // and each jump of its light to the front read showed as a line (1.47x); since the light
+    // approaches each front over the step (`raycast::light::front_gain`), 1.03x and 1.30x.
     let Some(shared) = test_support::shared_or_skip("a_cut_face_shows_no_line_per_light_step")
     else {
         return;
@@ -1051,35 +1056,46 @@ fn a_cut_face_shows_no_line_per_light_step_on_either_device() {
         ),
     )
     .unwrap();
-    // The face at this camera.
-    let face = (120, 270, 90, 225);
+    // The face at each camera, and the bound on its ripple against `ea`'s.
+    let views = [
+        ("240, 30", (120, 270, 90, 225), 1.1, vec![]),
+        (
+            "200, 0",
+            (150, 300, 100, 300),
+            1.4,
+            vec![
+                "camera.azimuth=200".to_string(),
+                "camera.elevation=0".to_string(),
+            ],
+        ),
+    ];
     for device in ["cpu", "gpu"] {
-        let mut r = [0.0; 2];
-        for (i, method) in ["ea", "combined"].into_iter().enumerate() {
-            let png = dir.path().join(format!("{device}_{method}.png"));
-            single(
-                &scene,
-                &png,
-                &[
+        for (name, face, bound, camera) in &views {
+            let mut r = [0.0; 2];
+            for (i, method) in ["ea", "combined"].into_iter().enumerate() {
+                let png = dir.path().join(format!("{device}_{method}.png"));
+                let mut set = vec![
                     format!("render.device=\"{device}\""),
                     format!("render.method=\"{method}\""),
-                ],
+                ];
+                set.extend(camera.iter().cloned());
+                single(&scene, &png, &set);
+                r[i] = horizontal_ripple(&png, *face);
+            }
+            // The README quotes these (run with --nocapture).
+            eprintln!(
+                "{device}, camera {name}: cut-face ripple {:.3} (`ea` {:.3}, {:.3}x)",
+                r[1],
+                r[0],
+                r[1] / r[0]
             );
-            r[i] = horizontal_ripple(&png, face);
+            assert!(
+                r[1] < bound * r[0],
+                "{device}, camera {name}: {:.3} against `ea`'s {:.3}",
+                r[1],
+                r[0]
+            );
         }
-        // The README quotes these (run with --nocapture).
-        eprintln!(
-            "{device}: cut-face ripple {:.3} (`ea` {:.3}, {:.3}x)",
-            r[1],
-            r[0],
-            r[1] / r[0]
-        );
-        assert!(
-            r[1] < 1.2 * r[0],
-            "{device}: {:.3} against `ea`'s {:.3}",
-            r[1],
-            r[0]
-        );
     }
 }
 

@@ -732,6 +732,8 @@ struct Marching<'s, 'v> {
     /// Light steps: eye slices as a shift, stored slices a step, the path factor `f` and
     /// `1 / (1 + f)`.
     eye_step_shift: __m128i,
+    /// The same shift as a count (`light::front_gain`'s square roots).
+    eye_shift: u32,
     parts: __m256i,
     path: __m256,
     inv_1f: __m256,
@@ -759,6 +761,7 @@ impl<'s, 'v> Marching<'s, 'v> {
                 last: pi(lv.slices as i32 - 1),
                 order: pair_order(),
                 eye_step_shift: _mm_cvtsi32_si128(lv.eye_step_shift as i32),
+                eye_shift: lv.eye_step_shift,
                 parts: pi(lv.parts as i32),
                 path: _mm256_set1_ps(lv.path),
                 inv_1f: _mm256_set1_ps(lv.inv_1f),
@@ -785,6 +788,9 @@ struct Packet {
     /// sample (`Ray::lrun`).
     lstep: __m256i,
     lrun: __m256,
+    /// Behind clipping planes, the factor each sample brings the light towards the last front
+    /// read (`Ray::lgain`, `light::front_gain`).
+    lgain: __m256,
     c: [__m256; 3],
     alpha: __m256,
     acc: __m256,
@@ -842,7 +848,7 @@ impl Packet {
             let mut start = [[f32::NEG_INFINITY; LANES]; 4];
             let mut entry = [f32::NEG_INFINITY; LANES];
             let mut shifted = false;
-            let (mut lstep, mut lrun) = ([-1i32; LANES], [1f32; LANES]);
+            let (mut lstep, mut lrun, mut lgain) = ([-1i32; LANES], [1f32; LANES], [1f32; LANES]);
             if LIT {
                 for (i, (_, r)) in rays.iter().enumerate() {
                     for (j, c) in r.light.cells.iter().enumerate() {
@@ -857,6 +863,7 @@ impl Packet {
                     // (`u32::MAX`, none yet, is -1: no step of fewer than 2^30 slices.)
                     lstep[i] = r.lstep as i32;
                     lrun[i] = r.lrun;
+                    lgain[i] = r.lgain;
                 }
             }
             let cells = cells.map(|c| _mm256_loadu_si256(c.as_ptr() as *const __m256i));
@@ -875,6 +882,7 @@ impl Packet {
                 k1v: r.k1,
                 lstep: _mm256_loadu_si256(lstep.as_ptr() as *const __m256i),
                 lrun: _mm256_loadu_ps(lrun.as_ptr()),
+                lgain: _mm256_loadu_ps(lgain.as_ptr()),
                 r,
                 c: [zero; 3],
                 alpha: zero,
@@ -984,13 +992,38 @@ impl Packet {
                 let stale =
                     _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(st, self.lstep)), lit);
                 if _mm256_movemask_ps(stale) != 0 {
-                    let front = match &self.shift {
-                        None => self.front(m, stale, st),
-                        Some((shift, start, entry)) => {
-                            self.front_shifted(m, stale, shift, start, *entry)
+                    match &self.shift {
+                        None => {
+                            let front = self.front(m, stale, st);
+                            self.lrun = _mm256_blendv_ps(self.lrun, front, stale);
                         }
-                    };
-                    self.lrun = _mm256_blendv_ps(self.lrun, front, stale);
+                        Some((shift, start, entry)) => {
+                            let front = self.front_shifted(m, stale, shift, start, *entry);
+                            // A ray's first read, or a light carried below 1e-20, takes the
+                            // front; the others approach it over the step
+                            // (`light::front_gain`, to the bit).
+                            let first = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+                                self.lstep,
+                                _mm256_set1_epi32(-1),
+                            ));
+                            let dark =
+                                _mm256_cmp_ps::<_CMP_NGT_UQ>(self.lrun, _mm256_set1_ps(1e-20));
+                            let reset = _mm256_and_ps(stale, _mm256_or_ps(first, dark));
+                            let toward = _mm256_andnot_ps(reset, stale);
+                            let [lo, hi] = crate::light::GAIN_RANGE;
+                            let ratio = _mm256_min_ps(
+                                _mm256_max_ps(_mm256_div_ps(front, self.lrun), _mm256_set1_ps(lo)),
+                                _mm256_set1_ps(hi),
+                            );
+                            let mut g = ratio;
+                            for _ in 0..m.eye_shift {
+                                g = _mm256_sqrt_ps(g);
+                            }
+                            self.lgain = _mm256_blendv_ps(self.lgain, one, reset);
+                            self.lgain = _mm256_blendv_ps(self.lgain, g, toward);
+                            self.lrun = _mm256_blendv_ps(self.lrun, front, reset);
+                        }
+                    }
                     self.lstep = _mm256_blendv_epi8(self.lstep, st, _mm256_castps_si256(stale));
                 }
                 let ef = exp_neg(m, _mm256_mul_ps(m.path, _mm256_mul_ps(sigma, r.seg)), lit);
@@ -998,7 +1031,11 @@ impl Packet {
                     self.lrun,
                     _mm256_mul_ps(_mm256_sub_ps(one, _mm256_mul_ps(e, ef)), m.inv_1f),
                 );
-                self.lrun = _mm256_blendv_ps(self.lrun, _mm256_mul_ps(self.lrun, ef), lit);
+                self.lrun = _mm256_blendv_ps(
+                    self.lrun,
+                    _mm256_mul_ps(self.lrun, _mm256_mul_ps(ef, self.lgain)),
+                    lit,
+                );
                 _mm256_mul_ps(_mm256_sub_ps(one, self.alpha), lo)
             } else {
                 wgt
@@ -1219,11 +1256,12 @@ impl Packet {
             _mm256_storeu_si256(hk.as_mut_ptr() as *mut __m256i, self.half_k);
             _mm256_storeu_si256(k.as_mut_ptr() as *mut __m256i, self.kv);
             _mm256_storeu_si256(k1.as_mut_ptr() as *mut __m256i, self.k1v);
-            let (mut lstep, mut lrun) = ([0i32; LANES], [0f32; LANES]);
+            let (mut lstep, mut lrun, mut lgain) = ([0i32; LANES], [0f32; LANES], [0f32; LANES]);
             _mm256_storeu_si256(lstep.as_mut_ptr() as *mut __m256i, self.lstep);
             _mm256_storeu_ps(lrun.as_mut_ptr(), self.lrun);
+            _mm256_storeu_ps(lgain.as_mut_ptr(), self.lgain);
             for (i, (_, r)) in rays.iter_mut().enumerate() {
-                (r.lstep, r.lrun) = (lstep[i] as u32, lrun[i]);
+                (r.lstep, r.lrun, r.lgain) = (lstep[i] as u32, lrun[i], lgain[i]);
                 // Done (k > k1), or ended early (k = 1, k1 = 0).
                 (r.k, r.k1) = (k[i] as u32, k1[i] as u32);
                 r.c = [c[0][i], c[1][i], c[2][i]];

@@ -750,6 +750,7 @@ impl EaVolume {
             inner: (1, 0),
             lstep: u32::MAX,
             lrun: 1.0,
+            lgain: 1.0,
         };
         if cosine.is_nan() || cosine <= 1e-9 || v.slices == 0 {
             return r;
@@ -1030,6 +1031,7 @@ impl EaVolume {
                 inner: (1, 0),
                 lstep: u32::MAX,
                 lrun: 1.0,
+                lgain: 1.0,
             };
             if k1[i] >= k0[i] {
                 r.qa = [qx[i] as f32, qy[i] as f32, qz[i] as f32];
@@ -1289,12 +1291,18 @@ impl EaVolume {
             // attenuation within its slab.
             let s = k >> lv.eye_step_shift;
             if s != r.lstep {
-                r.lrun = lv.front(&r.light, k, r.lstep == u32::MAX);
+                let first = r.lstep == u32::MAX;
+                let front = lv.front(&r.light, k, first);
+                (r.lrun, r.lgain) = if first || !r.light.shifted {
+                    (front, 1.0)
+                } else {
+                    light::front_gain(r.lrun, front, lv.eye_step_shift)
+                };
                 r.lstep = s;
             }
             let ef = self.exp_neg(lv.path * (sigma * len));
             let lw = (1.0 - r.alpha) * (r.lrun * ((1.0 - e * ef) * lv.inv_1f));
-            r.lrun *= ef;
+            r.lrun *= ef * r.lgain;
             for (c, x) in r.c.iter_mut().zip(rgb) {
                 *c += lw * x;
             }
@@ -1655,9 +1663,11 @@ struct Ray {
     inner: (u32, u32),
     /// Lit: the light step the ray last read the light volume at (`u32::MAX`: none yet) and
     /// the light reaching its next sample along the ray (`LightVolume::front`, attenuated by
-    /// the samples since; `occlusion::combined::light_in_slab`).
+    /// the samples since; `occlusion::combined::light_in_slab`), and behind clipping planes
+    /// the factor each sample brings it towards the last front read (`light::front_gain`).
     lstep: u32,
     lrun: f32,
+    lgain: f32,
 }
 
 impl Ray {
