@@ -334,13 +334,11 @@ fn cell_shifts(px: vec2<f32>, r: Ray) -> CellShift {
 
 // Each cell with its shift (the same distance behind the planes as the pixel), between stored
 // slices: on a ray's first read, where it enters the medium at the cut (its first sample in its
-// cut's slice), at the cell's cut (the parts hold the step's blur brought in through them:
-// spread_blur), a first read deeper at the front of the read its own slice k + shift lies in,
-// later at the pixel's read's front plus the shift (the stored parts there hold the cell's own
-// attenuation). Read at the pixel's front from the
-// start, the cells would lie further in front of their cuts the further the pixel's lies
-// behind its front: a line a step on a tilted cut face (`LightVolume::front` in
-// raycast/src/light.rs).
+// cut's slice), at the cell's cut; a first read deeper at the front of the read its own slice
+// k + shift lies in; later at the pixel's read's front plus the shift (the stored parts there
+// hold the cell's own attenuation). Read at the pixel's front from the start, the cells would
+// lie further in front of their cuts the further the pixel's lies behind its front: a line a
+// step on a tilted cut face (`LightVolume::front` in raycast/src/light.rs).
 fn light_shifted(cs: CellShift, k: u32, first: bool) -> f32 {
     let e = f32(P.light_read);
     let kf = f32(k / P.light_read * P.light_read);
@@ -659,25 +657,6 @@ fn concentric(a: vec2<f32>) -> vec2<f32> {
     return a.y * vec2<f32>(cos(t), sin(t));
 }
 
-// The previous step's blur brought in through its parts (behind clipping planes, where the eye
-// reads them): part i of n (stored slices s0 + i) gains i / n of O_k - L_{k-1} (`next` -
-// `leave`), within [0, max(front, O_k)]; nothing at or below SPREAD_MIN; the front unchanged
-// (`occlusion::combined::spread_blur`, whose docs say why).
-const SPREAD_MIN: f32 = 0.0001;
-
-fn spread_blur(ci: u32, base: u32, s0: u32, n: u32, next: f32, leave: f32) {
-    let d = next - leave;
-    if (!(abs(d) > SPREAD_MIN)) {
-        return;
-    }
-    let cap = max(light_volume[ci + base * s0], next);
-    let dp = d / f32(n);
-    for (var i = 1u; i < n; i = i + 1u) {
-        let at = ci + base * (s0 + i);
-        light_volume[at] = clamp(light_volume[at] + f32(i) * dp, 0.0, cap);
-    }
-}
-
 @compute @workgroup_size(8, 8, 1)
 fn light(@builtin(global_invocation_id) id: vec3<u32>) {
     let cw = P.cells.x;
@@ -781,9 +760,6 @@ fn light(@builtin(global_invocation_id) id: vec3<u32>) {
             }
             occl = sum / f32(n * n);
         }
-    }
-    if (k > 0u && n > 1u && P.n_clip > 0u) {
-        spread_blur(ci, cw * ch, (k - 1u) * n, n, occl, occ_in[2u * ci]);
     }
     light_volume[ci + cw * ch * k * n] = occl;
     // The light leaving slice k: through the volume's extinction at the cell's ray, and

@@ -963,7 +963,7 @@ fn a_tilted_cut_face_shows_no_band_per_slice_on_either_device() {
     // (docs/accuracy.md, "Seams on cut faces"). Constant up to the cut and linear from there
     // (`LightVolume::cell_from`), 0.91 with 2-pixel cells and 2.07 with 1-pixel cells on both
     // devices. Since the light a ray carries approaches each front it reads over the step
-    // instead of jumping there (`raycast::light::front_gain`), 0.45 and 1.59. Either cell size
+    // instead of jumping there (`raycast::light::front_gain`), 0.33 and 1.35. Either cell size
     // above 2, or 2-pixel cells above 0.7, is a band, a seam or a line a step the cut face did
     // not have.
     let dir = tempfile::tempdir().unwrap();
@@ -1029,15 +1029,14 @@ fn horizontal_ripple(p: &Path, (x0, x1, y0, y1): (u32, u32, u32, u32)) -> f64 {
 #[test]
 fn a_cut_face_shows_no_line_per_light_step_on_either_device() {
     // A new user's view of the HeadMRVolume cut in half (docs/accuracy.md, "Seams on cut
-    // faces"): the light's blur comes once a step, at its front, and read at each step's
-    // front the face took it a step at a time - faint light and dark lines a step apart, over
-    // the bone's own texture (`ea`, no light, measures it). Read at each cell's cut, with the
-    // step's blur brought in through its parts (`occlusion::combined::spread_blur`), the
-    // face's ripple was 1.16x `ea`'s at 384^2 on both devices; 1.40x read at the step's front
-    // (umbra fe40b88), 1.23x read at the cut without the blur brought in. Seen at a grazing
-    // angle (azimuth 200, elevation 0), a ray crosses fronts in the bright bone under the face
-    // and each jump of its light to the front read showed as a line (1.47x); since the light
-    // approaches each front over the step (`raycast::light::front_gain`), 1.03x and 1.30x.
+    // faces"): the light's blur comes once a step, at its front, and read at the front of the
+    // step a slice before each cell's cut the face took the light a step at a time - faint
+    // light and dark lines a step apart, over the bone's own texture (`ea`, no light, measures
+    // it): 1.40x `ea`'s ripple at 384^2 on both devices (umbra fe40b88). Read at each cell's
+    // cut, 1.23x. Seen at a grazing angle (azimuth 200, elevation 0), a ray crosses fronts in
+    // the bright bone under the face and each jump of its light to the front read showed as a
+    // line (1.47x); since the light approaches each front over the step
+    // (`raycast::light::front_gain`), 1.02x and 1.29x.
     let Some(shared) = test_support::shared_or_skip("a_cut_face_shows_no_line_per_light_step")
     else {
         return;

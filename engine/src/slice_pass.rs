@@ -838,27 +838,6 @@ mod tests {
     }
 
     #[test]
-    fn the_light_pass_spreads_a_steps_blur_as_the_cpu() {
-        // `occlusion::combined::spread_blur`'s threshold and rule in the WGSL twin, called
-        // behind clipping planes only, before the step's front is stored (the previous step's
-        // parts; the devices' agreement on a cut face is `cli/tests/render_cli.rs`'s).
-        let min = occlusion::combined::SPREAD_MIN;
-        assert!(
-            SHADER.contains(&format!("const SPREAD_MIN: f32 = {min};"))
-                && SHADER.contains("if (!(abs(d) > SPREAD_MIN)) {")
-                && SHADER.contains("clamp(light_volume[at] + f32(i) * dp, 0.0, cap)"),
-            "shaders/slice_pass.wgsl does not spread a step's blur as the CPU"
-        );
-        let call = SHADER
-            .find("if (k > 0u && n > 1u && P.n_clip > 0u) {\n        spread_blur(ci, cw * ch, (k - 1u) * n, n, occl, occ_in[2u * ci]);")
-            .expect("the light pass spreads the previous step's blur behind clipping planes");
-        let store = SHADER
-            .find("light_volume[ci + cw * ch * k * n] = occl;")
-            .expect("the light pass stores its front");
-        assert!(call < store);
-    }
-
-    #[test]
     fn the_light_pass_stops_attenuating_at_the_models_dark_light() {
         // The WGSL literal and the Rust constant the CPU sweep uses.
         // The skip comes after a part's store (a dark cell stores its light at every part)

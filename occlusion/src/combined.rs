@@ -11,7 +11,6 @@
 //! | Alg. 2 eye buffer, the light a volume sample receives (not in the paper: `O` read once a light step at its front and carried along the eye's own ray, weighted by the eye within each slab) | [`light_in_slab`]; `raycast::EaVolume::advance`, `raycast::lanes::Packet::composite` (`front`, `front_shifted`), `raycast::light::LightVolume::front` | `slice_pass.wgsl::composite_eye`, `light_step_front`, `light_shifted` (`Params::light_read`) | unit test below (`the_light_in_a_slab_is_exact_however_the_slabs_cut_the_medium`), `raycast` `a_sample_takes_the_light_at_its_own_depth` (steps 1, 2, 8) and `a_dense_surface_shows_the_same_light_wherever_it_lies_between_the_slices`, `cli/tests/render_cli.rs` (`a_tilted_cut_face_shows_no_band_per_slice_on_either_device`), `cli/tests/ea_cli.rs` (devices alike) |
 //! | Alg. 2 behind clipping planes, each light cell read at the pixel's distance behind the planes (not in the paper: constant up to the cell's cut, then geometric `a (b / a)^t` to the next stored slice, exact for a uniform medium) | `raycast::light::LightVolume::clip_shifts`, `LightVolume::cell_from`, `raycast::light::geometric` (`ln_at_least_1`, `exp_neg_fast`); `raycast::lanes::Packet::front_shifted`, `lanes::geometric` (the same bits) | `slice_pass.wgsl::cell_shifts`, `light_shifted`, `light_step_from` | `raycast` `the_geometric_read_follows_the_exponential`, `clipped_frames_march_in_lanes_as_the_scalar_march_bit_for_bit`; `cli/tests/render_cli.rs` (`a_tilted_cut_face_shows_no_band_per_slice_on_either_device`) |
 //! | Alg. 2 behind clipping planes, the light a ray carries brought to each front it reads over the step, not at once (not in the paper: the front holds the cells' coarser samples and the step's blur, and a ray crossing a front under a cut face at a grazing angle showed the jump as a line) | `raycast::light::front_gain` (`GAIN_RANGE`); `raycast::EaVolume::advance`, `raycast::lanes::Packet::composite` (the same bits) | `slice_pass.wgsl::front_gain`, `composite_eye` (`lgain`) | `raycast` `clipped_frames_march_in_lanes_as_the_scalar_march_bit_for_bit`; `cli/tests/render_cli.rs` (`a_cut_face_shows_no_line_per_light_step_on_either_device`, `a_tilted_cut_face_shows_no_band_per_slice_on_either_device`) |
-//! | Alg. 3, a step's blur brought in through its parts (not in the paper: the blur is once a step, at its front; behind clipping planes the eye reads the parts, and a ray's first read is at its cut) | [`spread_blur`], [`SPREAD_MIN`]; `raycast::light` (`Sweep::rows`), `raycast::light::LightVolume::front`, `raycast::lanes::Packet::front_shifted` (the first read) | `slice_pass.wgsl::spread_blur` (in `light`), `light_shifted` | unit test below (`a_steps_blur_comes_in_through_its_parts`), `engine` `the_light_pass_spreads_a_steps_blur_as_the_cpu`, `cli/tests/render_cli.rs` (`a_tilted_cut_face_shows_no_band_per_slice_on_either_device`) |
 //! | Alg. 3, the light's attenuation through a slab (not in the paper: along the cone) | [`cone_path_factor`]; `raycast::light` (`Sweep::path`) | `Params::light_path` in `slice_pass.wgsl::light` | unit test below (`the_cone_path_factor_is_the_mean_path_through_a_slab`), `raycast` `a_sample_takes_the_light_at_its_own_depth` (45 degrees), `occlusion_render.rs` (partial occlusion in a uniform medium), `cli/tests/ea_cli.rs` (devices alike) |
 //! | Alg. 4, eq. 1-3 partial occlusion | `reference::render` (surface AOV) | `slice_pass.wgsl::march` | `occlusion_render.rs` (the cone's mean of exp(-sigma z / cos phi)) |
 //! | Alg. 5, eq. 4-6 vicinity | [`poisson_disk`], `camera::texture_radius` | `vicinity.wgsl` | `occlusion_render.rs` (groove) |
@@ -337,34 +336,6 @@ pub fn step_theta(theta_deg: f64, step: u32, cone: bool) -> f64 {
 /// headsq at 128-1024^2 the 8-bit images are identical with and without the skip.
 pub const DARK: f32 = 1.0 / 1024.0;
 
-/// A light step's blur brought in through its stored parts. The sweep blurs once a step, at
-/// its front (`O_{k+1}` from the light `L_k` leaving step k over the cone's disk), so the light
-/// reaching a part inside the step held none of the step's blur; a cut face tilted to the
-/// slices, which the eye reads at each cell's cut, then took the blur a step at a time - faint
-/// lines a step apart (docs/accuracy.md, "Seams on cut faces"). Once `O_{k+1}` (`next`) is
-/// known, part `i` of the step's `p` (`slots[i]`, the light reaching it; `slots[0]` is `O_k`,
-/// unchanged) gains `i / p` of the blur's change `O_{k+1} - L_k` (`leave`), clamped to
-/// `[0, max(O_k, O_{k+1})]`: continuous from the step's front to the next, nothing where the
-/// blur changes the light by [`SPREAD_MIN`] or less. Added, not multiplied: a ratio
-/// `(O_{k+1} / L_k)^(i / p)` is unbounded where a step's last part is opaque, and measured no
-/// better (docs/accuracy.md). `raycast::light` calls it behind clipping planes (where the eye
-/// reads parts), `slice_pass.wgsl::spread_blur` is its twin.
-pub fn spread_blur(slots: &mut [f32], next: f32, leave: f32) {
-    let p = slots.len();
-    let d = next - leave;
-    if p < 2 || d.is_nan() || d.abs() <= SPREAD_MIN {
-        return;
-    }
-    let (cap, dp) = (slots[0].max(next), d / p as f32);
-    for (i, s) in slots.iter_mut().enumerate().skip(1) {
-        *s = (*s + i as f32 * dp).clamp(0.0, cap);
-    }
-}
-
-/// The change of a step's light by its blur below which [`spread_blur`] leaves the step's
-/// parts as they are: a 40th of a level of 255.
-pub const SPREAD_MIN: f32 = 1e-4;
-
 /// How much longer the head light's path through a slab is, on average over its cone, than the
 /// slab's depth along the ray: the mean of `1 / cos(phi)` over directions uniform in solid
 /// angle within the cone of half-angle theta (`cos(phi)` uniform on `[cos(theta), 1]`),
@@ -532,56 +503,6 @@ pub fn poisson_disk(n: usize) -> Vec<[f32; 2]> {
 
 #[cfg(test)]
 mod tests {
-    /// A step's blur brought in through its parts: part `i` of `p` gains `i / p` of
-    /// `O_{k+1} - L_k` (the front unchanged; continued to the next front the parts reach
-    /// `O_{k+1}`), within `[0, max(O_k, O_{k+1})]`; nothing at or below `SPREAD_MIN`.
-    #[test]
-    fn a_steps_blur_comes_in_through_its_parts() {
-        // A cut face in the step: nothing absorbs before part 2, then 0.8 a part; the light
-        // leaving is 0.576 (0.64 of the front's 0.9), and the blur of darker neighbours takes
-        // it to 0.4.
-        let front = 0.9f32;
-        let parts = [front, front, front, front * 0.8];
-        let leave = front * 0.8 * 0.8;
-        for next in [0.4f32, 0.7] {
-            let mut s = parts;
-            spread_blur(&mut s, next, leave);
-            let d = (next - leave) / 4.0;
-            for (i, (&got, &was)) in s.iter().zip(&parts).enumerate() {
-                let want = (was + i as f32 * d).min(front.max(next));
-                assert!(
-                    (got - want).abs() < 1e-6,
-                    "{next}, part {i}: {got} against {want}"
-                );
-            }
-        }
-        // Nothing where the blur changed the light by SPREAD_MIN or less, or for one part.
-        let mut same = parts;
-        spread_blur(&mut same, leave + 0.5 * SPREAD_MIN, leave);
-        assert_eq!(same, parts);
-        let mut one = [0.5f32];
-        spread_blur(&mut one, 0.1, 0.5);
-        assert_eq!(one, [0.5]);
-        // A step whose last part is opaque: light brought in, at most max(O_k, O_{k+1}).
-        let mut dark = [0.5f32, 0.2, 0.05, 0.0];
-        spread_blur(&mut dark, 0.4, 0.0);
-        assert_eq!(dark, [0.5, 0.3, 0.25, 0.3]);
-        let mut bright = [0.5f32, 0.45, 0.45, 0.45];
-        spread_blur(&mut bright, 0.9, 0.01);
-        assert_eq!(bright[0], 0.5);
-        assert!(bright[1..]
-            .iter()
-            .all(|&x| x == 0.9 || (x > 0.45 && x < 0.9)));
-        assert_eq!(bright[3], 0.9);
-        // Never below 0 nor NaN.
-        let mut nan = [0.5f32, 0.3, 0.2, 0.1];
-        spread_blur(&mut nan, f32::NAN, 0.1);
-        assert_eq!(nan, [0.5, 0.3, 0.2, 0.1]);
-        let mut low = [1.0f32, 0.01, 0.01, 0.01];
-        spread_blur(&mut low, 0.0, 0.9);
-        assert!(low.iter().all(|&x| x >= 0.0), "{low:?}");
-    }
-
     #[test]
     fn the_light_in_a_slab_is_exact_however_the_slabs_cut_the_medium() {
         // A uniform medium (sigma 0.4 a unit, 6 units deep) cut into n slabs: the slabs' lit

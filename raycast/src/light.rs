@@ -29,7 +29,7 @@
 
 use crate::{EaVolume, Ray, Voxel, SKIP};
 use occlusion::camera::Camera;
-use occlusion::combined::{blur_rows, blur_taps, light_view, spread_blur, step_theta, BlurRow};
+use occlusion::combined::{blur_rows, blur_taps, light_view, step_theta, BlurRow};
 use occlusion::emission_absorption::EaView;
 use rayon::prelude::*;
 
@@ -99,10 +99,10 @@ impl LightVolume {
     /// clipping planes each cell `i` is read with its shift ([`LightVolume::clip_shifts`]: the
     /// same distance behind the planes as the pixel), between stored slices: on the ray's
     /// `first` read, where it enters the medium at the cut (its first sample in its cut's
-    /// slice), at the cell's own cut (the light reaching the face there: the stored parts hold
-    /// the step's blur brought in through them, `occlusion::combined::spread_blur`; read at the
-    /// step's front, a face took the blur a step at a time - faint lines a step apart); a
-    /// first read deeper (the ray meets the medium past its cut: at the grid's side, say) at
+    /// slice), at the cell's own cut (read at `k + shift_i`, where the ray's first sample
+    /// begins, up to a slice in front of the cut, a cell whose cut lay just past a step's front
+    /// took the step before's light: faint lines a step apart on a cut face); a first read
+    /// deeper (the ray meets the medium past its cut: at the grid's side, say) at
     /// the front of the step its own slice `k + shift_i` lies in (at `k + shift_i` itself the
     /// cells' own attenuation there showed on the grid's sides); later at the pixel's step's
     /// front plus `shift_i` (the stored parts there hold the cell's own attenuation). Read at the
@@ -643,21 +643,10 @@ impl EaVolume {
                 #[cfg(target_arch = "x86_64")]
                 splat: splat.as_ref(),
             };
-            // Where the step's parts are stored and it begins a block, the previous step's
-            // parts lie in the block before (`spread_blur`).
-            // SAFETY: those rows of the block before were written by this job's slice k - 1,
-            // finished, and no other job touches them.
-            let before = (kept > 1 && k > 0 && (k * kept).is_multiple_of(KB)).then(|| unsafe {
-                std::slice::from_raw_parts_mut(
-                    shared.o.add((((k * kept / KB) - 1) * n + c0) * KB),
-                    len * KB,
-                )
-            });
             let rows = Rows {
                 first,
                 out,
                 o,
-                before,
                 nk,
                 dn,
             };
@@ -989,13 +978,11 @@ fn sweep_slices<S: Sync>(
 
 /// Rows of cells of one slice, from row `first`: their light leaving (`out`), their `O` in
 /// the light volume's block (`o`), their next slices to sample (`nk`) and their dirty spans
-/// (`dn`); where the step's parts are stored and the step begins a block, the same rows of
-/// the block before (`before`: the previous step's parts, `occlusion::combined::spread_blur`).
+/// (`dn`).
 struct Rows<'a> {
     first: usize,
     out: &'a mut [Leave],
     o: &'a mut [f32],
-    before: Option<&'a mut [f32]>,
     nk: &'a mut [u32],
     dn: &'a mut [(i32, i32)],
 }
@@ -1059,7 +1046,6 @@ impl Sweep<'_> {
             first,
             out,
             o,
-            mut before,
             nk,
             dn,
         } = r;
@@ -1232,25 +1218,6 @@ impl Sweep<'_> {
                     },
                 );
                 need.clear();
-            }
-            if parts > 1 && k > 0 {
-                // The previous step's blur brought in through its parts
-                // (`occlusion::combined::spread_blur`): each cell the blur may reach, from its
-                // light leaving that step to `O_k`.
-                let (rlo, rhi) = self.reach[ry];
-                let (x0, x1) = (rlo.max(0), rhi.min(cw as i32 - 1));
-                for x in x0..=x1 {
-                    let slot = (ry * cw + x as usize) * KB;
-                    let next = o[slot + j0];
-                    let leave = self.texel(x as i64, y as i64)[0];
-                    if next != leave {
-                        let prev = match before.as_deref_mut() {
-                            Some(b) => &mut b[slot + KB - parts..slot + KB],
-                            None => &mut o[slot + j0 - parts..slot + j0],
-                        };
-                        spread_blur(prev, next, leave);
-                    }
-                }
             }
             *dn = (lo, hi);
         }
