@@ -288,6 +288,62 @@ fn a_rerun_after_a_killed_run_renders_only_what_is_missing() {
     assert!(indices(&r, "done").is_empty());
 }
 
+/// A resubmitted shard whose frames are all complete leaves the timings of the run that
+/// rendered them (it wrote zeros over them, found by a new user), and a run asking for AOVs
+/// renders again the EXRs written without them (they were kept as complete).
+#[test]
+fn a_rerun_keeps_the_timings_and_renders_exrs_again_for_their_aovs() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let pattern = dir.path().join("o/f_#.exr");
+    let timings = dir.path().join("t.json");
+    let t = ["--timings-json", timings.to_str().unwrap()];
+    ok(&orbit(&s, 2, &pattern, &t));
+    let first = std::fs::read_to_string(&timings).unwrap();
+    let j: serde_json::Value = serde_json::from_str(&first).unwrap();
+    assert!(j["total_ms"].as_f64().unwrap() > 0.0, "{first}");
+    let out = orbit(&s, 2, &pattern, &[&t[..], &["--skip-existing"]].concat());
+    ok(&out);
+    assert_eq!(std::fs::read_to_string(&timings).unwrap(), first);
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("is left as it was"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // With --aov the frames without AOVs are not complete: both rendered again, with Z.
+    let rec = dir.path().join("r.json");
+    ok(&orbit(
+        &s,
+        2,
+        &pattern,
+        &[
+            "--aov",
+            "--skip-existing",
+            "--record",
+            rec.to_str().unwrap(),
+        ],
+    ));
+    assert_eq!(indices(&record(&rec), "done"), [0, 1]);
+    assert!(scene::batch::complete_image(
+        &dir.path().join("o/f_0.exr"),
+        64,
+        48,
+        &["Z", "occlusion.combined"]
+    ));
+    ok(&orbit(
+        &s,
+        2,
+        &pattern,
+        &[
+            "--aov",
+            "--skip-existing",
+            "--record",
+            rec.to_str().unwrap(),
+        ],
+    ));
+    assert_eq!(indices(&record(&rec), "skipped"), [0, 1]);
+}
+
 #[test]
 fn a_failing_frame_is_recorded_and_the_others_still_render() {
     let dir = tempfile::tempdir().unwrap();

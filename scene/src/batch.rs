@@ -139,9 +139,11 @@ impl Shard {
 }
 
 /// Whether `path` holds a whole image of `width` x `height`: a PNG or an EXR that decodes
-/// completely at that size. What `--skip-existing` keeps; anything else (missing, truncated,
-/// another size, another format than the extension says) is rendered again.
-pub fn complete_image(path: &Path, width: u32, height: u32) -> bool {
+/// completely at that size, an EXR with every channel of `channels` (the AOVs a run asks
+/// for: a frame written without them is not that run's). What `--skip-existing` keeps;
+/// anything else (missing, truncated, another size, another format than the extension says,
+/// an EXR without the AOVs asked for) is rendered again.
+pub fn complete_image(path: &Path, width: u32, height: u32, channels: &[&str]) -> bool {
     if !path.is_file() {
         return false;
     }
@@ -151,9 +153,16 @@ pub fn complete_image(path: &Path, width: u32, height: u32) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if exr {
         exr::prelude::read_all_data_from_file(path).is_ok_and(|img| {
-            img.layer_data
-                .first()
-                .is_some_and(|l| l.size.0 == width as usize && l.size.1 == height as usize)
+            img.layer_data.first().is_some_and(|l| {
+                l.size.0 == width as usize
+                    && l.size.1 == height as usize
+                    && channels.iter().all(|c| {
+                        l.channel_data
+                            .list
+                            .iter()
+                            .any(|ch| ch.name.to_string() == *c)
+                    })
+            })
         })
     } else {
         image::ImageReader::open(path)
@@ -662,23 +671,29 @@ mod tests {
         let png = dir.path().join("a.png");
         let rgb = vec![[0.5f32, 0.2, 0.1]; 8 * 6];
         crate::image_io::write_rgb_png(&png, 8, 6, &rgb).unwrap();
-        assert!(complete_image(&png, 8, 6));
-        assert!(!complete_image(&png, 6, 8));
+        assert!(complete_image(&png, 8, 6, &[]));
+        assert!(!complete_image(&png, 6, 8, &[]));
         // Truncated: the first half of the file.
         let bytes = std::fs::read(&png).unwrap();
         let cut = dir.path().join("cut.png");
         std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
-        assert!(!complete_image(&cut, 8, 6));
+        assert!(!complete_image(&cut, 8, 6, &[]));
         std::fs::write(&cut, b"").unwrap();
-        assert!(!complete_image(&cut, 8, 6));
-        assert!(!complete_image(&dir.path().join("missing.png"), 8, 6));
-        assert!(!complete_image(dir.path(), 8, 6));
+        assert!(!complete_image(&cut, 8, 6, &[]));
+        assert!(!complete_image(&dir.path().join("missing.png"), 8, 6, &[]));
+        assert!(!complete_image(dir.path(), 8, 6, &[]));
         let exr = dir.path().join("a.exr");
         let rgba = vec![[0.5f32, 0.2, 0.1, 1.0]; 8 * 6];
         crate::image_io::write_exr(&exr, 8, 6, &rgba, &[]).unwrap();
-        assert!(complete_image(&exr, 8, 6));
+        assert!(complete_image(&exr, 8, 6, &[]));
+        // Without the AOVs a run asks for it is not that run's frame; with them it is.
+        assert!(!complete_image(&exr, 8, 6, &["Z"]));
+        let aov = dir.path().join("aov.exr");
+        let z = vec![("Z".to_string(), vec![1.0f32; 8 * 6])];
+        crate::image_io::write_exr(&aov, 8, 6, &rgba, &z).unwrap();
+        assert!(complete_image(&aov, 8, 6, &["Z"]));
         let bytes = std::fs::read(&exr).unwrap();
         std::fs::write(&exr, &bytes[..bytes.len() - 40]).unwrap();
-        assert!(!complete_image(&exr, 8, 6));
+        assert!(!complete_image(&exr, 8, 6, &[]));
     }
 }

@@ -421,7 +421,10 @@ pub(crate) fn run_on(
     let mut skipped = vec![];
     if a.skip_existing {
         owned.retain(|(k, file)| {
-            let done = complete_image(file, s.render.width, s.render.height);
+            // With AOVs asked for, an EXR must hold them (the depth channel is in every
+            // AOV set: `renderer::Output::aov_channels`).
+            let need: &[&str] = if a.aov { &["Z"] } else { &[] };
+            let done = complete_image(file, s.render.width, s.render.height, need);
             if done {
                 let o = FrameOutcome {
                     index: *k,

@@ -1463,24 +1463,72 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
         let scalar = |c: &str| c.starts_with("scalar:") || c.starts_with("volume:");
         // An index as written by the entries' own keys (`lines.0`, not `lines.00`).
         let index = |n: &str| n.parse::<usize>().ok().filter(|i| i.to_string() == n);
-        let ok = match src.split_once('.') {
-            None if src == "volume" => s.volume.as_ref().is_some_and(|v| v.iso.is_none()),
-            Some(("tubes", n)) => index(n)
-                .and_then(|i| s.tubes.get(i))
-                .is_some_and(|t| scalar(&t.color)),
-            Some(("lines", n)) => index(n)
-                .and_then(|i| s.lines.get(i))
-                .is_some_and(|l| scalar(&l.color)),
-            Some(("points", n)) => index(n)
-                .and_then(|i| s.points.get(i))
-                .is_some_and(|p| scalar(&p.color)),
-            Some(("overlays", name)) => s.overlays.iter().any(|o| o.name == name && !o.labels),
-            _ => false,
+        // What keeps the source from having a colour bar (`None`: nothing).
+        let entry = |kind: &str, n: &str, colors: Vec<&str>| -> Option<String> {
+            match index(n) {
+                None => Some(format!("'{n}' is not an index of [[{kind}]]")),
+                Some(i) if i >= colors.len() => Some(match colors.len() {
+                    0 => format!("the scene has no [[{kind}]] entry"),
+                    1 => format!("the scene has one [[{kind}]] entry ({kind}.0)"),
+                    k => format!(
+                        "the scene has {k} [[{kind}]] entries ({kind}.0 to {kind}.{})",
+                        k - 1
+                    ),
+                }),
+                Some(i) if !scalar(colors[i]) => Some(format!(
+                    "{kind}.{i} is coloured '{}', not by scalar:NAME or volume:PATH",
+                    colors[i]
+                )),
+                Some(_) => None,
+            }
         };
-        if !ok {
+        let why = match src.split_once('.') {
+            None if src == "volume" => match &s.volume {
+                None => Some("the scene has no volume".to_string()),
+                Some(v) if v.iso.is_some() => {
+                    Some("the volume is drawn as an isosurface ([volume.iso])".to_string())
+                }
+                Some(_) => None,
+            },
+            Some(("tubes", n)) => entry(
+                "tubes",
+                n,
+                s.tubes.iter().map(|t| t.color.as_str()).collect(),
+            ),
+            Some(("lines", n)) => entry(
+                "lines",
+                n,
+                s.lines.iter().map(|l| l.color.as_str()).collect(),
+            ),
+            Some(("points", n)) => entry(
+                "points",
+                n,
+                s.points.iter().map(|p| p.color.as_str()).collect(),
+            ),
+            Some(("overlays", name)) => match s.overlays.iter().find(|o| o.name == name) {
+                None => Some(format!(
+                    "no overlay is named '{name}' (overlays: {})",
+                    if s.overlays.is_empty() {
+                        "none".to_string()
+                    } else {
+                        s.overlays
+                            .iter()
+                            .map(|o| o.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    }
+                )),
+                Some(o) if o.labels => Some(format!(
+                    "overlay '{name}' is a label overlay (its colours name labels, not a scale)"
+                )),
+                Some(_) => None,
+            },
+            _ => Some("not a source of a colour bar".to_string()),
+        };
+        if let Some(why) = why {
             return bad(
                 "colorbar",
-                format!("'{src}': give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), tubes.N / lines.N / points.N of an entry coloured by scalar:NAME or volume:PATH, or overlays.NAME of a scalar overlay"),
+                format!("'{src}': {why}; give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), tubes.N / lines.N / points.N of an entry coloured by scalar:NAME or volume:PATH, or overlays.NAME of a scalar overlay"),
             );
         }
         if s.render.bits == 1 {

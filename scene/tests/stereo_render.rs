@@ -121,8 +121,24 @@ fn a_point_cloud_coloured_by_a_column_has_a_colour_bar() {
         [glam::DVec3::splat(-0.5), glam::DVec3::splat(1.5)]
     );
     let e = scene::spec::parse(&scene("#ff0000"), "s.toml", dir.path(), &[]).unwrap_err();
-    assert!(e.contains("colorbar") && e.contains("points.N"), "{e}"); // The illustrative method draws the points in its one ink: their bar is refused there, the
-                                                                      // other methods keep it.
+    assert!(e.contains("colorbar") && e.contains("points.N"), "{e}");
+    // The error says what keeps the source from having a bar.
+    assert!(e.contains("points.0 is coloured '#ff0000'"), "{e}");
+    let other = |src: &str| {
+        let text = scene("scalar:temp").replace("\"points.0\"", &format!("\"{src}\""));
+        scene::spec::parse(&text, "s.toml", dir.path(), &[]).unwrap_err()
+    };
+    let e = other("points.1");
+    assert!(
+        e.contains("the scene has one [[points]] entry (points.0)"),
+        "{e}"
+    );
+    assert!(other("tubes.0").contains("the scene has no [[tubes]] entry"));
+    assert!(other("points.x").contains("'x' is not an index of [[points]]"));
+    assert!(other("volume").contains("the scene has no volume"));
+    assert!(other("overlays.fa").contains("no overlay is named 'fa' (overlays: none)"));
+    assert!(other("frames").contains("not a source of a colour bar")); // The illustrative method draws the points in its one ink: their bar is refused there, the
+                                                                       // other methods keep it.
     scene::render::check_colorbar_method(&s).unwrap();
     let ink = scene::spec::parse(
         &scene("scalar:temp"),

@@ -50,7 +50,8 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     camera_path: Option<PathBuf>,
     /// Add the AOV channels to the EXR: volumetric, partial, vicinity, lineao (with its
-    /// factors .v, .g_depth, .g_light where it ran) and combined occlusion, linear depth (Z).
+    /// factors .v, .g_depth, .g_light, .g_align where it ran) and combined occlusion, linear
+    /// depth (Z).
     #[arg(long)]
     aov: bool,
     /// Animate the lines' trails ([[lines]] trail): N frames with the trails' time `now` from
@@ -422,8 +423,17 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
     }
     record(&r.done, &r.skipped, &r.failed, r.frames_owned, &r.adapter)?;
     if let Some(t) = &a.timings_json {
-        let text = serde_json::to_string_pretty(&timings(&r)).map_err(|e| e.to_string())?;
-        volume::write_atomic(t, text.as_bytes()).map_err(|e| e.to_string())?;
+        if r.done.is_empty() && !r.skipped.is_empty() {
+            // Nothing was timed: a resubmitted shard keeps the measurements of the run that
+            // rendered its frames.
+            eprintln!(
+                "note: every frame was complete and skipped: {} is left as it was (no frame was timed)",
+                t.display()
+            );
+        } else {
+            let text = serde_json::to_string_pretty(&timings(&r)).map_err(|e| e.to_string())?;
+            volume::write_atomic(t, text.as_bytes()).map_err(|e| e.to_string())?;
+        }
     }
     if a.json {
         out_json_pretty(&r)?;
