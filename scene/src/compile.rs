@@ -500,6 +500,14 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 &vspec.path,
             )
             .map_err(|e| format!("volume.iso.value: {e}"))?;
+            // As the volume's rendering says of its gaps (`umbra sweep` warns the same way).
+            let nan = values.iter().filter(|v| v.is_nan()).count();
+            if nan > 0 {
+                notes.push(format!(
+                    "{}: {nan} NaN samples are taken as outside the isosurface",
+                    vspec.path.display()
+                ));
+            }
             // The octants describe the solid cut by the scene's clipping planes: a cavity the
             // cut opens sees the sky through it (`volume::occlusion_sweep::open_cut`).
             let planes: Vec<([f64; 3], f64)> =

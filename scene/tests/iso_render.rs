@@ -289,3 +289,37 @@ fn fields_from_files_keep_their_subsurface_opacity_when_cut() {
     assert!(sum(&soft_cut) > sum(&plain_cut));
     assert!(sum(&plain_cut) > sum(&octants(&plain, "")));
 }
+
+/// NaN samples in isosurface mode are taken as outside (as `umbra sweep` takes them), and the
+/// render says so, as the volume's rendering says of its gaps (a new user found it silent).
+#[test]
+fn nan_samples_in_isosurface_mode_are_noted() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut vol = volume::synthetic::validation_scene(24);
+    let n = vol.fields[0].data.len();
+    for k in [n / 3, n / 2, n / 2 + 1] {
+        vol.fields[0].data[k] = f32::NAN;
+    }
+    let path = dir.path().join("v.nrrd");
+    volume::nrrd::write(
+        &path,
+        &vol,
+        &vol.fields[0],
+        volume::nrrd::WriteEncoding::Raw,
+    )
+    .unwrap();
+    let text = format!(
+        "[volume]\npath = \"{}\"\n[volume.iso]\nvalue = 0.0\ninside = \"below\"\n\
+         [render]\nwidth = 32\nheight = 32\n",
+        path.display()
+    );
+    let s = scene::spec::parse(&text, "iso.toml", dir.path(), &[]).unwrap();
+    let m = model(&s).unwrap();
+    assert!(
+        m.notes
+            .iter()
+            .any(|n| n.contains("3 NaN samples are taken as outside the isosurface")),
+        "{:?}",
+        m.notes
+    );
+}
