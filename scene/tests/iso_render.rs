@@ -8,15 +8,13 @@ use scene::compile::{model, render_scene};
 
 /// Singh et al.'s validation scene at `n^3` written as `dir/v.nrrd`.
 fn validation_nrrd(dir: &std::path::Path, n: usize) -> std::path::PathBuf {
-    let vol = volume::synthetic::validation_scene(n);
+    write_nrrd(dir, &volume::synthetic::validation_scene(n))
+}
+
+/// `vol`'s first field written as `dir/v.nrrd`.
+fn write_nrrd(dir: &std::path::Path, vol: &volume::Volume) -> std::path::PathBuf {
     let path = dir.join("v.nrrd");
-    volume::nrrd::write(
-        &path,
-        &vol,
-        &vol.fields[0],
-        volume::nrrd::WriteEncoding::Raw,
-    )
-    .unwrap();
+    volume::nrrd::write(&path, vol, &vol.fields[0], volume::nrrd::WriteEncoding::Raw).unwrap();
     path
 }
 
@@ -300,14 +298,7 @@ fn nan_samples_in_isosurface_mode_are_noted() {
     for k in [n / 3, n / 2, n / 2 + 1] {
         vol.fields[0].data[k] = f32::NAN;
     }
-    let path = dir.path().join("v.nrrd");
-    volume::nrrd::write(
-        &path,
-        &vol,
-        &vol.fields[0],
-        volume::nrrd::WriteEncoding::Raw,
-    )
-    .unwrap();
+    let path = write_nrrd(dir.path(), &vol);
     let text = format!(
         "[volume]\npath = \"{}\"\n[volume.iso]\nvalue = 0.0\ninside = \"below\"\n\
          [render]\nwidth = 32\nheight = 32\n",
