@@ -712,7 +712,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             colorbar = crate::tube_sets::color_bar(&sl, &t.color, named_map(&t.colormap))
                 .map_err(|e| format!("tubes[{i}].color: {e}"))?;
         }
-        let mut args = crate::tube_sets::TubesArgs::defaults(t.radius, 8, t.tolerance, &t.color);
+        let mut args =
+            crate::tube_sets::TubesArgs::defaults(t.radius, t.sides, t.tolerance, &t.color);
         args.colormap = named_map(&t.colormap);
         let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
             .map_err(|e| format!("tubes[{i}] ({}): {e}", t.path.display()))?;
@@ -1679,6 +1680,32 @@ impl Uploaded<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `tubes[].sides` meshes scene tubes with that many sides a ring (it was fixed at 8), and
+    /// a count outside 3-256 is refused naming the key.
+    #[test]
+    fn scene_tubes_take_their_sides() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/tracts/dipy");
+        let scene =
+            |sides: &str| format!("[[tubes]]\npath = \"tracks300.trk\"\nradius = 0.3\n{sides}");
+        let tri = |sides: &str| {
+            let s = spec::parse(&scene(sides), "t.toml", &dir, &[]).unwrap();
+            model(&s)
+                .unwrap()
+                .meshes
+                .iter()
+                .map(|m| m.triangles())
+                .sum::<usize>()
+        };
+        let (eight, three, sixteen) = (tri(""), tri("sides = 3\n"), tri("sides = 16\n"));
+        // Rings and caps both scale with the sides: triangles in proportion.
+        assert_eq!(eight * 3, three * 8, "{eight} and {three}");
+        assert_eq!(eight * 2, sixteen, "{eight} and {sixteen}");
+        for bad in ["sides = 2\n", "sides = 257\n"] {
+            let e = spec::parse(&scene(bad), "t.toml", &dir, &[]).unwrap_err();
+            assert!(e.contains("tubes[0].sides"), "{e}");
+        }
+    }
 
     #[test]
     fn an_orbit_camera_orbits_its_target() {

@@ -333,6 +333,9 @@ pub struct TubesSpec {
     /// Fitting tolerance, world units.
     #[serde(default = "default_tolerance")]
     pub tolerance: f64,
+    /// Sides of a ring (3 to 256), as `umbra tubes --sides`.
+    #[serde(default = "default_sides")]
+    pub sides: usize,
     /// In [0, 1]; below 1 the tubes are translucent (depth-peeled, `render.translucent_layers`).
     #[serde(default = "one")]
     pub opacity: f64,
@@ -384,6 +387,10 @@ fn default_radius() -> f64 {
 fn default_color() -> String {
     "direction".into()
 }
+fn default_sides() -> usize {
+    8
+}
+
 fn default_tolerance() -> f64 {
     0.05
 }
@@ -2057,6 +2064,12 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             return bad(
                 &format!("tubes[{i}].tolerance"),
                 format!("{} is not positive", t.tolerance),
+            );
+        }
+        if !(3..=256).contains(&t.sides) {
+            return bad(
+                &format!("tubes[{i}].sides"),
+                format!("{} is not a side count from 3 to 256", t.sides),
             );
         }
         if !(0.0..=1.0).contains(&t.opacity) {

@@ -137,8 +137,9 @@ fn a_point_cloud_coloured_by_a_column_has_a_colour_bar() {
     assert!(other("points.x").contains("'x' is not an index of [[points]]"));
     assert!(other("volume").contains("the scene has no volume"));
     assert!(other("overlays.fa").contains("no overlay is named 'fa' (overlays: none)"));
-    assert!(other("frames").contains("not a source of a colour bar")); // The illustrative method draws the points in its one ink: their bar is refused there, the
-                                                                       // other methods keep it.
+    assert!(other("frames").contains("not a source of a colour bar"));
+    // The illustrative method draws the points in its one ink: their bar is refused there, the
+    // other methods keep it.
     scene::render::check_colorbar_method(&s).unwrap();
     let ink = scene::spec::parse(
         &scene("scalar:temp"),
