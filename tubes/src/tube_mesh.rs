@@ -740,13 +740,7 @@ fn simplify_polyline(points: &[DVec3], tolerance: f64, max_turn_deg: f64) -> (Ve
             }
             let mut w2 = 0.0f64;
             for &x in &points[a + 1..c] {
-                let d = x - p;
-                let u = if vv > 0.0 {
-                    (d.dot(v) / vv).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                w2 = w2.max((d - v * u).length_squared());
+                w2 = w2.max(segment_distance2(x, p, points[c]));
                 if w2 > tol2 {
                     break;
                 }
