@@ -838,6 +838,24 @@ mod tests {
     }
 
     #[test]
+    fn the_march_brings_the_carried_light_to_each_front_as_the_cpu() {
+        // `raycast::light::front_gain`'s rule in the WGSL twin (the CPU's `GAIN_RANGE` is
+        // [1e-3, 1e3]; the devices' agreement on cut faces is `cli/tests/render_cli.rs`'s):
+        // a first read or a light below 1e-20 takes the front, else the ratio's roots.
+        for text in [
+            "if (first || !(carried > 1e-20)) {\n        return vec2<f32>(front, 1.0);",
+            "var g = clamp(front / carried, 1e-3, 1e3);",
+            "for (var n = P.light_read; n > 1u; n = n >> 1u) {\n        g = sqrt(g);",
+            "*lrun = *lrun * (ef * lgain);",
+        ] {
+            assert!(
+                SHADER.contains(text),
+                "shaders/slice_pass.wgsl lacks `{text}`"
+            );
+        }
+    }
+
+    #[test]
     fn the_light_pass_stops_attenuating_at_the_models_dark_light() {
         // The WGSL literal and the Rust constant the CPU sweep uses.
         // The skip comes after a part's store (a dark cell stores its light at every part)
