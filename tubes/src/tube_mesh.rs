@@ -764,7 +764,7 @@ fn simplify_polyline(points: &[DVec3], tolerance: f64, max_turn_deg: f64) -> (Ve
 /// between the kept points around it stays within `tolerance` of the segment that replaces them.
 /// Trackers leave such kinks: a hook at a line's end (its first or last step doubling back) and
 /// hair-length side steps (HCP1065's 1/32 mm): 1,392 of AF_R's 3,356 lines end in a hook 0.03-0.52
-/// mm long. A sharp turn keeps a line from being meshed as its polyline (its rings would fold) or
+/// mm long (`bench/tract_kinks.py`). A sharp turn keeps a line from being meshed as its polyline (its rings would fold) or
 /// splits it there, so at coarse tolerances such lines kept fits with more rings than their
 /// polylines needed (0.2 cost more triangles than 0.1 on nine of HCP1065's ten bundles), or were
 /// split into pieces a side step long that showed as cracks and slivers (docs/benchmarks.md).
