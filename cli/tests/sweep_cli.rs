@@ -70,7 +70,11 @@ fn sweep_writes_distance_and_octants_with_a_json_summary() {
     assert_eq!(vd.affine, vin.affine);
     for (v, dist) in vin.fields[0].data.iter().zip(&vd.fields[0].data) {
         // The sign bit: a voxel on the surface (value -1e-14 here) may be at distance 0.
-        assert_eq!(*v >= 0.0, dist.is_sign_negative(), "value {v}, distance {dist}");
+        assert_eq!(
+            *v >= 0.0,
+            dist.is_sign_negative(),
+            "value {v}, distance {dist}"
+        );
     }
     let oct = scene::fields::read_octants(&octs, [40, 40, 40]).unwrap();
     assert!(oct.octants.iter().all(|o| o.len() == 64000));

@@ -635,6 +635,16 @@ mod tests {
         v
     }
 
+    /// The closest-point distance of a copy of `init` (kept for the checks).
+    fn distance_of_a_copy(init: &Initial) -> DistanceField {
+        closest_point_distance(Initial {
+            surface: init.surface.clone(),
+            inside: init.inside.clone(),
+            scratch: Vec::new(),
+            ..*init
+        })
+    }
+
     /// The distance from voxel `v` to band voxel `s`'s surface point.
     fn point_distance(init: &Initial, v: usize, s: &crate::distance_sweep::SurfacePoint) -> f32 {
         let [nx, ny, _] = init.dims;
@@ -674,13 +684,7 @@ mod tests {
                     .collect()
             };
             let (mut refined, mut near) = (0, 0);
-            let copy = Initial {
-                surface: init.surface.clone(),
-                inside: init.inside.clone(),
-                scratch: Vec::new(),
-                ..init
-            };
-            let df = closest_point_distance(copy);
+            let df = distance_of_a_copy(&init);
             for (i, (&got, w)) in df.distance.iter().zip(&want).enumerate() {
                 assert_eq!(got.is_sign_negative(), init.inside[i], "sign at {i}");
                 let got = got.abs();
@@ -756,13 +760,7 @@ mod tests {
                     .fold(f32::INFINITY, f32::min)
             })
             .collect();
-        let copy = Initial {
-            surface: init.surface.clone(),
-            inside: init.inside.clone(),
-            scratch: Vec::new(),
-            ..init
-        };
-        let df = closest_point_distance(copy);
+        let df = distance_of_a_copy(&init);
         let worst = df
             .distance
             .iter()
