@@ -449,11 +449,17 @@ impl Refine<'_> {
                         planes[0].map(|p| p[v]),
                         planes[1].map(|p| p[v]),
                     ];
+                    // Squared distances, one root at the end.
+                    let own = best * best;
+                    let mut best2 = own;
                     for b in candidates.into_iter().flatten() {
                         if b != b0 && b != NONE {
                             let (d, _) = self.to_voxel(b, i, j, k);
-                            best = best.min((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt());
+                            best2 = best2.min(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
                         }
+                    }
+                    if best2 < own {
+                        best = best2.sqrt();
                     }
                 }
                 *o = if ins { -best } else { best }.to_bits();
