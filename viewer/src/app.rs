@@ -43,8 +43,14 @@ pub struct App {
     browser: crate::objects::Browser,
     /// Camera keys recorded for a camera path.
     keys: Vec<Orbit>,
-    /// The last save's outcome.
+    /// The last save's or open's outcome.
     message: Option<String>,
+    /// Files opened whose first image is still to come: the objects before them, to put back
+    /// if the worker cannot read them (the view would otherwise stay on the last image), and
+    /// the first request that holds them.
+    pending_open: Option<PendingOpen>,
+    /// Ask again at the next frame (the objects were put back).
+    reask: bool,
     /// Called once with the first image shown (the command line reports it).
     on_first_image: Option<crate::OnFirstImage>,
     /// Told of every window frame and shown image.
@@ -58,6 +64,14 @@ pub struct App {
     /// The clipping plane (an index of `scene.clip`) that ctrl + drag over the view moves,
     /// outlined over the view.
     pub clip_drag: Option<usize>,
+}
+
+/// Files opened and not yet drawn (see [`App::open_file`]).
+struct PendingOpen {
+    paths: Vec<std::path::PathBuf>,
+    before: crate::objects::Objects,
+    /// The first request made with them.
+    id: Option<u64>,
 }
 
 /// What the shown image was.
@@ -107,6 +121,8 @@ impl App {
             browser: Default::default(),
             keys: vec![],
             message: None,
+            pending_open: None,
+            reask: false,
             on_first_image,
             pace: None,
             last_frame: Instant::now(),
@@ -175,6 +191,9 @@ impl App {
         self.next_id += 1;
         let scene = self.state();
         self.shown_scenes.insert(self.next_id, scene.clone());
+        if let Some(p) = &mut self.pending_open {
+            p.id.get_or_insert(self.next_id);
+        }
         let _ = self.worker.requests.send(Request {
             id: self.next_id,
             scene,
@@ -219,6 +238,34 @@ impl App {
         );
     }
 
+    /// Adds the file at `path` to the scene (as `objects::open`); whether it did. Until the
+    /// first image with it comes, the objects before it are kept: a file the worker cannot
+    /// read is taken out again, with the reader's error.
+    fn open_file(&mut self, path: &std::path::Path) -> bool {
+        let before = crate::objects::Objects::of(&self.scene, &self.hidden);
+        match crate::objects::open(&mut self.scene, path) {
+            Ok(m) => {
+                self.message = Some(m);
+                match &mut self.pending_open {
+                    // Opened while another is still to be drawn: both go back if either fails.
+                    Some(p) => p.paths.push(path.into()),
+                    None => {
+                        self.pending_open = Some(PendingOpen {
+                            paths: vec![path.into()],
+                            before,
+                            id: None,
+                        })
+                    }
+                }
+                true
+            }
+            Err(e) => {
+                self.message = Some(e);
+                false
+            }
+        }
+    }
+
     /// The state changed by the user: a draft now, the full image when the view rests.
     fn changed(&mut self) {
         self.last_input = Instant::now();
@@ -240,9 +287,36 @@ impl App {
                 Err(e) => {
                     // That request is done with: frames stop waiting for it.
                     self.shown_scenes.retain(|k, _| *k > id);
-                    self.error = Some(e);
+                    let opened = self
+                        .pending_open
+                        .take_if(|p| p.id.is_some_and(|first| id >= first));
+                    match opened {
+                        // A file just opened could not be drawn: the objects as they were,
+                        // drawn again, and the reason.
+                        Some(p) => {
+                            p.before.restore(&mut self.scene, &mut self.hidden);
+                            let names: Vec<String> =
+                                p.paths.iter().map(|p| p.display().to_string()).collect();
+                            self.message = Some(format!(
+                                "not opened (the scene is as before): {}",
+                                names.join(", ")
+                            ));
+                            self.reask = true;
+                            self.error = Some(e);
+                        }
+                        None => self.error = Some(e),
+                    }
                 }
-                Ok(img) => self.show(ctx, img),
+                Ok(img) => {
+                    if self
+                        .pending_open
+                        .as_ref()
+                        .is_some_and(|p| p.id.is_some_and(|first| img.id >= first))
+                    {
+                        self.pending_open = None;
+                    }
+                    self.show(ctx, img)
+                }
             }
         }
         got
@@ -564,6 +638,7 @@ impl App {
             }
         }
         let mut browse = false;
+        let mut to_open = None;
         let pivot = self.orbit.target.to_array();
         egui::CollapsingHeader::new("objects")
             .default_open(false)
@@ -573,11 +648,14 @@ impl App {
                     &mut self.scene,
                     &mut self.hidden,
                     &mut self.open_path,
-                    &mut self.message,
+                    &mut to_open,
                     pivot,
                     &mut browse,
                 )
             });
+        if let Some(p) = to_open {
+            changed |= self.open_file(&p);
+        }
         if browse {
             self.browser
                 .open(std::path::Path::new(self.open_path.trim()));
@@ -695,16 +773,15 @@ impl App {
         });
         dropped.extend(self.browser.show(&ctx));
         for p in dropped {
-            match crate::objects::open(&mut self.scene, &p) {
-                Ok(m) => {
-                    self.message = Some(m);
-                    changed = true;
-                }
-                Err(e) => self.message = Some(e),
-            }
+            changed |= self.open_file(&p);
         }
+        changed |= std::mem::take(&mut self.reask);
+        // The panel keeps to at most 360 points and 45% of the window (its sections, opened,
+        // would otherwise widen it and squeeze the view); the user may drag its edge.
+        let widest = (0.45 * ui.available_width()).clamp(160.0, 360.0);
         egui::Panel::left("controls")
-            .default_size(280.0)
+            .default_size(280.0_f32.min(widest))
+            .max_size(widest)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| changed |= self.panel(ui));
             });

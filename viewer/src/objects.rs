@@ -259,6 +259,38 @@ pub fn open(s: &mut Scene, path: &Path) -> Result<String, String> {
     })
 }
 
+/// A scene's objects and which are hidden: what the objects panel and opening a file change,
+/// put back as a whole when an opened file turns out unreadable.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Objects {
+    volume: Option<scene::spec::VolumeSpec>,
+    tubes: Vec<scene::spec::TubesSpec>,
+    lines: Vec<scene::spec::LinesSpec>,
+    points: Vec<scene::spec::PointsSpec>,
+    hidden: Hidden,
+}
+
+impl Objects {
+    pub fn of(s: &Scene, hidden: &Hidden) -> Objects {
+        Objects {
+            volume: s.volume.clone(),
+            tubes: s.tubes.clone(),
+            lines: s.lines.clone(),
+            points: s.points.clone(),
+            hidden: hidden.clone(),
+        }
+    }
+
+    /// Puts these objects back into `s` and `hidden`.
+    pub fn restore(self, s: &mut Scene, hidden: &mut Hidden) {
+        s.volume = self.volume;
+        s.tubes = self.tubes;
+        s.lines = self.lines;
+        s.points = self.points;
+        *hidden = self.hidden;
+    }
+}
+
 /// Which objects are hidden, by kind and index.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Hidden {
@@ -340,25 +372,19 @@ fn row(
     remove
 }
 
-/// The objects panel and the file field; true when the scene changed. `message` receives
-/// what an open did or why it failed.
+/// The objects panel and the file field; true when the scene changed. `to_open` receives the
+/// file the field asks to open (the caller opens it: [`open`]).
 pub fn panel(
     ui: &mut egui::Ui,
     s: &mut Scene,
     hidden: &mut Hidden,
     open_path: &mut String,
-    message: &mut Option<String>,
+    to_open: &mut Option<std::path::PathBuf>,
     pivot: [f64; 3],
     browse: &mut bool,
 ) -> bool {
     hidden.fit(s);
-    let before = (
-        s.volume.clone(),
-        s.tubes.clone(),
-        s.lines.clone(),
-        s.points.clone(),
-        hidden.clone(),
-    );
+    let before = Objects::of(s, hidden);
     if let Some(v) = &s.volume {
         let mut shown = !hidden.volume;
         ui.checkbox(&mut shown, "volume")
@@ -436,19 +462,12 @@ pub fn panel(
         let go = ui.button("add").clicked()
             || (r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)));
         if go && !open_path.trim().is_empty() {
-            *message = Some(open(s, Path::new(open_path.trim())).unwrap_or_else(|e| e));
+            *to_open = Some(open_path.trim().into());
         }
     });
     ui.label(egui::RichText::new("a path, the file dialog, or drop a file on the window").small());
     hidden.fit(s);
-    before
-        != (
-            s.volume.clone(),
-            s.tubes.clone(),
-            s.lines.clone(),
-            s.points.clone(),
-            hidden.clone(),
-        )
+    before != Objects::of(s, hidden)
 }
 
 #[cfg(test)]

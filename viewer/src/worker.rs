@@ -179,8 +179,13 @@ type DataKey = (
     Vec<scene::spec::LinesSpec>,
     Vec<scene::spec::PointsSpec>,
     Vec<([f64; 3], f64)>,
+    bool,
 );
 
+/// What the model is made from: the objects (the volume without its transfer function, which
+/// is uploaded alone), the clipping planes an isosurface's octants are swept for, and whether
+/// the method projects (`mip`, `minip`: the volume's colours are then `volume.colormap` over
+/// `volume.window`, and its slices a voxel apart, in the model).
 fn data_key(s: &Scene) -> DataKey {
     let volume = s.volume.clone().map(|mut v| {
         v.transfer = Default::default();
@@ -193,12 +198,17 @@ fn data_key(s: &Scene) -> DataKey {
         true => s.clip.iter().map(|c| (c.normal, c.offset)).collect(),
         false => vec![],
     };
+    let projection = matches!(
+        s.render.method,
+        engine::method::Method::Mip | engine::method::Method::MinIp
+    );
     (
         volume,
         s.tubes.clone(),
         s.lines.clone(),
         s.points.clone(),
         clip,
+        projection,
     )
 }
 
@@ -386,7 +396,8 @@ impl Session {
         let cut_only = key.0 == self.data.0
             && key.1 == self.data.1
             && key.2 == self.data.2
-            && key.3 == self.data.3;
+            && key.3 == self.data.3
+            && key.5 == self.data.5;
         if key != self.data && !(cut_only && req.level == Level::Draft) {
             // Other objects (opened, removed, hidden, resized, recoloured): the model anew.
             // Both made before either is kept: a failed upload leaves model and upload as
@@ -419,8 +430,9 @@ impl Session {
                 volume: self.model.volume.is_some(),
             });
         }
+        // (A projection's colours do not come from the transfer function: see `data_key`.)
         if tf != self.transfer {
-            if let (Some(spec), Some(vol)) = (&tf, &mut self.model.volume) {
+            if let (Some(spec), Some(vol), false) = (&tf, &mut self.model.volume, self.data.5) {
                 let range = scene::compile::preset_range(spec, self.range, || self.robust);
                 vol.2 =
                     scene::compile::transfer(spec, range).map_err(|e| format!("scene key {e}"))?;

@@ -25,6 +25,16 @@ enum WithEditor {
 /// The window on the scene file `path`, `size` points, its worker started as `umbra view`
 /// starts it, with the editor `editor` asks for (64 value bins, 128 x 64 for the 2-D one).
 fn window(path: &std::path::Path, size: [f32; 2], editor: WithEditor) -> Harness<'static, App> {
+    window_with(path, size, editor, None)
+}
+
+/// [`window`], with `full` counting the full images shown when given.
+fn window_with(
+    path: &std::path::Path,
+    size: [f32; 2],
+    editor: WithEditor,
+    full: Option<Arc<std::sync::atomic::AtomicUsize>>,
+) -> Harness<'static, App> {
     let s = scene::spec::load(path, &[]).unwrap();
     let m = scene::compile::model(&s).unwrap();
     let bounds = m.bounds;
@@ -47,9 +57,29 @@ fn window(path: &std::path::Path, size: [f32; 2], editor: WithEditor) -> Harness
     if let Some(e) = editor {
         app = app.with_editor(e);
     }
+    if let Some(count) = full {
+        app = app.with_events(Box::new(move |e| {
+            if let umbra_viewer::ViewEvent::Image {
+                level: Level::Full, ..
+            } = e
+            {
+                count.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            }
+        }));
+    }
     Harness::builder()
         .with_size(egui::vec2(size[0], size[1]))
         .build_ui_state(|ui, app: &mut App| app.show_ui(ui), app)
+}
+
+/// [`window`], counting the full images shown in `full`.
+fn window_counting(
+    path: &std::path::Path,
+    size: [f32; 2],
+    editor: WithEditor,
+) -> (Harness<'static, App>, Arc<std::sync::atomic::AtomicUsize>) {
+    let n = Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    (window_with(path, size, editor, Some(n.clone())), n)
 }
 
 #[test]
@@ -483,4 +513,96 @@ fn ctrl_drag_moves_the_chosen_clip_plane_along_its_normal() {
     h.run_steps(2);
     assert!(h.state().scene.clip.is_empty());
     assert_eq!(h.state().clip_drag, None);
+}
+
+/// Steps the window until `done` holds (60 s at most).
+fn step_until(h: &mut Harness<'static, App>, mut done: impl FnMut(&App) -> bool) {
+    let t = Instant::now();
+    while !done(h.state()) && t.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(50));
+        h.run_steps(1);
+    }
+    assert!(done(h.state()), "not within 60 s");
+}
+
+/// The method menu's `mip` draws what `umbra render` draws of the saved state (the projection's
+/// colour map, not the transfer function the model was made with), and a volume opened from a
+/// file the worker cannot read is taken out again: the scene as before, the reader's error
+/// shown, and the view drawn anew.
+#[test]
+fn a_switch_to_mip_is_the_headless_image_and_an_unreadable_volume_is_taken_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = test_support::headsq_scene(dir.path(), "", "fire", "method = \"ea\"\n");
+    let (mut h, full) = window_counting(&path, [900.0, 800.0], WithEditor::OneD);
+    let seen =
+        |n: &Arc<std::sync::atomic::AtomicUsize>| n.load(std::sync::atomic::Ordering::SeqCst);
+    h.run_steps(2);
+    step_until(&mut h, |a| a.shown_level() == Some(Level::Full));
+    // mip from the menu; its full image, then the screenshot of it.
+    let before = seen(&full);
+    h.get_by_label("method").click();
+    h.run_steps(2);
+    h.get_by_label("mip").click();
+    h.run_steps(2);
+    assert_eq!(h.state().scene.render.method, engine::method::Method::Mip);
+    let t = Instant::now();
+    while seen(&full) == before && t.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(50));
+        h.run_steps(1);
+    }
+    assert!(seen(&full) > before, "no full image after the switch");
+    let prefix = dir.path().join("mip");
+    h.state_mut().set_prefix(prefix.to_str().unwrap());
+    h.get_by_label("screenshot .png").click();
+    h.run_steps(1);
+    step_until(&mut h, |a| {
+        a.message().is_some_and(|m| m.starts_with("wrote"))
+    });
+    let state = h.state().state();
+    let m = scene::compile::model(&state).unwrap();
+    let gpu = engine::gpu::Gpu::new().unwrap();
+    let (out, _) = scene::compile::render_scene(&gpu, &state, &m, 1).unwrap();
+    let img = image::open(dir.path().join("mip.png")).unwrap().to_rgb8();
+    let diff = common::png_difference(&img, &out.image);
+    assert!(
+        diff <= 1.0,
+        "mip screenshot and headless render differ by {diff} levels"
+    );
+    // A volume file cut short: opened (it reads as a volume by its name), not drawable.
+    let bad = dir.path().join("cut.nrrd");
+    std::fs::write(
+        &bad,
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 8 8 8\nencoding: raw\nendian: little\n\n0123",
+    )
+    .unwrap();
+    let original = h.state().scene.volume.as_ref().unwrap().path.clone();
+    let before = seen(&full);
+    h.get_by_label("objects").click_accesskit();
+    h.run_steps(2);
+    h.state_mut().set_open_field(bad.to_str().unwrap());
+    h.get_by_label("add").click_accesskit();
+    h.run_steps(2);
+    step_until(&mut h, |a| {
+        a.message().is_some_and(|m| m.contains("not opened"))
+    });
+    assert!(
+        h.state().message().unwrap().contains("cut.nrrd"),
+        "{:?}",
+        h.state().message()
+    );
+    assert_eq!(h.state().scene.volume.as_ref().unwrap().path, original);
+    assert!(
+        h.query_by_label_contains("cut.nrrd:").is_some(),
+        "the reader's error, naming the file, is shown"
+    );
+    // The view is drawn again (the camera turned by the keys draws too).
+    let t = Instant::now();
+    while seen(&full) == before && t.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(50));
+        h.run_steps(1);
+    }
+    assert!(
+        seen(&full) > before,
+        "no image after the file was taken back"
+    );
 }
