@@ -1322,9 +1322,33 @@ fn merged_error(merged: &str, e: &toml::de::Error) -> String {
 
 /// Reads a scene file.
 pub fn load(path: &Path, overrides: &[String]) -> Result<Scene, String> {
-    let text = volume::read_text(path, 16 << 20).map_err(|e| format!("{}: {e}", path.display()))?;
+    let data = data_kind(path).map(|kind| {
+        format!(
+            "{}: a {kind} file, not a scene: a scene is a TOML file that names it (for example \
+             `[volume]` with `path = \"...\"`, `[[lines]]` or `[[tubes]]` with theirs)",
+            path.display()
+        )
+    });
+    let text = volume::read_text(path, 16 << 20).map_err(|e| {
+        data.clone()
+            .unwrap_or_else(|| format!("{}: {e}", path.display()))
+    })?;
     let dir = path.parent().unwrap_or(Path::new("."));
-    parse(&text, &path.display().to_string(), dir, overrides)
+    parse(&text, &path.display().to_string(), dir, overrides).map_err(|e| data.unwrap_or(e))
+}
+
+/// What a file named like data, not a scene, holds by its name: "volume", "tractogram" or
+/// "mesh" (`.toml` and other names: none).
+fn data_kind(path: &Path) -> Option<&'static str> {
+    let name = path.file_name()?.to_str()?.to_ascii_lowercase();
+    let name = name.strip_suffix(".gz").unwrap_or(&name);
+    let ext = name.rsplit_once('.')?.1;
+    match ext {
+        "nii" | "nrrd" | "nhdr" | "vti" | "mhd" | "mha" | "slc" | "hdr" | "img" => Some("volume"),
+        "trk" | "tck" | "trx" => Some("tractogram"),
+        "ply" | "obj" => Some("mesh"),
+        _ => None,
+    }
 }
 
 /// The scene as a TOML file that [`load`] reads back to the same scene wherever the file is
@@ -2370,6 +2394,36 @@ mod tests {
     fn example() -> String {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/scenes/example.toml");
         std::fs::read_to_string(p).unwrap()
+    }
+
+    #[test]
+    fn a_data_file_given_as_a_scene_is_named_for_what_it_is() {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, body, kind) in [
+            (
+                "heart.vti",
+                &b"<VTKFile type=\"ImageData\">"[..],
+                "a volume file",
+            ),
+            ("t1.nii.gz", &b"\x1f\x8b\x08\x00"[..], "a volume file"),
+            ("af.trk", &b"TRACK\0\0"[..], "a tractogram file"),
+        ] {
+            let p = dir.path().join(name);
+            std::fs::write(&p, body).unwrap();
+            let e = load(&p, &[]).unwrap_err();
+            assert!(
+                e.contains(kind) && e.contains("not a scene") && e.contains(name),
+                "{e}"
+            );
+        }
+        // A scene with a TOML error keeps the parser's message.
+        let p = dir.path().join("s.toml");
+        std::fs::write(&p, "[volume\n").unwrap();
+        let e = load(&p, &[]).unwrap_err();
+        assert!(
+            e.contains("TOML parse error") && !e.contains("not a scene"),
+            "{e}"
+        );
     }
 
     #[test]
