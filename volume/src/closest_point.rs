@@ -40,7 +40,8 @@
 //! maximum 1.60 on headsq, 0.76 against 1.11 on neghip (docs/accuracy.md). A voxel whose true
 //! distance is within a largest spacing has `D(x)` at most that plus both points' offsets from
 //! their voxels (up to half a diagonal each), so the reach is three largest spacings (two left
-//! headsq's maximum at 3.07). Cost: about 5-15% of `umbra sweep`'s compute at 256^3 (docs/benchmarks.md).
+//! headsq's maximum at 3.07). Cost: about 5-15% of `umbra sweep`'s compute at 256^3
+//! (docs/benchmarks.md).
 //!
 //! # Cost
 //! Three passes over the grid, each `O(N)` whatever the content (no rounds to convergence),
