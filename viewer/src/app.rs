@@ -297,12 +297,12 @@ impl App {
                             p.before.restore(&mut self.scene, &mut self.hidden);
                             let names: Vec<String> =
                                 p.paths.iter().map(|p| p.display().to_string()).collect();
+                            // In the message, which stays when the view is drawn again.
                             self.message = Some(format!(
-                                "not opened (the scene is as before): {}",
+                                "{} not opened (the scene is as before): {e}",
                                 names.join(", ")
                             ));
                             self.reask = true;
-                            self.error = Some(e);
                         }
                         None => self.error = Some(e),
                     }

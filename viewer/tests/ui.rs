@@ -585,17 +585,8 @@ fn a_switch_to_mip_is_the_headless_image_and_an_unreadable_volume_is_taken_back(
     step_until(&mut h, |a| {
         a.message().is_some_and(|m| m.contains("not opened"))
     });
-    assert!(
-        h.state().message().unwrap().contains("cut.nrrd"),
-        "{:?}",
-        h.state().message()
-    );
     assert_eq!(h.state().scene.volume.as_ref().unwrap().path, original);
-    assert!(
-        h.query_by_label_contains("cut.nrrd:").is_some(),
-        "the reader's error, naming the file, is shown"
-    );
-    // The view is drawn again (the camera turned by the keys draws too).
+    // The view is drawn again.
     let t = Instant::now();
     while seen(&full) == before && t.elapsed() < Duration::from_secs(60) {
         std::thread::sleep(Duration::from_millis(50));
@@ -605,4 +596,8 @@ fn a_switch_to_mip_is_the_headless_image_and_an_unreadable_volume_is_taken_back(
         seen(&full) > before,
         "no image after the file was taken back"
     );
+    // The reader's error, naming the file, stays shown with the view drawn again.
+    let m = h.state().message().unwrap_or_default().to_string();
+    assert!(m.contains("not opened") && m.contains("cut.nrrd:"), "{m}");
+    assert!(h.query_by_label_contains("cut.nrrd:").is_some(), "{m}");
 }
