@@ -936,6 +936,30 @@ fn tube(
     origin: DVec3,
     between_turns: bool,
 ) -> Option<Rings> {
+    tube_as(points, attr, o, origin, between_turns, false)
+}
+
+/// [`tube`] of a part (between sharp turns) of a line too rough to fit: meshed as its
+/// polyline without a fit.
+fn tube_rough(
+    points: &[DVec3],
+    attr: Option<(&[f32], [f64; 2])>,
+    o: &TubeOptions,
+    origin: DVec3,
+) -> Option<Rings> {
+    tube_as(points, attr, o, origin, true, true)
+}
+
+/// [`tube`], meshed as its polyline without a fit where `rough` (a part without sharp turns
+/// of a line [`too_rough`] to fit).
+fn tube_as(
+    points: &[DVec3],
+    attr: Option<(&[f32], [f64; 2])>,
+    o: &TubeOptions,
+    origin: DVec3,
+    between_turns: bool,
+    rough: bool,
+) -> Option<Rings> {
     let mut st = TubeStats {
         min_section_ratio: f64::INFINITY,
         ..Default::default()
@@ -951,7 +975,8 @@ fn tube(
     // (`prepare`), and a fitted line that needs its polyline is returned as `None` for
     // `prepare` to split the same way (see the doc above).
     let rmf_iterative = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
-    let mut polyline = rmf_iterative && too_rough(points, o.fit.epsilon) && !sharp_turn(points);
+    let mut polyline =
+        rmf_iterative && (rough || too_rough(points, o.fit.epsilon)) && !sharp_turn(points);
     let fitted = (!polyline).then(|| fit(points, &o.fit));
     let mut fit_params = Vec::new();
     // The polyline's rings, where the decision below took them.
@@ -1375,30 +1400,44 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
             st.skipped_streamlines = 1;
             return (Vec::new(), st);
         }
-        let mut parts = reversal_ranges(&pts);
+        // (first, last, whether the part is of a line too rough to fit)
+        let mut parts: Vec<(usize, usize, bool)> = reversal_ranges(&pts)
+            .into_iter()
+            .map(|(a, b)| (a, b, false))
+            .collect();
         // A line that will be meshed as its polyline is also split where it turns sharply
-        // (its rings would fold there; the fit's refinement is what a smooth line gets).
+        // (its rings would fold there; the fit's refinement is what a smooth line gets), and
+        // its parts are meshed as polylines too, however short (parts under eight points, which
+        // `too_rough` does not judge, were fitted one by one: on 20,000 lines jittered by 0.3
+        // radii of their 1 mm steps, 169,000 fits that gave no fewer rings).
         let polyline_eligible = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
         if polyline_eligible {
             parts = parts
                 .into_iter()
-                .flat_map(|(a, b)| {
+                .flat_map(|(a, b, _)| {
                     if too_rough(&pts[a..=b], o.fit.epsilon) {
                         sharp_ranges(&pts, a, b)
+                            .into_iter()
+                            .map(|(c, d)| (c, d, true))
+                            .collect()
                     } else {
-                        vec![(a, b)]
+                        vec![(a, b, false)]
                     }
                 })
                 .collect();
         }
         st.splits = parts.len() - 1;
         let mut out = Vec::with_capacity(parts.len());
-        for &(a, b) in &parts {
+        for &(a, b, rough) in &parts {
             if b == a {
                 continue;
             }
             let av = vals.as_ref().map(|_| &kept_vals[a..=b]);
-            if let Some(r) = tube(&pts[a..=b], av.zip(range), o, origin, false) {
+            let r = match rough {
+                true => tube_rough(&pts[a..=b], av.zip(range), o, origin),
+                false => tube(&pts[a..=b], av.zip(range), o, origin, false),
+            };
+            if let Some(r) = r {
                 out.push(r);
                 continue;
             }
