@@ -27,6 +27,10 @@ Your own volumes: `--volume PATH:ISO` (repeatable; any format `umbra info` reads
 `umbra convert` to a raw NRRD that both sides read, at its own grid; inside = values >= ISO).
 With --volume and no --scenes only those volumes run.
 
+umbra is target/release/umbra, or the binary the environment variable UMBRA names. A failing
+umbra run (an isovalue with every sample on one side, a NaN) stops the script with umbra's
+message.
+
 Usage: python3 bench/sweep_peers.py [--sizes 256,512] [--scenes three-solids,gyroid,mni-wm]
                                     [--volume PATH:ISO ...] [--repeat 5]
                                     [--methods closest-point,sweeping]
@@ -115,8 +119,11 @@ def umbra_sweep(path, iso, method, tmp, repeat):
         r = subprocess.run(
             [UMBRA, "sweep", str(path), "--iso", repr(iso), "-o", str(Path(tmp) / "d.nrrd"),
              "--distance", method, "--json"],
-            check=True, capture_output=True, text=True,
+            capture_output=True, text=True,
             env={**os.environ, "XDG_RUNTIME_DIR": os.environ.get("XDG_RUNTIME_DIR", "/tmp")})
+        if r.returncode != 0:
+            raise SystemExit(f"sweep_peers: umbra sweep {path} --iso {iso} failed:\n"
+                             f"{r.stderr.strip()}")
         info = json.loads(r.stdout)
         out.append(info["seconds"]["compute"])
     return statistics.median(out), info

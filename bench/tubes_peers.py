@@ -10,7 +10,9 @@ can be merged into one .tck with --merge):
   * VTK: `vtkTubeFilter` (radius R, 8 sides, no caps) `Update()` on the same polylines (the
     polydata is built beforehand), alternating with umbra's runs, --repeat of each.
 Prints one JSON line per input and a Markdown table.
-Needs: pip install vtk nibabel numpy; umbra built (target/release/umbra).
+Needs: pip install vtk nibabel numpy; umbra built (target/release/umbra, or the binary the
+environment variable UMBRA names). Seconds in the table to 4 significant digits; a failing
+`umbra tubes` run stops the script with umbra's message.
 
 Usage: python3 bench/tubes_peers.py [NAME=]FILE.tck [[NAME=]FILE ...] [--radius 0.2]
        [--tolerance 0.02] [--repeat 3] [--vtk-max-points P]
@@ -104,10 +106,14 @@ def vtk_tube(poly, radius):
 
 def umbra_tubes(path, radius, tol, tmp):
     s = Path(tmp) / "s.json"
-    subprocess.run([UMBRA, "tubes", str(path), "-o", str(Path(tmp) / "t.ply"), "--radius",
-                    repr(radius), "--sides", "8", "--tolerance", repr(tol), "--stats-json", str(s)],
-                   check=True, capture_output=True,
-                   env={**os.environ, "XDG_RUNTIME_DIR": os.environ.get("XDG_RUNTIME_DIR", "/tmp")})
+    r = subprocess.run([UMBRA, "tubes", str(path), "-o", str(Path(tmp) / "t.ply"), "--radius",
+                        repr(radius), "--sides", "8", "--tolerance", repr(tol), "--stats-json",
+                        str(s)],
+                       capture_output=True, text=True,
+                       env={**os.environ,
+                            "XDG_RUNTIME_DIR": os.environ.get("XDG_RUNTIME_DIR", "/tmp")})
+    if r.returncode != 0:
+        raise SystemExit(f"tubes_peers: umbra tubes {path} failed:\n{r.stderr.strip()}")
     return json.loads(s.read_text())
 
 
@@ -123,6 +129,8 @@ def main():
     if a.merge:
         merge(a.merge, a.inputs)
         return
+    if not a.inputs:
+        ap.error("no input: give one or more [NAME=]FILE")
     print(f"# machine: {os.cpu_count()} cores; date {time.strftime('%Y-%m-%dT%H:%MZ', time.gmtime())}")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -139,6 +147,8 @@ def main():
                 raise SystemExit(f"tubes_peers: no such file: {path}")
             lines = load_lines(path)
             points = int(sum(len(l) for l in lines))
+            if points == 0:
+                raise SystemExit(f"tubes_peers: {path}: no streamline points to mesh")
             with_vtk = a.vtk_max_points is None or points <= a.vtk_max_points
             poly = vtk_polydata(lines) if with_vtk else None
             n_lines = len(lines)
@@ -162,9 +172,9 @@ def main():
     print("| input | streamlines | points | umbra s | vtkTubeFilter s | ratio | umbra triangles | VTK triangles | max deviation | polyline pieces |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        vtk_s = f"{r['vtk_s']:.3f}" if r["vtk_s"] is not None else "-"
+        vtk_s = f"{r['vtk_s']:.4g}" if r["vtk_s"] is not None else "-"
         ratio = f"{r['umbra_s'] / r['vtk_s']:.2f}" if r["vtk_s"] is not None else "-"
-        print(f"| {r['input']} | {r['streamlines']} | {r['points']} | {r['umbra_s']:.3f} | {vtk_s} | "
+        print(f"| {r['input']} | {r['streamlines']} | {r['points']} | {r['umbra_s']:.4g} | {vtk_s} | "
               f"{ratio} | {r['umbra_triangles']} | {r['vtk_triangles'] or '-'} | "
               f"{r['max_deviation']:.4f} | {r['polyline_pieces']} |")
 

@@ -719,7 +719,7 @@ def main():
         if not os.path.isfile(vpath):
             die("--volume %s: no such file" % vpath)
         name = re.sub(r"[^A-Za-z0-9_-]+", "_", re.sub(
-            r"\.(nii\.gz|nii|nhdr|nrrd|vti|mhd|mha|vtk)$", "", os.path.basename(vpath), flags=re.I))
+            r"\.(nii\.gz|nii|nhdr|nrrd|vti|mhd|mha|vtk|slc)$", "", os.path.basename(vpath), flags=re.I))
         while name in cases_of:
             name += "_"
         # sigma None: from the volume's size, once `umbra info` has read it.
