@@ -125,7 +125,13 @@ fn a_uniform_field_records_its_speed_and_time_as_step_over_speed() {
     assert!(err.contains(".tck holds positions only"), "{err}");
     let t = tubes::load(&tck).unwrap();
     assert!(t.point_attributes.is_empty());
-    assert_eq!(t.points, s.points);
+    // (The .trk's points go through its grid's voxel coordinates in f32: within 1e-5.)
+    assert_eq!(t.points.len(), s.points.len());
+    assert!(t
+        .points
+        .iter()
+        .zip(&s.points)
+        .all(|(a, b)| (*a - *b).length() < 1e-5));
 }
 
 #[test]
@@ -379,7 +385,6 @@ fn time_options_that_do_not_apply_are_refused() {
         ),
         (&["trace", "--pathlines", "--eigen"][..], "--eigen"),
         (&["trace", "--pathlines", "--frame", "1"][..], "--frame"),
-        (&["trace", "--time-step", "0.1"][..], "--pathlines"),
         (
             &["trace", "--pathlines", "--seed-times", "random:3:1"][..],
             "T1",
@@ -395,6 +400,11 @@ fn time_options_that_do_not_apply_are_refused() {
     ] {
         fails(&run(args, &[&dg, &out]), what);
     }
+    // A pathline option without --pathlines conflicts: status 2, as the parser's conflicts.
+    let o = run(&["trace", "--time-step", "0.1"], &[&dg, &out]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--pathlines"), "{err}");
     // A steady field has no time span to draw random seed times from.
     fails(
         &run(&["trace", "--seed-times", "random"], &[&rot, &out]),
@@ -451,4 +461,46 @@ fn a_time_series_rendered_as_a_volume_notes_that_it_is_frame_0() {
         err.contains("dg.nii: a time series of 3 vector fields") && err.contains("frame 0 only"),
         "{err}"
     );
+}
+
+/// A `.trk` records the field's grid (dimensions, voxel sizes, affine, voxel order; f32 in the
+/// header) as its
+/// reference space, with the points in the same world coordinates as a `.tck`'s (the header
+/// was a 1 x 1 x 1 grid of 1 mm voxels, which tools that place lines by it read as outside).
+#[test]
+fn a_trk_header_records_the_fields_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let nrrd = dir.path().join("rot.nrrd");
+    ok(&umbra()
+        .args(["synth", "rotation", "--n", "21", "-o"])
+        .arg(&nrrd)
+        .output()
+        .unwrap());
+    let field = volume::load(&nrrd).unwrap();
+    let (trk, tck) = (dir.path().join("r.trk"), dir.path().join("r.tck"));
+    for out in [&trk, &tck] {
+        ok(&run(&["trace", "--seeds", "grid:3"], &[&nrrd, out]));
+    }
+    let t = tubes::load(&trk).unwrap();
+    let r = t.reference.as_ref().expect("a reference space");
+    assert_eq!(r.dims, field.dims);
+    let h = field.spacing();
+    for (got, want) in r.voxel_sizes.iter().zip(h) {
+        assert!((got - want).abs() < 1e-6, "{:?}", r.voxel_sizes);
+    }
+    assert!(
+        r.vox_to_ras.abs_diff_eq(field.affine, 1e-6),
+        "{}",
+        r.vox_to_ras
+    );
+    assert_eq!(&r.voxel_order, b"RAS");
+    let c = tubes::load(&tck).unwrap();
+    assert_eq!(t.points.len(), c.points.len());
+    let worst = t
+        .points
+        .iter()
+        .zip(&c.points)
+        .map(|(a, b)| (*a - *b).length())
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-5, "points moved by {worst}");
 }

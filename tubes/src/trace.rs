@@ -460,7 +460,10 @@ fn trace_one(
     // The direction the first step may not turn from: the other half's first step seen from
     // the seed (the line's turn there), else the field's direction.
     let mut last_chord = start_chord.unwrap_or(dir.normalize_or_zero());
-    if max_length <= 0.0 {
+    // The length is reached within a millionth of a step: the steps' sum rounds (2,000 steps
+    // of 0.1 came to 199.99999999999 of 200, and a last step of 1e-11 repeated the end point).
+    let slack = 1e-6 * o.step;
+    if max_length <= slack {
         return (out, 0.0, false);
     }
     let max_steps = ((max_length / (o.step * 1e-3)).ceil() as usize).min(MAX_STEPS);
@@ -503,12 +506,12 @@ fn trace_one(
         p = q;
         dir = ndir;
         speed = nspeed;
-        if length >= max_length - 1e-12 {
+        if length >= max_length - slack {
             break;
         }
     }
     // Every step taken and the length still short: the limit stopped the line.
-    let capped = out.len() == MAX_STEPS && length < max_length - 1e-12;
+    let capped = out.len() == MAX_STEPS && length < max_length - slack;
     (out, length, capped)
 }
 

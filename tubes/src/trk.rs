@@ -415,6 +415,29 @@ pub fn identity_space() -> ReferenceSpace {
     }
 }
 
+/// The reference space of a volume's grid (`dims` samples, `affine` from voxel centres to RAS+
+/// mm): its voxel sizes (the affine's column lengths), the affine as `vox_to_ras` and the
+/// voxel order it implies, as TrackVis tools (and nibabel) read a tractogram's grid. `None`
+/// where the grid does not fit a header (an axis of more than 32,767 samples, a degenerate
+/// axis).
+pub fn grid_space(dims: [usize; 3], affine: DMat4) -> Option<ReferenceSpace> {
+    let m = DMat3::from_mat4(affine);
+    let sizes = [m.x_axis.length(), m.y_axis.length(), m.z_axis.length()];
+    if dims.iter().any(|&d| d == 0 || d > i16::MAX as usize)
+        || sizes.iter().any(|v| !(v.is_finite() && *v > 0.0))
+    {
+        return None;
+    }
+    let letters = [[b'L', b'R'], [b'P', b'A'], [b'I', b'S']];
+    let voxel_order = axcodes(&m).map(|(axis, dir)| letters[axis][usize::from(dir > 0)]);
+    Some(ReferenceSpace {
+        dims,
+        voxel_sizes: sizes,
+        vox_to_ras: affine,
+        voxel_order,
+    })
+}
+
 fn put_name(h: &mut [u8], at: usize, name: &str, count: usize) {
     let mut field = name.as_bytes().to_vec();
     if count > 1 {

@@ -422,6 +422,34 @@ fn the_length_bound_holds_for_the_whole_line_traced_both_ways() {
     }
 }
 
+/// A line that reaches `max_length` in many steps ends on its last full step: no step of a
+/// rounding's length repeats the end point (2,000 steps of 0.1 summed to 199.99999999999, and a
+/// last step of 1e-11 made a zero-length segment), one way or both.
+#[test]
+fn a_line_ending_at_its_length_bound_has_no_zero_length_last_segment() {
+    // A rotation about z (trilinear: exact), circles of radius 0.5 round and round.
+    let vol = cube(|p| DVec3::new(-p.y, p.x, 0.0), 9);
+    let f = GridField::from_volume(&vol, None).unwrap();
+    for both in [false, true] {
+        // Steps of 0.1 over 200: 2,000 steps summing to 200 - 7e-12.
+        let mut o = stream_opts(Integrator::Rk4, 0.1, 200.0);
+        o.both_ways = both;
+        let s = trace_at(&f, &[(DVec3::new(0.5, 0.0, 0.0), 0.0)], &o);
+        let p: Vec<DVec3> = s.points.iter().map(|p| p.as_dvec3()).collect();
+        let shortest = p
+            .windows(2)
+            .map(|w| (w[1] - w[0]).length())
+            .fold(f64::INFINITY, f64::min);
+        assert!(shortest > 1e-2, "both ways {both}: a segment of {shortest}");
+        let len: f64 = p.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+        // (Chords of arcs of 0.1 on a circle of radius 0.5: 0.17% shorter than the arc.)
+        assert!(
+            (len - 199.67).abs() < 0.01,
+            "both ways {both}: length {len}"
+        );
+    }
+}
+
 /// A line the step limit cuts, and seeds that give no line, are counted in the output's
 /// warnings (they had been dropped or cut silently); a line that ends by its own bounds is
 /// not counted.

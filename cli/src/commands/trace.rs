@@ -104,11 +104,11 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     random_seed: u64,
     /// Pathline time step (default: min(span / 200, half the smallest voxel / the largest speed)).
-    #[arg(long, value_parser = super::positive)]
+    #[arg(long, value_parser = super::positive, requires = "pathlines")]
     time_step: Option<f64>,
     /// How long a pathline follows its particle each way (default: the time span; steady: 200
     /// time steps).
-    #[arg(long, value_parser = super::positive)]
+    #[arg(long, value_parser = super::positive, requires = "pathlines")]
     duration: Option<f64>,
     /// Override the file's time boundary: periodic or clamp.
     #[arg(long, value_enum)]
@@ -266,6 +266,9 @@ pub fn parse_seeds(spec: &str, bounds: [DVec3; 2], rng: u64) -> Result<Vec<DVec3
         Err(_) => Err(format!("--seeds {spec}: '{s}' is not a count")),
     };
     if let Some(n) = spec.strip_prefix("grid:") {
+        if n == "0" {
+            return Err(format!("--seeds {spec}: give grid:1 to grid:200"));
+        }
         let n = num(n)?;
         if n > 200 {
             return Err(format!(
@@ -325,9 +328,11 @@ pub fn parse_seeds(spec: &str, bounds: [DVec3; 2], rng: u64) -> Result<Vec<DVec3
         if t.is_empty() || t.starts_with('#') {
             continue;
         }
+        // x, y and z: the first three fields (further columns, a label say, are ignored).
         let v: Result<Vec<f64>, _> = t
             .split(|c: char| c == ',' || c.is_whitespace())
             .filter(|s| !s.is_empty())
+            .take(3)
             .map(|s| s.parse::<f64>())
             .collect();
         // The first line that is not numbers is a header ("x,y,z"); "nan" and "inf" are
@@ -336,7 +341,12 @@ pub fn parse_seeds(spec: &str, bounds: [DVec3; 2], rng: u64) -> Result<Vec<DVec3
         let v = match v {
             Ok(v) => v,
             Err(_) if first && t.chars().next().is_some_and(|c| c.is_alphabetic()) => continue,
-            Err(_) => return Err(format!("{spec}: line {}: expected x,y,z", ln + 1)),
+            Err(_) => {
+                return Err(format!(
+                    "{spec}: line {}: expected x,y,z (three numbers, then any further columns)",
+                    ln + 1
+                ))
+            }
         };
         if v.len() < 3 || !v[..3].iter().all(|x| x.is_finite()) {
             return Err(format!(
@@ -457,6 +467,7 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
         .iter()
         .map(|w| format!("{}: {w}", a.input.display()))
         .collect();
+    let grid = (series.frames[0].dims, series.frames[0].affine);
     let (mut s, time_step, duration) = if t.pathlines {
         if t.frame.is_some() {
             return Err(
@@ -577,6 +588,9 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
         (trace_at(&f, &timed, &o), None, None)
     };
     s.format = String::new();
+    // The field's grid as the tractogram's reference space (a .trk header's dimensions, voxel
+    // sizes and vox_to_ras, TRX's header), as the tools that place lines by it expect.
+    s.reference = tubes::trk::grid_space(grid.0, grid.1);
     notes.extend(std::mem::take(&mut s.warnings));
     let name = a.output.to_string_lossy().to_ascii_lowercase();
     if name.trim_end_matches(".gz").ends_with(".tck") {
@@ -613,6 +627,9 @@ mod tests {
         };
         let ok = parse("# seeds\nx,y,z\n0.5,0,0\n\n0.25 0 0.1\n").unwrap();
         assert_eq!(ok, [DVec3::new(0.5, 0.0, 0.0), DVec3::new(0.25, 0.0, 0.1)]);
+        // Further columns are ignored, a label among them.
+        let ok = parse("x,y,z,roi\n0,0.5,1,left\n1 2 3 right 7\n").unwrap();
+        assert_eq!(ok, [DVec3::new(0.0, 0.5, 1.0), DVec3::new(1.0, 2.0, 3.0)]);
         for (text, line) in [
             ("x,y,z\nnan,2,1\n", 2),
             ("inf,2,1\n", 1),
@@ -664,6 +681,7 @@ mod tests {
                 "at most plane:z=20:3000 (9 million seeds)",
             ),
             ("grid:201", "at most grid:200"),
+            ("grid:0", "give grid:1 to grid:200"),
         ] {
             let e = parse_seeds(spec, b, 1).unwrap_err();
             assert!(e.contains(want), "{spec}: {e}");
