@@ -205,6 +205,11 @@ fn attributes_masks_and_subsamples_select_and_travel_with_the_streamlines() {
     let got = tubes::load(&out).unwrap();
     let ys: Vec<f32> = (0..got.len()).map(|i| got.line(i)[0].y).collect();
     assert_eq!(ys, [5.0, 6.0, 7.0], "{err}");
+    // A .tck drops the attributes, and a note names them.
+    assert!(
+        err.contains(".tck holds positions only") && err.contains("the attributes"),
+        "{err}"
+    );
     // Any nonzero voxel, and excluding label 7: line 30 alone is kept.
     let err = ok(&umbra()
         .args(["tracts", "select"])
