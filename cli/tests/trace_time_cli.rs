@@ -134,17 +134,23 @@ fn a_uniform_field_records_its_speed_and_time_as_step_over_speed() {
         .all(|(a, b)| (*a - *b).length() < 1e-5));
 }
 
-#[test]
-fn pathlines_of_a_steady_field_equal_its_streamlines() {
-    let dir = tempfile::tempdir().unwrap();
-    // The rigid rotation (linear: trilinear interpolation is exact) as `umbra synth` writes it
-    // (NRRD, steady) and as a 5-D NIfTI of three equal frames.
-    let nrrd = dir.path().join("rot.nrrd");
+/// The rigid rotation on 21^3 samples as `umbra synth rotation` writes it (NRRD), in `dir`.
+fn rotation(dir: &Path) -> PathBuf {
+    let nrrd = dir.join("rot.nrrd");
     ok(&umbra()
         .args(["synth", "rotation", "--n", "21", "-o"])
         .arg(&nrrd)
         .output()
         .unwrap());
+    nrrd
+}
+
+#[test]
+fn pathlines_of_a_steady_field_equal_its_streamlines() {
+    let dir = tempfile::tempdir().unwrap();
+    // The rigid rotation (linear: trilinear interpolation is exact) as `umbra synth` writes it
+    // (NRRD, steady) and as a 5-D NIfTI of three equal frames.
+    let nrrd = rotation(dir.path());
     let dims = [21, 21, 21];
     let rot = Steady(|p| DVec3::new(-p.y, p.x, 0.0));
     let equal = sample_series(
@@ -464,18 +470,13 @@ fn a_time_series_rendered_as_a_volume_notes_that_it_is_frame_0() {
 }
 
 /// A `.trk` records the field's grid (dimensions, voxel sizes, affine, voxel order; f32 in the
-/// header) as its
-/// reference space, with the points in the same world coordinates as a `.tck`'s (the header
-/// was a 1 x 1 x 1 grid of 1 mm voxels, which tools that place lines by it read as outside).
+/// header) as its reference space, with the points in the same world coordinates as a
+/// `.tck`'s (the header was a 1 x 1 x 1 grid of 1 mm voxels, which tools that place lines by
+/// it read as outside).
 #[test]
 fn a_trk_header_records_the_fields_grid() {
     let dir = tempfile::tempdir().unwrap();
-    let nrrd = dir.path().join("rot.nrrd");
-    ok(&umbra()
-        .args(["synth", "rotation", "--n", "21", "-o"])
-        .arg(&nrrd)
-        .output()
-        .unwrap());
+    let nrrd = rotation(dir.path());
     let field = volume::load(&nrrd).unwrap();
     let (trk, tck) = (dir.path().join("r.trk"), dir.path().join("r.tck"));
     for out in [&trk, &tck] {
