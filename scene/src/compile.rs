@@ -836,6 +836,13 @@ fn line_set(
     };
     let cylinder = l.profile == spec::LineProfile::Cylinder;
     notes.extend(sl.warnings.iter().map(|w| format!("lines[{i}]: {w}")));
+    // A file without streamlines says so (a scene of nothing else is refused with this why).
+    if sl.is_empty() {
+        notes.push(format!(
+            "lines[{i}] ({}): the file holds no streamlines",
+            l.path.display()
+        ));
+    }
     // A line needs two points: streamlines of one are left out, and said so.
     let single = (0..sl.len()).filter(|&k| sl.line(k).len() < 2).count();
     if single > 0 {
@@ -1705,6 +1712,19 @@ mod tests {
             let e = spec::parse(&scene(bad), "t.toml", &dir, &[]).unwrap_err();
             assert!(e.contains("tubes[0].sides"), "{e}");
         }
+    }
+
+    /// A scene whose only lines come from a file without streamlines is refused with the
+    /// entry and the file named (it said only "the scene has no [volume] ... with geometry").
+    #[test]
+    fn lines_from_an_empty_file_are_named_in_the_refusal() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/tracts/nibabel");
+        let s = spec::parse("[[lines]]\npath = \"empty.tck\"\n", "e.toml", &dir, &[]).unwrap();
+        let e = model(&s).err().expect("refused");
+        assert!(
+            e.contains("no [volume]") && e.contains("lines[0]") && e.contains("no streamlines"),
+            "{e}"
+        );
     }
 
     #[test]

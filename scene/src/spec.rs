@@ -1259,6 +1259,19 @@ pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result
             let (k, v) = o
                 .split_once('=')
                 .ok_or_else(|| format!("override {o}: expected KEY=VALUE"))?;
+            if let Some(at) = k.find('[') {
+                let (head, rest) = k.split_at(at);
+                let index = rest
+                    .trim_start_matches('[')
+                    .split(']')
+                    .next()
+                    .unwrap_or("0");
+                return Err(format!(
+                    "override {k}: an entry of an array is named by a dot and its index \
+                     ({head}.{index}{}), not by brackets",
+                    rest.split_once(']').map(|(_, r)| r).unwrap_or("")
+                ));
+            }
             set(&mut table, k.trim(), v.trim())?;
         }
         // Through TOML text, so that an error has a place: the key and, in an array of
@@ -1304,7 +1317,14 @@ fn merged_error(merged: &str, e: &toml::de::Error) -> String {
             path = format!("{h}[{n}]");
             *n += 1;
         } else if let Some(h) = l.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
-            path = h.to_string();
+            // A table inside an entry of an array of tables (`[lines.halo]` after `[[lines]]`):
+            // the entry's index too (`lines[0].halo`), from the longest such array above.
+            path = seen
+                .iter()
+                .filter(|(a, _)| h.strip_prefix(**a).is_some_and(|r| r.starts_with('.')))
+                .max_by_key(|(a, _)| a.len())
+                .map(|(a, n)| format!("{a}[{}]{}", n - 1, &h[a.len()..]))
+                .unwrap_or_else(|| h.to_string());
         }
     }
     let full = match (path.is_empty(), key.is_empty()) {
@@ -2817,10 +2837,19 @@ mod tests {
                 "camera.azimuth=true",
                 "s with overrides: camera.azimuth: invalid type",
             ),
+            // A table inside an entry names the entry too (it read "tubes.select...").
+            (
+                "tubes=[{path=\"a.trk\"}, {path=\"b.trk\", select={min_length=\"x\"}}]",
+                "s with overrides: tubes[1].select.min_length: invalid type",
+            ),
         ] {
             let e = parse(text, "s", Path::new("."), &o(&[set])).unwrap_err();
             assert!(e.starts_with(want), "{set}: {e}");
         }
+        // Brackets in an override's key: the dotted form is named (it read "lines.select.[:
+        // unknown field").
+        let e = parse(text, "s", Path::new("."), &o(&["tubes[0].radius=1"])).unwrap_err();
+        assert!(e.contains("(tubes.0.radius), not by brackets"), "{e}");
     }
 
     #[test]
