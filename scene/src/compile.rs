@@ -1538,6 +1538,27 @@ fn unused_light_keys(s: &Scene) -> Option<String> {
     })
 }
 
+/// A note where the scene sets `render.lineao` (any of its keys off its default) for a method
+/// that draws no LineAO: it changes nothing there.
+fn unused_lineao_keys(s: &Scene) -> Option<String> {
+    if s.render.lineao == spec::LineAoSpec::default() {
+        return None;
+    }
+    let desc = s.render.method.desc();
+    let draws = desc.terms.iter().any(|t| match t {
+        engine::method::Term::Ao(a) => *a == SurfaceAo::LineAo,
+        engine::method::Term::SurfaceAo => s.render.surface_ao == SurfaceAo::LineAo,
+        engine::method::Term::Partial => false,
+    });
+    (!draws).then(|| {
+        format!(
+            "render.lineao shapes LineAO (method lineao, or a method with render.surface_ao = \
+             \"lineao\"); method {} draws none, so it changes nothing here",
+            desc.name
+        )
+    })
+}
+
 impl<'g> Uploaded<'g> {
     /// This upload drawing a share of its geometry: per tube mesh of the model the triangles
     /// `indices[i]`, per line set the segments `segments[i]` (in point order). The volume,
@@ -1646,7 +1667,10 @@ impl Uploaded<'_> {
                 .draw(&self.scene, v, &tube_clip(s), &st, opts)
                 .map_err(|e| e.to_string()),
         };
-        let unused = unused_light_keys(s);
+        let unused: Vec<String> = unused_light_keys(s)
+            .into_iter()
+            .chain(unused_lineao_keys(s))
+            .collect();
         let draw = |v: &EaView| {
             let mut out = draw_one(v)?;
             out.notes.extend(unused.clone());
@@ -1725,6 +1749,27 @@ mod tests {
             e.contains("no [volume]") && e.contains("lines[0]") && e.contains("no streamlines"),
             "{e}"
         );
+    }
+
+    /// `render.lineao` set for a method that draws no LineAO gets a note; not for `lineao`, not
+    /// for `combined` with `surface_ao = "lineao"`, and not when left at its defaults.
+    #[test]
+    fn lineao_keys_that_change_nothing_are_noted() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/tracts/dipy");
+        let note = |render: &str| {
+            let text = format!("[[lines]]\npath = \"tracks300.trk\"\n[render]\n{render}");
+            unused_lineao_keys(&spec::parse(&text, "l.toml", &dir, &[]).unwrap())
+        };
+        let set = "[render.lineao]\nsamples = 16\n";
+        let e = note(&format!("method = \"illuminated\"\n{set}")).expect("a note");
+        assert!(e.contains("method illuminated draws none"), "{e}");
+        assert!(note(&format!("method = \"lineao\"\n{set}")).is_none());
+        assert!(note(&format!(
+            "method = \"combined\"\nsurface_ao = \"lineao\"\n{set}"
+        ))
+        .is_none());
+        assert!(note(&format!("method = \"combined\"\n{set}")).is_some());
+        assert!(note("method = \"illuminated\"\n").is_none());
     }
 
     #[test]
