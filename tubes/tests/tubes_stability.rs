@@ -375,8 +375,8 @@ fn a_rough_line_is_split_at_a_sharp_turn() {
 fn a_line_rough_enough_to_turn_sharply_often_is_meshed_as_polylines_without_fits() {
     // 1 mm steps jittered by up to 0.75 mm: sharp turns every few points, so the line is
     // split into many short parts - each meshed as its polyline (a part of under eight points
-    // was fitted on its own before: 60,000 of 189,000 parts on 20,000 such lines, half the
-    // meshing time, no fewer rings). Within the tolerance, no more triangles than a ring per
+    // was fitted on its own before: 60,000 of 189,000 parts on 20,000 such lines, 47% of the
+    // meshing time, no fewer rings; docs/benchmarks.md). Within the tolerance, no more triangles than a ring per
     // point and the parts' caps.
     let mut rnd = noise(4242u64);
     let pts: Vec<DVec3> = (0..300)
