@@ -1408,8 +1408,9 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
         // A line that will be meshed as its polyline is also split where it turns sharply
         // (its rings would fold there; the fit's refinement is what a smooth line gets), and
         // its parts are meshed as polylines too, however short (parts under eight points, which
-        // `too_rough` does not judge, were fitted one by one: on 20,000 lines jittered by 0.3
-        // radii of their 1 mm steps, 169,000 fits that gave no fewer rings).
+        // `too_rough` does not judge, were fitted one by one: on 20,000 lines of 1 mm steps
+        // jittered by 0.3 mm, 60,000 fits that gave no fewer rings and took 47% of the
+        // meshing time; docs/benchmarks.md).
         let polyline_eligible = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
         if polyline_eligible {
             parts = parts
