@@ -8,7 +8,7 @@ distance (the `edt` package) of the mask `value >= ISO` of the trilinear field s
 times per axis (default 4), less half a fine voxel; its own error is about 1 / (2 F) voxel.
 Each method (`--distance closest-point` and `sweeping`) is run with `--sdf-only`; errors are in
 voxels of the smallest spacing, for voxels whose reference distance is under 1, 1-3 and over 3
-of them: mean and maximum."""
+of them: mean and maximum; with --worst N, each method's N worst voxels."""
 import argparse
 import json
 import subprocess
@@ -47,6 +47,9 @@ def main():
     ap.add_argument("volume")
     ap.add_argument("iso", type=float)
     ap.add_argument("--fine", type=int, default=4)
+    ap.add_argument("--worst", type=int, default=0,
+                    help="also print each method's N worst voxels: (x, y, z), error, umbra's "
+                         "distance and the reference, in voxels")
     ap.add_argument("--umbra", default=str(Path(__file__).resolve().parents[1]
                                            / "target/release/umbra"))
     a = ap.parse_args()
@@ -74,6 +77,10 @@ def main():
                 if sel.any():
                     parts.append(f"{lo}-{hi}: mean {err[sel].mean():.3f} max {err[sel].max():.2f}")
             print(f"  {method}: " + "; ".join(parts))
+            for i in np.argsort(err.ravel())[::-1][:a.worst]:
+                z, y, x = np.unravel_index(i, err.shape)
+                print(f"    ({x}, {y}, {z}): error {err.ravel()[i]:.2f}, umbra "
+                      f"{d.ravel()[i] / vox:.2f}, reference {ref.ravel()[i] / vox:.2f}")
 
 
 if __name__ == "__main__":

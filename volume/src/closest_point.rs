@@ -36,7 +36,8 @@
 //! x 1.5 mm: 6.07 mm where the nearest surface point is 1.46 mm; near-surface maximum error 3.07
 //! voxels, fast sweeping's 1.63). The winners of the six neighbours hold the nearer point there;
 //! taking their points (not patches, whose disks reach past a noisy neighbour's surface and bias
-//! the distance low: near means 6-12% worse on neghip, measured) bounds the error: near-surface
+//! the distance low: neghip's means 6-12% worse than without the step, a prototype measured in
+//! docs/accuracy.md) bounds the error: near-surface
 //! maximum 1.60 on headsq, 0.76 against 1.11 on neghip (docs/accuracy.md). A voxel whose true
 //! distance is within a largest spacing has `D(x)` at most that plus both points' offsets from
 //! their voxels (up to half a diagonal each), so the reach is three largest spacings (two left
