@@ -37,11 +37,11 @@
 //! voxels, fast sweeping's 1.63). The winners of the six neighbours hold the nearer point there;
 //! taking their points (not patches, whose disks reach past a noisy neighbour's surface and bias
 //! the distance low: neghip's means 6-12% worse than without the step, a prototype measured in
-//! docs/accuracy.md) bounds the error: near-surface
-//! maximum 1.60 on headsq, 0.76 against 1.11 on neghip (docs/accuracy.md). A voxel whose true
-//! distance is within a largest spacing has `D(x)` at most that plus both points' offsets from
-//! their voxels (up to half a diagonal each), so the reach is three largest spacings (two left
-//! headsq's maximum at 3.07). Cost: about 5-15% of `umbra sweep`'s compute at 256^3
+//! docs/accuracy.md) bounds the error: near-surface maximum 1.60 on headsq, 0.76 against 1.11
+//! on neghip (docs/accuracy.md). A voxel whose true distance is within a largest spacing has
+//! `D(x)` at most that plus both points' offsets from their voxels (up to half a diagonal
+//! each), so the reach is three largest spacings (6 mm, about two, left headsq's maximum at
+//! 3.07). Cost: about 5-15% of `umbra sweep`'s compute at 256^3
 //! (docs/benchmarks.md).
 //!
 //! # Cost
