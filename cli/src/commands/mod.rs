@@ -19,6 +19,26 @@ pub mod view;
 use volume::FieldSelector;
 
 /// `--field NAME`, `NAME:magnitude` or `NAME:x|y|z`.
+/// The note for a tractogram written as `.tck` (optionally gzipped) whose attributes that
+/// format cannot hold: it names them; `None` for other formats or without attributes.
+pub fn tck_drops_note(output: &std::path::Path, s: &::tubes::Streamlines) -> Option<String> {
+    let name = output.to_string_lossy().to_ascii_lowercase();
+    let names: Vec<&str> = s
+        .point_attributes
+        .iter()
+        .chain(&s.line_attributes)
+        .map(|a| a.name.as_str())
+        .collect();
+    (name.trim_end_matches(".gz").ends_with(".tck") && !names.is_empty()).then(|| {
+        format!(
+            "{}: .tck holds positions only: the attributes {} are not written (use .trk or .trx \
+             to keep them)",
+            output.display(),
+            names.join(", ")
+        )
+    })
+}
+
 pub fn field_selector(s: &str) -> Result<FieldSelector, String> {
     s.parse().map_err(|e: volume::VolumeError| e.to_string())
 }

@@ -592,14 +592,7 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
     // sizes and vox_to_ras, TRX's header), as the tools that place lines by it expect.
     s.reference = tubes::trk::grid_space(grid.0, grid.1);
     notes.extend(std::mem::take(&mut s.warnings));
-    let name = a.output.to_string_lossy().to_ascii_lowercase();
-    if name.trim_end_matches(".gz").ends_with(".tck") {
-        notes.push(format!(
-            "{}: .tck holds positions only: the time and speed attributes are not written (use \
-             .trk or .trx to keep them)",
-            a.output.display()
-        ));
-    }
+    notes.extend(super::tck_drops_note(&a.output, &s));
     tubes::save(&a.output, &s).map_err(|e| e.to_string())?;
     Ok(TraceReport {
         lines: s.len(),

@@ -151,21 +151,8 @@ fn select(a: SelectArgs) -> Result<(), String> {
         .apply(&s)
         .map_err(|e| format!("{}: {e}", a.input.display()))?;
     tubes::save(&a.output, &out).map_err(|e| e.to_string())?;
-    if stem.ends_with(".tck")
-        && !(out.point_attributes.is_empty() && out.line_attributes.is_empty())
-    {
-        let names: Vec<&str> = out
-            .point_attributes
-            .iter()
-            .chain(&out.line_attributes)
-            .map(|a| a.name.as_str())
-            .collect();
-        eprintln!(
-            "umbra: note: {}: .tck holds positions only: the attributes {} are not written (use \
-             .trk or .trx to keep them)",
-            a.output.display(),
-            names.join(", ")
-        );
+    if let Some(note) = super::tck_drops_note(&a.output, &out) {
+        eprintln!("umbra: note: {note}");
     }
     if a.json {
         out_json(&sum)?;
