@@ -281,6 +281,13 @@ fn any_perpendicular(t: DVec3) -> DVec3 {
 /// 12% of a mesh, docs/benchmarks.md); the rounding carried meanwhile is a few ulps.
 pub fn rmf(x: &[DVec3], t: &[DVec3]) -> Vec<DVec3> {
     let mut r = Vec::with_capacity(x.len());
+    rmf_into(x, t, &mut r);
+    r
+}
+
+/// [`rmf`] into `r` (cleared first), whose allocation a caller reuses.
+fn rmf_into(x: &[DVec3], t: &[DVec3], r: &mut Vec<DVec3>) {
+    r.clear();
     let mut carry = any_perpendicular(t[0]);
     r.push(carry);
     for i in 0..x.len() - 1 {
@@ -331,7 +338,6 @@ pub fn rmf(x: &[DVec3], t: &[DVec3]) -> Vec<DVec3> {
             next
         };
     }
-    r
 }
 
 /// Rings between the corrections [`rmf`] carries.
@@ -526,10 +532,11 @@ struct Rings {
 /// caps on the runs `caps`) into the given parts of the mesh buffers (exactly `vertices` and
 /// `indices` long); `first` is the index of the first vertex. Returns the smallest section
 /// ratio: the stored ring polygon's area, projected on the plane normal to its tangent, over
-/// the ideal polygon's.
+/// the ideal polygon's. `trig` is [`ring_trig`] of `sides` (made here where it is not).
 #[allow(clippy::too_many_arguments)]
 fn emit(
     sides: usize,
+    trig: &[(f64, f64)],
     rings: &[Ring],
     caps: &[(usize, usize)],
     (vertices, indices): (usize, usize),
@@ -540,19 +547,26 @@ fn emit(
     idx: &mut [std::mem::MaybeUninit<u32>],
 ) -> f64 {
     let step = std::f64::consts::TAU / sides as f64;
-    let trig: Vec<(f64, f64)> = (0..sides)
-        .map(|j| ((step * j as f64).cos(), (step * j as f64).sin()))
-        .collect();
+    let own;
+    let trig = if trig.len() == sides {
+        trig
+    } else {
+        own = ring_trig(sides);
+        &own[..]
+    };
     let ideal = |r: f64| 0.5 * sides as f64 * r * r * step.sin();
     let mut min_ratio = f64::INFINITY;
     let mut v = 0usize;
-    let mut base: Vec<Option<u32>> = Vec::with_capacity(rings.len());
+    let mut k = 0usize;
+    let s32 = sides as u32;
+    // The first vertex of the ring before, where it was kept.
+    let mut before: Option<u32> = None;
     for g in rings {
         if g.cut {
-            base.push(None);
+            before = None;
             continue;
         }
-        base.push(Some(first + v as u32));
+        let r1 = first + v as u32;
         let (centre, r, b, t, radius, drds) = (
             g.centre,
             g.r.as_dvec3(),
@@ -561,7 +575,7 @@ fn emit(
             g.radius,
             g.drds,
         );
-        for &(ca, sa) in &trig {
+        for &(ca, sa) in trig {
             let radial = r * ca + b * sa;
             let p = (centre + radial * radius).as_vec3();
             pos[v].write(p);
@@ -593,32 +607,31 @@ fn emit(
             1.0
         };
         min_ratio = min_ratio.min(ratio);
+        // The quads between this ring and the one before, counter-clockwise seen from outside.
+        if let Some(r0) = before {
+            for j in 0..s32 {
+                let (a, b) = (r0 + j, r0 + (j + 1) % s32);
+                let (c, d) = (r1 + j, r1 + (j + 1) % s32);
+                for i in [a, b, d, a, d, c] {
+                    idx[k].write(i);
+                    k += 1;
+                }
+            }
+        }
+        before = Some(r1);
     }
-    // Quads between consecutive rings, counter-clockwise seen from outside.
-    let mut k = 0usize;
     let mut put = |i: u32, k: &mut usize| {
         idx[*k].write(i);
         *k += 1;
     };
-    let s32 = sides as u32;
-    for w in base.windows(2) {
-        let (Some(r0), Some(r1)) = (w[0], w[1]) else {
-            continue;
-        };
-        for j in 0..s32 {
-            let (a, b) = (r0 + j, r0 + (j + 1) % s32);
-            let (c, d) = (r1 + j, r1 + (j + 1) % s32);
-            for i in [a, b, d, a, d, c] {
-                put(i, &mut k);
-            }
-        }
-    }
+    // The first vertex of a kept ring, counted from the piece's first.
+    let base = |ring: usize| rings[..ring].iter().filter(|g| !g.cut).count() * sides;
     for &(first_ring, last_ring) in caps {
         for (ring, dir, flip) in [
             (first_ring, -rings[first_ring].t.as_dvec3(), true),
             (last_ring, rings[last_ring].t.as_dvec3(), false),
         ] {
-            let rb = (base[ring].unwrap() - first) as usize;
+            let rb = base(ring);
             let centre = first + v as u32;
             pos[v].write(rings[ring].centre.as_vec3());
             nor[v].write(dir.as_vec3());
@@ -647,6 +660,14 @@ fn emit(
         "tube piece wrote {v} vertices and {k} indices, {vertices} and {indices} counted"
     );
     min_ratio
+}
+
+/// The cosines and sines of the angles of a ring's `sides` vertices.
+fn ring_trig(sides: usize) -> Vec<(f64, f64)> {
+    let step = std::f64::consts::TAU / sides as f64;
+    (0..sides)
+        .map(|j| ((step * j as f64).cos(), (step * j as f64).sin()))
+        .collect()
 }
 
 fn rgb8(c: [f32; 3]) -> [u8; 3] {
@@ -919,6 +940,27 @@ fn split_rings(points: &[DVec3], o: &TubeOptions) -> usize {
         .sum()
 }
 
+/// The working arrays of [`tube_as`], one set a thread, reused piece after piece.
+#[derive(Default)]
+struct Scratch {
+    x: Vec<DVec3>,
+    t: Vec<DVec3>,
+    k: Vec<f64>,
+    params: Vec<f64>,
+    samples: Vec<f64>,
+    frames: Vec<DVec3>,
+    seg: Vec<f64>,
+    kd: Vec<f64>,
+    radii: Vec<f64>,
+    cut: Vec<bool>,
+    s: Vec<f64>,
+    runs: Vec<(usize, usize)>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::Cell<Scratch> = Default::default();
+}
+
 /// Builds the tube of one cleaned polyline piece.
 ///
 /// `None` where the fit would place more rings than the piece has points (or keep every point)
@@ -1039,10 +1081,40 @@ fn tube_as(
         Some(tol) => sides_for(o.radius, tol),
         None => o.sides.max(3),
     };
-    let (mut x, mut t, mut k): (Vec<DVec3>, Vec<DVec3>, Vec<f64>) =
-        (Vec::new(), Vec::new(), Vec::new());
-    let mut kept_params = Vec::with_capacity(fit_params.len().max(points.len()));
-    let poly_samples: Vec<f64>;
+    // The piece's working arrays, reused from the pieces this thread meshed before (a rough
+    // line's pieces have a segment or two, and a dozen allocations each had cost them more
+    // than their arithmetic: docs/benchmarks.md, "Lines that turn sharply").
+    let mut scratch = SCRATCH.take();
+    let Scratch {
+        x,
+        t,
+        k,
+        params: kept_params,
+        samples: poly_samples,
+        frames,
+        seg,
+        kd,
+        radii,
+        cut,
+        s,
+        runs,
+    } = &mut scratch;
+    for v in [&mut *x, &mut *t, &mut *frames] {
+        v.clear();
+    }
+    for v in [
+        &mut *k,
+        &mut *kept_params,
+        &mut *poly_samples,
+        &mut *seg,
+        &mut *kd,
+        &mut *radii,
+        &mut *s,
+    ] {
+        v.clear();
+    }
+    cut.clear();
+    runs.clear();
     // The curve, and the parameters of the input points on it where it was fitted (a
     // polyline's are its ring numbers, `params` below).
     let (curve, fit_samples): (Option<&BSpline>, Option<&[f64]>) = if polyline {
@@ -1063,7 +1135,7 @@ fn tube_as(
             // A ring's parameter is its point's number, as the samples' below.
             kept_params.push(i as f64);
         }
-        poly_samples = (0..points.len()).map(|i| i as f64).collect();
+        poly_samples.extend((0..points.len()).map(|i| i as f64));
         (None, Some(&poly_samples[..]))
     } else {
         let f = fitted.as_ref().expect("fitted");
@@ -1096,52 +1168,46 @@ fn tube_as(
         }
         (Some(&f.curve), Some(&f.sample_params[..]))
     };
-    let params = kept_params;
-    let sample_params = fit_samples.unwrap_or(&params);
-    let frames = match o.frame {
-        FrameMethod::Rmf => rmf(&x, &t),
-        FrameMethod::Frenet => frenet(curve.expect("Frenet frames come with a fit"), &params, &t),
+    let params = &kept_params[..];
+    let sample_params = fit_samples.unwrap_or(params);
+    match o.frame {
+        FrameMethod::Rmf => rmf_into(x, t, frames),
+        FrameMethod::Frenet => {
+            *frames = frenet(curve.expect("Frenet frames come with a fit"), params, t)
+        }
     };
     // The ring spacing, once (also the arc length's steps below).
-    let seg: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]).length()).collect();
+    seg.extend(x.windows(2).map(|w| (w[1] - w[0]).length()));
     // Discrete curvature between consecutive rings (turn over spacing): a ring may not be wider
     // than this allows either, or the inner side of the bend folds between two rings.
     let local = o.radius_mode == RadiusMode::Local;
-    let kd: Vec<f64> = (0..seg.len())
-        .map(|i| turn_curvature(t[i].dot(t[i + 1]), seg[i], o.radius, local))
-        .collect();
-    let kloc: Vec<f64> = (0..x.len())
-        .map(|i| {
-            let a = if i > 0 { kd[i - 1] } else { 0.0 };
-            let b = kd.get(i).copied().unwrap_or(0.0);
-            k[i].max(a).max(b)
-        })
-        .collect();
-    let kmax = kloc.iter().cloned().fold(0.0, f64::max);
-    let radii: Vec<f64> = kloc
-        .iter()
-        .map(|&ki| {
-            let limit = match o.radius_mode {
-                RadiusMode::Local => 0.9 / ki.max(1e-300),
-                RadiusMode::Global => 0.9 / kmax.max(1e-300),
-            };
-            o.radius.min(limit)
-        })
-        .collect();
+    kd.extend((0..seg.len()).map(|i| turn_curvature(t[i].dot(t[i + 1]), seg[i], o.radius, local)));
+    // The curvature each ring's radius allows, then the radius.
+    radii.extend((0..x.len()).map(|i| {
+        let a = if i > 0 { kd[i - 1] } else { 0.0 };
+        let b = kd.get(i).copied().unwrap_or(0.0);
+        k[i].max(a).max(b)
+    }));
+    let kmax = radii.iter().cloned().fold(0.0, f64::max);
+    for r in radii.iter_mut() {
+        let limit = match o.radius_mode {
+            RadiusMode::Local => 0.9 / r.max(1e-300),
+            RadiusMode::Global => 0.9 / kmax.max(1e-300),
+        };
+        *r = o.radius.min(limit);
+    }
     // Where even 1/1000 of the radius would fold (the apex of a near-reversal, whose fitted
     // curve turns within a hair's breadth), the tube is cut instead: rings there are left out
     // and the pieces on either side end there (with caps when asked for).
     let floor = 1e-3 * o.radius;
-    let cut: Vec<bool> = radii.iter().map(|&r| r < floor).collect();
+    cut.extend(radii.iter().map(|&r| r < floor));
     // Arc length for dr/ds.
-    let mut s = Vec::with_capacity(x.len());
     s.push(0.0);
-    for &d in &seg {
+    for &d in seg.iter() {
         s.push(s.last().unwrap() + d);
     }
     // Limit the radius' slope to |dr/ds| <= 1: a clamp then narrows the tube as a cone of at
     // most 45 degrees instead of a step, which keeps the quads next to it facing outwards.
-    let mut radii = radii;
     for i in 1..radii.len() {
         radii[i] = radii[i].min(radii[i - 1] + (s[i] - s[i - 1]));
     }
@@ -1215,7 +1281,6 @@ fn tube_as(
     }
     st.max_twist_deg = min_twist_cos.acos().to_degrees();
     // Runs of rings between cuts: one tube piece each.
-    let mut runs: Vec<(usize, usize)> = Vec::new();
     let mut i = 0;
     while i < n {
         if cut[i] {
@@ -1239,6 +1304,7 @@ fn tube_as(
     rings.indices = quads * sides * 6 + rings.caps.len() * 2 * sides * 3;
     st.triangles = rings.indices / 3;
     rings.stats = st;
+    SCRATCH.set(scratch);
     Some(rings)
 }
 
@@ -1624,10 +1690,12 @@ impl Block {
             jobs.push((p, first, a, b, c, d));
             first += p.vertices as u32;
         }
+        let trig = ring_trig(pieces.first().map_or(3, |p| p.sides));
         jobs.into_par_iter()
             .map(|(p, first, a, b, c, d)| {
                 emit(
                     p.sides,
+                    &trig,
                     &self.rings[p.rings.clone()],
                     &self.caps[p.caps.clone()],
                     (p.vertices, p.indices),
