@@ -513,19 +513,40 @@ struct Ring {
     color: [u8; 3],
     /// The tube is cut here (no ring).
     cut: bool,
+    /// The first ring of a tube piece: no quads join it to the ring before.
+    start: bool,
 }
 
-/// One tube piece, ready to be written: its rings and what it needs in the output buffers.
-/// Vertices are written straight into the mesh by [`emit`], so no per-piece vertex buffers are
-/// built and concatenated.
+/// The tube pieces of one streamline, ready to be written: their rings one after the other
+/// and what they need in the output buffers. Vertices are written straight into the mesh by
+/// [`emit`], so no per-piece vertex buffers are built and concatenated. One allocation a
+/// streamline, not a piece: a random walk of 100 points is split into 58 pieces at its sharp
+/// turns (docs/benchmarks.md, "Lines that turn sharply").
 struct Rings {
     sides: usize,
     rings: Vec<Ring>,
-    /// Runs of kept rings `(first, last)` that get end caps.
+    /// Runs of kept rings `(first, last)` that get end caps, in order.
     caps: Vec<(usize, usize)>,
     vertices: usize,
     indices: usize,
+    /// The pieces appended ([`tube_as`]).
+    pieces: usize,
+    /// Their statistics together (counts summed, largest deviation and twist).
     stats: TubeStats,
+}
+
+impl Rings {
+    fn new(sides: usize) -> Rings {
+        Rings {
+            sides,
+            rings: Vec::new(),
+            caps: Vec::new(),
+            vertices: 0,
+            indices: 0,
+            pieces: 0,
+            stats: TubeStats::default(),
+        }
+    }
 }
 
 /// Writes the vertices and triangles of a tube piece of `sides`-gons through `rings` (with end
@@ -562,8 +583,10 @@ fn emit(
     // The first vertex of the ring before, where it was kept.
     let mut before: Option<u32> = None;
     for g in rings {
-        if g.cut {
+        if g.cut || g.start {
             before = None;
+        }
+        if g.cut {
             continue;
         }
         let r1 = first + v as u32;
@@ -624,8 +647,14 @@ fn emit(
         idx[*k].write(i);
         *k += 1;
     };
-    // The first vertex of a kept ring, counted from the piece's first.
-    let base = |ring: usize| rings[..ring].iter().filter(|g| !g.cut).count() * sides;
+    // The first vertex of a kept ring, counted from the piece's first: the caps' rings come
+    // in order, so the kept rings before each are counted on from the last.
+    let (mut counted, mut kept_before) = (0usize, 0usize);
+    let mut base = |ring: usize| {
+        kept_before += rings[counted..ring].iter().filter(|g| !g.cut).count();
+        counted = ring;
+        kept_before * sides
+    };
     for &(first_ring, last_ring) in caps {
         for (ring, dir, flip) in [
             (first_ring, -rings[first_ring].t.as_dvec3(), true),
@@ -977,8 +1006,9 @@ fn tube(
     o: &TubeOptions,
     origin: DVec3,
     between_turns: bool,
-) -> Option<Rings> {
-    tube_as(points, attr, o, origin, between_turns, false)
+    out: &mut Rings,
+) -> bool {
+    tube_as(points, attr, o, origin, between_turns, false, out)
 }
 
 /// [`tube`] of a part (between sharp turns) of a line too rough to fit: meshed as its
@@ -988,12 +1018,14 @@ fn tube_rough(
     attr: Option<(&[f32], [f64; 2])>,
     o: &TubeOptions,
     origin: DVec3,
-) -> Option<Rings> {
-    tube_as(points, attr, o, origin, true, true)
+    out: &mut Rings,
+) -> bool {
+    tube_as(points, attr, o, origin, true, true, out)
 }
 
 /// [`tube`], meshed as its polyline without a fit where `rough` (a part without sharp turns
-/// of a line [`too_rough`] to fit).
+/// of a line [`too_rough`] to fit). The piece is appended to `out` (whose `sides` it takes);
+/// `false` (nothing appended) where [`tube`] says `None`.
 fn tube_as(
     points: &[DVec3],
     attr: Option<(&[f32], [f64; 2])>,
@@ -1001,7 +1033,8 @@ fn tube_as(
     origin: DVec3,
     between_turns: bool,
     rough: bool,
-) -> Option<Rings> {
+    out: &mut Rings,
+) -> bool {
     let mut st = TubeStats {
         min_section_ratio: f64::INFINITY,
         ..Default::default()
@@ -1065,22 +1098,19 @@ fn tube_as(
                 kept_sharp = sharp;
                 kept = Some(keep);
             } else if sharp && !between_turns && split_rings(points, o) < fit_params.len() {
-                return None;
+                return false;
             }
         }
         let as_polyline = in_vain || fit_params.len() > points.len() || loops || kept.is_some();
         if rmf_iterative && as_polyline && sharp && !kept_sharp && !between_turns {
-            return None;
+            return false;
         }
         polyline = rmf_iterative && as_polyline && (!sharp || kept_sharp);
         if !polyline && fit_params.is_empty() {
             fit_params = ring_params(&f.curve, o.per_span, o.max_turn_deg, o.chordal);
         }
     }
-    let sides = match o.chordal {
-        Some(tol) => sides_for(o.radius, tol),
-        None => o.sides.max(3),
-    };
+    let sides = out.sides;
     // The piece's working arrays, reused from the pieces this thread meshed before (a rough
     // line's pieces have a segment or two, and a dozen allocations each had cost them more
     // than their arithmetic: docs/benchmarks.md, "Lines that turn sharply").
@@ -1229,14 +1259,8 @@ fn tube_as(
             vals[j - 1] as f64 * (1.0 - w) + vals[j] as f64 * w
         }
     };
-    let mut rings = Rings {
-        sides,
-        rings: Vec::with_capacity(n),
-        caps: Vec::new(),
-        vertices: 0,
-        indices: 0,
-        stats: TubeStats::default(),
-    };
+    let r0 = out.rings.len();
+    out.rings.reserve(n);
     let mut min_twist_cos = 1.0f64;
     for i in 0..n {
         let r_vec = frames[i];
@@ -1265,7 +1289,7 @@ fn tube_as(
                 map_color(*map, (func(x[i]) - lo) / (hi - lo).max(1e-300))
             }
         };
-        rings.rings.push(Ring {
+        out.rings.push(Ring {
             centre: x[i] - origin,
             r: r_vec.as_vec3(),
             b: t[i].cross(r_vec).as_vec3(),
@@ -1274,6 +1298,7 @@ fn tube_as(
             drds,
             color: rgb8(color),
             cut: cut[i],
+            start: i == 0,
         });
         if i > 0 && !cut[i] && !cut[i - 1] {
             min_twist_cos = min_twist_cos.min(twist_cos(t[i - 1], t[i], frames[i - 1], frames[i]));
@@ -1297,15 +1322,43 @@ fn tube_as(
     st.splits += runs.len().saturating_sub(1);
     let kept = cut.iter().filter(|&&c| !c).count();
     let quads: usize = runs.iter().map(|&(a, b)| b - a).sum();
-    if o.caps {
-        rings.caps = runs.iter().copied().filter(|&(a, b)| a != b).collect();
-    }
-    rings.vertices = kept * sides + rings.caps.len() * 2 * (sides + 1);
-    rings.indices = quads * sides * 6 + rings.caps.len() * 2 * sides * 3;
-    st.triangles = rings.indices / 3;
-    rings.stats = st;
+    let caps = if o.caps {
+        let c0 = out.caps.len();
+        out.caps.extend(
+            runs.iter()
+                .filter(|&&(a, b)| a != b)
+                .map(|&(a, b)| (r0 + a, r0 + b)),
+        );
+        out.caps.len() - c0
+    } else {
+        0
+    };
+    let (vertices, indices) = (
+        kept * sides + caps * 2 * (sides + 1),
+        quads * sides * 6 + caps * 2 * sides * 3,
+    );
+    st.triangles = indices / 3;
+    out.vertices += vertices;
+    out.indices += indices;
+    out.pieces += 1;
+    let all = &mut out.stats;
+    all.control_points += st.control_points;
+    all.triangles += st.triangles;
+    all.max_deviation = all.max_deviation.max(st.max_deviation);
+    all.max_twist_deg = all.max_twist_deg.max(st.max_twist_deg);
+    all.radius_clamps += st.radius_clamps;
+    all.splits += st.splits;
+    all.polyline_pieces += st.polyline_pieces;
     SCRATCH.set(scratch);
-    Some(rings)
+    true
+}
+
+/// The sides of the tubes' polygons.
+fn ring_sides(o: &TubeOptions) -> usize {
+    match o.chordal {
+        Some(tol) => sides_for(o.radius, tol),
+        None => o.sides.max(3),
+    }
 }
 
 /// Builds the tube mesh of all streamlines (in parallel) and its statistics.
@@ -1464,7 +1517,7 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
         }
         if pts.len() < 2 {
             st.skipped_streamlines = 1;
-            return (Vec::new(), st);
+            return (Rings::new(0), st);
         }
         // (first, last, whether the part is of a line too rough to fit)
         let mut parts: Vec<(usize, usize, bool)> = reversal_ranges(&pts)
@@ -1494,18 +1547,17 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
                 .collect();
         }
         st.splits = parts.len() - 1;
-        let mut out = Vec::with_capacity(parts.len());
+        let mut out = Rings::new(ring_sides(o));
         for &(a, b, rough) in &parts {
             if b == a {
                 continue;
             }
             let av = vals.as_ref().map(|_| &kept_vals[a..=b]);
-            let r = match rough {
-                true => tube_rough(&pts[a..=b], av.zip(range), o, origin),
-                false => tube(&pts[a..=b], av.zip(range), o, origin, false),
+            let done = match rough {
+                true => tube_rough(&pts[a..=b], av.zip(range), o, origin, &mut out),
+                false => tube(&pts[a..=b], av.zip(range), o, origin, false, &mut out),
             };
-            if let Some(r) = r {
-                out.push(r);
+            if done {
                 continue;
             }
             // More rings than points from the fit, and a sharp turn: the parts between the
@@ -1517,7 +1569,7 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
                     continue;
                 }
                 let av = vals.as_ref().map(|_| &kept_vals[c..=d]);
-                out.extend(tube(&pts[c..=d], av.zip(range), o, origin, true));
+                tube(&pts[c..=d], av.zip(range), o, origin, true, &mut out);
             }
         }
         (out, st)
@@ -1538,8 +1590,7 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
         // once copied into the block) stay a few MB, not a block's worth, in the allocator's
         // heap (which keeps what it held).
         for batch in (start..end).step_by(BATCH_STREAMLINES) {
-            let pieces: Vec<(Vec<Rings>, TubeStats)> = (batch
-                ..(batch + BATCH_STREAMLINES).min(end))
+            let pieces: Vec<(Rings, TubeStats)> = (batch..(batch + BATCH_STREAMLINES).min(end))
                 .into_par_iter()
                 .map(piece_of)
                 .collect();
@@ -1552,8 +1603,9 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
                 stats.max_deviation = stats.max_deviation.max(st.max_deviation);
                 stats.skipped_streamlines += st.skipped_streamlines;
                 stats.splits += st.splits;
-                for p in parts {
-                    stats.streamlines_out += 1 + p.stats.splits;
+                // (One `Rings` a streamline, holding its pieces, or none.)
+                if let Some(p) = Some(parts).filter(|p| p.pieces > 0) {
+                    stats.streamlines_out += p.pieces + p.stats.splits;
                     stats.control_points += p.stats.control_points;
                     stats.triangles += p.stats.triangles;
                     stats.max_deviation = stats.max_deviation.max(p.stats.max_deviation);

@@ -396,6 +396,24 @@ fn a_line_rough_enough_to_turn_sharply_often_is_meshed_as_polylines_without_fits
         "{}",
         st.triangles
     );
+    // Every piece is closed by its caps, and its triangles agree in orientation: each edge
+    // (by its ends' positions) is run once in each direction. (The pieces are written as one
+    // run of rings a streamline, pieces starting where a ring says so; a cap on the wrong
+    // ring, or quads across a piece's start, leave edges unmatched.)
+    let key = |i: u32| mesh.positions[i as usize].to_array().map(f32::to_bits);
+    let mut edges = std::collections::HashMap::new();
+    for tri in mesh.indices.chunks_exact(3) {
+        for k in 0..3 {
+            *edges
+                .entry((key(tri[k]), key(tri[(k + 1) % 3])))
+                .or_insert(0) += 1;
+        }
+    }
+    let open = edges
+        .iter()
+        .filter(|&(&(a, b), &n)| n != 1 || edges.get(&(b, a)) != Some(&1))
+        .count();
+    assert_eq!(open, 0, "{open} of {} edges unmatched", edges.len());
 }
 
 #[test]
