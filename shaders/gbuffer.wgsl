@@ -175,11 +175,15 @@ fn line_point(i: u32) -> vec3<f32> {
     return vec3<f32>(line_points[3u * i], line_points[3u * i + 1u], line_points[3u * i + 2u]);
 }
 
+// Segments an instance of a line draw holds (engine::gbuffer::SEGMENTS_PER_INSTANCE).
+const SEGMENTS_PER_INSTANCE: u32 = 32u;
+
 @vertex
-fn vs_line(@builtin(vertex_index) index: u32) -> VOut {
-    // Six vertices per segment, in one non-instanced draw.
+fn vs_line(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> VOut {
+    // Six vertices per segment; SEGMENTS_PER_INSTANCE segments an instance (a draw's first
+    // and last few segments may come as instance 0, their vertex index counting from 0).
     let vi = index % 6u;
-    let i = line_segments[index / 6u];
+    let i = line_segments[instance * SEGMENTS_PER_INSTANCE + index / 6u];
     let pts = LP.points != 0u;
     // A point is a segment of length zero (its square is built on screen axes below).
     let j = select(i + 1u, i, pts);

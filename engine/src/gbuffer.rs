@@ -591,6 +591,33 @@ pub fn batch_for(total: u64, budget: u64) -> u64 {
     (total / 16).clamp(MIN_BATCH_TRIANGLES.min(budget), budget)
 }
 
+/// Segments an instance of a line draw holds (`gbuffer.wgsl::SEGMENTS_PER_INSTANCE`). Mesa's
+/// draw module (lavapipe, llvmpipe) runs a draw in chunks: an instance of a non-instanced draw
+/// of 6 vertices a segment in chunks of 4,095 vertices, and a chunk with one vertex outside
+/// the viewport (a line leaving the image) goes through its clipping path, which clears the
+/// ids of all the chunk's vertices each time its small output buffer fills (a few dozen of our
+/// vertices): on a line set reaching out of the image, a third of the frame (`perf`, 3 M
+/// triangles of CST_L). Instances of 32 segments make chunks of 192 vertices
+/// (docs/benchmarks.md, "Lines leaving the image on lavapipe").
+pub const SEGMENTS_PER_INSTANCE: u32 = 32;
+
+/// Draws segments `s0..s1` of the bound line set (`vs_line`): whole instances of
+/// [`SEGMENTS_PER_INSTANCE`], the segments before the first and after the last as instance 0.
+fn draw_segments(pass: &mut wgpu::RenderPass<'_>, s0: u32, s1: u32) {
+    let k = SEGMENTS_PER_INSTANCE;
+    let a = s0.div_ceil(k).saturating_mul(k).min(s1);
+    let b = (s1 / k * k).max(a);
+    if a > s0 {
+        pass.draw(6 * s0..6 * a, 0..1);
+    }
+    if b > a {
+        pass.draw(0..6 * k, a / k..b / k);
+    }
+    if s1 > b {
+        pass.draw(6 * b..6 * s1, 0..1);
+    }
+}
+
 /// The draws of a pass cut into batches of at most `budget` triangles (`None`: one batch):
 /// `sizes[i]` is draw `i`'s triangle count; each batch lists `(draw, first, end)` triangle
 /// ranges, in order, every triangle in exactly one. At least one batch (empty when nothing
@@ -1319,8 +1346,8 @@ impl GBuffer {
                                 nd.map_or((&l.view, &l.data), |n| (&n.lines[k].0, &n.lines[k].1));
                             pass.set_bind_group(0, v, &[]);
                             pass.set_bind_group(1, d, &[]);
-                            // Six vertices a segment, two triangles: a triangle is 3 vertices.
-                            pass.draw(3 * t0 as u32..3 * t1 as u32, 0..1);
+                            // Two triangles a segment.
+                            draw_segments(&mut pass, t0 as u32 / 2, t1 as u32 / 2);
                         }
                     }
                 }
