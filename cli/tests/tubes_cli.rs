@@ -302,8 +302,8 @@ fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
             && err.contains("lines"),
         "{err}"
     );
-    // The estimate: 1.5 to 3 GB (2.0 here at 30 bytes a triangle, `tube_sets::
-    // MESH_BYTES_PER_TRIANGLE`; 40 before the rings were freed block by block).
+    // The estimate: 1.5 to 3 GB (the mesh's vertices, triangles and rings,
+    // `tube_sets::mesh_memory_estimate`).
     let gb: f64 = err
         .split("would need about ")
         .nth(1)
@@ -312,6 +312,48 @@ fn tubes_that_would_not_fit_are_refused_with_the_memory_they_need() {
         .unwrap();
     assert!((1.5..3.0).contains(&gb), "{gb} GB: {err}");
     assert!(!obj.exists());
+}
+
+/// The estimate counts what an OBJ's meshing holds: the mesh's vertices (27 bytes) and
+/// triangles (12) and every tube's rings, scaled from the sample. 300,000 random walks of three
+/// points (short tubes: many vertices and rings a triangle) under address-space limits of
+/// 400-600 MB are refused or written, never aborted: at 30 bytes a triangle (the estimate
+/// before) the mesh was guessed at 0.3 GB, passed under 500 MB and the allocation failed
+/// (exit 134, "memory allocation of ... failed"; a new user's 10^6 lines under `ulimit -v`).
+#[test]
+fn short_tubes_near_the_memory_limit_are_refused_or_written_never_aborted() {
+    let dir = tempfile::tempdir().unwrap();
+    let tck = dir.path().join("walks.tck");
+    let mut s = tubes::Streamlines::new();
+    let mut state = 12345u64;
+    let mut rnd = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64) as f32 - 0.5
+    };
+    for _ in 0..300_000 {
+        let mut p = glam::Vec3::new(rnd(), rnd(), rnd()) * 100.0;
+        let line: Vec<glam::Vec3> = (0..3)
+            .map(|_| {
+                p += glam::Vec3::new(rnd(), rnd(), rnd()) * 3.0;
+                p
+            })
+            .collect();
+        s.push(&line);
+    }
+    tubes::tck::write(&tck, &s).unwrap();
+    let obj = dir.path().join("w.obj");
+    for mb in [400u64, 450, 500, 550, 600] {
+        let out = tubes_limited(mb * 1_000_000, &tck, &obj, 8);
+        let err = String::from_utf8_lossy(&out.stderr);
+        match out.status.code() {
+            Some(0) => assert!(obj.exists(), "{mb} MB: no OBJ"),
+            Some(1) => assert!(err.contains("would need about"), "{mb} MB: {err}"),
+            c => panic!("{mb} MB: exit {c:?}: {err}"),
+        }
+        let _ = std::fs::remove_file(&obj);
+    }
 }
 
 /// Issue 18: a PLY is meshed and written part by part (`tube_mesh::build_streamed`), so

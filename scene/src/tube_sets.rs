@@ -139,14 +139,14 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
             if need > budget {
                 return Err(format!(
                     "{}: meshing its {} streamlines as tubes would need about {:.1} GB (from a \
-                     mesh of {ESTIMATE_SAMPLE} of them chosen at random, {} bytes a triangle), \
-                     more than the {:.1} GB {what}; write a PLY (meshed part by part), draw \
-                     them as lines ([[lines]] in a scene), select or subsample them (umbra \
-                     tracts select), or raise the tolerance",
+                     mesh of {ESTIMATE_SAMPLE} of them chosen at random: its vertices, \
+                     triangles and rings scaled by points), more than the {:.1} GB {what}; \
+                     write a PLY (meshed part by part), draw them as lines ([[lines]] in a \
+                     scene), select or subsample them (umbra tracts select), or raise the \
+                     tolerance",
                     a.input.display(),
                     s.len(),
                     need as f64 / 1e9,
-                    MESH_BYTES_PER_TRIANGLE,
                     budget as f64 / 1e9
                 ));
             }
@@ -211,12 +211,6 @@ fn push_mesh_warnings(warnings: &mut Vec<String>, st: &TubeStats, tolerance: f64
     }
 }
 
-/// Peak bytes `umbra tubes` holds per triangle of its mesh (vertices, normals, colours and
-/// indices, 27 bytes, and the block of rings being written; the points are freed before the
-/// mesh is allocated and the file is streamed; measured: 10^6 synthetic streamlines of 100
-/// points, 148.9 M triangles, 4.02 GB peak - 27.0 bytes a triangle), with a margin.
-pub const MESH_BYTES_PER_TRIANGLE: u64 = 30;
-
 /// Tractograms of fewer streamlines are meshed without an estimate.
 const ESTIMATE_ABOVE: usize = 20_000;
 
@@ -236,14 +230,32 @@ pub fn mesh_memory_estimate(s: &tubes::Streamlines, a: &TubesArgs) -> Result<Opt
     if sample.points.is_empty() {
         return Ok(None);
     }
-    let (_, st) = build_mesh(&sample, a)?;
-    let triangles = st.triangles as f64 * s.points.len() as f64 / sample.points.len() as f64;
+    let (mesh, st) = build_mesh(&sample, a)?;
+    let scale = s.points.len() as f64 / sample.points.len() as f64;
+    let vertices = mesh.positions.len() as f64;
+    // Every tube's rings are held until the mesh is written (a ring's vertices without caps).
+    let sides = match a.chordal {
+        Some(tol) => tubes::tube_mesh::sides_for(a.radius, tol),
+        None => a.sides.max(3),
+    };
+    let rings = vertices / sides as f64;
+    let bytes = VERTEX_BYTES as f64 * vertices
+        + INDEX_BYTES as f64 * st.triangles as f64
+        + tubes::tube_mesh::RING_BYTES as f64 * rings;
     Ok(Some(
-        (triangles * MESH_BYTES_PER_TRIANGLE as f64) as u64
-            + 12 * s.points.len() as u64
-            + 8 * s.len() as u64,
+        (bytes * scale * ESTIMATE_MARGIN) as u64 + 12 * s.points.len() as u64 + 8 * s.len() as u64,
     ))
 }
+
+/// A mesh vertex's bytes (position, normal, 8-bit colour) and a triangle's (three u32
+/// indices).
+const VERTEX_BYTES: u64 = 27;
+const INDEX_BYTES: u64 = 12;
+
+/// The estimate's margin over the mesh, its rings and the points: the allocator's and the
+/// block lists' share (10^6 random walks of 3 points to an OBJ, 31.8 M triangles: 1.18 GB at
+/// the peak, `/usr/bin/time -v`; the mesh and rings 1.12 + 0.08 GB).
+const ESTIMATE_MARGIN: f64 = 1.1;
 
 /// The memory this process may still take, and what limits it: the smaller of its
 /// address-space limit (`Max address space` of /proc/self/limits, as `prlimit --as` sets it,

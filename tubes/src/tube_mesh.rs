@@ -499,6 +499,10 @@ pub fn colormap(v: f64) -> [f32; 3] {
     [0, 1, 2].map(|c| A[i][c] + (A[i + 1][c] - A[i][c]) * f)
 }
 
+/// The bytes a ring of a tube takes while the mesh is built (every tube's rings are found
+/// before the mesh is written): for estimates of the memory a mesh needs.
+pub const RING_BYTES: u64 = std::mem::size_of::<Ring>() as u64;
+
 /// One ring of a tube piece: what [`emit`] needs to write its vertices.
 #[derive(Clone, Copy, Debug)]
 struct Ring {
