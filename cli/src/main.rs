@@ -126,12 +126,23 @@ fn remove_temps_on_signal() {
 #[cfg(not(unix))]
 fn remove_temps_on_signal() {}
 
+/// The command line parsed, a negative number taken as an option's value wherever one is
+/// given (`--radius -1` is a radius of -1, refused as out of range, not an unknown option
+/// `-1`), in every command.
+fn parse_cli() -> Result<Cli, clap::Error> {
+    fn negatives(c: clap::Command) -> clap::Command {
+        c.allow_negative_numbers(true).mut_subcommands(negatives)
+    }
+    let matches = negatives(Cli::command()).try_get_matches()?;
+    <Cli as clap::FromArgMatches>::from_arg_matches(&matches)
+}
+
 fn main() -> ExitCode {
     quiet_device_select();
     // A command never writes over a file it has read, whatever the names say (README,
     // "Command line").
     volume::guard_inputs();
-    let cli = match Cli::try_parse() {
+    let cli = match parse_cli() {
         Ok(cli) => cli,
         Err(e) => {
             let _ = e.print();

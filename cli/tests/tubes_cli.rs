@@ -135,6 +135,15 @@ fn tubes_errors_are_clear() {
         (&["--color", "#12"], "#rrggbb"),
         (&["--fit", "magic"], "--fit"),
         (&["--transform", "1,2,3"], "--transform"),
+        // A negative number is the option's value, refused by its range (it was clap's
+        // "unexpected argument '-1'", exit 2).
+        (&["--radius", "-1"], "--radius"),
+        (&["--tolerance", "-0.1"], "--tolerance"),
+        // Points are moved as points: a projective bottom row is refused, not dropped.
+        (
+            &["--transform", "1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,2"],
+            "bottom row",
+        ),
     ];
     for (args, want) in cases {
         let out = umbra()
@@ -147,7 +156,10 @@ fn tubes_errors_are_clear() {
             .unwrap();
         assert_eq!(out.status.code(), Some(1), "{args:?}");
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(
+            err.contains(want) && !err.contains("unexpected"),
+            "{args:?}: {err}"
+        );
     }
     assert!(!dir.path().join("x.ply").exists());
     let out = umbra()

@@ -94,6 +94,14 @@ pub fn transform_matrix(m: &[f64; 16], key: &str) -> Result<DMat4, String> {
              flat list, row after row)"
         ));
     }
+    // Points are moved as points (w = 1, not divided by a w): a projective bottom row would be
+    // dropped unseen.
+    if m[12..] != [0.0, 0.0, 0.0, 1.0] {
+        return Err(format!(
+            "{key}: the bottom row is {:?}; an affine transform's is 0, 0, 0, 1",
+            &m[12..]
+        ));
+    }
     Ok(rows)
 }
 

@@ -1175,12 +1175,16 @@ fn tube_as(
         let f = fitted.as_ref().expect("fitted");
         st.control_points = f.curve.control.len();
         st.max_deviation = f.max_deviation;
+        // Rings closer than 1e-4 radius to the previous one (where the fitted curve all but
+        // stops, at the apex of a near-reversal) would give zero-area quads: skip them, but
+        // keep the last ring. (Of the piece's length where that is shorter: a tube wider than
+        // its line is long keeps its rings; at a radius of 1e6 a straight line of 49 mm had
+        // lost all but one.)
+        let length: f64 = points.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+        let too_close = 1e-4 * o.radius.min(length);
         for (pi, &(u, c, d1, d2)) in fit_params.iter().enumerate() {
-            // Rings closer than 1e-4 radius to the previous one (where the fitted curve all
-            // but stops, at the apex of a near-reversal) would give zero-area quads: skip them,
-            // but keep the last ring.
             if let Some(&prev) = x.last() {
-                if (c - prev).length() < 1e-4 * o.radius {
+                if (c - prev).length() < too_close {
                     if pi + 1 < fit_params.len() {
                         continue;
                     }

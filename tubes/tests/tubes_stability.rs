@@ -416,6 +416,28 @@ fn a_line_rough_enough_to_turn_sharply_often_is_meshed_as_polylines_without_fits
     assert_eq!(open, 0, "{open} of {} edges unmatched", edges.len());
 }
 
+/// A straight line has no curvature to limit its radius: its tube is the same ring for ring at
+/// any radius up to the 1e15 allowed (rings closer than 1e-4 radius were skipped as a
+/// near-reversal's apex: from a radius of 1e5 on a line of 49 mm, and at 1e6 all but one,
+/// "no tube could be built").
+#[test]
+fn a_straight_line_takes_any_radius() {
+    let pts: Vec<DVec3> = (0..50).map(|i| DVec3::X * i as f64).collect();
+    let count = |radius: f64| {
+        let (mesh, st) = build(&lines(std::slice::from_ref(&pts)), &opts(radius));
+        assert!(
+            mesh.positions.iter().all(|v| v.is_finite()),
+            "radius {radius}"
+        );
+        st.triangles
+    };
+    let small = count(0.2);
+    assert!(small > 0);
+    for radius in [1e4, 1e5, 1e6, 1e12] {
+        assert_eq!(count(radius), small, "radius {radius}");
+    }
+}
+
 #[test]
 fn meshing_owned_streamlines_gives_the_same_mesh() {
     // `build_owned` frees the points between the rings and the mesh (umbra tubes' lower peak):
