@@ -459,7 +459,7 @@ struct PlaneLayer {
     lut: u32,
     count: u32,
     // 1: the slice's own volume (opaque; t clamped to [0, 1], NaN at the low end); 0: an
-    // overlay (transparent where t < 0 or NaN, clamped above)
+    // overlay (transparent where t <= 0 or NaN, clamped above)
     base: u32,
     pad: u32,
 };
@@ -522,7 +522,7 @@ fn plane_layer_color(y: PlaneLayer, v: f32) -> vec4<f32> {
     var t = (v - y.lo) / (y.hi - y.lo);
     if (y.base != 0u) {
         t = select(clamp(t, 0.0, 1.0), 0.0, gap);
-    } else if (gap || !(t >= 0.0)) {
+    } else if (gap || !(t > 0.0)) {
         return vec4<f32>(0.0);
     }
     let x = min(t, 1.0) * 255.0;

@@ -895,7 +895,7 @@ fn blend_color(p: vec3<f32>) -> vec4<f32> {
     }
     let v = trilinear_mix(vs, c - vec3<f32>(b));
     let t = (v - P.blend_lo) / (P.blend_hi - P.blend_lo);
-    if (v < -1e30 || !(t >= 0.0)) {
+    if (v < -1e30 || !(t > 0.0)) {
         return vec4<f32>(0.0);
     }
     let x = min(t, 1.0) * 255.0;

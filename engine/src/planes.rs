@@ -271,7 +271,7 @@ impl GpuPlane {
 /// A layer's colour (linear RGB) and coverage at world point `p` of `grid`, as the shaders map
 /// it (`plane_layer_color` in `gbuffer.wgsl`, `blend_color` in `slice_pass.wgsl`): `base`
 /// for a slice's own volume (opaque, the window clamped, gaps at its low end), else an overlay
-/// (nothing where `t < 0` or a gap). Samples are taken at `p`'s voxel index clamped into the
+/// (nothing where `t <= 0` or a gap). Samples are taken at `p`'s voxel index clamped into the
 /// grid: trilinear, or the nearest voxel for labels. `l` must be a layer [`check_layer`]
 /// accepts (as every uploaded one is).
 pub fn layer_color(grid: &PlaneGrid, l: &PlaneLayer, p: DVec3, base: bool) -> ([f64; 3], f64) {
@@ -300,7 +300,7 @@ pub fn layer_color(grid: &PlaneGrid, l: &PlaneLayer, p: DVec3, base: bool) -> ([
                 t = if gap { 0.0 } else { t.clamp(0.0, 1.0) };
                 true
             } else {
-                !gap && t >= 0.0
+                !gap && t > 0.0
             };
             if !shown {
                 return ([0.0; 3], 0.0);

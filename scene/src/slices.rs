@@ -241,6 +241,23 @@ fn overlay(
         Some(m) => crate::tube_sets::transform_matrix(m, &key("transform"))?.inverse(),
         None => DMat4::IDENTITY,
     };
+    if o.labels {
+        // The file's own voxels, so that the error can name one.
+        let whole = |v: f32| v.is_nan() || (v - v.round()).abs() <= 1e-3;
+        if let Some(n) = f.data.iter().position(|&v| !whole(v)) {
+            let [nx, ny, _] = vol.dims;
+            return Err(format!(
+                "overlays[{i}].labels ({}): the value {} at voxel ({}, {}, {}) is not a whole \
+                 number; a label overlay holds labels (a scalar map is an overlay without \
+                 labels = true)",
+                o.path.display(),
+                f.data[n],
+                n % nx,
+                n / nx % ny,
+                n / (nx * ny)
+            ));
+        }
+    }
     let interp = if o.labels {
         Interp::Nearest
     } else {
@@ -325,10 +342,15 @@ fn labels_map(
         Some(p) => volume::labels::read_lut(p).map_err(|e| format!("overlays[{i}].lut: {e}"))?,
         None => volume::labels::default_colors(&labels),
     };
+    let shown = |l: i64| match &o.show {
+        Some(s) => s.contains(&l),
+        None => l != 0,
+    };
+    // (Labels `show` hides are hidden whatever the table holds: not noted.)
     let missing: Vec<i64> = labels
         .iter()
         .copied()
-        .filter(|l| *l != 0 && !table.entries.contains_key(l))
+        .filter(|&l| l != 0 && shown(l) && !table.entries.contains_key(&l))
         .collect();
     if !missing.is_empty() {
         notes.push(format!(
@@ -341,11 +363,7 @@ fn labels_map(
     let top = labels.last().copied().unwrap_or(0).max(0) as usize;
     let mut colors = vec![[0.0f32; 4]; top + 1];
     for &l in &labels {
-        let shown = match &o.show {
-            Some(s) => s.contains(&l),
-            None => l != 0,
-        };
-        if let (true, Some(e)) = (shown, table.entries.get(&l)) {
+        if let (true, Some(e)) = (shown(l), table.entries.get(&l)) {
             let [r, g, b] = e
                 .rgb
                 .map(|c| volume::colormap::srgb_to_linear(c as f64 / 255.0) as f32);

@@ -296,7 +296,7 @@ pub struct OverlaySpec {
     pub field: Option<String>,
     /// Default `red-yellow` (scalars).
     pub colormap: Option<String>,
-    /// `[lo, hi]`: values below `lo` are not shown, values above `hi` take the map's top; `lo >
+    /// `[lo, hi]`: values at or below `lo` are not shown, values above `hi` take the map's top; `lo >
     /// hi` turns it round (negative statistics). Default: the field's finite range.
     pub range: Option<[f64; 2]>,
     #[serde(default = "one")]

@@ -755,7 +755,7 @@ fn a_label_overlay_with_fractional_values_is_refused() {
             dir.path(),
             "l.nii",
             &volume_of([8, 8, 8], DMat4::IDENTITY, |p| {
-                if p.x < 4.0 {
+                if p == DVec3::new(5.0, 3.0, 2.0) {
                     value
                 } else {
                     1.0
@@ -771,8 +771,143 @@ fn a_label_overlay_with_fractional_values_is_refused() {
             Ok(_) => assert!(ok, "{value} accepted"),
             Err(e) => {
                 assert!(!ok, "{value}: {e}");
-                assert!(e.contains("overlays[0].labels") && e.contains("2.5"), "{e}");
+                // The file's voxel is named.
+                assert!(
+                    e.contains("overlays[0].labels")
+                        && e.contains("2.5")
+                        && e.contains("voxel (5, 3, 2)"),
+                    "{e}"
+                );
             }
         }
     }
+}
+
+/// Labels the table lacks are hidden with a note, unless `show` hides them anyway.
+#[test]
+fn labels_missing_from_the_table_are_noted_unless_show_hides_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = write(
+        dir.path(),
+        "v.nii",
+        &volume_of([8, 8, 8], DMat4::IDENTITY, |p| p.z as f32),
+    );
+    let labels = write(
+        dir.path(),
+        "l.nii",
+        &volume_of([8, 8, 8], DMat4::IDENTITY, |p| {
+            if p.x < 4.0 {
+                1.0
+            } else {
+                300.0
+            }
+        }),
+    );
+    let lut = dir.path().join("lut.txt");
+    std::fs::write(&lut, "1 one 255 0 0 0\n").unwrap();
+    for (show, noted) in [
+        ("", true),
+        ("show = [1]\n", false),
+        ("show = [1, 300]\n", true),
+    ] {
+        let text = format!(
+            "[volume]\npath = \"{base}\"\n[[slices]]\naxis = \"axial\"\n\
+             [[overlays]]\nname = \"l\"\npath = \"{labels}\"\nlabels = true\nlut = \"{}\"\n{show}",
+            lut.display()
+        );
+        let s = scene::spec::parse(&text, "s.toml", dir.path(), &[]).unwrap();
+        let m = model(&s).unwrap();
+        let note = m.notes.iter().any(|n| n.contains("not in the table"));
+        assert_eq!(note, noted, "{show:?}: {:?}", m.notes);
+    }
+}
+
+/// An overlay's default range starts at its lowest value, which is not shown (`t <= 0` is
+/// hidden, as `mip` leaves out `volume.window`'s `lo`): a map with a zero background - FA, a
+/// probability map - shows the base slice there. (`t = 0` was drawn in the map's lowest colour:
+/// FA's grid painted red over the anatomy.)
+#[test]
+fn an_overlays_zero_background_at_the_default_range_shows_the_base() {
+    let dir = tempfile::tempdir().unwrap();
+    let anat = write(dir.path(), "anat.nii.gz", &anatomy());
+    let a = DMat4::from_scale(DVec3::splat(2.0)) * DMat4::from_translation(DVec3::splat(-10.0));
+    let map = write(
+        dir.path(),
+        "map.nii.gz",
+        &volume_of([21, 21, 21], a, |p| {
+            if p.x < 0.0 {
+                0.0
+            } else {
+                (1.0 + 0.05 * p.y) as f32
+            }
+        }),
+    );
+    let text = |overlays: bool| {
+        format!(
+            r#"
+background = [0.0, 0.0, 0.0]
+[camera]
+projection = "orthographic"
+azimuth = 0.0
+elevation = 90.0
+[volume]
+path = "{anat}"
+render = false
+[[slices]]
+axis = "axial"
+position = 1.0
+overlays = {overlays}
+[[overlays]]
+name = "map"
+path = "{map}"
+[light]
+ambient = 1.0
+diffuse = 0.0
+specular = 0.0
+[render]
+method = "ea"
+width = 64
+height = 64
+msaa = 1
+fxaa = false
+"#
+        )
+    };
+    let (with, m, s) = draw(&text(true), dir.path());
+    let (without, _, _) = draw(&text(false), dir.path());
+    let cam = scene::compile::camera(&s, m.bounds).unwrap();
+    let (mut background, mut mapped) = (0, 0);
+    for y in 0..64 {
+        for x in 0..64 {
+            let (o, d) = cam.ray(x as f64, y as f64, 64, 64);
+            let p = o + d * ((1.0 - o.z) / d.z);
+            // Inside the map's grid [-20, 20]^3: zero where x < 0, mapped where x > 0;
+            // clear of its edges and of the anatomy's, and 5 mm from x = 0 (the map is resampled
+            // into the anatomy's grid of 2 mm, then sampled: 4 mm of blend).
+            if p.y.abs() > 8.0 || p.x.abs() > 12.0 || p.x.abs() < 5.0 {
+                continue;
+            }
+            let (a, b) = (with[x + 64 * y], without[x + 64 * y]);
+            let diff = (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0f32, f32::max);
+            if p.x < 0.0 {
+                background += 1;
+                assert!(
+                    diff < 1e-6,
+                    "({x}, {y}) at x = {:.1}: differs by {diff}: {a:?} {b:?}",
+                    p.x
+                );
+            } else {
+                mapped += 1;
+                assert!(
+                    diff > 0.05,
+                    "({x}, {y}) at x = {:.1}: the map not shown",
+                    p.x
+                );
+            }
+        }
+    }
+    assert!(
+        background > 50 && mapped > 50,
+        "{background} / {mapped} pixels"
+    );
 }
