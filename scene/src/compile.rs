@@ -686,6 +686,13 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     let mut meshes = vec![];
     for (i, t) in s.tubes.iter().enumerate() {
         if is_mesh(&t.path) {
+            if t.color != "direction" && !t.color.starts_with('#') {
+                notes.push(format!(
+                    "tubes[{i}].color {}: a mesh file keeps its own vertex colours (only \
+                     #rrggbb replaces them)",
+                    t.color
+                ));
+            }
             let mut mesh = mesh_set(i, t)?;
             mesh.opacity = (t.opacity < 1.0).then_some(t.opacity as f32);
             meshes.push(mesh);
@@ -718,6 +725,12 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
             .map_err(|e| format!("tubes[{i}] ({}): {e}", t.path.display()))?;
         let mut mesh = mesh;
+        if mesh.indices.is_empty() {
+            notes.push(format!(
+                "tubes[{i}] ({}): no tube to draw (no streamline of two distinct points)",
+                t.path.display()
+            ));
+        }
         mesh.opacity = (t.opacity < 1.0).then_some(t.opacity as f32);
         meshes.push(mesh);
     }

@@ -2107,7 +2107,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         if !(t.tolerance.is_finite() && t.tolerance > 0.0) {
             return bad(
                 &format!("tubes[{i}].tolerance"),
-                format!("{} is not positive", t.tolerance),
+                format!("{} is not a positive finite number", t.tolerance),
             );
         }
         if !(3..=256).contains(&t.sides) {

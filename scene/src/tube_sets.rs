@@ -348,7 +348,11 @@ pub fn with_color_map_of<R>(
         }
         ColorMode::Scalar(name.to_string(), map)
     } else if let Some(path) = color.strip_prefix("volume:") {
-        let v = volume::load(std::path::Path::new(path)).map_err(|e| e.to_string())?;
+        if path.is_empty() {
+            return Err("colour volume:PATH: the path is empty".into());
+        }
+        let v = volume::load(std::path::Path::new(path))
+            .map_err(|e| format!("colour volume:{path}: {e}"))?;
         let fl = v.select(None).map_err(|e| e.to_string())?;
         if fl.components != 1 {
             return Err(format!("colour volume:{path}: needs a scalar volume"));

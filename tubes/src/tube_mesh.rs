@@ -1264,7 +1264,17 @@ fn tube_as(
         } else {
             let (a, b) = (p[j - 1], p[j]);
             let w = if b > a { (u - a) / (b - a) } else { 0.0 };
-            vals[j - 1] as f64 * (1.0 - w) + vals[j] as f64 * w
+            let (va, vb) = (vals[j - 1] as f64, vals[j] as f64);
+            // A NaN (or infinite) value holds no value: it colours its own point's ring only
+            // (the map's lowest colour), not the rings between it and its neighbours, which
+            // take the neighbour's value (it darkened about a ring spacing either side).
+            match (va.is_finite(), vb.is_finite()) {
+                (true, true) => va * (1.0 - w) + vb * w,
+                (true, false) if w < 1.0 => va,
+                (false, true) if w > 0.0 => vb,
+                _ if w >= 1.0 => vb,
+                _ => va,
+            }
         }
     };
     let r0 = out.rings.len();

@@ -741,3 +741,38 @@ fn trackers_kinks_are_dropped_within_the_tolerance_or_split_off() {
     let (_, st) = build(&tiny, &o);
     assert_eq!((st.streamlines_out, st.kinks), (1, 1), "{st:?}");
 }
+
+/// A NaN attribute value colours its own point's ring with the map's lowest colour, and no
+/// other: the rings beside it take their own values (interpolated with the NaN they had taken
+/// the lowest colour a ring spacing either side).
+#[test]
+fn a_nan_scalar_colours_only_its_own_ring() {
+    // A zigzag rough enough to be meshed as its polyline, a ring on every point.
+    let pts: Vec<Vec3> = (0..40)
+        .map(|i| Vec3::new(i as f32, if i % 2 == 0 { 0.3 } else { -0.3 }, 0.0))
+        .collect();
+    let mut s = Streamlines::new();
+    s.push(&pts);
+    let mut values: Vec<f32> = (0..40).map(|i| 0.25 + 0.5 * i as f32 / 39.0).collect();
+    values[0] = 0.0;
+    values[39] = 1.0;
+    values[20] = f32::NAN;
+    s.point_attributes.push(tubes::Attribute {
+        name: "fa".into(),
+        components: 1,
+        values,
+    });
+    let o = TubeOptions {
+        caps: false,
+        color: ColorMode::Scalar("fa".into(), None),
+        ..opts(0.1)
+    };
+    let (mesh, st) = build(&s, &o);
+    assert_eq!(st.polyline_pieces, 1, "{st:?}");
+    assert_eq!(mesh.positions.len(), 40 * o.sides, "a ring a point");
+    let lowest = mesh.colors[0];
+    let rings_lowest: Vec<usize> = (1..40)
+        .filter(|&r| mesh.colors[r * o.sides] == lowest)
+        .collect();
+    assert_eq!(rings_lowest, vec![20], "rings in the lowest colour");
+}

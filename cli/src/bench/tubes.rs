@@ -68,8 +68,15 @@ pub fn tubes(
     runs: usize,
     out: &Path,
 ) -> Result<Vec<TubesRow>, String> {
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let s = tubes::load(input).map_err(|e| e.to_string())?;
+    // A table of zeros would read as a measurement.
+    if s.points.is_empty() {
+        return Err(format!(
+            "{}: no streamline points: nothing to mesh",
+            input.display()
+        ));
+    }
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let mut rows = vec![];
     for &tol in tolerances {
         if !(tol > 0.0 && tol.is_finite()) {

@@ -154,6 +154,14 @@ pub fn run(a: Args) -> Result<(), String> {
         &[Some(args.input.as_path()), colour_volume],
         &[Some(args.output.as_path()), a.stats_json.as_deref()],
     )?;
+    if args.colormap.is_some()
+        && !(args.color.starts_with("scalar:") || args.color.starts_with("volume:"))
+    {
+        eprintln!(
+            "umbra: note: --colormap colours scalar:NAME and volume:PATH values; with --color {} it changes nothing",
+            args.color
+        );
+    }
     let s = scene::tube_sets::run(&args)?;
     for w in &s.warnings {
         eprintln!("umbra: warning: {}: {w}", args.input.display());
