@@ -117,6 +117,8 @@ fn remove_temps_on_signal() {
     std::thread::spawn(move || {
         if let Some(sig) = signals.forever().next() {
             volume::remove_temps_being_written();
+            // `umbra render --record`: what the run did before it was interrupted.
+            commands::render::record_interrupted(sig);
             let _ = signal_hook::low_level::emulate_default_handler(sig);
             std::process::exit(128 + sig);
         }

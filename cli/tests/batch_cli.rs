@@ -781,4 +781,107 @@ fn a_failed_run_records_the_frames_it_was_given() {
         assert_eq!(r["frames"], want, "{extra:?}: {r}");
         assert!(r["error"].as_str().unwrap().contains("nope.nii"), "{r}");
     }
+    // A bad shard: the frames the command line gives (the shard is unknown; it said 0).
+    let rec = d.join("r.json");
+    let o = umbra()
+        .arg("render")
+        .arg(&s)
+        .args([
+            "-o",
+            "o/f_#.png",
+            "--orbit",
+            "8",
+            "--shard",
+            "5/3",
+            "--record",
+        ])
+        .arg(&rec)
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let r = record(&rec);
+    assert_eq!(r["frames"], 8, "{r}");
+    assert!(r["shard"].is_null() && r["error"].as_str().unwrap().contains("--shard"));
+}
+
+/// A record that names a file the run refuses to write over (a frame of its output pattern,
+/// its single image) is refused and that file left as it was (the error path wrote the record
+/// over it anyway: a finished frame became JSON).
+#[test]
+fn a_record_naming_an_output_is_refused_and_writes_nothing_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene(d);
+    std::fs::create_dir_all(d.join("cl")).unwrap();
+    std::fs::write(d.join("cl/f_0.png"), b"a finished frame").unwrap();
+    let o = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "4", "-o", "cl/f_#.png", "--record", "cl/f_0.png"])
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        std::fs::read(d.join("cl/f_0.png")).unwrap(),
+        b"a finished frame"
+    );
+    let o = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["-o", "same.png", "--record", "same.png"])
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(!d.join("same.png").exists());
+}
+
+/// Interrupted (SIGTERM, as a Slurm time limit sends), a run writes its record: the frames it
+/// finished and an error saying it was interrupted - not no record, nor an earlier run's left
+/// in place.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_records_what_it_did() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = test_support::headsq_scene(
+        d,
+        "",
+        "bone",
+        "method = \"dos\"\nwidth = 192\nheight = 144\n",
+    );
+    let rec = d.join("r.json");
+    std::fs::write(&rec, r#"{"an": "earlier run's record"}"#).unwrap();
+    let frame = |k: usize| d.join(format!("out/f_{k:02}.png"));
+    let mut child = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["--orbit", "40", "-o", "out/f_##.png", "--record"])
+        .arg(&rec)
+        .current_dir(d)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while !frame(1).exists() && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    assert!(std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), None, "ended by the signal");
+    let r = record(&rec);
+    assert!(r["error"].as_str().unwrap().contains("SIGTERM"), "{r}");
+    assert_eq!(r["frames"], 40, "{r}");
+    let done = indices(&r, "done");
+    assert!(done.contains(&1), "{r}");
+    for k in &done {
+        assert!(frame(*k).exists(), "frame {k} recorded done but missing");
+    }
+    assert!(done.len() < 40, "{r}");
 }

@@ -8,7 +8,7 @@ use crate::output::{out, out_json_pretty};
 use crate::progress::Frames;
 use scene::batch::{Shard, ShardFrom};
 use scene::render::{Cameras, FrameOutcome, Progress, RenderArgs, RenderReport};
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
@@ -159,6 +159,70 @@ struct RecordState {
     written: Cell<bool>,
 }
 
+/// The record an interruption (SIGINT, SIGTERM) writes, kept current as the frames end: its
+/// path and the record so far (a Slurm time limit sends SIGTERM; the run's record must say
+/// what it did, not stay missing or keep an earlier run's).
+static INTERRUPTED: std::sync::Mutex<Option<(PathBuf, serde_json::Value)>> =
+    std::sync::Mutex::new(None);
+
+/// Keeps the record an interruption would write: `record` as it stands.
+fn on_interrupt_record(path: Option<&Path>, record: &Record) {
+    let (Some(path), Ok(v)) = (path, serde_json::to_value(record)) else {
+        return;
+    };
+    if let Ok(mut g) = INTERRUPTED.lock() {
+        *g = Some((path.to_path_buf(), v));
+    }
+}
+
+/// No record for an interruption to write (the run's own is being written).
+fn no_interrupt_record() {
+    if let Ok(mut g) = INTERRUPTED.lock() {
+        *g = None;
+    }
+}
+
+/// Writes the record of a run interrupted by signal `sig`, with the frames ended so far and
+/// `error` saying so; called by the signal thread before the process ends.
+pub fn record_interrupted(sig: i32) {
+    let Some((path, mut v)) = INTERRUPTED.lock().ok().and_then(|mut g| g.take()) else {
+        return;
+    };
+    let name = match sig {
+        2 => "SIGINT",
+        15 => "SIGTERM",
+        _ => "a signal",
+    };
+    v["error"] = format!("interrupted by {name} (status {})", 128 + sig).into();
+    if let Ok(text) = serde_json::to_string_pretty(&v) {
+        let _ = volume::write_atomic(&path, text.as_bytes());
+    }
+}
+
+/// Whether the record may be written over `path` when the run fails: not the output, the
+/// timings, an input or a file the output pattern makes (the failure may be just that).
+fn record_may_be_written(a: &Args, path: &Path) -> bool {
+    volume::check_distinct(&[
+        Some(a.output.as_path()),
+        Some(path),
+        a.timings_json.as_deref(),
+    ])
+    .is_ok()
+        && volume::check_not_input(&[a.scene.as_deref(), a.manifest.as_deref()], &[Some(path)])
+            .is_ok()
+        && !pattern_makes(a, path)
+}
+
+/// Whether the output pattern of a sequence or a manifest makes the file `p`.
+fn pattern_makes(a: &Args, p: &Path) -> bool {
+    if a.manifest.is_some() {
+        scene::batch::named_output_matches(&a.output, p)
+    } else {
+        let sequence_out = a.orbit.is_some() || a.camera_path.is_some() || a.trail_range.is_some();
+        sequence_out && scene::camera_path::frame_path_matches(&a.output, p)
+    }
+}
+
 pub fn run(a: Args) -> Result<(), String> {
     let t0 = std::time::Instant::now();
     let state = RecordState {
@@ -167,13 +231,11 @@ pub fn run(a: Args) -> Result<(), String> {
         written: Cell::new(false),
     };
     let r = render(&a, t0, &state);
+    no_interrupt_record();
     if let (Err(e), Some(path)) = (&r, &a.record) {
-        // Never over the scene or the manifest (the error may be just that).
-        let input = volume::check_not_input(
-            &[a.scene.as_deref(), a.manifest.as_deref()],
-            &[Some(path.as_path())],
-        );
-        if !state.written.get() && input.is_ok() {
+        // Never over the scene, the manifest, the output or a frame (the error may be just
+        // that).
+        if !state.written.get() && record_may_be_written(&a, path) {
             let known = state.shard.get();
             let rec = Record {
                 shard: known.map(|k| k.0),
@@ -267,15 +329,9 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
     )?;
     // A sequence's or a manifest's output is a pattern: the record and the timings must not be
     // a file it makes (a frame would overwrite them, or they the frame).
-    let sequence_out = a.orbit.is_some() || a.camera_path.is_some() || a.trail_range.is_some();
     for (p, what) in [(&a.record, "--record"), (&a.timings_json, "--timings-json")] {
         let Some(p) = p.as_deref() else { continue };
-        let clash = if a.manifest.is_some() {
-            scene::batch::named_output_matches(&a.output, p)
-        } else {
-            sequence_out && scene::camera_path::frame_path_matches(&a.output, p)
-        };
-        if clash {
+        if pattern_makes(a, p) {
             return Err(format!(
                 "{what} {}: a file the output pattern {} also makes; the {what} and an image \
                  would overwrite each other; give it a name the pattern cannot make",
@@ -299,6 +355,37 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
     // shard of one frame: the Slurm variables are read for sequences and manifests only;
     // --shard applies to all.
     let slurm = sequence || a.manifest.is_some();
+    // The frames the command line gives (a camera path's and a manifest's are known once
+    // read): a run that fails before any frame, even on its shard, still records them.
+    let total = match (a.orbit, &a.camera_path, &trail_range, &a.manifest) {
+        (Some(n), _, _, None) => Some(n as usize),
+        (None, None, Some(t), None) => Some(t.n as usize),
+        (None, None, None, None) => Some(1),
+        _ => None,
+    };
+    state.frames.set(total);
+    let interrupted = |shard: Option<(Shard, ShardFrom)>,
+                       frames: Option<usize>,
+                       done: &[FrameOutcome],
+                       skipped: &[FrameOutcome],
+                       failed: &[FrameOutcome]| {
+        on_interrupt_record(
+            a.record.as_deref(),
+            &Record {
+                shard: shard.map(|s| s.0),
+                shard_from: shard.map(|s| s.1),
+                frames: frames.unwrap_or(0),
+                done,
+                skipped,
+                failed,
+                error: None,
+                seconds: t0.elapsed().as_secs_f64(),
+                adapter: "",
+                host: host(),
+            },
+        )
+    };
+    interrupted(None, total, &[], &[], &[]);
     let (shard, from) = Shard::resolve(a.shard.as_deref(), |k| {
         slurm.then(|| std::env::var(k).ok()).flatten()
     })
@@ -307,26 +394,40 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
         None => e,
     })?;
     state.shard.set(Some((shard, from)));
-    // The shard's frames where the command line gives their count (a camera path's and a
-    // manifest's are known once read): a run that fails before any frame still records them.
-    let total = match (a.orbit, &a.camera_path, &trail_range, &a.manifest) {
-        (Some(n), _, _, None) => Some(n as usize),
-        (None, None, Some(t), None) => Some(t.n as usize),
-        (None, None, None, None) => Some(1),
-        _ => None,
-    };
+    // The shard's frames where the command line gives their count.
     state
         .frames
         .set(total.map(|n| (0..n).filter(|&k| shard.owns(k)).count()));
+    interrupted(Some((shard, from)), state.frames.get(), &[], &[], &[]);
     let skip_existing = a.skip_existing || from != ShardFrom::None;
     let progress = Frames::new();
+    // The frames ended so far, for the record an interruption writes.
+    let ended: RefCell<[Vec<FrameOutcome>; 3]> = RefCell::default();
+    let note_ended = |which: usize, o: FrameOutcome| {
+        let mut e = ended.borrow_mut();
+        e[which].push(o);
+        interrupted(Some((shard, from)), state.frames.get(), &e[0], &e[1], &e[2]);
+    };
     let mut on_progress = |p: Progress| match p {
         Progress::Done(f, n) => {
             if sequence || a.manifest.is_some() {
                 progress.done(f.index, f.name.as_deref(), n, &f.path, f.total_ms);
             }
+            note_ended(
+                0,
+                FrameOutcome {
+                    index: f.index,
+                    name: f.name.clone(),
+                    path: f.path.clone(),
+                    ms: Some(f.total_ms),
+                    error: None,
+                },
+            );
         }
-        Progress::Skipped(o) => progress.skipped(o.index, o.name.as_deref(), &o.path),
+        Progress::Skipped(o) => {
+            progress.skipped(o.index, o.name.as_deref(), &o.path);
+            note_ended(1, o.clone());
+        }
         // A single image's failure is the command's error (printed once, at the end).
         Progress::Failed(o) => {
             if sequence || a.manifest.is_some() {
@@ -337,6 +438,7 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
                     o.error.as_deref().unwrap_or(""),
                 )
             }
+            note_ended(2, o.clone());
         }
         Progress::Stage(m) => progress.stage(m),
     };
@@ -367,6 +469,7 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
         let Some(path) = &a.record else {
             return Ok(());
         };
+        no_interrupt_record();
         write_record(
             path,
             &Record {
