@@ -199,6 +199,12 @@ pub fn line_parts(points: usize, per_part: usize) -> Vec<usize> {
 }
 
 impl GpuLines {
+    /// Whether the set stands for tubes in the volume's shadow (`proxy_radius` > 0): it casts
+    /// light then; other lines cast none.
+    pub fn casts_light(&self) -> bool {
+        self.proxy_radius > 0.0
+    }
+
     /// Uploads `l` (no part when it has no segment) in as many parts as the adapter's storage
     /// bindings need (see [`line_parts`]; each part a draw of its own with the set's
     /// settings), every buffer filled through bounded staging copies.

@@ -840,3 +840,59 @@ fn lines_shadow_the_volume_through_their_proxy_radius_and_lineao_folds_with_part
     });
     assert!(partial < 0.9, "{partial}");
 }
+
+/// With nothing in the light - no volume, only lines that stand for no tubes (proxy radius 0)
+/// - `dos` and `combined` sweep no light volume (it would be 1 everywhere): no `light` grid,
+/// partial occlusion 1, and the image of a frame that swept one through lines whose proxy
+/// radius is a hair's breadth (which cast next to nothing).
+#[test]
+fn lines_that_cast_no_shadow_alone_sweep_no_light_volume() {
+    use engine::renderer::{DrawOptions, Renderer};
+    use tubes::lines::{LineSet, LineWidth};
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let mut st = tubes::Streamlines::new();
+    for k in 0..5 {
+        let y = k as f32 * 2.0 - 4.0;
+        st.push(&[
+            glam::Vec3::new(-6.0, y, k as f32),
+            glam::Vec3::new(6.0, y + 1.0, 4.0 - k as f32),
+        ]);
+    }
+    let set = LineSet::new(
+        &st,
+        &tubes::tube_mesh::ColorMode::Constant([0.75; 3]),
+        LineWidth::Pixels(6.0),
+        false,
+    );
+    let r = Renderer::new(&gpu);
+    for method in [Method::Dos, Method::Combined] {
+        let s = settings(method);
+        let render = |proxy: f32| {
+            let mut l = set.clone();
+            l.proxy_radius = proxy;
+            let scene = r.upload(None, &[], &[l], None).unwrap();
+            r.draw(&scene, &view(cam), &[], &s, DrawOptions::default())
+                .unwrap()
+        };
+        let (none, hair) = (render(0.0), render(1e-6));
+        assert!(none.light.is_none(), "{method:?}: a light volume swept");
+        assert!(
+            hair.light.is_some(),
+            "{method:?}: lines with a proxy radius cast light"
+        );
+        let covered = none.aov.iter().filter(|a| a.depth > 0.0).count();
+        assert!(covered > 200, "{covered} pixels");
+        assert!(none.aov.iter().all(|a| a.partial == 1.0));
+        let worst = none
+            .image
+            .iter()
+            .zip(&hair.image)
+            .map(|(p, q)| (0..3).map(|c| (p[c] - q[c]).abs()).fold(0.0, f32::max))
+            .fold(0.0, f32::max);
+        assert!(
+            worst <= 1.0 / 255.0,
+            "{method:?}: a pixel differs by {worst}"
+        );
+    }
+}

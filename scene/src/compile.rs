@@ -1534,12 +1534,21 @@ fn unused_light_keys(s: &Scene) -> Option<String> {
         && s.points.is_empty()
         && s.slices.is_empty()
         && s.overlays.is_empty();
-    let unused = desc.volume != engine::method::VolumeShading::Occlusion || iso_alone;
+    // Nothing in the light (no volume, tubes or slices; lines that stand for no tubes, as
+    // pixel-wide lines do by default): the renderer sweeps none.
+    let nothing_casts = s.volume.is_none()
+        && s.tubes.is_empty()
+        && s.points.is_empty()
+        && s.slices.is_empty()
+        && s.lines.iter().all(|l| l.proxy_radius() == 0.0);
+    let unused =
+        desc.volume != engine::method::VolumeShading::Occlusion || iso_alone || nothing_casts;
     (!set.is_empty() && unused).then(|| {
         let one = set.len() == 1;
-        let who = match iso_alone {
-            true => "an isosurface alone".to_string(),
-            false => format!("method {}", desc.name),
+        let who = match (iso_alone, nothing_casts) {
+            (true, _) => "an isosurface alone".to_string(),
+            (false, true) => "a scene of lines that cast no shadow (no volume, tubes or slices; lines[].proxy_radius 0)".to_string(),
+            _ => format!("method {}", desc.name),
         };
         format!(
             "{} {} the light volume of dos and combined; {who} sweeps none, so {} nothing \
