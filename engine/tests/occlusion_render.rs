@@ -841,8 +841,8 @@ fn lines_shadow_the_volume_through_their_proxy_radius_and_lineao_folds_with_part
     assert!(partial < 0.9, "{partial}");
 }
 
-/// With nothing in the light - no volume, only lines that stand for no tubes (proxy radius 0)
-/// - `dos` and `combined` sweep no light volume (it would be 1 everywhere): no `light` grid,
+/// With nothing in the light (no volume, only lines that stand for no tubes: proxy radius 0),
+/// `dos` and `combined` sweep no light volume (it would be 1 everywhere): no `light` grid,
 /// partial occlusion 1, and the image of a frame that swept one through lines whose proxy
 /// radius is a hair's breadth (which cast next to nothing).
 #[test]
