@@ -364,11 +364,21 @@ fn read_as(path: &Path, keep_stored: bool) -> Result<(Volume, Option<Samples>)> 
         }
         if let Some(s) = get("axis mins") {
             let toks: Vec<&str> = s.split_whitespace().collect();
+            // A cell-centred axis's min is its first cell's edge: the first sample lies half
+            // a spacing in (Teem's `nrrdAxisInfoPos`).
+            let centers: Vec<&str> = get("centerings")
+                .or_else(|| get("centers"))
+                .map(|c| c.split_whitespace().collect())
+                .unwrap_or_default();
             if toks.len() == dimension {
                 for (i, &a) in spatial.iter().enumerate() {
                     if let Ok(v) = toks[a].parse::<f64>() {
                         if v.is_finite() {
-                            origin[i] = v;
+                            let half = match centers.get(a) {
+                                Some(&"cell") => 0.5 * cols[i][i],
+                                _ => 0.0,
+                            };
+                            origin[i] = v + half;
                         }
                     }
                 }
@@ -464,6 +474,9 @@ fn read_as(path: &Path, keep_stored: bool) -> Result<(Volume, Option<Samples>)> 
             "byte skip",
             format!("{byte_skip} is negative"),
         ));
+    } else if encoding == Encoding::Gzip {
+        // Skipped in the decompressed data (Teem's gzip reader skips after inflating).
+        dc.rest()
     } else {
         dc.take(byte_skip as usize).ok_or_else(|| {
             VolumeError::format(&data_path, "byte skip", "file ends while skipping bytes")
@@ -484,9 +497,18 @@ fn read_as(path: &Path, keep_stored: bool) -> Result<(Volume, Option<Samples>)> 
     let (mut data, stored) = match encoding {
         Encoding::Raw => decode(body)?,
         Encoding::Gzip => {
-            let bytes = io_util::gunzip(&data_path, "gzip data", body, Some(nbytes))?;
+            let skip = byte_skip as usize;
+            let bytes = io_util::gunzip(&data_path, "gzip data", body, Some(skip + nbytes))
+                .map_err(|e| match skip {
+                    0 => e,
+                    _ => VolumeError::format(
+                        &data_path,
+                        "gzip data",
+                        format!("{e} (with byte skip: {skip}, skipped in the decompressed data)"),
+                    ),
+                })?;
             drop(file_bytes);
-            decode(&bytes)?
+            decode(&bytes[skip..])?
         }
         Encoding::Ascii => {
             let (v, used) = io_util::parse_ascii(&data_path, "ascii data", body, total)?;

@@ -184,3 +184,38 @@ fn a_two_component_vtk_scalars_array_defaults_to_its_first_component() {
         d.name
     );
 }
+
+/// NRRD as Teem reads it: with gzip encoding, `byte skip` counts bytes of the decompressed
+/// data (they were skipped in the compressed file: a valid file refused as a broken gzip
+/// stream); a cell-centred axis's `axis mins` is its first cell's edge, the first sample half
+/// a spacing in (it was placed at the min).
+#[test]
+fn nrrd_byte_skip_after_gzip_and_cell_centred_axis_mins_are_teems() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let values: Vec<i16> = (0..210).collect();
+    let mut raw = b"ABCD".to_vec();
+    raw.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    gz.write_all(&raw).unwrap();
+    std::fs::write(dir.path().join("d.gz"), gz.finish().unwrap()).unwrap();
+    let header = |extra: &str| {
+        format!(
+            "NRRD0004\ntype: short\ndimension: 3\nsizes: 5 6 7\nencoding: gzip\nendian: little\n\
+             byte skip: 4\ndata file: d.gz\n{extra}\n"
+        )
+    };
+    let p = dir.path().join("a.nhdr");
+    std::fs::write(&p, header("")).unwrap();
+    let v = volume::load(&p).unwrap();
+    let want: Vec<f32> = values.iter().map(|&v| v as f32).collect();
+    assert_eq!(v.default().data, want);
+    std::fs::write(
+        &p,
+        header("spacings: 2 3 4\naxis mins: 1 2 3\ncenterings: cell node cell\n"),
+    )
+    .unwrap();
+    let v = volume::load(&p).unwrap();
+    let origin = v.affine.w_axis.truncate();
+    assert_eq!(origin.to_array(), [2.0, 2.0, 5.0], "{:?}", v.affine);
+}
