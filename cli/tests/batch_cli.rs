@@ -212,18 +212,14 @@ fn a_rerun_after_a_killed_run_renders_only_what_is_missing() {
     );
     let pattern = dir.path().join("out/f_##.png");
     let frame = |k: usize| dir.path().join(format!("out/f_{k:02}.png"));
-    let mut child = umbra()
-        .arg("render")
-        .arg(&s)
-        .args(["--orbit", "10", "-o"])
-        .arg(&pattern)
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let t0 = std::time::Instant::now();
-    while !frame(1).exists() && t0.elapsed().as_secs() < 120 {
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
+    let mut child = spawned_until(
+        umbra()
+            .arg("render")
+            .arg(&s)
+            .args(["--orbit", "10", "-o"])
+            .arg(&pattern),
+        &frame(1),
+    );
     child.kill().unwrap();
     child.wait().unwrap();
     let existed: BTreeSet<usize> = (0..10).filter(|&k| frame(k).exists()).collect();
@@ -855,25 +851,21 @@ fn an_interrupted_run_records_what_it_did() {
     let rec = d.join("r.json");
     std::fs::write(&rec, r#"{"an": "earlier run's record"}"#).unwrap();
     let frame = |k: usize| d.join(format!("out/f_{k:02}.png"));
-    let mut child = umbra()
-        .arg("render")
-        .arg(&s)
-        .args(["--orbit", "40", "-o", "out/f_##.png", "--record"])
-        .arg(&rec)
-        .current_dir(d)
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let t0 = std::time::Instant::now();
-    while !frame(1).exists() && t0.elapsed().as_secs() < 120 {
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
+    let child = spawned_until(
+        umbra()
+            .arg("render")
+            .arg(&s)
+            .args(["--orbit", "40", "-o", "out/f_##.png", "--record"])
+            .arg(&rec)
+            .current_dir(d),
+        &frame(1),
+    );
     assert!(std::process::Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
         .status()
         .unwrap()
         .success());
-    let status = child.wait().unwrap();
+    let status = { child }.wait().unwrap();
     assert_eq!(status.code(), None, "ended by the signal");
     let r = record(&rec);
     assert!(r["error"].as_str().unwrap().contains("SIGTERM"), "{r}");
@@ -884,4 +876,15 @@ fn an_interrupted_run_records_what_it_did() {
         assert!(frame(*k).exists(), "frame {k} recorded done but missing");
     }
     assert!(done.len() < 40, "{r}");
+}
+
+/// `cmd` started (standard error discarded), returned once `frame` exists (or after two
+/// minutes): a run to stop mid-sequence.
+fn spawned_until(cmd: &mut Command, frame: &Path) -> std::process::Child {
+    let child = cmd.stderr(std::process::Stdio::null()).spawn().unwrap();
+    let t0 = std::time::Instant::now();
+    while !frame.exists() && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child
 }

@@ -745,11 +745,7 @@ fn a_volume_not_drawn_has_no_colour_bar_or_transfer_note() {
 #[test]
 fn a_label_overlay_with_fractional_values_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let base = write(
-        dir.path(),
-        "v.nii",
-        &volume_of([8, 8, 8], DMat4::IDENTITY, |p| p.z as f32),
-    );
+    let base = small_base(dir.path());
     for (value, ok) in [(2.0000002f32, true), (2.5, false)] {
         let labels = write(
             dir.path(),
@@ -787,11 +783,7 @@ fn a_label_overlay_with_fractional_values_is_refused() {
 #[test]
 fn labels_missing_from_the_table_are_noted_unless_show_hides_them() {
     let dir = tempfile::tempdir().unwrap();
-    let base = write(
-        dir.path(),
-        "v.nii",
-        &volume_of([8, 8, 8], DMat4::IDENTITY, |p| p.z as f32),
-    );
+    let base = small_base(dir.path());
     let labels = write(
         dir.path(),
         "l.nii",
@@ -910,4 +902,14 @@ fxaa = false
         background > 50 && mapped > 50,
         "{background} / {mapped} pixels"
     );
+}
+
+/// An 8^3 volume of its z coordinate (unit voxels at the origin) in `dir`: the base of the
+/// label checks.
+fn small_base(dir: &Path) -> String {
+    write(
+        dir,
+        "v.nii",
+        &volume_of([8, 8, 8], DMat4::IDENTITY, |p| p.z as f32),
+    )
 }
