@@ -255,15 +255,23 @@ fn vs_line(@builtin(vertex_index) index: u32, @builtin(instance_index) instance:
     }
     // Cut the segment where it crosses behind the eye (w below min_w), so that a strip is never
     // widened from a point behind the camera; a segment wholly behind is dropped.
-    let wa = (G.view_proj_rel * vec4<f32>(a, 1.0)).w;
-    let wb = (G.view_proj_rel * vec4<f32>(b, 1.0)).w;
+    // The ends in clip space, projected once: a cut end is the same mix of the clip-space
+    // ends as of the points (the projection is linear in homogeneous coordinates).
+    var ca = G.view_proj_rel * vec4<f32>(a, 1.0);
+    var cb = G.view_proj_rel * vec4<f32>(b, 1.0);
+    let wa = ca.w;
+    let wb = cb.w;
     var behind = outside;
     if (wa < LP.min_w && wb < LP.min_w) {
         behind = true;
     } else if (wa < LP.min_w) {
-        a = mix(a, b, (LP.min_w - wa) / (wb - wa));
+        let k = (LP.min_w - wa) / (wb - wa);
+        a = mix(a, b, k);
+        ca = mix(ca, cb, k);
     } else if (wb < LP.min_w) {
-        b = mix(b, a, (LP.min_w - wb) / (wa - wb));
+        let k = (LP.min_w - wb) / (wa - wb);
+        b = mix(b, a, k);
+        cb = mix(cb, ca, k);
     }
     // The corner: which end (0: a, 1: b) and which side of the strip, two triangles.
     let ends = array<u32, 6>(0u, 1u, 0u, 0u, 1u, 1u);
@@ -271,7 +279,7 @@ fn vs_line(@builtin(vertex_index) index: u32, @builtin(instance_index) instance:
     let end = ends[vi];
     let side = sides[vi];
     let p = select(a, b, end == 1u);
-    var c = G.view_proj_rel * vec4<f32>(p, 1.0);
+    var c = select(ca, cb, end == 1u);
     // The tangent; a segment between equal points takes any direction (no NaN).
     let ab = b - a;
     var t = vec3<f32>(1.0, 0.0, 0.0);
@@ -308,8 +316,6 @@ fn vs_line(@builtin(vertex_index) index: u32, @builtin(instance_index) instance:
     // overlap at their joint (watertight at any angle).
     let along = select(-1.0, 1.0, end == 1u);
     var cap = hw;
-    let ca = G.view_proj_rel * vec4<f32>(a, 1.0);
-    let cb = G.view_proj_rel * vec4<f32>(b, 1.0);
     let seg_len = length((cb.xy / max(cb.w, 1e-6) - ca.xy / max(ca.w, 1e-6)) * 0.5 * LP.viewport);
     if (LP.trail != 0u || LP.taper_t > 0.0 || (LP.filter_on != 0u && LP.filter_taper > 0.0)) {
         // A tapered line (trail, end taper, filtered cut): a cap no longer than half the
