@@ -30,33 +30,79 @@ struct VIn {
     @location(2) color: vec4<f32>,
 };
 
+// A vertex's outputs as the shaders use them; the stage interface packs them into fewer
+// vec4 slots (VOutP): Mesa's llvmpipe (lavapipe) sets up and interpolates every slot of
+// every triangle, 11 of them before.
 struct VOut {
-    @builtin(position) clip: vec4<f32>,
-    @location(0) normal: vec3<f32>,
-    @location(1) color: vec3<f32>,
-    @location(2) rel: vec3<f32>,
+    clip: vec4<f32>,
+    normal: vec3<f32>,
+    color: vec3<f32>,
+    rel: vec3<f32>,
     // Cylinder-profile lines: the side vector times the position across the width (-1..1),
     // and the half width in world units; zero for tubes and flat lines.
-    @location(3) bend: vec3<f32>,
-    @location(4) bulge: f32,
+    bend: vec3<f32>,
+    bulge: f32,
     // The width LineAO's r0 follows (the ND target's alpha): a width in pixels (> 0), minus a
     // world diameter (< 0: tubes, world-width lines), or 0 when unknown.
-    @location(5) width_code: f32,
+    width_code: f32,
     // Lines: the world radius they stand for in the volume's shadow (0: none); tubes: 0.
-    @location(6) proxy: f32,
+    proxy: f32,
     // Lines: the unit tangent (camera-relative world); tubes: zero.
-    @location(7) tangent: vec3<f32>,
+    tangent: vec3<f32>,
     // Lines: the unit tangent on screen (pixels, view axes: x right, y up); tubes: zero.
-    @location(8) screen_t: vec2<f32>,
+    screen_t: vec2<f32>,
     // Haloed lines: the position across the strip, (-1 to 1, 0) (|across| below the core's
     // fraction is the line, beyond it the halo); points: the position in the disc's square
     // (x right, y up, -1 to 1; beyond a length of 1 is outside the disc); zero otherwise.
-    @location(9) across: vec2<f32>,
+    across: vec2<f32>,
     // Haloed lines: the position along the segment in pixels from its first end (negative
     // or beyond `y` in the square caps), the segment's length on screen, and the core's half
     // width in pixels; interpolated in screen space. Points and tubes: never in a cap.
-    @location(10) @interpolate(linear) seg: vec3<f32>,
+    seg: vec3<f32>,
 };
+
+// VOut packed for the interface between the stages: seven slots, the screen-linear `seg`
+// on its own.
+struct VOutP {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) rel_bulge: vec4<f32>,
+    @location(1) normal_width: vec4<f32>,
+    @location(2) color_proxy: vec4<f32>,
+    @location(3) tangent_across_x: vec4<f32>,
+    @location(4) bend_across_y: vec4<f32>,
+    @location(5) screen_t: vec2<f32>,
+    @location(6) @interpolate(linear) seg: vec3<f32>,
+};
+
+fn pack(o: VOut) -> VOutP {
+    var p: VOutP;
+    p.clip = o.clip;
+    p.rel_bulge = vec4<f32>(o.rel, o.bulge);
+    p.normal_width = vec4<f32>(o.normal, o.width_code);
+    p.color_proxy = vec4<f32>(o.color, o.proxy);
+    p.tangent_across_x = vec4<f32>(o.tangent, o.across.x);
+    p.bend_across_y = vec4<f32>(o.bend, o.across.y);
+    p.screen_t = o.screen_t;
+    p.seg = o.seg;
+    return p;
+}
+
+fn unpack(p: VOutP) -> VOut {
+    var o: VOut;
+    o.clip = p.clip;
+    o.rel = p.rel_bulge.xyz;
+    o.bulge = p.rel_bulge.w;
+    o.normal = p.normal_width.xyz;
+    o.width_code = p.normal_width.w;
+    o.color = p.color_proxy.xyz;
+    o.proxy = p.color_proxy.w;
+    o.tangent = p.tangent_across_x.xyz;
+    o.bend = p.bend_across_y.xyz;
+    o.across = vec2<f32>(p.tangent_across_x.w, p.bend_across_y.w);
+    o.screen_t = p.screen_t;
+    o.seg = p.seg;
+    return o;
+}
 
 // Mesh and line colours are 8-bit sRGB (as files and colour codes give them:
 // `tubes::tube_mesh::map_color`); the G-buffer holds linear light. The sRGB EOTF exactly
@@ -66,7 +112,7 @@ fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
 }
 
 @vertex
-fn vs(v: VIn) -> VOut {
+fn vs(v: VIn) -> VOutP {
     var o: VOut;
     let rel = v.pos + G.offset.xyz;
     o.clip = G.view_proj_rel * vec4<f32>(rel, 1.0);
@@ -81,7 +127,7 @@ fn vs(v: VIn) -> VOut {
     o.screen_t = vec2<f32>(0.0);
     o.across = vec2<f32>(0.0);
     o.seg = vec3<f32>(0.0, 1.0, 1.0);
-    return o;
+    return pack(o);
 }
 
 // Line sets (Rust: gbuffer::GpuLines; the maths and its CPU twin: occlusion::illuminated_lines,
@@ -179,7 +225,7 @@ fn line_point(i: u32) -> vec3<f32> {
 const SEGMENTS_PER_INSTANCE: u32 = 32u;
 
 @vertex
-fn vs_line(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> VOut {
+fn vs_line(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> VOutP {
     // Six vertices per segment; SEGMENTS_PER_INSTANCE segments an instance (a draw's first
     // and last few segments may come as instance 0, their vertex index counting from 0).
     let vi = index % 6u;
@@ -372,7 +418,7 @@ fn vs_line(@builtin(vertex_index) index: u32, @builtin(instance_index) instance:
             o.bend = right * along + up * side;
             o.bulge = hw / px_per_world;
         }
-        return o;
+        return pack(o);
     }
     // Haloed lines keep the flat profile.
     if (LP.cylinder != 0u && LP.halo == 0u && dot(s, s) > 1e-12) {
@@ -381,7 +427,7 @@ fn vs_line(@builtin(vertex_index) index: u32, @builtin(instance_index) instance:
         o.bend = -normalize(s) * side;
         o.bulge = hw / px_per_world;
     }
-    return o;
+    return pack(o);
 }
 
 // Outside the clipping planes, or outside a point's disc.
@@ -405,7 +451,8 @@ struct FrontOut {
 };
 
 @fragment
-fn fs_front(v: VOut) -> FrontOut {
+fn fs_front(packed: VOutP) -> FrontOut {
+    let v = unpack(packed);
     return front_values(v);
 }
 
@@ -441,7 +488,8 @@ struct SurfaceOut {
 };
 
 @fragment
-fn fs_surface(v: VOut) -> SurfaceOut {
+fn fs_surface(packed: VOutP) -> SurfaceOut {
+    let v = unpack(packed);
     let f = front_values(v);
     var o: SurfaceOut;
     o.color = f.color;
@@ -555,14 +603,16 @@ fn plane_color(rel: vec3<f32>) -> vec3<f32> {
 }
 
 @fragment
-fn fs_front_p(v: VOut) -> FrontOut {
+fn fs_front_p(packed: VOutP) -> FrontOut {
+    let v = unpack(packed);
     var f = front_values(v);
     f.color = vec4<f32>(plane_color(v.rel), 1.0);
     return f;
 }
 
 @fragment
-fn fs_surface_p(v: VOut) -> SurfaceOut {
+fn fs_surface_p(packed: VOutP) -> SurfaceOut {
+    let v = unpack(packed);
     let f = front_values(v);
     var o: SurfaceOut;
     o.color = vec4<f32>(plane_color(v.rel), 1.0);
@@ -572,7 +622,8 @@ fn fs_surface_p(v: VOut) -> SurfaceOut {
 
 // The nearest surface's linear depth alone (single sample, beside a multisampled G-buffer).
 @fragment
-fn fs_depth(v: VOut) -> @location(0) vec4<f32> {
+fn fs_depth(packed: VOutP) -> @location(0) vec4<f32> {
+    let v = unpack(packed);
     if (clipped(v)) {
         discard;
     }
@@ -595,7 +646,8 @@ struct NdOut {
 // point, by a pixel's angle off the view axis under perspective; LineAO's tangent plane needs
 // the one that agrees with the depth.
 @fragment
-fn fs_nd(v: VOut) -> NdOut {
+fn fs_nd(packed: VOutP) -> NdOut {
+    let v = unpack(packed);
     return nd_values(v);
 }
 
@@ -623,7 +675,8 @@ fn nd_values(v: VOut) -> NdOut {
 }
 
 @fragment
-fn fs_back(v: VOut) -> @location(0) vec4<f32> {
+fn fs_back(packed: VOutP) -> @location(0) vec4<f32> {
+    let v = unpack(packed);
     return back_value(v);
 }
 
@@ -722,7 +775,8 @@ fn rim_color(f: FrontOut) -> vec4<f32> {
 }
 
 @fragment
-fn fs_front_h(v: VOut) -> FrontOutH {
+fn fs_front_h(packed: VOutP) -> FrontOutH {
+    let v = unpack(packed);
     return front_h_values(v);
 }
 
@@ -750,7 +804,8 @@ struct SurfaceOutH {
 };
 
 @fragment
-fn fs_surface_h(v: VOut) -> SurfaceOutH {
+fn fs_surface_h(packed: VOutP) -> SurfaceOutH {
+    let v = unpack(packed);
     let f = front_h_values(v);
     var o: SurfaceOutH;
     o.color = f.color;
@@ -765,7 +820,8 @@ struct DepthOutH {
 };
 
 @fragment
-fn fs_depth_h(v: VOut) -> DepthOutH {
+fn fs_depth_h(packed: VOutP) -> DepthOutH {
+    let v = unpack(packed);
     let f = front_h_values(v);
     var o: DepthOutH;
     o.depth = f.depth;
@@ -781,7 +837,8 @@ struct NdOutH {
 };
 
 @fragment
-fn fs_nd_h(v: VOut) -> NdOutH {
+fn fs_nd_h(packed: VOutP) -> NdOutH {
+    let v = unpack(packed);
     let n = nd_values(v);
     let f = front_h_values(v);
     var o: NdOutH;
@@ -801,7 +858,8 @@ struct BackOutH {
 };
 
 @fragment
-fn fs_back_h(v: VOut) -> BackOutH {
+fn fs_back_h(packed: VOutP) -> BackOutH {
+    let v = unpack(packed);
     let h = halo_at(v);
     if (h.rim && LP.halo_outline == 0u) {
         // A gap is no surface: nothing is inside it.
@@ -846,11 +904,13 @@ fn peel_values(v: VOut, color: vec3<f32>) -> PeelOut {
 }
 
 @fragment
-fn fs_peel(v: VOut) -> PeelOut {
+fn fs_peel(packed: VOutP) -> PeelOut {
+    let v = unpack(packed);
     return peel_values(v, v.color);
 }
 
 @fragment
-fn fs_peel_p(v: VOut) -> PeelOut {
+fn fs_peel_p(packed: VOutP) -> PeelOut {
+    let v = unpack(packed);
     return peel_values(v, plane_color(v.rel));
 }
