@@ -581,6 +581,8 @@ pub struct GBuffer {
     /// At most this many triangles a submission (see [`Gpu::batch_triangles`]), with the
     /// device and queue that submit and wait for each batch.
     batch: Option<(u64, wgpu::Device, wgpu::Queue)>,
+    /// Whether the back-depth pass draws (only the light volume reads the back depth).
+    draw_back: bool,
 }
 
 /// The least triangles a batch of [`batch_for`] holds (2^16).
@@ -913,6 +915,13 @@ pub fn guard_band(clip: DMat4, w: u32, h: u32, g: u32) -> DMat4 {
 }
 
 impl GBuffer {
+    /// Leaves the back depth cleared (0: no back face) instead of drawing it: only the light
+    /// volume of `dos` and `combined` reads it (a tube's inside between its faces), and the
+    /// pass draws all the tubes again (a third of the G-buffer's geometry with MSAA).
+    pub fn without_back(&mut self) {
+        self.draw_back = false;
+    }
+
     /// Prepares the passes drawing `meshes` and `lines` (uploaded) for `camera` at `width x
     /// height` with `samples` samples per pixel (a count [`sample_count`] returned), and
     /// LineAO's normal-depth map with a band of `nd_guard` pixels when given; `trail_now`
@@ -1165,6 +1174,7 @@ impl GBuffer {
             .map(|n| (n, gpu.device.clone(), gpu.queue.clone()));
         GBuffer {
             batch,
+            draw_back: true,
             color: target_ms(gpu, "gbuffer colour", COLOR, width, height, samples).1,
             normal: target_ms(gpu, "gbuffer normal", NORMAL, width, height, samples).1,
             samples,
@@ -1275,16 +1285,18 @@ impl GBuffer {
             let nd = self.nd.as_ref().filter(|_| kind == Kind::Nd);
             // Lines have no back faces: the back-depth pass draws only those that stand for
             // tubes in the volume's shadow.
+            // Without a light volume, nothing reads the back depth: the pass only clears.
+            let skipped = kind == Kind::Back && !self.draw_back;
             let lines: Vec<(usize, &LineDraw)> = self
                 .lines
                 .iter()
                 .enumerate()
-                .filter(|(_, l)| kind != Kind::Back || l.proxy)
+                .filter(|(_, l)| kind != Kind::Back || (l.proxy && !skipped))
                 .collect();
             let sizes: Vec<u64> = self
                 .meshes
                 .iter()
-                .map(|m| m.mesh.count as u64 / 3)
+                .map(|m| if skipped { 0 } else { m.mesh.count as u64 / 3 })
                 .chain(lines.iter().map(|(_, l)| 2 * l.segments as u64))
                 .collect();
             let total = sizes.iter().sum();

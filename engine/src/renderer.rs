@@ -699,7 +699,7 @@ impl Frame {
             }
             crate::line_ao::guard_pixels(cam, h, widths, &s.lineao.kernel, s.lineao.guard)
         });
-        let gbuf = GBuffer::new(
+        let mut gbuf = GBuffer::new(
             gpu,
             cam,
             w,
@@ -713,6 +713,9 @@ impl Frame {
             s.trail_now,
             s.translucent_layers,
         );
+        if !occlusion {
+            gbuf.without_back();
+        }
         let layer = |name: &str| {
             layer_names
                 .iter()
