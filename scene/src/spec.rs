@@ -1327,11 +1327,24 @@ fn merged_error(merged: &str, e: &toml::de::Error) -> String {
                 .unwrap_or_else(|| h.to_string());
         }
     }
-    let full = match (path.is_empty(), key.is_empty()) {
+    let mut full = match (path.is_empty(), key.is_empty()) {
         (_, true) => path,
         (true, false) => key.to_string(),
         (false, false) => format!("{path}.{key}"),
     };
+    // An unknown field's error names the field; where the line found is not that field's
+    // (an unknown top-level table from `--set foo.bar=1` is reported at another table's
+    // position: "clip[0].[: unknown field `foo`"), the message alone.
+    if let Some(field) = e
+        .message()
+        .strip_prefix("unknown field `")
+        .and_then(|r| r.split('`').next())
+    {
+        // (A table's own position, no key on its line, names the table the field is in.)
+        if !key.is_empty() && key != field {
+            full = String::new();
+        }
+    }
     // A key at the top level (`--set foo=1`) has no table to name: the message alone (it
     // read ": unknown field `foo`").
     if full.is_empty() {
@@ -2841,6 +2854,13 @@ mod tests {
             (
                 "tubes=[{path=\"a.trk\"}, {path=\"b.trk\", select={min_length=\"x\"}}]",
                 "s with overrides: tubes[1].select.min_length: invalid type",
+            ),
+            // An unknown top-level table is the message alone (it read "clip[0].[: ...", the
+            // position of another table), an unknown key of a table names the table.
+            ("foo.bar=1", "s with overrides: unknown field `foo`"),
+            (
+                "camera.foo=1",
+                "s with overrides: camera: unknown field `foo`",
             ),
         ] {
             let e = parse(text, "s", Path::new("."), &o(&[set])).unwrap_err();
