@@ -648,6 +648,33 @@ fn refused_bench_runs_leave_no_folder() {
         &["bench", "accuracy", sc, "--sweep", "nokey=1,2", "-o", &acc],
         "nokey",
     );
+    // A key swept twice (under its two names) or a value given twice: refused (the rows
+    // named values the renders did not use).
+    refused(
+        &[
+            "bench", "accuracy", sc, "--sweep", "cone=30", "--sweep", "theta=40", "-o", &acc,
+        ],
+        "the same key",
+    );
+    refused(
+        &[
+            "bench",
+            "accuracy",
+            sc,
+            "--sweep",
+            "slices=32,32",
+            "-o",
+            &acc,
+        ],
+        "given twice",
+    );
+    // A slice count out of range is refused (it was left out with a note, exit 0).
+    refused(
+        &[
+            "bench", "curves", sc, "-o", &cv, "--sizes", "32", "--frames", "1", "--slices", "0",
+        ],
+        "--slices: 0",
+    );
     refused(
         &[
             "bench", "curves", sc, "-o", &cv, "--sizes", "0", "--frames", "1",

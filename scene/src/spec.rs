@@ -2332,8 +2332,8 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
             ),
         );
     }
-    if r.slices.is_some_and(|n| n > 16384) {
-        return bad("render.slices", "at most 16384".into());
+    if r.slices.is_some_and(|n| !(1..=16384).contains(&n)) {
+        return bad("render.slices", "1 to 16384".into());
     }
     // The passes check their own settings; the scene names the keys they came from.
     let slices = engine::slice_pass::SliceSettings {

@@ -231,6 +231,27 @@ pub fn accuracy(a: &AccuracyArgs, progress: &dyn Fn(&str)) -> Result<AccuracyRep
         ));
     }
     spec::load(&a.scene, &a.overrides)?;
+    // One sweep a key (its aliases counted as the key: `cone` and `theta` are
+    // `render.theta`), each value once: a second sweep of a key overrode the first while its
+    // rows kept the first's values, and repeated values overwrote their error images.
+    for (i, (k, vals)) in a.sweeps.iter().enumerate() {
+        if let Some((k2, _)) = a.sweeps[..i]
+            .iter()
+            .find(|(k2, _)| sweep_key(k2) == sweep_key(k))
+        {
+            return Err(format!(
+                "--sweep {k}: the same key as --sweep {k2} ({}); sweep a key once, with all its values",
+                sweep_key(k)
+            ));
+        }
+        if let Some((_, v)) = vals
+            .iter()
+            .enumerate()
+            .find(|(j, v)| vals[..*j].contains(v))
+        {
+            return Err(format!("--sweep {k}: the value {v} is given twice"));
+        }
+    }
     let methods = &a.methods;
     // Every combination of the swept values.
     let mut combos: Vec<Vec<String>> = vec![vec![]];

@@ -117,12 +117,16 @@ pub fn run(a: Args) -> Result<(), String> {
         Ok::<_, String>(s)
     };
     // Every case's scene, and the segment fractions, are checked before anything is written.
+    if let Some(n) = a.slices.iter().find(|&&n| !(1..=16384).contains(&n)) {
+        return Err(format!("--slices: {n} is not within 1..16384"));
+    }
     for (method, device) in &cases {
         for &size in &a.sizes {
             with(method, device, size, None)?;
         }
         for &n in &a.slices {
-            with(method, device, a.slice_size, Some(n))?;
+            with(method, device, a.slice_size, Some(n))
+                .map_err(|e| format!("--slice-size {}: {e}", a.slice_size))?;
         }
     }
     if let Some(f) = a.segments.iter().find(|&&f| !(f > 0.0 && f <= 1.0)) {
@@ -141,6 +145,18 @@ pub fn run(a: Args) -> Result<(), String> {
     {
         let up = scene::compile::upload(&gpu, &m)?;
         for (method, device) in &cases {
+            // One frame first, not timed: a case's first frame compiles its pipelines and
+            // fills the pools (with --frames 1 the first point of a curve took 1,124 ms where
+            // its frames take 10).
+            let first = a.sizes.first().copied().unwrap_or(a.slice_size);
+            let _ = up.draw(
+                &with(method, device, first, None)?,
+                &m,
+                DrawOptions {
+                    frames: 1,
+                    pass_timings: false,
+                },
+            );
             let case = |curve| (curve, method.as_str(), device.as_str());
             for &size in &a.sizes {
                 let s = with(method, device, size, None)?;
