@@ -790,7 +790,12 @@ impl App {
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
             .show(ui, |ui| {
-                let rect = ui.available_rect_before_wrap();
+                // The view on whole physical pixels, the render's size: a panel edge at a
+                // fraction of a pixel shifted and resampled the image (a new user's capture
+                // differed from `umbra render` on every edge, by up to 215 levels, with the
+                // transfer-function editor open).
+                let ppp = ctx.pixels_per_point();
+                let (rect, (w, h)) = pixel_rect(ui.available_rect_before_wrap(), ppp);
                 let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
                 if let Some(t) = &self.texture {
                     ui.painter().image(
@@ -803,11 +808,6 @@ impl App {
                 self.triad(ui.painter(), rect);
                 self.clip_outline(ui.painter(), rect);
                 // The render follows the view's size in physical pixels.
-                let ppp = ctx.pixels_per_point();
-                let (w, h) = (
-                    ((rect.width() * ppp).round() as u32).max(16),
-                    ((rect.height() * ppp).round() as u32).max(16),
-                );
                 if (w, h) != (self.scene.render.width, self.scene.render.height) {
                     self.scene.render.width = w;
                     self.scene.render.height = h;
@@ -840,6 +840,50 @@ impl App {
         self.last_frame = start;
         if let Some(f) = &mut self.on_event {
             f(&crate::ViewEvent::Frame);
+        }
+    }
+}
+
+/// The largest rectangle within `rect` whose edges lie on physical pixels (`ppp` of them a
+/// point), and its size in pixels (at least 16 each way): where the view is drawn, one image
+/// pixel on one window pixel.
+fn pixel_rect(rect: egui::Rect, ppp: f32) -> (egui::Rect, (u32, u32)) {
+    let min = egui::pos2((rect.min.x * ppp).ceil(), (rect.min.y * ppp).ceil());
+    let max = egui::pos2((rect.max.x * ppp).floor(), (rect.max.y * ppp).floor());
+    let (w, h) = (
+        ((max.x - min.x).max(0.0) as u32).max(16),
+        ((max.y - min.y).max(0.0) as u32).max(16),
+    );
+    let min = egui::pos2(min.x / ppp, min.y / ppp);
+    (
+        egui::Rect::from_min_size(min, egui::vec2(w as f32 / ppp, h as f32 / ppp)),
+        (w, h),
+    )
+}
+
+#[cfg(test)]
+mod pixel_rect_tests {
+    use super::pixel_rect;
+    use eframe::egui;
+
+    /// The view's edges fall on whole pixels and its size is the render's, whatever fraction
+    /// of a pixel the panel leaves (a panel 307.4 points wide, scales 1, 1.25 and 2).
+    #[test]
+    fn the_view_lies_on_whole_pixels() {
+        for ppp in [1.0f32, 1.25, 2.0] {
+            let rect = egui::Rect::from_min_max(egui::pos2(307.4, 0.3), egui::pos2(1100.0, 720.9));
+            let (r, (w, h)) = pixel_rect(rect, ppp);
+            for v in [r.min.x, r.min.y, r.max.x, r.max.y] {
+                let px = v * ppp;
+                assert!(
+                    (px - px.round()).abs() < 1e-3,
+                    "{ppp}: an edge at pixel {px}"
+                );
+            }
+            assert!(((r.width() * ppp) - w as f32).abs() < 1e-3, "{ppp}: {w}");
+            assert!(((r.height() * ppp) - h as f32).abs() < 1e-3, "{ppp}: {h}");
+            assert!(rect.contains_rect(r), "{ppp}: {r:?} outside {rect:?}");
+            assert!(w as f32 >= rect.width() * ppp - 2.0, "{ppp}: {w} pixels");
         }
     }
 }
