@@ -359,7 +359,9 @@ impl App {
         if let Some(f) = self.on_first_image.take() {
             f(&img.device);
         }
-        if let Some(f) = &mut self.on_event {
+        // (A screenshot's render is shown too, but it is no frame of the interaction: not
+        // logged, or the frame log's counts of the view's images grew by one a screenshot.)
+        if let (Some(f), None) = (&mut self.on_event, &img.saved) {
             f(&crate::ViewEvent::Image {
                 level: img.level,
                 size: img.size,

@@ -91,7 +91,7 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
         "bone",
         "method = \"ea\"\nfxaa = false\n",
     );
-    let mut h = window(&path, [900.0, 800.0], WithEditor::OneD);
+    let (mut h, full) = window_counting(&path, [900.0, 800.0], WithEditor::OneD);
     h.run_steps(3);
     // `ea` sweeps no light: the panel names no light volume.
     let t = Instant::now();
@@ -177,6 +177,7 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
     );
     let prefix = dir.path().join("shot");
     h.state_mut().set_prefix(prefix.to_str().unwrap());
+    let shown = full.load(std::sync::atomic::Ordering::SeqCst);
     h.get_by_label("screenshot .png").click();
     h.run_steps(1);
     let png = dir.path().join("shot.png");
@@ -190,6 +191,9 @@ fn a_drag_orbits_the_menu_sets_the_method_and_the_screenshot_is_the_headless_ima
         "{:?}",
         h.state().message()
     );
+    // The screenshot's render is no image of the interaction: the frame log's count of full
+    // images stays (it grew by one a screenshot).
+    assert_eq!(full.load(std::sync::atomic::Ordering::SeqCst), shown);
     // The same state through the headless renderer.
     let state = h.state().state();
     let m = scene::compile::model(&state).unwrap();
