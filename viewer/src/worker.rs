@@ -163,6 +163,16 @@ pub fn primitives(m: &Model) -> usize {
         + m.lines.iter().map(|l| l.segments.len()).sum::<usize>()
 }
 
+/// The share of `heavy` primitives a draft with a budget of `budget` draws: 1 in `k`, `k` the
+/// largest power of two that keeps at least the budget (a budget that moves re-uploads the
+/// draft's geometry only when the share halves or doubles). Rounded up to a power of two, the
+/// share fell below the budget and its floor: 133,760 triangles at the floor of 10,000 kept 1
+/// in 16, 8,360.
+pub fn draft_share(heavy: usize, budget: usize) -> usize {
+    let k = (heavy / budget.max(1)).max(1);
+    1 << (usize::BITS - 1 - k.leading_zeros())
+}
+
 /// Every `k`-th block of [`DRAFT_BLOCK`] items of `v` (in `chunk`-sized items).
 fn every_kth_block<T: Clone>(v: &[T], chunk: usize, k: usize) -> Vec<T> {
     v.chunks(DRAFT_BLOCK * chunk)
@@ -443,9 +453,7 @@ impl Session {
         }
         let heavy = primitives(&self.model);
         let budget = self.budget;
-        // Shares of 1 in a power of two: a budget that moves re-uploads the draft's geometry
-        // only when the share halves or doubles.
-        let k = heavy.div_ceil(budget.primitives.max(1)).next_power_of_two();
+        let k = draft_share(heavy, budget.primitives);
         if req.level == Level::Draft && k > 1 {
             if let Some(i) = self.draft.iter().position(|d| d.0 == k) {
                 let d = self.draft.remove(i);
@@ -602,6 +610,26 @@ pub fn start(m: Model, s: &Scene, wake: impl Fn() + Send + 'static) -> Worker {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_draft_share_keeps_at_least_its_budget() {
+        for heavy in [1usize, 9_999, 10_000, 133_760, 150_001, 7_000_000] {
+            for budget in [DRAFT_MIN_PRIMITIVES, 50_000, DRAFT_PRIMITIVES] {
+                let k = draft_share(heavy, budget);
+                assert!(k.is_power_of_two(), "{heavy} / {budget}: {k}");
+                assert!(
+                    heavy / k >= budget.min(heavy),
+                    "{heavy} / {budget}: 1 in {k}"
+                );
+                // And no more than twice the budget where it shares at all.
+                assert!(
+                    k == 1 || heavy / k < 2 * budget,
+                    "{heavy} / {budget}: 1 in {k}"
+                );
+            }
+        }
+        assert_eq!(draft_share(133_760, DRAFT_MIN_PRIMITIVES), 8);
+    }
 
     #[test]
     fn a_draft_keeps_whole_blocks_of_whole_triangles() {
