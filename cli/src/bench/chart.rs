@@ -27,6 +27,40 @@ fn decade_range(lo: f64, hi: f64) -> (f64, f64) {
     (a, b)
 }
 
+/// The labelled points of a log axis over `[lo, hi]` (whole decades, [`decade_range`]): 1, 2
+/// and 5 of each decade.
+fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let mut out = vec![];
+    let mut d = lo;
+    while d <= hi * (1.0 + 1e-9) {
+        for m in [1.0, 2.0, 5.0] {
+            let v = d * m;
+            if v <= hi * (1.0 + 1e-9) {
+                out.push(v);
+            }
+        }
+        d *= 10.0;
+    }
+    out
+}
+
+/// An axis label: three significant digits, no trailing zeros (`0.25`, `90`, `1e-4`).
+fn tick(v: f64) -> String {
+    if !(v.is_finite() && v > 0.0) {
+        return format!("{v}");
+    }
+    let e = v.log10().floor() as i32;
+    if !(-3..=5).contains(&e) {
+        return format!("{v:.0e}");
+    }
+    let decimals = (2 - e).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    match s.contains('.') {
+        true => s.trim_end_matches('0').trim_end_matches('.').to_string(),
+        false => s,
+    }
+}
+
 fn draw<DB: plotters::prelude::DrawingBackend>(
     root: plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
     p: &Plot,
@@ -52,11 +86,20 @@ where
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+        .build_cartesian_2d(
+            (x0..x1).log_scale().with_key_points(log_ticks(x0, x1)),
+            (y0..y1).log_scale().with_key_points(log_ticks(y0, y1)),
+        )
         .map_err(err)?;
+    // Labels at 1, 2 and 5 of each decade where they fit, at three significant digits (a range
+    // within one decade read "1.0" alone, and "90.0" ran into "100.0").
     c.configure_mesh()
         .x_desc(p.x_label.as_str())
         .y_desc(p.y_label.as_str())
+        .x_labels(32)
+        .y_labels(32)
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
         .draw()
         .map_err(err)?;
     for (i, (name, pts)) in p.series.iter().enumerate() {
@@ -72,7 +115,10 @@ where
             .label(name.clone())
             .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], BLACK));
     }
+    // In the upper right, where a speed-accuracy chart's worst points are (its best are low
+    // and to the left).
     c.configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()
@@ -122,5 +168,34 @@ mod tests {
         assert_eq!(super::decade_range(1.0, 1.0), (1.0, 10.0));
         let (a, b) = super::decade_range(0.0, 0.0);
         assert!(a > 0.0 && b >= 10.0 * a);
+    }
+
+    use super::{log_ticks, tick};
+
+    #[test]
+    fn log_axes_are_labelled_at_1_2_and_5_of_each_decade() {
+        let t = log_ticks(0.1, 10.0);
+        let want = [0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0];
+        assert_eq!(t.len(), want.len(), "{t:?}");
+        assert!(
+            t.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-9 * b),
+            "{t:?}"
+        );
+    }
+
+    #[test]
+    fn ticks_have_three_significant_digits_and_no_trailing_zeros() {
+        for (v, want) in [
+            (0.25, "0.25"),
+            (90.0, "90"),
+            (100.0, "100"),
+            (1.0, "1"),
+            (0.002, "0.002"),
+            (1234.0, "1234"),
+            (1e-4, "1e-4"),
+            (2e6, "2e6"),
+        ] {
+            assert_eq!(tick(v), want, "{v}");
+        }
     }
 }
