@@ -994,9 +994,9 @@ thread_local! {
     static SCRATCH: std::cell::Cell<Scratch> = Default::default();
 }
 
-/// Builds the tube of one cleaned polyline piece.
+/// Builds the tube of one cleaned polyline piece and appends it to `out`.
 ///
-/// `None` where the fit would place more rings than the piece has points (or keep every point)
+/// `false` (nothing appended) where the fit would place more rings than the piece has points (or keep every point)
 /// and the piece turns sharply (more than 100 degrees at a point), which keeps it from being
 /// meshed as its polyline, or where the fit places more rings than the parts between its sharp
 /// turns would as polylines ([`split_rings`]): the caller splits it at its sharp turns and
@@ -1015,21 +1015,9 @@ fn tube(
     tube_as(points, attr, o, origin, between_turns, false, out)
 }
 
-/// [`tube`] of a part (between sharp turns) of a line too rough to fit: meshed as its
-/// polyline without a fit.
-fn tube_rough(
-    points: &[DVec3],
-    attr: Option<(&[f32], [f64; 2])>,
-    o: &TubeOptions,
-    origin: DVec3,
-    out: &mut Rings,
-) -> bool {
-    tube_as(points, attr, o, origin, true, true, out)
-}
-
-/// [`tube`], meshed as its polyline without a fit where `rough` (a part without sharp turns
+/// [`tube`], meshed as its polyline without a fit where `rough` (a part between sharp turns
 /// of a line [`too_rough`] to fit). The piece is appended to `out` (whose `sides` it takes);
-/// `false` (nothing appended) where [`tube`] says `None`.
+/// `false` (nothing appended) where [`tube`] says so.
 fn tube_as(
     points: &[DVec3],
     attr: Option<(&[f32], [f64; 2])>,
@@ -1051,7 +1039,7 @@ fn tube_as(
     // eight, or of a part between sharp turns), placed more rings than the line has points or
     // missed the tolerance. Never where the line turns sharply at a point (more than 100
     // degrees), whose rings would fold there: rough lines are split at such turns beforehand
-    // (`prepare`), and a fitted line that needs its polyline is returned as `None` for
+    // (`prepare`), and a fitted line that needs its polyline is refused (`false`) for
     // `prepare` to split the same way (see the doc above).
     let rmf_iterative = o.frame == FrameMethod::Rmf && o.fit.method == FitMethod::Iterative;
     let mut polyline =
@@ -1092,7 +1080,7 @@ fn tube_as(
         // let go); where they would fold, `polyline_rings` keeps every point, more rings than
         // the fit's, and the fit stays (a smooth hairpin).
         // Where they would fold and the fit still places more rings than the parts between
-        // the sharp turns would as polylines, the line is split there instead (`None`: the
+        // the sharp turns would as polylines, the line is split there instead (`false`: the
         // caller meshes the parts, each fitted or not on its own): at tolerance 0.2 such fits
         // kept nine of HCP1065's ten bundles 6-25% above their triangles at 0.1.
         let mut kept_sharp = false;
@@ -1571,11 +1559,16 @@ fn prepare(s: &Streamlines, o: &TubeOptions) -> Prepared {
                 continue;
             }
             let av = vals.as_ref().map(|_| &kept_vals[a..=b]);
-            let done = match rough {
-                true => tube_rough(&pts[a..=b], av.zip(range), o, origin, &mut out),
-                false => tube(&pts[a..=b], av.zip(range), o, origin, false, &mut out),
-            };
-            if done {
+            // A rough part lies between sharp turns: meshed as its polyline, unfitted.
+            if tube_as(
+                &pts[a..=b],
+                av.zip(range),
+                o,
+                origin,
+                rough,
+                rough,
+                &mut out,
+            ) {
                 continue;
             }
             // More rings than points from the fit, and a sharp turn: the parts between the
