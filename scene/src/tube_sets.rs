@@ -261,8 +261,9 @@ const VERTEX_BYTES: u64 = 27;
 const INDEX_BYTES: u64 = 12;
 
 /// The estimate's margin over the mesh, its rings and the points: the allocator's and the
-/// block lists' share (10^6 random walks of 3 points to an OBJ, 31.8 M triangles: 1.18 GB at
-/// the peak, `/usr/bin/time -v`; the mesh and rings 1.12 + 0.08 GB).
+/// block lists' share (`bench/random_walks_tck.py`: 10^6 random walks of 3 points to an OBJ,
+/// 31.8 M triangles: 1.18 GB at the peak, `/usr/bin/time -v`; the mesh and rings 1.12 + 0.08
+/// GB).
 const ESTIMATE_MARGIN: f64 = 1.1;
 
 /// The memory this process may still take, and what limits it: the smaller of its
