@@ -497,6 +497,14 @@ fn read_as(path: &Path, keep_stored: bool) -> Result<(Volume, Option<Samples>)> 
     let (mut data, stored) = match encoding {
         Encoding::Raw => decode(body)?,
         Encoding::Gzip => {
+            // Decompressed bytes are bounded as a file's are: a skip beyond that is no file's.
+            if byte_skip as u64 > io_util::MAX_FILE_BYTES {
+                return Err(VolumeError::format(
+                    path,
+                    "byte skip",
+                    format!("{byte_skip} is more than {} bytes", io_util::MAX_FILE_BYTES),
+                ));
+            }
             let skip = byte_skip as usize;
             let bytes = io_util::gunzip(&data_path, "gzip data", body, Some(skip + nbytes))
                 .map_err(|e| match skip {

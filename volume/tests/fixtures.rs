@@ -217,5 +217,13 @@ fn nrrd_byte_skip_after_gzip_and_cell_centred_axis_mins_are_teems() {
     .unwrap();
     let v = volume::load(&p).unwrap();
     let origin = v.affine.w_axis.truncate();
+    // A skip no decompressed file could hold is refused by name, not decompressed towards.
+    std::fs::write(
+        &p,
+        header("").replace("byte skip: 4", "byte skip: 9000000000000000000"),
+    )
+    .unwrap();
+    let e = volume::load(&p).unwrap_err().to_string();
+    assert!(e.contains("byte skip") && e.contains("a.nhdr"), "{e}");
     assert_eq!(origin.to_array(), [2.0, 2.0, 5.0], "{:?}", v.affine);
 }
