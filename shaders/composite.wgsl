@@ -102,6 +102,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             covered = covered + 1.0;
             continue;
         }
+        if (c.a > 0.95 && c.a < 0.985) {
+            // An unlit slice (gbuffer.wgsl: alpha 0.97): its colour, occluded, no head light.
+            sum = sum + combined * c.rgb;
+            covered = covered + 1.0;
+            continue;
+        }
         let n = g_nrm(vec2<i32>(id.xy), s).xyz;
         let nl = max(dot(n, to_eye), 0.0);
         // Head light: the reflection of the light about n makes angle 2 acos(n.l) with the

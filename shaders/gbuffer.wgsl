@@ -524,6 +524,8 @@ struct PlaneParams {
     rel_to_index: mat4x4<f32>,
     // the grid's samples per axis (xyz) and the number of layers (w, 1 to 4)
     dims: vec4<u32>,
+    // x: 1 when the slice is lit by the head light, 0 when it shows its colours unshaded
+    shading: vec4<u32>,
     layers: array<PlaneLayer, 4>,
 };
 
@@ -602,11 +604,17 @@ fn plane_color(rel: vec3<f32>) -> vec3<f32> {
     return c;
 }
 
+// A slice's colour in the G-buffer: alpha 1 when it is lit like the other surfaces, else
+// UNLIT_ALPHA (composite shows its colour times the occlusion terms alone).
+fn plane_gcolor(rel: vec3<f32>) -> vec4<f32> {
+    return vec4<f32>(plane_color(rel), select(UNLIT_ALPHA, 1.0, PP.shading.x != 0u));
+}
+
 @fragment
 fn fs_front_p(packed: VOutP) -> FrontOut {
     let v = unpack(packed);
     var f = front_values(v);
-    f.color = vec4<f32>(plane_color(v.rel), 1.0);
+    f.color = plane_gcolor(v.rel);
     return f;
 }
 
@@ -615,7 +623,7 @@ fn fs_surface_p(packed: VOutP) -> SurfaceOut {
     let v = unpack(packed);
     let f = front_values(v);
     var o: SurfaceOut;
-    o.color = vec4<f32>(plane_color(v.rel), 1.0);
+    o.color = plane_gcolor(v.rel);
     o.normal = f.normal;
     return o;
 }
@@ -757,8 +765,10 @@ fn halo_at(v: VOut) -> Halo {
 // The colour of a halo sample in the G-buffer: alpha 0.5 marks it (composite paints it with
 // the halo colour, the background unless the method is illustrative); an outline rim is black
 // and a surface, alpha 0.9 marking it unlit (composite adds no specular highlight to it).
+// An unlit slice (`[[slices]] lit = false`): alpha 0.97.
 const HALO_ALPHA: f32 = 0.5;
 const OUTLINE_ALPHA: f32 = 0.9;
+const UNLIT_ALPHA: f32 = 0.97;
 
 struct FrontOutH {
     @location(0) color: vec4<f32>,
@@ -909,8 +919,14 @@ fn fs_peel(packed: VOutP) -> PeelOut {
     return peel_values(v, v.color);
 }
 
+// A translucent slice; unlit (`PP.shading.x` 0), its normal is written as zero, which the
+// march (`slice_pass.wgsl` `composite_layer`) takes for its colour unshaded.
 @fragment
 fn fs_peel_p(packed: VOutP) -> PeelOut {
     let v = unpack(packed);
-    return peel_values(v, plane_color(v.rel));
+    var o = peel_values(v, plane_color(v.rel));
+    if (PP.shading.x == 0u) {
+        o.nd = vec4<f32>(0.0, 0.0, 0.0, o.nd.w);
+    }
+    return o;
 }

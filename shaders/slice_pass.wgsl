@@ -922,7 +922,8 @@ fn layer_depth(p: vec2<i32>, l: u32) -> f32 {
 }
 
 // Composites translucent layer l over the eye buffer value `e` (front to back): its colour lit
-// by the head light as composite lights surfaces (no occlusion terms), weighted by its
+// by the head light as composite lights surfaces (no occlusion terms; an unlit slice, zero
+// normal, unshaded), weighted by its
 // opacity; `half` gets its depth when it takes the opacity past 0.5.
 fn composite_layer(e: ptr<function, vec4<f32>>, half: ptr<function, f32>, p: vec2<i32>, l: u32, r: Ray) {
     let c = textureLoad(peel_color, p, i32(l), 0);
@@ -930,7 +931,11 @@ fn composite_layer(e: ptr<function, vec4<f32>>, half: ptr<function, f32>, p: vec
     let nl = max(dot(nd.xyz, -r.d), 0.0);
     let rv = max(2.0 * nl * nl - 1.0, 0.0);
     let spec = P.light.specular * pow(rv, P.light.shininess);
-    let lit = c.rgb * (P.light.ambient + P.light.diffuse * nl) + vec3<f32>(spec);
+    var lit = c.rgb * (P.light.ambient + P.light.diffuse * nl) + vec3<f32>(spec);
+    if (all(nd.xyz == vec3<f32>(0.0))) {
+        // an unlit slice (gbuffer.wgsl `fs_peel_p`): its colour as mapped
+        lit = c.rgb;
+    }
     let w = (1.0 - (*e).a) * c.a;
     let before = (*e).a;
     *e = vec4<f32>((*e).rgb + w * lit, (*e).a + w);

@@ -4,7 +4,8 @@
 //! Where a surface is: `combined` is the min (eq. 7) or the product (eq. 8) of the method's
 //! surface terms (partial and vicinity occlusion in the paper; any layers the method table
 //! names), 1 without terms; the surface is shaded by the head light,
-//! `combined * colour * (ambient + diffuse (n.l)) + specular (r.v)^shininess` (eq. 9), and the
+//! `combined * colour * (ambient + diffuse (n.l)) + specular (r.v)^shininess` (eq. 9; a slice
+//! not `lit`, marked in the G-buffer by alpha 0.97, is `combined * colour`), and the
 //! volume in front of it is composited over it, `surface (1 - alpha_v) + volume_rgb` (eq. 10).
 //! Elsewhere the background takes the surface's place, composited last ("under" blending;
 //! Algorithm 1 initialises the eye buffer with it, which adds it instead of attenuating it).

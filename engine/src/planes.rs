@@ -75,6 +75,9 @@ pub struct PlaneGrid<'a> {
 pub struct PlaneInput {
     pub polygon: TubeMesh,
     pub layers: Vec<PlaneLayer>,
+    /// Lit by the head light like the other surfaces; else (the default of `[[slices]]`) its
+    /// colour unshaded, times the method's combined occlusion term.
+    pub lit: bool,
 }
 
 /// A slice layer's uniform. Keep in sync with `struct PlaneLayer` in `shaders/gbuffer.wgsl`.
@@ -103,6 +106,8 @@ pub struct PlaneParams {
     pub rel_to_index: [[f32; 4]; 4],
     /// Samples per axis and the number of layers.
     pub dims: [u32; 4],
+    /// x: 1 when the slice is lit by the head light (yzw: padding).
+    pub shading: [u32; 4],
     pub layers: [PlaneLayerParams; MAX_LAYERS],
 }
 
@@ -115,6 +120,7 @@ pub struct GpuPlane {
     pub(crate) fields: Vec<wgpu::Buffer>,
     layers: [PlaneLayerParams; MAX_LAYERS],
     n_layers: u32,
+    lit: bool,
     dims: [usize; 3],
     world_to_index: DMat4,
 }
@@ -245,6 +251,7 @@ impl GpuPlane {
                 fields,
                 layers,
                 n_layers: p.layers.len() as u32,
+                lit: p.lit,
                 dims: grid.dims,
                 world_to_index,
             });
@@ -263,6 +270,7 @@ impl GpuPlane {
                 self.dims[2] as u32,
                 self.n_layers,
             ],
+            shading: [self.lit as u32, 0, 0, 0],
             layers: self.layers,
         }
     }

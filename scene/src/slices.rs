@@ -481,6 +481,7 @@ pub fn model(
                 m
             },
             layers,
+            lit: sl.lit,
         });
     }
     Ok(Some(PlaneModel {

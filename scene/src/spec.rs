@@ -276,6 +276,10 @@ pub struct SliceSpec {
     /// Draw the scene's overlays over the slice (default true).
     #[serde(default = "yes")]
     pub overlays: bool,
+    /// Light the slice by the head light like the other surfaces (default false: its colours
+    /// as mapped, darkened only by the method's occlusion terms).
+    #[serde(default)]
+    pub lit: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

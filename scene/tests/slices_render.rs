@@ -99,14 +99,24 @@ fn slices_sample_their_layers_exactly() {
             }
         }),
     );
-    for (camera, slice) in [
+    // Slices show their colours unshaded under the default head light (a head-on one would
+    // otherwise take its specular highlight everywhere); `lit = true` lights them: head-on, n.l
+    // = 1 and the highlight is whole, colour (ambient + diffuse) + specular = colour + 0.3.
+    for (camera, slice, lift) in [
         (
             "azimuth = 0.0\nelevation = 90.0",
             "axis = \"axial\"\nposition = 1.7",
+            0.0,
         ),
         (
             "azimuth = 30.0\nelevation = 40.0",
             "normal = [0.3, -0.4, 0.85]\nposition = 2.0",
+            0.0,
+        ),
+        (
+            "azimuth = 0.0\nelevation = 90.0",
+            "axis = \"axial\"\nposition = 1.7\nlit = true",
+            0.3,
         ),
     ] {
         let text = format!(
@@ -133,10 +143,6 @@ path = "{labels}"
 labels = true
 show = [3, 12]
 opacity = 0.5
-[light]
-ambient = 1.0
-diffuse = 0.0
-specular = 0.0
 [annotate]
 colorbar = "overlays.stat"
 [render]
@@ -181,7 +187,7 @@ fxaa = false
                 covered += 1;
                 let want = engine::planes::plane_color(&grid, layers, p);
                 let err = (0..3)
-                    .map(|k| (px[k] as f64 - want[k]).abs())
+                    .map(|k| (px[k] as f64 - want[k] - lift).abs())
                     .fold(0.0, f64::max);
                 // f32 against f64 and the G-buffer's 16-bit colour: well within 1.5/255.
                 if err > 1.5 / 255.0 {
@@ -412,8 +418,8 @@ fxaa = false
 fn translucent_slices_over_the_volume_match_the_cpu_twin() {
     let dir = tempfile::tempdir().unwrap();
     let anat = write(dir.path(), "anat.nii.gz", &anatomy());
-    // Two translucent slices crossing inside the drawn volume: each pixel's ray meets the
-    // volume, the nearer slice, more volume, the farther slice, in depth order. With the
+    // Two translucent slices crossing inside the drawn volume (unshaded under the default
+    // light, as slices are unless lit): each pixel's ray meets the volume, the nearer slice, more volume, the farther slice, in depth order. With the
     // transfer function's first point at 150 much of the volume is empty bricks, which the
     // march steps over, layers or not.
     for (lo, ext) in [(60.0, 0.05), (150.0, 0.5)] {
@@ -447,10 +453,6 @@ normal = [0.35, -0.25, 0.9]
 position = -3.0
 window = [60.0, 200.0]
 opacity = 0.35
-[light]
-ambient = 1.0
-diffuse = 0.0
-specular = 0.0
 [render]
 method = "ea"
 width = 128
