@@ -1607,6 +1607,19 @@ impl<'g> Uploaded<'g> {
 }
 
 impl Uploaded<'_> {
+    /// Replaces the uploaded slices with `planes` on the grid of `p` (the model's
+    /// [`crate::slices::PlaneModel`], whose `planes` the caller sets to the same list: frames
+    /// take both), its fields uploaded anew; the rest of the upload stays.
+    pub fn set_planes(
+        &mut self,
+        p: &crate::slices::PlaneModel,
+        planes: &[engine::planes::PlaneInput],
+    ) -> Result<(), String> {
+        self.renderer
+            .upload_planes(&mut self.scene, &p.grid(), planes, p.blend.as_ref())
+            .map_err(|e| format!("slices: {e}"))
+    }
+
     /// One frame of scene `s` (its camera, clipping planes, settings and size; its data must
     /// be the uploaded model `m`'s).
     pub fn draw(

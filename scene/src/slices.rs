@@ -17,8 +17,12 @@ pub struct PlaneModel {
     pub affine: DMat4,
     pub fields: Vec<Vec<f32>>,
     pub planes: Vec<PlaneInput>,
-    /// Each overlay's colour mapping, in `[[overlays]]` order.
-    pub overlays: Vec<LayerMap>,
+    /// Each overlay's colour mapping and opacity, in `[[overlays]]` order.
+    pub overlays: Vec<(LayerMap, f32)>,
+    /// The scene volume's finite range (a slice's window where none is given) and bounds (a
+    /// slice's default position is their centre).
+    pub range: [f64; 2],
+    pub bounds: [DVec3; 2],
     /// The overlay blended into the volume rendering (`volume_blend`), as a layer of the grid.
     pub blend: Option<PlaneLayer>,
 }
@@ -28,7 +32,7 @@ impl PlaneModel {
     /// colour map over its range.
     pub fn color_bar(&self, s: &Scene, name: &str) -> Option<crate::annotate::ColorBar> {
         let k = s.overlays.iter().position(|o| o.name == name)?;
-        let LayerMap::Scalar { lo, hi, .. } = self.overlays.get(k)? else {
+        let (LayerMap::Scalar { lo, hi, .. }, _) = self.overlays.get(k)? else {
             return None;
         };
         let cm: Colormap = s.overlays[k]
@@ -46,6 +50,29 @@ impl PlaneModel {
                 .collect(),
         })
     }
+    /// The slices of `s` (another state of the scene this model was made for: the same volume
+    /// and overlays) on this model's grid and fields: what moving, hiding or restyling slices
+    /// changes, without reading or resampling anything. Slabs are not taken into account
+    /// (they crop the geometry: a model anew).
+    pub fn replan(&self, s: &Scene) -> Result<Vec<PlaneInput>, String> {
+        let vspec = s.volume.as_ref().ok_or("slices need a [volume]")?;
+        planes_of(
+            s,
+            vspec,
+            self.dims,
+            self.affine,
+            self.bounds,
+            self.range,
+            &self.overlays,
+        )
+    }
+
+    /// The span `[lo, hi]` of the grid's voxel centres along unit normal `n` (where a slice
+    /// normal to `n` cuts the grid).
+    pub fn extent(&self, n: DVec3) -> [f64; 2] {
+        extent(self.dims, self.affine, n)
+    }
+
     /// The grid as the renderer takes it.
     pub fn grid(&self) -> engine::planes::PlaneGrid<'_> {
         engine::planes::PlaneGrid {
@@ -395,16 +422,55 @@ pub fn model(
         fields.push(std::mem::take(&mut ov.field));
         overlays.push(ov);
     }
-    let vrange = range;
+    let overlays: Vec<(LayerMap, f32)> = overlays.into_iter().map(|o| (o.map, o.opacity)).collect();
+    let planes = planes_of(s, vspec, dims, affine, vol.bounds(), range, &overlays)?;
+    Ok(Some(PlaneModel {
+        dims,
+        affine,
+        fields,
+        planes,
+        blend: s
+            .overlays
+            .iter()
+            .position(|o| o.volume_blend)
+            .map(|k| PlaneLayer {
+                field: k + 1,
+                map: overlays[k].0.clone(),
+                opacity: overlays[k].1,
+            }),
+        overlays,
+        range,
+        bounds: vol.bounds(),
+    }))
+}
+
+/// The span of the voxel centres of a grid along unit normal `n`.
+pub fn extent(dims: [usize; 3], affine: DMat4, n: DVec3) -> [f64; 2] {
+    let ext = [0usize, 1, 2, 3, 4, 5, 6, 7].map(|c| n.dot(corner(dims, affine, c)));
+    [
+        ext.iter().copied().fold(f64::INFINITY, f64::min),
+        ext.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    ]
+}
+
+/// The slices of `s` on the grid (`dims`, `affine`; the volume's `bounds` and finite `vrange`)
+/// with the overlays' mappings and opacities.
+fn planes_of(
+    s: &Scene,
+    vspec: &crate::spec::VolumeSpec,
+    dims: [usize; 3],
+    affine: DMat4,
+    bounds: [DVec3; 2],
+    vrange: [f64; 2],
+    overlays: &[(LayerMap, f32)],
+) -> Result<Vec<PlaneInput>, String> {
     let mut planes = vec![];
     for (i, sl) in s.slices.iter().enumerate() {
         let key = |k: &str| format!("slices[{i}].{k}");
         let n = normal(sl);
-        let pos = position(sl, vol.bounds());
+        let pos = position(sl, bounds);
         let pts = polygon(dims, affine, n, pos).ok_or_else(|| {
-            let ext = [0usize, 1, 2, 3, 4, 5, 6, 7].map(|c| n.dot(corner(dims, affine, c)));
-            let lo = ext.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = ext.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let [lo, hi] = extent(dims, affine, n);
             format!(
                 "scene key {}: the plane at {pos} does not cut the volume (it spans {lo:.3} to {hi:.3} along the normal)",
                 key("position")
@@ -436,7 +502,7 @@ pub fn model(
                     .iter()
                     .position(|o| &o.name == name)
                     .ok_or_else(|| format!("scene key {}: no overlay '{name}'", key("volume")))?;
-                let mut map = overlays[k].map.clone();
+                let mut map = overlays[k].0.clone();
                 if let LayerMap::Scalar { lo, hi, colors } = &mut map {
                     if let Some(w) = sl.window {
                         (*lo, *hi) = (w[0], w[1]);
@@ -455,14 +521,14 @@ pub fn model(
         let base_field = base.field;
         let mut layers = vec![base];
         if sl.overlays {
-            for (k, ov) in overlays.iter().enumerate() {
+            for (k, (map, opacity)) in overlays.iter().enumerate() {
                 if k + 1 == base_field {
                     continue;
                 }
                 layers.push(PlaneLayer {
                     field: k + 1,
-                    map: ov.map.clone(),
-                    opacity: ov.opacity,
+                    map: map.clone(),
+                    opacity: *opacity,
                 });
             }
         }
@@ -484,22 +550,7 @@ pub fn model(
             lit: sl.lit,
         });
     }
-    Ok(Some(PlaneModel {
-        dims,
-        affine,
-        fields,
-        planes,
-        blend: s
-            .overlays
-            .iter()
-            .position(|o| o.volume_blend)
-            .map(|k| PlaneLayer {
-                field: k + 1,
-                map: overlays[k].map.clone(),
-                opacity: overlays[k].opacity,
-            }),
-        overlays: overlays.into_iter().map(|o| o.map).collect(),
-    }))
+    Ok(planes)
 }
 
 #[cfg(test)]

@@ -38,6 +38,8 @@ pub struct App {
     shown_scenes: std::collections::BTreeMap<u64, Scene>,
     /// Objects left out of the drawn scene, and the "open" field.
     hidden: crate::objects::Hidden,
+    /// The grid the scene's slices cut (from the model; none without slices).
+    slice_grid: Option<crate::objects::SliceGrid>,
     open_path: String,
     /// The file dialog ("browse").
     browser: crate::objects::Browser,
@@ -116,6 +118,7 @@ impl App {
             prefix: "umbra_view".into(),
             editor: None,
             hidden: Default::default(),
+            slice_grid: None,
             shown_scenes: Default::default(),
             open_path: String::new(),
             browser: Default::default(),
@@ -154,6 +157,12 @@ impl App {
         self
     }
 
+    /// The grid the scene's slices cut (the objects panel's position fields span it).
+    pub fn with_slice_grid(mut self, grid: Option<crate::objects::SliceGrid>) -> App {
+        self.slice_grid = grid;
+        self
+    }
+
     /// The level of the image on screen (none yet: `None`).
     pub fn shown_level(&self) -> Option<Level> {
         self.shown.as_ref().map(|i| i.level)
@@ -167,6 +176,16 @@ impl App {
     /// Whether the file dialog is open.
     pub fn browsing(&self) -> bool {
         self.browser.is_open()
+    }
+
+    /// The scene of the image on screen (none yet: `None`).
+    pub fn shown_scene(&self) -> Option<&Scene> {
+        self.shown.as_ref().map(|i| &i.scene)
+    }
+
+    /// The last frame's error, as the view shows it.
+    pub fn error(&self) -> Option<&str> {
+        self.error.as_deref()
     }
 
     /// The last save's outcome, as the panel shows it.
@@ -334,6 +353,7 @@ impl App {
         self.error = None;
         if let Some(r) = &img.rebuilt {
             self.bounds = r.bounds;
+            self.slice_grid = r.slice_grid.clone();
             match &mut self.editor {
                 // The same volume's data (other objects changed): the editor keeps its tab
                 // and scale, with the histograms of the rebuilt model.
@@ -651,7 +671,10 @@ impl App {
                     &mut self.hidden,
                     &mut self.open_path,
                     &mut to_open,
-                    pivot,
+                    crate::objects::Place {
+                        pivot,
+                        grid: self.slice_grid.as_ref(),
+                    },
                     &mut browse,
                 )
             });

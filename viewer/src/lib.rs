@@ -58,6 +58,7 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     let s = scene::spec::load(&a.scene, &a.overrides)?;
     let m = scene::compile::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let bounds = m.bounds;
+    let slice_grid = objects::SliceGrid::of(&m);
     let range = worker::data_range(&m);
     let editor = transfer::Editor::new(range, worker::histogram(&m, range, 128))
         .with_robust(worker::robust_range(&m, range))
@@ -98,7 +99,9 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
                 let ctx = cc.egui_ctx.clone();
                 watch_quit(quit.clone(), ctx.clone());
                 let worker = worker::start(m, &s, move || ctx.request_repaint());
-                let mut app = app::App::new(s, bounds, worker, quit, on_first).with_editor(editor);
+                let mut app = app::App::new(s, bounds, worker, quit, on_first)
+                    .with_editor(editor)
+                    .with_slice_grid(slice_grid);
                 let cpu = cc.wgpu_render_state.as_ref().is_some_and(|r| {
                     r.adapter.get_info().device_type == eframe::wgpu::DeviceType::Cpu
                 });

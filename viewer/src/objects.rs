@@ -1,5 +1,6 @@
 //! The scene's objects in the viewer: the volume, `[[tubes]]`, `[[lines]]` and `[[points]]`,
-//! each shown or hidden, with its size and colour editable, removable; and files opened into
+//! each shown or hidden, with its size and colour editable, removable; `[[slices]]`, each
+//! shown or hidden, with its position, opacity and lighting editable; and files opened into
 //! the scene (typed, chosen in the file dialog or dropped on the window): a volume replaces the scene's volume, a
 //! tractogram is added as `[[lines]]`, a mesh as `[[tubes]]`. A hidden object is left out of the
 //! scene the renderer draws and the saved scene (what you see is what you save).
@@ -267,6 +268,7 @@ pub struct Objects {
     tubes: Vec<scene::spec::TubesSpec>,
     lines: Vec<scene::spec::LinesSpec>,
     points: Vec<scene::spec::PointsSpec>,
+    slices: Vec<scene::spec::SliceSpec>,
     hidden: Hidden,
 }
 
@@ -277,6 +279,7 @@ impl Objects {
             tubes: s.tubes.clone(),
             lines: s.lines.clone(),
             points: s.points.clone(),
+            slices: s.slices.clone(),
             hidden: hidden.clone(),
         }
     }
@@ -287,7 +290,39 @@ impl Objects {
         s.tubes = self.tubes;
         s.lines = self.lines;
         s.points = self.points;
+        s.slices = self.slices;
         *hidden = self.hidden;
+    }
+}
+
+/// The grid slices cut (the scene volume's voxel centres, `dims` and index-to-world
+/// `affine`) and the volume's `bounds` (a slice's default position is their centre): what the
+/// slices' position fields span.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SliceGrid {
+    pub dims: [usize; 3],
+    pub affine: glam::DMat4,
+    pub bounds: [glam::DVec3; 2],
+}
+
+impl SliceGrid {
+    /// The grid of model `m`'s slices (none without slices or overlays).
+    pub fn of(m: &scene::compile::Model) -> Option<SliceGrid> {
+        m.planes.as_ref().map(|p| SliceGrid {
+            dims: p.dims,
+            affine: p.affine,
+            bounds: p.bounds,
+        })
+    }
+
+    /// Where slice `sl` is (its position, or the default) and the span of positions where it
+    /// cuts the grid.
+    pub fn position(&self, sl: &scene::spec::SliceSpec) -> (f64, [f64; 2]) {
+        let n = scene::slices::normal(sl);
+        (
+            scene::slices::position(sl, self.bounds),
+            scene::slices::extent(self.dims, self.affine, n),
+        )
     }
 }
 
@@ -298,6 +333,7 @@ pub struct Hidden {
     pub tubes: Vec<bool>,
     pub lines: Vec<bool>,
     pub points: Vec<bool>,
+    pub slices: Vec<bool>,
 }
 
 impl Hidden {
@@ -306,6 +342,7 @@ impl Hidden {
         self.tubes.resize(s.tubes.len(), false);
         self.lines.resize(s.lines.len(), false);
         self.points.resize(s.points.len(), false);
+        self.slices.resize(s.slices.len(), false);
     }
 
     /// `s` without its hidden objects.
@@ -334,6 +371,13 @@ impl Hidden {
             .iter()
             .enumerate()
             .filter(|(i, _)| keep(&self.points, *i))
+            .map(|(_, t)| t.clone())
+            .collect();
+        d.slices = s
+            .slices
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| keep(&self.slices, *i))
             .map(|(_, t)| t.clone())
             .collect();
         d
@@ -372,6 +416,62 @@ fn row(
     remove
 }
 
+/// One slice's rows: shown and `lit`, its position (world units along its normal, within the
+/// grid) and opacity; the fields are labelled `  slices[i] position` and `  slices[i] opacity`.
+fn slice_row(
+    ui: &mut egui::Ui,
+    i: usize,
+    sl: &mut scene::spec::SliceSpec,
+    hidden: &mut bool,
+    g: &SliceGrid,
+) {
+    let (at, [lo, hi]) = g.position(sl);
+    let what = match sl.axis {
+        Some(a) => format!("{a:?}").to_lowercase(),
+        None => "oblique".into(),
+    };
+    ui.horizontal(|ui| {
+        let mut shown = !*hidden;
+        ui.checkbox(&mut shown, format!("slices[{i}]"))
+            .on_hover_text(format!("{what} slice, {lo:.1} to {hi:.1} along its normal"));
+        *hidden = !shown;
+        ui.checkbox(&mut sl.lit, "lit")
+            .on_hover_text("lit by the head light (else its colours unshaded)");
+    });
+    ui.horizontal(|ui| {
+        let l = ui.label(format!("  slices[{i}] position"));
+        let mut p = at;
+        let r = ui
+            .add(
+                egui::DragValue::new(&mut p)
+                    .range(lo..=hi)
+                    .speed(((hi - lo) / 300.0).max(1e-6))
+                    .suffix(" mm"),
+            )
+            .labelled_by(l.id);
+        if r.changed() && p != at {
+            sl.position = Some(p);
+        }
+    });
+    ui.horizontal(|ui| {
+        let l = ui.label(format!("  slices[{i}] opacity"));
+        ui.add(
+            egui::DragValue::new(&mut sl.opacity)
+                .range(0.0..=1.0)
+                .speed(0.01),
+        )
+        .labelled_by(l.id);
+    });
+}
+
+/// Where the objects panel's fields are: the camera's target (transforms turn and scale about
+/// it) and the grid the slices cut (their positions span it; none: no slice rows).
+#[derive(Clone, Copy, Debug)]
+pub struct Place<'a> {
+    pub pivot: [f64; 3],
+    pub grid: Option<&'a SliceGrid>,
+}
+
 /// The objects panel and the file field; true when the scene changed. `to_open` receives the
 /// file the field asks to open (the caller opens it: [`open`]).
 pub fn panel(
@@ -380,9 +480,10 @@ pub fn panel(
     hidden: &mut Hidden,
     open_path: &mut String,
     to_open: &mut Option<std::path::PathBuf>,
-    pivot: [f64; 3],
+    place: Place,
     browse: &mut bool,
 ) -> bool {
+    let (pivot, grid) = (place.pivot, place.grid);
     hidden.fit(s);
     let before = Objects::of(s, hidden);
     if let Some(v) = &s.volume {
@@ -439,6 +540,11 @@ pub fn panel(
         }
         crate::transform::editor(ui, &format!("points[{i}]"), &mut p.transform, pivot);
         hidden.points[i] = !shown;
+    }
+    if let Some(g) = grid {
+        for (i, sl) in s.slices.iter_mut().enumerate() {
+            slice_row(ui, i, sl, &mut hidden.slices[i], g);
+        }
     }
     match remove {
         Some(("tubes", i)) => {

@@ -139,6 +139,8 @@ pub struct Session {
     transfer: Option<scene::spec::TransferSpec>,
     /// The scene's data as modelled: its objects, without the transfer function.
     data: DataKey,
+    /// The slices as planned in the model and its upload.
+    slices: Vec<scene::spec::SliceSpec>,
     /// The uploads drafts draw when the geometry is heavy ([`DRAFT_PRIMITIVES`]), by share
     /// (1 in k), the last used first; made at the first draft of a share after the model or
     /// its transfer function changed, the volume shared with the full upload's. The last
@@ -190,12 +192,16 @@ type DataKey = (
     Vec<scene::spec::PointsSpec>,
     Vec<([f64; 3], f64)>,
     bool,
+    Vec<scene::spec::OverlaySpec>,
+    Vec<scene::spec::SliceSpec>,
 );
 
 /// What the model is made from: the objects (the volume without its transfer function, which
-/// is uploaded alone), the clipping planes an isosurface's octants are swept for, and whether
+/// is uploaded alone), the clipping planes an isosurface's octants are swept for, whether
 /// the method projects (`mip`, `minip`: the volume's colours are then `volume.colormap` over
-/// `volume.window`, and its slices a voxel apart, in the model).
+/// `volume.window`, and its slices a voxel apart, in the model), the overlays, and the slices
+/// with a slab (which crops the geometry). Other changes of the slices only re-plan them
+/// ([`scene::slices::PlaneModel::replan`]).
 fn data_key(s: &Scene) -> DataKey {
     let volume = s.volume.clone().map(|mut v| {
         v.transfer = Default::default();
@@ -219,6 +225,12 @@ fn data_key(s: &Scene) -> DataKey {
         s.points.clone(),
         clip,
         projection,
+        s.overlays.clone(),
+        s.slices
+            .iter()
+            .filter(|c| c.slab.is_some())
+            .cloned()
+            .collect(),
     )
 }
 
@@ -379,6 +391,7 @@ impl Session {
             up,
             transfer,
             data: data_key(s),
+            slices: s.slices.clone(),
             draft: vec![],
             budget: DraftBudget::default(),
         })
@@ -407,8 +420,13 @@ impl Session {
             && key.1 == self.data.1
             && key.2 == self.data.2
             && key.3 == self.data.3
-            && key.5 == self.data.5;
-        if key != self.data && !(cut_only && req.level == Level::Draft) {
+            && key.5 == self.data.5
+            && key.6 == self.data.6
+            && key.7 == self.data.7;
+        let slices = req.scene.slices != self.slices;
+        // Slices shown where the model has no grid of slices (none were drawn) need one.
+        let no_grid = slices && self.model.planes.is_none();
+        if (key != self.data && !(cut_only && req.level == Level::Draft)) || no_grid {
             // Other objects (opened, removed, hidden, resized, recoloured): the model anew.
             // Both made before either is kept: a failed upload leaves model and upload as
             // they were, in step (drafts take lists from the one into the other's buffers).
@@ -429,6 +447,7 @@ impl Session {
             }
             let (histogram, histogram2d) = self.histograms.clone().unwrap_or_default();
             self.data = key;
+            self.slices = req.scene.slices.clone();
             self.transfer = tf.clone();
             self.draft.clear();
             rebuilt = Some(Rebuilt {
@@ -438,7 +457,19 @@ impl Session {
                 histogram,
                 histogram2d,
                 volume: self.model.volume.is_some(),
+                slice_grid: crate::objects::SliceGrid::of(&self.model),
             });
+        }
+        if req.scene.slices != self.slices {
+            // Slices moved, hidden or restyled: planned anew on the model's grid, the rest of
+            // the model and its upload kept (the drafts' shares are made again).
+            if let Some(p) = self.model.planes.as_mut() {
+                let planes = p.replan(&req.scene)?;
+                self.up.set_planes(p, &planes)?;
+                p.planes = planes;
+                self.slices = req.scene.slices.clone();
+                self.draft.clear();
+            }
         }
         // (A projection's colours do not come from the transfer function: see `data_key`.)
         if tf != self.transfer {
@@ -506,6 +537,8 @@ pub struct Rebuilt {
     pub histogram: Vec<u64>,
     pub histogram2d: crate::transfer::Histogram2d,
     pub volume: bool,
+    /// The grid the slices cut (none without slices or overlays).
+    pub slice_grid: Option<crate::objects::SliceGrid>,
 }
 
 /// Draws `s` (the scene state, any level already applied) with the uploaded model into an

@@ -425,3 +425,85 @@ fn a_moved_clipping_plane_resweeps_the_isosurface_at_rest() {
     );
     assert!(octants(session.model()) == cut_b);
 }
+
+#[test]
+fn slices_moved_hidden_or_restyled_are_replanned_without_a_new_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap();
+    // Two slices of headsq (not drawn as a volume); `extra` adds keys to the sagittal one.
+    let scene_with = |axial: &str, sagittal: &str| {
+        let text = format!(
+            "[camera]\nazimuth = 30.0\nelevation = 35.0\n\
+             [volume]\npath = \"{}\"\nrender = false\n\
+             [[slices]]\naxis = \"axial\"\n{axial}\n\
+             [[slices]]\naxis = \"sagittal\"\n{sagittal}\n\
+             [render]\nmethod = \"ea\"\nwidth = 64\nheight = 48\nfxaa = false\n",
+            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        );
+        scene::spec::parse(&text, "slices.toml", dir.path(), &[]).unwrap()
+    };
+    let a = scene_with("", "");
+    let m = scene::compile::model(&a).unwrap();
+    let grid = umbra_viewer::objects::SliceGrid::of(&m).unwrap();
+    let (z0, [zlo, zhi]) = grid.position(&a.slices[0]);
+    assert!(zlo < z0 && z0 < zhi, "{zlo} {z0} {zhi}");
+    let mut session = umbra_viewer::worker::Session::new(m, &a).unwrap();
+    let req = |scene: &scene::spec::Scene| Request {
+        id: 0,
+        scene: scene.clone(),
+        level: Level::Full,
+        save: None,
+        pass_timings: false,
+    };
+    // What a fresh model and upload of the scene draw.
+    let gpu = session.gpu();
+    let fresh = |s: &scene::spec::Scene| {
+        let m = scene::compile::model(s).unwrap();
+        let up = scene::compile::upload(gpu, &m).unwrap();
+        frame(&up, &m, s, Level::Full).rgba
+    };
+    let first = session.frame(&req(&a)).unwrap();
+    let worst = |x: &[u8], y: &[u8]| x.iter().zip(y).map(|(p, q)| p.abs_diff(*q)).max().unwrap();
+    let moved = scene_with(&format!("position = {}", z0 + 0.3 * (zhi - z0)), "");
+    let lit = scene_with("lit = true\nopacity = 0.5", "");
+    let mut one = a.clone();
+    one.slices.remove(1);
+    for (what, s) in [
+        ("moved", &moved),
+        ("lit, translucent", &lit),
+        ("one hidden", &one),
+    ] {
+        let img = session.frame(&req(s)).unwrap();
+        assert!(img.rebuilt.is_none(), "{what}: the model is kept");
+        assert_eq!(
+            session.model().planes.as_ref().unwrap().planes.len(),
+            s.slices.len()
+        );
+        let want = fresh(s);
+        assert!(
+            worst(&img.rgba, &want) <= 1,
+            "{what}: differs from a fresh upload by {}",
+            worst(&img.rgba, &want)
+        );
+        assert!(
+            changed(&img.rgba, &first.rgba) > 50,
+            "{what}: the image changed ({} values)",
+            changed(&img.rgba, &first.rgba)
+        );
+    }
+    // A slice off the grid is refused, naming the key; the session draws on.
+    let off = scene_with(&format!("position = {}", zhi + 10.0), "");
+    let Err(err) = session.frame(&req(&off)) else {
+        panic!("a slice off the grid was drawn");
+    };
+    assert!(err.contains("slices[0].position"), "{err}");
+    let back = session.frame(&req(&a)).unwrap();
+    assert!(worst(&back.rgba, &first.rgba) <= 1);
+    // A slab crops the geometry: moving a slice that has one makes the model anew.
+    let slab = scene_with("slab = 20.0", "");
+    assert!(session.frame(&req(&slab)).unwrap().rebuilt.is_some());
+    let slab_moved = scene_with(&format!("slab = 20.0\nposition = {}", z0 + 5.0), "");
+    assert!(session.frame(&req(&slab_moved)).unwrap().rebuilt.is_some());
+}

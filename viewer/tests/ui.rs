@@ -51,9 +51,10 @@ fn window_with(
             Some(one_d().with_2d(h2))
         }
     };
+    let grid = umbra_viewer::objects::SliceGrid::of(&m);
     let worker = umbra_viewer::worker::start(m, &s, || {});
     let quit = Arc::new(AtomicBool::new(false));
-    let mut app = App::new(s, bounds, worker, quit, None);
+    let mut app = App::new(s, bounds, worker, quit, None).with_slice_grid(grid);
     if let Some(e) = editor {
         app = app.with_editor(e);
     }
@@ -604,4 +605,56 @@ fn a_switch_to_mip_is_the_headless_image_and_an_unreadable_volume_is_taken_back(
     let m = h.state().message().unwrap_or_default().to_string();
     assert!(m.contains("not opened") && m.contains("cut.nrrd:"), "{m}");
     assert!(h.query_by_label_contains("cut.nrrd:").is_some(), "{m}");
+}
+
+/// The objects panel's slice rows: a position moved along the grid, a slice lit and another
+/// hidden reach the drawn scene (the hidden one left out of it), and the worker draws them.
+#[test]
+fn the_objects_panel_moves_lights_and_hides_slices() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = test_support::headsq_scene(
+        dir.path(),
+        "",
+        "bone",
+        "method = \"ea\"\nwidth = 96\nheight = 72\n",
+    );
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("[volume.transfer]", "render = false\n[volume.transfer]")
+        + "[[slices]]\naxis = \"axial\"\n[[slices]]\naxis = \"coronal\"\n";
+    std::fs::write(&path, text).unwrap();
+    let mut h = window(&path, [900.0, 900.0], WithEditor::No);
+    step_until(&mut h, |a| a.shown_level() == Some(Level::Full));
+    h.get_by_label("objects").click_accesskit();
+    h.run_steps(2);
+    let s0 = h.state().scene.clone();
+    let m = scene::compile::model(&s0).unwrap();
+    let grid = umbra_viewer::objects::SliceGrid::of(&m).unwrap();
+    let (z0, [zlo, zhi]) = grid.position(&s0.slices[0]);
+    for _ in 0..30 {
+        h.get_by_label("  slices[0] position").increment_accesskit();
+        h.run_steps(1);
+    }
+    let z = h.state().scene.slices[0].position.expect("a position");
+    // 30 steps of the drag speed (each rounded to the field's shown decimals).
+    let step = (zhi - zlo) / 300.0;
+    assert!(
+        z > z0 + 25.0 * step && z < z0 + 35.0 * step && z <= zhi,
+        "{z0} -> {z}, steps of {step}"
+    );
+    h.get_all_by_label("lit").next().unwrap().click_accesskit();
+    h.run_steps(2);
+    assert!(h.state().scene.slices[0].lit);
+    h.get_by_label("slices[1]").click_accesskit();
+    h.run_steps(2);
+    let drawn = h.state().state();
+    assert_eq!(drawn.slices.len(), 1, "the hidden slice is not drawn");
+    assert_eq!(drawn.slices[0].position, Some(z));
+    assert_eq!(h.state().scene.slices.len(), 2, "hidden, not removed");
+    // The worker draws the new state in full, with no error.
+    step_until(&mut h, |a| {
+        a.error().is_some()
+            || (a.shown_level() == Some(Level::Full) && a.shown_scene() == Some(&a.state()))
+    });
+    assert!(h.state().error().is_none(), "{:?}", h.state().error());
 }
