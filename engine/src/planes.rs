@@ -183,11 +183,15 @@ pub fn check_layer(grid: &PlaneGrid, l: &PlaneLayer, what: &str) -> Result<(), S
 }
 
 impl GpuPlane {
-    /// Uploads the slices of one grid; the grid's fields are uploaded once and shared.
+    /// Uploads the slices of one grid; the grid's fields are uploaded once and shared, and
+    /// kept in `buffers` (by field index): a field already there is not uploaded again, so
+    /// slices planned anew on the same grid upload only their polygons and tables. `buffers`
+    /// must hold nothing but this grid's fields.
     pub fn upload_all(
         gpu: &Gpu,
         grid: &PlaneGrid,
         planes: &[PlaneInput],
+        buffers: &mut Vec<Option<wgpu::Buffer>>,
     ) -> Result<Vec<GpuPlane>, GpuError> {
         if planes.is_empty() {
             return Ok(vec![]);
@@ -196,7 +200,7 @@ impl GpuPlane {
             check(grid, p, &format!("slice {k}")).map_err(GpuError::Operation)?;
         }
         let storage = wgpu::BufferUsages::STORAGE;
-        let mut buffers: Vec<Option<wgpu::Buffer>> = vec![None; grid.fields.len()];
+        buffers.resize(grid.fields.len(), None);
         let world_to_index = grid.affine.inverse();
         let mut out = vec![];
         for p in planes {

@@ -318,6 +318,9 @@ pub struct GpuScene {
     meshes: Vec<GpuMesh>,
     /// Slices of volumes ([`Renderer::upload_planes`]).
     planes: Vec<GpuPlane>,
+    /// The slices' grid's fields as uploaded, by field index ([`Renderer::replace_planes`]
+    /// takes them again).
+    plane_fields: Vec<Option<wgpu::Buffer>>,
     /// An overlay blended into the volume ([`Renderer::upload_planes`]).
     blend: Option<crate::slice_pass::GpuBlend>,
     lines: Vec<GpuLines>,
@@ -447,6 +450,7 @@ impl<'g> Renderer<'g> {
             line_sets: lines.len(),
             iso: iso.map(|i| GpuIso::upload(gpu, i)),
             planes: vec![],
+            plane_fields: vec![],
             blend: None,
         })
     }
@@ -485,6 +489,7 @@ impl<'g> Renderer<'g> {
             volume: base.volume.clone(),
             meshes,
             planes: base.planes.clone(),
+            plane_fields: base.plane_fields.clone(),
             blend: base.blend.clone(),
             lines,
             line_sets: base.line_sets,
@@ -526,10 +531,29 @@ impl<'g> Renderer<'g> {
         planes: &[PlaneInput],
         blend: Option<&crate::planes::PlaneLayer>,
     ) -> Result<(), GpuError> {
-        scene.planes = GpuPlane::upload_all(self.gpu, grid, planes)?;
+        let mut fields = vec![];
+        scene.planes = GpuPlane::upload_all(self.gpu, grid, planes, &mut fields)?;
+        scene.plane_fields = fields;
         scene.blend = blend
             .map(|b| crate::slice_pass::GpuBlend::upload(self.gpu, grid, b))
             .transpose()?;
+        Ok(())
+    }
+
+    /// Replaces an uploaded scene's slices with `planes` on the grid given to the last
+    /// [`Renderer::upload_planes`] (the same `grid`, fields unchanged: a viewer moving,
+    /// hiding or restyling slices). The fields already on the GPU are used again; only the
+    /// polygons, tables and any field no slice showed before are uploaded. The overlay
+    /// blended into the volume stays.
+    pub fn replace_planes(
+        &self,
+        scene: &mut GpuScene,
+        grid: &PlaneGrid,
+        planes: &[PlaneInput],
+    ) -> Result<(), GpuError> {
+        let mut fields = scene.plane_fields.clone();
+        scene.planes = GpuPlane::upload_all(self.gpu, grid, planes, &mut fields)?;
+        scene.plane_fields = fields;
         Ok(())
     }
 

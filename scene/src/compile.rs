@@ -1608,15 +1608,16 @@ impl<'g> Uploaded<'g> {
 
 impl Uploaded<'_> {
     /// Replaces the uploaded slices with `planes` on the grid of `p` (the model's
-    /// [`crate::slices::PlaneModel`], whose `planes` the caller sets to the same list: frames
-    /// take both), its fields uploaded anew; the rest of the upload stays.
+    /// [`crate::slices::PlaneModel`] this was uploaded from, whose `planes` the caller sets to
+    /// the same list: frames take both); the grid's fields stay on the GPU, as does the rest
+    /// of the upload.
     pub fn set_planes(
         &mut self,
         p: &crate::slices::PlaneModel,
         planes: &[engine::planes::PlaneInput],
     ) -> Result<(), String> {
         self.renderer
-            .upload_planes(&mut self.scene, &p.grid(), planes, p.blend.as_ref())
+            .replace_planes(&mut self.scene, &p.grid(), planes)
             .map_err(|e| format!("slices: {e}"))
     }
 
