@@ -975,7 +975,8 @@ fn march(@builtin(global_invocation_id) id: vec3<u32>) {
     var e = vec4<f32>(0.0);
     var acc = vec2<f32>(0.0);
     var half = 0.0;
-    let kr = box_slices(r, front);
+    // Without a volume no slab has a sample to take: only the layers (below) are composited.
+    let kr = select(box_slices(r, front), vec2<u32>(0u), P.has_volume == 0u);
     let shifted = lit && P.n_clip > 0u;
     var cs: CellShift;
     if (shifted) {

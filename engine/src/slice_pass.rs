@@ -530,6 +530,10 @@ pub struct SlicePass {
     pub state: wgpu::Buffer,
     pub slices: u32,
     occlusion: bool,
+    /// Whether the march has anything to do: a volume, translucent layers, the light or a
+    /// partial-occlusion layer to write. Without any, its result is the zeroed eye buffer and
+    /// state (no colour, no opacity; composite reads a volumetric AOV of 1 and no depth).
+    march: bool,
     size: (u32, u32),
     cells: (u32, u32),
     /// Cell edge in pixels.
@@ -677,8 +681,10 @@ impl SlicePass {
             wgpu::BufferUsages::UNIFORM,
         );
         let n = v.width as u64 * v.height as u64;
-        let eye = gpu.scratch("eye buffer", n * 16, wgpu::BufferUsages::COPY_SRC);
-        let state = gpu.scratch("slice state", n * 32, wgpu::BufferUsages::COPY_SRC);
+        // COPY_DST: cleared instead of marched where the march has nothing to do.
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let eye = gpu.scratch("eye buffer", n * 16, copy);
+        let state = gpu.scratch("slice state", n * 32, copy);
         let ncell = cells.0 as u64 * cells.1 as u64;
         let light = gpu.scratch(
             "light volume",
@@ -773,6 +779,7 @@ impl SlicePass {
             state,
             slices: lv.slices,
             occlusion: s.occlusion,
+            march: has_volume || s.occlusion || s.partial_layer.is_some() || gbuf.peel.layers > 0,
             size: (v.width, v.height),
             cells,
             cell,
@@ -809,8 +816,16 @@ impl SlicePass {
         }
     }
 
-    /// Records the eye march (after the light volume).
+    /// Records the eye march (after the light volume), or where it has nothing to do (no
+    /// volume, layers, light or partial term) the clearing of its buffers: on lavapipe the
+    /// march over an empty scene cost about as much as the G-buffer of the lines in it
+    /// (80-140 ms at 900 x 600).
     pub fn record_march(&self, enc: &mut wgpu::CommandEncoder) {
+        if !self.march {
+            enc.clear_buffer(&self.eye, 0, None);
+            enc.clear_buffer(&self.state, 0, None);
+            return;
+        }
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("march"),
             timestamp_writes: None,

@@ -896,3 +896,71 @@ fn lines_that_cast_no_shadow_alone_sweep_no_light_volume() {
         );
     }
 }
+
+/// Without a volume, translucent layers, light or partial term the eye march has nothing to
+/// do and its buffers are cleared instead (`SlicePass::record_march`): lines alone under `ea`
+/// and `vicinity` draw the image and AOVs of the same lines in a volume that absorbs nothing
+/// (which the march walks), also right after a frame whose march left colour in the
+/// (pooled) buffers.
+#[test]
+fn lines_alone_skip_the_march_and_draw_what_an_empty_volume_marched_draws() {
+    use engine::renderer::{DrawOptions, Renderer};
+    use tubes::lines::{LineSet, LineWidth};
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let mut st = tubes::Streamlines::new();
+    for k in 0..5 {
+        let y = k as f32 * 2.0 - 4.0;
+        st.push(&[
+            glam::Vec3::new(-6.0, y, k as f32),
+            glam::Vec3::new(6.0, y + 1.0, 4.0 - k as f32),
+        ]);
+    }
+    let set = LineSet::new(
+        &st,
+        &tubes::tube_mesh::ColorMode::Constant([0.75; 3]),
+        LineWidth::Pixels(6.0),
+        false,
+    );
+    let vol = cube(|_| 1.0);
+    let data = Samples::pack(occlusion::emission_absorption::prepare(
+        &vol.select(None).unwrap().data,
+    ));
+    let (dense, empty) = (medium(0.3), medium(0.0));
+    let r = Renderer::new(&gpu);
+    for method in [Method::Ea, Method::Vicinity] {
+        let s = settings(method);
+        let render = |tf: Option<&Transfer>| {
+            let input = tf.map(|tf| VolumeInput {
+                vol: &vol,
+                data: &data,
+                tf,
+            });
+            let scene = r.upload(input.as_ref(), &[], &[set.clone()], None).unwrap();
+            r.draw(&scene, &view(cam), &[], &s, DrawOptions::default())
+                .unwrap()
+        };
+        let lit = render(Some(&dense));
+        assert!(lit.image.iter().any(|p| p[3] > 0.5 && p[0] > 0.2));
+        let alone = render(None);
+        let marched = render(Some(&empty));
+        let covered = alone.aov.iter().filter(|a| a.depth > 0.0).count();
+        assert!(covered > 200, "{covered} pixels");
+        let worst = |f: &dyn Fn(usize) -> f32| (0..alone.image.len()).map(f).fold(0.0, f32::max);
+        let image = worst(&|i| {
+            (0..4)
+                .map(|c| (alone.image[i][c] - marched.image[i][c]).abs())
+                .fold(0.0, f32::max)
+        });
+        let aov = worst(&|i| {
+            let (a, b) = (&alone.aov[i], &marched.aov[i]);
+            (a.volumetric - b.volumetric)
+                .abs()
+                .max((a.depth - b.depth).abs())
+        });
+        assert!(
+            image <= 1e-6 && aov <= 1e-6,
+            "{method:?}: image differs by {image}, AOVs by {aov}"
+        );
+    }
+}
