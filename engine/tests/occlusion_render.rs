@@ -936,7 +936,9 @@ fn lines_alone_skip_the_march_and_draw_what_an_empty_volume_marched_draws() {
                 data: &data,
                 tf,
             });
-            let scene = r.upload(input.as_ref(), &[], &[set.clone()], None).unwrap();
+            let scene = r
+                .upload(input.as_ref(), &[], std::slice::from_ref(&set), None)
+                .unwrap();
             r.draw(&scene, &view(cam), &[], &s, DrawOptions::default())
                 .unwrap()
         };
