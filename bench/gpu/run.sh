@@ -12,8 +12,7 @@ DEADLINE=${2:-480}
 U=$(realpath "${UMBRA:-target/release/umbra}")
 SHARED=$(realpath ../shared)
 W=/tmp/umbra_gpu
-G=/tmp/gal
-mkdir -p "$W" "$G/data" "$OUT"
+mkdir -p "$W" "$OUT"
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
 LOG=$OUT/log.txt
 TAR=$OUT/results.tar
@@ -90,22 +89,7 @@ fi
 # 4. Depth-dependent halos (Everts et al. 2009, Table 1: 8800 GTX, 812 x 600): plain, halos, anaglyph
 if left 150 "everts table"; then
   say "everts data"
-  python3 - "$SHARED" <<'PY'
-import re, sys
-text = open('docs/gallery.md').read()
-for block in re.findall(r'```python\n(.*?)```', text, re.S):
-    name = re.search(r'usage: python3 (\S+\.py)', block)
-    if name:
-        open('/tmp/gal/' + name.group(1), 'w').write(
-            block.replace("'/work/shared/data/tracts/hcp1065/'", repr(sys.argv[1] + '/data/tracts/hcp1065/')))
-PY
-  python3 $G/make_knot.py $G/data/knot.csv
-  python3 $G/make_subsets.py $G/data/hcp10_k3s9.trk 3 9 AF_R CST_L CST_R FAT_R MCP OR_L SCP SLF1_R TR_S_R UF_L
-  python3 $G/make_office_seeds.py $G/office_seeds.csv 786
-  "$U" resample "$SHARED/data/cfd/office.binary.vtk" --field vectors --size 128 -o $G/office.nrrd > /dev/null
-  "$U" trace $G/office.nrrd -o $G/office.trk --seeds $G/office_seeds.csv --step 0.02 --max-length 4 > /dev/null
-  "$U" trace $G/office.nrrd -o $G/office_long.trk --seeds random:1428 --step 0.0088 > /dev/null
-  "$U" trace $G/office.nrrd -o $G/office_short.trk --seeds random:152000 --step 0.036 --max-length 0.17 > /dev/null
+  UMBRA_BIN="$U" bench/gallery/make_data.sh > /dev/null
   for c in knot_173k hcp_280k office_280k points_427k office_short_1600k office_long_2600k points_4400k hcp_7100k points_143k; do
     s=bench/scenes/gallery_t1_$c.toml
     if ! left 20 "everts $c"; then break; fi
