@@ -371,6 +371,7 @@ mod tests {
             super::PlaneParams {
                 rel_to_index,
                 dims,
+                shading,
                 layers,
             }
         );
