@@ -115,6 +115,13 @@ pub fn into_grid(
             show_dims(dst_dims)
         )
     })?;
+    if same_voxels(m, src_dims, dst_dims) {
+        // Every destination voxel lands within SNAP of the source voxel of its own index, so
+        // either rule returns that voxel's value: the samples as they are (an overlay on the
+        // primary volume's own grid, the common case, costs a copy, not a resampling).
+        out.extend_from_slice(src);
+        return Ok(out);
+    }
     out.resize(dst_count, f32::NAN);
 
     let [nx, ny, _] = dst_dims;
@@ -136,6 +143,21 @@ pub fn into_grid(
             }
         });
     Ok(out)
+}
+
+/// Whether index map `m` (destination index to source index) takes every voxel of a grid of
+/// `dst` dims to within [`SNAP`] of the same index in a grid of the same dims `src`: the
+/// deviation `m p - p` is affine in `p`, so its largest value over the box is at a corner.
+fn same_voxels(m: DMat4, src: [usize; 3], dst: [usize; 3]) -> bool {
+    src == dst
+        && (0..8).all(|c| {
+            let p = DVec3::new(
+                ((c & 1) * (dst[0] - 1)) as f64,
+                ((c >> 1 & 1) * (dst[1] - 1)) as f64,
+                ((c >> 2 & 1) * (dst[2] - 1)) as f64,
+            );
+            (m.transform_point3(p) - p).abs().max_element() < SNAP
+        })
 }
 
 /// The source grid being sampled.
@@ -161,10 +183,13 @@ impl Source<'_> {
                 return f32::NAN;
             }
             let mut x = q[a].clamp(0.0, hi);
-            if (x - x.round()).abs() < SNAP {
-                x = x.round();
+            // x >= 0: truncation is the floor (and floor(x + 0.5) the rounding), without the
+            // calls to libm's floor and round that f64's methods make on baseline x86-64.
+            let r = (x + 0.5) as usize as f64;
+            if (x - r).abs() < SNAP {
+                x = r;
             }
-            let i0 = (x.floor() as usize).min(self.dims[a].saturating_sub(2));
+            let i0 = (x as usize).min(self.dims[a].saturating_sub(2));
             base[a] = i0;
             frac[a] = x - i0 as f64;
         }
@@ -202,7 +227,8 @@ impl Source<'_> {
             if !(q[a] >= -0.5 && q[a] < n - 0.5) {
                 return f32::NAN;
             }
-            idx[a] = ((q[a] + 0.5).floor() as usize).min(self.dims[a] - 1);
+            // q + 0.5 >= 0 here: truncation is the floor.
+            idx[a] = ((q[a] + 0.5) as usize).min(self.dims[a] - 1);
         }
         self.at(idx)
     }
@@ -297,6 +323,53 @@ mod tests {
                 assert!(same(&out, &data), "{interp:?} {a:?}");
             }
         }
+    }
+
+    /// A grid moved by a whole voxel is not the same grid: the resampling (not the copy of
+    /// the same voxels) snaps onto the neighbours' centres and returns their values exactly,
+    /// under an oblique affine whose products leave the indices a few ulps off.
+    #[test]
+    fn a_whole_voxel_shift_returns_the_neighbours_exactly() {
+        let dims = [5, 4, 3];
+        let mut data: Vec<f32> = (0..60).map(|v| (v as f32 * 0.37).sin() * 10.0).collect();
+        data[17] = f32::NAN;
+        let a = affine(
+            DVec3::new(0.3, -1.0, 0.5),
+            37.0,
+            DVec3::new(0.7, 1.3, 2.1),
+            DVec3::new(-12.0, 4.5, 80.0),
+        );
+        // Destination voxel (i, j, k) samples source voxel (i + 1, j, k).
+        let shift = DMat4::from_translation(a.x_axis.truncate());
+        assert!(!same_voxels(a.inverse() * shift * a, dims, dims));
+        for interp in [Interp::Linear, Interp::Nearest] {
+            let out = into_grid(&data, dims, a, shift, dims, a, interp).unwrap();
+            for k in 0..3 {
+                for j in 0..4 {
+                    for i in 0..5 {
+                        let (o, n) = (out[i + 5 * (j + 4 * k)], i + 1 + 5 * (j + 4 * k));
+                        match i {
+                            4 => assert!(o.is_nan(), "{interp:?}: past the edge {o}"),
+                            _ => assert!(
+                                o.to_bits() == data[n].to_bits()
+                                    || (o.is_nan() && data[n].is_nan()),
+                                "{interp:?} ({i}, {j}, {k}): {o} for {}",
+                                data[n]
+                            ),
+                        }
+                    }
+                }
+            }
+        }
+        // Rounding-level differences are the same voxels; a millionth of a voxel is not.
+        let m = DMat4::from_translation(DVec3::splat(1e-12));
+        assert!(same_voxels(m, dims, dims));
+        assert!(!same_voxels(
+            DMat4::from_translation(DVec3::new(0.0, 1e-6, 0.0)),
+            dims,
+            dims
+        ));
+        assert!(!same_voxels(DMat4::IDENTITY, dims, [5, 4, 4]));
     }
 
     /// A linear function of world position is reproduced by trilinear interpolation on any
