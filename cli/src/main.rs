@@ -198,9 +198,99 @@ fn main() -> ExitCode {
         Err(e) => {
             // A last guard on length: an error that quotes a huge value (a 5 MB string in a
             // scene) prints each line cut to 1000 characters.
-            let lines: Vec<String> = e.lines().map(|l| volume::clip_text(l, 1000)).collect();
+            let mut lines: Vec<String> = e.lines().map(|l| volume::clip_text(l, 1000)).collect();
+            let args: Vec<String> = std::env::args().collect();
+            lines.extend(set_hint(&e, &args));
             eprintln!("umbra: error: {}", lines.join("\n"));
             ExitCode::from(1)
         }
+    }
+}
+
+/// The values `--set KEY=VALUE` gave, as (key, whole option) pairs, from a command line.
+fn set_options(args: &[String]) -> Vec<(String, String)> {
+    let mut out = vec![];
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let kv = match a.strip_prefix("--set=") {
+            Some(kv) => Some(kv.to_string()),
+            None if a == "--set" => it.next().cloned(),
+            None => None,
+        };
+        if let Some((k, _)) = kv.as_deref().and_then(|kv| kv.split_once('=')) {
+            out.push((k.trim().to_string(), kv.clone().unwrap_or_default()));
+        }
+    }
+    out
+}
+
+/// A line for an error about a scene key whose value (or a table above it) came from
+/// `--set` rather than the scene file the error names: "scene key slices[0].position" and
+/// `--set slices.0.position=999` (keys compared with `[N]` read as `.N`).
+fn set_hint(err: &str, args: &[String]) -> Option<String> {
+    let sets = set_options(args);
+    if sets.is_empty() {
+        return None;
+    }
+    let mut rest = err;
+    while let Some(i) = rest.find("scene key ") {
+        rest = &rest[i + "scene key ".len()..];
+        let key: String = rest
+            .chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '[' | ']'))
+            .collect();
+        let dotted = key.replace('[', ".").replace(']', "");
+        let dotted = dotted.trim_end_matches('.');
+        for (k, whole) in &sets {
+            if dotted == k || dotted.starts_with(&format!("{k}.")) {
+                return Some(format!(
+                    "(the value comes from --set {whole}, not from the file)"
+                ));
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(a: &[&str]) -> Vec<String> {
+        a.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn an_error_about_a_key_given_by_set_says_so() {
+        let a = args(&[
+            "umbra",
+            "render",
+            "s.toml",
+            "--set",
+            "slices.0.position=999",
+            "--set=render.width=0",
+        ]);
+        let e = "s.toml: scene key slices[0].position: the plane at 999 does not cut the volume";
+        assert_eq!(
+            set_hint(e, &a).as_deref(),
+            Some("(the value comes from --set slices.0.position=999, not from the file)")
+        );
+        let e = "s.toml: scene key render.width: 0 pixels is not within 1..16384";
+        assert!(set_hint(e, &a).unwrap().contains("render.width=0"));
+        // A table set whole covers its keys; other keys and prefixes that are not a table's
+        // (render.widths) are not the option's.
+        let t = args(&[
+            "umbra",
+            "render",
+            "s.toml",
+            "--set",
+            "lines.0.halo={width=-1}",
+        ]);
+        assert!(set_hint("scene key lines[0].halo.width: -1 is negative", &t).is_some());
+        assert!(set_hint("scene key lines[1].halo.width: bad", &t).is_none());
+        assert!(set_hint("scene key render.widths: bad", &a).is_none());
+        assert!(set_hint("scene key render.height: bad", &a).is_none());
+        assert!(set_hint("no key here", &a).is_none());
+        assert!(set_hint(e, &args(&["umbra", "render", "s.toml"])).is_none());
     }
 }
