@@ -1172,3 +1172,40 @@ fn the_cpu_renderer_names_the_isosurface_it_cannot_draw() {
     );
     assert!(!png.exists());
 }
+
+/// An error about a key that `--set` gave says so (the first line names the scene file, where
+/// the key holds another value), whichever entry of the list it is.
+#[test]
+fn an_error_about_a_key_given_by_set_names_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = root().join("datasets/scenes/slices.toml");
+    let out = umbra()
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("x.png"))
+        .args(["--set", "slices.0.position=999"])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        e.contains("scene key slices[0].position")
+            && e.contains("(the value comes from --set slices.0.position=999, not from the file)"),
+        "{e}"
+    );
+    let out = umbra()
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("x.png"))
+        .args(["--set", "slices.1.position=999"])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("slices[1].position") && e.contains("--set slices.1.position=999"),
+        "{e}"
+    );
+    assert!(!dir.path().join("x.png").exists());
+}
