@@ -1209,3 +1209,34 @@ fn an_error_about_a_key_given_by_set_names_the_option() {
     );
     assert!(!dir.path().join("x.png").exists());
 }
+
+/// The summary line gives the slices where something samples them: not for lines alone
+/// (nothing marched), and for a volume.
+#[test]
+fn the_summary_names_slices_only_where_a_volume_is_marched() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |scene: &Path| {
+        let out = umbra()
+            .arg("render")
+            .arg(scene)
+            .arg("-o")
+            .arg(dir.path().join("x.png"))
+            .args(["--width", "32", "--height", "32"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr)
+    };
+    let lines = run(&root().join("bench/scenes/lineao_dipy.toml"));
+    assert!(lines.contains("32 x 32, no volume marched, "), "{lines}");
+    let vol = test_support::headsq_scene(dir.path(), "", "bone", "method = \"ea\"\n");
+    let text = run(&vol);
+    assert!(
+        text.contains(" slices ") && text.contains(" apart, "),
+        "{text}"
+    );
+}

@@ -22,6 +22,10 @@ pub struct RenderReport {
     pub height: u32,
     pub slices: u32,
     pub slice_distance: f64,
+    /// Whether the frames marched the slices (a volume drawn, or a light volume swept): a
+    /// scene of lines, tubes, points or slices alone has slices that nothing samples.
+    #[serde(skip)]
+    pub marched: bool,
     pub triangles: u64,
     /// The occlusion buffer's cells and steps (`dos`, `combined`; absent otherwise).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -445,6 +449,7 @@ pub(crate) fn run_on(
         height: s.render.height,
         slices: 0,
         slice_distance: 0.0,
+        marched: false,
         triangles: 0,
         light: None,
         adapter: String::new(),
@@ -609,6 +614,7 @@ pub(crate) fn run_on(
     report.slice_distance = v.dz;
     report.triangles = out.triangles;
     report.light = out.light;
+    report.marched = m.volume.is_some() || report.light.is_some();
     report.total_ms = if sequence.is_some() {
         engine::renderer::median(&totals)
     } else {

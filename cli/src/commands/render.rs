@@ -695,13 +695,16 @@ pub fn summary(r: &RenderReport) -> String {
         Some(l) => format!(", {l}"),
         None => String::new(),
     };
+    // The slices where something samples them (a volume drawn, or the light).
+    let slices = match r.marched {
+        true => format!("{} slices {:.4} apart", r.slices, r.slice_distance),
+        false => "no volume marched".to_string(),
+    };
     format!(
-        "{}: {} x {}, {} slices {:.4} apart{light}, {} triangles, on {}: {:.1} ms per frame{passes}, {:.2} s in all",
+        "{}: {} x {}, {slices}{light}, {} triangles, on {}: {:.1} ms per frame{passes}, {:.2} s in all",
         r.method,
         r.width,
         r.height,
-        r.slices,
-        r.slice_distance,
         r.triangles,
         r.adapter,
         r.total_ms,
