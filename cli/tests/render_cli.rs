@@ -1178,35 +1178,26 @@ fn the_cpu_renderer_names_the_isosurface_it_cannot_draw() {
 #[test]
 fn an_error_about_a_key_given_by_set_names_the_option() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = root().join("datasets/scenes/slices.toml");
-    let out = umbra()
-        .arg("render")
-        .arg(&scene)
-        .arg("-o")
-        .arg(dir.path().join("x.png"))
-        .args(["--set", "slices.0.position=999"])
-        .output()
-        .unwrap();
-    let e = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success());
-    assert!(
-        e.contains("scene key slices[0].position")
-            && e.contains("(the value comes from --set slices.0.position=999, not from the file)"),
-        "{e}"
-    );
-    let out = umbra()
-        .arg("render")
-        .arg(&scene)
-        .arg("-o")
-        .arg(dir.path().join("x.png"))
-        .args(["--set", "slices.1.position=999"])
-        .output()
-        .unwrap();
-    let e = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        e.contains("slices[1].position") && e.contains("--set slices.1.position=999"),
-        "{e}"
-    );
+    for k in [0, 1] {
+        let set = format!("slices.{k}.position=999");
+        let out = umbra()
+            .arg("render")
+            .arg(root().join("datasets/scenes/slices.toml"))
+            .arg("-o")
+            .arg(dir.path().join("x.png"))
+            .args(["--set", &set])
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success());
+        assert!(
+            e.contains(&format!("scene key slices[{k}].position"))
+                && e.contains(&format!(
+                    "(the value comes from --set {set}, not from the file)"
+                )),
+            "{e}"
+        );
+    }
     assert!(!dir.path().join("x.png").exists());
 }
 

@@ -841,16 +841,9 @@ fn lines_shadow_the_volume_through_their_proxy_radius_and_lineao_folds_with_part
     assert!(partial < 0.9, "{partial}");
 }
 
-/// With nothing in the light (no volume, only lines that stand for no tubes: proxy radius 0),
-/// `dos` and `combined` sweep no light volume (it would be 1 everywhere): no `light` grid,
-/// partial occlusion 1, and the image of a frame that swept one through lines whose proxy
-/// radius is a hair's breadth (which cast next to nothing).
-#[test]
-fn lines_that_cast_no_shadow_alone_sweep_no_light_volume() {
-    use engine::renderer::{DrawOptions, Renderer};
+/// Five 6-pixel grey lines across the view at different depths.
+fn five_lines() -> tubes::lines::LineSet {
     use tubes::lines::{LineSet, LineWidth};
-    let gpu = gpu();
-    let cam = top_camera(false);
     let mut st = tubes::Streamlines::new();
     for k in 0..5 {
         let y = k as f32 * 2.0 - 4.0;
@@ -859,12 +852,24 @@ fn lines_that_cast_no_shadow_alone_sweep_no_light_volume() {
             glam::Vec3::new(6.0, y + 1.0, 4.0 - k as f32),
         ]);
     }
-    let set = LineSet::new(
+    LineSet::new(
         &st,
         &tubes::tube_mesh::ColorMode::Constant([0.75; 3]),
         LineWidth::Pixels(6.0),
         false,
-    );
+    )
+}
+
+/// With nothing in the light (no volume, only lines that stand for no tubes: proxy radius 0),
+/// `dos` and `combined` sweep no light volume (it would be 1 everywhere): no `light` grid,
+/// partial occlusion 1, and the image of a frame that swept one through lines whose proxy
+/// radius is a hair's breadth (which cast next to nothing).
+#[test]
+fn lines_that_cast_no_shadow_alone_sweep_no_light_volume() {
+    use engine::renderer::{DrawOptions, Renderer};
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let set = five_lines();
     let r = Renderer::new(&gpu);
     for method in [Method::Dos, Method::Combined] {
         let s = settings(method);
@@ -905,23 +910,9 @@ fn lines_that_cast_no_shadow_alone_sweep_no_light_volume() {
 #[test]
 fn lines_alone_skip_the_march_and_draw_what_an_empty_volume_marched_draws() {
     use engine::renderer::{DrawOptions, Renderer};
-    use tubes::lines::{LineSet, LineWidth};
     let gpu = gpu();
     let cam = top_camera(false);
-    let mut st = tubes::Streamlines::new();
-    for k in 0..5 {
-        let y = k as f32 * 2.0 - 4.0;
-        st.push(&[
-            glam::Vec3::new(-6.0, y, k as f32),
-            glam::Vec3::new(6.0, y + 1.0, 4.0 - k as f32),
-        ]);
-    }
-    let set = LineSet::new(
-        &st,
-        &tubes::tube_mesh::ColorMode::Constant([0.75; 3]),
-        LineWidth::Pixels(6.0),
-        false,
-    );
+    let set = five_lines();
     let vol = cube(|_| 1.0);
     let data = Samples::pack(occlusion::emission_absorption::prepare(
         &vol.select(None).unwrap().data,
