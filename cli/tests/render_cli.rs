@@ -1215,12 +1215,8 @@ fn the_summary_names_slices_only_where_a_volume_is_marched() {
             .args(["--width", "32", "--height", "32"])
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr)
+        let err = ok(&out);
+        String::from_utf8_lossy(&out.stdout).to_string() + &err
     };
     let lines = run(&root().join("bench/scenes/lineao_dipy.toml"));
     assert!(lines.contains("32 x 32, no volume marched, "), "{lines}");
