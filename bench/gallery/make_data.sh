@@ -7,8 +7,9 @@
 # checkout, python3 with numpy (PYTHON, default python3), and the built umbra (UMBRA_BIN, default target/release/umbra).
 # From the repository root; files already there are kept (delete one to make it again).
 set -e
+# UMBRA_BIN as given from where the script is run (the repository root), before the cd.
+U=$(realpath "${UMBRA_BIN:-target/release/umbra}")
 cd "$(dirname "$0")"
-U=${UMBRA_BIN:-../../target/release/umbra}
 PY=${PYTHON:-python3}
 mkdir -p data
 B="AF_R CST_L CST_R FAT_R MCP OR_L SCP SLF1_R TR_S_R UF_L"

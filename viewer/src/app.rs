@@ -726,7 +726,7 @@ impl App {
             ui.label("rendering the first image ...");
         }
         if let Some(e) = &self.error {
-            ui.colored_label(egui::Color32::RED, e);
+            ui.add(egui::Label::new(egui::RichText::new(e).color(egui::Color32::RED)).wrap());
         }
         ui.separator();
         ui.horizontal(|ui| {

@@ -350,7 +350,15 @@ impl Hidden {
         let keep = |flags: &[bool], i: usize| !flags.get(i).copied().unwrap_or(false);
         let mut d = s.clone();
         if self.volume {
-            d.volume = None;
+            // Slices and overlays sample the volume's grid: with any, the volume stays in the
+            // scene, not drawn.
+            match (
+                s.slices.is_empty() && s.overlays.is_empty(),
+                d.volume.as_mut(),
+            ) {
+                (false, Some(v)) => v.render = false,
+                _ => d.volume = None,
+            }
         }
         d.tubes = s
             .tubes
@@ -446,6 +454,9 @@ fn slice_row(
                 egui::DragValue::new(&mut p)
                     .range(lo..=hi)
                     .speed(((hi - lo) / 300.0).max(1e-6))
+                    // A drag keeps the shown decimals: two, so that steps under a millimetre
+                    // (a 300th of the span) are not rounded to whole ones.
+                    .min_decimals(2)
                     .suffix(" mm"),
             )
             .labelled_by(l.id);
@@ -486,11 +497,19 @@ pub fn panel(
     let (pivot, grid) = (place.pivot, place.grid);
     hidden.fit(s);
     let before = Objects::of(s, hidden);
-    if let Some(v) = &s.volume {
-        let mut shown = !hidden.volume;
+    if let Some(v) = s.volume.as_mut() {
+        // Shown: drawn. A volume the scene does not draw (`render = false`, its slices' grid)
+        // is shown by drawing it.
+        let was = !hidden.volume && v.render;
+        let mut shown = was;
         ui.checkbox(&mut shown, "volume")
             .on_hover_text(v.path.display().to_string());
-        hidden.volume = !shown;
+        if shown != was {
+            hidden.volume = !shown;
+            if shown {
+                v.render = true;
+            }
+        }
     }
     let mut remove = None;
     for (i, t) in s.tubes.iter_mut().enumerate() {
@@ -650,5 +669,21 @@ mod tests {
         assert_eq!(names, ["a.ply", "c.ply"]);
         assert_eq!(h.apply(&s).tubes.len(), 2);
         assert_eq!(Hidden::default().apply(&s), s);
+        // With slices the hidden volume stays as their grid, not drawn; a hidden slice is
+        // left out.
+        let mut t = s.clone();
+        let text = format!(
+            "[volume]\npath = \"{}\"\n[[slices]]\naxis = \"axial\"\n[[slices]]\naxis = \"coronal\"\n",
+            r.join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        );
+        t.slices = scene::spec::parse(&text, "slices", Path::new("."), &[])
+            .unwrap()
+            .slices;
+        h.fit(&t);
+        h.slices[0] = true;
+        let d = h.apply(&t);
+        assert!(d.volume.as_ref().is_some_and(|v| !v.render));
+        assert_eq!(d.slices.len(), 1);
+        assert_eq!(d.slices[0].axis, Some(scene::spec::SliceAxis::Coronal));
     }
 }

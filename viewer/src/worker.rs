@@ -592,7 +592,16 @@ pub fn draw_with(
         total_ms: out.timings.total_ms,
         passes: out.timings.passes.into_iter().collect(),
         light: out.light,
-        notes: out.notes,
+        // As `umbra render` reports them: the model's, the upload's, then the frame's.
+        notes: {
+            let mut notes: Vec<String> = vec![];
+            for n in m.notes.iter().chain(&up.notes).chain(&out.notes) {
+                if !notes.contains(n) {
+                    notes.push(n.clone());
+                }
+            }
+            notes
+        },
         device: up.renderer.gpu().report().name,
         saved,
         rebuilt: None,

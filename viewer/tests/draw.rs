@@ -507,3 +507,49 @@ fn slices_moved_hidden_or_restyled_are_replanned_without_a_new_model() {
     let slab_moved = scene_with(&format!("slab = 20.0\nposition = {}", z0 + 5.0), "");
     assert!(session.frame(&req(&slab_moved)).unwrap().rebuilt.is_some());
 }
+
+/// The viewer's image carries the notes `umbra render` prints: the model's (a slab that keeps
+/// none of a tractogram's points), not only the frame's.
+#[test]
+fn a_frame_carries_the_models_notes() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap();
+    let mut st = tubes::Streamlines::new();
+    st.push(&[
+        glam::Vec3::new(0.0, 0.0, 500.0),
+        glam::Vec3::new(10.0, 0.0, 500.0),
+    ]);
+    let tck = dir.path().join("far.tck");
+    tubes::save(&tck, &st).unwrap();
+    let text = format!(
+        "[volume]\npath = \"{}\"\nrender = false\n\
+         [[slices]]\naxis = \"axial\"\nslab = 2.0\n\
+         [[lines]]\npath = \"{}\"\n\
+         [render]\nmethod = \"ea\"\nwidth = 32\nheight = 24\n",
+        root.join("datasets/vtk/headsq_64x64x93.nhdr").display(),
+        tck.display()
+    );
+    let s = scene::spec::parse(&text, "far.toml", dir.path(), &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let mut session = umbra_viewer::worker::Session::new(m, &s).unwrap();
+    for level in [Level::Full, Level::Draft] {
+        let img = session
+            .frame(&Request {
+                id: 1,
+                scene: s.clone(),
+                level,
+                save: None,
+                pass_timings: false,
+            })
+            .unwrap();
+        assert!(
+            img.notes
+                .iter()
+                .any(|n| n.starts_with("lines[0]: the slices' slabs keep 0 of 2 points")),
+            "{level:?}: {:?}",
+            img.notes
+        );
+    }
+}
