@@ -32,7 +32,8 @@ struct Params {
 @group(0) @binding(6) var front_depth: texture_2d<f32>;
 // Linear RGBA: colour, and alpha = coverage (1 where a surface is, else the volume's opacity).
 @group(0) @binding(7) var<storage, read_write> image: array<vec4<f32>>;
-// AOVs per pixel: (volumetric, combined, linear depth, 0).
+// AOVs per pixel: (volumetric, combined, linear depth, 1 where every sample is an unlit
+// slice's: FXAA leaves those pixels as they are).
 @group(0) @binding(8) var<storage, read_write> aov: array<vec4<f32>>;
 // The isosurface (iso_pass): shaded colour and linear depth (0: none), and its ambient term.
 @group(0) @binding(9) var<storage, read> iso_out: array<vec4<f32>>;
@@ -83,6 +84,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let to_eye = -pixel_ray(C.frame, vec2<f32>(id.xy) + vec2<f32>(0.5)).d;
     var sum = vec3<f32>(0.0);
     var covered = 0.0;
+    var on_slice = 0;
     for (var s = 0; s < SAMPLES; s = s + 1) {
         let c = g_col(vec2<i32>(id.xy), s);
         if (c.a <= 0.0) {
@@ -106,6 +108,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             // An unlit slice (gbuffer.wgsl: alpha 0.97): its colour, occluded, no head light.
             sum = sum + combined * c.rgb;
             covered = covered + 1.0;
+            on_slice = on_slice + 1;
             continue;
         }
         let n = g_nrm(vec2<i32>(id.xy), s).xyz;
@@ -134,5 +137,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (s1.x > 0.0 && (z <= 0.0 || s1.x < z)) {
         depth = s1.x;
     }
-    aov[idx] = vec4<f32>(volumetric, combined, depth, 0.0);
+    aov[idx] = vec4<f32>(volumetric, combined, depth, select(0.0, 1.0, on_slice == SAMPLES));
 }

@@ -11,6 +11,9 @@ struct Params {
 @group(0) @binding(0) var<uniform> F: Params;
 @group(0) @binding(1) var<storage, read> src: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> dst: array<vec4<f32>>;
+// Per pixel: w = 1 keeps the pixel as it is (composite.wgsl: every sample on an unlit slice,
+// whose colours are the colour map's and not an edge to smooth).
+@group(0) @binding(3) var<storage, read> keep: array<vec4<f32>>;
 
 fn texel(p: vec2<i32>) -> vec4<f32> {
     let q = clamp(p, vec2<i32>(0), vec2<i32>(i32(F.width) - 1, i32(F.height) - 1));
@@ -40,6 +43,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = vec2<i32>(id.xy);
     let centre = vec2<f32>(id.xy) + vec2<f32>(0.5);
     let m = texel(p);
+    if (keep[id.x + F.width * id.y].w > 0.5) {
+        dst[id.x + F.width * id.y] = m;
+        return;
+    }
     let l_m = luma(m);
     let l_nw = luma(fetch(centre + vec2<f32>(-0.5, -0.5)));
     let l_ne = luma(fetch(centre + vec2<f32>(0.5, -0.5)));

@@ -4,7 +4,9 @@
 //! display encoding FXAA expects); pixels whose 2x2-diagonal luma range is below
 //! `max(1/32, max/8)` are copied; elsewhere the edge direction from the diagonal luma
 //! differences picks two or four bilinear taps along the edge, the wider blend rejected when
-//! it leaves the local luma range.
+//! it leaves the local luma range. Pixels composite marks as wholly on an unlit slice are
+//! left as they are: a slice's colours are its colour map's, and FXAA would blur the anatomy's
+//! own edges (up to 60 of 255 levels on the MNI T1 seen head-on).
 
 use crate::gpu::{Gpu, Slot};
 use crate::prelude::with_prelude;
@@ -28,12 +30,20 @@ pub struct FxaaPass {
 }
 
 impl FxaaPass {
-    pub fn new(gpu: &Gpu, width: u32, height: u32, input: &wgpu::Buffer) -> FxaaPass {
+    /// The pass over `input` (linear RGBA, `width x height`), leaving as they are the pixels
+    /// whose `keep` entry (a vec4 per pixel, composite's AOVs) has w above 0.5.
+    pub fn new(
+        gpu: &Gpu,
+        width: u32,
+        height: u32,
+        input: &wgpu::Buffer,
+        keep: &wgpu::Buffer,
+    ) -> FxaaPass {
         let module = gpu.shader("fxaa.wgsl", &with_prelude(SHADER));
         let layout = gpu.layout(
             "fxaa",
             wgpu::ShaderStages::COMPUTE,
-            &[Slot::Uniform, Slot::Storage, Slot::StorageRw],
+            &[Slot::Uniform, Slot::Storage, Slot::StorageRw, Slot::Storage],
         );
         let pl = gpu.pipeline_layout("fxaa", &[&layout]);
         let pipe = gpu.compute_pipeline_with(&module, "main", &pl, "fxaa");
@@ -59,6 +69,7 @@ impl FxaaPass {
                 params.as_entire_binding(),
                 input.as_entire_binding(),
                 output.as_entire_binding(),
+                keep.as_entire_binding(),
             ],
         );
         FxaaPass {
@@ -188,7 +199,12 @@ mod tests {
             bytemuck::cast_slice(&img),
             wgpu::BufferUsages::STORAGE,
         );
-        let pass = FxaaPass::new(&g, w, h, &input);
+        let keep = g.zeroed(
+            "fxaa keep",
+            w as u64 * h as u64 * 16,
+            wgpu::BufferUsages::empty(),
+        );
+        let pass = FxaaPass::new(&g, w, h, &input, &keep);
         let (_, back) = g.output_buffers("fxaa test", w as u64 * h as u64 * 16);
         let mut enc = g.device.create_command_encoder(&Default::default());
         pass.record(&mut enc);

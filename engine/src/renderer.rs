@@ -829,7 +829,9 @@ impl Frame {
                     .then_some(s.illustrative),
             },
         );
-        let fxaa = s.fxaa.then(|| FxaaPass::new(gpu, w, h, &composite.image));
+        let fxaa = s
+            .fxaa
+            .then(|| FxaaPass::new(gpu, w, h, &composite.image, &composite.aov));
         Ok((
             Frame {
                 iso: iso_pass,
