@@ -207,46 +207,80 @@ fn main() -> ExitCode {
     }
 }
 
-/// The values `--set KEY=VALUE` gave, as (key, whole option) pairs, from a command line.
-fn set_options(args: &[String]) -> Vec<(String, String)> {
-    let mut out = vec![];
+/// The scene keys a command line overrides, in the order they apply: the shorthand flags
+/// (`--width`, `--height`, `--method`, `--title`, `--orientation`, `--scale-bar`,
+/// `--colorbar`), then each `--set KEY=VALUE` - as (key, the option as typed) pairs.
+fn overrides_of(args: &[String]) -> Vec<(String, String)> {
+    const FLAGS: [(&str, &str); 7] = [
+        ("--width", "render.width"),
+        ("--height", "render.height"),
+        ("--method", "render.method"),
+        ("--title", "annotate.title"),
+        ("--orientation", "annotate.orientation"),
+        ("--scale-bar", "annotate.scale_bar"),
+        ("--colorbar", "annotate.colorbar"),
+    ];
+    let (mut flags, mut sets) = (vec![], vec![]);
     let mut it = args.iter();
     while let Some(a) = it.next() {
-        let kv = match a.strip_prefix("--set=") {
-            Some(kv) => Some(kv.to_string()),
-            None if a == "--set" => it.next().cloned(),
-            None => None,
+        let (name, inline) = match a.split_once('=') {
+            Some((n, v)) if n.starts_with("--") => (n, Some(v.to_string())),
+            _ => (a.as_str(), None),
         };
-        if let Some((k, _)) = kv.as_deref().and_then(|kv| kv.split_once('=')) {
-            out.push((k.trim().to_string(), kv.clone().unwrap_or_default()));
+        if name == "--set" {
+            let kv = inline.or_else(|| it.next().cloned()).unwrap_or_default();
+            if let Some((k, _)) = kv.split_once('=') {
+                sets.push((k.trim().to_string(), format!("--set {kv}")));
+            }
+        } else if let Some((flag, key)) = FLAGS.iter().find(|(f, _)| *f == name) {
+            let typed = match (*flag, inline) {
+                ("--orientation", _) => flag.to_string(),
+                (_, Some(v)) => format!("{flag} {v}"),
+                (_, None) => format!("{flag} {}", it.next().cloned().unwrap_or_default()),
+            };
+            flags.push((key.to_string(), typed));
         }
     }
-    out
+    flags.extend(sets);
+    flags
 }
 
-/// A line for an error about a scene key whose value (or a table above it) came from
-/// `--set` rather than the scene file the error names: "scene key slices[0].position" and
-/// `--set slices.0.position=999` (keys compared with `[N]` read as `.N`).
+/// A line for an error about a scene key whose value (or a table above it) came from the
+/// command line rather than the scene file the error names: "scene key slices[0].position"
+/// (or a message that begins with the key, "volume.iso.value: ...") and `--set
+/// slices.0.position=999` (keys compared with `[N]` read as `.N`). Of several overrides of
+/// the key the last, which applied last, is named.
 fn set_hint(err: &str, args: &[String]) -> Option<String> {
-    let sets = set_options(args);
-    if sets.is_empty() {
+    let overrides = overrides_of(args);
+    if overrides.is_empty() {
         return None;
     }
-    let mut rest = err;
-    while let Some(i) = rest.find("scene key ") {
-        rest = &rest[i + "scene key ".len()..];
+    // Where a key may start: after "scene key ", at the start, or after ": ".
+    let mut starts: Vec<usize> = err
+        .match_indices("scene key ")
+        .map(|(i, m)| i + m.len())
+        .collect();
+    starts.push(0);
+    starts.extend(err.match_indices(": ").map(|(i, m)| i + m.len()));
+    for at in starts {
+        let rest = &err[at..];
         let key: String = rest
             .chars()
             .take_while(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '[' | ']'))
             .collect();
+        // A bare key must end at a colon or a space (not a file name's dot-separated parts).
+        let after = rest[key.len()..].chars().next();
+        if key.is_empty() || !matches!(after, Some(':') | Some(' ') | None) {
+            continue;
+        }
         let dotted = key.replace('[', ".").replace(']', "");
         let dotted = dotted.trim_end_matches('.');
-        for (k, whole) in &sets {
-            if dotted == k || dotted.starts_with(&format!("{k}.")) {
-                return Some(format!(
-                    "(the value comes from --set {whole}, not from the file)"
-                ));
-            }
+        if let Some((_, typed)) = overrides
+            .iter()
+            .rev()
+            .find(|(k, _)| dotted == k || dotted.starts_with(&format!("{k}.")))
+        {
+            return Some(format!("(the value comes from {typed}, not from the file)"));
         }
     }
     None
@@ -276,7 +310,7 @@ mod tests {
             Some("(the value comes from --set slices.0.position=999, not from the file)")
         );
         let e = "s.toml: scene key render.width: 0 pixels is not within 1..16384";
-        assert!(set_hint(e, &a).unwrap().contains("render.width=0"));
+        assert!(set_hint(e, &a).unwrap().contains("--set render.width=0"));
         // A table set whole covers its keys; other keys and prefixes that are not a table's
         // (render.widths) are not the option's.
         let t = args(&[
@@ -292,5 +326,66 @@ mod tests {
         assert!(set_hint("scene key render.height: bad", &a).is_none());
         assert!(set_hint("no key here", &a).is_none());
         assert!(set_hint(e, &args(&["umbra", "render", "s.toml"])).is_none());
+    }
+
+    #[test]
+    fn the_last_override_of_a_key_and_the_shorthand_flags_are_named() {
+        // Two overrides of one key: the later applied, and is named.
+        let a = args(&[
+            "umbra",
+            "render",
+            "s.toml",
+            "--set",
+            "camera.fov_y=30",
+            "--set",
+            "camera.fov_y=200",
+        ]);
+        let e = "s.toml: scene key camera.fov_y: 200 is not in (0, 180)";
+        assert!(set_hint(e, &a).unwrap().contains("camera.fov_y=200"));
+        // A list set whole, then one entry's key: the entry's.
+        let a = args(&[
+            "umbra",
+            "render",
+            "s.toml",
+            "--set",
+            "volume.transfer.points=[{value=0.0}]",
+            "--set",
+            "volume.transfer.points.1.extinction=-1",
+        ]);
+        let e = "scene key volume.transfer.points[1].extinction: -1 is negative";
+        assert!(set_hint(e, &a).unwrap().contains("points.1.extinction=-1"));
+        // A message that begins with the key.
+        let a = args(&[
+            "umbra",
+            "render",
+            "s.toml",
+            "--set",
+            "volume.iso.value=99999.0",
+        ]);
+        let e = "s.toml: volume.iso.value: 99999 is outside the field's range";
+        assert!(set_hint(e, &a).is_some());
+        // A key inside a word (a file's name) is not one.
+        let a = args(&["umbra", "render", "s.toml", "--set", "render.width=1"]);
+        assert!(set_hint("see my.render.width: nothing", &a).is_none());
+        // Shorthand flags, with their values as typed; --set after them wins.
+        let a = args(&["umbra", "render", "s.toml", "--width", "20000", "--title=x"]);
+        let e = "s.toml: scene key render.width: 20000 pixels is not within 1..16384";
+        assert_eq!(
+            set_hint(e, &a).as_deref(),
+            Some("(the value comes from --width 20000, not from the file)")
+        );
+        assert!(set_hint("scene key annotate.title: bad", &a)
+            .unwrap()
+            .contains("--title x"));
+        let a = args(&[
+            "umbra",
+            "render",
+            "s.toml",
+            "--width",
+            "20",
+            "--set",
+            "render.width=0",
+        ]);
+        assert!(set_hint(e, &a).unwrap().contains("--set render.width=0"));
     }
 }

@@ -1202,7 +1202,7 @@ fn an_error_about_a_key_given_by_set_names_the_option() {
 }
 
 /// The summary line gives the slices where something samples them: not for lines alone
-/// (nothing marched), and for a volume.
+/// (no volume drawn), and for a volume.
 #[test]
 fn the_summary_names_slices_only_where_a_volume_is_marched() {
     let dir = tempfile::tempdir().unwrap();
@@ -1219,7 +1219,7 @@ fn the_summary_names_slices_only_where_a_volume_is_marched() {
         String::from_utf8_lossy(&out.stdout).to_string() + &err
     };
     let lines = run(&root().join("bench/scenes/lineao_dipy.toml"));
-    assert!(lines.contains("32 x 32, no volume marched, "), "{lines}");
+    assert!(lines.contains("32 x 32, no volume drawn, "), "{lines}");
     let vol = test_support::headsq_scene(dir.path(), "", "bone", "method = \"ea\"\n");
     let text = run(&vol);
     assert!(

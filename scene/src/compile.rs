@@ -487,6 +487,24 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                     .map(|w| format!("{}: {w}", vspec.path.display())),
             );
             space = Some(vol.space);
+            // The field first: an unknown or vector field is `volume.field`'s fault, not the
+            // level's.
+            match vol.select(sel.as_ref()) {
+                Err(e) => {
+                    return Err(format!("volume.field: {}: {e}", vspec.path.display()));
+                }
+                Ok(f) if f.components != 1 => {
+                    return Err(format!(
+                        "volume.field: {}: field '{}' has {} components; an isosurface needs a \
+                         scalar (select {}:magnitude)",
+                        vspec.path.display(),
+                        f.name,
+                        f.components,
+                        f.name
+                    ));
+                }
+                Ok(_) => {}
+            }
             let inside = if ispec.inside == spec::IsoInside::Below {
                 volume::distance_sweep::Inside::Below
             } else {

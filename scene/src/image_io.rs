@@ -118,13 +118,24 @@ pub fn write_exr(
         }
         list.push(ch(n, v.clone()));
     }
-    let img = Image::from_channels((w, h), AnyChannels::sort(list));
+    let img = Image::from_encoded_channels((w, h), deterministic(), AnyChannels::sort(list));
     let mut bytes = std::io::Cursor::new(Vec::new());
     img.write()
         .to_buffered(&mut bytes)
         .map_err(|e| format!("{}: encoding EXR: {e}", path.display()))?;
     volume::write_atomic(path, bytes.get_ref()).map_err(|e| e.to_string())?;
     Ok(())
+}
+
+/// exr's fast lossless encoding (RLE in 64 x 64 tiles) with the tiles written in increasing
+/// order: compressed in parallel, they are put in order before writing, so the same image
+/// gives the same bytes every time (in any order, readers agree, but files would not compare
+/// equal byte for byte).
+fn deterministic() -> exr::prelude::Encoding {
+    exr::prelude::Encoding {
+        line_order: exr::prelude::LineOrder::Increasing,
+        ..exr::prelude::Encoding::FAST_LOSSLESS
+    }
 }
 
 /// An EXR's first layer: its size and every channel by name, as 32-bit floats (what
@@ -189,7 +200,11 @@ impl RefImageExr for RefImage {
         for (name, plane) in REF_CHANNELS.iter().zip(planes) {
             list.push(ch(name, f32s(plane)));
         }
-        let img = Image::from_channels((self.width, self.height), AnyChannels::sort(list));
+        let img = Image::from_encoded_channels(
+            (self.width, self.height),
+            deterministic(),
+            AnyChannels::sort(list),
+        );
         let mut bytes = std::io::Cursor::new(Vec::new());
         img.write()
             .to_buffered(&mut bytes)
@@ -311,5 +326,32 @@ mod exr_tests {
         assert_eq!(chan("B"), [2.0, 0.0]);
         assert_eq!(chan("A"), [1.0, 0.5]);
         assert_eq!(chan("occlusion.combined"), [0.75, 1.0]);
+    }
+
+    /// The same image gives the same bytes: tiles compressed in parallel are written in order
+    /// (in completion order, five runs of a render gave five different files).
+    #[test]
+    fn an_exr_is_the_same_bytes_every_time() {
+        let d = tempfile::tempdir().unwrap();
+        let (w, h) = (512, 384);
+        let image: Vec<[f32; 4]> = (0..w * h)
+            .map(|i| {
+                let v = ((i * 7919) % 1000) as f32 / 1000.0;
+                [v, 1.0 - v, (i % w) as f32 / w as f32, 1.0]
+            })
+            .collect();
+        let aov = vec![(
+            "depth".to_string(),
+            image.iter().map(|p| p[0] * 3.0).collect(),
+        )];
+        let bytes = |k: usize| {
+            let p = d.path().join(format!("{k}.exr"));
+            write_exr(&p, w, h, &image, &aov).unwrap();
+            std::fs::read(&p).unwrap()
+        };
+        let first = bytes(0);
+        for k in 1..8 {
+            assert!(bytes(k) == first, "write {k} differs from the first");
+        }
     }
 }

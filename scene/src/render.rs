@@ -22,8 +22,8 @@ pub struct RenderReport {
     pub height: u32,
     pub slices: u32,
     pub slice_distance: f64,
-    /// Whether the frames marched the slices (a volume drawn, or a light volume swept): a
-    /// scene of lines, tubes, points or slices alone has slices that nothing samples.
+    /// Whether the frames marched the slices (a volume drawn, an isosurface, or a light volume
+    /// swept): a scene of lines, tubes, points or slices alone has slices nothing samples.
     #[serde(skip)]
     pub marched: bool,
     pub triangles: u64,
@@ -614,7 +614,7 @@ pub(crate) fn run_on(
     report.slice_distance = v.dz;
     report.triangles = out.triangles;
     report.light = out.light;
-    report.marched = m.volume.is_some() || report.light.is_some();
+    report.marched = m.volume.is_some() || m.iso.is_some() || report.light.is_some();
     report.total_ms = if sequence.is_some() {
         engine::renderer::median(&totals)
     } else {

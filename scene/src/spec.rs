@@ -1203,14 +1203,33 @@ fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
             t.insert(p.to_string(), v);
             return Ok(());
         }
+        if let Some(n) = parts.get(i + 1).and_then(|s| s.parse::<i64>().ok()) {
+            if n < 0 {
+                return Err(format!(
+                    "override {key}: index {n} of '{p}'; entries count from 0"
+                ));
+            }
+        }
         // `tubes.0.radius`: an index into an array of tables - one the scene has (an index
         // makes no table of its own: `tubes.0` with no `[[tubes]]` is not a first entry).
         if !t.contains_key(*p) && parts.get(i + 1).is_some_and(|s| s.parse::<usize>().is_ok()) {
             let path = parts[..=i].join(".");
-            return Err(format!(
-                "override {key}: the scene has no '{path}' entries to index; add them to the file \
-                 (e.g. [[{path}]]) and set their keys there or with {path}.N.KEY"
-            ));
+            // The lists of tables (`[[tubes]]`, `volume.transfer.points`); other lists hold
+            // values (`background`, `camera.eye`).
+            let tables = match i {
+                0 => ["tubes", "lines", "points", "slices", "overlays", "clip"].contains(p),
+                _ => path == "volume.transfer.points",
+            };
+            return Err(match tables {
+                true => format!(
+                    "override {key}: the scene has no '{path}' entries to index; add them to the \
+                     file (e.g. [[{path}]]) and set their keys there or with {path}.N.KEY"
+                ),
+                false => format!(
+                    "override {key}: the scene file does not hold '{path}', so there is no entry \
+                     to set; give the whole value ({path}=[...])"
+                ),
+            });
         }
         let entry = t
             .entry(p.to_string())
@@ -1218,19 +1237,37 @@ fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
         t = match entry {
             toml::Value::Table(tt) => tt,
             toml::Value::Array(a) => {
-                let idx: usize = parts
-                    .get(i + 1)
-                    .and_then(|s| s.parse().ok())
-                    .ok_or_else(|| format!("override {key}: '{p}' is a list; give an index"))?;
+                let n = a.len();
+                let idx: usize =
+                    parts
+                        .get(i + 1)
+                        .and_then(|s| s.parse().ok())
+                        .ok_or_else(|| {
+                            format!(
+                        "override {key}: '{p}' is a list; give an index from 0 to {} after it",
+                        n.saturating_sub(1)
+                    )
+                        })?;
                 // The index is consumed here: continue from the element with the rest.
                 let rest = parts[i + 2..].join(".");
-                let n = a.len();
                 let el = a
                     .get_mut(idx)
                     .ok_or_else(|| format!("override {key}: '{p}' has {n} entries"))?;
                 return match el {
                     toml::Value::Table(tt) if !rest.is_empty() => set(tt, &rest, value),
-                    _ => Err(format!("override {key}: cannot set inside '{p}.{idx}'")),
+                    toml::Value::Table(_) => Err(format!(
+                        "override {key}: an entry of '{p}' is not replaced whole; set its keys \
+                         ({p}.{idx}.KEY=VALUE)"
+                    )),
+                    // One value of a list of values (`background.0=1.0`).
+                    el if rest.is_empty() => {
+                        *el = v;
+                        Ok(())
+                    }
+                    _ => Err(format!(
+                        "override {key}: '{p}' holds values, not tables: nothing inside '{p}.{idx}' \
+                         to set"
+                    )),
                 };
             }
             _ => return Err(format!("override {key}: '{p}' is not a table")),
@@ -2835,6 +2872,26 @@ mod tests {
             assert!(e.contains(&format!("has no {list} entries")), "{set}: {e}");
         }
         assert!(parse(text, "s", Path::new("."), &o(&["render.width"])).is_err());
+        // A list of values: one value set, a list the file lacks given whole, no table inside
+        // a value, no negative index, no entry replaced whole.
+        let bg = "background = [1.0, 1.0, 1.0]\n[[tubes]]\npath = \"a.trk\"\n";
+        let s = parse(bg, "s", Path::new("."), &o(&["background.0=0.5"])).unwrap();
+        assert_eq!(s.background, Color::Rgb([0.5, 1.0, 1.0]));
+        for (set, want) in [
+            ("camera.eye.0=1", "give the whole value (camera.eye=[...])"),
+            ("background.0.x=1", "'background' holds values, not tables"),
+            (
+                "tubes.-1.radius=1",
+                "index -1 of 'tubes'; entries count from 0",
+            ),
+            (
+                "tubes.0={radius=1.0}",
+                "an entry of 'tubes' is not replaced whole",
+            ),
+        ] {
+            let e = parse(bg, "s", Path::new("."), &o(&[set])).unwrap_err();
+            assert!(e.contains(want), "{set}: {e}");
+        }
         // A bad value set by an override is named by its path, with the entry of an array of
         // tables: the key, its entry and the problem.
         for (set, want) in [

@@ -314,3 +314,27 @@ fn nan_samples_in_isosurface_mode_are_noted() {
         m.notes
     );
 }
+
+/// An isosurface of a field the file does not have, or of a vector field, names
+/// `volume.field`, not the level.
+#[test]
+fn a_bad_isosurface_field_names_volume_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap();
+    for (field, says) in [("nope", "no such field"), ("data:x", "")] {
+        let text = format!(
+            "[volume]\npath = \"{}\"\nfield = \"{field}\"\n[volume.iso]\nvalue = 1000.0\n",
+            root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
+        );
+        let s = scene::spec::parse(&text, "iso.toml", dir.path(), &[]).unwrap();
+        let Err(e) = scene::compile::model(&s) else {
+            panic!("{field}: an isosurface was made");
+        };
+        assert!(
+            e.starts_with("volume.field: ") && e.contains(says),
+            "{field}: {e}"
+        );
+    }
+}

@@ -698,7 +698,7 @@ pub fn summary(r: &RenderReport) -> String {
     // The slices where something samples them (a volume drawn, or the light).
     let slices = match r.marched {
         true => format!("{} slices {:.4} apart", r.slices, r.slice_distance),
-        false => "no volume marched".to_string(),
+        false => "no volume drawn".to_string(),
     };
     format!(
         "{}: {} x {}, {slices}{light}, {} triangles, on {}: {:.1} ms per frame{passes}, {:.2} s in all",
