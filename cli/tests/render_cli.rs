@@ -1220,6 +1220,21 @@ fn the_summary_names_slices_only_where_a_volume_is_marched() {
     };
     let lines = run(&root().join("bench/scenes/lineao_dipy.toml"));
     assert!(lines.contains("32 x 32, no volume drawn, "), "{lines}");
+    assert!(!lines.contains("projects the volume"), "{lines}");
+    // A projection of no volume says what it draws.
+    let out = umbra()
+        .arg("render")
+        .arg(root().join("bench/scenes/lineao_dipy.toml"))
+        .arg("-o")
+        .arg(dir.path().join("m.png"))
+        .args(["--width", "32", "--height", "32", "--method", "mip"])
+        .output()
+        .unwrap();
+    let err = ok(&out);
+    assert!(
+        err.contains("method mip projects the volume, and this scene draws none"),
+        "{err}"
+    );
     let vol = test_support::headsq_scene(dir.path(), "", "bone", "method = \"ea\"\n");
     let text = run(&vol);
     assert!(

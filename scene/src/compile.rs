@@ -1578,6 +1578,20 @@ fn unused_light_keys(s: &Scene) -> Option<String> {
     })
 }
 
+/// A note where the method projects a volume (`mip`, `minip`) and the scene draws none: its
+/// surfaces are drawn as the projections draw them (head-lit, no occlusion), nothing behind.
+fn projection_of_nothing(s: &Scene, m: &Model) -> Option<String> {
+    let desc = s.render.method.desc();
+    let projects = matches!(desc.volume, engine::method::VolumeShading::Projection(_));
+    (projects && m.volume.is_none()).then(|| {
+        format!(
+            "method {} projects the volume, and this scene draws none (no [volume], or \
+             volume.render = false): only its surfaces are drawn, head-lit",
+            desc.name
+        )
+    })
+}
+
 /// A note where the scene sets `render.lineao` (any of its keys off its default) for a method
 /// that draws no LineAO: it changes nothing there.
 fn unused_lineao_keys(s: &Scene) -> Option<String> {
@@ -1724,6 +1738,7 @@ impl Uploaded<'_> {
         let unused: Vec<String> = unused_light_keys(s)
             .into_iter()
             .chain(unused_lineao_keys(s))
+            .chain(projection_of_nothing(s, m))
             .collect();
         let draw = |v: &EaView| {
             let mut out = draw_one(v)?;
