@@ -414,15 +414,16 @@ impl Session {
         let key = data_key(&req.scene);
         let mut rebuilt = None;
         // While a clipping plane is dragged, the drafts keep the isosurface's octants of the
-        // cut before (sweeping them anew takes a load of the volume and a sweep); the full
-        // image at rest is swept for its own cut, as `umbra render` draws it.
+        // cut before (sweeping them anew takes a load of the volume and a sweep); while a
+        // slice with a slab is moved, they keep the geometry cropped to the slab before (the
+        // slice itself moves: it is planned again below). The full image at rest is made for
+        // its own cut and slabs, as `umbra render` draws it.
         let cut_only = key.0 == self.data.0
             && key.1 == self.data.1
             && key.2 == self.data.2
             && key.3 == self.data.3
             && key.5 == self.data.5
-            && key.6 == self.data.6
-            && key.7 == self.data.7;
+            && key.6 == self.data.6;
         let slices = req.scene.slices != self.slices;
         // Slices shown where the model has no grid of slices (none were drawn) need one.
         let no_grid = slices && self.model.planes.is_none();

@@ -501,10 +501,24 @@ fn slices_moved_hidden_or_restyled_are_replanned_without_a_new_model() {
     assert!(err.contains("slices[0].position"), "{err}");
     let back = session.frame(&req(&a)).unwrap();
     assert!(worst(&back.rgba, &first.rgba) <= 1);
-    // A slab crops the geometry: moving a slice that has one makes the model anew.
+    // A slab crops the geometry: moving a slice that has one makes the model anew for the
+    // image at rest; the drafts of the drag keep the old crop, the slice itself moved.
     let slab = scene_with("slab = 20.0", "");
     assert!(session.frame(&req(&slab)).unwrap().rebuilt.is_some());
     let slab_moved = scene_with(&format!("slab = 20.0\nposition = {}", z0 + 5.0), "");
+    let draft = session
+        .frame(&Request {
+            level: Level::Draft,
+            ..req(&slab_moved)
+        })
+        .unwrap();
+    assert!(draft.rebuilt.is_none(), "a draft keeps the model");
+    let z = |m: &scene::compile::Model| m.planes.as_ref().unwrap().planes[0].polygon.origin;
+    assert!(
+        (z(session.model())[2] - (z0 + 5.0)).abs() < 1e-6,
+        "the slice moved in the draft: {:?}",
+        z(session.model())
+    );
     assert!(session.frame(&req(&slab_moved)).unwrap().rebuilt.is_some());
 }
 
