@@ -304,6 +304,18 @@ fn umbra_view_without_a_display_says_so() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("DISPLAY"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
+    // A scene that does not read says so first, display or not.
+    let out = Command::new(env!("CARGO_BIN_EXE_umbra"))
+        .args(["view", s.to_str().unwrap(), "--set", "render.widht=10"])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("widht") && !err.contains("DISPLAY"),
+        "{err}"
+    );
     // An empty DISPLAY is none (winit's text, with its source path, was printed).
     let out = Command::new(env!("CARGO_BIN_EXE_umbra"))
         .args(["view", s.to_str().unwrap()])

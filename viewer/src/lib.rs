@@ -47,6 +47,9 @@ pub struct ViewArgs {
 /// Opens the viewer and returns when its window has closed; an error when the scene cannot
 /// be read, or no window can be opened (no display), naming what is missing.
 pub fn run(a: ViewArgs) -> Result<(), String> {
+    // The scene file first (quick): its errors are reported wherever the viewer runs; the
+    // model, which may take seconds, once a window can be opened.
+    let s = scene::spec::load(&a.scene, &a.overrides)?;
     let display = std::env::var_os("DISPLAY").filter(|d| !d.is_empty());
     if cfg!(target_os = "linux") && display.is_none() {
         return Err(
@@ -55,7 +58,6 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
                 .into(),
         );
     }
-    let s = scene::spec::load(&a.scene, &a.overrides)?;
     let m = scene::compile::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let bounds = m.bounds;
     let slice_grid = objects::SliceGrid::of(&m);
