@@ -1,8 +1,9 @@
 //! Scrolling a slice in the viewer, without a window: the worker's session draws a scene,
-//! then N drafts and N full images with the first slice moved a step further each (the
-//! slices planned again on the modelled grid), and a full image of the scene modelled anew
-//! (`render.width` changed by nothing but a slab: what moving a slice cost before slices were
-//! planned on their own). Prints each step's time.
+//! then N drafts and N full images with the first slice moved a 300th of its span further
+//! each (the slices planned again on the modelled grid; with a slab, the full images model
+//! the scene anew), and last a full image with a slab added to the first slice (the scene
+//! modelled anew: what moving a slice cost before slices were planned on their own). Prints
+//! each step's time and whether the model was made anew.
 //!   cargo run --release -p umbra-viewer --example slice_scroll -- SCENE [N] [WIDTH HEIGHT]
 //! docs/benchmarks.md ("Interactive viewer") quotes it.
 
@@ -68,7 +69,7 @@ fn main() -> Result<(), String> {
             times[times.len() / 2]
         );
     }
-    // The scene modelled anew: a slab on the first slice crops the (possibly absent) geometry.
+    // The scene modelled anew: a (huge) slab on the first slice crops the geometry, if any.
     s.slices[0].slab = Some(1e9);
     let (ms, rebuilt) = frame(&s, Level::Full)?;
     println!("full image, the scene modelled anew: {ms:.0} ms (model anew: {rebuilt})");
