@@ -350,7 +350,11 @@ fn umbra_view_without_a_display_says_so() {
         String::from_utf8_lossy(&out.stderr).into_owned()
     };
     let text = std::fs::read(&s).unwrap();
-    assert!(view(&s, &s, None).contains("--frame-log"));
+    let e = view(&s, &s, None);
+    assert!(
+        e.contains("--frame-log") && e.contains("the same file as the input"),
+        "{e}"
+    );
     assert_eq!(std::fs::read(&s).unwrap(), text, "the scene was changed");
     let log = dir.path().join("logs/new/frames.csv");
     view(&s, &log, None);

@@ -743,7 +743,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
         let (mesh, _) = crate::tube_sets::build_mesh(&sl, &args)
             .map_err(|e| format!("tubes[{i}] ({}): {e}", t.path.display()))?;
         let mut mesh = mesh;
-        if mesh.indices.is_empty() {
+        // (With no point left at all, the selection's or the slabs' note says why.)
+        if mesh.indices.is_empty() && !sl.points.is_empty() {
             notes.push(format!(
                 "tubes[{i}] ({}): no tube to draw (no streamline of two distinct points)",
                 t.path.display()

@@ -720,7 +720,7 @@ impl App {
             }
             ui.label(format!("on {}", i.device));
             for n in &i.notes {
-                ui.label(egui::RichText::new(n).small());
+                ui.add(egui::Label::new(egui::RichText::new(n).small()).wrap());
             }
         } else {
             ui.label("rendering the first image ...");
@@ -731,8 +731,10 @@ impl App {
         ui.separator();
         ui.horizontal(|ui| {
             let label = ui.label("save as");
-            ui.text_edit_singleline(&mut self.prefix)
-                .labelled_by(label.id);
+            ui.add(
+                egui::TextEdit::singleline(&mut self.prefix).desired_width(ui.available_width()),
+            )
+            .labelled_by(label.id);
         });
         ui.horizontal_wrapped(|ui| {
             if ui.button("screenshot .png").clicked() {
@@ -760,7 +762,7 @@ impl App {
             ui.label(format!("{} keys", self.keys.len()));
         });
         if let Some(m) = &self.message {
-            ui.label(m);
+            ui.add(egui::Label::new(m.as_str()).wrap());
         }
         ui.separator();
         ui.label(

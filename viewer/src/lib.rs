@@ -62,9 +62,13 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     let bounds = m.bounds;
     let slice_grid = objects::SliceGrid::of(&m);
     let range = worker::data_range(&m);
-    let editor = transfer::Editor::new(range, worker::histogram(&m, range, 128))
-        .with_robust(worker::robust_range(&m, range))
-        .with_2d(worker::histogram2d(&m, range, 128, 64));
+    // The transfer-function editor for a volume drawn (as a rebuilt model gives it: a volume
+    // the scene does not draw, `render = false`, only the slices' grid, has none).
+    let editor = m.volume.is_some().then(|| {
+        transfer::Editor::new(range, worker::histogram(&m, range, 128))
+            .with_robust(worker::robust_range(&m, range))
+            .with_2d(worker::histogram2d(&m, range, 128, 64))
+    });
     let quit = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, quit.clone())
@@ -101,9 +105,11 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
                 let ctx = cc.egui_ctx.clone();
                 watch_quit(quit.clone(), ctx.clone());
                 let worker = worker::start(m, &s, move || ctx.request_repaint());
-                let mut app = app::App::new(s, bounds, worker, quit, on_first)
-                    .with_editor(editor)
-                    .with_slice_grid(slice_grid);
+                let mut app =
+                    app::App::new(s, bounds, worker, quit, on_first).with_slice_grid(slice_grid);
+                if let Some(e) = editor {
+                    app = app.with_editor(e);
+                }
                 let cpu = cc.wgpu_render_state.as_ref().is_some_and(|r| {
                     r.adapter.get_info().device_type == eframe::wgpu::DeviceType::Cpu
                 });

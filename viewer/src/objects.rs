@@ -419,7 +419,8 @@ fn row(
     });
     ui.horizontal(|ui| {
         let l = ui.label("  color");
-        ui.text_edit_singleline(color).labelled_by(l.id);
+        ui.add(egui::TextEdit::singleline(color).desired_width(ui.available_width()))
+            .labelled_by(l.id);
     });
     remove
 }
@@ -580,12 +581,19 @@ pub fn panel(
         }
         _ => {}
     }
+    // The field as wide as the panel leaves it, the buttons on a row of their own: a row
+    // wider than the panel put "browse…" under its edge.
+    let mut enter = false;
     ui.horizontal(|ui| {
         let l = ui.label("open");
-        let r = ui.text_edit_singleline(open_path).labelled_by(l.id);
+        let r = ui
+            .add(egui::TextEdit::singleline(open_path).desired_width(ui.available_width()))
+            .labelled_by(l.id);
+        enter = r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+    });
+    ui.horizontal(|ui| {
         *browse |= ui.button("browse…").clicked();
-        let go = ui.button("add").clicked()
-            || (r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)));
+        let go = ui.button("add").clicked() || enter;
         if go && !open_path.trim().is_empty() {
             *to_open = Some(open_path.trim().into());
         }

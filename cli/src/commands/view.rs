@@ -49,7 +49,8 @@ fn frame_log(
 ) -> Result<umbra_viewer::OnEvent, String> {
     use std::io::Write;
     volume::check_output(path).map_err(|e| format!("--frame-log: {e}"))?;
-    volume::check_distinct(&[Some(scene), Some(path)]).map_err(|e| format!("--frame-log: {e}"))?;
+    volume::check_not_input(&[Some(scene)], &[Some(path)])
+        .map_err(|e| format!("--frame-log: {e}"))?;
     let path = path.to_path_buf();
     let mut out: Option<std::io::LineWriter<std::fs::File>> = None;
     let mut failed = false;
