@@ -14,7 +14,9 @@ struct Params {
     product: u32,
     // 1: LineAO's paper shading, combined c + specular (Eichelbaum et al. §3.3)
     paper_shading: u32,
-    pad: u32,
+    // a term layer that reads 1 (0xffffffff: none): the partial term where no light volume
+    // is swept and nothing wrote it
+    open_layer: u32,
     // the colour of halo samples (gbuffer.wgsl: alpha 0.5): the background (xyz, 0: a gap,
     // no coverage), or the illustrative method's halo colour (xyz, 1)
     halo: vec4<f32>,
@@ -73,7 +75,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     // surface covers show the background. The occlusion terms are per pixel.
     for (var t = 0u; t < C.n_terms; t = t + 1u) {
         var v = 1.0;
-        if (z > 0.0) {
+        if (z > 0.0 && t != C.open_layer) {
             v = terms[t * n + idx];
             // eq. 7 (min) or eq. 8 (product), over every term of the method
             combined = select(min(combined, v), combined * v, C.product == 1u);

@@ -37,6 +37,9 @@ pub struct CompositeSettings {
     /// The illustrative method's line and halo colours (linear RGB); `None`: shaded
     /// surfaces, halos in the background's colour.
     pub illustrative: Option<([f64; 3], [f64; 3])>,
+    /// A term layer no pass writes that counts 1 everywhere (and is written so, as its
+    /// AOV): the partial term of `dos` and `combined` where nothing casts light.
+    pub open_layer: Option<u32>,
 }
 
 /// The G-buffer's colour and normal bindings (4, 5), single or multisampled, behind the same
@@ -74,7 +77,9 @@ pub struct CompositeParams {
     pub product: u32,
     /// 1: LineAO's paper shading.
     pub paper_shading: u32,
-    pub pad: u32,
+    /// A term layer that reads 1 (u32::MAX: none): the partial term where no light volume
+    /// is swept (nothing was marched to write it).
+    pub open_layer: u32,
     /// The colour of halo samples (xyz) and whether they count as coverage (w: 1 the
     /// illustrative halo, 0 a gap halo showing the background).
     pub halo: [f32; 4],
@@ -144,7 +149,7 @@ impl CompositePass {
             n_terms: s.terms,
             product: (s.combine == Combine::Product) as u32,
             paper_shading: s.paper_shading as u32,
-            pad: 0,
+            open_layer: s.open_layer.unwrap_or(u32::MAX),
             // w: whether a halo sample is coverage (the illustrative halo's ink), or shows
             // the background (a gap: no surface, alpha as the background's).
             halo: match s.illustrative {
@@ -212,7 +217,7 @@ mod tests {
                     n_terms,
                     product,
                     paper_shading,
-                    pad,
+                    open_layer,
                     halo,
                     line,
                 }

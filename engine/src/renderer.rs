@@ -827,6 +827,8 @@ impl Frame {
                 paper_shading,
                 illustrative: (s.method == crate::method::Method::Illustrative)
                     .then_some(s.illustrative),
+                // Nothing casts light: no march writes the partial term, which is 1.
+                open_layer: layer("partial").filter(|_| !occlusion),
             },
         );
         let fxaa = s

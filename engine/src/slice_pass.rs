@@ -530,9 +530,9 @@ pub struct SlicePass {
     pub state: wgpu::Buffer,
     pub slices: u32,
     occlusion: bool,
-    /// Whether the march has anything to do: a volume, translucent layers, the light or a
-    /// partial-occlusion layer to write. Without any, its result is the zeroed eye buffer and
-    /// state (no colour, no opacity; composite reads a volumetric AOV of 1 and no depth).
+    /// Whether the march has anything to do: a volume, translucent layers or the light.
+    /// Without any, its result is the zeroed eye buffer and state (no colour, no opacity;
+    /// composite reads a volumetric AOV of 1 and no depth, and a partial term of 1).
     march: bool,
     size: (u32, u32),
     cells: (u32, u32),
@@ -779,7 +779,9 @@ impl SlicePass {
             state,
             slices: lv.slices,
             occlusion: s.occlusion,
-            march: has_volume || s.occlusion || s.partial_layer.is_some() || gbuf.peel.layers > 0,
+            // (Without the light the partial term is 1, which composite reads in its place:
+            // `CompositeSettings::open_layer`.)
+            march: has_volume || s.occlusion || gbuf.peel.layers > 0,
             size: (v.width, v.height),
             cells,
             cell,
@@ -817,7 +819,7 @@ impl SlicePass {
     }
 
     /// Records the eye march (after the light volume), or where it has nothing to do (no
-    /// volume, layers, light or partial term) the clearing of its buffers: on lavapipe the
+    /// volume, layers or light) the clearing of its buffers: on lavapipe the
     /// march over an empty scene cost about as much as the G-buffer of the lines in it
     /// (80-140 ms at 900 x 600).
     pub fn record_march(&self, enc: &mut wgpu::CommandEncoder) {
