@@ -98,7 +98,8 @@ pub fn decompose(m: &[f64; 16]) -> Option<Pose> {
     };
     Some(Pose {
         translation: [m[3], m[7], m[11]],
-        angles: [ax, by, cz].map(f64::to_degrees),
+        // + 0.0: no -0 (atan2 of a -0 entry) shown in the fields.
+        angles: [ax, by, cz].map(|a| a.to_degrees() + 0.0),
         scale: s,
     })
 }
@@ -255,6 +256,19 @@ mod tests {
         });
         // y -> z by x, then z stays under z.
         assert!(close(&apply(&m, [0.0, 1.0, 0.0]), &[0.0, 0.0, 1.0], 1e-12));
+    }
+
+    #[test]
+    fn an_identity_with_negative_zeros_has_angles_of_plus_zero() {
+        let mut m = IDENTITY;
+        m[6] = -0.0;
+        m[4] = -0.0;
+        let q = decompose(&m).unwrap();
+        assert!(
+            q.angles.iter().all(|a| *a == 0.0 && a.is_sign_positive()),
+            "{:?}",
+            q.angles
+        );
     }
 
     #[test]
