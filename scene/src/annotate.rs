@@ -477,9 +477,11 @@ pub fn draw(
             }
         }
         let (lo, hi) = (format_number(cb.range[0]), format_number(cb.range[1]));
-        text(&mut cv, &pen, px, &lo, x0, y1 + 0.2 * px);
+        // Below the bar's frame and its halo (2 pixels), not touching them.
+        let below = y1 + 2.0 + 0.2 * px;
+        text(&mut cv, &pen, px, &lo, x0, below);
         let (hw, _) = extent(&font, px, &hi);
-        text(&mut cv, &pen, px, &hi, x1 - hw, y1 + 0.2 * px);
+        text(&mut cv, &pen, px, &hi, x1 - hw, below);
         let mut label = spec
             .colorbar_label
             .clone()
