@@ -55,6 +55,8 @@ pub struct Placed {
     /// The bar, its length in pixels and in world units.
     pub scale_bar: Option<(Rect, f64, f64)>,
     pub colorbar: Option<Rect>,
+    /// The colour bar's end labels (low, high): their text boxes.
+    pub colorbar_ends: Vec<Rect>,
 }
 
 /// The text height of an image of `w` x `h` pixels.
@@ -479,9 +481,11 @@ pub fn draw(
         let (lo, hi) = (format_number(cb.range[0]), format_number(cb.range[1]));
         // Below the bar's frame and its halo (2 pixels), not touching them.
         let below = y1 + 2.0 + 0.2 * px;
-        text(&mut cv, &pen, px, &lo, x0, below);
         let (hw, _) = extent(&font, px, &hi);
-        text(&mut cv, &pen, px, &hi, x1 - hw, below);
+        placed.colorbar_ends = vec![
+            text(&mut cv, &pen, px, &lo, x0, below),
+            text(&mut cv, &pen, px, &hi, x1 - hw, below),
+        ];
         let mut label = spec
             .colorbar_label
             .clone()
@@ -830,8 +834,18 @@ mod tests {
                     assert!(apart, "{a:?} overlaps {b:?} at {w}x{h}");
                 }
             }
-            // The colour bar's ends are the colouring's ends.
+            // The end labels' halos (from 3 rows above their boxes) clear the bar's frame
+            // (its rows end at the bar's bottom + 1, cut to a whole row): they do not eat into
+            // it (they did with the labels 0.2 text heights under the bar at 400 x 300).
             let cb = p.colorbar.unwrap();
+            assert_eq!(p.colorbar_ends.len(), 2);
+            for e in &p.colorbar_ends {
+                assert!(
+                    e[1].round() - 3.0 >= (cb[3] + 1.0).trunc(),
+                    "{e:?} under {cb:?} at {w}x{h}"
+                );
+            }
+            // The colour bar's ends are the colouring's ends.
             let yc = ((cb[1] + cb[3]) * 0.5) as usize;
             let left = img[yc * w + cb[0] as usize];
             let right = img[yc * w + cb[2] as usize - 1];
