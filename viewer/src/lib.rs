@@ -62,13 +62,7 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     let bounds = m.bounds;
     let slice_grid = objects::SliceGrid::of(&m);
     let range = worker::data_range(&m);
-    // The transfer-function editor for a volume drawn (as a rebuilt model gives it: a volume
-    // the scene does not draw, `render = false`, only the slices' grid, has none).
-    let editor = m.volume.is_some().then(|| {
-        transfer::Editor::new(range, worker::histogram(&m, range, 128))
-            .with_robust(worker::robust_range(&m, range))
-            .with_2d(worker::histogram2d(&m, range, 128, 64))
-    });
+    let editor = worker::editor_of(&m, range);
     let quit = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, quit.clone())

@@ -234,6 +234,17 @@ fn data_key(s: &Scene) -> DataKey {
     )
 }
 
+/// The transfer-function editor of model `m` over the data's finite `range`, for a volume it
+/// draws (as a rebuilt model gives it: a volume the scene does not draw, `render = false`,
+/// only the slices' grid, has none).
+pub fn editor_of(m: &Model, range: [f64; 2]) -> Option<crate::transfer::Editor> {
+    m.volume.is_some().then(|| {
+        crate::transfer::Editor::new(range, histogram(m, range, 128))
+            .with_robust(robust_range(m, range))
+            .with_2d(histogram2d(m, range, 128, 64))
+    })
+}
+
 /// The finite range of a model's volume samples (gaps excluded), `[0, 1]` without a volume.
 pub fn data_range(m: &Model) -> [f64; 2] {
     let Some((_, data, _)) = &m.volume else {
@@ -653,6 +664,23 @@ pub fn start(m: Model, s: &Scene, wake: impl Fn() + Send + 'static) -> Worker {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_a_drawn_volume_has_a_transfer_function_editor() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .unwrap();
+        for (render, editor) in [(true, true), (false, false)] {
+            let text = format!(
+                "[volume]\npath = \"{}\"\nrender = {render}\n[[slices]]\naxis = \"axial\"\n",
+                root.join("datasets/vtk/headsq_64x64x93.nhdr").display()
+            );
+            let s = scene::spec::parse(&text, "s.toml", root, &[]).unwrap();
+            let m = scene::compile::model(&s).unwrap();
+            let range = data_range(&m);
+            assert_eq!(editor_of(&m, range).is_some(), editor, "render = {render}");
+        }
+    }
 
     #[test]
     fn a_draft_share_keeps_at_least_its_budget() {
