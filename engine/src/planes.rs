@@ -19,6 +19,9 @@
 //! |---|---|---|---|
 //! | a layer's colour: window `t = (v - lo) / (hi - lo)`, 256-entry map at `255 t`, gaps, labels by the nearest voxel | [`layer_color`] | `gbuffer.wgsl` `plane_layer_color` | `scene/tests/slices_render.rs` `slices_sample_their_layers_exactly` |
 //! | a slice: its volume opaque, overlays mixed by coverage x opacity | [`plane_color`] | `gbuffer.wgsl` `plane_color` | the same |
+//! | its shading: `lit = false` (default) the colour times the combined occlusion term, marked by G-buffer alpha 0.97 (translucent: a zero normal); `lit` the head light | [`PlaneInput::lit`] | `gbuffer.wgsl` `plane_gcolor`, `fs_peel_p`; `composite.wgsl` (alpha 0.97); `slice_pass.wgsl` `composite_layer` | `slices_sample_their_layers_exactly` (default and lit light), `translucent_slices_over_the_volume_match_the_cpu_twin` |
+//! | FXAA leaves pixels wholly on an unlit slice | - | `composite.wgsl` (AOV w), `fxaa.wgsl` `keep` | `slices_sample_their_layers_exactly` (its FXAA case) |
+//! | replanning on the same grid (the viewer) | [`GpuPlane::upload_all`] with the kept field buffers; `scene::slices::PlaneModel::replan` | - | `viewer/tests/draw.rs` `slices_moved_hidden_or_restyled_are_replanned_without_a_new_model` |
 //! | the polygon: the plane cut by the grid's box | `scene::slices::polygon` | - (a mesh) | `scene::slices` unit test |
 //! | crop to slab | `tubes::select::crop` | - | `tubes::select` and `scene::slices` unit tests |
 //! | an overlay blended into the volume | `occlusion::emission_absorption::reference_blended` with [`layer_color`] | `slice_pass.wgsl` `blend_color`, `blended` | `an_overlay_blended_into_the_volume_matches_the_cpu_twin` |
