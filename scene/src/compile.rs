@@ -163,15 +163,25 @@ pub fn preset_range(
     }
 }
 
+/// The window the projections map through: `volume.window` over the field's finite range
+/// `full` (its default) and robust range (asked for only for `"robust"`).
+pub fn projection_window(
+    v: &spec::VolumeSpec,
+    full: [f64; 2],
+    robust: impl FnOnce() -> [f64; 2],
+) -> [f64; 2] {
+    v.window.as_ref().map_or(full, |w| w.resolve(full, robust))
+}
+
 /// The transfer function the projections (`mip`, `minip`) show their value through:
-/// `volume.colormap` (default grey) over `volume.window` `[lo, hi]` (default the field's
-/// `range`) as 256 points, each with extinction `volume.opacity` (default 1), which the
+/// `volume.colormap` (default grey) over the window `window` (`volume.window` resolved:
+/// [`projection_window`]) as 256 points, each with extinction `volume.opacity` (default 1), which the
 /// projection takes as its opacity; values up to the window's `lo` end (at or below it, or
 /// at or above it when `lo > hi`) are transparent - a field's minimum, the empty space of a
 /// default window, shows the background - and values past `hi` take the map's top.
-pub fn projection_transfer(v: &spec::VolumeSpec, range: [f64; 2]) -> Result<Transfer, String> {
+pub fn projection_transfer(v: &spec::VolumeSpec, window: [f64; 2]) -> Result<Transfer, String> {
     let cm: volume::colormap::Colormap = v.colormap.as_deref().unwrap_or("grey").parse()?;
-    let mut w = v.window.unwrap_or(range);
+    let mut w = window;
     if w[0] == w[1] {
         w[1] = w[0] + 1.0;
     }
@@ -606,7 +616,9 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             let finite = |v: f32| v.is_finite();
             let preset = vspec.transfer.points.is_empty();
             let range = match projection {
-                true => full,
+                true => {
+                    projection_window(vspec, full, || robust_range(&field.samples, full, finite))
+                }
                 false => preset_range(&vspec.transfer, full, || {
                     robust_range(&field.samples, full, finite)
                 }),
@@ -644,7 +656,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 }
             }
             let tf = match projection {
-                true => projection_transfer(vspec, full)?,
+                true => projection_transfer(vspec, range)?,
                 false => transfer(&vspec.transfer, range)?,
             };
             if s.annotate.colorbar.as_deref() == Some("volume") {
@@ -656,13 +668,11 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                             .into(),
                     );
                 }
-                let (map, [lo, hi]) = match projection {
-                    true => (
-                        vspec.colormap.clone().unwrap_or_else(|| "grey".into()),
-                        vspec.window.unwrap_or([st.min, st.max]),
-                    ),
-                    false => ("transfer function".to_string(), range),
+                let map = match projection {
+                    true => vspec.colormap.clone().unwrap_or_else(|| "grey".into()),
+                    false => "transfer function".to_string(),
                 };
+                let [lo, hi] = range;
                 colorbar = Some(crate::annotate::ColorBar {
                     label: field.name.clone(),
                     map,
@@ -821,6 +831,15 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 notes.push(format!("default slice distance {d:.4}: {why}"));
             }
             2.0 * d
+        }
+        // A volume not drawn that slices cut: its grid's voxels, as when it is drawn.
+        None if planes.is_some() => {
+            let a = planes.as_ref().unwrap().affine;
+            [a.x_axis, a.y_axis, a.z_axis]
+                .iter()
+                .map(|c| c.truncate().length())
+                .fold(f64::INFINITY, f64::min)
+                .max(1e-12)
         }
         None => (bounds[1] - bounds[0]).length().max(1e-9) / 512.0,
     };

@@ -4,7 +4,7 @@
 //! per label), each slice's polygon (its plane cut by the volume's grid box) and layers, and
 //! the slabs that crop tubes, lines and points.
 
-use crate::spec::{OverlaySpec, Scene, SliceAxis, SliceSpec};
+use crate::spec::{OverlaySpec, Scene, SliceAxis, SliceSpec, Window};
 use engine::planes::{LayerMap, PlaneInput, PlaneLayer, MAX_LABELS, MAX_LAYERS};
 use glam::{DMat4, DVec3, DVec4, Vec3};
 use volume::colormap::Colormap;
@@ -19,9 +19,11 @@ pub struct PlaneModel {
     pub planes: Vec<PlaneInput>,
     /// Each overlay's colour mapping and opacity, in `[[overlays]]` order.
     pub overlays: Vec<(LayerMap, f32)>,
-    /// The scene volume's finite range (a slice's window where none is given) and bounds (a
-    /// slice's default position is their centre).
-    pub range: [f64; 2],
+    /// The values of each of `fields` (the volume's, then the overlays'): their finite range
+    /// (a slice's window where none is given; the file's, for an overlay) and their robust one
+    /// (`"robust"` windows; of the values in the grid).
+    pub ranges: Vec<FieldRange>,
+    /// The scene volume's bounds (a slice's default position is their centre).
     pub bounds: [DVec3; 2],
     /// The overlay blended into the volume rendering (`volume_blend`), as a layer of the grid.
     pub blend: Option<PlaneLayer>,
@@ -56,15 +58,7 @@ impl PlaneModel {
     /// (they crop the geometry: a model anew).
     pub fn replan(&self, s: &Scene) -> Result<Vec<PlaneInput>, String> {
         let vspec = s.volume.as_ref().ok_or("slices need a [volume]")?;
-        planes_of(
-            s,
-            vspec,
-            self.dims,
-            self.affine,
-            self.bounds,
-            self.range,
-            &self.overlays,
-        )
+        planes_of(s, vspec, self, &mut vec![])
     }
 
     /// The span `[lo, hi]` of the grid's voxel centres along unit normal `n` (where a slice
@@ -80,6 +74,40 @@ impl PlaneModel {
             affine: self.affine,
             fields: self.fields.iter().map(Vec::as_slice).collect(),
         }
+    }
+}
+
+/// The values of one of a [`PlaneModel`]'s fields: its finite range, and its robust range
+/// (the [`crate::compile::ROBUST_PERCENTILES`] of its finite values in the grid; the full range
+/// where they coincide), computed when first asked for.
+pub struct FieldRange {
+    pub full: [f64; 2],
+    robust: std::sync::OnceLock<[f64; 2]>,
+}
+
+impl FieldRange {
+    pub fn new(full: [f64; 2]) -> FieldRange {
+        FieldRange {
+            full,
+            robust: Default::default(),
+        }
+    }
+
+    /// The robust range of `values` (this field's values in the grid; gaps held as -3e38 are
+    /// left out).
+    pub fn robust(&self, values: &[f32]) -> [f64; 2] {
+        *self.robust.get_or_init(|| {
+            let q = volume::quantile::quantiles(
+                || {
+                    values
+                        .iter()
+                        .copied()
+                        .filter(|v| v.is_finite() && *v > -1e30)
+                },
+                &crate::compile::ROBUST_FRACTIONS,
+            );
+            crate::compile::robust_from(&q, self.full)
+        })
     }
 }
 
@@ -234,6 +262,7 @@ struct Overlay {
     field: Vec<f32>,
     map: LayerMap,
     opacity: f32,
+    range: FieldRange,
 }
 
 /// Reads overlay `i` and resamples it into the grid; its colour mapping.
@@ -302,14 +331,18 @@ fn overlay(
         };
         notes.push(format!("overlays[{i}] ({}): {why}", o.path.display()));
     }
+    let st = f.stats();
+    let range = FieldRange::new(match st.min.is_finite() && st.max.is_finite() {
+        true => usable([st.min, st.max]),
+        false => [0.0, 1.0],
+    });
     let map = if o.labels {
         labels_map(i, o, &field, notes)?
     } else {
         let cm: Colormap = o.colormap.as_deref().unwrap_or("red-yellow").parse()?;
-        let w = match o.range {
-            Some(r) => r,
-            None => {
-                let st = f.stats();
+        let w = match &o.range {
+            Some(Window::Values(r)) => *r,
+            r => {
                 if !(st.min.is_finite() && st.max.is_finite()) {
                     return Err(format!(
                         "{} ({}): the field has no finite values",
@@ -317,7 +350,10 @@ fn overlay(
                         o.path.display()
                     ));
                 }
-                usable([st.min, st.max])
+                match r {
+                    Some(w) if w.is_robust() => range.robust(&field),
+                    _ => range.full,
+                }
             }
         };
         LayerMap::Scalar {
@@ -330,6 +366,7 @@ fn overlay(
         field,
         map,
         opacity: o.opacity as f32,
+        range,
     })
 }
 
@@ -422,13 +459,19 @@ pub fn model(
         fields.push(std::mem::take(&mut ov.field));
         overlays.push(ov);
     }
-    let overlays: Vec<(LayerMap, f32)> = overlays.into_iter().map(|o| (o.map, o.opacity)).collect();
-    let planes = planes_of(s, vspec, dims, affine, vol.bounds(), range, &overlays)?;
-    Ok(Some(PlaneModel {
+    let mut ranges = vec![FieldRange::new(range)];
+    let overlays: Vec<(LayerMap, f32)> = overlays
+        .into_iter()
+        .map(|o| {
+            ranges.push(o.range);
+            (o.map, o.opacity)
+        })
+        .collect();
+    let mut m = PlaneModel {
         dims,
         affine,
         fields,
-        planes,
+        planes: vec![],
         blend: s
             .overlays
             .iter()
@@ -439,9 +482,11 @@ pub fn model(
                 opacity: overlays[k].1,
             }),
         overlays,
-        range,
+        ranges,
         bounds: vol.bounds(),
-    }))
+    };
+    m.planes = planes_of(s, vspec, &m, notes)?;
+    Ok(Some(m))
 }
 
 /// The span of the voxel centres of a grid along unit normal `n`.
@@ -453,18 +498,18 @@ pub fn extent(dims: [usize; 3], affine: DMat4, n: DVec3) -> [f64; 2] {
     ]
 }
 
-/// The slices of `s` on the grid (`dims`, `affine`; the volume's `bounds` and finite `vrange`)
-/// with the overlays' mappings and opacities.
+/// The slices of `s` on model `m`'s grid, with its fields' ranges and the overlays' mappings
+/// and opacities; a note in `notes` where slices show the volume over its full range and a few
+/// outliers stretch it.
 fn planes_of(
     s: &Scene,
     vspec: &crate::spec::VolumeSpec,
-    dims: [usize; 3],
-    affine: DMat4,
-    bounds: [DVec3; 2],
-    vrange: [f64; 2],
-    overlays: &[(LayerMap, f32)],
+    m: &PlaneModel,
+    notes: &mut Vec<String>,
 ) -> Result<Vec<PlaneInput>, String> {
+    let (dims, affine, bounds) = (m.dims, m.affine, m.bounds);
     let mut planes = vec![];
+    let mut stretched = vec![];
     for (i, sl) in s.slices.iter().enumerate() {
         let key = |k: &str| format!("slices[{i}].{k}");
         let n = normal(sl);
@@ -485,7 +530,15 @@ fn planes_of(
                     .or(vspec.colormap.as_deref())
                     .unwrap_or("grey")
                     .parse()?;
-                let w = sl.window.or(vspec.window).unwrap_or(usable(vrange));
+                let r = &m.ranges[0];
+                let full = usable(r.full);
+                let w = match sl.window.as_ref().or(vspec.window.as_ref()) {
+                    Some(w) => w.resolve(full, || r.robust(&m.fields[0])),
+                    None => {
+                        stretched.push(key("window"));
+                        full
+                    }
+                };
                 PlaneLayer {
                     field: 0,
                     map: LayerMap::Scalar {
@@ -502,10 +555,11 @@ fn planes_of(
                     .iter()
                     .position(|o| &o.name == name)
                     .ok_or_else(|| format!("scene key {}: no overlay '{name}'", key("volume")))?;
-                let mut map = overlays[k].0.clone();
+                let mut map = m.overlays[k].0.clone();
                 if let LayerMap::Scalar { lo, hi, colors } = &mut map {
-                    if let Some(w) = sl.window {
-                        (*lo, *hi) = (w[0], w[1]);
+                    if let Some(w) = &sl.window {
+                        let r = &m.ranges[k + 1];
+                        [*lo, *hi] = w.resolve(r.full, || r.robust(&m.fields[k + 1]));
                     }
                     if let Some(c) = &sl.colormap {
                         *colors = c.parse::<Colormap>()?.linear_table();
@@ -521,7 +575,7 @@ fn planes_of(
         let base_field = base.field;
         let mut layers = vec![base];
         if sl.overlays {
-            for (k, (map, opacity)) in overlays.iter().enumerate() {
+            for (k, (map, opacity)) in m.overlays.iter().enumerate() {
                 if k + 1 == base_field {
                     continue;
                 }
@@ -550,7 +604,48 @@ fn planes_of(
             lit: sl.lit,
         });
     }
+    if !stretched.is_empty() {
+        if let Some(note) = outlier_note(&m.fields[0], m.ranges[0].full) {
+            notes.push(format!(
+                "{} ({}): {note}; window = \"robust\" spans them",
+                stretched.join(", "),
+                vspec.path.display()
+            ));
+        }
+    }
     Ok(planes)
+}
+
+/// A slice whose window is its field's full range `full`: the field's 2nd to 98th percentiles
+/// (estimated from at most [`crate::compile::NOTE_SAMPLES`] of `values`, gaps left out) and
+/// the share of the window they span, where that is under [`crate::compile::OUTLIER_SHARE`]
+/// (a few outliers, as the inlet's speeds of a room's flow, leave the rest one colour).
+fn outlier_note(values: &[f32], full: [f64; 2]) -> Option<String> {
+    let step = values.len().div_ceil(crate::compile::NOTE_SAMPLES).max(1);
+    let q = volume::quantile::quantiles(
+        || {
+            values
+                .iter()
+                .step_by(step)
+                .copied()
+                .filter(|v| v.is_finite() && *v > -1e30)
+        },
+        &crate::compile::ROBUST_FRACTIONS,
+    );
+    let n = crate::annotate::format_number;
+    (q[0] < q[1] && (q[1] - q[0]) < crate::compile::OUTLIER_SHARE * (full[1] - full[0])).then(
+        || {
+            format!(
+            "the 2nd to 98th percentiles of the values, about [{}, {}], span {}% of the window \
+             [{}, {}] (the field's finite range), so most of the slice takes almost one colour",
+            n(q[0]),
+            n(q[1]),
+            n(100.0 * (q[1] - q[0]) / (full[1] - full[0])),
+            n(full[0]),
+            n(full[1])
+        )
+        },
+    )
 }
 
 #[cfg(test)]

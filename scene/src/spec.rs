@@ -168,6 +168,31 @@ impl TransferRange {
     }
 }
 
+/// A window (`volume.window`, `slices[].window`, `overlays[].range`): `[lo, hi]` (values),
+/// `"full"` (the field's finite range) or `"robust"` (its 2nd to 98th percentiles).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged, expecting = "a window: \"full\", \"robust\" or [lo, hi]")]
+pub enum Window {
+    Named(String),
+    Values([f64; 2]),
+}
+
+impl Window {
+    /// The window's values: `full` for `"full"`, `robust()` (asked for only then) for
+    /// `"robust"`, the values given otherwise (names are checked when the scene is read).
+    pub fn resolve(&self, full: [f64; 2], robust: impl FnOnce() -> [f64; 2]) -> [f64; 2] {
+        match self {
+            Window::Values(v) => *v,
+            Window::Named(n) if n == "robust" => robust(),
+            Window::Named(_) => full,
+        }
+    }
+
+    pub fn is_robust(&self) -> bool {
+        matches!(self, Window::Named(n) if n == "robust")
+    }
+}
+
 /// Which side of an isosurface is inside.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -227,9 +252,10 @@ pub struct VolumeSpec {
     /// false: the volume is not drawn (its slices and overlays still use it and its grid).
     #[serde(default = "yes", skip_serializing_if = "is_true")]
     pub render: bool,
-    /// `[lo, hi]`: the values the projections (`mip`, `minip`) and this volume's slices map
-    /// through `colormap` (default: the field's finite range).
-    pub window: Option<[f64; 2]>,
+    /// The values the projections (`mip`, `minip`) and this volume's slices map through
+    /// `colormap`: `[lo, hi]`, `"full"` (the field's finite range, the default) or `"robust"`
+    /// (its 2nd to 98th percentiles).
+    pub window: Option<Window>,
     /// The projections' and slices' colour map (default `grey`).
     pub colormap: Option<String>,
     /// The projections' opacity in [0, 1] (default 1).
@@ -263,9 +289,9 @@ pub struct SliceSpec {
     pub position: Option<f64>,
     /// The volume the slice shows: the scene's `[volume]` (default) or an overlay's `name`.
     pub volume: Option<String>,
-    /// `[lo, hi]` mapped to the colour map's ends (default: `volume.window`, else the field's
-    /// finite range).
-    pub window: Option<[f64; 2]>,
+    /// `[lo, hi]` mapped to the colour map's ends, `"full"` or `"robust"` (default:
+    /// `volume.window`, else the field's finite range).
+    pub window: Option<Window>,
     /// Default: `volume.colormap` for the scene's volume, else `grey`.
     pub colormap: Option<String>,
     #[serde(default = "one")]
@@ -301,8 +327,9 @@ pub struct OverlaySpec {
     /// Default `red-yellow` (scalars).
     pub colormap: Option<String>,
     /// `[lo, hi]`: values at or below `lo` are not shown, values above `hi` take the map's top; `lo >
-    /// hi` turns it round (negative statistics). Default: the field's finite range.
-    pub range: Option<[f64; 2]>,
+    /// hi` turns it round (negative statistics); `"full"`: the field's finite range (the
+    /// default); `"robust"`: the 2nd to 98th percentiles of its values in the volume's grid.
+    pub range: Option<Window>,
     #[serde(default = "one")]
     pub opacity: f64,
     /// Row-major 4x4 from the overlay's world to the scene's.
@@ -1653,13 +1680,17 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
 fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
     let bad = |key: String, why: String| Err(format!("scene key {key}: {why}"));
     // The shaders map windows in f32: their ends and width must be finite and non-zero there.
-    let window = |key: String, w: Option<[f64; 2]>| match w {
-        Some(w) if !f32_window(w) => bad(
+    let window = |key: String, w: &Option<Window>| match w {
+        Some(Window::Values(w)) if !f32_window(*w) => bad(
             key,
             format!(
                 "{w:?}: two different finite values at most 3.4e38 apart are needed (the \
                  window's ends and its width are single-precision numbers)"
             ),
+        ),
+        Some(Window::Named(n)) if n != "full" && n != "robust" => bad(
+            key,
+            format!("'{n}' is not \"full\", \"robust\" or [lo, hi]"),
         ),
         _ => Ok(()),
     };
@@ -1687,7 +1718,7 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
         cmap(format!("points[{i}].colormap"), &p.colormap)?;
     }
     if let Some(v) = &s.volume {
-        window("volume.window".into(), v.window)?;
+        window("volume.window".into(), &v.window)?;
         cmap("volume.colormap".into(), &v.colormap)?;
         if let Some(o) = v.opacity {
             unit("volume.opacity".into(), o)?;
@@ -1707,7 +1738,7 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 *l = dir.join(&*l);
             }
         }
-        window(key("range"), o.range)?;
+        window(key("range"), &o.range)?;
         cmap(key("colormap"), &o.colormap)?;
         unit(key("opacity"), o.opacity)?;
         if let Some(m) = &o.transform {
@@ -1844,7 +1875,7 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 );
             }
         }
-        window(key("window"), sl.window)?;
+        window(key("window"), &sl.window)?;
         cmap(key("colormap"), &sl.colormap)?;
         let shows_labels = sl
             .volume

@@ -733,12 +733,25 @@ fn a_volume_not_drawn_has_no_colour_bar_or_transfer_note() {
         "{:?}",
         drawn.notes
     );
+    // Not drawn: no transfer function's note, but its slice shows the values over the full
+    // range, which the slice's note says.
     let hidden = model(&parse(&scene(false, "")).unwrap()).unwrap();
     assert!(
-        !hidden.notes.iter().any(|n| n.contains("percentiles")),
+        !hidden.notes.iter().any(|n| n.contains("transfer.range")),
         "{:?}",
         hidden.notes
     );
+    assert!(
+        hidden
+            .notes
+            .iter()
+            .any(|n| n.starts_with("slices[0].window") && n.contains("percentiles")),
+        "{:?}",
+        hidden.notes
+    );
+    // Its grid's voxels set the slices (1 mm: slices half a voxel apart), as when it is drawn,
+    // not the box's diagonal over 512 (0.05 mm here).
+    assert_eq!((drawn.spacing, hidden.spacing), (1.0, 1.0));
     let e = model(&parse(&scene(false, "[annotate]\ncolorbar = \"volume\"\n")).unwrap())
         .err()
         .unwrap();
@@ -925,4 +938,142 @@ fn small_base(dir: &Path) -> String {
         "v.nii",
         &volume_of([8, 8, 8], DMat4::IDENTITY, |p| p.z as f32),
     )
+}
+
+/// The `p`-th quantile (a fraction) of `v`, as numpy's default (linear) interpolation gives it.
+fn percentile(v: &[f32], p: f64) -> f64 {
+    let mut s: Vec<f64> = v
+        .iter()
+        .filter(|x| x.is_finite())
+        .map(|&x| x as f64)
+        .collect();
+    s.sort_by(f64::total_cmp);
+    let at = p * (s.len() - 1) as f64;
+    let (k, f) = (at.floor() as usize, at.fract());
+    s[k] + f * (s[(k + 1).min(s.len() - 1)] - s[k])
+}
+
+/// `"robust"` windows span the 2nd to 98th percentiles of the field's finite values (slices of
+/// the volume, `volume.window` for slices and for `mip`, an overlay's `range` and a slice of
+/// it), `"full"` the finite range; slices left at the full range of a field that a few
+/// outliers stretch get a note naming them, an explicit window none.
+#[test]
+fn robust_and_full_windows_span_the_percentiles_and_the_range() {
+    let dir = tempfile::tempdir().unwrap();
+    // Values in [0, 1] with one voxel in 97 at 1000 (an inlet's speed in a room's flow), and
+    // a NaN gap that no window counts.
+    let a = DMat4::from_scale(DVec3::splat(2.0));
+    let mut v = volume_of([20, 18, 16], a, |p| {
+        let (i, j, k) = (
+            (p.x / 2.0) as usize,
+            (p.y / 2.0) as usize,
+            (p.z / 2.0) as usize,
+        );
+        let n = i + 20 * (j + 18 * k);
+        match n {
+            _ if n == 5 => f32::NAN,
+            _ if n % 97 == 0 => 1000.0,
+            _ => ((i * 7 + j * 13 + k * 29) % 101) as f32 / 100.0,
+        }
+    });
+    let values = v.fields[0].data.clone();
+    let (lo, hi) = (percentile(&values, 0.02), percentile(&values, 0.98));
+    assert!(hi <= 1.0 && lo > 0.0, "{lo} {hi}");
+    let path = write(dir.path(), "v.nii", &v);
+    v.fields[0].data.iter_mut().for_each(|x| *x *= 2.0);
+    let twice = write(dir.path(), "w.nii", &v);
+    let model_of = |text: &str| {
+        let s = scene::spec::parse(
+            &format!("[volume]\npath = \"{path}\"\n{text}"),
+            "t.toml",
+            dir.path(),
+            &[],
+        )
+        .unwrap();
+        model(&s).unwrap()
+    };
+    let window = |m: &scene::compile::Model, i: usize| match &m.planes.as_ref().unwrap().planes[i]
+        .layers[0]
+        .map
+    {
+        engine::planes::LayerMap::Scalar { lo, hi, .. } => [*lo, *hi],
+        _ => panic!("a scalar layer"),
+    };
+    let near = |w: [f64; 2], e: [f64; 2]| {
+        assert!(
+            (w[0] - e[0]).abs() <= 1e-9 * e[0].abs().max(1.0)
+                && (w[1] - e[1]).abs() <= 1e-9 * e[1].abs().max(1.0),
+            "{w:?} against {e:?}"
+        )
+    };
+    let noted = |m: &scene::compile::Model| {
+        m.notes
+            .iter()
+            .filter(|n| n.contains("window = \"robust\""))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    // The default: the full range, and a note naming the slices at it.
+    let m = model_of("[[slices]]\naxis = \"axial\"\n[[slices]]\naxis = \"coronal\"\nwindow = [0.0, 1.0]\n[[slices]]\naxis = \"sagittal\"\n");
+    near(window(&m, 0), [0.0, 1000.0]);
+    let notes = noted(&m);
+    assert_eq!(notes.len(), 1, "{:?}", m.notes);
+    assert!(
+        notes[0].contains("slices[0].window, slices[2].window")
+            && !notes[0].contains("slices[1]")
+            && notes[0].contains("v.nii"),
+        "{}",
+        notes[0]
+    );
+    // "robust" on the slice, or on the volume for every slice; "full" says it is meant.
+    let m = model_of("[[slices]]\naxis = \"axial\"\nwindow = \"robust\"\n");
+    near(window(&m, 0), [lo, hi]);
+    assert!(noted(&m).is_empty(), "{:?}", m.notes);
+    let m = model_of("window = \"robust\"\n[[slices]]\naxis = \"axial\"\n");
+    near(window(&m, 0), [lo, hi]);
+    let m = model_of("window = \"robust\"\n[[slices]]\naxis = \"axial\"\nwindow = \"full\"\n");
+    near(window(&m, 0), [0.0, 1000.0]);
+    assert!(noted(&m).is_empty(), "{:?}", m.notes);
+    // An overlay's range, and a slice of the overlay: its own values (twice the volume's).
+    let m = model_of(&format!(
+        "[[overlays]]\nname = \"w\"\npath = \"{twice}\"\nrange = \"robust\"\n\
+         [[slices]]\naxis = \"axial\"\nvolume = \"w\"\n\
+         [[slices]]\naxis = \"axial\"\nvolume = \"w\"\nwindow = \"full\"\n"
+    ));
+    near(window(&m, 0), [2.0 * lo, 2.0 * hi]);
+    near(window(&m, 1), [0.0, 2000.0]);
+    match &m.planes.as_ref().unwrap().overlays[0].0 {
+        engine::planes::LayerMap::Scalar { lo: a, hi: b, .. } => {
+            near([*a, *b], [2.0 * lo, 2.0 * hi])
+        }
+        _ => panic!("a scalar overlay"),
+    }
+    // MIP through a robust window: its colour bar spans it.
+    let m = model_of(
+        "window = \"robust\"\n[render]\nmethod = \"mip\"\n[annotate]\ncolorbar = \"volume\"\n",
+    );
+    near(m.colorbar.as_ref().unwrap().range, [lo, hi]);
+    // Names other than "full" and "robust" are refused, naming the key; a saved scene keeps
+    // the name.
+    let e = scene::spec::parse(
+        &format!("[volume]\npath = \"{path}\"\n[[slices]]\naxis = \"axial\"\nwindow = \"wide\"\n"),
+        "t.toml",
+        dir.path(),
+        &[],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("slices[0].window") && e.contains("'wide'"),
+        "{e}"
+    );
+    let s = scene::spec::parse(
+        &format!("[volume]\npath = \"{path}\"\nwindow = \"robust\"\n"),
+        "t.toml",
+        dir.path(),
+        &[],
+    )
+    .unwrap();
+    let text = scene::spec::to_toml(&s).unwrap();
+    assert!(text.contains("window = \"robust\""), "{text}");
 }

@@ -426,7 +426,8 @@ fn row(
 }
 
 /// One slice's rows: shown and `lit`, its position (world units along its normal, within the
-/// grid) and opacity; the fields are labelled `  slices[i] position` and `  slices[i] opacity`.
+/// grid), window (`default`, `full` or `robust`) and opacity; the fields are labelled
+/// `  slices[i] position`, `  slices[i] window` and `  slices[i] opacity`.
 fn slice_row(
     ui: &mut egui::Ui,
     i: usize,
@@ -465,6 +466,22 @@ fn slice_row(
             sl.position = Some(p);
         }
     });
+    // The window: the scene's (`volume.window`, else the field's finite range), the full
+    // range or the robust one; values given in the scene stay until another is chosen.
+    use scene::spec::Window;
+    let shown = match &sl.window {
+        None => "default".to_string(),
+        Some(Window::Named(n)) => n.clone(),
+        Some(Window::Values([a, b])) => format!("[{a}, {b}]"),
+    };
+    egui::ComboBox::from_label(format!("  slices[{i}] window"))
+        .selected_text(shown)
+        .show_ui(ui, |ui| {
+            ui.selectable_value(&mut sl.window, None, "default");
+            for n in ["full", "robust"] {
+                ui.selectable_value(&mut sl.window, Some(Window::Named(n.into())), n);
+            }
+        });
     ui.horizontal(|ui| {
         let l = ui.label(format!("  slices[{i}] opacity"));
         ui.add(

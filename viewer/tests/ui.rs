@@ -646,6 +646,15 @@ fn the_objects_panel_moves_lights_and_hides_slices() {
     h.get_all_by_label("lit").next().unwrap().click_accesskit();
     h.run_steps(2);
     assert!(h.state().scene.slices[0].lit);
+    // The window menu: the robust range, re-planned on the model's grid.
+    h.get_by_label("  slices[0] window").click();
+    h.run_steps(2);
+    h.get_by_label("robust").click();
+    h.run_steps(2);
+    assert_eq!(
+        h.state().scene.slices[0].window,
+        Some(scene::spec::Window::Named("robust".into()))
+    );
     h.get_by_label("slices[1]").click_accesskit();
     h.run_steps(2);
     let drawn = h.state().state();
