@@ -251,39 +251,13 @@ fn overrides_of(args: &[String]) -> Vec<(String, String)> {
 /// slices.0.position=999` (keys compared with `[N]` read as `.N`). Of several overrides of
 /// the key the last, which applied last, is named.
 fn set_hint(err: &str, args: &[String]) -> Option<String> {
-    let overrides = overrides_of(args);
-    if overrides.is_empty() {
+    // A manifest line's error already says which override gave the value.
+    if err.contains(::scene::spec::BLAME_PREFIX) {
         return None;
     }
-    // Where a key may start: after "scene key ", at the start, or after ": ".
-    let mut starts: Vec<usize> = err
-        .match_indices("scene key ")
-        .map(|(i, m)| i + m.len())
-        .collect();
-    starts.push(0);
-    starts.extend(err.match_indices(": ").map(|(i, m)| i + m.len()));
-    for at in starts {
-        let rest = &err[at..];
-        let key: String = rest
-            .chars()
-            .take_while(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '[' | ']'))
-            .collect();
-        // A bare key must end at a colon or a space (not a file name's dot-separated parts).
-        let after = rest[key.len()..].chars().next();
-        if key.is_empty() || !matches!(after, Some(':') | Some(' ') | None) {
-            continue;
-        }
-        let dotted = key.replace('[', ".").replace(']', "");
-        let dotted = dotted.trim_end_matches('.');
-        if let Some((_, typed)) = overrides
-            .iter()
-            .rev()
-            .find(|(k, _)| dotted == k || dotted.starts_with(&format!("{k}.")))
-        {
-            return Some(format!("(the value comes from {typed}, not from the file)"));
-        }
-    }
-    None
+    let overrides = overrides_of(args);
+    ::scene::spec::blamed_override(err, &overrides)
+        .map(|typed| format!("{}{typed}, not from the file)", ::scene::spec::BLAME_PREFIX))
 }
 
 #[cfg(test)]

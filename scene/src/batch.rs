@@ -439,7 +439,7 @@ pub fn run_manifest(
                     name: None,
                     path,
                     ms: None,
-                    error: Some(format!("{}: {error}", e.at)),
+                    error: Some(format!("{}: {error}{}", e.at, blame(&error, base, e))),
                 });
                 progress(Progress::Failed(&o));
                 r.failed.push(o);
@@ -450,10 +450,68 @@ pub fn run_manifest(
     Ok(r)
 }
 
+/// Where an entry's error is about a key an override gave (the command's, then the line's
+/// `KEY=VALUE` fields, as they applied), a sentence naming it: " (the value comes from
+/// render.width=0 on m.txt: line 2, not from the scene file)"; else nothing.
+fn blame(error: &str, base: &RenderArgs, e: &Entry) -> String {
+    let key = |kv: &String| {
+        kv.split_once('=')
+            .map_or(kv.as_str(), |(k, _)| k)
+            .trim()
+            .to_string()
+    };
+    let overrides: Vec<(String, String)> = base
+        .overrides
+        .iter()
+        .map(|kv| (key(kv), format!("the override {kv}")))
+        .chain(
+            e.overrides
+                .iter()
+                .map(|kv| (key(kv), format!("{kv} on {}", e.at))),
+        )
+        .collect();
+    match crate::spec::blamed_override(error, &overrides) {
+        Some(label) => format!(
+            " {}{label}, not from the scene file)",
+            crate::spec::BLAME_PREFIX
+        ),
+        None => String::new(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::collections::HashMap;
+
+    #[test]
+    fn an_entrys_error_about_an_overridden_key_names_the_override_that_applied_last() {
+        let base = RenderArgs {
+            overrides: vec!["render.width=64".into(), "slices.0.window=[0, 1]".into()],
+            ..Default::default()
+        };
+        let e = &parse_manifest(
+            "b render.width=0 camera.azimuth=10\n",
+            "m.txt",
+            Path::new("."),
+            Some(Path::new("t.toml")),
+        )
+        .unwrap()[0];
+        let err = "t.toml: scene key render.width: 0 pixels is not within 1..16384";
+        assert_eq!(
+            blame(err, &base, e),
+            " (the value comes from render.width=0 on m.txt: line 1, not from the scene file)"
+        );
+        // The command's own override, where the line leaves the key alone.
+        let err = "t.toml: scene key slices[0].window: bad";
+        assert_eq!(
+            blame(err, &base, e),
+            " (the value comes from the override slices.0.window=[0, 1], not from the scene file)"
+        );
+        // A key no override set, or no key at all.
+        assert_eq!(blame("t.toml: scene key render.height: bad", &base, e), "");
+        assert_eq!(blame("t.toml: No such file or directory", &base, e), "");
+    }
 
     fn env(pairs: &[(&str, &str)]) -> impl Fn(&str) -> Option<String> {
         let m: HashMap<String, String> = pairs

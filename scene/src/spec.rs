@@ -1303,6 +1303,51 @@ fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// Which of `overrides` (`(key, label)` pairs in the order they applied, keys dotted as
+/// `slices.0.position`) gave the value an error is about: the error names a scene key ("scene
+/// key slices[0].position", or a message or part of one that begins with the key,
+/// "volume.iso.value: ..."; `[N]` read as `.N`) that is the override's key or lies in the table
+/// it set. Of several overrides of the key the last, which applied last, is the one; `None`
+/// where the error names no key the overrides set.
+pub fn blamed_override<'a>(err: &str, overrides: &'a [(String, String)]) -> Option<&'a str> {
+    if overrides.is_empty() {
+        return None;
+    }
+    // Where a key may start: after "scene key ", at the start, or after ": ".
+    let mut starts: Vec<usize> = err
+        .match_indices("scene key ")
+        .map(|(i, m)| i + m.len())
+        .collect();
+    starts.push(0);
+    starts.extend(err.match_indices(": ").map(|(i, m)| i + m.len()));
+    for at in starts {
+        let rest = &err[at..];
+        let key: String = rest
+            .chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '[' | ']'))
+            .collect();
+        // A bare key must end at a colon or a space (not a file name's dot-separated parts).
+        let after = rest[key.len()..].chars().next();
+        if key.is_empty() || !matches!(after, Some(':') | Some(' ') | None) {
+            continue;
+        }
+        let dotted = key.replace('[', ".").replace(']', "");
+        let dotted = dotted.trim_end_matches('.');
+        if let Some((_, label)) = overrides
+            .iter()
+            .rev()
+            .find(|(k, _)| dotted == k || dotted.starts_with(&format!("{k}.")))
+        {
+            return Some(label);
+        }
+    }
+    None
+}
+
+/// What an error says where [`blamed_override`] finds the override that gave the value (its
+/// `label`): "(the value comes from LABEL, not from the scene file)".
+pub const BLAME_PREFIX: &str = "(the value comes from ";
+
 /// Reads a scene from TOML text; `name` labels errors, relative paths resolve against `dir`.
 pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result<Scene, String> {
     // Parse as written first: serde's errors then carry the line of an unknown or bad key.
