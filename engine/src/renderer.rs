@@ -695,10 +695,13 @@ impl Frame {
         // so its sweep is skipped and the partial occlusion is 1, as the sweep gave (a
         // lines-only scene with `dos` or `combined`: 1.3-1.5 of 6.3 s a frame for CST_L at
         // 256^2 on lavapipe, the image the same; docs/benchmarks.md).
+        // Slice planes have no inside: they cast only the paper's column (`column`), not
+        // under the default rule (a slab inside a surface), so slices alone sweep none either
+        // (the MNI T1's slices with `combined`: the image `vicinity` draws, 2-37x the time).
         let casts = scene.volume.is_some()
             || scene.iso.is_some()
             || !scene.meshes.is_empty()
-            || !scene.planes.is_empty()
+            || (!scene.planes.is_empty() && s.column)
             || scene.lines.iter().any(|l| l.casts_light());
         let occlusion = desc.volume == VolumeShading::Occlusion && casts;
         let cam: &Camera = &view.camera;

@@ -1572,12 +1572,13 @@ fn unused_light_keys(s: &Scene) -> Option<String> {
         && s.points.is_empty()
         && s.slices.is_empty()
         && s.overlays.is_empty();
-    // Nothing in the light (no volume, tubes or slices; lines that stand for no tubes, as
-    // pixel-wide lines do by default): the renderer sweeps none.
-    let nothing_casts = s.volume.is_none()
+    // Nothing in the light (no volume or tubes; slices only with the paper's column, which
+    // they cast; lines that stand for no tubes, as pixel-wide lines do by default): the
+    // renderer sweeps none.
+    let nothing_casts = s.volume.as_ref().is_none_or(|v| !v.render)
         && s.tubes.is_empty()
         && s.points.is_empty()
-        && s.slices.is_empty()
+        && (s.slices.is_empty() || s.render.geometry_shadow != spec::GeometryShadow::Column)
         && s.lines.iter().all(|l| l.proxy_radius() == 0.0);
     let unused =
         desc.volume != engine::method::VolumeShading::Occlusion || iso_alone || nothing_casts;
@@ -1585,7 +1586,7 @@ fn unused_light_keys(s: &Scene) -> Option<String> {
         let one = set.len() == 1;
         let who = match (iso_alone, nothing_casts) {
             (true, _) => "an isosurface alone".to_string(),
-            (false, true) => "a scene of lines that cast no shadow (no volume, tubes or slices; lines[].proxy_radius 0)".to_string(),
+            (false, true) => "a scene of slices and lines that cast no shadow (no volume or tubes; slices with render.geometry_shadow \"inside\"; lines[].proxy_radius 0)".to_string(),
             _ => format!("method {}", desc.name),
         };
         format!(

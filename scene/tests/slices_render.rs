@@ -1077,3 +1077,32 @@ fn robust_and_full_windows_span_the_percentiles_and_the_range() {
     let text = scene::spec::to_toml(&s).unwrap();
     assert!(text.contains("window = \"robust\""), "{text}");
 }
+
+/// Slices have no inside: under the default `render.geometry_shadow = "inside"` they cast no
+/// light, so a scene of slices alone sweeps no light volume with `combined` and draws what
+/// `vicinity` draws (the partial term 1); under `"column"` they cast the paper's column, which
+/// is swept.
+#[test]
+fn slices_alone_sweep_no_light_volume_unless_they_cast_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let anat = write(dir.path(), "anat.nii.gz", &anatomy());
+    let gpu = engine::gpu::Gpu::new().expect("a GPU adapter (lavapipe in CI)");
+    let frame = |method: &str, extra: &str| {
+        let text = format!(
+            "[camera]\nazimuth = 30.0\nelevation = 25.0\n[volume]\npath = \"{anat}\"\nrender = false\n\
+             [[slices]]\naxis = \"axial\"\n[[slices]]\naxis = \"sagittal\"\n\
+             [render]\nwidth = 64\nheight = 48\nmethod = \"{method}\"\n{extra}"
+        );
+        let s = scene::spec::parse(&text, "t.toml", dir.path(), &[]).unwrap();
+        let m = model(&s).unwrap();
+        let up = upload(&gpu, &m).unwrap();
+        up.draw_at(&s, &m, DrawOptions::default(), None).unwrap().0
+    };
+    let combined = frame("combined", "");
+    let vicinity = frame("vicinity", "");
+    assert!(combined.light.is_none(), "a light volume swept");
+    assert!(combined.aov.iter().all(|a| a.partial == 1.0));
+    assert_eq!(combined.image, vicinity.image);
+    let column = frame("combined", "geometry_shadow = \"column\"\n");
+    assert!(column.light.is_some(), "columns behind slices cast light");
+}
