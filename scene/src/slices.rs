@@ -86,9 +86,11 @@ pub struct FieldRange {
 }
 
 impl FieldRange {
+    /// A field whose finite range is `full` (widened where its ends coincide in single
+    /// precision, as a constant field's do: [`usable`]).
     pub fn new(full: [f64; 2]) -> FieldRange {
         FieldRange {
-            full,
+            full: usable(full),
             robust: Default::default(),
         }
     }
@@ -106,7 +108,7 @@ impl FieldRange {
                 },
                 &crate::compile::ROBUST_FRACTIONS,
             );
-            crate::compile::robust_from(&q, self.full)
+            usable(crate::compile::robust_from(&q, self.full))
         })
     }
 }
@@ -247,10 +249,11 @@ fn polygon_mesh(pts: &[DVec3], n: DVec3) -> tubes::tube_mesh::TubeMesh {
     }
 }
 
-/// A window that can be mapped in single precision: ends too close for f32 (a constant field)
-/// are widened to a relative 1e-3 or by one.
+/// A window that can be mapped in single precision: ends too close for f32 (a constant field;
+/// a width under the smallest normal f32) are widened to a relative 1e-3 or by one.
 fn usable(w: [f64; 2]) -> [f64; 2] {
-    if (w[1] as f32) > (w[0] as f32) {
+    // (A width below the smallest normal f32 is taken as zero where subnormals are flushed.)
+    if (w[1] as f32) - (w[0] as f32) >= f32::MIN_POSITIVE {
         w
     } else {
         [w[0], w[0] + (1e-3 * w[0].abs()).max(1.0)]
@@ -531,7 +534,7 @@ fn planes_of(
                     .unwrap_or("grey")
                     .parse()?;
                 let r = &m.ranges[0];
-                let full = usable(r.full);
+                let full = r.full;
                 let w = match sl.window.as_ref().or(vspec.window.as_ref()) {
                     Some(w) => w.resolve(full, || r.robust(&m.fields[0])),
                     None => {

@@ -1076,6 +1076,31 @@ fn robust_and_full_windows_span_the_percentiles_and_the_range() {
     .unwrap();
     let text = scene::spec::to_toml(&s).unwrap();
     assert!(text.contains("window = \"robust\""), "{text}");
+    // A constant field: its robust range is its full range, widened as a default window is
+    // (the renderer needs a width; it was refused on the GPU).
+    let flat = volume_of([6, 5, 4], a, |_| 7.0);
+    let flat = write(dir.path(), "flat.nii", &flat);
+    let s = scene::spec::parse(
+        &format!(
+            "[volume]\npath = \"{flat}\"\nwindow = \"robust\"\n[[slices]]\naxis = \"axial\"\n"
+        ),
+        "t.toml",
+        dir.path(),
+        &[],
+    )
+    .unwrap();
+    let m = model(&s).unwrap();
+    let [wlo, whi] = window(&m, 0);
+    assert!(wlo == 7.0 && (whi as f32) > 7.0, "{wlo} {whi}");
+    // A width that single precision holds only as a subnormal is refused, naming the key.
+    let e = scene::spec::parse(
+        &format!("[volume]\npath = \"{path}\"\nwindow = [1e-38, 0.0]\n"),
+        "t.toml",
+        dir.path(),
+        &[],
+    )
+    .unwrap_err();
+    assert!(e.contains("volume.window") && e.contains("1.2e-38"), "{e}");
 }
 
 /// Slices have no inside: under the default `render.geometry_shadow = "inside"` they cast no
