@@ -170,11 +170,32 @@ impl TransferRange {
 
 /// A window (`volume.window`, `slices[].window`, `overlays[].range`): `[lo, hi]` (values),
 /// `"full"` (the field's finite range) or `"robust"` (its 2nd to 98th percentiles).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(untagged, expecting = "a window: \"full\", \"robust\" or [lo, hi]")]
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
 pub enum Window {
     Named(String),
     Values([f64; 2]),
+}
+
+impl<'de> Deserialize<'de> for Window {
+    /// A name or a list read first, its length checked after: an error about the list's
+    /// length (or contents) is then reported at the key, not at the table that holds it.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged, expecting = "a window: \"full\", \"robust\" or [lo, hi]")]
+        enum Raw {
+            Named(String),
+            Values(Vec<f64>),
+        }
+        match Raw::deserialize(d)? {
+            Raw::Named(n) => Ok(Window::Named(n)),
+            Raw::Values(v) if v.len() == 2 => Ok(Window::Values([v[0], v[1]])),
+            Raw::Values(v) => Err(serde::de::Error::custom(format!(
+                "a window: [lo, hi] holds two values, not {}",
+                v.len()
+            ))),
+        }
+    }
 }
 
 impl Window {
@@ -1407,7 +1428,9 @@ fn merged_error(merged: &str, e: &toml::de::Error) -> String {
     let start = span.start.min(merged.len());
     // An error of a whole table (a missing field) spans it from its header: the header's line
     // counts as the table's own, with no key.
-    let header = merged[start..].starts_with('[');
+    // (An array value's `[` after its key is not a header: only one that begins its line.)
+    let line_start = merged[..start].rfind('\n').map_or(0, |i| i + 1);
+    let header = merged[start..].starts_with('[') && merged[line_start..start].trim().is_empty();
     let end = if header {
         start + merged[start..].find('\n').unwrap_or(merged.len() - start)
     } else {
@@ -2935,6 +2958,15 @@ mod tests {
         assert!(e.contains("`width`") && !e.contains("in all)"), "{e}");
         let e = parse(text, "s", Path::new("."), &o(&["tubes.3.radius=1"])).unwrap_err();
         assert!(e.contains("1 entries"), "{e}");
+        // A bad list value is named by its key, not by the table it is in (the `[` of the
+        // array was taken for a table's header: "camera: invalid length ...").
+        for (set, key) in [
+            ("camera.target=[1, 2]", "camera.target: "),
+            ("tubes.0.color=[1]", "tubes[0].color: "),
+        ] {
+            let e = parse(text, "s", Path::new("."), &o(&[set])).unwrap_err();
+            assert!(e.contains(key), "{set}: {e}");
+        }
         // An index into a list the scene does not have names the list (it read
         // "render.[: invalid type: map, expected a sequence").
         for (set, list) in [
