@@ -462,7 +462,11 @@ pub fn draw(
         let cb = ctx
             .colorbar
             .ok_or_else(|| format!("annotate.colorbar: '{src}' has no colouring to show"))?;
-        let bw = (wf * 0.3).round();
+        // 0.3 of the width, wider where its end labels would not fit under it a text height
+        // apart (on a thumbnail "1.401e-44" and "0.005667" ran together into one number).
+        let (lo, hi) = (format_number(cb.range[0]), format_number(cb.range[1]));
+        let ends = extent(&font, px, &lo).0 + extent(&font, px, &hi).0 + px;
+        let bw = (wf * 0.3).max(ends).min(wf - 2.0 * margin).round();
         let bh = (px * 0.8).round().max(4.0);
         let x1 = wf - margin;
         let x0 = x1 - bw;
@@ -478,7 +482,6 @@ pub fn draw(
                 cv.blend(x, y, c, 1.0);
             }
         }
-        let (lo, hi) = (format_number(cb.range[0]), format_number(cb.range[1]));
         // Below the bar's frame and its halo (2 pixels), not touching them.
         let below = y1 + 2.0 + 0.2 * px;
         let (hw, _) = extent(&font, px, &hi);
@@ -775,6 +778,34 @@ mod tests {
                 .filter(|&i| img[i][0] < 0.5)
                 .count();
             assert!(above > 20, "{label}: {above}");
+        }
+    }
+
+    #[test]
+    fn a_colour_bars_end_labels_stay_apart_on_a_thumbnail() {
+        let camera = top_view();
+        let bar = ColorBar {
+            label: "mfrac".into(),
+            map: "viridis".into(),
+            range: [1.401e-44, 0.005667],
+            colors: (0..64)
+                .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))
+                .collect(),
+        };
+        let spec = AnnotateSpec {
+            colorbar: Some("slices.0".into()),
+            ..Default::default()
+        };
+        for (w, h) in [(160usize, 120usize), (240, 180), (400, 300)] {
+            let mut img = blank(w, h);
+            let p = draw(&mut img, w, h, &spec, &on_white(&camera, Some(&bar))).unwrap();
+            let (a, b) = (p.colorbar_ends[0], p.colorbar_ends[1]);
+            let px = a[3] - a[1];
+            // Apart by at least half a text height, inside the image, under the bar.
+            assert!(b[0] - a[2] >= 0.5 * px, "{a:?} {b:?} at {w}x{h}");
+            assert!(a[0] >= 0.0 && b[2] <= w as f32, "{a:?} {b:?} at {w}x{h}");
+            let cb = p.colorbar.unwrap();
+            assert!(cb[2] - cb[0] >= (0.3 * w as f32).round(), "{cb:?}");
         }
     }
 

@@ -703,6 +703,16 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             ) {
                 colorbar = p.color_bar(s, name);
             }
+            if let (Some(i), Some(p)) = (
+                s.annotate
+                    .colorbar
+                    .as_deref()
+                    .and_then(|c| c.strip_prefix("slices."))
+                    .and_then(|n| n.parse::<usize>().ok()),
+                &planes,
+            ) {
+                colorbar = p.slice_bar(s, i, &field.name);
+            }
             slabs = crate::slices::slabs(s, vol.bounds());
             if vspec.render {
                 volume = Some((vol, data, tf));

@@ -52,6 +52,44 @@ impl PlaneModel {
                 .collect(),
         })
     }
+    /// The colour bar of slice `i` (`annotate.colorbar = "slices.N"`): its colour map over
+    /// its window, labelled `field` (the volume's field name) or the overlay's name it shows;
+    /// `None` for a slice of a label overlay.
+    pub fn slice_bar(&self, s: &Scene, i: usize, field: &str) -> Option<crate::annotate::ColorBar> {
+        let sl = s.slices.get(i)?;
+        let LayerMap::Scalar { lo, hi, .. } = &self.planes.get(i)?.layers.first()?.map else {
+            return None;
+        };
+        let (label, map) = match &sl.volume {
+            None => (
+                field.to_string(),
+                sl.colormap
+                    .as_deref()
+                    .or(s.volume.as_ref().and_then(|v| v.colormap.as_deref()))
+                    .unwrap_or("grey"),
+            ),
+            Some(name) => {
+                let o = s.overlays.iter().find(|o| &o.name == name)?;
+                (
+                    name.clone(),
+                    sl.colormap
+                        .as_deref()
+                        .or(o.colormap.as_deref())
+                        .unwrap_or("red-yellow"),
+                )
+            }
+        };
+        let cm: Colormap = map.parse().ok()?;
+        Some(crate::annotate::ColorBar {
+            label,
+            map: cm.name().to_string(),
+            range: [*lo, *hi],
+            colors: (0..64)
+                .map(|k| cm.rgb((k as f64 + 0.5) / 64.0).map(|c| c as f32))
+                .collect(),
+        })
+    }
+
     /// The slices of `s` (another state of the scene this model was made for: the same volume
     /// and overlays) on this model's grid and fields: what moving, hiding or restyling slices
     /// changes, without reading or resampling anything. Slabs are not taken into account

@@ -1705,6 +1705,20 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
                 n,
                 s.points.iter().map(|p| p.color.as_str()).collect(),
             ),
+            Some(("slices", n)) => match index(n) {
+                None => Some(format!("'{n}' is not an index of [[slices]]")),
+                Some(i) if i >= s.slices.len() => Some(match s.slices.len() {
+                    0 => "the scene has no [[slices]] entry".to_string(),
+                    1 => "the scene has one [[slices]] entry (slices.0)".to_string(),
+                    k => format!("the scene has {k} [[slices]] entries (slices.0 to slices.{})", k - 1),
+                }),
+                Some(i) => s.slices[i].volume.as_ref().and_then(|name| {
+                    s.overlays
+                        .iter()
+                        .any(|o| &o.name == name && o.labels)
+                        .then(|| format!("slices.{i} shows label overlay '{name}' (its colours name labels, not a scale)"))
+                }),
+            },
             Some(("overlays", name)) => match s.overlays.iter().find(|o| o.name == name) {
                 None => Some(format!(
                     "no overlay is named '{name}' (overlays: {})",
@@ -1728,7 +1742,7 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
         if let Some(why) = why {
             return bad(
                 "colorbar",
-                format!("'{src}': {why}; give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), tubes.N / lines.N / points.N of an entry coloured by scalar:NAME or volume:PATH, or overlays.NAME of a scalar overlay"),
+                format!("'{src}': {why}; give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), tubes.N / lines.N / points.N of an entry coloured by scalar:NAME or volume:PATH, overlays.NAME of a scalar overlay, or slices.N (a slice's colour map over its window)"),
             );
         }
         if s.render.bits == 1 {

@@ -1048,6 +1048,32 @@ fn robust_and_full_windows_span_the_percentiles_and_the_range() {
         }
         _ => panic!("a scalar overlay"),
     }
+    // A slice's colour bar: its colour map over its window, with the volume not drawn too.
+    let m = model_of("render = false\ncolormap = \"viridis\"\n[[slices]]\naxis = \"axial\"\nwindow = \"robust\"\n[annotate]\ncolorbar = \"slices.0\"\n");
+    let bar = m.colorbar.as_ref().expect("the slice's colour bar");
+    near(bar.range, [lo, hi]);
+    assert_eq!((bar.label.as_str(), bar.map.as_str()), ("data", "viridis"));
+    let m = model_of(&format!(
+        "[[overlays]]\nname = \"w\"\npath = \"{twice}\"\n\
+         [[slices]]\naxis = \"axial\"\n[[slices]]\naxis = \"axial\"\nvolume = \"w\"\n\
+         window = [0.5, 1.5]\ncolormap = \"hot\"\n[annotate]\ncolorbar = \"slices.1\"\n"
+    ));
+    let bar = m.colorbar.as_ref().expect("the overlay slice's colour bar");
+    assert_eq!(
+        (bar.label.as_str(), bar.map.as_str(), bar.range),
+        ("w", "hot", [0.5, 1.5])
+    );
+    let e = scene::spec::parse(
+        &format!("[volume]\npath = \"{path}\"\n[[slices]]\naxis = \"axial\"\n[annotate]\ncolorbar = \"slices.1\"\n"),
+        "t.toml",
+        dir.path(),
+        &[],
+    )
+    .unwrap_err();
+    assert!(
+        e.contains("annotate.colorbar") && e.contains("one [[slices]] entry (slices.0)"),
+        "{e}"
+    );
     // MIP through a robust window: its colour bar spans it.
     let m = model_of(
         "window = \"robust\"\n[render]\nmethod = \"mip\"\n[annotate]\ncolorbar = \"volume\"\n",

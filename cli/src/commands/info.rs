@@ -274,8 +274,14 @@ pub fn volume_text(path: &str, vol: &Volume, j: &Value) -> String {
     );
     s += &format!("range:      {} .. {}\n", j["range"][0], j["range"][1]);
     if !j["robust"].is_null() {
+        // Equal to the range, it may be the fallback where the percentiles coincide (a mask
+        // with under 2% of one value has both at the other).
+        let why = match j["robust"] == j["range"] {
+            true => "2nd to 98th percentiles, or the full range where those coincide",
+            false => "2nd to 98th percentiles",
+        };
         s += &format!(
-            "robust:     {} .. {} (2nd to 98th percentiles)\n",
+            "robust:     {} .. {} ({why})\n",
             j["robust"][0], j["robust"][1]
         );
     }
@@ -444,4 +450,39 @@ pub fn grid_text(path: &str, g: &volume::cfd_grid::CfdGrid) -> String {
     }
     out += "resample onto a regular grid with `umbra resample FILE --field NAME -o out.nrrd`\n";
     out
+}
+
+#[cfg(test)]
+mod tests {
+    fn volume(data: Vec<f32>) -> volume::Volume {
+        let field = volume::Field {
+            name: "v".into(),
+            components: 1,
+            stored: volume::ScalarType::F32,
+            data,
+        };
+        volume::Volume::new(
+            [10, 10, 10],
+            glam::DMat4::IDENTITY,
+            volume::Space::Ras,
+            field,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn the_robust_line_says_where_it_may_be_the_full_range() {
+        // A mask with one voxel in a hundred set: both percentiles 0, the full range shown.
+        let mask = volume((0..1000).map(|i| (i % 100 == 0) as u8 as f32).collect());
+        let j = super::volume_json(&mask, None).unwrap();
+        let t = super::volume_text("m.nii", &mask, &j);
+        assert!(
+            t.contains("(2nd to 98th percentiles, or the full range where those coincide)"),
+            "{t}"
+        );
+        let ramp = volume((0..1000).map(|i| i as f32).collect());
+        let j = super::volume_json(&ramp, None).unwrap();
+        let t = super::volume_text("r.nii", &ramp, &j);
+        assert!(t.contains("(2nd to 98th percentiles)\n"), "{t}");
+    }
 }
