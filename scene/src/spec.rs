@@ -2015,6 +2015,10 @@ fn resolve_volume_source(source: &mut String, dir: &Path) {
 /// Checks ranges and resolves relative paths.
 fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
     let bad = |key: &str, why: String| Err(format!("scene key {key}: {why}"));
+    // "none": no colour bar (what an override says to one the file sets).
+    if s.annotate.colorbar.as_deref() == Some("none") {
+        s.annotate.colorbar = None;
+    }
     check_annotate(s)?;
     let c = &s.camera;
     if !(c.fov_y > 0.0 && c.fov_y < 180.0) {
@@ -2936,6 +2940,26 @@ mod tests {
             e.contains("volume.transfer.points[3].value") && e.contains("255 after 300"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_colour_bar_set_to_none_is_no_colour_bar() {
+        let text = "[annotate]\ncolorbar = \"tubes.0\"\n[[tubes]]\npath = \"a.trk\"\ncolor = \"scalar:fa\"\n";
+        let s = parse(
+            text,
+            "s",
+            Path::new("."),
+            &["annotate.colorbar=\"none\"".into()],
+        )
+        .unwrap();
+        assert_eq!(s.annotate.colorbar, None);
+        assert!(parse(
+            text,
+            "s",
+            Path::new("."),
+            &["annotate.colorbar=\"nope\"".into()]
+        )
+        .is_err());
     }
 
     #[test]

@@ -71,7 +71,7 @@ pub struct Args {
     /// A scale bar of this length in world units, or auto (annotate.scale_bar).
     #[arg(long, value_name = "LENGTH|auto", allow_negative_numbers = true)]
     scale_bar: Option<String>,
-    /// A colour bar: volume, tubes.N, lines.N, points.N, overlays.NAME or slices.N (annotate.colorbar).
+    /// A colour bar: volume, tubes.N, lines.N, points.N, overlays.NAME or slices.N; none for no bar (annotate.colorbar).
     #[arg(long, value_name = "SOURCE")]
     colorbar: Option<String>,
     /// Print the report as JSON.
