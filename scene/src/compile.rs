@@ -623,7 +623,13 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                     robust_range(&field.samples, full, finite)
                 }),
             };
-            if preset && !projection && vspec.transfer.range.is_full() && vspec.render {
+            // The same where a projection maps the full range by default (`volume.window` left
+            // out).
+            let stretched = match projection {
+                true => vspec.window.is_none(),
+                false => preset && vspec.transfer.range.is_full(),
+            };
+            if stretched && vspec.render {
                 // A range that outliers stretch gives most of the field almost one colour and
                 // opacity: say so, and what spans the rest. Estimated from every k-th sample,
                 // at most NOTE_SAMPLES of them (exact below), so that every render of a
@@ -641,11 +647,18 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 );
                 if q[0] < q[1] && (q[1] - q[0]) < OUTLIER_SHARE * (full[1] - full[0]) {
                     let n = crate::annotate::format_number;
+                    let (spans, take, key) = match projection {
+                        true => ("the window", "almost one colour", "volume.window"),
+                        false => (
+                            "the preset",
+                            "almost one colour and opacity",
+                            "volume.transfer.range",
+                        ),
+                    };
                     notes.push(format!(
                         "{}: the 2nd to 98th percentiles of the values, about [{}, {}], span \
-                         {}% of the range [{}, {}] the preset spans, so most values take \
-                         almost one colour and opacity; volume.transfer.range = \"robust\" \
-                         spans them",
+                         {}% of the range [{}, {}] {spans} spans, so most values take {take}; \
+                         {key} = \"robust\" spans them",
                         vspec.path.display(),
                         n(q[0]),
                         n(q[1]),

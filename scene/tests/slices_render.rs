@@ -1079,6 +1079,15 @@ fn robust_and_full_windows_span_the_percentiles_and_the_range() {
         "window = \"robust\"\n[render]\nmethod = \"mip\"\n[annotate]\ncolorbar = \"volume\"\n",
     );
     near(m.colorbar.as_ref().unwrap().range, [lo, hi]);
+    assert!(noted(&m).is_empty(), "{:?}", m.notes);
+    // Over the full range by default: a note on the outliers, naming the key.
+    let m = model_of("[render]\nmethod = \"mip\"\n");
+    let notes = noted(&m);
+    assert!(
+        notes.len() == 1 && notes[0].contains("volume.window = \"robust\""),
+        "{:?}",
+        m.notes
+    );
     // Names other than "full" and "robust" are refused, naming the key; a saved scene keeps
     // the name.
     let e = scene::spec::parse(
