@@ -163,6 +163,28 @@ pub fn preset_range(
     }
 }
 
+/// The `volume` colour bar: transfer function `tf`'s colours over `range` (the values its
+/// ramp or the projection's window spans), labelled `label` and `map`.
+pub fn volume_bar(
+    label: &str,
+    map: String,
+    range: [f64; 2],
+    tf: &Transfer,
+) -> crate::annotate::ColorBar {
+    let [lo, hi] = range;
+    crate::annotate::ColorBar {
+        label: label.to_string(),
+        map,
+        range,
+        colors: (0..64)
+            .map(|k| {
+                let v = lo + (hi - lo) * (k as f64 + 0.5) / 64.0;
+                tf.eval(v).0.map(|c| c as f32)
+            })
+            .collect(),
+    }
+}
+
 /// The window the projections map through: `volume.window` over the field's finite range
 /// `full` (its default) and robust range (asked for only for `"robust"`).
 pub fn projection_window(
@@ -677,7 +699,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                     return Err(
                         "scene key annotate.colorbar: 'volume' shows the volume's colours, and \
                          volume.render = false draws none (a slice's colours: \
-                         \"overlays.NAME\" for an overlay)"
+                         \"slices.N\")"
                             .into(),
                     );
                 }
@@ -685,18 +707,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                     true => vspec.colormap.clone().unwrap_or_else(|| "grey".into()),
                     false => "transfer function".to_string(),
                 };
-                let [lo, hi] = range;
-                colorbar = Some(crate::annotate::ColorBar {
-                    label: field.name.clone(),
-                    map,
-                    range: [lo, hi],
-                    colors: (0..64)
-                        .map(|k| {
-                            let v = lo + (hi - lo) * (k as f64 + 0.5) / 64.0;
-                            tf.eval(v).0.map(|c| c as f32)
-                        })
-                        .collect(),
-                });
+                colorbar = Some(volume_bar(&field.name, map, range, &tf));
             }
             // Shared by the GPU upload and the CPU renderer; f32 samples with NaN as -3e38,
             // packed in place when they are integers after all.
@@ -706,7 +717,8 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 }
                 _ => field.samples,
             });
-            planes = crate::slices::model(s, &vol, &data, [st.min, st.max], &mut notes)?;
+            planes =
+                crate::slices::model(s, &vol, &field.name, &data, [st.min, st.max], &mut notes)?;
             if let (Some(name), Some(p)) = (
                 s.annotate
                     .colorbar
@@ -724,7 +736,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                     .and_then(|n| n.parse::<usize>().ok()),
                 &planes,
             ) {
-                colorbar = p.slice_bar(s, i, &field.name);
+                colorbar = p.slice_bar(s, i);
             }
             slabs = crate::slices::slabs(s, vol.bounds());
             if vspec.render {

@@ -25,6 +25,8 @@ pub struct PlaneModel {
     pub ranges: Vec<FieldRange>,
     /// The scene volume's bounds (a slice's default position is their centre).
     pub bounds: [DVec3; 2],
+    /// The name of the volume's field (a slice's colour bar's label).
+    pub field: String,
     /// The overlay blended into the volume rendering (`volume_blend`), as a layer of the grid.
     pub blend: Option<PlaneLayer>,
 }
@@ -53,16 +55,16 @@ impl PlaneModel {
         })
     }
     /// The colour bar of slice `i` (`annotate.colorbar = "slices.N"`): its colour map over
-    /// its window, labelled `field` (the volume's field name) or the overlay's name it shows;
+    /// its window, labelled with the volume's field name or the overlay's name it shows;
     /// `None` for a slice of a label overlay.
-    pub fn slice_bar(&self, s: &Scene, i: usize, field: &str) -> Option<crate::annotate::ColorBar> {
+    pub fn slice_bar(&self, s: &Scene, i: usize) -> Option<crate::annotate::ColorBar> {
         let sl = s.slices.get(i)?;
         let LayerMap::Scalar { lo, hi, .. } = &self.planes.get(i)?.layers.first()?.map else {
             return None;
         };
         let (label, map) = match &sl.volume {
             None => (
-                field.to_string(),
+                self.field.clone(),
                 sl.colormap
                     .as_deref()
                     .or(s.volume.as_ref().and_then(|v| v.colormap.as_deref()))
@@ -478,12 +480,14 @@ fn labels_map(
     Ok(LayerMap::Labels { colors })
 }
 
-/// The slices of scene `s` over the volume `vol` (its field `data`, as the model holds it),
+/// The slices of scene `s` over the volume `vol` (its field named `field`, `data` as the model
+/// holds it),
 /// with the overlays read and resampled into its grid.
 /// `range`: the volume field's finite range (`Field::stats`).
 pub fn model(
     s: &Scene,
     vol: &volume::Volume,
+    field: &str,
     data: &volume::samples::Samples,
     range: [f64; 2],
     notes: &mut Vec<String>,
@@ -525,6 +529,7 @@ pub fn model(
         overlays,
         ranges,
         bounds: vol.bounds(),
+        field: field.to_string(),
     };
     m.planes = planes_of(s, vspec, &m, notes)?;
     Ok(Some(m))

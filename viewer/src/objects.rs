@@ -388,6 +388,30 @@ impl Hidden {
             .filter(|(i, _)| keep(&self.slices, *i))
             .map(|(_, t)| t.clone())
             .collect();
+        // A colour bar of an entry follows it to its index among those kept, and goes with
+        // it (or with the volume) when it is hidden: the saved scene renders as shown.
+        if let Some(src) = d.annotate.colorbar.clone() {
+            let hidden: Option<&[bool]> = match src.split_once('.') {
+                Some(("tubes", _)) => Some(&self.tubes),
+                Some(("lines", _)) => Some(&self.lines),
+                Some(("points", _)) => Some(&self.points),
+                Some(("slices", _)) => Some(&self.slices),
+                _ => None,
+            };
+            let index = src
+                .split_once('.')
+                .and_then(|(_, n)| n.parse::<usize>().ok());
+            d.annotate.colorbar = match (hidden, index) {
+                (Some(flags), Some(i)) if !keep(flags, i) => None,
+                (Some(flags), Some(i)) => {
+                    let before = (0..i).filter(|&k| !keep(flags, k)).count();
+                    let kind = src.split_once('.').map_or("", |(k, _)| k);
+                    Some(format!("{kind}.{}", i - before))
+                }
+                _ if src == "volume" && d.volume.as_ref().is_none_or(|v| !v.render) => None,
+                _ => Some(src),
+            };
+        }
         d
     }
 }
@@ -710,5 +734,21 @@ mod tests {
         assert!(d.volume.as_ref().is_some_and(|v| !v.render));
         assert_eq!(d.slices.len(), 1);
         assert_eq!(d.slices[0].axis, Some(scene::spec::SliceAxis::Coronal));
+        // A colour bar follows its entry's index, and goes with it or with the volume.
+        let bar = |t: &Scene, h: &Hidden, src: &str| {
+            let mut t = t.clone();
+            t.annotate.colorbar = Some(src.into());
+            h.apply(&t).annotate.colorbar
+        };
+        assert_eq!(bar(&t, &h, "slices.1").as_deref(), Some("slices.0"));
+        assert_eq!(bar(&t, &h, "slices.0"), None);
+        assert_eq!(bar(&t, &h, "volume"), None);
+        h.tubes = vec![true, false, false];
+        assert_eq!(bar(&s, &h, "tubes.2").as_deref(), Some("tubes.1"));
+        assert_eq!(bar(&s, &h, "tubes.0"), None);
+        assert_eq!(
+            bar(&s, &Hidden::default(), "tubes.2").as_deref(),
+            Some("tubes.2")
+        );
     }
 }

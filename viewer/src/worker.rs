@@ -479,6 +479,17 @@ impl Session {
                 let planes = p.replan(&req.scene)?;
                 self.up.set_planes(p, &planes)?;
                 p.planes = planes;
+                // A slice's colour bar follows its window.
+                if let Some(i) = req
+                    .scene
+                    .annotate
+                    .colorbar
+                    .as_deref()
+                    .and_then(|c| c.strip_prefix("slices."))
+                    .and_then(|n| n.parse::<usize>().ok())
+                {
+                    self.model.colorbar = p.slice_bar(&req.scene, i);
+                }
                 self.slices = req.scene.slices.clone();
                 self.draft.clear();
             }
@@ -489,6 +500,15 @@ impl Session {
                 let range = scene::compile::preset_range(spec, self.range, || self.robust);
                 vol.2 =
                     scene::compile::transfer(spec, range).map_err(|e| format!("scene key {e}"))?;
+                // The volume's colour bar shows the new function.
+                if let Some(bar) = self
+                    .model
+                    .colorbar
+                    .as_mut()
+                    .filter(|_| req.scene.annotate.colorbar.as_deref() == Some("volume"))
+                {
+                    *bar = scene::compile::volume_bar(&bar.label, bar.map.clone(), range, &vol.2);
+                }
                 self.up = upload(self.gpu, &self.model)?;
                 self.draft.clear();
             }
@@ -567,7 +587,7 @@ pub fn draw_with(
     slices: u32,
 ) -> Result<Image, String> {
     let s = at_level_with(&req.scene, req.level, slices);
-    let (out, v) = up.draw(
+    let (mut out, v) = up.draw(
         &s,
         m,
         DrawOptions {
@@ -576,6 +596,8 @@ pub fn draw_with(
             pass_timings: req.pass_timings && req.level == Level::Full,
         },
     )?;
+    // The scene's title, labels and bars, as `umbra render` draws them.
+    scene::render::annotate_frame(&s, m, &mut out, &v)?;
     let saved = req.save.as_ref().map(|(path, aov)| {
         let exr = path
             .extension()
