@@ -209,8 +209,8 @@ fn main() -> ExitCode {
 
 /// The scene keys a command line overrides, in the order they apply: the shorthand flags
 /// (`--width`, `--height`, `--method`, `--title`, `--orientation`, `--scale-bar`,
-/// `--colorbar`), then each `--set KEY=VALUE` - as (key, the option as typed) pairs.
-fn overrides_of(args: &[String]) -> Vec<(String, String)> {
+/// `--colorbar`), then each `--set KEY=VALUE` - as (key, value, the option as typed).
+fn overrides_of(args: &[String]) -> Vec<(String, String, String)> {
     const FLAGS: [(&str, &str); 7] = [
         ("--width", "render.width"),
         ("--height", "render.height"),
@@ -229,16 +229,20 @@ fn overrides_of(args: &[String]) -> Vec<(String, String)> {
         };
         if name == "--set" {
             let kv = inline.or_else(|| it.next().cloned()).unwrap_or_default();
-            if let Some((k, _)) = kv.split_once('=') {
-                sets.push((k.trim().to_string(), format!("--set {kv}")));
+            if let Some((k, v)) = kv.split_once('=') {
+                sets.push((k.trim().to_string(), v.to_string(), format!("--set {kv}")));
             }
         } else if let Some((flag, key)) = FLAGS.iter().find(|(f, _)| *f == name) {
-            let typed = match (*flag, inline) {
-                ("--orientation", _) => flag.to_string(),
-                (_, Some(v)) => format!("{flag} {v}"),
-                (_, None) => format!("{flag} {}", it.next().cloned().unwrap_or_default()),
+            let value = match (*flag, inline) {
+                ("--orientation", _) => String::new(),
+                (_, Some(v)) => v,
+                (_, None) => it.next().cloned().unwrap_or_default(),
             };
-            flags.push((key.to_string(), typed));
+            let typed = match *flag {
+                "--orientation" => flag.to_string(),
+                _ => format!("{flag} {value}"),
+            };
+            flags.push((key.to_string(), value, typed));
         }
     }
     flags.extend(sets);

@@ -454,21 +454,21 @@ pub fn run_manifest(
 /// `KEY=VALUE` fields, as they applied), a sentence naming it: " (the value comes from
 /// render.width=0 on m.txt: line 2, not from the scene file)"; else nothing.
 fn blame(error: &str, base: &RenderArgs, e: &Entry) -> String {
-    let key = |kv: &String| {
-        kv.split_once('=')
-            .map_or(kv.as_str(), |(k, _)| k)
-            .trim()
-            .to_string()
+    let split = |kv: &String| {
+        let (k, v) = kv.split_once('=').unwrap_or((kv.as_str(), ""));
+        (k.trim().to_string(), v.to_string())
     };
-    let overrides: Vec<(String, String)> = base
+    let overrides: Vec<(String, String, String)> = base
         .overrides
         .iter()
-        .map(|kv| (key(kv), format!("the override {kv}")))
-        .chain(
-            e.overrides
-                .iter()
-                .map(|kv| (key(kv), format!("{kv} on {}", e.at))),
-        )
+        .map(|kv| {
+            let (k, v) = split(kv);
+            (k, v, format!("the override {kv}"))
+        })
+        .chain(e.overrides.iter().map(|kv| {
+            let (k, v) = split(kv);
+            (k, v, format!("{kv} on {}", e.at))
+        }))
         .collect();
     match crate::spec::blamed_override(error, &overrides) {
         Some(label) => format!(
@@ -511,6 +511,23 @@ mod tests {
         // A key no override set, or no key at all.
         assert_eq!(blame("t.toml: scene key render.height: bad", &base, e), "");
         assert_eq!(blame("t.toml: No such file or directory", &base, e), "");
+        // A data file's path is named by the path, not its key.
+        let e = &parse_manifest(
+            "s tubes.0.path=sub-02/nothere.trk\n",
+            "m.txt",
+            Path::new("."),
+            Some(Path::new("t.toml")),
+        )
+        .unwrap()[0];
+        let err = "t.toml: tubes[0]: /data/sub-02/nothere.trk: No such file or directory";
+        assert_eq!(
+            blame(err, &base, e),
+            " (the value comes from tubes.0.path=sub-02/nothere.trk on m.txt: line 1, not from the scene file)"
+        );
+        assert_eq!(
+            blame("t.toml: tubes[0]: /data/other.trk: bad", &base, e),
+            ""
+        );
     }
 
     fn env(pairs: &[(&str, &str)]) -> impl Fn(&str) -> Option<String> {

@@ -512,7 +512,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             .transpose()
             .map_err(|e| e.to_string())?;
         if let Some(ispec) = &vspec.iso {
-            let vol = volume::load(&vspec.path).map_err(|e| e.to_string())?;
+            let vol = volume::load(&vspec.path).map_err(|e| format!("volume.path: {e}"))?;
             notes.extend(
                 vol.warnings
                     .iter()
@@ -606,7 +606,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
             // volume is held in 2 bytes a voxel, never as f32).
             let field = volume::load_scalar(&vspec.path, sel.as_ref()).map_err(|e| match e {
                 volume::VolumeError::Invalid(_) => format!("volume.field: {e}"),
-                e => e.to_string(),
+                e => format!("volume.path: {e}"),
             })?;
             let vol = field.volume;
             notes.extend(

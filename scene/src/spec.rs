@@ -1324,13 +1324,18 @@ fn set(table: &mut toml::Table, key: &str, value: &str) -> Result<(), String> {
     Ok(())
 }
 
-/// Which of `overrides` (`(key, label)` pairs in the order they applied, keys dotted as
-/// `slices.0.position`) gave the value an error is about: the error names a scene key ("scene
-/// key slices[0].position", or a message or part of one that begins with the key,
-/// "volume.iso.value: ..."; `[N]` read as `.N`) that is the override's key or lies in the table
-/// it set. Of several overrides of the key the last, which applied last, is the one; `None`
-/// where the error names no key the overrides set.
-pub fn blamed_override<'a>(err: &str, overrides: &'a [(String, String)]) -> Option<&'a str> {
+/// Which of `overrides` (`(key, value, label)` in the order they applied, keys dotted as
+/// `slices.0.position`, values as given) gave the value an error is about: the error names a
+/// scene key ("scene key slices[0].position", or a message or part of one that begins with the
+/// key, "volume.iso.value: ..."; `[N]` read as `.N`) that is the override's key or lies in the
+/// table it set; or, for a data file's path (a key `path` or `*.path`), the error quotes the
+/// path given (a file that cannot be read is named by its path, not its key). Of several
+/// overrides of the key the last, which applied last, is the one; `None` where the error names
+/// no key or path the overrides set.
+pub fn blamed_override<'a>(
+    err: &str,
+    overrides: &'a [(String, String, String)],
+) -> Option<&'a str> {
     if overrides.is_empty() {
         return None;
     }
@@ -1354,15 +1359,22 @@ pub fn blamed_override<'a>(err: &str, overrides: &'a [(String, String)]) -> Opti
         }
         let dotted = key.replace('[', ".").replace(']', "");
         let dotted = dotted.trim_end_matches('.');
-        if let Some((_, label)) = overrides
+        if let Some((_, _, label)) = overrides
             .iter()
             .rev()
-            .find(|(k, _)| dotted == k || dotted.starts_with(&format!("{k}.")))
+            .find(|(k, _, _)| dotted == k || dotted.starts_with(&format!("{k}.")))
         {
             return Some(label);
         }
     }
-    None
+    overrides
+        .iter()
+        .rev()
+        .find(|(k, v, _)| {
+            let v = v.trim().trim_matches(|c| c == '"' || c == '\'');
+            (k == "path" || k.ends_with(".path")) && !v.is_empty() && err.contains(v)
+        })
+        .map(|(_, _, label)| label.as_str())
 }
 
 /// What an error says where [`blamed_override`] finds the override that gave the value (its
@@ -1476,9 +1488,12 @@ fn merged_error(merged: &str, e: &toml::de::Error) -> String {
         .strip_prefix("unknown field `")
         .and_then(|r| r.split('`').next())
     {
-        // (A table's own position, no key on its line, names the table the field is in.)
+        // (A table's own position, no key on its line, names the table the field is in:
+        // the key is the field in it, `volume.bogus`.)
         if !key.is_empty() && key != field {
             full = String::new();
+        } else if key.is_empty() && !full.is_empty() {
+            full = format!("{full}.{field}");
         }
     }
     // A key at the top level (`--set foo=1`) has no table to name: the message alone (it
@@ -2983,7 +2998,7 @@ mod tests {
         assert_eq!(s.tubes[0].radius, 0.25);
         assert_eq!(s.render.method, Method::Vicinity);
         let e = parse(text, "s", Path::new("."), &o(&["render.nope=1"])).unwrap_err();
-        assert!(e.contains("nope"), "{e}");
+        assert!(e.contains("render.nope: unknown field `nope`"), "{e}");
         // A key at the top level: the message, not an empty path (": unknown field").
         let e = parse(text, "s", Path::new("."), &o(&["foo=1"])).unwrap_err();
         assert!(
@@ -3064,11 +3079,12 @@ mod tests {
                 "s with overrides: tubes[1].select.min_length: invalid type",
             ),
             // An unknown top-level table is the message alone (it read "clip[0].[: ...", the
-            // position of another table), an unknown key of a table names the table.
+            // position of another table), an unknown key of a table names the key in it (it
+            // read "camera: unknown field", which the `--set` hint could not match).
             ("foo.bar=1", "s with overrides: unknown field `foo`"),
             (
                 "camera.foo=1",
-                "s with overrides: camera: unknown field `foo`",
+                "s with overrides: camera.foo: unknown field `foo`",
             ),
         ] {
             let e = parse(text, "s", Path::new("."), &o(&[set])).unwrap_err();
