@@ -78,6 +78,12 @@ pub fn nice_length(x: f64) -> f64 {
 /// 1e4, in scientific notation outside (`-2.278e10`: a field's range in pascals stays short
 /// enough for the colour bar's two ends).
 pub fn format_number(v: f64) -> String {
+    format_digits(v, 4)
+}
+
+/// [`format_number`] with at most `sig` significant digits (1 to 17).
+pub fn format_digits(v: f64, sig: usize) -> String {
+    let sig = sig.clamp(1, 17);
     if v == 0.0 {
         // -0 too.
         return "0".into();
@@ -86,7 +92,7 @@ pub fn format_number(v: f64) -> String {
         return format!("{v}");
     }
     if !(1e-4..1e4).contains(&v.abs()) {
-        let s = format!("{v:.3e}");
+        let s = format!("{v:.*e}", sig - 1);
         let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
         let mantissa = if mantissa.contains('.') {
             mantissa.trim_end_matches('0').trim_end_matches('.')
@@ -95,11 +101,11 @@ pub fn format_number(v: f64) -> String {
         };
         return format!("{mantissa}e{exponent}");
     }
-    let digits = (3 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    let digits = (sig as i32 - 1 - v.abs().log10().floor() as i32).clamp(0, 20) as usize;
     let s = format!("{v:.digits$}");
     if s.trim_start_matches('-').len() > 4 && !s.contains('.') {
         // Rounded up to 1e4 (9999.6): five digits; as the numbers from 1e4 up are written.
-        return format_number(s.parse::<f64>().unwrap_or(v).signum() * 1e4);
+        return format_digits(s.parse::<f64>().unwrap_or(v).signum() * 1e4, sig);
     }
     let s = if s.contains('.') {
         s.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -110,6 +116,23 @@ pub fn format_number(v: f64) -> String {
         "0".into()
     } else {
         s
+    }
+}
+
+/// The two ends of a range as [`format_number`] writes them, with as many more significant
+/// digits as it takes (up to 9) for the labels to give the range's width within a tenth: a
+/// narrow window on offset data, `[9999.5, 10000.5]`, is not labelled "1e4" at both ends.
+pub fn format_ends(range: [f64; 2]) -> (String, String) {
+    let width = range[1] - range[0];
+    let mut sig = 4;
+    loop {
+        let (lo, hi) = (format_digits(range[0], sig), format_digits(range[1], sig));
+        let shown = hi.parse::<f64>().unwrap_or(f64::NAN) - lo.parse::<f64>().unwrap_or(f64::NAN);
+        let close = (shown - width).abs() <= 0.1 * width.abs();
+        if close || !width.is_finite() || width == 0.0 || sig >= 9 {
+            return (lo, hi);
+        }
+        sig += 1;
     }
 }
 
@@ -464,7 +487,7 @@ pub fn draw(
             .ok_or_else(|| format!("annotate.colorbar: '{src}' has no colouring to show"))?;
         // 0.3 of the width, wider where its end labels would not fit under it a text height
         // apart (on a thumbnail "1.401e-44" and "0.005667" ran together into one number).
-        let (lo, hi) = (format_number(cb.range[0]), format_number(cb.range[1]));
+        let (lo, hi) = format_ends(cb.range);
         let ends = extent(&font, px, &lo).0 + extent(&font, px, &hi).0 + px;
         let bw = (wf * 0.3).max(ends).min(wf - 2.0 * margin).round();
         let bh = (px * 0.8).round().max(4.0);
@@ -672,6 +695,14 @@ mod tests {
         assert_eq!(format_number(9999.6), "1e4");
         assert_eq!(format_number(-9999.6), "-1e4");
         assert_eq!(format_number(-0.0), "0");
+        // A colour bar's ends: more digits until they differ (a narrow window on offset
+        // data), at most 9; equal ends stay as they are.
+        let s = |a: &str, b: &str| (a.to_string(), b.to_string());
+        assert_eq!(format_ends([0.0, 2.5]), s("0", "2.5"));
+        assert_eq!(format_ends([9999.5, 10000.5]), s("9999.5", "1.00005e4"));
+        assert_eq!(format_ends([0.99999, 1.00001]), s("0.99999", "1.00001"));
+        assert_eq!(format_ends([273.15, 273.16]), s("273.15", "273.16"));
+        assert_eq!(format_ends([7.0, 7.0]), s("7", "7"));
         // Characters the bundled font lacks, each once; spaces always draw.
         assert_eq!(missing_glyphs("Fibres α-β → 中文 中"), vec!['中', '文']);
         assert!(missing_glyphs("T1 (mm) ±0.5").is_empty());
