@@ -1782,7 +1782,7 @@ fn check_slices(s: &mut Scene, dir: &Path) -> Result<(), String> {
             key,
             format!(
                 "{w:?}: two finite values at least 1.2e-38 and at most 3.4e38 apart are \
-                 needed (the window's ends and its width are single-precision numbers)"
+                 needed (its ends and its width are single-precision numbers)"
             ),
         ),
         Some(Window::Named(n)) if n != "full" && n != "robust" => bad(
