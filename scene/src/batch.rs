@@ -528,6 +528,20 @@ mod tests {
             blame("t.toml: tubes[0]: /data/other.trk: bad", &base, e),
             ""
         );
+        // Only the whole file name: not one that ends or begins with it.
+        let e = &parse_manifest(
+            "s volume.path=a.nii\n",
+            "m.txt",
+            Path::new("."),
+            Some(Path::new("t.toml")),
+        )
+        .unwrap()[0];
+        assert_eq!(
+            blame("t.toml: overlays[0].path (/d/fa.nii): bad", &base, e),
+            ""
+        );
+        assert_eq!(blame("t.toml: tubes[0]: /d/a.nii.gz: bad", &base, e), "");
+        assert!(blame("t.toml: tubes[0]: /d/a.nii: bad", &base, e).contains("volume.path=a.nii"));
     }
 
     fn env(pairs: &[(&str, &str)]) -> impl Fn(&str) -> Option<String> {

@@ -1372,9 +1372,21 @@ pub fn blamed_override<'a>(
         .rev()
         .find(|(k, v, _)| {
             let v = v.trim().trim_matches(|c| c == '"' || c == '\'');
-            (k == "path" || k.ends_with(".path")) && !v.is_empty() && err.contains(v)
+            (k == "path" || k.ends_with(".path")) && !v.is_empty() && quotes_path(err, v)
         })
         .map(|(_, _, label)| label.as_str())
+}
+
+/// Whether `err` names the file `path` (as given, or resolved against a folder): `path` whole,
+/// after the start, a blank, `(` or a `/`, and before the end, a blank, `:` or `)` (`fa.nii`
+/// is not named by an error about `/data/sub-01/fa.nii.gz`, nor `a.nii` by one about `fa.nii`).
+fn quotes_path(err: &str, path: &str) -> bool {
+    err.match_indices(path).any(|(i, _)| {
+        let before = err[..i].chars().next_back();
+        let after = err[i + path.len()..].chars().next();
+        matches!(before, None | Some(' ' | '(' | '/'))
+            && matches!(after, None | Some(' ' | ':' | ')'))
+    })
 }
 
 /// What an error says where [`blamed_override`] finds the override that gave the value (its
