@@ -241,7 +241,24 @@ fn read_arrays(bytes: &[u8], l: &Layout, q: bool, count: usize) -> Vec<Vec<f64>>
 /// Reads a PLOT3D grid file and, if given, its q file.
 pub fn read(xyz: &Path, q: Option<&Path>) -> Result<(CfdGrid, Vec<String>)> {
     let bytes = io_util::read_file(xyz)?;
-    let (layout, warn) = detect(xyz, &bytes, false)?;
+    let grid = detect(xyz, &bytes, false);
+    // No grid layout explains the whole file, a solution's does: the q file given as the
+    // grid (the classic mix-up), whose momentum would be read as coordinates.
+    if matches!(grid, Err(_) | Ok((_, Some(_)))) {
+        if let Ok((ql, None)) = detect(xyz, &bytes, true) {
+            let [a, b, c] = ql.dims;
+            return Err(VolumeError::format(
+                xyz,
+                "header",
+                format!(
+                    "the file is laid out as a PLOT3D solution (q) file ({a} x {b} x {c} points, 4 \
+                     reference values and 5 variables), not as a grid: give the grid (xyz) \
+                     file as the input and this one with --q"
+                ),
+            ));
+        }
+    }
+    let (layout, warn) = grid?;
     let mut warnings: Vec<String> = warn.into_iter().collect();
     let c = read_arrays(&bytes, &layout, false, 3);
     let n = c[0].len();
@@ -443,5 +460,19 @@ mod tests {
         let qp = dir.path().join("t.q");
         std::fs::write(&qp, &q).unwrap();
         assert!(read(&xp, Some(&qp)).is_err());
+        // The q file given as the grid: refused, saying so (it was read as a grid with
+        // IBLANK and trailing bytes, its momentum as coordinates).
+        for markers in [false, true] {
+            let (_, q) = files(markers, false, false);
+            std::fs::write(&qp, &q).unwrap();
+            let e = read(&qp, None).unwrap_err().to_string();
+            assert!(
+                e.contains("t.q")
+                    && e.contains("solution (q) file")
+                    && e.contains("--q")
+                    && !e.contains("  "),
+                "{e}"
+            );
+        }
     }
 }
