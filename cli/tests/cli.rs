@@ -396,6 +396,22 @@ fn resample_writes_a_regular_volume_from_a_curvilinear_grid() {
         checked += 1;
     }
     assert!(checked > 100);
+    // NRRD keeps the grid's own frame, silently; NIfTI would declare it RAS+ (mm, R/L labels):
+    // a warning says so, as convert's does.
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("RAS+"));
+    let nii = umbra()
+        .arg("resample")
+        .arg(&input)
+        .args(["--field", "s", "--dims", "9,5,5", "-o"])
+        .arg(dir.path().join("s.nii"))
+        .output()
+        .unwrap();
+    assert!(nii.status.success());
+    let e = String::from_utf8_lossy(&nii.stderr);
+    assert!(
+        e.contains("warning") && e.contains("NIfTI declares RAS+"),
+        "{e}"
+    );
 
     // `umbra info` describes the grid itself.
     let out = umbra()

@@ -61,16 +61,21 @@ pub fn convert(
     write_field(output, &vol, &f, gzip)?;
     let mut warnings = vol.warnings.clone();
     warnings.extend(precision_warning(&f));
+    warnings.extend(frame_warning(&vol, output));
+    Ok(warnings)
+}
+
+/// A volume in its file's own frame written as NIfTI, which declares RAS+: the warning that
+/// says so (a CFD field in metres would get R/L labels and "mm" bars).
+pub fn frame_warning(vol: &volume::Volume, output: &Path) -> Option<String> {
     let nifti = output.to_string_lossy().to_ascii_lowercase();
-    if vol.space == volume::Space::File && (nifti.ends_with(".nii") || nifti.ends_with(".nii.gz")) {
-        warnings.push(
+    (vol.space == volume::Space::File && (nifti.ends_with(".nii") || nifti.ends_with(".nii.gz")))
+        .then(|| {
             "its frame is its own (no anatomical orientation declared), and NIfTI declares \
              RAS+ (sform and qform code 1): readers of the output, umbra included, label its \
              axes R/L, A/P, S/I; write .nrrd to keep the file's own frame"
-                .into(),
-        );
-    }
-    Ok(warnings)
+                .into()
+        })
 }
 
 /// What the `f32` samples could not hold of a wider stored type: float64 rounded to single

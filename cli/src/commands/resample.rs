@@ -205,6 +205,7 @@ pub fn resample(
     let inside = inside as f64 / samples as f64;
     stage("writing");
     super::convert::write_field(output, &vol, &f, gzip)?;
+    warnings.extend(super::convert::frame_warning(&vol, output));
     Ok(ResampleReport {
         format: grid.format.clone(),
         points: grid.n_points(),
