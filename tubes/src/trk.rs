@@ -24,7 +24,7 @@ const HDR: usize = 1000;
 
 /// Axis codes (R/L, A/P, S/I) of a 3x3 orientation: for each voxel axis the world axis it runs
 /// along most and its direction (nibabel's `aff2axcodes` for affines without strong shear).
-fn axcodes(m: &DMat3) -> [(usize, i32); 3] {
+pub(crate) fn axcodes(m: &DMat3) -> [(usize, i32); 3] {
     let mut out = [(0, 1); 3];
     let mut used = [false; 3];
     // Assign the strongest components first so that two voxel axes never share a world axis.
@@ -428,14 +428,20 @@ pub fn grid_space(dims: [usize; 3], affine: DMat4) -> Option<ReferenceSpace> {
     {
         return None;
     }
-    let letters = [[b'L', b'R'], [b'P', b'A'], [b'I', b'S']];
-    let voxel_order = axcodes(&m).map(|(axis, dir)| letters[axis][usize::from(dir > 0)]);
+    let voxel_order = voxel_order(&m);
     Some(ReferenceSpace {
         dims,
         voxel_sizes: sizes,
         vox_to_ras: affine,
         voxel_order,
     })
+}
+
+/// The voxel order (`b"LPS"`, ...) that a grid's voxel-to-RAS+ matrix `m` implies: each voxel
+/// axis's nearest world axis and its direction, as nibabel's `aff2axcodes`.
+pub(crate) fn voxel_order(m: &DMat3) -> [u8; 3] {
+    let letters = [[b'L', b'R'], [b'P', b'A'], [b'I', b'S']];
+    axcodes(m).map(|(axis, dir)| letters[axis][usize::from(dir > 0)])
 }
 
 fn put_name(h: &mut [u8], at: usize, name: &str, count: usize) {

@@ -347,7 +347,8 @@ pub fn read(path: &Path) -> Result<Streamlines> {
                         dims: [dims[0], dims[1], dims[2]],
                         voxel_sizes: vs,
                         vox_to_ras: m,
-                        voxel_order: *b"RAS",
+                        // As the matrix says (it was always "RAS": an LPS grid read as RAS).
+                        voxel_order: crate::trk::voxel_order(&glam::DMat3::from_mat4(m)),
                     });
                 }
             }

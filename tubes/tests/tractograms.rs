@@ -393,6 +393,22 @@ fn trx_files_agree_with_trx_python_and_with_their_trackvis_sources() {
     );
 }
 
+/// A TRX file's voxel order is its VOXEL_TO_RASMM's (it was read as "RAS" whatever the matrix:
+/// `umbra info` printed RAS for an LPS grid).
+#[test]
+fn a_trx_files_voxel_order_is_its_matrixs() {
+    let d = tempfile::tempdir().unwrap();
+    let mut s = tubes::load(&dir().join("dipy/tracks300.trk")).unwrap();
+    for (diag, order) in [([-1.0, -1.0, 1.0], b"LPS"), ([-2.0, 1.0, 1.0], b"LAS")] {
+        let r = s.reference.as_mut().unwrap();
+        r.vox_to_ras = glam::DMat4::from_scale(glam::DVec3::from(diag));
+        let p = d.path().join("t.trx");
+        tubes::trx::write(&p, &s).unwrap();
+        let back = tubes::load(&p).unwrap();
+        assert_eq!(&back.reference.unwrap().voxel_order, order);
+    }
+}
+
 /// Writes an uncompressed TRX directory.
 fn trx_folder(d: &Path, files: &[(&str, Vec<u8>)]) -> PathBuf {
     let root = d.join(format!("t{}.trx", files.len()));
