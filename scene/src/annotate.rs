@@ -456,10 +456,15 @@ pub fn draw(
                 world * ppu
             ));
         }
-        let units =
-            spec.units
-                .clone()
-                .unwrap_or_else(|| if ctx.ras { "mm".into() } else { "units".into() });
+        let units = spec
+            .units
+            .clone()
+            .unwrap_or_else(|| match (ctx.ras, world == 1.0) {
+                (true, _) => "mm".into(),
+                // "1 unit", not "1 units".
+                (false, true) => "unit".into(),
+                (false, false) => "units".into(),
+            });
         let thick = (px * 0.3).max(2.0);
         let (x0, y1) = (margin.round(), hf - margin);
         let bar = [x0, y1 - thick, x0 + len as f32, y1];

@@ -2149,7 +2149,10 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
                 return bad("volume.iso.sky", e);
             }
             if !(i.gamma > 0.0 && i.gamma.is_finite()) {
-                return bad("volume.iso.gamma", format!("{} is not positive", i.gamma));
+                return bad(
+                    "volume.iso.gamma",
+                    format!("{} is not a positive finite number", i.gamma),
+                );
             }
             if !(i.offset >= 0.0 && i.offset.is_finite()) {
                 return bad("volume.iso.offset", format!("{} must be >= 0", i.offset));
@@ -2360,7 +2363,7 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
         if !(l.width > 0.0 && l.width.is_finite()) {
             return bad(
                 &format!("lines[{i}].width"),
-                format!("{} is not positive", l.width),
+                format!("{} is not a positive finite number", l.width),
             );
         }
         if l.width_unit == WidthUnit::Pixels && l.width > 256.0 {
