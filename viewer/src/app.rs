@@ -601,11 +601,14 @@ impl App {
     }
 
     /// World units per logical point at the target's depth (a perspective camera's view
-    /// height there, or the orthographic height fitted to the scene).
+    /// height there, or the orthographic view's height).
     fn world_per_point(&self, view_height_points: f64) -> f64 {
         let radius = (self.bounds[1] - self.bounds[0]).length() * 0.5;
         let depth = self.orbit.distance * radius;
-        let h = 2.0 * depth * (self.scene.camera.fov_y.to_radians() * 0.5).tan();
+        let h = match self.orbit.orthographic {
+            true => self.orbit.ortho_height,
+            false => 2.0 * depth * (self.scene.camera.fov_y.to_radians() * 0.5).tan(),
+        };
         h / view_height_points.max(1.0)
     }
 

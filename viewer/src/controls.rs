@@ -25,6 +25,9 @@ pub struct Orbit {
     pub distance: f64,
     pub target: DVec3,
     pub orthographic: bool,
+    /// The orthographic view's height in world units (`camera.height`): what zooming changes
+    /// in an orthographic view, where the eye's distance changes nothing on screen.
+    pub ortho_height: f64,
 }
 
 /// A standard view of RAS data (x to the Right, y Anterior, z Superior): from the left, right,
@@ -67,6 +70,8 @@ impl Orbit {
             distance: c.distance,
             target,
             orthographic: c.projection == ProjectionKind::Orthographic,
+            // The scene's, else the height `scene::compile::camera` fits to the scene.
+            ortho_height: c.height.unwrap_or(2.1 * radius),
         };
         if let Some(eye) = c.eye {
             let v = target - DVec3::from(eye);
@@ -105,13 +110,21 @@ impl Orbit {
         .clamped()
     }
 
-    /// Zoom by `steps` (positive: closer): the distance is divided by `1.1^steps`.
+    /// Zoom by `steps` (positive: closer): the distance is divided by `1.1^steps`, or in an
+    /// orthographic view its height (within 1e-9 to 1e15 world units).
     pub fn zoom(self, steps: f64) -> Orbit {
-        Orbit {
-            distance: self.distance / 1.1f64.powf(steps),
-            ..self
+        let k = 1.1f64.powf(steps);
+        match self.orthographic {
+            true => Orbit {
+                ortho_height: (self.ortho_height / k).clamp(1e-9, 1e15),
+                ..self
+            },
+            false => Orbit {
+                distance: self.distance / k,
+                ..self
+            }
+            .clamped(),
         }
-        .clamped()
     }
 
     /// Pan by `(dx, dy)` in world units along the view's right and up axes.
@@ -147,7 +160,10 @@ impl Orbit {
             },
             ..CameraSpec::default()
         };
-        Orbit::of(&c, bounds)
+        Orbit {
+            ortho_height: self.ortho_height,
+            ..Orbit::of(&c, bounds)
+        }
     }
 
     /// The view's right and up axes (unit; as [`Orbit::pan`] moves along them).
@@ -200,6 +216,7 @@ impl Orbit {
         c.distance = self.distance;
         c.target = Some(self.target.to_array());
         c.projection = if self.orthographic {
+            c.height = Some(self.ortho_height);
             ProjectionKind::Orthographic
         } else {
             ProjectionKind::Perspective
@@ -311,6 +328,7 @@ mod tests {
                 distance: dist,
                 target: centre,
                 orthographic: false,
+                ortho_height: 2.1 * radius,
             };
             let eye = centre - o.forward() * dist * radius;
             let c = CameraSpec {
@@ -462,6 +480,29 @@ mod tests {
         assert!((-180.0..180.0).contains(&w.azimuth));
         assert!((o.zoom(1.0).distance - o.distance / 1.1).abs() < 1e-12);
         assert_eq!(o.zoom(1e3).distance, MIN_DISTANCE);
+        // Orthographic: the view's height zooms (the eye's distance changes nothing on
+        // screen there), written as camera.height, which the renderer's camera takes.
+        let radius = (bounds()[1] - bounds()[0]).length() * 0.5;
+        let ortho = Orbit {
+            orthographic: true,
+            ..o
+        };
+        assert!((ortho.ortho_height - 2.1 * radius).abs() < 1e-9);
+        let z = ortho.zoom(2.0);
+        assert_eq!(z.distance, ortho.distance);
+        assert!((z.ortho_height - ortho.ortho_height / 1.21).abs() < 1e-9);
+        let mut c = CameraSpec::default();
+        z.apply(&mut c);
+        assert_eq!(c.height, Some(z.ortho_height));
+        let mut s = scene::spec::parse("", "s", std::path::Path::new("."), &[]).unwrap();
+        s.camera = c;
+        let cam = scene::compile::camera(&s, bounds()).unwrap();
+        assert_eq!(
+            cam.projection,
+            occlusion::camera::Projection::Orthographic {
+                height: z.ortho_height
+            }
+        );
         // A pan moves the target perpendicular to the view direction.
         let p = o.pan(3.0, 4.0);
         let moved = p.target - o.target;
