@@ -137,6 +137,10 @@ pub struct Session {
     /// the first rebuild of a volume.
     histograms: Option<(Vec<u64>, crate::transfer::Histogram2d)>,
     transfer: Option<scene::spec::TransferSpec>,
+    /// The transfer function the model was made with: the slice distance a narrow feature
+    /// asks for and the notes on the function's range come from it, so the full image of
+    /// another function models the scene anew (drafts only upload the new function).
+    modelled: Option<scene::spec::TransferSpec>,
     /// The scene's data as modelled: its objects, without the transfer function.
     data: DataKey,
     /// The slices as planned in the model and its upload.
@@ -400,6 +404,7 @@ impl Session {
             histograms: None,
             model: m,
             up,
+            modelled: transfer.clone(),
             transfer,
             data: data_key(s),
             slices: s.slices.clone(),
@@ -438,7 +443,14 @@ impl Session {
         let slices = req.scene.slices != self.slices;
         // Slices shown where the model has no grid of slices (none were drawn) need one.
         let no_grid = slices && self.model.planes.is_none();
-        if (key != self.data && !(cut_only && req.level == Level::Draft)) || no_grid {
+        // A new transfer function at rest: the slices its features ask for and its notes
+        // (a volume drawn by its function, not a projection's colours).
+        let tf_modelled = req.level == Level::Draft
+            || tf == self.modelled
+            || self.model.volume.is_none()
+            || self.data.5;
+        if (key != self.data && !(cut_only && req.level == Level::Draft)) || no_grid || !tf_modelled
+        {
             // Other objects (opened, removed, hidden, resized, recoloured): the model anew.
             // Both made before either is kept: a failed upload leaves model and upload as
             // they were, in step (drafts take lists from the one into the other's buffers).
@@ -461,6 +473,7 @@ impl Session {
             self.data = key;
             self.slices = req.scene.slices.clone();
             self.transfer = tf.clone();
+            self.modelled = tf.clone();
             self.draft.clear();
             rebuilt = Some(Rebuilt {
                 bounds: self.model.bounds,

@@ -605,3 +605,66 @@ fn a_frame_carries_the_models_notes() {
         );
     }
 }
+
+/// A new transfer function: drafts only upload it, the full image models the scene anew, so
+/// that the slices a narrow feature asks for and the notes are the ones `umbra render` takes
+/// for that scene (they stayed the first function's: the viewer under-sampled the scene it
+/// saved).
+#[test]
+fn a_new_transfer_function_at_rest_is_modelled_as_umbra_render_models_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = headsq_scene(dir.path());
+    let s = scene::spec::load(&path, &[]).unwrap();
+    let m = scene::compile::model(&s).unwrap();
+    let (lo, hi) = (m.volume.as_ref().unwrap().1.stats().min, {
+        m.volume.as_ref().unwrap().1.stats().max
+    });
+    let mut session = umbra_viewer::worker::Session::new(m, &s).unwrap();
+    // A spike a hundredth of the range wide: a feature narrower than the data's change per
+    // voxel, which shortens the default slice distance.
+    let mut state = s.clone();
+    let mid = 0.5 * (lo + hi);
+    let w = 0.01 * (hi - lo);
+    let point = |value: f64, extinction: f64| scene::spec::TfPoint {
+        value,
+        color: scene::spec::Color::Rgb([1.0, 0.9, 0.8]),
+        extinction,
+        gradient: None,
+    };
+    let tf = &mut state.volume.as_mut().unwrap().transfer;
+    tf.preset = String::new();
+    tf.points = vec![
+        point(lo, 0.0),
+        point(mid - w, 0.0),
+        point(mid, 2.0),
+        point(mid + w, 0.0),
+        point(hi, 0.0),
+    ];
+    let want = scene::compile::model(&state).unwrap();
+    assert!(
+        want.spacing < session.model().spacing,
+        "the spike asks for shorter slices"
+    );
+    let mut frame = |level: Level| {
+        session
+            .frame(&Request {
+                id: 0,
+                scene: state.clone(),
+                level,
+                save: None,
+                pass_timings: false,
+            })
+            .unwrap()
+    };
+    let draft = frame(Level::Draft);
+    assert!(draft.rebuilt.is_none(), "a draft only uploads the function");
+    let full = frame(Level::Full);
+    assert!(
+        full.rebuilt.is_some(),
+        "the full image models the scene anew"
+    );
+    assert_eq!(session.model().spacing, want.spacing);
+    for n in &want.notes {
+        assert!(full.notes.contains(n), "{n:?} not in {:?}", full.notes);
+    }
+}
