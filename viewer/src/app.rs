@@ -567,13 +567,18 @@ impl App {
         self.changed();
     }
 
-    /// The orientation triad in the view's lower left corner: the world axes as the camera
-    /// sees them, labelled R, A, S at their positive ends (L, P, I at the others).
+    /// The orientation triad in the view's lower left corner (the upper left where the scene
+    /// draws a scale bar there, `annotate.scale_bar`): the world axes as the camera sees them,
+    /// labelled R, A, S at their positive ends (L, P, I at the others).
     fn triad(&self, painter: &egui::Painter, rect: egui::Rect) {
         let f = self.orbit.forward();
         let right = f.cross(DVec3::Z).try_normalize().unwrap_or(DVec3::X);
         let up = right.cross(f);
-        let c = egui::pos2(rect.left() + 40.0, rect.bottom() - 40.0);
+        let y = match self.scene.annotate.scale_bar.is_some() {
+            true => rect.top() + 40.0,
+            false => rect.bottom() - 40.0,
+        };
+        let c = egui::pos2(rect.left() + 40.0, y);
         let len = 28.0;
         for (axis, pos, neg, color) in [
             (DVec3::X, "R", "L", egui::Color32::from_rgb(220, 70, 70)),
