@@ -609,8 +609,11 @@ pub fn draw_with(
             pass_timings: req.pass_timings && req.level == Level::Full,
         },
     )?;
-    // The scene's title, labels and bars, as `umbra render` draws them.
-    scene::render::annotate_frame(&s, m, &mut out, &v)?;
+    // The scene's title, labels and bars, as `umbra render` draws them: on the full image
+    // (a draft's smaller image would lay them out larger and cut, then be scaled up).
+    if req.level == Level::Full {
+        scene::render::annotate_frame(&s, m, &mut out, &v)?;
+    }
     let saved = req.save.as_ref().map(|(path, aov)| {
         let exr = path
             .extension()
