@@ -303,6 +303,8 @@ pub struct SliceGrid {
     pub dims: [usize; 3],
     pub affine: glam::DMat4,
     pub bounds: [glam::DVec3; 2],
+    /// Whether the grid is in RAS+ millimetres (its positions read "mm"; else "units").
+    pub ras: bool,
 }
 
 impl SliceGrid {
@@ -312,6 +314,7 @@ impl SliceGrid {
             dims: p.dims,
             affine: p.affine,
             bounds: p.bounds,
+            ras: m.space.is_none_or(|s| s == volume::Space::Ras),
         })
     }
 
@@ -483,7 +486,7 @@ fn slice_row(
                     // A drag keeps the shown decimals: two, so that steps under a millimetre
                     // (a 300th of the span) are not rounded to whole ones.
                     .min_decimals(2)
-                    .suffix(" mm"),
+                    .suffix(if g.ras { " mm" } else { " units" }),
             )
             .labelled_by(l.id);
         if r.changed() && p != at {
