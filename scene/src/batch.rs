@@ -401,9 +401,15 @@ pub fn run_manifest(
             shard: Shard::ALL,
             ..base.clone()
         };
+        // A frame that failed on a key an override gave says so, as an entry that fails
+        // before its frame does.
         let named = |mut o: FrameOutcome| {
             o.index = k;
             o.name = Some(e.name.clone());
+            if let Some(err) = &mut o.error {
+                let b = blame(err, base, e);
+                err.push_str(&b);
+            }
             o
         };
         let got = run_on(&args, &gpu, &mut |p| match p {

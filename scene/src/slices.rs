@@ -96,9 +96,12 @@ impl PlaneModel {
     /// and overlays) on this model's grid and fields: what moving, hiding or restyling slices
     /// changes, without reading or resampling anything. Slabs are not taken into account
     /// (they crop the geometry: a model anew).
-    pub fn replan(&self, s: &Scene) -> Result<Vec<PlaneInput>, String> {
+    /// Also the notes the slices get (an outlier note: [`is_slice_note`]).
+    pub fn replan(&self, s: &Scene) -> Result<(Vec<PlaneInput>, Vec<String>), String> {
         let vspec = s.volume.as_ref().ok_or("slices need a [volume]")?;
-        planes_of(s, vspec, self, &mut vec![])
+        let mut notes = vec![];
+        let planes = planes_of(s, vspec, self, &mut notes)?;
+        Ok((planes, notes))
     }
 
     /// The span `[lo, hi]` of the grid's voxel centres along unit normal `n` (where a slice
@@ -660,6 +663,11 @@ fn planes_of(
         }
     }
     Ok(planes)
+}
+
+/// Whether note `n` is one the slices' planning gives (replaced when they are planned again).
+pub fn is_slice_note(n: &str) -> bool {
+    n.starts_with("slices[") && n.ends_with("window = \"robust\" spans them")
 }
 
 /// A slice whose window is its field's full range `full`: the field's 2nd to 98th percentiles

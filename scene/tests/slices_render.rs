@@ -1025,6 +1025,24 @@ fn robust_and_full_windows_span_the_percentiles_and_the_range() {
         "{}",
         notes[0]
     );
+    // Planned again (the viewer's menu): the notes follow the windows.
+    assert!(scene::slices::is_slice_note(&notes[0]));
+    let mut s2 = scene::spec::parse(
+        &format!("[volume]\npath = \"{path}\"\n[[slices]]\naxis = \"axial\"\nwindow = \"robust\"\n[[slices]]\naxis = \"coronal\"\nwindow = [0.0, 1.0]\n[[slices]]\naxis = \"sagittal\"\n"),
+        "t.toml",
+        dir.path(),
+        &[],
+    )
+    .unwrap();
+    let (_, again) = m.planes.as_ref().unwrap().replan(&s2).unwrap();
+    assert!(
+        again.len() == 1
+            && again[0].starts_with("slices[2].window (")
+            && scene::slices::is_slice_note(&again[0]),
+        "{again:?}"
+    );
+    s2.slices[2].window = Some(scene::spec::Window::Named("full".into()));
+    assert!(m.planes.as_ref().unwrap().replan(&s2).unwrap().1.is_empty());
     // "robust" on the slice, or on the volume for every slice; "full" says it is meant.
     let m = model_of("[[slices]]\naxis = \"axial\"\nwindow = \"robust\"\n");
     near(window(&m, 0), [lo, hi]);

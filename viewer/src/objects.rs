@@ -461,6 +461,7 @@ fn slice_row(
     sl: &mut scene::spec::SliceSpec,
     hidden: &mut bool,
     g: &SliceGrid,
+    windowed: bool,
 ) {
     let (at, [lo, hi]) = g.position(sl);
     let what = match sl.axis {
@@ -496,19 +497,22 @@ fn slice_row(
     // The window: the scene's (`volume.window`, else the field's finite range), the full
     // range or the robust one; values given in the scene stay until another is chosen.
     use scene::spec::Window;
-    let shown = match &sl.window {
-        None => "default".to_string(),
-        Some(Window::Named(n)) => n.clone(),
-        Some(Window::Values([a, b])) => format!("[{a}, {b}]"),
-    };
-    egui::ComboBox::from_label(format!("  slices[{i}] window"))
-        .selected_text(shown)
-        .show_ui(ui, |ui| {
-            ui.selectable_value(&mut sl.window, None, "default");
-            for n in ["full", "robust"] {
-                ui.selectable_value(&mut sl.window, Some(Window::Named(n.into())), n);
-            }
-        });
+    // (None for a label overlay's slice: its colours are the labels'.)
+    if windowed {
+        let shown = match &sl.window {
+            None => "default".to_string(),
+            Some(Window::Named(n)) => n.clone(),
+            Some(Window::Values([a, b])) => format!("[{a}, {b}]"),
+        };
+        egui::ComboBox::from_label(format!("  slices[{i}] window"))
+            .selected_text(shown)
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut sl.window, None, "default");
+                for n in ["full", "robust"] {
+                    ui.selectable_value(&mut sl.window, Some(Window::Named(n.into())), n);
+                }
+            });
+    }
     ui.horizontal(|ui| {
         let l = ui.label(format!("  slices[{i}] opacity"));
         ui.add(
@@ -606,8 +610,16 @@ pub fn panel(
         hidden.points[i] = !shown;
     }
     if let Some(g) = grid {
+        // Slices of a label overlay take the labels' colours: no window.
+        let labels: Vec<String> = s
+            .overlays
+            .iter()
+            .filter(|o| o.labels)
+            .map(|o| o.name.clone())
+            .collect();
         for (i, sl) in s.slices.iter_mut().enumerate() {
-            slice_row(ui, i, sl, &mut hidden.slices[i], g);
+            let windowed = sl.volume.as_ref().is_none_or(|v| !labels.contains(v));
+            slice_row(ui, i, sl, &mut hidden.slices[i], g, windowed);
         }
     }
     match remove {

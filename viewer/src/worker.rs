@@ -489,9 +489,14 @@ impl Session {
             // Slices moved, hidden or restyled: planned anew on the model's grid, the rest of
             // the model and its upload kept (the drafts' shares are made again).
             if let Some(p) = self.model.planes.as_mut() {
-                let planes = p.replan(&req.scene)?;
+                let (planes, notes) = p.replan(&req.scene)?;
                 self.up.set_planes(p, &planes)?;
                 p.planes = planes;
+                // The slices' notes are the new plan's (an outlier note goes with a window).
+                self.model
+                    .notes
+                    .retain(|n| !scene::slices::is_slice_note(n));
+                self.model.notes.extend(notes);
                 // A slice's colour bar follows its window.
                 if let Some(i) = req
                     .scene
