@@ -418,6 +418,34 @@ impl Session {
         &self.model
     }
 
+    /// Whether scene `s`'s transfer function models the scene as the one the model was made
+    /// with: the same slice distance (a narrow feature shortens it) and the same kind of
+    /// function and range (the range's note). Then its full image needs no new model (which
+    /// reads every file again: seconds for heavy geometry).
+    fn models_alike(&self, s: &Scene) -> bool {
+        let (Some(spec), Some(was), Some((vol, data, _))) = (
+            s.volume.as_ref().map(|v| &v.transfer),
+            self.modelled.as_ref(),
+            &self.model.volume,
+        ) else {
+            return false;
+        };
+        if spec.points.is_empty() != was.points.is_empty()
+            || spec.range.is_full() != was.range.is_full()
+        {
+            return false;
+        }
+        if s.render.slices.is_some() || s.render.slice_distance.is_some() {
+            return true;
+        }
+        let range = scene::compile::preset_range(spec, self.range, || self.robust);
+        match scene::compile::transfer(spec, range) {
+            Ok(t) => 2.0 * scene::compile::slice_distance(vol, data, &t).0 == self.model.spacing,
+            // (The error is the frame's: the model anew reports it.)
+            Err(_) => false,
+        }
+    }
+
     /// Draws the request (re-uploading for a new transfer function) into an [`Image`], and
     /// writes its screenshot: the same frame `umbra render` writes for that scene.
     /// The GPU the session draws on.
@@ -448,7 +476,11 @@ impl Session {
         let tf_modelled = req.level == Level::Draft
             || tf == self.modelled
             || self.model.volume.is_none()
-            || self.data.5;
+            || self.data.5
+            || self.models_alike(&req.scene);
+        if tf_modelled && req.level == Level::Full {
+            self.modelled = tf.clone();
+        }
         if (key != self.data && !(cut_only && req.level == Level::Draft)) || no_grid || !tf_modelled
         {
             // Other objects (opened, removed, hidden, resized, recoloured): the model anew.

@@ -667,4 +667,19 @@ fn a_new_transfer_function_at_rest_is_modelled_as_umbra_render_models_it() {
     for n in &want.notes {
         assert!(full.notes.contains(n), "{n:?} not in {:?}", full.notes);
     }
+    // A function that asks for the same slices (a colour changed) keeps the model: a new one
+    // reads every file again.
+    state.volume.as_mut().unwrap().transfer.points[2].color =
+        scene::spec::Color::Rgb([0.2, 0.9, 0.3]);
+    let full = session
+        .frame(&Request {
+            id: 0,
+            scene: state.clone(),
+            level: Level::Full,
+            save: None,
+            pass_timings: false,
+        })
+        .unwrap();
+    assert!(full.rebuilt.is_none(), "the same slices need no new model");
+    assert_eq!(session.model().spacing, want.spacing);
 }
