@@ -407,8 +407,14 @@ pub fn run_manifest(
             o.index = k;
             o.name = Some(e.name.clone());
             if let Some(err) = &mut o.error {
-                let b = blame(err, base, e);
-                err.push_str(&b);
+                // The entry's line first, then the override's blame, once each.
+                if !err.starts_with(&e.at) {
+                    *err = format!("{}: {err}", e.at);
+                }
+                if !err.contains(crate::spec::BLAME_PREFIX) {
+                    let b = blame(err, base, e);
+                    err.push_str(&b);
+                }
             }
             o
         };
@@ -445,7 +451,7 @@ pub fn run_manifest(
                     name: None,
                     path,
                     ms: None,
-                    error: Some(format!("{}: {error}{}", e.at, blame(&error, base, e))),
+                    error: Some(error),
                 });
                 progress(Progress::Failed(&o));
                 r.failed.push(o);
@@ -489,6 +495,39 @@ fn blame(error: &str, base: &RenderArgs, e: &Entry) -> String {
 mod tests {
     use super::*;
     use std::collections::HashMap;
+
+    /// An entry that fails (before any frame, on a key its line gave) is recorded with its
+    /// line and the override named once (it was named twice).
+    #[test]
+    fn a_failed_entry_names_its_line_and_the_override_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = dir.path().join("t.toml");
+        std::fs::write(&scene, "[[lines]]\npath = \"a.tck\"\n").unwrap();
+        let entries =
+            parse_manifest("b render.width=0\n", "m.txt", dir.path(), Some(&scene)).unwrap();
+        let base = RenderArgs {
+            frames: 1,
+            ..Default::default()
+        };
+        let mut failed_lines = vec![];
+        let r = run_manifest(
+            &entries,
+            &dir.path().join("out/{name}.png"),
+            &base,
+            Shard::ALL,
+            &mut |p| {
+                if let Progress::Failed(o) = p {
+                    failed_lines.push(o.error.clone().unwrap_or_default());
+                }
+            },
+        )
+        .unwrap();
+        let err = r.failed[0].error.as_deref().unwrap();
+        assert!(err.starts_with("m.txt: line 1: "), "{err}");
+        assert_eq!(err.matches(crate::spec::BLAME_PREFIX).count(), 1, "{err}");
+        assert!(err.contains("render.width=0 on m.txt: line 1"), "{err}");
+        assert_eq!(failed_lines, [err.to_string()]);
+    }
 
     #[test]
     fn an_entrys_error_about_an_overridden_key_names_the_override_that_applied_last() {
