@@ -140,6 +140,17 @@ pub fn robust_range(
 pub const ROBUST_FRACTIONS: [f64; 2] =
     [ROBUST_PERCENTILES[0] / 100.0, ROBUST_PERCENTILES[1] / 100.0];
 
+/// The [`ROBUST_FRACTIONS`] quantiles of the finite ones of `len` values, estimated from every
+/// k-th of them, at most [`NOTE_SAMPLES`] (exact below): what the outlier notes quote, so that
+/// every render of a large field does not pay two passes over it for a note.
+pub fn estimated_robust<I: Iterator<Item = f32>>(len: usize, values: impl Fn() -> I) -> Vec<f64> {
+    let step = len.div_ceil(NOTE_SAMPLES).max(1);
+    volume::quantile::quantiles(
+        || values().step_by(step).filter(|v| v.is_finite()),
+        &ROBUST_FRACTIONS,
+    )
+}
+
 /// The robust range from the quantiles `q` at [`ROBUST_FRACTIONS`]: `full` where they coincide
 /// in single precision, as the renderers map values (or there are none).
 pub fn robust_from(q: &[f64], full: [f64; 2]) -> [f64; 2] {
@@ -656,17 +667,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
                 // opacity: say so, and what spans the rest. Estimated from every k-th sample,
                 // at most NOTE_SAMPLES of them (exact below), so that every render of a
                 // large f32 field does not pay two passes over it for a note.
-                let step = field.samples.len().div_ceil(NOTE_SAMPLES).max(1);
-                let q = volume::quantile::quantiles(
-                    || {
-                        field
-                            .samples
-                            .values()
-                            .step_by(step)
-                            .filter(|v| v.is_finite())
-                    },
-                    &ROBUST_FRACTIONS,
-                );
+                let q = estimated_robust(field.samples.len(), || field.samples.values());
                 if q[0] < q[1] && (q[1] - q[0]) < OUTLIER_SHARE * (full[1] - full[0]) {
                     let n = crate::annotate::format_number;
                     let (spans, take, key) = match projection {

@@ -675,17 +675,13 @@ pub fn is_slice_note(n: &str) -> bool {
 /// the share of the window they span, where that is under [`crate::compile::OUTLIER_SHARE`]
 /// (a few outliers, as the inlet's speeds of a room's flow, leave the rest one colour).
 fn outlier_note(values: &[f32], full: [f64; 2]) -> Option<String> {
-    let step = values.len().div_ceil(crate::compile::NOTE_SAMPLES).max(1);
-    let q = volume::quantile::quantiles(
-        || {
-            values
-                .iter()
-                .step_by(step)
-                .copied()
-                .filter(|v| v.is_finite() && *v > -1e30)
-        },
-        &crate::compile::ROBUST_FRACTIONS,
-    );
+    // (Gaps, held as -3e38, are no values.)
+    let q = crate::compile::estimated_robust(values.len(), || {
+        values
+            .iter()
+            .copied()
+            .map(|v| if v > -1e30 { v } else { f32::NAN })
+    });
     let n = crate::annotate::format_number;
     (q[0] < q[1] && (q[1] - q[0]) < crate::compile::OUTLIER_SHARE * (full[1] - full[0])).then(
         || {
