@@ -24,10 +24,12 @@
 //!
 //! Look-at keys give `eye` (and optionally `target`, `up`; default the scene camera's, or the
 //! scene's centre for `target`); all keys of a path are of one kind. `fov_y` may be keyed in
-//! either kind, and a key with only `fov_y` (and `time`) joins a path of either kind. Values
+//! either kind, and so may `height` (an orthographic camera's view height, world units); a
+//! key with only `fov_y` or `height` (and `time`) joins a path of either kind. Values
 //! are interpolated per component between the keys around each frame's time; `up` is
 //! normalised after interpolation. Keys take the ranges of the scene's `[camera]` (`fov_y` in
-//! (0, 180), `distance` above 1, points within 1e15, `up` not zero); Catmull-Rom values that
+//! (0, 180), `distance` above 1, `height` positive, points and heights within 1e15, `up` not
+//! zero); Catmull-Rom values that
 //! overshoot them are held inside.
 
 use crate::spec::{CameraSpec, Scene};
@@ -55,6 +57,9 @@ pub struct Key {
     pub target: Option<[f64; 3]>,
     pub up: Option<[f64; 3]>,
     pub fov_y: Option<f64>,
+    /// An orthographic camera's view height, world units (a perspective camera's image does
+    /// not depend on it).
+    pub height: Option<f64>,
 }
 
 /// A camera path file.
@@ -136,6 +141,7 @@ impl CameraPath {
                 .chain(k.elevation)
                 .chain(k.distance)
                 .chain(k.fov_y)
+                .chain(k.height)
                 .chain(k.eye.into_iter().flatten())
                 .chain(k.target.into_iter().flatten())
                 .chain(k.up.into_iter().flatten());
@@ -145,6 +151,15 @@ impl CameraPath {
             // The ranges of the scene's `[camera]` keys.
             if let Some(f) = k.fov_y.filter(|f| !(*f > 0.0 && *f < 180.0)) {
                 return Err(format!("key[{i}].fov_y: {f} is not in (0, 180) degrees"));
+            }
+            if let Some(h) = k
+                .height
+                .filter(|h| !(*h > 0.0 && *h <= volume::MAX_COORDINATE))
+            {
+                return Err(format!(
+                    "key[{i}].height: {h} is not a positive height up to {:e}",
+                    volume::MAX_COORDINATE
+                ));
             }
             if let Some(d) = k.distance.filter(|d| *d <= 1.0) {
                 return Err(format!(
@@ -172,9 +187,9 @@ impl CameraPath {
             }
         }
         // A key is a look-at key when it gives eye, target or up, an orbit key when it gives an
-        // angle or the distance, and of either kind when it gives only `fov_y`. A path's keys
-        // are of one kind; a look-at path's first key gives the eye (later ones may retarget
-        // alone).
+        // angle or the distance, and of either kind when it gives only `fov_y` or `height`. A
+        // path's keys are of one kind; a look-at path's first key gives the eye (later ones may
+        // retarget alone).
         let look = |k: &Key| k.eye.is_some() || k.target.is_some() || k.up.is_some();
         let orbit = |k: &Key| k.azimuth.is_some() || k.elevation.is_some() || k.distance.is_some();
         if let Some(first) = p.key.iter().position(|k| look(k) || orbit(k)) {
@@ -247,6 +262,16 @@ impl CameraPath {
         // ranges a scene's camera allows.
         if let Some(f) = series(&|k| k.fov_y) {
             c.fov_y = f.clamp(1e-3, 179.999);
+        }
+        if let Some(h) = series(&|k| k.height) {
+            // Held at the smallest keyed height or above: Catmull-Rom may dip below zero
+            // between small heights keyed beside large ones.
+            let low = self
+                .key
+                .iter()
+                .filter_map(|k| k.height)
+                .fold(f64::MAX, f64::min);
+            c.height = Some(h.clamp(low, volume::MAX_COORDINATE));
         }
         if self.key[0].eye.is_some() {
             // Look-at: each of eye, target and up interpolated over the keys that give it.
@@ -493,12 +518,55 @@ mod tests {
         bad(&k("distance = 0.5"), "key[0].distance");
         bad(&k("fov_y = 0.0"), "key[0].fov_y");
         bad(&k("fov_y = 200.0"), "key[0].fov_y");
+        bad(&k("height = 0.0"), "key[0].height");
+        bad(&k("height = 1e16"), "key[0].height");
         bad(&k("eye = [1, 2, 3]\nup = [0, 0, 0]"), "key[0].up");
         bad(&k("eye = [1e16, 2, 3]"), "key[0].eye");
         bad(
             "frames = 2\n[[key]]\ntime = 0\nfov_y = 20\n[[key]]\ntime = 1\neye = [1, 2, 3]\n",
             "key[0]: a look-at path starts with an eye",
         );
+    }
+
+    #[test]
+    fn orthographic_heights_are_keyed_like_fov_y_and_held_positive() {
+        let base = CameraSpec::default();
+        for first in ["eye = [0, -10, 0]", "azimuth = 10"] {
+            let p = CameraPath::parse(&format!(
+                "frames = 3\n[[key]]\ntime = 0\n{first}\nheight = 40\n[[key]]\ntime = 1\nheight = 20\n"
+            ))
+            .unwrap();
+            let h: Vec<Option<f64>> = p
+                .frame_times()
+                .iter()
+                .map(|&t| p.camera_at(&base, t).height)
+                .collect();
+            assert_eq!(h, [Some(40.0), Some(30.0), Some(20.0)], "{first}");
+        }
+        // No key gives a height: the scene's stays.
+        let p = CameraPath::parse(
+            "frames = 2\n[[key]]\ntime = 0\nazimuth = 1\n[[key]]\ntime = 1\nazimuth = 2\n",
+        )
+        .unwrap();
+        let base = CameraSpec {
+            height: Some(7.0),
+            ..CameraSpec::default()
+        };
+        assert_eq!(p.camera_at(&base, 0.5).height, Some(7.0));
+        // Catmull-Rom from a tall view down to a thin one and back overshoots below zero
+        // between the thin keys (-12.5 halfway): held at the smallest key.
+        let p = CameraPath::parse(
+            "frames = 61\ninterpolation = \"catmull-rom\"\n[[key]]\ntime = 0\nheight = 100\n\
+             [[key]]\ntime = 1\nheight = 0.01\n[[key]]\ntime = 2\nheight = 0.01\n\
+             [[key]]\ntime = 3\nheight = 100\n",
+        )
+        .unwrap();
+        let low = p
+            .frame_times()
+            .iter()
+            .map(|&t| p.camera_at(&CameraSpec::default(), t).height.unwrap())
+            .fold(f64::MAX, f64::min);
+        assert_eq!(low, 0.01);
     }
 
     #[test]

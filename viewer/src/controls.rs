@@ -271,8 +271,9 @@ pub fn plane_outline(normal: DVec3, offset: f64, bounds: [DVec3; 2]) -> Vec<DVec
 /// A camera path file (`umbra render --camera-path`, `scene::camera_path`) through the
 /// orbits `keys`, a key a second, Catmull-Rom, 30 frames a second, for a scene whose camera
 /// targets `target`: orbit keys (azimuth, elevation, distance) when every key has that
-/// target, else look-at keys (eye, target, up) about the scene of `bounds`. Azimuths are
-/// unwrapped so that each step turns the short way.
+/// target, else look-at keys (eye, target, up) about the scene of `bounds`, with the view's
+/// `height` where a key is orthographic (its zoom). Azimuths are unwrapped so that each step
+/// turns the short way.
 pub fn camera_path(keys: &[Orbit], bounds: [DVec3; 2], target: DVec3) -> Result<String, String> {
     if keys.len() < 2 {
         return Err(format!(
@@ -303,6 +304,9 @@ pub fn camera_path(keys: &[Orbit], bounds: [DVec3; 2], target: DVec3) -> Result<
                 f(eye),
                 f(k.target)
             );
+        }
+        if k.orthographic {
+            out += &format!("height = {:?}\n", k.ortho_height);
         }
     }
     Ok(out)
@@ -552,6 +556,24 @@ mod tests {
         .unwrap();
         assert!(text.contains("azimuth = 190.0"), "{text}");
         assert!(camera_path(&[o], bounds(), o.target).is_err());
+        // Orthographic keys carry their zoom as the view's height (the distance changes
+        // nothing there), which the path's cameras take.
+        let flat = Orbit {
+            orthographic: true,
+            ..o
+        };
+        let keys = [flat, flat.zoom(2.0), flat.pan(5.0, 0.0).zoom(0.5)];
+        assert!(keys[1].ortho_height < flat.ortho_height);
+        for target in [o.target, DVec3::ZERO] {
+            let text = camera_path(&keys, bounds(), target).unwrap();
+            let path = scene::camera_path::CameraPath::parse(&text).unwrap();
+            let base = scene::spec::CameraSpec::default();
+            for (i, k) in keys.iter().enumerate() {
+                let c = path.camera_at(&base, i as f64);
+                assert_eq!(c.height, Some(k.ortho_height), "{text}");
+            }
+        }
+        assert!(!text.contains("height"), "perspective keys: {text}");
         // A pivot keeps the eye and looks at the picked point.
         let b = bounds();
         let radius = (b[1] - b[0]).length() * 0.5;
