@@ -40,6 +40,8 @@ pub struct App {
     hidden: crate::objects::Hidden,
     /// The grid the scene's slices cut (from the model; none without slices).
     slice_grid: Option<crate::objects::SliceGrid>,
+    /// Whether the scene is in RAS+ (the triad's labels: R/A/S, else +X/+Y/+Z).
+    ras: bool,
     open_path: String,
     /// The file dialog ("browse").
     browser: crate::objects::Browser,
@@ -74,6 +76,10 @@ struct PendingOpen {
     before: crate::objects::Objects,
     /// The first request made with them.
     id: Option<u64>,
+    /// Slices' positions (index, position) taken out for a second try after an opened volume
+    /// could not be drawn: a position the old grid held may miss the new one. Each goes back
+    /// where the new grid holds it once drawn; the others stay at its centre.
+    set_aside: Option<Vec<(usize, f64)>>,
 }
 
 /// What the shown image was.
@@ -119,6 +125,7 @@ impl App {
             editor: None,
             hidden: Default::default(),
             slice_grid: None,
+            ras: true,
             shown_scenes: Default::default(),
             open_path: String::new(),
             browser: Default::default(),
@@ -154,6 +161,12 @@ impl App {
     /// With the transfer-function editor over the volume's data.
     pub fn with_editor(mut self, editor: crate::transfer::Editor) -> App {
         self.editor = Some(editor);
+        self
+    }
+
+    /// Whether the scene is in RAS+ ([`crate::worker::is_ras`] of its model).
+    pub fn with_ras(mut self, ras: bool) -> App {
+        self.ras = ras;
         self
     }
 
@@ -273,6 +286,7 @@ impl App {
                             paths: vec![path.into()],
                             before,
                             id: None,
+                            set_aside: None,
                         })
                     }
                 }
@@ -283,6 +297,63 @@ impl App {
                 false
             }
         }
+    }
+
+    /// Takes the slices' own positions out of the scene for a second try of `p` (a volume
+    /// opened: the positions may miss its grid), keeping them in `p`; whether it did (not
+    /// twice, not without a volume among the files or a slice with a position).
+    fn slices_set_aside(&mut self, p: &mut PendingOpen) -> bool {
+        let volume = p.paths.iter().any(|f| {
+            matches!(
+                crate::objects::classify(f),
+                Ok(crate::objects::Kind::Volume)
+            )
+        });
+        if p.set_aside.is_some() || !volume {
+            return false;
+        }
+        let aside: Vec<(usize, f64)> = (self.scene.slices.iter_mut().enumerate())
+            .filter_map(|(i, sl)| sl.position.take().map(|x| (i, x)))
+            .collect();
+        if aside.is_empty() {
+            return false;
+        }
+        p.set_aside = Some(aside);
+        p.id = None;
+        true
+    }
+
+    /// Puts slices' positions `aside` back where the grid now drawn (of the volume among
+    /// `paths`) holds them; those it does not stay at its centre, and the message says which.
+    fn put_back(&mut self, paths: &[std::path::PathBuf], aside: &[(usize, f64)]) {
+        let Some(grid) = self.slice_grid.clone() else {
+            return;
+        };
+        let unit = if grid.ras { "mm" } else { "units" };
+        let mut moved = vec![];
+        for &(i, x) in aside {
+            let Some(sl) = self.scene.slices.get_mut(i) else {
+                continue;
+            };
+            let (_, [lo, hi]) = grid.position(sl);
+            if (lo..=hi).contains(&x) {
+                sl.position = Some(x);
+                self.reask = true;
+            } else {
+                moved.push(format!(
+                    "slices[{i}] at {x} {unit} misses it (it spans {lo:.3} to {hi:.3} along the slice's normal)"
+                ));
+            }
+        }
+        let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+        self.message = Some(match moved.is_empty() {
+            true => format!("opened {}", names.join(", ")),
+            false => format!(
+                "opened {}; moved to the new volume's centre: {}",
+                names.join(", "),
+                moved.join("; ")
+            ),
+        });
     }
 
     /// The state changed by the user: a draft now, the full image when the view rests.
@@ -306,10 +377,20 @@ impl App {
                 Err(e) => {
                     // That request is done with: frames stop waiting for it.
                     self.shown_scenes.retain(|k, _| *k > id);
-                    let opened = self
+                    let mut opened = self
                         .pending_open
                         .take_if(|p| p.id.is_some_and(|first| id >= first));
+                    // A volume opened in place of another, with slices at positions of their
+                    // own: tried again with them at the new volume's centre.
+                    let retried = opened.as_mut().is_some_and(|p| self.slices_set_aside(p));
+                    if retried {
+                        self.message =
+                            Some(format!("{e}; trying the slices at the new volume's centre"));
+                        self.pending_open = opened.take();
+                        self.reask = true;
+                    }
                     match opened {
+                        None if retried => {}
                         // A file just opened could not be drawn: the objects as they were,
                         // drawn again, and the reason.
                         Some(p) => {
@@ -327,14 +408,15 @@ impl App {
                     }
                 }
                 Ok(img) => {
-                    if self
+                    let opened = self
                         .pending_open
-                        .as_ref()
-                        .is_some_and(|p| p.id.is_some_and(|first| img.id >= first))
-                    {
-                        self.pending_open = None;
+                        .take_if(|p| p.id.is_some_and(|first| img.id >= first));
+                    self.show(ctx, img);
+                    if let Some(p) = opened {
+                        if let Some(aside) = &p.set_aside {
+                            self.put_back(&p.paths, aside);
+                        }
                     }
-                    self.show(ctx, img)
                 }
             }
         }
@@ -354,6 +436,7 @@ impl App {
         if let Some(r) = &img.rebuilt {
             self.bounds = r.bounds;
             self.slice_grid = r.slice_grid.clone();
+            self.ras = r.ras;
             match &mut self.editor {
                 // The same volume's data (other objects changed): the editor keeps its tab
                 // and scale, with the histograms of the rebuilt model.
@@ -569,7 +652,8 @@ impl App {
 
     /// The orientation triad in the view's lower left corner (the upper left where the scene
     /// draws a scale bar there, `annotate.scale_bar`): the world axes as the camera sees them,
-    /// labelled R, A, S at their positive ends (L, P, I at the others).
+    /// labelled R, A, S at their positive ends (L, P, I at the others) in RAS+, else +X, +Y,
+    /// +Z (-X, -Y, -Z), as `umbra render`'s orientation labels.
     fn triad(&self, painter: &egui::Painter, rect: egui::Rect) {
         let f = self.orbit.forward();
         let right = f.cross(DVec3::Z).try_normalize().unwrap_or(DVec3::X);
@@ -580,11 +664,16 @@ impl App {
         };
         let c = egui::pos2(rect.left() + 40.0, y);
         let len = 28.0;
-        for (axis, pos, neg, color) in [
-            (DVec3::X, "R", "L", egui::Color32::from_rgb(220, 70, 70)),
-            (DVec3::Y, "A", "P", egui::Color32::from_rgb(70, 200, 70)),
-            (DVec3::Z, "S", "I", egui::Color32::from_rgb(80, 120, 240)),
-        ] {
+        for (i, (axis, color)) in [
+            (DVec3::X, egui::Color32::from_rgb(220, 70, 70)),
+            (DVec3::Y, egui::Color32::from_rgb(70, 200, 70)),
+            (DVec3::Z, egui::Color32::from_rgb(80, 120, 240)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let pos = scene::annotate::axis_label(i, true, self.ras);
+            let neg = scene::annotate::axis_label(i, false, self.ras);
             let s = egui::vec2(axis.dot(right) as f32, -axis.dot(up) as f32);
             painter.line_segment([c, c + s * len], egui::Stroke::new(2.0, color));
             let font = egui::FontId::proportional(12.0);

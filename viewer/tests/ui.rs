@@ -52,9 +52,12 @@ fn window_with(
         }
     };
     let grid = umbra_viewer::objects::SliceGrid::of(&m);
+    let ras = umbra_viewer::worker::is_ras(&m);
     let worker = umbra_viewer::worker::start(m, &s, || {});
     let quit = Arc::new(AtomicBool::new(false));
-    let mut app = App::new(s, bounds, worker, quit, None).with_slice_grid(grid);
+    let mut app = App::new(s, bounds, worker, quit, None)
+        .with_slice_grid(grid)
+        .with_ras(ras);
     if let Some(e) = editor {
         app = app.with_editor(e);
     }
@@ -662,6 +665,53 @@ fn the_objects_panel_moves_lights_and_hides_slices() {
     assert_eq!(drawn.slices[0].position, Some(z));
     assert_eq!(h.state().scene.slices.len(), 2, "hidden, not removed");
     // The worker draws the new state in full, with no error.
+    step_until(&mut h, |a| {
+        a.error().is_some()
+            || (a.shown_level() == Some(Level::Full) && a.shown_scene() == Some(&a.state()))
+    });
+    assert!(h.state().error().is_none(), "{:?}", h.state().error());
+}
+
+/// A volume opened in place of another, with slices at positions of their own: the one the
+/// new grid holds stays, the one it misses goes to its centre (the volume was refused, the
+/// slice's plane "does not cut the volume"), and the message says which moved.
+#[test]
+fn a_new_volume_keeps_the_slices_it_holds_and_centres_the_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = test_support::headsq_scene(
+        dir.path(),
+        "",
+        "bone",
+        "method = \"ea\"\nwidth = 96\nheight = 72\n",
+    );
+    // headsq spans z 0 to 138 mm and y 0 to 201.6 mm; the MNI T1 z -72 to 109, y -126 to 90.
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("[volume.transfer]", "render = false\n[volume.transfer]")
+        + "[[slices]]\naxis = \"axial\"\nposition = 130.0\n\
+           [[slices]]\naxis = \"coronal\"\nposition = 10.0\n";
+    std::fs::write(&path, text).unwrap();
+    let mut h = window(&path, [900.0, 900.0], WithEditor::No);
+    step_until(&mut h, |a| a.shown_level() == Some(Level::Full));
+    h.get_by_label("objects").click_accesskit();
+    h.run_steps(2);
+    let mni = test_support::root().join("datasets/mni/mni_icbm152_t1_tal_nlin_sym_09a.nii.gz");
+    h.state_mut().set_open_field(mni.to_str().unwrap());
+    h.get_by_label("add").click_accesskit();
+    h.run_steps(2);
+    step_until(&mut h, |a| {
+        a.message().is_some_and(|m| m.contains("moved to"))
+            || a.message().is_some_and(|m| m.contains("not opened"))
+    });
+    let m = h.state().message().unwrap_or_default().to_string();
+    assert!(
+        m.contains("slices[0] at 130 mm misses it") && !m.contains("slices[1]"),
+        "{m}"
+    );
+    assert_eq!(h.state().scene.volume.as_ref().unwrap().path, mni);
+    assert_eq!(h.state().scene.slices[0].position, None);
+    assert_eq!(h.state().scene.slices[1].position, Some(10.0));
+    // Drawn in full with the kept position, no error.
     step_until(&mut h, |a| {
         a.error().is_some()
             || (a.shown_level() == Some(Level::Full) && a.shown_scene() == Some(&a.state()))
