@@ -136,8 +136,8 @@ pub fn format_ends(range: [f64; 2]) -> (String, String) {
     }
 }
 
-/// The label of a world direction.
-fn axis_label(axis: usize, positive: bool, ras: bool) -> String {
+/// The label of a world direction: R/L, A/P, S/I in RAS+ (`ras`), else +X/-X, +Y/-Y, +Z/-Z.
+pub fn axis_label(axis: usize, positive: bool, ras: bool) -> String {
     if ras {
         ["LR", "PA", "IS"][axis][positive as usize..=positive as usize].to_string()
     } else {

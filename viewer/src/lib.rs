@@ -61,6 +61,7 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     let m = scene::compile::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let bounds = m.bounds;
     let slice_grid = objects::SliceGrid::of(&m);
+    let ras = worker::is_ras(&m);
     let range = worker::data_range(&m);
     let editor = worker::editor_of(&m, range);
     let quit = Arc::new(AtomicBool::new(false));
@@ -99,8 +100,9 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
                 let ctx = cc.egui_ctx.clone();
                 watch_quit(quit.clone(), ctx.clone());
                 let worker = worker::start(m, &s, move || ctx.request_repaint());
-                let mut app =
-                    app::App::new(s, bounds, worker, quit, on_first).with_slice_grid(slice_grid);
+                let mut app = app::App::new(s, bounds, worker, quit, on_first)
+                    .with_slice_grid(slice_grid)
+                    .with_ras(ras);
                 if let Some(e) = editor {
                     app = app.with_editor(e);
                 }

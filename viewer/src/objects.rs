@@ -314,7 +314,7 @@ impl SliceGrid {
             dims: p.dims,
             affine: p.affine,
             bounds: p.bounds,
-            ras: m.space.is_none_or(|s| s == volume::Space::Ras),
+            ras: crate::worker::is_ras(m),
         })
     }
 
