@@ -589,7 +589,9 @@ impl Editor {
         let two = is_2d(spec);
         let mut remove = None;
         for (i, p) in spec.points.iter_mut().enumerate() {
-            ui.horizontal(|ui| {
+            // Wrapped: a 2-D point's row (gradient, value, colour, extinction) is wider than
+            // the panel may be, and would be cut off at its edge.
+            ui.horizontal_wrapped(|ui| {
                 let l = ui.label(format!("points[{i}]"));
                 if two {
                     let g = p.gradient.get_or_insert(0.0);

@@ -322,6 +322,17 @@ fn the_value_gradient_tab_adds_and_moves_rows_over_the_histogram() {
     h.run_steps(2);
     let rows2 = umbra_viewer::transfer::rows(&tf(&h));
     assert_eq!(rows2.len(), 3);
+    // The points' rows (gradient, value, colour, extinction, remove) stay within the panel,
+    // as wide as the plot: wrapped, not cut off at its edge.
+    let removes: Vec<egui::Rect> = h.get_all_by_label("x").map(|n| n.rect()).collect();
+    assert_eq!(
+        removes.len(),
+        tf(&h).points.len(),
+        "a remove button a point"
+    );
+    for r in removes {
+        assert!(r.right() <= plot.right() + 1.0, "{r:?} beyond {plot:?}");
+    }
     // The dragged row went up (to a higher gradient, still below the row above it); the
     // others stayed.
     let moved: Vec<f64> = rows2
