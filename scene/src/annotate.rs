@@ -54,6 +54,8 @@ pub struct Placed {
     pub labels: Vec<(String, Rect)>,
     /// The bar, its length in pixels and in world units.
     pub scale_bar: Option<(Rect, f64, f64)>,
+    /// The scale bar's length label: its text box.
+    pub scale_label: Option<Rect>,
     pub colorbar: Option<Rect>,
     /// The colour bar's end labels (low, high): their text boxes.
     pub colorbar_ends: Vec<Rect>,
@@ -476,14 +478,14 @@ pub fn draw(
             halo,
         );
         cv.fill(bar, fg);
-        text(
+        placed.scale_label = Some(text(
             &mut cv,
             &pen,
             px,
             &label,
             (x0 + (len as f32 - lw).max(0.0) * 0.5).min((wf - margin - lw).max(x0)),
             bar[1] - lh - 0.2 * px,
-        );
+        ));
         placed.scale_bar = Some((bar, len, world));
     }
     if let Some(src) = &spec.colorbar {
@@ -498,7 +500,15 @@ pub fn draw(
         let bh = (px * 0.8).round().max(4.0);
         let x1 = wf - margin;
         let x0 = x1 - bw;
-        let y1 = hf - margin - px * 1.25;
+        let mut y1 = hf - margin - px * 1.25;
+        // A bar widened over the scale bar's corner (a thumbnail, long end labels) goes above
+        // it, its end labels clear of the scale bar's length label.
+        if let (Some((sb, _, _)), Some(sl)) = (placed.scale_bar, placed.scale_label) {
+            let right = sb[2].max(sl[2]) + 0.5 * px;
+            if x0 < right {
+                y1 -= hf - sb[1].min(sl[1]) + 0.2 * px;
+            }
+        }
         let y0 = y1 - bh;
         cv.fill([x0 - 2.0, y0 - 2.0, x1 + 2.0, y1 + 2.0], halo);
         cv.fill([x0 - 1.0, y0 - 1.0, x1 + 1.0, y1 + 1.0], fg);
@@ -814,6 +824,44 @@ mod tests {
                 .filter(|&i| img[i][0] < 0.5)
                 .count();
             assert!(above > 20, "{label}: {above}");
+        }
+    }
+
+    #[test]
+    fn a_widened_colour_bar_goes_above_the_scale_bar() {
+        let camera = top_view();
+        let bar = ColorBar {
+            label: "p".into(),
+            map: "viridis".into(),
+            // Ends of 9 digits: "12345.6781", "12345.6789".
+            range: [12345.6781, 12345.6789],
+            colors: (0..64)
+                .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))
+                .collect(),
+        };
+        let spec = AnnotateSpec {
+            colorbar: Some("slices.0".into()),
+            scale_bar: Some(ScaleBarSpec::Word("auto".into())),
+            ..Default::default()
+        };
+        let overlap = |a: Rect, b: Rect| a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3];
+        for (w, h) in [(160usize, 120usize), (200, 150), (640, 480)] {
+            let mut img = blank(w, h);
+            let p = draw(&mut img, w, h, &spec, &on_white(&camera, Some(&bar))).unwrap();
+            let (sb, sl) = (p.scale_bar.unwrap().0, p.scale_label.unwrap());
+            let cb = p.colorbar.unwrap();
+            // The bar's frame and halo reach 2 pixels beyond it.
+            let framed = [cb[0] - 2.0, cb[1] - 2.0, cb[2] + 2.0, cb[3] + 2.0];
+            for r in [framed, p.colorbar_ends[0], p.colorbar_ends[1]] {
+                for s in [sb, sl] {
+                    assert!(!overlap(r, s), "{r:?} over {s:?} at {w}x{h}");
+                }
+                assert!(r[1] >= 0.0, "{r:?} above the image at {w}x{h}");
+            }
+            // Where there is room, the bars share the bottom row.
+            if w == 640 {
+                assert!(cb[3] > sl[1], "{cb:?} {sl:?}");
+            }
         }
     }
 
