@@ -87,6 +87,47 @@ fn pack(o: VOut) -> VOutP {
     return p;
 }
 
+// VOutP for haloed lines: every slot interpolated at each sample, so that a multisampled
+// G-buffer runs the fragment shader per sample and the edge between a line's core and its rim
+// is resolved sample by sample (decided once per pixel at its centre, a core edge that runs
+// through pixel centres - a 3-pixel line on the pixel grid - came out as dashes of rim).
+struct VOutPH {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) @interpolate(perspective, sample) rel_bulge: vec4<f32>,
+    @location(1) @interpolate(perspective, sample) normal_width: vec4<f32>,
+    @location(2) @interpolate(perspective, sample) color_proxy: vec4<f32>,
+    @location(3) @interpolate(perspective, sample) tangent_across_x: vec4<f32>,
+    @location(4) @interpolate(perspective, sample) bend_across_y: vec4<f32>,
+    @location(5) @interpolate(perspective, sample) screen_t: vec2<f32>,
+    @location(6) @interpolate(linear, sample) seg: vec3<f32>,
+};
+
+fn to_h(p: VOutP) -> VOutPH {
+    return VOutPH(
+        p.clip,
+        p.rel_bulge,
+        p.normal_width,
+        p.color_proxy,
+        p.tangent_across_x,
+        p.bend_across_y,
+        p.screen_t,
+        p.seg,
+    );
+}
+
+fn unpack_h(p: VOutPH) -> VOut {
+    return unpack(VOutP(
+        p.clip,
+        p.rel_bulge,
+        p.normal_width,
+        p.color_proxy,
+        p.tangent_across_x,
+        p.bend_across_y,
+        p.screen_t,
+        p.seg,
+    ));
+}
+
 fn unpack(p: VOutP) -> VOut {
     var o: VOut;
     o.clip = p.clip;
@@ -226,6 +267,16 @@ const SEGMENTS_PER_INSTANCE: u32 = 32u;
 
 @vertex
 fn vs_line(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> VOutP {
+    return line_vertex(index, instance);
+}
+
+// Haloed lines: the same vertices, interpolated per sample (VOutPH).
+@vertex
+fn vs_line_h(@builtin(vertex_index) index: u32, @builtin(instance_index) instance: u32) -> VOutPH {
+    return to_h(line_vertex(index, instance));
+}
+
+fn line_vertex(index: u32, instance: u32) -> VOutP {
     // Six vertices per segment; SEGMENTS_PER_INSTANCE segments an instance (a draw's first
     // and last few segments may come as instance 0, their vertex index counting from 0).
     let vi = index % 6u;
@@ -745,7 +796,10 @@ fn halo_at(v: VOut) -> Halo {
         let t = clamp((z - LP.near) / (LP.far - LP.near), 0.0, 1.0);
         core = core * (1.0 - LP.depth_cue * t);
     }
-    h.rim = a > core;
+    // A sample exactly on the core's edge (a line of odd width on the pixel grid) is core:
+    // decided by rounding, the overlapping strips of a line's neighbouring segments would each
+    // draw it their own way.
+    h.rim = a > core * (1.0 + 1e-3);
     // The square caps hold the core only, reaching half the core's width beyond the point:
     // the joints stay closed while no rim lies beyond a segment's end, where it would hide
     // the next segment of a line that bends away in depth (and a line's tip carries no halo,
@@ -785,8 +839,8 @@ fn rim_color(f: FrontOut) -> vec4<f32> {
 }
 
 @fragment
-fn fs_front_h(packed: VOutP) -> FrontOutH {
-    let v = unpack(packed);
+fn fs_front_h(packed: VOutPH) -> FrontOutH {
+    let v = unpack_h(packed);
     return front_h_values(v);
 }
 
@@ -814,8 +868,8 @@ struct SurfaceOutH {
 };
 
 @fragment
-fn fs_surface_h(packed: VOutP) -> SurfaceOutH {
-    let v = unpack(packed);
+fn fs_surface_h(packed: VOutPH) -> SurfaceOutH {
+    let v = unpack_h(packed);
     let f = front_h_values(v);
     var o: SurfaceOutH;
     o.color = f.color;
@@ -830,8 +884,8 @@ struct DepthOutH {
 };
 
 @fragment
-fn fs_depth_h(packed: VOutP) -> DepthOutH {
-    let v = unpack(packed);
+fn fs_depth_h(packed: VOutPH) -> DepthOutH {
+    let v = unpack_h(packed);
     let f = front_h_values(v);
     var o: DepthOutH;
     o.depth = f.depth;
@@ -847,8 +901,8 @@ struct NdOutH {
 };
 
 @fragment
-fn fs_nd_h(packed: VOutP) -> NdOutH {
-    let v = unpack(packed);
+fn fs_nd_h(packed: VOutPH) -> NdOutH {
+    let v = unpack_h(packed);
     let n = nd_values(v);
     let f = front_h_values(v);
     var o: NdOutH;
@@ -868,8 +922,8 @@ struct BackOutH {
 };
 
 @fragment
-fn fs_back_h(packed: VOutP) -> BackOutH {
-    let v = unpack(packed);
+fn fs_back_h(packed: VOutPH) -> BackOutH {
+    let v = unpack_h(packed);
     let h = halo_at(v);
     if (h.rim && LP.halo_outline == 0u) {
         // A gap is no surface: nothing is inside it.

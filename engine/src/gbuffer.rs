@@ -747,7 +747,7 @@ impl Pipelines {
             attributes: &attributes,
         })];
         let pipeline_in = |layout: &wgpu::PipelineLayout,
-                           lines: bool,
+                           vertex: &str,
                            entry: &str,
                            targets: &[Option<wgpu::ColorTargetState>],
                            count: u32| {
@@ -756,9 +756,9 @@ impl Pipelines {
                 layout: Some(layout),
                 vertex: wgpu::VertexState {
                     module: &module,
-                    entry_point: Some(if lines { "vs_line" } else { "vs" }),
+                    entry_point: Some(vertex),
                     compilation_options: Default::default(),
-                    buffers: if lines { &[] } else { &vbl },
+                    buffers: if vertex == "vs" { &vbl } else { &[] },
                 },
                 primitive: wgpu::PrimitiveState::default(),
                 depth_stencil: Some(wgpu::DepthStencilState {
@@ -782,11 +782,13 @@ impl Pipelines {
                 cache: None,
             })
         };
+        // Meshes ("vs"), lines ("vs_line") and haloed lines ("vs_line_h": interpolated per
+        // sample, so that a multisampled target resolves the core's edge sample by sample).
         let pipeline =
-            |lines: bool, entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| {
+            |vertex: &str, entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| {
                 pipeline_in(
-                    if lines { &pl_lines } else { &pl },
-                    lines,
+                    if vertex == "vs" { &pl } else { &pl_lines },
+                    vertex,
                     entry,
                     targets,
                     count,
@@ -794,9 +796,9 @@ impl Pipelines {
             };
         let pair =
             |entry: &str, targets: &[Option<wgpu::ColorTargetState>], count: u32| PipelinePair {
-                mesh: pipeline(false, entry, targets, count),
-                line: pipeline(true, entry, targets, count),
-                line_halo: pipeline(true, &format!("{entry}_h"), targets, count),
+                mesh: pipeline("vs", entry, targets, count),
+                line: pipeline("vs_line", entry, targets, count),
+                line_halo: pipeline("vs_line_h", &format!("{entry}_h"), targets, count),
             };
         let t = |f| Some(wgpu::ColorTargetState::from(f));
         let front = if ms {
@@ -807,7 +809,7 @@ impl Pipelines {
         let front_plane = if ms {
             pipeline_in(
                 &pl_planes,
-                false,
+                "vs",
                 "fs_surface_p",
                 &[t(COLOR), t(NORMAL)],
                 samples,
@@ -815,7 +817,7 @@ impl Pipelines {
         } else {
             pipeline_in(
                 &pl_planes,
-                false,
+                "vs",
                 "fs_front_p",
                 &[t(COLOR), t(NORMAL), t(DEPTH)],
                 1,
@@ -825,8 +827,8 @@ impl Pipelines {
         Pipelines {
             front,
             front_plane,
-            peel_mesh: pipeline_in(&pl_peel, false, "fs_peel", &peel_targets, 1),
-            peel_plane: pipeline_in(&pl_peel_planes, false, "fs_peel_p", &peel_targets, 1),
+            peel_mesh: pipeline_in(&pl_peel, "vs", "fs_peel", &peel_targets, 1),
+            peel_plane: pipeline_in(&pl_peel_planes, "vs", "fs_peel_p", &peel_targets, 1),
             peel_layout,
             plane_layout,
             depth: ms.then(|| pair("fs_depth", &[t(DEPTH)], 1)),

@@ -669,6 +669,64 @@ fn a_haloed_line_bending_away_in_depth_does_not_cut_itself_at_its_joints() {
 }
 
 #[test]
+fn a_haloed_cores_edge_on_pixel_centres_is_drawn_evenly_along_the_line() {
+    // A new user's straight 3-pixel line of 4-pixel segments, seen from above its middle and
+    // centred on a row boundary: the core's edges run through the centres of rows 30 and 33.
+    // Decided once per pixel, rounding made each pixel there core or rim by whichever of the
+    // overlapping strips drew it (the line came out dashed, its rim's background through the
+    // core); now an edge sample is core, and a multisampled G-buffer decides sample by sample:
+    // every column of the line's middle covers the same, and with 4 samples the line's width.
+    let gpu = gpu();
+    let pts: Vec<[f32; 3]> = (0..13)
+        .map(|k| [k as f32 * 10.0 / 12.0, 0.0, 0.0])
+        .collect();
+    let bounds = [DVec3::new(0.0, -1.0, -1.0), DVec3::new(10.0, 1.0, 1.0)];
+    let cam = Camera::look_at(
+        DVec3::new(5.0, 0.0, 20.0),
+        DVec3::new(5.0, 0.0, 0.0),
+        DVec3::Y,
+        occlusion::camera::Projection::Perspective { fov_y_deg: 35.0 },
+        bounds,
+    )
+    .unwrap();
+    let r = Renderer::new(&gpu);
+    for msaa in [1, 4] {
+        for uniform in [true, false] {
+            let mut l = coloured(std::slice::from_ref(&pts), 3.0, [0.0, 0.0, 1.0]);
+            l.halo = Some(tubes::lines::Halo {
+                d_max: 0.01,
+                ..halo(0.0, tubes::lines::Displacement::Linear, uniform)
+            });
+            let scene = r.upload(None, &[], &[l], None).unwrap();
+            let set = Settings { msaa, ..settings() };
+            let o = r
+                .draw(&scene, &view(cam), &[], &set, DrawOptions::default())
+                .unwrap();
+            // The line's coverage (alpha: a gap halo covers nothing) in each column of its
+            // middle (the ends' caps left out); its shade varies along it under the head light.
+            let cover: Vec<f32> = (12..52)
+                .map(|x| (26..38).map(|y| o.image[x + W as usize * y][3]).sum())
+                .collect();
+            let (lo, hi) = cover
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+            assert!(
+                lo > 2.0 && hi - lo < 0.05,
+                "msaa {msaa}, uniform {uniform}: columns cover {lo} to {hi} pixels"
+            );
+            // Sample by sample, the 3-pixel core covers 3 pixels a column (half of each edge
+            // row); decided per pixel it covered 4.
+            if msaa == 4 {
+                assert!(
+                    (lo - 3.0).abs() < 0.05,
+                    "msaa 4, uniform {uniform}: {lo} pixels"
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn depth_cueing_narrows_far_cores() {
     // Two haloed 4-pixel lines along x, one near the near plane and one near the far plane
     // (orthographic: the same width on screen without cueing). With depth_cue = 0.75 the
