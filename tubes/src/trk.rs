@@ -283,8 +283,10 @@ pub fn read(path: &Path) -> Result<Streamlines> {
         }
         vox_to_ras = DMat4::IDENTITY;
     }
+    // Singular by shape, not by size: voxels of 1e-7 (a micro-scale field traced by `umbra
+    // trace`) give a determinant of 1e-21 and are as regular as millimetres.
     if !vox_to_ras.to_cols_array().iter().all(|v| v.is_finite())
-        || DMat3::from_mat4(vox_to_ras).determinant().abs() < 1e-12
+        || volume::degenerate_axes(DMat3::from_mat4(vox_to_ras))
     {
         return Err(TubesError::format(
             path,

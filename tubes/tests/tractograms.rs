@@ -140,6 +140,39 @@ fn our_files_round_trip_exactly() {
     }
 }
 
+/// A grid of micrometre-scale voxels (a field traced with `umbra trace` at 1e-7 spacing) is
+/// as regular as one of millimetres: its TrackVis file reads back (it was refused as
+/// "singular", its determinant 1e-21); a grid whose axes are parallel is still refused.
+#[test]
+fn tiny_voxels_are_a_grid_and_parallel_axes_are_not() {
+    let d = tempfile::tempdir().unwrap();
+    let h = 1e-7;
+    let mut s = Streamlines::new();
+    s.push(&[
+        Vec3::new(1e-7, 2e-7, 3e-7),
+        Vec3::new(1.5e-6, 0.5e-6, 1.2e-6),
+    ]);
+    let affine = glam::DMat4::from_scale(glam::DVec3::splat(h));
+    s.reference = tubes::trk::grid_space([16; 3], affine);
+    assert!(s.reference.is_some());
+    let p = d.path().join("micro.trk");
+    tubes::save(&p, &s).unwrap();
+    let r = tubes::load(&p).unwrap();
+    for (a, b) in r.points.iter().zip(&s.points) {
+        assert!((*a - *b).length() < 1e-12, "{a} against {b}");
+    }
+    // Two axes along x: singular whatever the size.
+    let mut bytes = std::fs::read(&p).unwrap();
+    // vox_to_ras at byte 440, row-major 4 x 4 f32: m01 = h and m11 = 0 put the voxel y axis
+    // along world x, beside the voxel x axis.
+    bytes[440 + 4..440 + 8].copy_from_slice(&(h as f32).to_le_bytes());
+    bytes[440 + 20..440 + 24].copy_from_slice(&0f32.to_le_bytes());
+    let q = d.path().join("flat.trk");
+    std::fs::write(&q, &bytes).unwrap();
+    let e = tubes::load(&q).unwrap_err().to_string();
+    assert!(e.contains("vox_to_ras") && e.contains("singular"), "{e}");
+}
+
 #[test]
 fn nibabel_files_read_write_read_equal() {
     let d = tempfile::tempdir().unwrap();

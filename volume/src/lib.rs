@@ -29,6 +29,7 @@ pub mod colormap;
 pub mod distance_sweep;
 pub mod error;
 pub(crate) mod io_util;
+pub use io_util::degenerate_axes;
 pub mod labels;
 pub(crate) mod lanes;
 pub mod memory;
