@@ -225,7 +225,7 @@ pub fn volume_text(path: &str, vol: &Volume, j: &Value) -> String {
         v.as_array()
             .map(|a| {
                 a.iter()
-                    .map(|x| format!("{:.6}", x.as_f64().unwrap_or(f64::NAN)))
+                    .map(|x| decimals(x.as_f64().unwrap_or(f64::NAN), 6))
                     .collect::<Vec<_>>()
                     .join(", ")
             })
@@ -261,7 +261,7 @@ pub fn volume_text(path: &str, vol: &Volume, j: &Value) -> String {
             r.as_array()
                 .map(|a| a
                     .iter()
-                    .map(|x| format!("{:>12.6}", x.as_f64().unwrap_or(f64::NAN)))
+                    .map(|x| format!("{:>12}", decimals(x.as_f64().unwrap_or(f64::NAN), 6)))
                     .collect::<Vec<_>>()
                     .join(" "))
                 .unwrap_or_default()
@@ -287,6 +287,16 @@ pub fn volume_text(path: &str, vol: &Volume, j: &Value) -> String {
     }
     s += &format!("non-finite: {} voxels\n", j["nonfinite"]);
     s
+}
+
+/// `x` with `places` decimals, or in exponent form with as many where that would show fewer
+/// than two significant digits (spacings of 1e-7 read "0.000000").
+fn decimals(x: f64, places: usize) -> String {
+    if x != 0.0 && x.abs() < 10f64.powi(1 - places as i32) {
+        format!("{x:.places$e}")
+    } else {
+        format!("{x:.places$}")
+    }
 }
 
 /// The JSON description of a tractogram: `format`, `streamlines`, `points`, `bounds` (world,
@@ -321,10 +331,8 @@ pub fn tractogram_text(path: &str, s: &tubes::Streamlines) -> String {
     );
     match s.bounds() {
         Some([lo, hi]) => {
-            out += &format!(
-                "bounds:      min ({:.3}, {:.3}, {:.3})  max ({:.3}, {:.3}, {:.3})\n",
-                lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
-            )
+            let f = |v: glam::Vec3| v.to_array().map(|x| decimals(x as f64, 3)).join(", ");
+            out += &format!("bounds:      min ({})  max ({})\n", f(lo), f(hi))
         }
         None => out += "bounds:      (empty)\n",
     }
@@ -454,6 +462,18 @@ pub fn grid_text(path: &str, g: &volume::cfd_grid::CfdGrid) -> String {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn small_numbers_keep_their_digits() {
+        use super::decimals;
+        assert_eq!(decimals(1e-7, 6), "1.000000e-7");
+        assert_eq!(decimals(-2.5e-6, 6), "-2.500000e-6");
+        assert_eq!(decimals(0.5, 6), "0.500000");
+        assert_eq!(decimals(0.0, 3), "0.000");
+        assert_eq!(decimals(0.005, 3), "5.000e-3");
+        assert_eq!(decimals(0.05, 3), "0.050");
+        assert_eq!(decimals(181.0, 3), "181.000");
+    }
+
     fn volume(data: Vec<f32>) -> volume::Volume {
         let field = volume::Field {
             name: "v".into(),
