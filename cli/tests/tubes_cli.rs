@@ -236,6 +236,49 @@ fn trace_follows_a_synthetic_field_into_a_tractogram() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("warning: no seed gave a line"), "{err}");
     assert_eq!(tubes::load(&empty).unwrap().len(), 0);
+    // Fields nothing can be traced in are errors naming the file, and nothing is written: a
+    // field of NaN vectors, one of zeros, and a grid of one sample (its default length was
+    // "max length 0: must be a positive number").
+    let vectors = |name: &str, n: usize, v: f32| {
+        let p = dir.path().join(name);
+        let mut b = format!(
+            "NRRD0004\ntype: float\ndimension: 4\nsizes: 3 {n} {n} {n}\n\
+             kinds: 3-vector domain domain domain\nencoding: raw\nendian: little\n\n"
+        )
+        .into_bytes();
+        for _ in 0..3 * n * n * n {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        std::fs::write(&p, b).unwrap();
+        p
+    };
+    for (f, want) in [
+        (
+            vectors("nan.nrrd", 4, f32::NAN),
+            "zero or not finite everywhere",
+        ),
+        (
+            vectors("zero.nrrd", 4, 0.0),
+            "zero or not finite everywhere",
+        ),
+        (vectors("one.nrrd", 1, 1.0), "a grid of one sample"),
+    ] {
+        let out = dir.path().join("none.trk");
+        let o = umbra()
+            .arg("trace")
+            .arg(&f)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(
+            err.contains(want) && err.contains(&*f.to_string_lossy()),
+            "{err}"
+        );
+        assert!(!out.exists());
+    }
 }
 
 /// A negative bundle radius reaches the generator's check (not clap's "unexpected argument"),

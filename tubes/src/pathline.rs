@@ -18,7 +18,10 @@
 //! whole line: forward first, backward for what is left). Points
 //! carry `time` (the particle's time) and `speed` (`|v(x, t)|`) as in [`crate::trace`].
 
-use crate::trace::{step_limit_warnings, timed_lines, GridField, GridScalar, Sample, MAX_STEPS};
+use crate::trace::{
+    lines_within, step_limit_warnings, timed_lines, GridField, GridScalar, Sample, Stopped,
+    MAX_STEPS,
+};
 use crate::Streamlines;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -196,37 +199,50 @@ fn trace_one(
 /// `time` and `speed`. Seeds outside the field, below the minimum speed or outside the mask give
 /// no line; nor do lines of a single point.
 pub fn pathlines(f: &SeriesField, seeds: &[(DVec3, f64)], o: &PathlineOptions) -> Streamlines {
-    let lines: Vec<(Vec<Sample>, bool)> = seeds
-        .par_iter()
-        .filter_map(|&(s, t0)| {
-            if let Some((mask, thr)) = o.mask {
-                if mask.at(s).is_none_or(|v| v < thr) {
-                    return None;
-                }
-            }
-            let v = f.at(s, t0)?;
-            let s0 = v.length();
-            if !s0.is_finite() || s0 <= o.min_speed {
+    match pathlines_within(f, seeds, o, usize::MAX) {
+        Ok(s) | Err(Stopped { lines: s, .. }) => s,
+    }
+}
+
+/// As [`pathlines`], stopping once the lines hold more than `max_points` points
+/// ([`crate::trace::trace_at_within`]).
+pub fn pathlines_within(
+    f: &SeriesField,
+    seeds: &[(DVec3, f64)],
+    o: &PathlineOptions,
+    max_points: usize,
+) -> Result<Streamlines, Stopped> {
+    let (lines, stopped) = lines_within(seeds, max_points, |s, t0| {
+        if let Some((mask, thr)) = o.mask {
+            if mask.at(s).is_none_or(|v| v < thr) {
                 return None;
             }
-            // `max_length` bounds the whole line: backward goes as far as forward left.
-            let (fwd, len, cap_f) = trace_one(f, s, t0, v, 1.0, o.max_length, o);
-            let (mut line, cap_b): (Vec<Sample>, bool) = if o.both_ways {
-                let (mut back, _, cap) = trace_one(f, s, t0, v, -1.0, o.max_length - len, o);
-                back.reverse();
-                (back, cap)
-            } else {
-                (Vec::new(), false)
-            };
-            line.push((s, t0, s0));
-            line.extend(fwd);
-            (line.len() >= 2).then_some((line, cap_f || cap_b))
-        })
-        .collect();
+        }
+        let v = f.at(s, t0)?;
+        let s0 = v.length();
+        if !s0.is_finite() || s0 <= o.min_speed {
+            return None;
+        }
+        // `max_length` bounds the whole line: backward goes as far as forward left.
+        let (fwd, len, cap_f) = trace_one(f, s, t0, v, 1.0, o.max_length, o);
+        let (mut line, cap_b): (Vec<Sample>, bool) = if o.both_ways {
+            let (mut back, _, cap) = trace_one(f, s, t0, v, -1.0, o.max_length - len, o);
+            back.reverse();
+            (back, cap)
+        } else {
+            (Vec::new(), false)
+        };
+        line.push((s, t0, s0));
+        line.extend(fwd);
+        (line.len() >= 2).then_some((line, cap_f || cap_b))
+    });
     let capped = lines.iter().filter(|l| l.1).count();
     let n = lines.len();
     let mut s = timed_lines(lines.into_iter().map(|l| l.0).collect());
     s.format = "pathlines".into();
     s.warnings = step_limit_warnings(seeds.len(), n, capped);
-    s
+    match stopped {
+        Some(points) => Err(Stopped { points, lines: s }),
+        None => Ok(s),
+    }
 }

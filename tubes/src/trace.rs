@@ -526,44 +526,91 @@ pub fn trace(f: &GridField, seeds: &[DVec3], o: &TraceOptions) -> Streamlines {
 /// otherwise), in parallel, with the point attributes `time` and `speed` (module doc). Seeds
 /// outside the field, below the minimum speed or outside the mask give no line.
 pub fn trace_at(f: &GridField, seeds: &[(DVec3, f64)], o: &TraceOptions) -> Streamlines {
+    match trace_at_within(f, seeds, o, usize::MAX) {
+        Ok(s) | Err(Stopped { lines: s, .. }) => s,
+    }
+}
+
+/// Lines that would hold more points than a caller allowed: traced until they did, the seeds
+/// after that skipped.
+#[derive(Clone, Debug)]
+pub struct Stopped {
+    /// The points traced when the tracing stopped.
+    pub points: usize,
+    /// The lines traced by then.
+    pub lines: Streamlines,
+}
+
+/// Traces one line per seed in parallel with `line`, keeping those of two points or more, until
+/// they hold more than `max_points` points; then the seeds not yet begun give none and the
+/// result says how many points there were.
+pub(crate) fn lines_within(
+    seeds: &[(DVec3, f64)],
+    max_points: usize,
+    line: impl Fn(DVec3, f64) -> Option<(Vec<Sample>, bool)> + Sync,
+) -> (Vec<(Vec<Sample>, bool)>, Option<usize>) {
+    let points = std::sync::atomic::AtomicUsize::new(0);
+    let over = |n: usize| n > max_points;
     let lines: Vec<(Vec<Sample>, bool)> = seeds
         .par_iter()
         .filter_map(|&(s, t0)| {
-            if let Some((mask, thr)) = o.mask {
-                if mask.at(s).is_none_or(|v| v < thr) {
-                    return None;
-                }
-            }
-            let v = f.at(s)?;
-            if v.length().is_nan() || v.length() <= o.min_speed {
+            if over(points.load(std::sync::atomic::Ordering::Relaxed)) {
                 return None;
             }
-            let s0 = v.length();
-            let d = v / s0;
-            // `max_length` bounds the whole line: backward goes as far as forward left.
-            let (fwd, len, cap_f) = trace_one(f, (s, s0), d, 1.0, o.max_length, o, None);
-            let (mut line, cap_b): (Vec<Sample>, bool) = if o.both_ways {
-                let joint = fwd.first().map(|q| -(q.0 - s).normalize_or_zero());
-                let (mut back, _, cap) =
-                    trace_one(f, (s, s0), d, -1.0, o.max_length - len, o, joint);
-                back.reverse();
-                (
-                    back.into_iter().map(|(p, t, v)| (p, t0 - t, v)).collect(),
-                    cap,
-                )
-            } else {
-                (Vec::new(), false)
-            };
-            line.push((s, t0, s0));
-            line.extend(fwd.into_iter().map(|(p, t, v)| (p, t0 + t, v)));
-            (line.len() >= 2).then_some((line, cap_f || cap_b))
+            let l = line(s, t0)?;
+            points.fetch_add(l.0.len(), std::sync::atomic::Ordering::Relaxed);
+            Some(l)
         })
         .collect();
+    let n = points.into_inner();
+    (lines, over(n).then_some(n))
+}
+
+/// As [`trace_at`], stopping once the lines hold more than `max_points` points (a request that
+/// would not fit in memory: each point takes about 60-80 bytes while traced).
+pub fn trace_at_within(
+    f: &GridField,
+    seeds: &[(DVec3, f64)],
+    o: &TraceOptions,
+    max_points: usize,
+) -> Result<Streamlines, Stopped> {
+    let (lines, stopped) = lines_within(seeds, max_points, |s, t0| {
+        if let Some((mask, thr)) = o.mask {
+            if mask.at(s).is_none_or(|v| v < thr) {
+                return None;
+            }
+        }
+        let v = f.at(s)?;
+        if v.length().is_nan() || v.length() <= o.min_speed {
+            return None;
+        }
+        let s0 = v.length();
+        let d = v / s0;
+        // `max_length` bounds the whole line: backward goes as far as forward left.
+        let (fwd, len, cap_f) = trace_one(f, (s, s0), d, 1.0, o.max_length, o, None);
+        let (mut line, cap_b): (Vec<Sample>, bool) = if o.both_ways {
+            let joint = fwd.first().map(|q| -(q.0 - s).normalize_or_zero());
+            let (mut back, _, cap) = trace_one(f, (s, s0), d, -1.0, o.max_length - len, o, joint);
+            back.reverse();
+            (
+                back.into_iter().map(|(p, t, v)| (p, t0 - t, v)).collect(),
+                cap,
+            )
+        } else {
+            (Vec::new(), false)
+        };
+        line.push((s, t0, s0));
+        line.extend(fwd.into_iter().map(|(p, t, v)| (p, t0 + t, v)));
+        (line.len() >= 2).then_some((line, cap_f || cap_b))
+    });
     let capped = lines.iter().filter(|l| l.1).count();
     let n = lines.len();
     let mut out = timed_lines(lines.into_iter().map(|l| l.0).collect());
     out.warnings = step_limit_warnings(seeds.len(), n, capped);
-    out
+    match stopped {
+        Some(points) => Err(Stopped { points, lines: out }),
+        None => Ok(out),
+    }
 }
 
 /// Streamlines from lines of `(position, time, speed)`, with the point attributes `time` and

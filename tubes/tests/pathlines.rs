@@ -498,3 +498,46 @@ fn lines_cut_by_the_step_limit_and_seeds_without_lines_are_counted() {
     let s = pathlines(&sf, &[inside, outside], &path_opts(0.05, 0.5));
     assert_eq!(s.warnings, ["1 of 2 seeds gave no line (outside the grid or the mask, at most the minimum speed, or stopped before their first step)"]);
 }
+
+/// A trace given a point budget stops once its lines pass it (the seeds after that give no
+/// line) and says how many points it held; under the budget it is the unlimited trace, for
+/// streamlines and pathlines alike.
+#[test]
+fn traces_past_their_point_budget_stop_and_say_so() {
+    let spiral = |p: DVec3| DVec3::new(-p.y - 0.2 * p.x, p.x - 0.2 * p.y, 0.25);
+    let vol = cube(spiral, 11);
+    let f = GridField::from_volume(&vol, None).unwrap();
+    let seeds: Vec<(DVec3, f64)> = (0..200)
+        .map(|i| {
+            let a = i as f64 * 0.1;
+            (DVec3::new(0.5 * a.cos(), 0.5 * a.sin(), -0.9), 0.0)
+        })
+        .collect();
+    let o = stream_opts(Integrator::Rk4, 0.01, 1.0);
+    let all = trace_at(&f, &seeds, &o);
+    let n = all.points.len();
+    assert!(
+        all.len() == 200 && n > 10_000,
+        "{} lines, {n} points",
+        all.len()
+    );
+    let same = tubes::trace::trace_at_within(&f, &seeds, &o, n).unwrap();
+    assert_eq!(same.points, all.points);
+    let e = tubes::trace::trace_at_within(&f, &seeds, &o, n / 10).unwrap_err();
+    assert!(
+        e.points > n / 10 && e.lines.len() < 200,
+        "{} points",
+        e.points
+    );
+    let series = VolumeSeries::steady(vol);
+    let sf = SeriesField::from_series(&series, None).unwrap();
+    let p = path_opts(0.01, 1.0);
+    let all = pathlines(&sf, &seeds, &p);
+    let n = all.points.len();
+    let e = tubes::pathline::pathlines_within(&sf, &seeds, &p, n / 10).unwrap_err();
+    assert!(
+        e.points > n / 10 && e.lines.len() < all.len(),
+        "{} points",
+        e.points
+    );
+}
