@@ -200,7 +200,8 @@ fn trace_one(
 /// no line; nor do lines of a single point.
 pub fn pathlines(f: &SeriesField, seeds: &[(DVec3, f64)], o: &PathlineOptions) -> Streamlines {
     match pathlines_within(f, seeds, o, usize::MAX) {
-        Ok(s) | Err(Stopped { lines: s, .. }) => s,
+        Ok(s) => s,
+        Err(Stopped { lines, .. }) => *lines,
     }
 }
 
@@ -242,7 +243,10 @@ pub fn pathlines_within(
     s.format = "pathlines".into();
     s.warnings = step_limit_warnings(seeds.len(), n, capped);
     match stopped {
-        Some(points) => Err(Stopped { points, lines: s }),
+        Some(points) => Err(Stopped {
+            points,
+            lines: Box::new(s),
+        }),
         None => Ok(s),
     }
 }

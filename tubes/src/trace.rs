@@ -527,7 +527,8 @@ pub fn trace(f: &GridField, seeds: &[DVec3], o: &TraceOptions) -> Streamlines {
 /// outside the field, below the minimum speed or outside the mask give no line.
 pub fn trace_at(f: &GridField, seeds: &[(DVec3, f64)], o: &TraceOptions) -> Streamlines {
     match trace_at_within(f, seeds, o, usize::MAX) {
-        Ok(s) | Err(Stopped { lines: s, .. }) => s,
+        Ok(s) => s,
+        Err(Stopped { lines, .. }) => *lines,
     }
 }
 
@@ -538,7 +539,7 @@ pub struct Stopped {
     /// The points traced when the tracing stopped.
     pub points: usize,
     /// The lines traced by then.
-    pub lines: Streamlines,
+    pub lines: Box<Streamlines>,
 }
 
 /// Traces one line per seed in parallel with `line`, keeping those of two points or more, until
@@ -608,7 +609,10 @@ pub fn trace_at_within(
     let mut out = timed_lines(lines.into_iter().map(|l| l.0).collect());
     out.warnings = step_limit_warnings(seeds.len(), n, capped);
     match stopped {
-        Some(points) => Err(Stopped { points, lines: out }),
+        Some(points) => Err(Stopped {
+            points,
+            lines: Box::new(out),
+        }),
         None => Ok(out),
     }
 }
