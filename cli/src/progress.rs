@@ -186,7 +186,11 @@ impl Frames {
     /// Frame `index` failed (the others go on).
     pub fn failed(&self, index: usize, name: Option<&str>, path: &std::path::Path, error: &str) {
         let name = name.map(|n| format!(" {n}")).unwrap_or_default();
-        let line = format!("frame {index}{name}: {} FAILED: {error}", path.display());
+        let line = format!(
+            "frame {index}{name}: {} FAILED: {}",
+            path.display(),
+            one_line(error)
+        );
         match self.bar(None) {
             Some(bar) => {
                 bar.suspend(|| eprintln!("{line}"));
@@ -197,10 +201,44 @@ impl Frames {
     }
 }
 
+/// An error on one line, as a log's per-frame line must be (`grep FAILED` finds its cause): a
+/// TOML parser's quote of the line and its marks (`  |`, `1 | [volume`, `  |   ^`) left out,
+/// the other lines joined by ": ".
+pub fn one_line(error: &str) -> String {
+    let quote = |l: &str| {
+        let t = l.trim_start();
+        let digits = t.trim_start_matches(|c: char| c.is_ascii_digit());
+        digits.trim_start().starts_with('|')
+    };
+    error
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !quote(l))
+        .map(str::trim)
+        .collect::<Vec<_>>()
+        .join(": ")
+}
+
 impl Drop for Frames {
     fn drop(&mut self) {
         if let Some(b) = &self.bar {
             b.finish_and_clear();
         }
+    }
+}
+
+#[cfg(test)]
+mod one_line_tests {
+    use super::one_line;
+
+    #[test]
+    fn a_toml_error_becomes_one_line_with_its_place_and_cause() {
+        let e = "m/lists/broken.toml: TOML parse error at line 1, column 8\n  |\n1 | [volume\n  |        ^\nunclosed table, expected `]`\n";
+        assert_eq!(
+            one_line(e),
+            "m/lists/broken.toml: TOML parse error at line 1, column 8: unclosed table, expected `]`"
+        );
+        assert_eq!(one_line("plain"), "plain");
+        // A line of the message that merely holds a bar is kept.
+        assert_eq!(one_line("a\nvalue a | b"), "a: value a | b");
     }
 }

@@ -494,6 +494,30 @@ fn manifests_render_one_named_scene_per_line_sharded_the_same_way() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("{name}"));
     assert!(!dir.path().join("one.png").exists());
+    // A line whose scene does not parse: its FAILED line in the log holds the cause on one
+    // line (the TOML parser's quote of the line and its marks spanned four more).
+    std::fs::write(dir.path().join("study/broken.toml"), "[volume\n").unwrap();
+    let bad = dir.path().join("study/bad.txt");
+    std::fs::write(&bad, "sub-01\nsub-06 broken.toml\n").unwrap();
+    let out = umbra()
+        .arg("render")
+        .arg(&s)
+        .arg("--manifest")
+        .arg(&bad)
+        .arg("-o")
+        .arg(&pattern)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    let line = err
+        .lines()
+        .find(|l| l.contains("FAILED"))
+        .unwrap_or_default();
+    assert!(
+        line.contains("sub-06") && line.contains("broken.toml") && line.contains("unclosed table"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -593,6 +617,33 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
         let r = record(&d.join(&rec));
         assert!(r["error"].as_str().unwrap().contains(flag), "{r}");
         assert!(r["shard"].is_null(), "{r}");
+        // The count the command line gives (it read 0 whatever the command line said).
+        if bad.starts_with(&["--orbit", "3"]) {
+            assert_eq!(r["frames"], 3, "{bad:?}: {r}");
+        }
+    }
+    for (args, frames) in [
+        (&["-o", "a.png", "--method", "foo"][..], 1),
+        (
+            &["-o", "t_#.png", "--trail-range", "0:1:7", "--method", "foo"],
+            7,
+        ),
+        (
+            &[
+                "-o",
+                "t_#.png",
+                "--camera-path",
+                "p.toml",
+                "--method",
+                "foo",
+            ],
+            0,
+        ),
+    ] {
+        let mut a = args.to_vec();
+        a.extend(["--record", "u/r.json"]);
+        assert_eq!(run(&a).status.code(), Some(1), "{args:?}");
+        assert_eq!(record(&d.join("u/r.json"))["frames"], frames, "{args:?}");
     }
     assert!(!d.join("o").exists());
     // An option without its value is a malformed command line (exit 2), its record written.
@@ -699,7 +750,7 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
     let o = run(&["--orbit", "2", "-o", "afile/f_#.png"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        err(&o).contains("afile/f_0.png") && err(&o).contains("cannot create its folder"),
+        err(&o).contains("afile/f_0.png") && err(&o).contains("afile is a file, not a folder"),
         "{}",
         err(&o)
     );
@@ -876,6 +927,69 @@ fn an_interrupted_run_records_what_it_did() {
         assert!(frame(*k).exists(), "frame {k} recorded done but missing");
     }
     assert!(done.len() < 40, "{r}");
+    // A camera path's frames are counted once it is read (the record said 0).
+    let path = d.join("p.toml");
+    std::fs::write(
+        &path,
+        "frames = 400\n[[key]]\ntime = 0\nazimuth = 0\n[[key]]\ntime = 1\nazimuth = 90\n",
+    )
+    .unwrap();
+    let frame = |k: usize| d.join(format!("cp/f_{k:03}.png"));
+    let child = spawned_until(
+        umbra()
+            .arg("render")
+            .arg(&s)
+            .args(["-o", "cp/f_###.png", "--record"])
+            .arg(&rec)
+            .arg("--camera-path")
+            .arg(&path)
+            .current_dir(d),
+        &frame(1),
+    );
+    assert!(std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    assert_eq!(
+        { child }.wait().unwrap().code(),
+        None,
+        "ended by the signal"
+    );
+    let r = record(&rec);
+    assert!(r["error"].as_str().unwrap().contains("SIGINT"), "{r}");
+    assert_eq!(r["frames"], 400, "{r}");
+    // Seconds count to the signal (they stopped at the last frame ended: 0.0004 s for a single
+    // image interrupted after a second). One image timed over 400 draws, interrupted at 1.5 s.
+    let t = std::time::Instant::now();
+    let child = umbra()
+        .arg("render")
+        .arg(&s)
+        .args(["-o", "one.png", "--frames", "400", "--record"])
+        .arg(&rec)
+        .current_dir(d)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    assert!(std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let lived = t.elapsed().as_secs_f64();
+    assert_eq!(
+        { child }.wait().unwrap().code(),
+        None,
+        "ended by the signal"
+    );
+    let r = record(&rec);
+    assert_eq!(r["frames"], 1, "{r}");
+    let seconds = r["seconds"].as_f64().unwrap();
+    assert!(
+        seconds > 0.5 * lived && seconds <= lived,
+        "{seconds} s recorded, the run lived {lived} s: {r}"
+    );
 }
 
 /// `cmd` started (standard error discarded), returned once `frame` exists (or after two

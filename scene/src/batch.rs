@@ -388,6 +388,7 @@ pub fn run_manifest(
         notes: vec![],
     };
     let n = owned.len();
+    progress(Progress::Frames(n));
     for (k, e) in owned {
         let path = named_output(output, &e.name)?;
         let mut overrides = base.overrides.clone();
@@ -428,6 +429,8 @@ pub fn run_manifest(
             Progress::Skipped(o) => progress(Progress::Skipped(&named(o.clone()))),
             Progress::Failed(o) => progress(Progress::Failed(&named(o.clone()))),
             Progress::Stage(m) => progress(Progress::Stage(&format!("{}: {m}", e.name))),
+            // Each entry's one frame: the run's count is the manifest's.
+            Progress::Frames(_) => {}
         });
         match got {
             Ok(rep) => {

@@ -112,6 +112,9 @@ pub enum Progress<'a> {
     Failed(&'a FrameOutcome),
     /// A long stage has started (reading the scene's data, uploading it, drawing a frame).
     Stage(&'a str),
+    /// The frames this run owns (rendered, skipped or failed), once known: before the first
+    /// frame, after a camera path or a manifest is read.
+    Frames(usize),
 }
 
 /// One frame of a sequence.
@@ -418,6 +421,7 @@ pub(crate) fn run_on(
         owned.push((k, file));
     }
     let frames_owned = owned.len();
+    progress(Progress::Frames(frames_owned));
     // A killed run's temporary files of this shard's outputs, complete ones included (no
     // other process writes them).
     let files: Vec<&Path> = owned.iter().map(|(_, f)| f.as_path()).collect();

@@ -162,16 +162,17 @@ struct RecordState {
 /// The record an interruption (SIGINT, SIGTERM) writes, kept current as the frames end: its
 /// path and the record so far (a Slurm time limit sends SIGTERM; the run's record must say
 /// what it did, not stay missing or keep an earlier run's).
-static INTERRUPTED: std::sync::Mutex<Option<(PathBuf, serde_json::Value)>> =
+static INTERRUPTED: std::sync::Mutex<Option<(PathBuf, serde_json::Value, std::time::Instant)>> =
     std::sync::Mutex::new(None);
 
-/// Keeps the record an interruption would write: `record` as it stands.
-fn on_interrupt_record(path: Option<&Path>, record: &Record) {
+/// Keeps the record an interruption would write: `record` as it stands, of a run that began
+/// at `t0` (its `seconds` are counted when the signal comes).
+fn on_interrupt_record(path: Option<&Path>, record: &Record, t0: std::time::Instant) {
     let (Some(path), Ok(v)) = (path, serde_json::to_value(record)) else {
         return;
     };
     if let Ok(mut g) = INTERRUPTED.lock() {
-        *g = Some((path.to_path_buf(), v));
+        *g = Some((path.to_path_buf(), v, t0));
     }
 }
 
@@ -185,9 +186,10 @@ fn no_interrupt_record() {
 /// Writes the record of a run interrupted by signal `sig`, with the frames ended so far and
 /// `error` saying so; called by the signal thread before the process ends.
 pub fn record_interrupted(sig: i32) {
-    let Some((path, mut v)) = INTERRUPTED.lock().ok().and_then(|mut g| g.take()) else {
+    let Some((path, mut v, t0)) = INTERRUPTED.lock().ok().and_then(|mut g| g.take()) else {
         return;
     };
+    v["seconds"] = t0.elapsed().as_secs_f64().into();
     let name = match sig {
         2 => "SIGINT",
         15 => "SIGTERM",
@@ -265,22 +267,49 @@ pub fn record_unparsed(args: &[std::ffi::OsString], error: &str) -> Result<(), S
         return Ok(());
     }
     let mut path = None;
+    // The frames the command line gives, as a run that fails before any frame records them:
+    // `--orbit N`, `--trail-range T0:T1:N`, 0 for a camera path or manifest (not read), else
+    // one image (0 where the count itself does not parse).
+    let mut frames = Some(1);
     let mut it = args.iter().skip(2);
     while let Some(a) = it.next() {
         if a == "--" {
             break;
         }
-        if a == "--record" {
-            // A flag after it is the parser's missing value, not a path.
-            path = it
-                .next()
-                .filter(|v| !v.to_str().is_some_and(|t| t.starts_with('-')))
-                .cloned();
-        } else if let Some(v) = a.to_str().and_then(|t| t.strip_prefix("--record=")) {
-            path = Some(v.into());
+        let Some(t) = a.to_str() else { continue };
+        let (flag, inline) = match t.split_once('=') {
+            Some((f, v)) if f.starts_with("--") => (f, Some(v.to_string())),
+            _ => (t, None),
+        };
+        let takes = [
+            "--record",
+            "--orbit",
+            "--trail-range",
+            "--camera-path",
+            "--manifest",
+        ];
+        if !takes.contains(&flag) {
+            continue;
+        }
+        // A flag after it is the parser's missing value, not a value.
+        let value = inline.or_else(|| {
+            it.next()
+                .and_then(|v| v.to_str())
+                .filter(|v| !v.starts_with('-'))
+                .map(str::to_string)
+        });
+        match flag {
+            "--record" => path = value.map(PathBuf::from),
+            "--orbit" => frames = value.and_then(|v| v.parse::<usize>().ok()),
+            "--trail-range" => {
+                frames = value
+                    .and_then(|v| scene::render::TrailRange::parse(&v).ok())
+                    .map(|r| r.n as usize)
+            }
+            _ => frames = Some(0),
         }
     }
-    let Some(path) = path.map(PathBuf::from) else {
+    let Some(path) = path else {
         return Ok(());
     };
     writable(&path, "--record")?;
@@ -289,7 +318,7 @@ pub fn record_unparsed(args: &[std::ffi::OsString], error: &str) -> Result<(), S
         &Record {
             shard: None,
             shard_from: None,
-            frames: 0,
+            frames: frames.unwrap_or(0),
             done: &[],
             skipped: &[],
             failed: &[],
@@ -383,6 +412,7 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
                 adapter: "",
                 host: host(),
             },
+            t0,
         )
     };
     interrupted(None, total, &[], &[], &[]);
@@ -441,6 +471,12 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
             note_ended(2, o.clone());
         }
         Progress::Stage(m) => progress.stage(m),
+        // A camera path's or a manifest's frames, once read.
+        Progress::Frames(n) => {
+            state.frames.set(Some(n));
+            let e = ended.borrow();
+            interrupted(Some((shard, from)), Some(n), &e[0], &e[1], &e[2]);
+        }
     };
     let base = RenderArgs {
         scene: a.scene.clone().unwrap_or_default(),
@@ -544,6 +580,9 @@ fn render(a: &Args, t0: std::time::Instant, state: &RecordState) -> Result<(), S
         out(summary(&r))?;
     }
     match (r.sequence.first(), r.sequence.last()) {
+        (Some(first), _) if r.sequence.len() == 1 => {
+            eprintln!("wrote 1 frame ({})", first.path.display())
+        }
         (Some(first), Some(last)) => eprintln!(
             "wrote {} frames ({} ... {})",
             r.sequence.len(),
