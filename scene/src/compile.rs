@@ -1649,6 +1649,19 @@ fn projection_of_nothing(s: &Scene, m: &Model) -> Option<String> {
     })
 }
 
+/// A note where the scene gives `camera.height` (an orthographic camera's view height, also
+/// keyed by a camera path) to a perspective camera: it changes nothing there.
+fn unused_camera_keys(s: &Scene) -> Option<String> {
+    (s.camera.projection == spec::ProjectionKind::Perspective && s.camera.height.is_some()).then(
+        || {
+            "camera.height is an orthographic camera's view height; this camera is perspective \
+             (camera.projection), so it changes nothing here (camera.distance and fov_y frame a \
+             perspective view)"
+                .to_string()
+        },
+    )
+}
+
 /// A note where the scene sets `render.lineao` (any of its keys off its default) for a method
 /// that draws no LineAO: it changes nothing there.
 fn unused_lineao_keys(s: &Scene) -> Option<String> {
@@ -1795,6 +1808,7 @@ impl Uploaded<'_> {
         let unused: Vec<String> = unused_light_keys(s)
             .into_iter()
             .chain(unused_lineao_keys(s))
+            .chain(unused_camera_keys(s))
             .chain(projection_of_nothing(s, m))
             .collect();
         let draw = |v: &EaView| {
@@ -1875,6 +1889,24 @@ mod tests {
             e.contains("no [volume]") && e.contains("lines[0]") && e.contains("no streamlines"),
             "{e}"
         );
+    }
+
+    /// `camera.height` on a perspective camera gets a note; not on an orthographic one, and not
+    /// when left out.
+    #[test]
+    fn a_height_for_a_perspective_camera_is_noted() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/tracts/dipy");
+        let note = |camera: &str| {
+            let text = format!("[camera]\n{camera}[[lines]]\npath = \"tracks300.trk\"\n");
+            unused_camera_keys(&spec::parse(&text, "c.toml", &dir, &[]).unwrap())
+        };
+        let e = note("height = 50.0\n").expect("a note");
+        assert!(
+            e.contains("camera.height") && e.contains("perspective"),
+            "{e}"
+        );
+        assert!(note("projection = \"orthographic\"\nheight = 50.0\n").is_none());
+        assert!(note("").is_none());
     }
 
     /// `render.lineao` set for a method that draws no LineAO gets a note; not for `lineao`, not

@@ -833,7 +833,18 @@ pub fn check_output(path: &Path) -> std::result::Result<(), String> {
     }
     let dir = folder_of(path);
     if let Err(e) = std::fs::create_dir_all(dir) {
-        return fail(format!("cannot create its folder: {e}"));
+        // A file where a folder of the path should be: name it (the system says only "File
+        // exists").
+        let file = dir
+            .ancestors()
+            .find(|a| !a.as_os_str().is_empty() && a.exists() && !a.is_dir());
+        return fail(match file {
+            Some(f) => format!(
+                "{} is a file, not a folder, so its folder cannot be made",
+                f.display()
+            ),
+            None => format!("cannot create its folder: {e}"),
+        });
     }
     remove_stale_temps(&[path]);
     let probe = dir.join(temp_name(&name.to_string_lossy(), std::process::id()));
@@ -998,6 +1009,20 @@ mod tests {
         assert_eq!(names.len(), 2, "no staged file left: {names:?}");
         write_pair(&a, |st| put(st, "a4"), || put(&b, "b4")).unwrap();
         assert_eq!(std::fs::read(&a).unwrap(), b"a4");
+    }
+
+    #[test]
+    fn an_output_under_a_file_names_the_file() {
+        let d = tempfile::tempdir().unwrap();
+        let f = d.path().join("afile");
+        std::fs::write(&f, "x").unwrap();
+        for out in [f.join("x.png"), f.join("sub").join("x.png")] {
+            let e = check_output(&out).unwrap_err();
+            assert!(
+                e.contains(&format!("{} is a file, not a folder", f.display())),
+                "{e}"
+            );
+        }
     }
 
     #[test]
