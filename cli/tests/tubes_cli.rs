@@ -196,6 +196,12 @@ fn trace_follows_a_synthetic_field_into_a_tractogram() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The field is in its own frame (a NRRD without a space): the tractogram's RAS+ mm is noted.
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("the field's frame is its own, not RAS+ mm") && err.contains("annotate.units"),
+        "{err}"
+    );
     let s = tubes::load(&out).unwrap();
     assert_eq!(s.len(), 2);
     // Circles about the z axis: the radius stays put.

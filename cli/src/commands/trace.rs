@@ -616,6 +616,16 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
     s.reference = tubes::trk::grid_space(grid.0, grid.1);
     notes.extend(std::mem::take(&mut s.warnings));
     notes.extend(super::tck_drops_note(&a.output, &s));
+    if series.frames[0].space != volume::Space::Ras {
+        // TrackVis, MRtrix and TRX files hold RAS+ millimetres; a CFD field's frame is its own.
+        notes.push(format!(
+            "{}: the field's frame is its own, not RAS+ mm; {} stores its points as they are, \
+             in a format read as RAS+ mm: a scene of these lines alone labels lengths \
+             \"mm\" (set annotate.units to the field's unit)",
+            a.input.display(),
+            a.output.display()
+        ));
+    }
     tubes::save(&a.output, &s).map_err(|e| e.to_string())?;
     Ok(TraceReport {
         lines: s.len(),
