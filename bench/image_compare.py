@@ -9,7 +9,10 @@
       background colour (the volume's pixels), and the share of pixels that differ at all.
   python3 bench/image_compare.py darkened REF.png IMG.png [--background 250]
       the pixels of REF darker than BACKGROUND in grey (what is drawn on a white background),
-      and how many of them IMG draws at less than half REF's grey level (darkened)."""
+      and how many of them IMG draws at less than half REF's grey level (darkened).
+  python3 bench/image_compare.py ink A.png B.png
+      the ink of a dark drawing on white: the sum over pixels of (255 - grey) / 255, in pixels
+      of full coverage (a 2-pixel line n pixels long holds about 2n), of A and of B, and B / A."""
 import argparse
 import numpy as np
 from PIL import Image
@@ -33,7 +36,14 @@ def main():
     k.add_argument('ref')
     k.add_argument('img')
     k.add_argument('--background', type=float, default=250.0)
+    i = sub.add_parser('ink')
+    i.add_argument('a')
+    i.add_argument('b')
     a = p.parse_args()
+    if a.what == 'ink':
+        x, y = ((255.0 - load(f, 'L')).sum() / 255.0 for f in (a.a, a.b))
+        print(f'ink {x:.1f} and {y:.1f} pixels; B / A = {y / x:.3f}')
+        return
     if a.what == 'diff':
         x, y = load(a.a, 'RGB'), load(a.b, 'RGB')
         if x.shape != y.shape:

@@ -34,8 +34,10 @@ struct Params {
 @group(0) @binding(6) var front_depth: texture_2d<f32>;
 // Linear RGBA: colour, and alpha = coverage (1 where a surface is, else the volume's opacity).
 @group(0) @binding(7) var<storage, read_write> image: array<vec4<f32>>;
-// AOVs per pixel: (volumetric, combined, linear depth, 1 where every sample is an unlit
-// slice's: FXAA leaves those pixels as they are).
+// AOVs per pixel: (volumetric, combined, linear depth, what FXAA does there: 1 leaves the
+// pixel as it is - every sample an unlit slice's -, 2 leaves it and its four neighbours -
+// a surface's sample in a multisampled G-buffer, whose edges the samples have smoothed: FXAA
+// over them took a quarter of a lone 2-pixel line's ink, and beside them smeared it out).
 @group(0) @binding(8) var<storage, read_write> aov: array<vec4<f32>>;
 // The isosurface (iso_pass): shaded colour and linear depth (0: none), and its ambient term.
 @group(0) @binding(9) var<storage, read> iso_out: array<vec4<f32>>;
@@ -139,5 +141,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (s1.x > 0.0 && (z <= 0.0 || s1.x < z)) {
         depth = s1.x;
     }
-    aov[idx] = vec4<f32>(volumetric, combined, depth, select(0.0, 1.0, on_slice == SAMPLES));
+    var fxaa = select(0.0, 1.0, on_slice == SAMPLES);
+    if (SAMPLES > 1 && covered > 0.0) {
+        fxaa = 2.0;
+    }
+    aov[idx] = vec4<f32>(volumetric, combined, depth, fxaa);
 }

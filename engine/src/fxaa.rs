@@ -31,7 +31,9 @@ pub struct FxaaPass {
 
 impl FxaaPass {
     /// The pass over `input` (linear RGBA, `width x height`), leaving as they are the pixels
-    /// whose `keep` entry (a vec4 per pixel, composite's AOVs) has w above 0.5.
+    /// whose `keep` entry (a vec4 per pixel, composite's AOVs) has w above 0.5, and the four
+    /// neighbours of those whose w is above 1.5 (multisampled surfaces: `fxaa_cpu` is the
+    /// pass where nothing is kept).
     pub fn new(
         gpu: &Gpu,
         width: u32,

@@ -727,6 +727,46 @@ fn a_haloed_cores_edge_on_pixel_centres_is_drawn_evenly_along_the_line() {
 }
 
 #[test]
+fn fxaa_leaves_multisampled_lines_their_ink() {
+    // A lone 2-pixel line across the view at a shallow angle: its edges are smoothed by the
+    // G-buffer's 4 samples, and FXAA over them took a quarter of its ink (drawn as beads).
+    // FXAA now leaves pixels that surfaces' samples cover and their neighbours: the line's
+    // pixels are as without it, and it is smeared no wider.
+    let gpu = gpu();
+    let cam = top_camera(false);
+    let l = coloured(
+        &[vec![[-11.0, -3.0, 0.0], [11.0, 2.0, 0.0]]],
+        2.0,
+        [0.0, 0.0, 1.0],
+    );
+    let r = Renderer::new(&gpu);
+    let scene = r.upload(None, &[], &[l], None).unwrap();
+    let draw = |fxaa: bool| {
+        let set = Settings {
+            msaa: 4,
+            fxaa,
+            ..settings()
+        };
+        r.draw(&scene, &view(cam), &[], &set, DrawOptions::default())
+            .unwrap()
+    };
+    let (on, off) = (draw(true), draw(false));
+    let covered: Vec<usize> = (0..off.image.len())
+        .filter(|&i| off.image[i][3] > 0.0)
+        .collect();
+    assert!(covered.len() > 2 * W as usize, "{} pixels", covered.len());
+    for &i in &covered {
+        assert_eq!(on.image[i], off.image[i], "pixel {i}");
+    }
+    let alpha = |o: &Output| o.image.iter().map(|p| p[3]).sum::<f32>();
+    let (a, b) = (alpha(&on), alpha(&off));
+    assert!(
+        (a - b).abs() <= 0.01 * b,
+        "coverage {a} with FXAA, {b} without"
+    );
+}
+
+#[test]
 fn depth_cueing_narrows_far_cores() {
     // Two haloed 4-pixel lines along x, one near the near plane and one near the far plane
     // (orthographic: the same width on screen without cueing). With depth_cue = 0.75 the
