@@ -639,6 +639,32 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
             ],
             0,
         ),
+        (
+            &[
+                "-o",
+                "t_#.png",
+                "--trail-range",
+                "0:1:7",
+                "--camera-path",
+                "p.toml",
+                "--method",
+                "foo",
+            ],
+            0,
+        ),
+        (
+            &[
+                "-o",
+                "t_#.png",
+                "--camera-path",
+                "p.toml",
+                "--orbit",
+                "4",
+                "--method",
+                "foo",
+            ],
+            4,
+        ),
     ] {
         let mut a = args.to_vec();
         a.extend(["--record", "u/r.json"]);
@@ -656,6 +682,11 @@ fn a_task_that_fails_early_leaves_its_record_and_renders_nothing() {
     // An explicitly empty value is a bad value (exit 1), not a missing one.
     let o = run(&["--orbit", "3", "-o", "o/f_#.png", "--frames", ""]);
     assert_eq!(o.status.code(), Some(1), "{}", err(&o));
+    // A value missing before `--record`: the record is still written (the scan took
+    // `--record` for the missing value and skipped its path).
+    let o = run(&["-o", "o/f_#.png", "--orbit", "--record", "mv/r.json"]);
+    assert_eq!(o.status.code(), Some(2), "{}", err(&o));
+    assert!(d.join("mv/r.json").exists(), "{}", err(&o));
     // `--record` without its value: no record file named after the next flag.
     let o = run(&["-o", "o/f_#.png", "--record", "--orbit", "3"]);
     assert_eq!(o.status.code(), Some(2), "{}", err(&o));

@@ -267,11 +267,11 @@ pub fn record_unparsed(args: &[std::ffi::OsString], error: &str) -> Result<(), S
         return Ok(());
     }
     let mut path = None;
-    // The frames the command line gives, as a run that fails before any frame records them:
-    // `--orbit N`, `--trail-range T0:T1:N`, 0 for a camera path or manifest (not read), else
-    // one image (0 where the count itself does not parse).
-    let mut frames = Some(1);
-    let mut it = args.iter().skip(2);
+    // The values of the options that set the frames, as `render` counts them for a run that
+    // fails before any frame: a manifest 0 (not read), else `--orbit N`, else a camera path 0,
+    // else `--trail-range T0:T1:N`, else one image (0 where the count itself does not parse).
+    let (mut orbit, mut trail, mut manifest, mut camera_path) = (None, None, false, false);
+    let mut it = args.iter().skip(2).peekable();
     while let Some(a) = it.next() {
         if a == "--" {
             break;
@@ -291,24 +291,33 @@ pub fn record_unparsed(args: &[std::ffi::OsString], error: &str) -> Result<(), S
         if !takes.contains(&flag) {
             continue;
         }
-        // A flag after it is the parser's missing value, not a value.
+        // A flag after it is the parser's missing value, not a value (and is read as a flag).
         let value = inline.or_else(|| {
-            it.next()
+            it.next_if(|v| !v.to_str().is_some_and(|v| v.starts_with('-')))
                 .and_then(|v| v.to_str())
-                .filter(|v| !v.starts_with('-'))
                 .map(str::to_string)
         });
         match flag {
             "--record" => path = value.map(PathBuf::from),
-            "--orbit" => frames = value.and_then(|v| v.parse::<usize>().ok()),
+            "--orbit" => orbit = Some(value.and_then(|v| v.parse::<usize>().ok())),
             "--trail-range" => {
-                frames = value
-                    .and_then(|v| scene::render::TrailRange::parse(&v).ok())
-                    .map(|r| r.n as usize)
+                trail = Some(
+                    value
+                        .and_then(|v| scene::render::TrailRange::parse(&v).ok())
+                        .map(|r| r.n as usize),
+                )
             }
-            _ => frames = Some(0),
+            "--manifest" => manifest = true,
+            _ => camera_path = true,
         }
     }
+    let frames = match (manifest, orbit, camera_path, trail) {
+        (true, ..) => Some(0),
+        (false, Some(n), ..) => n,
+        (false, None, true, _) => Some(0),
+        (false, None, false, Some(n)) => n,
+        (false, None, false, None) => Some(1),
+    };
     let Some(path) = path else {
         return Ok(());
     };
