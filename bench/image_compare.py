@@ -42,7 +42,8 @@ def main():
     a = p.parse_args()
     if a.what == 'ink':
         x, y = ((255.0 - load(f, 'L')).sum() / 255.0 for f in (a.a, a.b))
-        print(f'ink {x:.1f} and {y:.1f} pixels; B / A = {y / x:.3f}')
+        ratio = f'{y / x:.3f}' if x > 0 else 'undefined (A is blank)'
+        print(f'ink {x:.1f} and {y:.1f} pixels; B / A = {ratio}')
         return
     if a.what == 'diff':
         x, y = load(a.a, 'RGB'), load(a.b, 'RGB')

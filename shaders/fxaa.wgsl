@@ -12,9 +12,9 @@ struct Params {
 @group(0) @binding(1) var<storage, read> src: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> dst: array<vec4<f32>>;
 // Per pixel: w = 1 keeps the pixel as it is (composite.wgsl: every sample on an unlit slice,
-// whose colours are the colour map's and not an edge to smooth); w = 2 keeps it and its four
+// whose colours are the colour map's and not an edge to smooth); w = 2 keeps it and its eight
 // neighbours (a multisampled surface's pixel: its samples smoothed its edges, and FXAA beside
-// it would smear it outwards).
+// it, whose corner fetches reach the diagonal pixels, would smear it outwards).
 @group(0) @binding(3) var<storage, read> keep: array<vec4<f32>>;
 
 fn kept(p: vec2<i32>) -> f32 {
@@ -50,10 +50,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = vec2<i32>(id.xy);
     let centre = vec2<f32>(id.xy) + vec2<f32>(0.5);
     let m = texel(p);
-    let beside = max(
-        max(kept(p + vec2<i32>(1, 0)), kept(p - vec2<i32>(1, 0))),
-        max(kept(p + vec2<i32>(0, 1)), kept(p - vec2<i32>(0, 1))),
-    );
+    var beside = 0.0;
+    for (var dy = -1; dy <= 1; dy = dy + 1) {
+        for (var dx = -1; dx <= 1; dx = dx + 1) {
+            beside = max(beside, kept(p + vec2<i32>(dx, dy)));
+        }
+    }
     if (keep[id.x + F.width * id.y].w > 0.5 || beside > 1.5) {
         dst[id.x + F.width * id.y] = m;
         return;

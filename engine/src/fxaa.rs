@@ -6,7 +6,9 @@
 //! differences picks two or four bilinear taps along the edge, the wider blend rejected when
 //! it leaves the local luma range. Pixels composite marks as wholly on an unlit slice are
 //! left as they are: a slice's colours are its colour map's, and FXAA would blur the anatomy's
-//! own edges (up to 80 of 255 levels on the MNI T1 seen head-on: README, `render.fxaa`).
+//! own edges (up to 80 of 255 levels on the MNI T1 seen head-on: README, `render.fxaa`). Pixels
+//! where a multisampled G-buffer had a surface's sample, and their eight neighbours, are left too:
+//! the samples smoothed those edges, and FXAA over them took a quarter of a thin line's ink.
 
 use crate::gpu::{Gpu, Slot};
 use crate::prelude::with_prelude;

@@ -159,7 +159,8 @@ impl GpuMesh {
 
 /// A line set on the GPU: positions (xyz f32 relative to the origin), RGBA8 colours and the
 /// first point of each segment - 16 bytes a point and 4 a segment; the strips are built in
-/// the vertex shader (`gbuffer.wgsl::vs_line`).
+/// the vertex shader (`gbuffer.wgsl::vs_line`; haloed lines `vs_line_h`, interpolated per
+/// sample).
 #[derive(Clone)]
 pub struct GpuLines {
     points: wgpu::Buffer,
@@ -655,7 +656,8 @@ pub fn batches(sizes: &[u64], budget: Option<u64>) -> Vec<Vec<(usize, u64, u64)>
 struct PipelinePair {
     mesh: wgpu::RenderPipeline,
     line: wgpu::RenderPipeline,
-    /// Haloed lines (the entry point with `_h`, which writes the depth attachment itself).
+    /// Haloed lines (the fragment entry point with `_h`, which writes the depth attachment
+    /// itself, after `vs_line_h`: per-sample shading, each sample core or rim).
     line_halo: wgpu::RenderPipeline,
 }
 
