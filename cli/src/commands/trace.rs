@@ -508,16 +508,17 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
         let f = SeriesField::from_series(&series, sel.as_ref())
             .map_err(|e| format!("{}: {e}", a.input.display()))?;
         let span = series.span();
+        let vmax = f.max_speed();
+        if vmax <= 0.0 {
+            return Err(format!(
+                "{}: the vectors are zero or not finite everywhere, in every frame: no pathline \
+                 to trace",
+                a.input.display()
+            ));
+        }
         let time_step = match t.time_step {
             Some(h) => h,
             None => {
-                let vmax = f.max_speed();
-                if vmax <= 0.0 {
-                    return Err(format!(
-                        "{}: the field is zero everywhere: give --time-step",
-                        a.input.display()
-                    ));
-                }
                 let cross = 0.5 * f.min_spacing() / vmax;
                 if span > 0.0 {
                     (span / 200.0).min(cross)
