@@ -501,13 +501,26 @@ pub fn draw(
         let x1 = wf - margin;
         let x0 = x1 - bw;
         let mut y1 = hf - margin - px * 1.25;
-        // A bar widened over the scale bar's corner (a thumbnail, long end labels) goes above
-        // it, its end labels clear of the scale bar's length label.
-        if let (Some((sb, _, _)), Some(sl)) = (placed.scale_bar, placed.scale_label) {
-            let right = sb[2].max(sl[2]) + 0.5 * px;
-            if x0 < right {
-                y1 -= hf - sb[1].min(sl[1]) + 0.2 * px;
-            }
+        // A bar widened over what the bottom row holds (a thumbnail, long end labels) goes
+        // above it, its end labels clear: the scale bar and its length label, the bottom
+        // orientation label ("P" ran into "0.0001234").
+        let bottom_label = spec
+            .orientation
+            .then(|| placed.labels.get(3).map(|l| l.1))
+            .flatten();
+        let row = [
+            placed.scale_bar.map(|s| s.0),
+            placed.scale_label,
+            bottom_label,
+        ];
+        let top = row
+            .into_iter()
+            .flatten()
+            .filter(|r| r[2] + 0.5 * px > x0 - 2.0 && r[0] - 0.5 * px < x1 + 2.0)
+            .map(|r| r[1])
+            .fold(f32::INFINITY, f32::min);
+        if top.is_finite() {
+            y1 -= hf - top + 0.2 * px;
         }
         let y0 = y1 - bh;
         cv.fill([x0 - 2.0, y0 - 2.0, x1 + 2.0, y1 + 2.0], halo);
@@ -824,6 +837,35 @@ mod tests {
                 .filter(|&i| img[i][0] < 0.5)
                 .count();
             assert!(above > 20, "{label}: {above}");
+        }
+    }
+
+    #[test]
+    fn a_widened_colour_bar_goes_above_the_bottom_orientation_label() {
+        let camera = top_view();
+        let bar = ColorBar {
+            label: "fractional anisotropy".into(),
+            map: "viridis".into(),
+            range: [0.0001234, 12345.6],
+            colors: (0..64)
+                .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))
+                .collect(),
+        };
+        let spec = AnnotateSpec {
+            colorbar: Some("slices.0".into()),
+            orientation: true,
+            ..Default::default()
+        };
+        let overlap = |a: Rect, b: Rect| a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3];
+        for (w, h) in [(160usize, 120usize), (200, 150)] {
+            let mut img = blank(w, h);
+            let p = draw(&mut img, w, h, &spec, &on_white(&camera, Some(&bar))).unwrap();
+            let label = p.labels[3].1;
+            let cb = p.colorbar.unwrap();
+            let framed = [cb[0] - 2.0, cb[1] - 2.0, cb[2] + 2.0, cb[3] + 2.0];
+            for r in [framed, p.colorbar_ends[0], p.colorbar_ends[1]] {
+                assert!(!overlap(r, label), "{r:?} over {label:?} at {w}x{h}");
+            }
         }
     }
 

@@ -338,6 +338,12 @@ pub struct Model {
 }
 
 impl Model {
+    /// Whether the scene's world is RAS+ millimetres: its volume's frame, else RAS+ by the
+    /// convention of tractograms and meshes (orientation labels, scale-bar units).
+    pub fn is_ras(&self) -> bool {
+        self.space.is_none_or(|s| s == volume::Space::Ras)
+    }
+
     /// A 64-bit FNV-1a hash of the data the model holds: the volume's samples and grid (after
     /// the transfer function's NaN mapping) and every mesh's vertices, normals, colours and
     /// indices. Keys caches of results that depend on the data, not on file names.
@@ -1654,9 +1660,9 @@ fn projection_of_nothing(s: &Scene, m: &Model) -> Option<String> {
 fn unused_camera_keys(s: &Scene) -> Option<String> {
     (s.camera.projection == spec::ProjectionKind::Perspective && s.camera.height.is_some()).then(
         || {
-            "camera.height is an orthographic camera's view height; this camera is perspective \
-             (camera.projection), so it changes nothing here (camera.distance and fov_y frame a \
-             perspective view)"
+            "camera.height (the scene's, or a camera path's keyed height) is an orthographic \
+             camera's view height; this camera is perspective (camera.projection), so it \
+             changes nothing here (camera.distance and fov_y frame a perspective view)"
                 .to_string()
         },
     )

@@ -287,7 +287,7 @@ pub fn annotate_frame(
     }
     let camera = crate::compile::camera(s, m.bounds)?;
     // Tractograms and meshes alone are RAS+ by convention; a volume says.
-    let ras = m.space.is_none_or(|sp| sp == volume::Space::Ras);
+    let ras = m.is_ras();
     let bg = s.background.rgb()?.map(|c| c as f32);
     let ctx = crate::annotate::Context {
         camera: &camera,
