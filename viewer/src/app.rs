@@ -80,6 +80,9 @@ struct PendingOpen {
     /// could not be drawn: a position the old grid held may miss the new one. Each goes back
     /// where the new grid holds it once drawn; the others stay at its centre.
     set_aside: Option<Vec<(usize, f64)>>,
+    /// The last request sent before that second try: its failures and those of the requests
+    /// before it are the one being tried again.
+    retried_after: Option<u64>,
 }
 
 /// What the shown image was.
@@ -164,7 +167,7 @@ impl App {
         self
     }
 
-    /// Whether the scene is in RAS+ ([`crate::worker::is_ras`] of its model).
+    /// Whether the scene is in RAS+ (`scene::compile::Model::is_ras` of its model).
     pub fn with_ras(mut self, ras: bool) -> App {
         self.ras = ras;
         self
@@ -287,6 +290,7 @@ impl App {
                             before,
                             id: None,
                             set_aside: None,
+                            retried_after: None,
                         })
                     }
                 }
@@ -320,13 +324,31 @@ impl App {
         }
         p.set_aside = Some(aside);
         p.id = None;
+        p.retried_after = Some(self.next_id);
         true
     }
 
     /// Puts slices' positions `aside` back where the grid now drawn (of the volume among
     /// `paths`) holds them; those it does not stay at its centre, and the message says which.
     fn put_back(&mut self, paths: &[std::path::PathBuf], aside: &[(usize, f64)]) {
+        let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
         let Some(grid) = self.slice_grid.clone() else {
+            // No slice drawn (all hidden): nothing to check the positions against; they go
+            // back as they were (a slice shown later that misses the grid says so).
+            for &(i, x) in aside {
+                if let Some(sl) = self
+                    .scene
+                    .slices
+                    .get_mut(i)
+                    .filter(|s| s.position.is_none())
+                {
+                    sl.position = Some(x);
+                }
+            }
+            self.message = Some(format!(
+                "opened {}; the slices' positions are kept as they were",
+                names.join(", ")
+            ));
             return;
         };
         let unit = if grid.ras { "mm" } else { "units" };
@@ -335,6 +357,10 @@ impl App {
             let Some(sl) = self.scene.slices.get_mut(i) else {
                 continue;
             };
+            // Moved by the user since: theirs.
+            if sl.position.is_some() {
+                continue;
+            }
             let (_, [lo, hi]) = grid.position(sl);
             if (lo..=hi).contains(&x) {
                 sl.position = Some(x);
@@ -345,7 +371,6 @@ impl App {
                 ));
             }
         }
-        let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
         self.message = Some(match moved.is_empty() {
             true => format!("opened {}", names.join(", ")),
             false => format!(
@@ -377,6 +402,16 @@ impl App {
                 Err(e) => {
                     // That request is done with: frames stop waiting for it.
                     self.shown_scenes.retain(|k, _| *k > id);
+                    // Sent before an opened volume was tried again, with the slices' positions
+                    // set aside since: the failure being tried again, not a new one.
+                    if self
+                        .pending_open
+                        .as_ref()
+                        .and_then(|p| p.retried_after)
+                        .is_some_and(|r| id <= r)
+                    {
+                        continue;
+                    }
                     let mut opened = self
                         .pending_open
                         .take_if(|p| p.id.is_some_and(|first| id >= first));
@@ -785,9 +820,17 @@ impl App {
         let centre = ((self.bounds[0] + self.bounds[1]) * 0.5).to_array();
         changed |= crate::settings::panel(ui, &mut self.scene, centre, &mut self.clip_drag);
         ui.separator();
+        // The zoom as the saved scene holds it: the distance, or an orthographic view's height.
+        let zoom = match self.orbit.orthographic {
+            true => format!(
+                "height {}",
+                scene::annotate::format_number(self.orbit.ortho_height)
+            ),
+            false => format!("distance {:.2}", self.orbit.distance),
+        };
         ui.label(format!(
-            "azimuth {:.1}°, elevation {:.1}°, distance {:.2}",
-            self.orbit.azimuth, self.orbit.elevation, self.orbit.distance
+            "azimuth {:.1}°, elevation {:.1}°, {zoom}",
+            self.orbit.azimuth, self.orbit.elevation
         ));
         if let Some(i) = &self.shown {
             let level = match i.level {

@@ -13,8 +13,10 @@ pub const DEGREES_PER_PIXEL: f64 = 0.4;
 pub const KEY_STEP: f64 = 5.0;
 /// The closest orbit distance, in bounding-sphere radii (as `Camera::orbit`).
 pub const MIN_DISTANCE: f64 = 1.01;
-/// Elevation is kept inside (-LIMIT, LIMIT) degrees, so that the up vector stays defined.
-pub const ELEVATION_LIMIT: f64 = 89.5;
+/// Elevation is kept inside [-LIMIT, LIMIT] degrees, so that the up vector stays defined: the
+/// README's top view (89.9) is drawn as `umbra render` draws it (89.5 held a scene's 89.9
+/// at 89.5 in the view, its screenshot and the saved scene).
+pub const ELEVATION_LIMIT: f64 = 89.9;
 
 /// The orbit: angles in degrees, distance in bounding-sphere radii, the target in world units,
 /// the projection.
@@ -207,7 +209,8 @@ impl Orbit {
         (turned, offset + (turned - normal).dot(pivot))
     }
 
-    /// Writes the orbit into a scene's camera (an orbit camera: `eye` cleared, `up` +z).
+    /// Writes the orbit into a scene's camera (an orbit camera: `eye` cleared, `up` +z; the
+    /// height only where orthographic).
     pub fn apply(&self, c: &mut CameraSpec) {
         c.eye = None;
         c.up = [0.0, 0.0, 1.0];
@@ -219,6 +222,9 @@ impl Orbit {
             c.height = Some(self.ortho_height);
             ProjectionKind::Orthographic
         } else {
+            // A perspective camera has no height (the scene file's, for an orthographic one,
+            // would draw a note that it changes nothing; the orbit keeps its own).
+            c.height = None;
             ProjectionKind::Perspective
         };
     }
@@ -498,6 +504,14 @@ mod tests {
         let mut c = CameraSpec::default();
         z.apply(&mut c);
         assert_eq!(c.height, Some(z.ortho_height));
+        // Back to perspective the height goes (it would draw the note that it changes nothing).
+        let mut p = c.clone();
+        Orbit {
+            orthographic: false,
+            ..z
+        }
+        .apply(&mut p);
+        assert_eq!(p.height, None);
         let mut s = scene::spec::parse("", "s", std::path::Path::new("."), &[]).unwrap();
         s.camera = c;
         let cam = scene::compile::camera(&s, bounds()).unwrap();

@@ -61,7 +61,7 @@ pub fn run(a: ViewArgs) -> Result<(), String> {
     let m = scene::compile::model(&s).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let bounds = m.bounds;
     let slice_grid = objects::SliceGrid::of(&m);
-    let ras = worker::is_ras(&m);
+    let ras = m.is_ras();
     let range = worker::data_range(&m);
     let editor = worker::editor_of(&m, range);
     let quit = Arc::new(AtomicBool::new(false));

@@ -246,8 +246,20 @@ pub fn open(s: &mut Scene, path: &Path) -> Result<String, String> {
     let add = scene::spec::parse(&toml, "the opened file", Path::new("."), &[])?;
     Ok(match kind {
         Kind::Volume => {
+            // A scene that keeps its volume as the slices' grid only (`render = false`) keeps
+            // the new one so: a slices figure does not start drawing the volume behind them.
+            let grid_only = s.volume.as_ref().is_some_and(|v| !v.render);
             s.volume = add.volume;
-            format!("opened {} as the volume", p.display())
+            match (grid_only, s.volume.as_mut()) {
+                (true, Some(v)) => {
+                    v.render = false;
+                    format!(
+                        "opened {} as the volume, not drawn as the one it replaces (tick \"volume\" to draw it)",
+                        p.display()
+                    )
+                }
+                _ => format!("opened {} as the volume", p.display()),
+            }
         }
         Kind::Lines => {
             s.lines.extend(add.lines);
@@ -314,7 +326,7 @@ impl SliceGrid {
             dims: p.dims,
             affine: p.affine,
             bounds: p.bounds,
-            ras: crate::worker::is_ras(m),
+            ras: m.is_ras(),
         })
     }
 
@@ -677,6 +689,19 @@ mod tests {
         let vol = r.join("datasets/vtk/headsq_64x64x93.nhdr");
         assert!(open(&mut s, &vol).unwrap().contains("as the volume"));
         assert!(s.volume.as_ref().unwrap().path.is_absolute());
+        assert!(s.volume.as_ref().unwrap().render);
+        // In place of a volume kept as the slices' grid only, the new one is not drawn either.
+        s.volume.as_mut().unwrap().render = false;
+        let mni = r.join("datasets/mni/mni_icbm152_t1_tal_nlin_sym_09a.nii.gz");
+        assert!(open(&mut s, &mni).unwrap().contains("not drawn"));
+        assert!(!s.volume.as_ref().unwrap().render);
+        assert!(s
+            .volume
+            .as_ref()
+            .unwrap()
+            .path
+            .ends_with("mni_icbm152_t1_tal_nlin_sym_09a.nii.gz"));
+        s.volume.as_mut().unwrap().render = true;
         let dir = tempfile::tempdir().unwrap();
         let bad = dir.path().join("notes.txt");
         std::fs::write(&bad, "x").unwrap();

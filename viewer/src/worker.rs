@@ -515,7 +515,7 @@ impl Session {
                 histogram2d,
                 volume: self.model.volume.is_some(),
                 slice_grid: crate::objects::SliceGrid::of(&self.model),
-                ras: is_ras(&self.model),
+                ras: self.model.is_ras(),
             });
         }
         if req.scene.slices != self.slices {
@@ -624,12 +624,6 @@ pub struct Rebuilt {
     pub slice_grid: Option<crate::objects::SliceGrid>,
     /// Whether the scene is in RAS+ (its volume says; tractograms and meshes alone are).
     pub ras: bool,
-}
-
-/// Whether model `m`'s world is RAS+: its volume's frame, else RAS+ by convention
-/// (tractograms and meshes), as `umbra render`'s orientation labels take it.
-pub fn is_ras(m: &Model) -> bool {
-    m.space.is_none_or(|s| s == volume::Space::Ras)
 }
 
 /// Draws `s` (the scene state, any level already applied) with the uploaded model into an

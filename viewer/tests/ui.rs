@@ -52,7 +52,7 @@ fn window_with(
         }
     };
     let grid = umbra_viewer::objects::SliceGrid::of(&m);
-    let ras = umbra_viewer::worker::is_ras(&m);
+    let ras = m.is_ras();
     let worker = umbra_viewer::worker::start(m, &s, || {});
     let quit = Arc::new(AtomicBool::new(false));
     let mut app = App::new(s, bounds, worker, quit, None)
@@ -621,13 +621,11 @@ fn a_switch_to_mip_is_the_headless_image_and_an_unreadable_volume_is_taken_back(
     assert!(h.query_by_label_contains("cut.nrrd:").is_some(), "{m}");
 }
 
-/// The objects panel's slice rows: a position moved along the grid, a slice lit and another
-/// hidden reach the drawn scene (the hidden one left out of it), and the worker draws them.
-#[test]
-fn the_objects_panel_moves_lights_and_hides_slices() {
-    let dir = tempfile::tempdir().unwrap();
+/// The CT head as the grid of `slices` (TOML `[[slices]]` entries), its volume not drawn, 96 x
+/// 72 `ea`.
+fn slices_scene(dir: &std::path::Path, slices: &str) -> std::path::PathBuf {
     let path = test_support::headsq_scene(
-        dir.path(),
+        dir,
         "",
         "bone",
         "method = \"ea\"\nwidth = 96\nheight = 72\n",
@@ -635,8 +633,20 @@ fn the_objects_panel_moves_lights_and_hides_slices() {
     let text = std::fs::read_to_string(&path)
         .unwrap()
         .replace("[volume.transfer]", "render = false\n[volume.transfer]")
-        + "[[slices]]\naxis = \"axial\"\n[[slices]]\naxis = \"coronal\"\n";
+        + slices;
     std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// The objects panel's slice rows: a position moved along the grid, a slice lit and another
+/// hidden reach the drawn scene (the hidden one left out of it), and the worker draws them.
+#[test]
+fn the_objects_panel_moves_lights_and_hides_slices() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = slices_scene(
+        dir.path(),
+        "[[slices]]\naxis = \"axial\"\n[[slices]]\naxis = \"coronal\"\n",
+    );
     let mut h = window(&path, [900.0, 900.0], WithEditor::No);
     step_until(&mut h, |a| a.shown_level() == Some(Level::Full));
     h.get_by_label("objects").click_accesskit();
@@ -689,19 +699,12 @@ fn the_objects_panel_moves_lights_and_hides_slices() {
 #[test]
 fn a_new_volume_keeps_the_slices_it_holds_and_centres_the_others() {
     let dir = tempfile::tempdir().unwrap();
-    let path = test_support::headsq_scene(
-        dir.path(),
-        "",
-        "bone",
-        "method = \"ea\"\nwidth = 96\nheight = 72\n",
-    );
     // headsq spans z 0 to 138 mm and y 0 to 201.6 mm; the MNI T1 z -72 to 109, y -126 to 90.
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
-        .replace("[volume.transfer]", "render = false\n[volume.transfer]")
-        + "[[slices]]\naxis = \"axial\"\nposition = 130.0\n\
-           [[slices]]\naxis = \"coronal\"\nposition = 10.0\n";
-    std::fs::write(&path, text).unwrap();
+    let path = slices_scene(
+        dir.path(),
+        "[[slices]]\naxis = \"axial\"\nposition = 130.0\n\
+         [[slices]]\naxis = \"coronal\"\nposition = 10.0\n",
+    );
     let mut h = window(&path, [900.0, 900.0], WithEditor::No);
     step_until(&mut h, |a| a.shown_level() == Some(Level::Full));
     h.get_by_label("objects").click_accesskit();
