@@ -573,6 +573,18 @@ mod tests {
     use super::*;
     use occlusion::camera::Projection;
 
+    /// A viridis colour bar labelled `label` over `range`.
+    fn viridis_bar(label: &str, range: [f64; 2]) -> ColorBar {
+        ColorBar {
+            label: label.into(),
+            map: "viridis".into(),
+            range,
+            colors: (0..64)
+                .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))
+                .collect(),
+        }
+    }
+
     /// Coverage mixes sRGB-encoded values: black at half coverage over white is half-way in
     /// lightness (128 of 255, 188 when mixed in linear light), so a 1-bit image, cut at half
     /// lightness, keeps a glyph's pixels that are at least half covered.
@@ -843,14 +855,7 @@ mod tests {
     #[test]
     fn a_widened_colour_bar_goes_above_the_bottom_orientation_label() {
         let camera = top_view();
-        let bar = ColorBar {
-            label: "fractional anisotropy".into(),
-            map: "viridis".into(),
-            range: [0.0001234, 12345.6],
-            colors: (0..64)
-                .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))
-                .collect(),
-        };
+        let bar = viridis_bar("fractional anisotropy", [0.0001234, 12345.6]);
         let spec = AnnotateSpec {
             colorbar: Some("slices.0".into()),
             orientation: true,
@@ -872,15 +877,8 @@ mod tests {
     #[test]
     fn a_widened_colour_bar_goes_above_the_scale_bar() {
         let camera = top_view();
-        let bar = ColorBar {
-            label: "p".into(),
-            map: "viridis".into(),
-            // Ends of 9 digits: "12345.6781", "12345.6789".
-            range: [12345.6781, 12345.6789],
-            colors: (0..64)
-                .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))
-                .collect(),
-        };
+        // Ends of 9 digits: "12345.6781", "12345.6789".
+        let bar = viridis_bar("p", [12345.6781, 12345.6789]);
         let spec = AnnotateSpec {
             colorbar: Some("slices.0".into()),
             scale_bar: Some(ScaleBarSpec::Word("auto".into())),
@@ -910,14 +908,7 @@ mod tests {
     #[test]
     fn a_colour_bars_end_labels_stay_apart_on_a_thumbnail() {
         let camera = top_view();
-        let bar = ColorBar {
-            label: "mfrac".into(),
-            map: "viridis".into(),
-            range: [1.401e-44, 0.005667],
-            colors: (0..64)
-                .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))
-                .collect(),
-        };
+        let bar = viridis_bar("mfrac", [1.401e-44, 0.005667]);
         let spec = AnnotateSpec {
             colorbar: Some("slices.0".into()),
             ..Default::default()
@@ -938,14 +929,7 @@ mod tests {
     #[test]
     fn the_layout_scales_with_the_image_and_the_scale_bar_measures_the_world() {
         let camera = top_view();
-        let bar = ColorBar {
-            label: "speed".into(),
-            map: "viridis".into(),
-            range: [0.0, 2.5],
-            colors: (0..64)
-                .map(|k| tubes::tube_mesh::colormap(k as f64 / 63.0))
-                .collect(),
-        };
+        let bar = viridis_bar("speed", [0.0, 2.5]);
         let spec = AnnotateSpec {
             title: Some("Flow".into()),
             orientation: true,
