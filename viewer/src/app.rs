@@ -469,6 +469,18 @@ impl App {
         }
         self.error = None;
         if let Some(r) = &img.rebuilt {
+            if r.bounds != self.bounds && self.scene.camera.target.is_none() {
+                // New data (a volume replaced, a tractogram added) with the scene's camera on
+                // its centre: the view and `Home` follow the new centre, unless the user moved
+                // the target (a pan, a picked pivot).
+                let centre = |b: [DVec3; 2]| (b[0] + b[1]) * 0.5;
+                if (self.orbit.target - centre(self.bounds)).length()
+                    <= 1e-9 * (1.0 + centre(self.bounds).length())
+                {
+                    self.orbit.target = centre(r.bounds);
+                }
+                self.initial = Orbit::of(&self.scene.camera, r.bounds);
+            }
             self.bounds = r.bounds;
             self.slice_grid = r.slice_grid.clone();
             self.ras = r.ras;

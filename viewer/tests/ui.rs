@@ -725,6 +725,14 @@ fn a_new_volume_keeps_the_slices_it_holds_and_centres_the_others() {
     assert_eq!(h.state().scene.volume.as_ref().unwrap().path, mni);
     assert_eq!(h.state().scene.slices[0].position, None);
     assert_eq!(h.state().scene.slices[1].position, Some(10.0));
+    // The scene's camera looks at the centre of its bounds: the view follows the new data.
+    let m = scene::compile::model(&h.state().state()).unwrap();
+    let centre = (m.bounds[0] + m.bounds[1]) * 0.5;
+    assert!(
+        (h.state().orbit.target - centre).length() < 1e-6,
+        "{} against {centre}",
+        h.state().orbit.target
+    );
     // Drawn in full with the kept position, no error.
     step_until(&mut h, |a| {
         a.error().is_some()
