@@ -1767,9 +1767,49 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
             _ => Some("not a source of a colour bar".to_string()),
         };
         if let Some(why) = why {
+            // The sources this scene has, so that the error offers only what would work.
+            let mut have: Vec<String> = vec![];
+            if s.volume
+                .as_ref()
+                .is_some_and(|v| v.render && v.iso.is_none())
+            {
+                have.push("volume".into());
+            }
+            for (kind, colors) in [
+                (
+                    "tubes",
+                    s.tubes.iter().map(|t| t.color.as_str()).collect::<Vec<_>>(),
+                ),
+                ("lines", s.lines.iter().map(|l| l.color.as_str()).collect()),
+                (
+                    "points",
+                    s.points.iter().map(|p| p.color.as_str()).collect(),
+                ),
+            ] {
+                for (i, c) in colors.iter().enumerate() {
+                    if scalar(c) {
+                        have.push(format!("{kind}.{i}"));
+                    }
+                }
+            }
+            let label = |name: &str| s.overlays.iter().any(|o| o.name == name && o.labels);
+            for (i, sl) in s.slices.iter().enumerate() {
+                if !sl.volume.as_deref().is_some_and(label) {
+                    have.push(format!("slices.{i}"));
+                }
+            }
+            for o in s.overlays.iter().filter(|o| !o.labels) {
+                have.push(format!("overlays.{}", o.name));
+            }
+            let have = match have.is_empty() {
+                true => "none (a drawn volume, an entry coloured by scalar:NAME or volume:PATH, \
+                         a scalar overlay or a slice would give one)"
+                    .to_string(),
+                false => have.join(", "),
+            };
             return bad(
                 "colorbar",
-                format!("'{src}': {why}; give volume (a scene whose volume is drawn by its transfer function, not [volume.iso]), tubes.N / lines.N / points.N of an entry coloured by scalar:NAME or volume:PATH, overlays.NAME of a scalar overlay, or slices.N (a slice's colour map over its window)"),
+                format!("'{src}': {why}; this scene's colour bars: {have}"),
             );
         }
         if s.render.bits == 1 {

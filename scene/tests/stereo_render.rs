@@ -121,7 +121,10 @@ fn a_point_cloud_coloured_by_a_column_has_a_colour_bar() {
         [glam::DVec3::splat(-0.5), glam::DVec3::splat(1.5)]
     );
     let e = scene::spec::parse(&scene("#ff0000"), "s.toml", dir.path(), &[]).unwrap_err();
-    assert!(e.contains("colorbar") && e.contains("points.N"), "{e}");
+    assert!(
+        e.contains("colorbar") && e.contains("this scene's colour bars: none"),
+        "{e}"
+    );
     // The error says what keeps the source from having a bar.
     assert!(e.contains("points.0 is coloured '#ff0000'"), "{e}");
     let other = |src: &str| {
@@ -133,7 +136,10 @@ fn a_point_cloud_coloured_by_a_column_has_a_colour_bar() {
         e.contains("the scene has one [[points]] entry (points.0)"),
         "{e}"
     );
-    assert!(other("tubes.0").contains("the scene has no [[tubes]] entry"));
+    let e = other("tubes.0");
+    assert!(e.contains("the scene has no [[tubes]] entry"), "{e}");
+    // It offers the sources the scene has.
+    assert!(e.contains("this scene's colour bars: points.0"), "{e}");
     assert!(other("points.x").contains("'x' is not an index of [[points]]"));
     assert!(other("volume").contains("the scene has no volume"));
     assert!(other("overlays.fa").contains("no overlay is named 'fa' (overlays: none)"));
