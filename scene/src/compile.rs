@@ -910,6 +910,7 @@ fn line_set(
     slabs: &[crate::slices::Slab],
 ) -> Result<(LineSet, Option<crate::annotate::ColorBar>), String> {
     let mut sl = tubes::load(&l.path).map_err(|e| format!("lines[{i}]: {e}"))?;
+    let file_empty = sl.is_empty();
     if let Some(m) = l.transform {
         let key = format!("lines[{i}].transform");
         sl.transform(&crate::tube_sets::transform_matrix(&m, &key)?);
@@ -929,8 +930,9 @@ fn line_set(
     };
     let cylinder = l.profile == spec::LineProfile::Cylinder;
     notes.extend(sl.warnings.iter().map(|w| format!("lines[{i}]: {w}")));
-    // A file without streamlines says so (a scene of nothing else is refused with this why).
-    if sl.is_empty() {
+    // A file without streamlines says so (a scene of nothing else is refused with this why; a
+    // selection or a slab that kept none has said so already).
+    if file_empty {
         notes.push(format!(
             "lines[{i}] ({}): the file holds no streamlines",
             l.path.display()
@@ -1894,6 +1896,47 @@ mod tests {
         assert!(
             e.contains("no [volume]") && e.contains("lines[0]") && e.contains("no streamlines"),
             "{e}"
+        );
+    }
+
+    /// A selection that keeps no streamline leaves its colour bar nothing to show (a bar of the
+    /// colouring volume's range was drawn over no line), and says so once: the file holds
+    /// streamlines (the note that it held none was false).
+    #[test]
+    fn an_empty_selection_has_no_colour_bar_and_no_false_note() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/tracts/dipy");
+        let vol =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/vtk/headsq_64x64x93.nhdr");
+        let text = |bar: &str| {
+            format!(
+                "[[lines]]\npath = \"tracks300.trk\"\ncolor = \"volume:{}\"\n\
+                 select = {{ include_spheres = [[1000.0, 1000.0, 1000.0, 1.0]] }}\n\
+                 [[lines]]\npath = \"tracks300.trk\"\n{bar}",
+                vol.display()
+            )
+        };
+        let s = spec::parse(
+            &text("[annotate]\ncolorbar = \"lines.0\"\n"),
+            "l.toml",
+            &dir,
+            &[],
+        )
+        .unwrap();
+        let e = model(&s).err().expect("refused");
+        assert!(
+            e.contains("annotate.colorbar") && e.contains("select kept no streamline"),
+            "{e}"
+        );
+        let m = model(&spec::parse(&text(""), "l.toml", &dir, &[]).unwrap()).unwrap();
+        assert!(
+            m.notes.iter().any(|n| n.contains("select kept 0 of 300")),
+            "{:?}",
+            m.notes
+        );
+        assert!(
+            !m.notes.iter().any(|n| n.contains("holds no streamlines")),
+            "{:?}",
+            m.notes
         );
     }
 

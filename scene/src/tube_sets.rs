@@ -635,12 +635,16 @@ pub fn scene_key(key: &str, k: &str) -> String {
 
 /// The colour bar of a set coloured by `color`: `scalar:NAME` (the attribute's finite range, as
 /// the tubes and lines map it) or `volume:PATH` (the field's range), the tubes' colour map over
-/// it; `None` for other colourings.
+/// it; `None` for other colourings, and for a set with no streamline (a selection that kept
+/// none: nothing in the image is coloured, though a volume's range would make a bar).
 pub fn color_bar(
     s: &tubes::Streamlines,
     color: &str,
     map: Option<volume::colormap::Colormap>,
 ) -> Result<Option<crate::annotate::ColorBar>, String> {
+    if s.is_empty() {
+        return Ok(None);
+    }
     let label = color
         .strip_prefix("scalar:")
         .map(str::to_string)
