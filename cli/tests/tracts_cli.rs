@@ -221,6 +221,35 @@ fn attributes_masks_and_subsamples_select_and_travel_with_the_streamlines() {
         .output()
         .unwrap());
     assert!(err.contains("kept 1 of 40"), "{err}");
+    // --transform moves the points before the selection (an atlas bundle into the mask's
+    // space): shifted by +1 in y, lines 4, 5 and 6 lie in label 7, written where they moved.
+    let shift = |dy: f64| format!("--transform=1,0,0,0,0,1,0,{dy},0,0,1,0,0,0,0,1");
+    let err = ok(&umbra()
+        .args(["tracts", "select"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .arg(format!("--include-mask={}:7", mask.display()))
+        .arg(shift(1.0))
+        .output()
+        .unwrap());
+    let got = tubes::load(&out).unwrap();
+    let ys: Vec<f32> = (0..got.len()).map(|i| got.line(i)[0].y).collect();
+    assert_eq!(ys, [5.0, 6.0, 7.0], "{err}");
+    // Moved off the mask: nothing kept, and the warning says where the points are.
+    let err = ok(&umbra()
+        .args(["tracts", "select"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .arg(format!("--include-mask={}:7", mask.display()))
+        .arg(shift(100.0))
+        .output()
+        .unwrap());
+    assert!(
+        err.contains("kept no streamline (its points span (0.0, 100.0, 0.0) to (10.0, 139.0, 0.0) after --transform"),
+        "{err}"
+    );
     // A subsample: 7 of the 40, the same for the same seed.
     let sub = |seed: &str, name: &str| {
         let p = dir.path().join(name);

@@ -76,6 +76,11 @@ struct SelectArgs {
     /// The seed of --subsample.
     #[arg(long, default_value_t = 0, value_name = "S")]
     seed: u64,
+    /// Row-major 4x4 transform applied to the points before the selection, as 16
+    /// comma-separated numbers (as `umbra tubes --transform` and a scene's `transform`); the
+    /// output holds the transformed points.
+    #[arg(long, allow_hyphen_values = true, value_parser = numbers::<16>)]
+    transform: Option<[f64; 16]>,
     /// Print the summary as one JSON object on standard output.
     #[arg(long)]
     json: bool,
@@ -143,9 +148,16 @@ fn select(a: SelectArgs) -> Result<(), String> {
     }
     volume::check_output(&a.output)?;
     volume::check_not_input(&[Some(a.input.as_path())], &[Some(a.output.as_path())])?;
-    let s = tubes::load(&a.input).map_err(|e| e.to_string())?;
+    let matrix = a
+        .transform
+        .map(|m| scene::tube_sets::transform_matrix(&m, "--transform"))
+        .transpose()?;
+    let mut s = tubes::load(&a.input).map_err(|e| e.to_string())?;
     for w in &s.warnings {
         eprintln!("umbra: warning: {}: {w}", a.input.display());
+    }
+    if let Some(m) = &matrix {
+        s.transform(m);
     }
     let (out, sum) = sel
         .apply(&s)
@@ -169,7 +181,30 @@ fn select(a: SelectArgs) -> Result<(), String> {
         a.output.display()
     );
     if sum.kept == 0 && sum.total > 0 {
-        eprintln!("umbra: warning: the selection kept no streamline; the output holds none");
+        // Where the points are: ROIs in another frame (an atlas bundle outside MNI space, a
+        // mask in the other frame) miss them all.
+        let span = s
+            .bounds()
+            .map(|[lo, hi]| {
+                format!(
+                    " (its points span ({:.1}, {:.1}, {:.1}) to ({:.1}, {:.1}, {:.1}){}; ROIs \
+                     and masks are in the same world coordinates - a tractogram in another \
+                     frame needs --transform)",
+                    lo.x,
+                    lo.y,
+                    lo.z,
+                    hi.x,
+                    hi.y,
+                    hi.z,
+                    if matrix.is_some() {
+                        " after --transform"
+                    } else {
+                        ""
+                    }
+                )
+            })
+            .unwrap_or_default();
+        eprintln!("umbra: warning: the selection kept no streamline{span}; the output holds none");
     }
     Ok(())
 }
