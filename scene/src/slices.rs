@@ -311,16 +311,31 @@ struct Overlay {
     range: FieldRange,
 }
 
-/// Reads overlay `i` and resamples it into the grid; its colour mapping.
+/// Reads overlay `i` and resamples it into the grid (`space`: the scene volume's frame); its
+/// colour mapping.
 fn overlay(
     i: usize,
     o: &OverlaySpec,
-    dims: [usize; 3],
-    affine: DMat4,
+    (dims, affine, space): ([usize; 3], DMat4, volume::Space),
     notes: &mut Vec<String>,
 ) -> Result<Overlay, String> {
     let key = |k: &str| format!("overlays[{i}].{k}");
     let vol = volume::load(&o.path).map_err(|e| format!("{}: {e}", key("path")))?;
+    if vol.space != space && o.transform.is_none() {
+        // RAS+ millimetres against a file's own frame: the affines place it, but nothing says
+        // the two frames are one (a head MR in its scanner's frame pasted over an MNI T1).
+        let frame = |s: volume::Space| match s {
+            volume::Space::Ras => "RAS+ mm",
+            volume::Space::File => "its file's own frame",
+        };
+        notes.push(format!(
+            "overlays[{i}] ({}): its grid is in {} and the scene volume's in {}; it is placed \
+             by the two affines as they are (give overlays[{i}].transform where the frames differ)",
+            o.path.display(),
+            frame(vol.space),
+            frame(space)
+        ));
+    }
     let sel = o
         .field
         .as_deref()
@@ -503,7 +518,7 @@ pub fn model(
     let mut fields = vec![data.to_f32().into_owned()];
     let mut overlays = vec![];
     for (i, o) in s.overlays.iter().enumerate() {
-        let mut ov = overlay(i, o, dims, affine, notes)?;
+        let mut ov = overlay(i, o, (dims, affine, vol.space), notes)?;
         fields.push(std::mem::take(&mut ov.field));
         overlays.push(ov);
     }

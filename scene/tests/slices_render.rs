@@ -299,6 +299,49 @@ height = 64
 
 /// Infinite labels are out of range like 70000 (they were accepted and drew nothing), and an
 /// overlay whose every value is NaN says so, not that it lies outside the grid.
+/// An overlay whose grid is in its file's own frame over a RAS+ volume (a head MR in its
+/// scanner's frame over an MNI T1) is placed by the affines, with a note that nothing says the
+/// frames are one; in the volume's frame, or with a transform given, no note.
+#[test]
+fn an_overlay_in_another_frame_is_noted() {
+    let dir = tempfile::tempdir().unwrap();
+    let anat = write(dir.path(), "anat.nii.gz", &anatomy());
+    let grid = DMat4::from_scale(DVec3::splat(2.0)) * DMat4::from_translation(DVec3::splat(-10.0));
+    let mut own = volume_of([12, 12, 12], grid, |q| q.x as f32);
+    own.space = volume::Space::File;
+    let own_path = dir.path().join("own.nrrd");
+    volume::nrrd::write(
+        &own_path,
+        &own,
+        &own.fields[0],
+        volume::nrrd::WriteEncoding::Raw,
+    )
+    .unwrap();
+    let ras = write(
+        dir.path(),
+        "ras.nii.gz",
+        &volume_of([12, 12, 12], grid, |q| q.x as f32),
+    );
+    let notes = |path: &str, extra: &str| {
+        let text = format!(
+            "[volume]\npath = \"{anat}\"\nrender = false\n[[overlays]]\nname = \"o\"\npath = \"{path}\"\n{extra}[[slices]]\naxis = \"axial\"\n[render]\nmethod = \"ea\"\nwidth = 32\nheight = 32\n"
+        );
+        let s = scene::spec::parse(&text, "t.toml", dir.path(), &[]).unwrap();
+        model(&s).unwrap().notes
+    };
+    let n = notes(&own_path.display().to_string(), "");
+    assert!(
+        n.iter().any(|n| n.contains("overlays[0]")
+            && n.contains("its file's own frame")
+            && n.contains("RAS+ mm")),
+        "{n:?}"
+    );
+    let frame = |n: &Vec<String>| n.iter().any(|n| n.contains("own frame"));
+    assert!(!frame(&notes(&ras, "")));
+    let id = "transform = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n";
+    assert!(!frame(&notes(&own_path.display().to_string(), id)));
+}
+
 #[test]
 fn infinite_labels_are_refused_and_an_empty_overlay_says_why() {
     let dir = tempfile::tempdir().unwrap();
