@@ -360,18 +360,27 @@ fn overlay(
     };
     if o.labels {
         // The file's own voxels, so that the error can name one.
-        let whole = |v: f32| v.is_nan() || (v - v.round()).abs() <= 1e-3;
+        // (Infinities are whole, and out of range below.)
+        let whole = |v: f32| !v.is_finite() || (v - v.round()).abs() <= 1e-3;
+        let [nx, ny, _] = vol.dims;
+        let voxel = |n: usize| format!("voxel ({}, {}, {})", n % nx, n / nx % ny, n / (nx * ny));
         if let Some(n) = f.data.iter().position(|&v| !whole(v)) {
-            let [nx, ny, _] = vol.dims;
             return Err(format!(
-                "overlays[{i}].labels ({}): the value {} at voxel ({}, {}, {}) is not a whole \
-                 number; a label overlay holds labels (a scalar map is an overlay without \
-                 labels = true)",
+                "overlays[{i}].labels ({}): the value {} at {} is not a whole number; a label \
+                 overlay holds labels (a scalar map is an overlay without labels = true)",
                 o.path.display(),
                 f.data[n],
-                n % nx,
-                n / nx % ny,
-                n / (nx * ny)
+                voxel(n)
+            ));
+        }
+        let outside = |v: f32| !v.is_nan() && !(0.0..MAX_LABELS as f32).contains(&v.round());
+        if let Some(n) = f.data.iter().position(|&v| outside(v)) {
+            return Err(format!(
+                "overlays[{i}].labels ({}): label {} at {} is outside 0..{}",
+                o.path.display(),
+                f.data[n],
+                voxel(n),
+                MAX_LABELS - 1
             ));
         }
     }
@@ -441,25 +450,10 @@ fn labels_map(
     notes: &mut Vec<String>,
 ) -> Result<LayerMap, String> {
     let mut present = std::collections::BTreeSet::new();
-    // NaN holds no label; an infinite value is no label either, and refused as out of range.
+    // NaN holds no label. The file's values were checked whole and in range where it was read
+    // (`overlay`, naming the voxel); nearest-neighbour resampling keeps them.
     for &v in field.iter().filter(|v| !v.is_nan()) {
         let l = v.round();
-        // Labels are whole numbers (a float file may hold them with a rounding error); 2.5 is
-        // no label but a scalar map's value.
-        if (v - l).abs() > 1e-3 {
-            return Err(format!(
-                "overlays[{i}].labels ({}): the value {v} is not a whole number; a label \
-                 overlay holds labels (a scalar map is an overlay without labels = true)",
-                o.path.display()
-            ));
-        }
-        if l < 0.0 || l >= MAX_LABELS as f32 {
-            return Err(format!(
-                "overlays[{i}].labels ({}): label {v} is outside 0..{}",
-                o.path.display(),
-                MAX_LABELS - 1
-            ));
-        }
         present.insert(l as i64);
     }
     let labels: Vec<i64> = present.into_iter().collect();

@@ -365,6 +365,8 @@ fn infinite_labels_are_refused_and_an_empty_overlay_says_why() {
             scene::spec::parse(&scene(&p, "labels = true\n"), "t.toml", dir.path(), &[]).unwrap();
         let e = model(&s).err().expect("an infinite label is refused");
         assert!(e.contains("overlays[0].labels") && e.contains("inf"), "{e}");
+        // The file's voxel is named (x > 0: index 11 and up along x).
+        assert!(e.contains("at voxel (11, 0, 0) is outside 0..65535"), "{e}");
     }
     let nan = write(
         dir.path(),
