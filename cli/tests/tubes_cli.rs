@@ -505,3 +505,40 @@ fn a_looser_tolerance_does_not_cost_more_triangles_on_hcp1065() {
         "bench tubes counts as umbra tubes"
     );
 }
+
+/// A bad `--color` names the flag and the problem; a vector volume to colour by says how many
+/// components it has (it said only "needs a scalar volume").
+#[test]
+fn a_bad_tube_colour_names_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let tracts = test_support::root().join("datasets/tracts/CST_L_demo.trk.gz");
+    let run = |color: &str| {
+        let o = umbra()
+            .arg("tubes")
+            .arg(&tracts)
+            .arg("-o")
+            .arg(dir.path().join("t.ply"))
+            .args(["--color", color])
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1), "{color}");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let e = run("#12345");
+    assert!(
+        e.contains("--color: colour #12345: expected #rrggbb"),
+        "{e}"
+    );
+    let field = dir.path().join("rot.nrrd");
+    assert!(umbra()
+        .args(["synth", "rotation", "--n", "5", "-o"])
+        .arg(&field)
+        .status()
+        .unwrap()
+        .success());
+    let e = run(&format!("volume:{}", field.display()));
+    assert!(
+        e.contains("--color: colour volume:") && e.contains("has 3 components"),
+        "{e}"
+    );
+}

@@ -356,7 +356,12 @@ pub fn with_color_map_of<R>(
             .map_err(|e| format!("colour volume:{path}: {e}"))?;
         let fl = v.select(None).map_err(|e| e.to_string())?;
         if fl.components != 1 {
-            return Err(format!("colour volume:{path}: needs a scalar volume"));
+            return Err(format!(
+                "colour volume:{path}: needs a scalar volume; its field '{}' has {} components \
+                 (colour by a scalar map such as FA, or by one component of it: NAME:x, :y, :z or \
+                 :magnitude written as its own volume)",
+                fl.name, fl.components
+            ));
         }
         let st = fl.stats();
         vol_field = (v, fl);
@@ -526,7 +531,11 @@ pub fn point_values(s: &tubes::Streamlines, source: &str) -> Result<Vec<f32>, St
     let v = volume::load(std::path::Path::new(path)).map_err(|e| e.to_string())?;
     let f = v.select(None).map_err(|e| e.to_string())?;
     if f.components != 1 {
-        return Err(format!("{source}: needs a scalar volume"));
+        return Err(format!(
+            "{source}: needs a scalar volume; its field '{}' has {} components (colour by a \
+             scalar map such as FA)",
+            f.name, f.components
+        ));
     }
     let inv = v.affine.inverse();
     let [nx, ny, nz] = v.dims;

@@ -162,7 +162,11 @@ pub fn run(a: Args) -> Result<(), String> {
             args.color
         );
     }
-    let s = scene::tube_sets::run(&args)?;
+    // The library names the colouring ("colour #12345: ..."); the command line names the flag.
+    let s = scene::tube_sets::run(&args).map_err(|e| match e.starts_with("colour ") {
+        true => format!("--color: {e}"),
+        false => e,
+    })?;
     for w in &s.warnings {
         eprintln!("umbra: warning: {}: {w}", args.input.display());
     }
