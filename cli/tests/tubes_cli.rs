@@ -542,3 +542,45 @@ fn a_bad_tube_colour_names_the_flag() {
         "{e}"
     );
 }
+
+/// Dropped points are counted apart: NaN points and points repeating the one before (a clean
+/// whole-brain file's 11,169 repeats read as NaNs).
+#[test]
+fn dropped_nan_and_repeated_points_are_told_apart() {
+    use glam::Vec3;
+    let dir = tempfile::tempdir().unwrap();
+    let line = |y: f32| -> Vec<Vec3> { (0..20).map(|k| Vec3::new(k as f32, y, 0.0)).collect() };
+    let mut clean = tubes::Streamlines::new();
+    let mut a = line(0.0);
+    a.insert(5, a[5]);
+    clean.push(&a);
+    clean.push(&line(3.0));
+    let mut dirty = clean.clone();
+    let mut b = line(6.0);
+    b[9] = Vec3::new(f32::NAN, 6.0, 0.0);
+    dirty.push(&b);
+    let run = |s: &tubes::Streamlines, name: &str| {
+        let p = dir.path().join(name);
+        tubes::save(&p, s).unwrap();
+        let o = umbra()
+            .arg("tubes")
+            .arg(&p)
+            .arg("-o")
+            .arg(dir.path().join("t.ply"))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let e = run(&clean, "clean.trk");
+    assert!(
+        e.contains("1 repeated points (each equal to the point before it) were dropped")
+            && !e.contains("NaN"),
+        "{e}"
+    );
+    let e = run(&dirty, "dirty.trk");
+    assert!(
+        e.contains("1 non-finite (NaN or infinite) points and 1 repeated points"),
+        "{e}"
+    );
+}

@@ -119,6 +119,7 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     .check()?;
     volume::check_output(&a.output)?;
     let mut s = tubes::load(&a.input).map_err(|e| e.to_string())?;
+    let nonfinite = s.nonfinite_points();
     if let Some(m) = a.transform {
         s.transform(&transform_matrix(&m, "transform")?);
     }
@@ -170,7 +171,7 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
             t2.elapsed().as_secs_f64(),
         )
     };
-    push_mesh_warnings(&mut warnings, &st, a.tolerance);
+    push_mesh_warnings(&mut warnings, &st, a.tolerance, nonfinite);
     if flat {
         warnings.push(format!(
             "the radius {} is below what single-precision vertices resolve across the \
@@ -191,8 +192,14 @@ pub fn run(a: &TubesArgs) -> Result<TubesSummary, String> {
     })
 }
 
-/// The warnings of a mesh's statistics.
-fn push_mesh_warnings(warnings: &mut Vec<String>, st: &TubeStats, tolerance: f64) {
+/// The warnings of a mesh's statistics (`nonfinite`: the input's points with a NaN or infinite
+/// coordinate, of the points dropped).
+fn push_mesh_warnings(
+    warnings: &mut Vec<String>,
+    st: &TubeStats,
+    tolerance: f64,
+    nonfinite: usize,
+) {
     if st.triangles == 0 {
         warnings.push(
             "no tube was made: no streamline has two distinct points (the mesh is empty)".into(),
@@ -205,11 +212,20 @@ fn push_mesh_warnings(warnings: &mut Vec<String>, st: &TubeStats, tolerance: f64
             st.max_deviation
         ));
     }
-    if st.dropped_points > 0 {
-        warnings.push(format!(
-            "{} non-finite (NaN or infinite) or repeated points were dropped",
-            st.dropped_points
-        ));
+    // Told apart: a clean tractogram's repeated points are no NaN to look for.
+    let repeated = st.dropped_points.saturating_sub(nonfinite);
+    match (nonfinite.min(st.dropped_points), repeated) {
+        (0, 0) => {}
+        (0, r) => warnings.push(format!(
+            "{r} repeated points (each equal to the point before it) were dropped"
+        )),
+        (n, 0) => warnings.push(format!(
+            "{n} non-finite (NaN or infinite) points were dropped"
+        )),
+        (n, r) => warnings.push(format!(
+            "{n} non-finite (NaN or infinite) points and {r} repeated points (each equal to the \
+             point before it) were dropped"
+        )),
     }
     if st.skipped_streamlines > 0 {
         warnings.push(format!(
