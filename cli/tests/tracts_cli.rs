@@ -376,3 +376,58 @@ fn a_scene_select_keeps_what_the_command_keeps() {
     assert!(by_command.iter().any(|&v| v < 128), "lines are drawn");
     assert_eq!(in_scene, by_command);
 }
+
+fn got_attrs(p: &Path) -> Vec<String> {
+    let s = tubes::load(p).unwrap();
+    s.point_attributes
+        .iter()
+        .chain(&s.line_attributes)
+        .map(|a| a.name.clone())
+        .collect()
+}
+
+/// `umbra tracts merge`: the inputs' streamlines in order, moved by --transform, the
+/// attributes they share kept; an output over an input refused.
+#[test]
+fn merged_tractograms_keep_their_order_and_move_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = ladder(dir.path());
+    let b = dir.path().join("b.trk");
+    let mut s = tubes::Streamlines::new();
+    s.push(&[Vec3::new(0.0, 100.0, 0.0), Vec3::new(5.0, 100.0, 0.0)]);
+    tubes::save(&b, &s).unwrap();
+    let out = dir.path().join("all.trk");
+    let err = ok(&umbra()
+        .args(["tracts", "merge"])
+        .arg(&a)
+        .arg(&b)
+        .arg("-o")
+        .arg(&out)
+        .arg("--transform=1,0,0,0,0,1,0,0,0,0,1,2,0,0,0,1")
+        .output()
+        .unwrap());
+    assert!(
+        err.contains("merged 2 tractograms: 41 streamlines"),
+        "{err}"
+    );
+    assert!(
+        err.contains("attributes not in every input were left out: fa"),
+        "{err}"
+    );
+    assert!(got_attrs(&out).is_empty());
+    let got = tubes::load(&out).unwrap();
+    let first = tubes::load(&a).unwrap();
+    assert_eq!(got.len(), 41);
+    assert_eq!(got.line(0)[3], first.line(0)[3] + Vec3::new(0.0, 0.0, 2.0));
+    assert_eq!(got.line(40)[1], Vec3::new(5.0, 100.0, 2.0));
+    let o = umbra()
+        .args(["tracts", "merge"])
+        .arg(&a)
+        .arg(&b)
+        .arg("-o")
+        .arg(&b)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(tubes::load(&b).unwrap().len(), 1, "the input is kept");
+}

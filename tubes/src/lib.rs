@@ -193,6 +193,58 @@ impl Streamlines {
         self.offsets.push(self.points.len());
     }
 
+    /// Appends `other`'s streamlines after these. Attributes both sets have (same name and
+    /// components, per point or per streamline) are kept; the others are dropped, and their
+    /// names returned. An empty set takes `other`'s attributes whole.
+    pub fn append(&mut self, other: &Streamlines) -> Vec<String> {
+        if self.is_empty() && self.point_attributes.is_empty() && self.line_attributes.is_empty() {
+            let warnings = std::mem::take(&mut self.warnings);
+            *self = Streamlines {
+                reference: None,
+                format: String::new(),
+                warnings,
+                ..other.clone()
+            };
+            return vec![];
+        }
+        let mut dropped = vec![];
+        let mut keep = |mine: &mut Vec<Attribute>, theirs: &[Attribute]| {
+            mine.retain_mut(|a| {
+                match theirs
+                    .iter()
+                    .find(|b| b.name == a.name && b.components == a.components)
+                {
+                    Some(b) => {
+                        a.values.extend_from_slice(&b.values);
+                        true
+                    }
+                    None => {
+                        dropped.push(a.name.clone());
+                        false
+                    }
+                }
+            });
+            for b in theirs {
+                if !mine
+                    .iter()
+                    .any(|a| a.name == b.name && a.components == b.components)
+                    && !dropped.contains(&b.name)
+                {
+                    dropped.push(b.name.clone());
+                }
+            }
+        };
+        keep(&mut self.point_attributes, &other.point_attributes);
+        keep(&mut self.line_attributes, &other.line_attributes);
+        let base = self.points.len();
+        self.points.extend_from_slice(&other.points);
+        self.offsets
+            .extend(other.offsets.iter().skip(1).map(|o| o + base));
+        // A merged set has no one grid of its own.
+        self.reference = None;
+        dropped
+    }
+
     /// The points of streamline `i`.
     pub fn line(&self, i: usize) -> &[Vec3] {
         &self.points[self.offsets[i]..self.offsets[i + 1]]

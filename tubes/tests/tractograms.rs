@@ -855,3 +855,39 @@ fn an_empty_trackvis_file_declares_no_attributes() {
     let back = tubes::load(&p).unwrap();
     assert!(back.is_empty() && back.point_attributes.is_empty());
 }
+
+/// Appending keeps the points and lines in order, the attributes both sets have (values
+/// concatenated), and names those only one has; an empty set takes the other whole.
+#[test]
+fn appended_sets_keep_shared_attributes_in_order() {
+    let a = sample();
+    let mut b = Streamlines::new();
+    b.push(&[Vec3::new(7.0, 7.0, 7.0), Vec3::new(8.0, 8.0, 8.0)]);
+    b.point_attributes.push(tubes::Attribute {
+        name: "fa".into(),
+        components: 1,
+        values: vec![0.7, 0.8],
+    });
+    b.line_attributes.push(tubes::Attribute {
+        name: "bundle".into(),
+        components: 1,
+        values: vec![3.0],
+    });
+    let mut all = Streamlines::new();
+    assert!(all.append(&a).is_empty());
+    assert_eq!(all.points, a.points);
+    let dropped = all.append(&b);
+    assert_eq!(all.len(), a.len() + 1);
+    assert_eq!(all.line(a.len()), b.line(0));
+    assert_eq!(all.line(0), a.line(0));
+    assert_eq!(all.point_attributes.len(), 1);
+    let fa = &all.point_attributes[0];
+    assert_eq!(fa.name, "fa");
+    assert_eq!(fa.values.len(), all.points.len());
+    assert_eq!(&fa.values[6..], &[0.7, 0.8]);
+    let mut d = dropped.clone();
+    d.sort();
+    assert_eq!(d, ["bundle", "colors", "id"]);
+    assert!(all.line_attributes.is_empty());
+    assert!(all.validate().is_ok(), "{:?}", all.validate());
+}

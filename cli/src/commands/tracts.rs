@@ -1,7 +1,8 @@
 //! `umbra tracts select`: streamlines kept by include/exclude ROIs (spheres, boxes, masks),
 //! length and attribute ranges and a seeded subsample (`tubes::select`, built by
 //! `scene::tube_sets::selection` from the same keys a scene's `select` has), written in the
-//! format of the output's extension with their attributes.
+//! format of the output's extension with their attributes. `umbra tracts merge`: several
+//! tractograms into one (`tubes::Streamlines::append`).
 
 use crate::output::out_json;
 use scene::spec::SelectSpec;
@@ -19,6 +20,22 @@ enum Command {
     /// does, within the length and attribute ranges; world coordinates (RAS+ mm, as `umbra
     /// info` reports them).
     Select(SelectArgs),
+    /// Merge tractograms into one (e.g. an atlas's bundles into a whole-brain set), each
+    /// optionally moved by --transform first.
+    Merge(MergeArgs),
+}
+
+#[derive(clap::Args)]
+struct MergeArgs {
+    /// Input tractograms (.trk, .tck, .vtk, .trx, optionally .gz), in order.
+    #[arg(required = true, num_args = 1..)]
+    inputs: Vec<PathBuf>,
+    /// Output tractogram (.trk, .tck, .trx, optionally .gz for .trk/.tck).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Row-major 4x4 transform applied to every input's points, as 16 comma-separated numbers.
+    #[arg(long, allow_hyphen_values = true, value_parser = numbers::<16>)]
+    transform: Option<[f64; 16]>,
 }
 
 #[derive(clap::Args)]
@@ -108,7 +125,68 @@ fn numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
 pub fn run(a: Args) -> Result<(), String> {
     match a.command {
         Command::Select(s) => select(s),
+        Command::Merge(m) => merge(m),
     }
+}
+
+/// The output's format before the work (what `tubes::save` writes).
+fn check_format(output: &std::path::Path) -> Result<(), String> {
+    let name = output.to_string_lossy().to_ascii_lowercase();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    if !(stem.ends_with(".trk") || stem.ends_with(".tck") || name.ends_with(".trx")) {
+        return Err(format!(
+            "{}: the output must be .trk, .tck (optionally .gz) or .trx",
+            output.display()
+        ));
+    }
+    Ok(())
+}
+
+fn merge(a: MergeArgs) -> Result<(), String> {
+    check_format(&a.output)?;
+    let matrix = a
+        .transform
+        .map(|m| scene::tube_sets::transform_matrix(&m, "--transform"))
+        .transpose()?;
+    volume::check_output(&a.output)?;
+    let inputs: Vec<Option<&std::path::Path>> =
+        a.inputs.iter().map(|p| Some(p.as_path())).collect();
+    volume::check_not_input(&inputs, &[Some(a.output.as_path())])?;
+    let mut all = tubes::Streamlines::new();
+    let mut dropped: Vec<String> = vec![];
+    for p in &a.inputs {
+        let mut s = tubes::load(p).map_err(|e| e.to_string())?;
+        for w in &s.warnings {
+            eprintln!("umbra: warning: {}: {w}", p.display());
+        }
+        if let Some(m) = &matrix {
+            s.transform(m);
+        }
+        for d in all.append(&s) {
+            if !dropped.contains(&d) {
+                dropped.push(d);
+            }
+        }
+    }
+    all.warnings.clear();
+    tubes::save(&a.output, &all).map_err(|e| e.to_string())?;
+    if !dropped.is_empty() {
+        eprintln!(
+            "umbra: note: attributes not in every input were left out: {}",
+            dropped.join(", ")
+        );
+    }
+    if let Some(note) = super::tck_drops_note(&a.output, &all) {
+        eprintln!("umbra: note: {note}");
+    }
+    eprintln!(
+        "merged {} tractograms: {} streamlines, {} points; wrote {}",
+        a.inputs.len(),
+        all.len(),
+        all.points.len(),
+        a.output.display()
+    );
+    Ok(())
 }
 
 fn select(a: SelectArgs) -> Result<(), String> {
@@ -137,15 +215,7 @@ fn select(a: SelectArgs) -> Result<(), String> {
         k => format!("--{}", k.trim_end_matches('s').replace('_', "-")),
     };
     let sel = scene::tube_sets::selection(&spec, &flag, true)?;
-    // The output's format before the work (what tubes::save writes).
-    let name = a.output.to_string_lossy().to_ascii_lowercase();
-    let stem = name.strip_suffix(".gz").unwrap_or(&name);
-    if !(stem.ends_with(".trk") || stem.ends_with(".tck") || name.ends_with(".trx")) {
-        return Err(format!(
-            "{}: the output must be .trk, .tck (optionally .gz) or .trx",
-            a.output.display()
-        ));
-    }
+    check_format(&a.output)?;
     volume::check_output(&a.output)?;
     volume::check_not_input(&[Some(a.input.as_path())], &[Some(a.output.as_path())])?;
     let matrix = a
