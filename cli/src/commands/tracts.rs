@@ -19,7 +19,7 @@ enum Command {
     /// Keep the streamlines that every include ROI holds a point of and no exclude ROI
     /// does, within the length and attribute ranges; world coordinates (RAS+ mm, as `umbra
     /// info` reports them).
-    Select(SelectArgs),
+    Select(Box<SelectArgs>),
     /// Merge tractograms into one (e.g. an atlas's bundles into a whole-brain set), each
     /// optionally moved by --transform first.
     Merge(MergeArgs),
@@ -124,7 +124,7 @@ fn numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
 
 pub fn run(a: Args) -> Result<(), String> {
     match a.command {
-        Command::Select(s) => select(s),
+        Command::Select(s) => select(*s),
         Command::Merge(m) => merge(m),
     }
 }
