@@ -304,7 +304,7 @@ fn scene_values_that_cannot_be_drawn_are_refused_naming_the_key() {
         // an entry's index written otherwise than its key, text the font cannot draw.
         ("annotate.scale_bar=1e30", "annotate.scale_bar"),
         ("render.eye_separation=1e30", "render.eye_separation"),
-        ("annotate.colorbar=\"tubes.00\"", "give volume"),
+        ("annotate.colorbar=\"tubes.00\"", "this scene's colour bars: volume"),
         ("annotate.title=\"Fibres 中文\"", "no glyph for 2"),
     ] {
         refused(&["scene", s(&scene), "--set", set], key);
