@@ -1402,7 +1402,10 @@ pub fn parse(text: &str, name: &str, dir: &Path, overrides: &[String]) -> Result
         let text = e.to_string();
         // (As the CLI cuts what it prints; long enough for the list of a table's keys after an
         // unknown one, which 400 cut mid-word.)
-        let lines: Vec<String> = text.lines().map(|l| volume::clip_text(l, 1000)).collect();
+        let lines: Vec<String> = text
+            .lines()
+            .map(|l| volume::clip_text(&plain(l), 1000))
+            .collect();
         let mut out = format!("{name}: {}", lines.join("\n"));
         if text.contains("missing field `path`") {
             out += " (every [volume], [[tubes]], [[lines]], [[points]] and [[overlays]] entry \
@@ -1510,10 +1513,25 @@ fn merged_error(merged: &str, e: &toml::de::Error) -> String {
     }
     // A key at the top level (`--set foo=1`) has no table to name: the message alone (it
     // read ": unknown field `foo`").
+    let message = plain(e.message().trim());
     if full.is_empty() {
-        return e.message().trim().to_string();
+        return message;
     }
-    format!("{full}: {}", e.message().trim())
+    format!("{full}: {message}")
+}
+
+/// A deserializer's message in the scene's words: a fraction where a whole number belongs
+/// ("invalid type: floating point `2.5`, expected i64") says so.
+fn plain(message: &str) -> String {
+    let whole = ["i64", "u64", "u32", "usize", "i32", "u16", "u8"];
+    if let Some(rest) = message.strip_prefix("invalid type: floating point `") {
+        if let Some((value, expected)) = rest.split_once("`, expected ") {
+            if whole.contains(&expected.trim()) {
+                return format!("{value} is not a whole number (a whole number is expected here)");
+            }
+        }
+    }
+    message.to_string()
 }
 
 /// Reads a scene file.
@@ -2652,6 +2670,34 @@ fn validate(s: &mut Scene, dir: &Path) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A fraction where a whole number belongs reads as such, in a file and in an override
+    /// (serde's "invalid type: floating point `2.5`, expected i64").
+    #[test]
+    fn a_fraction_for_a_whole_number_says_so() {
+        let text = "[volume]\npath = \"v.nii\"\n[[overlays]]\nname = \"a\"\npath = \"a.nii\"\nlabels = true\nshow = [2.5]\n";
+        let e = parse(text, "s.toml", Path::new("."), &[]).unwrap_err();
+        assert!(
+            e.contains("2.5 is not a whole number") && !e.contains("i64"),
+            "{e}"
+        );
+        let text = text.replace("show = [2.5]", "show = [2]");
+        let e = parse(
+            &text,
+            "s.toml",
+            Path::new("."),
+            &["overlays.0.show=[2.5]".into()],
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("overlays[0].show: 2.5 is not a whole number"),
+            "{e}"
+        );
+        assert_eq!(
+            plain("invalid type: string \"x\", expected f64"),
+            "invalid type: string \"x\", expected f64"
+        );
+    }
 
     fn example() -> String {
         let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/scenes/example.toml");
