@@ -114,6 +114,18 @@ fn rois_select_what_a_brute_force_selection_selects_on_a_real_tractogram() {
     }
 }
 
+/// `umbra tracts select INPUT -o OUT ARGS...`, expected to succeed; its standard error.
+fn select(input: &Path, out: &Path, args: &[String]) -> String {
+    ok(&umbra()
+        .args(["tracts", "select"])
+        .arg(input)
+        .arg("-o")
+        .arg(out)
+        .args(args)
+        .output()
+        .unwrap())
+}
+
 /// A tractogram of 40 straight lines along x at y = k, with a per-point and a per-line
 /// attribute, in a .trk.
 fn ladder(dir: &Path) -> PathBuf {
@@ -194,14 +206,11 @@ fn attributes_masks_and_subsamples_select_and_travel_with_the_streamlines() {
     let mask = dir.path().join("atlas.nii");
     volume::nifti::write(&mask, &v, &v.select(None).unwrap()).unwrap();
     let out = dir.path().join("m.tck");
-    let err = ok(&umbra()
-        .args(["tracts", "select"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .arg(format!("--include-mask={}:7", mask.display()))
-        .output()
-        .unwrap());
+    let err = select(
+        &input,
+        &out,
+        &[format!("--include-mask={}:7", mask.display())],
+    );
     let got = tubes::load(&out).unwrap();
     let ys: Vec<f32> = (0..got.len()).map(|i| got.line(i)[0].y).collect();
     assert_eq!(ys, [5.0, 6.0, 7.0], "{err}");
@@ -211,41 +220,32 @@ fn attributes_masks_and_subsamples_select_and_travel_with_the_streamlines() {
         "{err}"
     );
     // Any nonzero voxel, and excluding label 7: line 30 alone is kept.
-    let err = ok(&umbra()
-        .args(["tracts", "select"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .arg(format!("--include-mask={}", mask.display()))
-        .arg(format!("--exclude-mask={}:7", mask.display()))
-        .output()
-        .unwrap());
+    let err = select(
+        &input,
+        &out,
+        &[
+            format!("--include-mask={}", mask.display()),
+            format!("--exclude-mask={}:7", mask.display()),
+        ],
+    );
     assert!(err.contains("kept 1 of 40"), "{err}");
     // --transform moves the points before the selection (an atlas bundle into the mask's
     // space): shifted by +1 in y, lines 4, 5 and 6 lie in label 7, written where they moved.
     let shift = |dy: f64| format!("--transform=1,0,0,0,0,1,0,{dy},0,0,1,0,0,0,0,1");
-    let err = ok(&umbra()
-        .args(["tracts", "select"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .arg(format!("--include-mask={}:7", mask.display()))
-        .arg(shift(1.0))
-        .output()
-        .unwrap());
+    let err = select(
+        &input,
+        &out,
+        &[format!("--include-mask={}:7", mask.display()), shift(1.0)],
+    );
     let got = tubes::load(&out).unwrap();
     let ys: Vec<f32> = (0..got.len()).map(|i| got.line(i)[0].y).collect();
     assert_eq!(ys, [5.0, 6.0, 7.0], "{err}");
     // Moved off the mask: nothing kept, and the warning says where the points are.
-    let err = ok(&umbra()
-        .args(["tracts", "select"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .arg(format!("--include-mask={}:7", mask.display()))
-        .arg(shift(100.0))
-        .output()
-        .unwrap());
+    let err = select(
+        &input,
+        &out,
+        &[format!("--include-mask={}:7", mask.display()), shift(100.0)],
+    );
     assert!(
         err.contains("kept no streamline (its points span (0.0, 100.0, 0.0) to (10.0, 139.0, 0.0) after --transform"),
         "{err}"
@@ -363,14 +363,11 @@ fn a_scene_select_keeps_what_the_command_keeps() {
     );
     // The same lines selected by the command, drawn without a select: the same image.
     let cut = dir.path().join("cut.trk");
-    ok(&umbra()
-        .args(["tracts", "select"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&cut)
-        .arg("--include-box=-1,9.5,-1,11,19.5,1")
-        .output()
-        .unwrap());
+    select(
+        &input,
+        &cut,
+        &["--include-box=-1,9.5,-1,11,19.5,1".to_string()],
+    );
     write("cut.trk", "");
     let (_, by_command) = render("command.png");
     assert!(by_command.iter().any(|&v| v < 128), "lines are drawn");
