@@ -36,7 +36,7 @@ enum Command {
     /// PLY or OBJ.
     Tubes(tubes::Args),
     /// Tractogram tools: `umbra tracts select` (streamlines by include/exclude ROIs, length,
-    /// attribute ranges, subsample).
+    /// attribute ranges, subsample) and `umbra tracts merge` (several into one).
     Tracts(tracts::Args),
     /// Write a synthetic scene as NRRD or NIfTI: validation (the sweeping paper's solids,
     /// [0,100]^3), three-solids (sphere, torus, box in [0,1]^3), phantom (3-D Shepp-Logan,

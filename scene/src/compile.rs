@@ -820,7 +820,7 @@ pub fn model(s: &Scene) -> Result<Model, String> {
     }
     if let (Some(src), None) = (&s.annotate.colorbar, &colorbar) {
         return Err(format!(
-            "scene key annotate.colorbar: '{src}' has no colouring to show (no finite values, or select kept no streamline)"
+            "scene key annotate.colorbar: '{src}' has no colouring to show (no finite values, or no streamline: the file holds none, or select or the slices' slabs kept none)"
         ));
     }
     let mut boxes: Vec<[DVec3; 2]> = meshes.iter().filter_map(mesh_bounds).collect();

@@ -1793,6 +1793,8 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
             {
                 have.push("volume".into());
             }
+            // (Under the illustrative method every surface is drawn in its one ink.)
+            let inked = s.render.method == Method::Illustrative;
             for (kind, colors) in [
                 (
                     "tubes",
@@ -1803,7 +1805,10 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
                     "points",
                     s.points.iter().map(|p| p.color.as_str()).collect(),
                 ),
-            ] {
+            ]
+            .into_iter()
+            .filter(|_| !inked)
+            {
                 for (i, c) in colors.iter().enumerate() {
                     if scalar(c) {
                         have.push(format!("{kind}.{i}"));
@@ -1819,11 +1824,12 @@ fn check_annotate(s: &Scene) -> Result<(), String> {
             for o in s.overlays.iter().filter(|o| !o.labels) {
                 have.push(format!("overlays.{}", o.name));
             }
-            let have = match have.is_empty() {
-                true => "none (a drawn volume, an entry coloured by scalar:NAME or volume:PATH, \
-                         a scalar overlay or a slice would give one)"
+            let have = match (s.render.bits == 1, have.is_empty()) {
+                (true, _) => "none (a 1-bit image, render.bits = 1, shows no colour bar)".into(),
+                (false, true) => "none (a drawn volume, an entry coloured by scalar:NAME or \
+                                  volume:PATH, a scalar overlay or a slice would give one)"
                     .to_string(),
-                false => have.join(", "),
+                (false, false) => have.join(", "),
             };
             return bad(
                 "colorbar",

@@ -297,8 +297,6 @@ height = 64
     assert!(m.notes.contains(&note), "{:?}", m.notes);
 }
 
-/// Infinite labels are out of range like 70000 (they were accepted and drew nothing), and an
-/// overlay whose every value is NaN says so, not that it lies outside the grid.
 /// An overlay whose grid is in its file's own frame over a RAS+ volume (a head MR in its
 /// scanner's frame over an MNI T1) is placed by the affines, with a note that nothing says the
 /// frames are one; in the volume's frame, or with a transform given, no note.
@@ -342,6 +340,8 @@ fn an_overlay_in_another_frame_is_noted() {
     assert!(!frame(&notes(&own_path.display().to_string(), id)));
 }
 
+/// Infinite labels are out of range like 70000 (they were accepted and drew nothing), and an
+/// overlay whose every value is NaN says so, not that it lies outside the grid.
 #[test]
 fn infinite_labels_are_refused_and_an_empty_overlay_says_why() {
     let dir = tempfile::tempdir().unwrap();

@@ -194,10 +194,17 @@ impl Streamlines {
     }
 
     /// Appends `other`'s streamlines after these. Attributes both sets have (same name and
-    /// components, per point or per streamline) are kept; the others are dropped, and their
-    /// names returned. An empty set takes `other`'s attributes whole.
+    /// components, per point or per streamline; the k-th of a repeated name matched with the
+    /// k-th) are kept; the others are dropped, and their names returned. An empty set is
+    /// neutral: appended, it changes nothing; appended to, it takes `other` whole.
     pub fn append(&mut self, other: &Streamlines) -> Vec<String> {
-        if self.is_empty() && self.point_attributes.is_empty() && self.line_attributes.is_empty() {
+        if self.offsets.is_empty() {
+            self.offsets.push(0);
+        }
+        if other.is_empty() {
+            return vec![];
+        }
+        if self.is_empty() {
             let warnings = std::mem::take(&mut self.warnings);
             *self = Streamlines {
                 reference: None,
@@ -205,31 +212,48 @@ impl Streamlines {
                 warnings,
                 ..other.clone()
             };
+            if self.offsets.is_empty() {
+                self.offsets.push(0);
+            }
             return vec![];
         }
         let mut dropped = vec![];
+        // The k-th attribute named `name` with `c` components among `list`.
+        let nth = |list: &[Attribute], name: &str, c: usize, k: usize| -> Option<usize> {
+            list.iter()
+                .enumerate()
+                .filter(|(_, b)| b.name == name && b.components == c)
+                .nth(k)
+                .map(|(j, _)| j)
+        };
         let mut keep = |mine: &mut Vec<Attribute>, theirs: &[Attribute]| {
-            mine.retain_mut(|a| {
-                match theirs
-                    .iter()
-                    .find(|b| b.name == a.name && b.components == a.components)
-                {
-                    Some(b) => {
-                        a.values.extend_from_slice(&b.values);
-                        true
+            // Which of theirs each of mine takes, by occurrence of its name.
+            let pairs: Vec<Option<usize>> = (0..mine.len())
+                .map(|i| {
+                    let a = &mine[i];
+                    let k = mine[..i]
+                        .iter()
+                        .filter(|b| b.name == a.name && b.components == a.components)
+                        .count();
+                    nth(theirs, &a.name, a.components, k)
+                })
+                .collect();
+            let mut used = vec![false; theirs.len()];
+            let mut kept = vec![];
+            for (a, pair) in std::mem::take(mine).into_iter().zip(pairs) {
+                match pair {
+                    Some(j) => {
+                        used[j] = true;
+                        let mut a = a;
+                        a.values.extend_from_slice(&theirs[j].values);
+                        kept.push(a);
                     }
-                    None => {
-                        dropped.push(a.name.clone());
-                        false
-                    }
+                    None => dropped.push(a.name),
                 }
-            });
-            for b in theirs {
-                if !mine
-                    .iter()
-                    .any(|a| a.name == b.name && a.components == b.components)
-                    && !dropped.contains(&b.name)
-                {
+            }
+            *mine = kept;
+            for (b, u) in theirs.iter().zip(used) {
+                if !u && !dropped.contains(&b.name) {
                     dropped.push(b.name.clone());
                 }
             }

@@ -890,4 +890,21 @@ fn appended_sets_keep_shared_attributes_in_order() {
     assert_eq!(d, ["bundle", "colors", "id"]);
     assert!(all.line_attributes.is_empty());
     assert!(all.validate().is_ok(), "{:?}", all.validate());
+    // An empty set is neutral wherever it comes (an empty .trk declares no attributes).
+    let mut first = Streamlines::new();
+    first.append(&Streamlines::new());
+    first.append(&a);
+    let mut last = a.clone();
+    assert!(last.append(&Streamlines::default()).is_empty());
+    assert_eq!(first.point_attributes, a.point_attributes);
+    assert_eq!(last.point_attributes, a.point_attributes);
+    // Shared attributes in another order keep their own values.
+    let mut c = a.clone();
+    c.point_attributes.reverse();
+    let mut ac = a.clone();
+    assert!(ac.append(&c).is_empty());
+    let fa = ac.point_attributes.iter().find(|x| x.name == "fa").unwrap();
+    let n = a.points.len();
+    assert_eq!(&fa.values[n..], &a.point_attributes[0].values[..]);
+    assert!(ac.validate().is_ok(), "{:?}", ac.validate());
 }

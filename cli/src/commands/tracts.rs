@@ -228,6 +228,9 @@ fn select(a: SelectArgs) -> Result<(), String> {
     }
     if let Some(m) = &matrix {
         s.transform(m);
+        // The input's grid no longer describes the moved points (a .trk or .trx header would
+        // place them by it).
+        s.reference = None;
     }
     let (out, sum) = sel
         .apply(&s)
