@@ -1924,7 +1924,7 @@ mod tests {
         .unwrap();
         let e = model(&s).err().expect("refused");
         assert!(
-            e.contains("annotate.colorbar") && e.contains("select kept no streamline"),
+            e.contains("annotate.colorbar") && e.contains("select or the slices' slabs kept none"),
             "{e}"
         );
         let m = model(&spec::parse(&text(""), "l.toml", &dir, &[]).unwrap()).unwrap();
