@@ -639,8 +639,8 @@ pub fn trace_to_file_with(a: &TraceArgs, t: &TimeArgs) -> Result<TraceReport, St
 
 /// Bytes a traced point takes at the peak: its sample while traced (position, time and speed
 /// in f64, with the growth of its line's buffer), the tractogram's point and attributes, and
-/// the writer's bytes (a million seeds through the blunt fin's 64^3 field: 7.7 GB at the peak
-/// for 94 M points, 82 bytes a point).
+/// the writer's bytes: 82 bytes a point measured, rounded up (README, `umbra trace`: 772 MB at
+/// the peak for 9.43 M points of 10^5 seeds through the blunt fin's velocity at 64^3).
 const BYTES_PER_POINT: u64 = 100;
 
 /// The most points a trace may hold, and the memory that sets it (`None`: no limit known).
