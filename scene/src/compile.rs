@@ -1657,6 +1657,18 @@ fn projection_of_nothing(s: &Scene, m: &Model) -> Option<String> {
     })
 }
 
+/// A note where `[[slices]]` are drawn by the illustrative method, which inks every surface
+/// in `render.illustrative.line`: a slice comes out one solid colour.
+fn inked_slices(s: &Scene) -> Option<String> {
+    (s.render.method == spec::Method::Illustrative && !s.slices.is_empty()).then(|| {
+        format!(
+            "method illustrative draws every surface in render.illustrative.line, the {} \
+             slice(s) too: they show no data (lineao or illuminated draw slices with lines)",
+            s.slices.len()
+        )
+    })
+}
+
 /// A note where the scene gives `camera.height` (an orthographic camera's view height, also
 /// keyed by a camera path) to a perspective camera: it changes nothing there.
 fn unused_camera_keys(s: &Scene) -> Option<String> {
@@ -1817,6 +1829,7 @@ impl Uploaded<'_> {
             .into_iter()
             .chain(unused_lineao_keys(s))
             .chain(unused_camera_keys(s))
+            .chain(inked_slices(s))
             .chain(projection_of_nothing(s, m))
             .collect();
         let draw = |v: &EaView| {
@@ -1938,6 +1951,24 @@ mod tests {
             "{:?}",
             m.notes
         );
+    }
+
+    /// Slices under the illustrative method are noted (they come out one solid ink); not under
+    /// other methods, and not without slices.
+    #[test]
+    fn slices_inked_by_the_illustrative_method_are_noted() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/vtk");
+        let note = |method: &str, slices: &str| {
+            let text = format!(
+                "[volume]\npath = \"headsq_64x64x93.nhdr\"\nrender = false\n{slices}[[lines]]\npath = \"../../tests/fixtures/tracts/dipy/tracks300.trk\"\n[render]\nmethod = \"{method}\"\n"
+            );
+            inked_slices(&spec::parse(&text, "s.toml", &dir, &[]).unwrap())
+        };
+        let sl = "[[slices]]\naxis = \"axial\"\n";
+        let e = note("illustrative", sl).expect("a note");
+        assert!(e.contains("the 1 slice(s) too"), "{e}");
+        assert!(note("lineao", sl).is_none());
+        assert!(note("illustrative", "").is_none());
     }
 
     /// `camera.height` on a perspective camera gets a note; not on an orthographic one, and not
