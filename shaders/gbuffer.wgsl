@@ -798,7 +798,7 @@ fn halo_at(v: VOut) -> Halo {
     }
     // A sample exactly on the core's edge (a line of odd width on the pixel grid) is core:
     // decided by rounding, the overlapping strips of a line's neighbouring segments would each
-    // draw it their own way.
+    // draw it their own way (Rust: occlusion::halos::EDGE_TOLERANCE, the same factor).
     h.rim = a > core * (1.0 + 1e-3);
     // The square caps hold the core only, reaching half the core's width beyond the point:
     // the joints stay closed while no rim lies beyond a segment's end, where it would hide

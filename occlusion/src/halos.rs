@@ -5,8 +5,8 @@
 //!
 //! | paper | CPU (this module) | GPU | checked by |
 //! |---|---|---|---|
-//! | eq. 1, view-facing strips (the printed norm is a typo for the unit vector) | - | `shaders/gbuffer.wgsl::vs_line` (screen-space offsets of `halo_width` line widths) | `engine/tests/lines_render.rs::strips_are_as_wide_as_asked_in_pixels_and_in_world_units` |
-//! | eq. 2, core or rim by the distance from the strip's centre | [`is_rim`] | `gbuffer.wgsl::halo_at` | `the_rim_starts_at_the_core_fraction` |
+//! | eq. 1, view-facing strips (the printed norm is a typo for the unit vector) | - | `shaders/gbuffer.wgsl::line_vertex` (`vs_line`, `vs_line_h`; screen-space offsets of `halo_width` line widths) | `engine/tests/lines_render.rs::strips_are_as_wide_as_asked_in_pixels_and_in_world_units` |
+//! | eq. 2, core or rim by the distance from the strip's centre (an edge point is core, [`EDGE_TOLERANCE`]; with MSAA each sample decides, `vs_line_h`) | [`is_rim`] | `gbuffer.wgsl::halo_at` | `the_rim_starts_at_the_core_fraction`, `lines_render.rs::a_haloed_cores_edge_on_pixel_centres_is_drawn_evenly_along_the_line` |
 //! | eq. 3, `d_new = d + d_max f(x)`, `f` linear, sqrt or square | [`displacement`], [`rim_depth`] | `halo_at`, `displacement`, `attachment_depth` | `displacements_map_0_1_onto_0_1` |
 //! | Appendix A, eq. 4, the visible halo width against the depth gap (two cases' signs corrected) | [`halo_gap`] | - | `halo_gap_follows_the_corrected_appendix`, `engine/tests/lines_render.rs::a_halo_gap_follows_the_corrected_appendix_a` |
 //! | §3.4 tapering, `u` non-linear over the end vertices | `tubes::lines::taper_u` | `vs_line` (`taper_t`, the mask on the whole strip) | `lines_render.rs::end_tapers_and_attribute_filters_shape_the_strip` |
@@ -56,10 +56,17 @@ pub fn inverse_displacement(f: Displacement, y: f64) -> f64 {
     }
 }
 
+/// How far (relatively) beyond the core's edge a point must be to be rim: a point on the edge
+/// is core, so that the overlapping strips of a line's neighbouring segments, each rounding
+/// its own interpolation, agree there (a 3-pixel line on the pixel grid came out dashed).
+/// `gbuffer.wgsl::halo_at` uses the same factor.
+pub const EDGE_TOLERANCE: f64 = 1e-3;
+
 /// Eq. 2: whether the point `x` across the strip (0 at its centre, 1 at its edge) is in the
-/// rim, for a strip `ratio = w_strip / w_line` times as wide as the line.
+/// rim, for a strip `ratio = w_strip / w_line` times as wide as the line (a point within
+/// [`EDGE_TOLERANCE`] of the core's edge is core).
 pub fn is_rim(x: f64, ratio: f64) -> bool {
-    x.abs() > 1.0 / ratio
+    x.abs() > (1.0 + EDGE_TOLERANCE) / ratio
 }
 
 /// Eq. 3: the depth of a rim point `x` across the strip of a line at depth `d`.
@@ -112,6 +119,10 @@ mod tests {
         assert!(!is_rim(0.16, 6.0));
         assert!(is_rim(0.17, 6.0));
         assert!(is_rim(-0.5, 6.0));
+        // The edge itself, and rounding about it, is core.
+        let edge = 1.0 / 6.0;
+        assert!(!is_rim(edge, 6.0) && !is_rim(edge * (1.0 + 1e-6), 6.0));
+        assert!(is_rim(edge * (1.0 + 2.0 * EDGE_TOLERANCE), 6.0));
     }
 
     #[test]
